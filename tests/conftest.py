@@ -1,0 +1,26 @@
+"""Shared fixtures. Warp runs on the CPU device; meshes come from Warp's shipped assets and tiny fixtures."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+import warp as wp
+
+wp.config.quiet = True
+
+WARP_ASSETS = os.path.join(os.path.dirname(wp.__file__), "examples", "assets")
+
+
+def warp_asset(name: str) -> str:
+    """Path of a mesh Warp ships in ``warp/examples/assets`` (bunny.usd, bear.usd, square_cloth.usd...)."""
+    path = os.path.join(WARP_ASSETS, name)
+    if not os.path.isfile(path):
+        pytest.fail(f"Warp asset {path} is missing: the warp-lang install is incomplete")
+    return path
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(1234)

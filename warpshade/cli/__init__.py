@@ -1,0 +1,55 @@
+"""The ``warpshade`` command. Each subcommand lives in its own module ``cmd_<name>.py`` defining
+``HELP`` (one line), ``add_arguments(parser)`` and ``run(args) -> int``; they are found by name,
+so adding a subcommand touches no other file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+
+def _subcommands():
+    pkg = sys.modules[__name__]
+    for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda i: i.name):
+        if info.name.startswith("cmd_"):
+            yield info.name[4:], f"{__name__}.{info.name}"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .. import __version__
+
+    parser = argparse.ArgumentParser(prog="warpshade", description="Warp cloth/character simulation, SH soft shadows, USD export.")
+    parser.add_argument("--version", action="version", version=f"warpshade {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, modname in _subcommands():
+        mod = importlib.import_module(modname)
+        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run, _extra_ok=getattr(mod, "ACCEPTS_EXTRA", False))
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``warpshade`` console script."""
+    parser = build_parser()
+    # Subcommands with ACCEPTS_EXTRA = True get unrecognised flags as ``args.extra`` (method knobs,
+    # which depend on another flag's value); the rest reject them as usual.
+    args, extra = parser.parse_known_args(argv)
+    if not getattr(args, "_run", None):
+        parser.print_help()
+        return 2
+    if extra and not args._extra_ok:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    args.extra = extra
+    try:
+        return int(args._run(args) or 0)
+    except (ValueError, OSError) as exc:  # user errors: one clear line, no traceback
+        print(f"warpshade {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

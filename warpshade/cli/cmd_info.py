@@ -1,0 +1,44 @@
+"""``warpshade info``: versions, Warp devices and the kernel cache location."""
+
+from __future__ import annotations
+
+import json
+import platform
+
+HELP = "print versions, Warp devices and the kernel cache location"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+
+
+def collect() -> dict:
+    import numpy
+    import warp as wp
+    from pxr import Usd
+
+    from .. import __version__
+
+    wp.config.quiet = True
+    wp.init()
+    return {
+        "warpshade": __version__,
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "warp": wp.__version__,
+        "numpy": numpy.__version__,
+        "usd": ".".join(str(v) for v in Usd.GetVersion()),
+        "devices": [str(d) for d in wp.get_devices()],
+        "preferred_device": str(wp.get_preferred_device()),
+        "kernel_cache": wp.config.kernel_cache_dir,
+    }
+
+
+def run(args) -> int:
+    info = collect()
+    if args.json:
+        print(json.dumps(info, indent=2))
+    else:
+        for k, v in info.items():
+            print(f"{k:17s} {', '.join(v) if isinstance(v, list) else v}")
+    return 0

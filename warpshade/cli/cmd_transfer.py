@@ -1,0 +1,83 @@
+"""``warpshade transfer``: per-vertex SH diffuse transfer of a mesh (CONTRACTS.md §3)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+HELP = "compute per-vertex SH diffuse transfer of a mesh with a visibility method"
+ACCEPTS_EXTRA = True  # method knobs, parsed once --method is known
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from ..visibility import METHODS
+
+    parser.add_argument("mesh", metavar="MESH", help=".usd/.usda/.usdc, .obj, .ply or .stl")
+    parser.add_argument("--method", required=True, choices=sorted(METHODS), help="visibility method")
+    parser.add_argument("--prim", default=None, help="USD prim path of the mesh (default: first Mesh)")
+    parser.add_argument("--order", type=int, default=5, help="SH order N (N*N coefficients), default 5")
+    parser.add_argument("--repeat", type=int, default=3, help="timed runs after one warm-up run")
+    parser.add_argument("--save", required=True, metavar="OUT.npz", help="output arrays")
+    parser.add_argument("--json", default=None, metavar="STATS.json", help="write timing and knobs")
+    parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
+    parser.epilog = "Method knobs (e.g. --rays for reference) follow; see README for each method's list."
+
+
+def parse_knobs(method_cls, extra: list[str]) -> dict:
+    """Parse the method's own ``--knob`` flags; unknown flags are an error naming them."""
+    p = argparse.ArgumentParser(prog=f"warpshade transfer --method {method_cls.name}", add_help=False)
+    method_cls.add_arguments(p)
+    ns, unknown = p.parse_known_args(extra)
+    if unknown:
+        raise ValueError(f"unknown option(s) for method '{method_cls.name}': {' '.join(unknown)}")
+    return method_cls.knobs_from_args(ns)
+
+
+def run(args) -> int:
+    from ..geometry import load_mesh
+    from ..timing import time_transfer
+    from ..visibility import get_method
+
+    cls = get_method(args.method)
+    knobs = parse_knobs(cls, args.extra)
+    mesh = load_mesh(args.mesh, prim=args.prim)
+    method = cls(mesh, order=args.order, device=args.device, **knobs)
+    seconds = time_transfer(method, repeat=args.repeat)
+    transfer = method.transfer_numpy()
+    save_npz(args.save, points=method.points.numpy(), normals=method.normals.numpy(), faces=mesh.faces,
+             transfer=transfer)
+    stats = {
+        "method": cls.name,
+        "order": method.order,
+        "vertices": mesh.num_vertices,
+        "triangles": mesh.num_faces,
+        "seconds": seconds,
+        "repeat": args.repeat,
+        "knobs": method.knobs(),
+        "mesh": mesh.name,
+        **method.stats(),
+    }
+    if args.json:
+        write_json(args.json, stats)
+    print(f"{cls.name}: {mesh.num_vertices} vertices, {mesh.num_faces} triangles, order {method.order}: "
+          f"{seconds * 1e3:.2f} ms per frame (median of {args.repeat}) -> {args.save}", file=sys.stderr)
+    return 0
+
+
+def save_npz(path: str, **arrays) -> None:
+    """Write an ``.npz`` atomically (temporary file, then rename)."""
+    import numpy as np
+
+    tmp = f"{path}.partial{os.getpid()}.npz"
+    np.savez(tmp, **{k: np.asarray(v, dtype=np.int32 if k == "faces" else np.float32) for k, v in arrays.items()})
+    os.replace(tmp, path)
+
+
+def write_json(path: str, data: dict) -> None:
+    """Write JSON atomically (temporary file, then rename)."""
+    tmp = f"{path}.partial{os.getpid()}"
+    with open(tmp, "w") as f:
+        json.dump(data, f, indent=2)
+    os.replace(tmp, path)

@@ -1,0 +1,5 @@
+"""Spherical harmonics core. The convention is defined once, in :mod:`warpshade.sh.basis`."""
+
+from .basis import MAX_ORDER, check_order, n_coeffs, normalization, sh_eval, sh_index
+
+__all__ = ["MAX_ORDER", "check_order", "n_coeffs", "normalization", "sh_eval", "sh_index"]

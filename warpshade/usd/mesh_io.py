@@ -1,0 +1,87 @@
+"""Reading triangle meshes from USD files (this package is the only one that imports ``pxr``)."""
+
+from __future__ import annotations
+
+import numpy as np
+from pxr import Usd, UsdGeom
+
+from ..geometry.mesh import MeshError
+
+
+def open_stage(path: str) -> Usd.Stage:
+    """Open a USD stage, turning USD's errors into a :class:`MeshError` that names the file."""
+    try:
+        stage = Usd.Stage.Open(path)
+    except Exception as exc:  # pxr raises Tf.ErrorException
+        raise MeshError(f"{path}: cannot open USD stage: {exc}") from exc
+    if stage is None:
+        raise MeshError(f"{path}: cannot open USD stage")
+    return stage
+
+
+def triangulate(counts: np.ndarray, indices: np.ndarray, name: str) -> np.ndarray:
+    """Fan-triangulate polygons given USD ``faceVertexCounts`` and ``faceVertexIndices``.
+
+    Returns:
+        Triangle indices, shape (F, 3), int32. Polygons with fewer than 3 corners are dropped.
+
+    Raises:
+        MeshError: if the counts do not add up to the number of indices.
+    """
+    counts = np.asarray(counts, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    if counts.sum() != len(indices):
+        raise MeshError(f"{name}: faceVertexCounts sum to {counts.sum()} but there are "
+                        f"{len(indices)} faceVertexIndices")
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    tris = []
+    for n in np.unique(counts):
+        if n < 3:
+            continue
+        s = starts[counts == n]
+        for k in range(1, n - 1):
+            tris.append(np.stack([indices[s], indices[s + k], indices[s + k + 1]], axis=1))
+    if not tris:
+        return np.zeros((0, 3), dtype=np.int32)
+    # keep polygons in file order so triangle order is stable across runs
+    order = np.concatenate([np.flatnonzero(counts == n).repeat(n - 2) for n in np.unique(counts) if n >= 3])
+    tri = np.concatenate(tris)
+    return tri[np.argsort(order, kind="stable")].astype(np.int32)
+
+
+def read_usd_mesh(path: str, prim_path: str | None = None, time=None):
+    """Read one mesh prim as world-space triangles.
+
+    Args:
+        path: USD file.
+        prim_path: Prim to read; default the first ``UsdGeom.Mesh`` in traversal order.
+        time: Time code (default: the default time).
+
+    Returns:
+        ``(points (V, 3) float32 [world units], faces (F, 3) int32, name)``.
+    """
+    stage = open_stage(path)
+    if prim_path is not None:
+        prim = stage.GetPrimAtPath(prim_path)
+        if not prim or not prim.IsValid():
+            raise MeshError(f"{path}: no prim at {prim_path}")
+        if not prim.IsA(UsdGeom.Mesh):
+            raise MeshError(f"{path}: prim {prim_path} is a {prim.GetTypeName() or 'typeless prim'}, not a Mesh")
+    else:
+        prim = next((p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)), None)
+        if prim is None:
+            raise MeshError(f"{path}: no Mesh prim in the stage")
+    name = f"{path}:{prim.GetPath()}"
+    t = Usd.TimeCode.Default() if time is None else Usd.TimeCode(time)
+    mesh = UsdGeom.Mesh(prim)
+    pts = mesh.GetPointsAttr().Get(t)
+    counts = mesh.GetFaceVertexCountsAttr().Get(t)
+    idx = mesh.GetFaceVertexIndicesAttr().Get(t)
+    if pts is None or counts is None or idx is None:
+        raise MeshError(f"{name}: mesh lacks points, faceVertexCounts or faceVertexIndices")
+    points = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+    xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t), dtype=np.float64)
+    # USD matrices act on row vectors: p' = [p, 1] @ M
+    points = points @ xf[:3, :3] + xf[3, :3]
+    faces = triangulate(np.asarray(counts), np.asarray(idx), name)
+    return points.astype(np.float32), faces, name

@@ -1,0 +1,112 @@
+"""The interface every visibility method shares (build once, ``update(points)`` per frame, ``transfer``).
+
+Every method produces the diffuse transfer vector of CONTRACTS.md §2 in world space:
+``T_p,i = ∫ y_i(ω) V_p(ω) max(0, n_p·ω) dω`` (SH convention: :mod:`warpshade.sh.basis`), so the
+pipeline, the benchmark and the planner treat all methods alike and compare them one to one.
+"""
+
+from __future__ import annotations
+
+import argparse
+from abc import ABC, abstractmethod
+from typing import ClassVar
+
+import numpy as np
+import warp as wp
+
+from ..geometry.mesh import TriMesh
+from ..geometry.normals import vertex_normals
+from ..sh.basis import check_order
+
+
+class TransferMethod(ABC):
+    """Base class of visibility methods that produce per-vertex SH transfer.
+
+    Subclasses build static structures in ``__init__`` (LUTs, rings, hierarchies) from the mesh's
+    topology and rest pose, then recompute :attr:`transfer` in :meth:`update` for new positions.
+
+    Args:
+        mesh: Mesh giving topology (fixed for the method's lifetime) and the rest pose.
+        order: SH order (CONTRACTS.md §1), 1..8.
+        device: Warp device.
+        **knobs: Method-specific settings (see :meth:`add_arguments`).
+    """
+
+    name: ClassVar[str] = ""
+    """Method name used on the command line (``--method NAME``)."""
+
+    def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", **knobs):
+        self.order = check_order(order)
+        self.device = device
+        self.mesh = mesh
+        self.faces = wp.array(mesh.faces, dtype=wp.int32, device=device)
+        self.points = wp.array(mesh.points, dtype=wp.vec3, device=device)
+        """Current vertex positions [m], shape (V,), dtype vec3."""
+        self.normals = wp.array(mesh.normals, dtype=wp.vec3, device=device)
+        """Current unit vertex normals, shape (V,), dtype vec3."""
+        self.transfer = wp.zeros((mesh.num_vertices, self.order * self.order), dtype=float, device=device)
+        """Diffuse transfer (CONTRACTS.md §2), shape (V, N*N), dtype float32, world space."""
+
+    # -- command line ------------------------------------------------------------------------
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        """Add this method's knobs to a parser (``--name`` flags with defaults)."""
+
+    @classmethod
+    def knobs_from_args(cls, args: argparse.Namespace) -> dict:
+        """Pick this method's knobs out of parsed arguments."""
+        return {}
+
+    # -- per frame ---------------------------------------------------------------------------
+    def set_points(self, points, normals=None) -> None:
+        """Copy new positions (and normals, else recompute angle-weighted ones) into the device arrays.
+
+        Args:
+            points: Positions [m], shape (V, 3) array-like or (V,) vec3 ``wp.array``.
+            normals: Optional unit normals of the same shape.
+        """
+        n = self.mesh.num_vertices
+        if isinstance(points, wp.array):
+            wp.copy(self.points, points)
+        else:
+            pts = np.asarray(points, dtype=np.float32)
+            if pts.shape != (n, 3):
+                raise ValueError(f"{self.mesh.name}: expected points of shape ({n}, 3), got {pts.shape}")
+            if not np.isfinite(pts).all():
+                v = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
+                raise ValueError(f"{self.mesh.name}: vertex {v} has a non-finite position {pts[v].tolist()}")
+            self.points.assign(pts)
+        if normals is None:
+            vertex_normals(self.points, self.faces, out=self.normals)
+        elif isinstance(normals, wp.array):
+            wp.copy(self.normals, normals)
+        else:
+            self.normals.assign(np.asarray(normals, dtype=np.float32))
+
+    def update(self, points=None, normals=None) -> wp.array:
+        """Recompute :attr:`transfer` for new vertex positions (the rest pose if None).
+
+        Returns:
+            :attr:`transfer`.
+        """
+        if points is not None:
+            self.set_points(points, normals)
+        self._compute()
+        return self.transfer
+
+    @abstractmethod
+    def _compute(self) -> None:
+        """Fill :attr:`transfer` from :attr:`points` and :attr:`normals`."""
+
+    # -- reporting ---------------------------------------------------------------------------
+    def knobs(self) -> dict:
+        """Every knob's value as used (for STATS.json and benchmarks)."""
+        return {}
+
+    def stats(self) -> dict:
+        """Method-specific counters from the last :meth:`update` (e.g. triangles rasterized)."""
+        return {}
+
+    def transfer_numpy(self) -> np.ndarray:
+        """:attr:`transfer` on the host, shape (V, N*N), float32."""
+        return self.transfer.numpy()

@@ -1,0 +1,94 @@
+"""Ray-traced reference transfer: the ground truth every other method is measured against.
+
+Monte-Carlo integration of the diffuse transfer of CONTRACTS.md §2 with ``wp.Mesh`` BVH ray casts
+(``wp.mesh_query_ray``): per vertex ``strata²`` stratified cosine-weighted directions (Shirley–Chiu
+concentric map), fixed seed, origins pushed off the surface along the normal by a distance that
+scales with the scene (so a mesh scaled by 1e-4 or 1e4 gives the same transfer).
+
+Error: stratified sampling of a smooth integrand converges faster than 1/sqrt(rays); visibility
+edges make it about 1/sqrt(rays) in the worst case. At 4096 rays the relative L2 error of an
+order-5 transfer is well under 1 % on Warp's bunny (measured in tests/test_reference.py).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+import warp as wp
+
+from ..geometry.mesh import TriMesh
+from ..sh.kernels import normalization_array
+from .base import TransferMethod
+from .reference_kernels import trace_transfer
+
+
+class ReferenceTransfer(TransferMethod):
+    """Ray-traced diffuse transfer.
+
+    Args:
+        mesh: Receiver mesh; it also occludes itself.
+        order: SH order.
+        device: Warp device.
+        rays: Rays per vertex; rounded to the nearest square ``s*s`` for stratification (``knobs()``
+            reports the count used).
+        seed: Random seed (results are deterministic for a given seed).
+        offset: Ray origin offset along the normal, as a fraction of the receiver's bounding-box
+            diagonal (default 1e-5).
+        occluders: Extra static meshes that cast shadows on ``mesh`` (they receive nothing).
+    """
+
+    name = "reference"
+
+    def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", rays: int = 1024, seed: int = 0,
+                 offset: float = 1e-5, occluders: list[TriMesh] | None = None):
+        super().__init__(mesh, order, device)
+        if rays < 1:
+            raise ValueError(f"rays must be >= 1, got {rays}")
+        self.strata = max(1, int(round(math.sqrt(rays))))
+        self.seed = int(seed)
+        self.offset_rel = float(offset)
+        self._k = normalization_array(self.order, device)
+        occluders = occluders or []
+        pts = [mesh.points] + [o.points for o in occluders]
+        faces, base = [mesh.faces], mesh.num_vertices
+        for o in occluders:
+            faces.append(o.faces + base)
+            base += o.num_vertices
+        all_pts = np.concatenate(pts).astype(np.float32)
+        self._scene_points = wp.array(all_pts, dtype=wp.vec3, device=device)
+        self._scene_faces = wp.array(np.concatenate(faces).reshape(-1).astype(np.int32), dtype=wp.int32, device=device)
+        self._bvh = wp.Mesh(points=self._scene_points, indices=self._scene_faces)
+
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        parser.add_argument("--rays", type=int, default=1024, help="rays per vertex (rounded to a square)")
+        parser.add_argument("--seed", type=int, default=0, help="random seed")
+        parser.add_argument("--offset", type=float, default=1e-5,
+                            help="ray origin offset along the normal, fraction of the receiver's bbox diagonal")
+
+    @classmethod
+    def knobs_from_args(cls, args) -> dict:
+        return {"rays": args.rays, "seed": args.seed, "offset": args.offset}
+
+    def knobs(self) -> dict:
+        return {"rays": self.strata * self.strata, "seed": self.seed, "offset": self.offset_rel}
+
+    def _compute(self) -> None:
+        n = self.mesh.num_vertices
+        wp.copy(self._scene_points, self.points, count=n)
+        self._bvh.refit()
+        pts = self._scene_points.numpy()
+        recv = pts[:n]
+        # offset scales with the receiver (scale invariance); rays reach past the whole scene
+        diag = float(np.linalg.norm(recv.max(axis=0) - recv.min(axis=0))) or 1.0
+        scene_diag = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) or 1.0
+        wp.launch(
+            trace_transfer,
+            dim=n,
+            inputs=[self._bvh.id, self.points, self.normals, self.strata, self.offset_rel * diag, 4.0 * scene_diag,
+                    self.seed, self.order, self._k],
+            outputs=[self.transfer],
+            device=self.device,
+        )
