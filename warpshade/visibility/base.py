@@ -57,6 +57,14 @@ class TransferMethod(ABC):
         """Pick this method's knobs out of parsed arguments."""
         return {}
 
+    @classmethod
+    def sweep(cls, quick: bool = False) -> list[dict]:
+        """Knob settings ``warpshade bench`` measures for this method (``quick``: a few, < 2 min total).
+
+        Every entry is a dict of constructor keyword arguments; the default settings must be one of them.
+        """
+        return [{}]
+
     # -- per frame ---------------------------------------------------------------------------
     def set_points(self, points, normals=None) -> None:
         """Copy new positions (and normals, else recompute angle-weighted ones) into the device arrays.

@@ -72,6 +72,10 @@ class ReferenceTransfer(TransferMethod):
     def knobs_from_args(cls, args) -> dict:
         return {"rays": args.rays, "seed": args.seed, "offset": args.offset}
 
+    @classmethod
+    def sweep(cls, quick: bool = False) -> list[dict]:
+        return [{"rays": n} for n in ((64, 256, 1024) if quick else (16, 64, 256, 1024, 4096))]
+
     def knobs(self) -> dict:
         return {"rays": self.strata * self.strata, "seed": self.seed, "offset": self.offset_rel}
 
