@@ -1,0 +1,364 @@
+"""Kernels of hemispherical rasterization (Kautz et al. 2004); orchestration lives in :mod:`.method`.
+
+Per frame: :func:`follow_coarse_points` (coarse vertices ride the fine mesh), :func:`refit_clusters`
+and :func:`refit_super_clusters` (bounding boxes), then one :func:`rasterize_transfer` launch that,
+per receiver vertex, rasterizes blockers into a bit mask and integrates it into SH transfer.
+Mask layout, LUT convention and block tables: :mod:`.tables`.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from ...sh.kernels import sh_accumulate
+from ..reference_kernels import orthonormal_basis
+
+
+@wp.func
+def popcount64(x: wp.uint64) -> int:
+    """Number of set bits (SWAR; Warp has no popcount intrinsic)."""
+    x = x - ((x >> wp.uint64(1)) & wp.uint64(0x5555555555555555))
+    x = (x & wp.uint64(0x3333333333333333)) + ((x >> wp.uint64(2)) & wp.uint64(0x3333333333333333))
+    x = (x + (x >> wp.uint64(4))) & wp.uint64(0x0F0F0F0F0F0F0F0F)
+    return int((x * wp.uint64(0x0101010101010101)) >> wp.uint64(56))
+
+
+@wp.func
+def cube_cell(n: wp.vec3, res: int) -> int:
+    """LUT row of a plane normal (cube-map cell; convention in :mod:`.tables`, mirrored by ``cube_cell_np``)."""
+    ax = wp.abs(n[0])
+    ay = wp.abs(n[1])
+    az = wp.abs(n[2])
+    face = int(0)
+    major = float(0.0)
+    u = float(0.0)
+    v = float(0.0)
+    if ax >= ay and ax >= az:
+        major = n[0]
+        u = n[1]
+        v = n[2]
+        face = 0
+    elif ay >= az:
+        major = n[1]
+        u = n[2]
+        v = n[0]
+        face = 2
+    else:
+        major = n[2]
+        u = n[0]
+        v = n[1]
+        face = 4
+    if major < 0.0:
+        face = face + 1
+    am = wp.abs(major)
+    half = 0.5 * float(res)
+    iu = wp.clamp(int((u / am + 1.0) * half), 0, res - 1)
+    iv = wp.clamp(int((v / am + 1.0) * half), 0, res - 1)
+    return (face * res + iu) * res + iv
+
+
+@wp.func
+def rasterize_triangle(
+    a: wp.vec3,
+    b: wp.vec3,
+    c: wp.vec3,
+    frame: wp.mat33,
+    lut: wp.array2d[wp.uint64],
+    lut_res: int,
+    words: int,
+    mask: wp.array2d[wp.uint64],
+    row: int,
+) -> int:
+    """OR the spherical image of triangle (a, b, c) (positions relative to the receiver) into ``mask[row]``.
+
+    Paper §3.1.1: each edge and the receiver span a plane; a pixel is inside the image when it is
+    above all three planes, so the image is the AND of three LUT masks, and occluders fuse by OR
+    (no depth, any order). Planes are oriented by the sign of ``det[a b c]`` so both windings block.
+
+    Returns:
+        0 when culled (wholly at or below the horizon, or degenerate / edge-on: zero solid angle),
+        1 when rasterized with an empty image, 2 when it set at least one bit.
+    """
+    # horizon cull first (3 dots): a triangle wholly at or below the tangent plane has no image,
+    # and quantised planes would otherwise leak bits at the disk rim
+    nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
+    if wp.dot(nz, a) <= 0.0 and wp.dot(nz, b) <= 0.0 and wp.dot(nz, c) <= 0.0:
+        return 0
+    ft = wp.transpose(frame)
+    la = ft * a
+    lb = ft * b
+    lc = ft * c
+    nab = wp.cross(la, lb)
+    nbc = wp.cross(lb, lc)
+    nca = wp.cross(lc, la)
+    det = wp.dot(la, nbc)
+    if det == 0.0:
+        return 0
+    if det < 0.0:
+        nab = -nab
+        nbc = -nbc
+        nca = -nca
+    i0 = cube_cell(nab, lut_res)
+    i1 = cube_cell(nbc, lut_res)
+    i2 = cube_cell(nca, lut_res)
+    hit = wp.uint64(0)
+    for w in range(words):
+        m = lut[i0, w] & lut[i1, w] & lut[i2, w]
+        hit = hit | m
+        mask[row, w] = mask[row, w] | m
+    if hit != wp.uint64(0):
+        return 2
+    return 1
+
+
+@wp.func
+def box_above_plane(lo: wp.vec3, hi: wp.vec3, n: wp.vec3, offset: float) -> bool:
+    """True when some corner of box [lo, hi] has ``n·x > offset`` (the box reaches above the tangent plane)."""
+    center = 0.5 * (lo + hi)
+    half = 0.5 * (hi - lo)
+    reach = wp.dot(n, center) + wp.abs(n[0]) * half[0] + wp.abs(n[1]) * half[1] + wp.abs(n[2]) * half[2]
+    return reach > offset
+
+
+@wp.kernel
+def follow_coarse_points(
+    points: wp.array[wp.vec3],
+    faces: wp.array2d[wp.int32],
+    bind_face: wp.array[wp.int32],
+    bind_bary: wp.array[wp.vec3],
+    bind_offset: wp.array[float],
+    coarse_points: wp.array[wp.vec3],
+):
+    """Coarse vertex = barycentric point of its bound fine triangle + offset along that triangle's unit normal."""
+    i = wp.tid()
+    f = bind_face[i]
+    a = points[faces[f, 0]]
+    b = points[faces[f, 1]]
+    c = points[faces[f, 2]]
+    w = bind_bary[i]
+    q = w[0] * a + w[1] * b + w[2] * c
+    n = wp.cross(b - a, c - a)
+    ln = wp.length(n)
+    if ln > 0.0:
+        q = q + n * (bind_offset[i] / ln)
+    coarse_points[i] = q
+
+
+@wp.kernel
+def refit_clusters(
+    points: wp.array[wp.vec3],
+    faces: wp.array2d[wp.int32],
+    cluster_start: wp.array[wp.int32],
+    lo: wp.array[wp.vec3],
+    hi: wp.array[wp.vec3],
+):
+    """Bounding box of each cluster's triangles (clusters are contiguous triangle ranges)."""
+    c = wp.tid()
+    bmin = wp.vec3(1.0e30, 1.0e30, 1.0e30)
+    bmax = wp.vec3(-1.0e30, -1.0e30, -1.0e30)
+    for t in range(cluster_start[c], cluster_start[c + 1]):
+        for k in range(3):
+            p = points[faces[t, k]]
+            bmin = wp.min(bmin, p)
+            bmax = wp.max(bmax, p)
+    lo[c] = bmin
+    hi[c] = bmax
+
+
+@wp.kernel
+def refit_super_clusters(
+    cluster_lo: wp.array[wp.vec3],
+    cluster_hi: wp.array[wp.vec3],
+    super_start: wp.array[wp.int32],
+    lo: wp.array[wp.vec3],
+    hi: wp.array[wp.vec3],
+):
+    """Bounding box of each super-cluster from its clusters' boxes."""
+    s = wp.tid()
+    bmin = wp.vec3(1.0e30, 1.0e30, 1.0e30)
+    bmax = wp.vec3(-1.0e30, -1.0e30, -1.0e30)
+    for c in range(super_start[s], super_start[s + 1]):
+        bmin = wp.min(bmin, cluster_lo[c])
+        bmax = wp.max(bmax, cluster_hi[c])
+    lo[s] = bmin
+    hi[s] = bmax
+
+
+@wp.func
+def excluded(excl: wp.array2d[wp.uint32], v: int, t: int) -> bool:
+    """Bit ``t`` of receiver ``v``'s exclusion set."""
+    return (excl[v, t >> 5] >> wp.uint32(t & 31)) & wp.uint32(1) != wp.uint32(0)
+
+
+@wp.func
+def rasterize_blocker(
+    t: int,
+    v: int,
+    p: wp.vec3,
+    bpoints: wp.array[wp.vec3],
+    bfaces: wp.array2d[wp.int32],
+    bsource: wp.array[wp.int32],
+    skip_incident: int,
+    use_excl: int,
+    excl: wp.array2d[wp.uint32],
+    frame: wp.mat33,
+    lut: wp.array2d[wp.uint64],
+    lut_res: int,
+    words: int,
+    mask: wp.array2d[wp.uint64],
+    record: int,
+    hits: wp.array2d[wp.uint32],
+) -> int:
+    """Rasterize blocker triangle ``t`` for receiver ``v`` after the incident / near-field skips; returns 0/1."""
+    i = bfaces[t, 0]
+    j = bfaces[t, 1]
+    k = bfaces[t, 2]
+    if skip_incident != 0:
+        if i == v or j == v or k == v:
+            return 0
+    src = bsource[t]
+    if use_excl != 0:
+        if excluded(excl, v, src):
+            return 0
+    r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, frame, lut, lut_res, words, mask, v)
+    if record != 0 and r == 2:
+        hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
+    if r > 0:
+        return 1
+    return 0
+
+
+@wp.kernel
+def rasterize_transfer(
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    faces: wp.array2d[wp.int32],
+    ring_start: wp.array[wp.int32],
+    ring_tris: wp.array[wp.int32],
+    bpoints: wp.array[wp.vec3],
+    bfaces: wp.array2d[wp.int32],
+    bsource: wp.array[wp.int32],
+    skip_incident: int,
+    use_excl: int,
+    excl: wp.array2d[wp.uint32],
+    use_cull: int,
+    cluster_start: wp.array[wp.int32],
+    cluster_lo: wp.array[wp.vec3],
+    cluster_hi: wp.array[wp.vec3],
+    super_start: wp.array[wp.int32],
+    super_lo: wp.array[wp.vec3],
+    super_hi: wp.array[wp.vec3],
+    use_pvs: int,
+    pvs_start: wp.array[wp.int32],
+    pvs_tris: wp.array[wp.int32],
+    lut: wp.array2d[wp.uint64],
+    lut_res: int,
+    words: int,
+    block_word: wp.array[wp.int32],
+    block_bits: wp.array[wp.uint64],
+    block_valid: wp.array[wp.int32],
+    block_weights: wp.array2d[float],
+    block_dirs: wp.array[wp.vec3],
+    unoccluded: wp.array[float],
+    glossy: int,
+    view: wp.vec3,
+    phong: float,
+    rot_dirs: wp.array[wp.vec3],
+    rot_pinv: wp.array2d[float],
+    band: wp.array[wp.int32],
+    order: int,
+    sh_norm: wp.array[float],
+    record: int,
+    mask: wp.array2d[wp.uint64],
+    local: wp.array2d[float],
+    proj: wp.array2d[float],
+    scratch: wp.array2d[float],
+    hits: wp.array2d[wp.uint32],
+    counts: wp.array[wp.int32],
+    transfer: wp.array2d[float],
+):
+    """Per receiver vertex: rasterize its blockers, integrate the mask into SH, rotate to world (paper eq. 3).
+
+    Blockers: the receiver's full-resolution k-ring (``ring_*``) plus the blocker mesh (``b*``:
+    coarse mesh, or the fine mesh itself when the hierarchy is off), traversed through the
+    culled super-cluster / cluster hierarchy, linearly, or through the receiver's PVS list.
+
+    Integration: with ``f_b`` the blocked fraction of block b, diffuse transfer in the tangent frame
+    is ``Σ_b W_b - Σ_b f_b W_b`` (CONTRACTS.md §2 with ``dA = cos θ dω``); glossy (``glossy=1``)
+    weighs visible blocks by the normalised Phong lobe ``(e+2)/(2π) max(0, r·s_b)^e`` around the
+    mirrored view direction (eq. 3 with ``f_r`` Phong, constant over a block). The local vector is
+    rotated to world space band by band by sampling (:func:`.tables.rotation_directions`).
+    """
+    v = wp.tid()
+    p = points[v]
+    n = normals[v]
+    frame = orthonormal_basis(n)
+    nn = order * order
+    for w in range(words):
+        mask[v, w] = wp.uint64(0)
+    count = int(0)
+    # near field at full resolution
+    for r in range(ring_start[v], ring_start[v + 1]):
+        t = ring_tris[r]
+        count += wp.min(1, rasterize_triangle(points[faces[t, 0]] - p, points[faces[t, 1]] - p,
+                                              points[faces[t, 2]] - p, frame, lut, lut_res, words, mask, v))
+    # far field
+    offset = wp.dot(n, p)
+    if use_pvs != 0:
+        for r in range(pvs_start[v], pvs_start[v + 1]):
+            count += rasterize_blocker(pvs_tris[r], v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
+                                       frame, lut, lut_res, words, mask, record, hits)
+    elif use_cull != 0:
+        for s in range(super_start.shape[0] - 1):
+            if box_above_plane(super_lo[s], super_hi[s], n, offset):
+                for c in range(super_start[s], super_start[s + 1]):
+                    if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
+                        for t in range(cluster_start[c], cluster_start[c + 1]):
+                            count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl,
+                                                       excl, frame, lut, lut_res, words, mask, record, hits)
+    else:
+        for t in range(bfaces.shape[0]):
+            count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
+                                       frame, lut, lut_res, words, mask, record, hits)
+    counts[v] = count
+
+    # integrate (tangent frame)
+    if glossy == 0:
+        for i in range(nn):
+            local[v, i] = unoccluded[i]
+    else:
+        for i in range(nn):
+            local[v, i] = 0.0
+    lv = wp.transpose(frame) * view
+    refl = wp.vec3(-lv[0], -lv[1], lv[2])  # mirror of the view direction about the normal (+z)
+    lobe_norm = (phong + 2.0) / (2.0 * wp.pi)
+    for b in range(block_word.shape[0]):
+        blocked = popcount64(mask[v, block_word[b]] & block_bits[b])
+        frac = float(blocked) / float(block_valid[b])
+        if glossy == 0:
+            if blocked > 0:
+                for i in range(nn):
+                    local[v, i] = local[v, i] - frac * block_weights[b, i]
+        else:
+            cosr = wp.dot(refl, block_dirs[b])
+            if cosr > 0.0 and blocked < block_valid[b]:
+                wgt = (1.0 - frac) * lobe_norm * wp.pow(cosr, phong)
+                for i in range(nn):
+                    local[v, i] = local[v, i] + wgt * block_weights[b, i]
+
+    # rotate to world: g_l = Y_l(Q S) (Y_l(S)^+ c_l)
+    nk = rot_dirs.shape[0]
+    for k in range(nk):
+        for l in range(order):
+            acc = float(0.0)
+            for i in range(l * l, (l + 1) * (l + 1)):
+                acc += rot_pinv[k, i] * local[v, i]
+            proj[v, k * order + l] = acc
+    for i in range(nn):
+        transfer[v, i] = 0.0
+    for k in range(nk):
+        for i in range(nn):
+            scratch[v, i] = 0.0
+        sh_accumulate(frame * rot_dirs[k], 1.0, order, sh_norm, scratch, v)
+        for i in range(nn):
+            transfer[v, i] = transfer[v, i] + scratch[v, i] * proj[v, k * order + band[i]]
