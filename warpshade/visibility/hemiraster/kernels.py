@@ -25,35 +25,23 @@ def popcount64(x: wp.uint64) -> int:
 
 @wp.func
 def cube_cell(n: wp.vec3, res: int) -> int:
-    """LUT row of a plane normal (cube-map cell; convention in :mod:`.tables`, mirrored by ``cube_cell_np``)."""
+    """LUT row of a plane normal (cube-map cell; convention in :mod:`.tables`, mirrored by ``cube_cell_np``).
+
+    Branch-free selects: the major axis changes from edge to edge, so branches would mispredict.
+    """
     ax = wp.abs(n[0])
     ay = wp.abs(n[1])
     az = wp.abs(n[2])
-    face = int(0)
-    major = float(0.0)
-    u = float(0.0)
-    v = float(0.0)
-    if ax >= ay and ax >= az:
-        major = n[0]
-        u = n[1]
-        v = n[2]
-        face = 0
-    elif ay >= az:
-        major = n[1]
-        u = n[2]
-        v = n[0]
-        face = 2
-    else:
-        major = n[2]
-        u = n[0]
-        v = n[1]
-        face = 4
-    if major < 0.0:
-        face = face + 1
-    am = wp.abs(major)
+    use_x = ax >= ay and ax >= az
+    use_y = (not use_x) and ay >= az
+    major = wp.where(use_x, n[0], wp.where(use_y, n[1], n[2]))
+    u = wp.where(use_x, n[1], wp.where(use_y, n[2], n[0]))
+    v = wp.where(use_x, n[2], wp.where(use_y, n[0], n[1]))
+    face = wp.where(use_x, 0, wp.where(use_y, 2, 4)) + wp.where(major < 0.0, 1, 0)
     half = 0.5 * float(res)
-    iu = wp.clamp(int((u / am + 1.0) * half), 0, res - 1)
-    iv = wp.clamp(int((v / am + 1.0) * half), 0, res - 1)
+    inv = half / wp.abs(major)
+    iu = wp.clamp(int(u * inv + half), 0, res - 1)
+    iv = wp.clamp(int(v * inv + half), 0, res - 1)
     return (face * res + iu) * res + iv
 
 
@@ -101,11 +89,16 @@ def rasterize_triangle(
     i0 = cube_cell(nab, lut_res)
     i1 = cube_cell(nbc, lut_res)
     i2 = cube_cell(nca, lut_res)
+    # column ``words`` holds each row's bitmap of non-zero words: skip words no triangle bit can touch
+    occ = lut[i0, words] & lut[i1, words] & lut[i2, words]
+    if occ == wp.uint64(0):
+        return 1
     hit = wp.uint64(0)
     for w in range(words):
-        m = lut[i0, w] & lut[i1, w] & lut[i2, w]
-        hit = hit | m
-        mask[row, w] = mask[row, w] | m
+        if (occ >> wp.uint64(w)) & wp.uint64(1) != wp.uint64(0):
+            m = lut[i0, w] & lut[i1, w] & lut[i2, w]
+            hit = hit | m
+            mask[row, w] = mask[row, w] | m
     if hit != wp.uint64(0):
         return 2
     return 1
@@ -254,8 +247,7 @@ def rasterize_transfer(
     lut: wp.array2d[wp.uint64],
     lut_res: int,
     words: int,
-    block_word: wp.array[wp.int32],
-    block_bits: wp.array[wp.uint64],
+    block_bits: int,
     block_valid: wp.array[wp.int32],
     block_weights: wp.array2d[float],
     block_dirs: wp.array[wp.vec3],
@@ -265,14 +257,12 @@ def rasterize_transfer(
     phong: float,
     rot_dirs: wp.array[wp.vec3],
     rot_pinv: wp.array2d[float],
-    band: wp.array[wp.int32],
     order: int,
     sh_norm: wp.array[float],
     record: int,
     mask: wp.array2d[wp.uint64],
     local: wp.array2d[float],
-    proj: wp.array2d[float],
-    scratch: wp.array2d[float],
+    scaled_norm: wp.array2d[float],
     hits: wp.array2d[wp.uint32],
     counts: wp.array[wp.int32],
     transfer: wp.array2d[float],
@@ -322,43 +312,53 @@ def rasterize_transfer(
                                        frame, lut, lut_res, words, mask, record, hits)
     counts[v] = count
 
-    # integrate (tangent frame)
+    # integrate (tangent frame): unoccluded integral minus blocked fractions of blocks
+    lv = wp.transpose(frame) * view
+    refl = wp.vec3(-lv[0], -lv[1], lv[2])  # mirror of the view direction about the normal (+z)
+    lobe_norm = (phong + 2.0) / (2.0 * wp.pi)
     if glossy == 0:
         for i in range(nn):
             local[v, i] = unoccluded[i]
     else:
         for i in range(nn):
             local[v, i] = 0.0
-    lv = wp.transpose(frame) * view
-    refl = wp.vec3(-lv[0], -lv[1], lv[2])  # mirror of the view direction about the normal (+z)
-    lobe_norm = (phong + 2.0) / (2.0 * wp.pi)
-    for b in range(block_word.shape[0]):
-        blocked = popcount64(mask[v, block_word[b]] & block_bits[b])
-        frac = float(blocked) / float(block_valid[b])
-        if glossy == 0:
-            if blocked > 0:
-                for i in range(nn):
-                    local[v, i] = local[v, i] - frac * block_weights[b, i]
-        else:
+        for b in range(block_valid.shape[0]):
             cosr = wp.dot(refl, block_dirs[b])
-            if cosr > 0.0 and blocked < block_valid[b]:
-                wgt = (1.0 - frac) * lobe_norm * wp.pow(cosr, phong)
+            if cosr > 0.0:
+                lobe = lobe_norm * wp.pow(cosr, phong)
                 for i in range(nn):
-                    local[v, i] = local[v, i] + wgt * block_weights[b, i]
+                    local[v, i] = local[v, i] + lobe * block_weights[b, i]
+    per_word = 64 // block_bits
+    run = wp.uint64(0xFFFFFFFFFFFFFFFF)
+    if block_bits < 64:
+        run = (wp.uint64(1) << wp.uint64(block_bits)) - wp.uint64(1)
+    for w in range(words):
+        x = mask[v, w]
+        if x != wp.uint64(0):
+            for j in range(per_word):
+                bits = (x >> wp.uint64(j * block_bits)) & run
+                if bits != wp.uint64(0):
+                    b = w * per_word + j
+                    wgt = float(popcount64(bits)) / float(block_valid[b])
+                    if glossy != 0:
+                        cosr = wp.dot(refl, block_dirs[b])
+                        if cosr > 0.0:
+                            wgt = wgt * lobe_norm * wp.pow(cosr, phong)
+                        else:
+                            wgt = 0.0
+                    for i in range(nn):
+                        local[v, i] = local[v, i] - wgt * block_weights[b, i]
 
-    # rotate to world: g_l = Y_l(Q S) (Y_l(S)^+ c_l)
-    nk = rot_dirs.shape[0]
-    for k in range(nk):
+    # rotate to world, band by band: g_l = Σ_k y_l(Q s_k) (Y_l(S)^+ c_l)_k. The per-band factor of
+    # direction k is folded into the normalisation constants handed to sh_accumulate (one SH
+    # evaluation per direction, accumulated straight into the output row).
+    for i in range(nn):
+        transfer[v, i] = 0.0
+    for k in range(rot_dirs.shape[0]):
         for l in range(order):
             acc = float(0.0)
             for i in range(l * l, (l + 1) * (l + 1)):
                 acc += rot_pinv[k, i] * local[v, i]
-            proj[v, k * order + l] = acc
-    for i in range(nn):
-        transfer[v, i] = 0.0
-    for k in range(nk):
-        for i in range(nn):
-            scratch[v, i] = 0.0
-        sh_accumulate(frame * rot_dirs[k], 1.0, order, sh_norm, scratch, v)
-        for i in range(nn):
-            transfer[v, i] = transfer[v, i] + scratch[v, i] * proj[v, k * order + band[i]]
+            for i in range(l * l, (l + 1) * (l + 1)):
+                scaled_norm[v, i] = sh_norm[i] * acc
+        sh_accumulate(frame * rot_dirs[k], 1.0, order, scaled_norm[v], transfer, v)

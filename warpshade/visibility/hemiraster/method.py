@@ -59,8 +59,8 @@ class HemirasterTransfer(TransferMethod):
     name = "hemiraster"
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 64,
-                 downsample: int = 4, ring: int = 2, coarse: int = 512, cull: bool = True, cluster: int = 16,
-                 exclude: float = 1.0, mode: str = "diffuse", view=(0.0, 0.0, 1.0), phong: float = 8.0,
+                 downsample: int = 2, ring: int = 2, coarse: int = 256, cull: bool = True, cluster: int = 16,
+                 exclude: float = 0.35, mode: str = "diffuse", view=(0.0, 0.0, 1.0), phong: float = 8.0,
                  lut_dir: str | None = None, pvs_frames=None):
         super().__init__(mesh, order, device)
         tables.check_mask(int(mask), int(downsample))
@@ -92,8 +92,6 @@ class HemirasterTransfer(TransferMethod):
         self._lut = wp.array(lut_np, dtype=wp.uint64, device=d)
         self._words = tables.words_per_mask(self.mask_res)
         blocks = tables.block_tables(self.mask_res, self.downsample, self.order)
-        self._block_word = wp.array(blocks["word"], dtype=wp.int32, device=d)
-        self._block_bits = wp.array(blocks["bits"], dtype=wp.uint64, device=d)
         self._block_valid = wp.array(blocks["valid"], dtype=wp.int32, device=d)
         self._block_weights = wp.array(blocks["weights"].astype(np.float32), dtype=float, device=d)
         self._block_dirs = wp.array(blocks["dirs"].astype(np.float32), dtype=wp.vec3, device=d)
@@ -101,8 +99,6 @@ class HemirasterTransfer(TransferMethod):
         rot_dirs, rot_pinv = tables.rotation_directions(self.order)
         self._rot_dirs = wp.array(rot_dirs.astype(np.float32), dtype=wp.vec3, device=d)
         self._rot_pinv = wp.array(rot_pinv.astype(np.float32), dtype=float, device=d)
-        self._band = wp.array(np.repeat(np.arange(self.order), 2 * np.arange(self.order) + 1).astype(np.int32),
-                              dtype=wp.int32, device=d)
         self._sh_norm = normalization_array(self.order, d)
 
         # two-level hierarchy: fine k-ring + coarse mesh riding the fine one, or the full mesh alone
@@ -142,8 +138,7 @@ class HemirasterTransfer(TransferMethod):
         nn = self.order * self.order
         self._mask = wp.zeros((nv, self._words), dtype=wp.uint64, device=d)
         self._local = wp.zeros((nv, nn), dtype=float, device=d)
-        self._proj = wp.zeros((nv, len(rot_dirs) * self.order), dtype=float, device=d)
-        self._scratch = wp.zeros((nv, nn), dtype=float, device=d)
+        self._scaled_norm = wp.zeros((nv, nn), dtype=float, device=d)
         self._counts = wp.zeros(nv, dtype=wp.int32, device=d)
         self._hits = wp.zeros((1, 1), dtype=wp.uint32, device=d)
         self._pvs = None
@@ -164,13 +159,15 @@ class HemirasterTransfer(TransferMethod):
         parser.add_argument("--mask", type=int, default=32, choices=tables.MASK_SIZES,
                             help="visibility mask pixels across (default 32)")
         parser.add_argument("--lut", type=int, default=64, help="plane LUT cube-map resolution R (6*R*R planes)")
-        parser.add_argument("--downsample", type=int, default=4, choices=(1, 2, 4, 8),
-                            help="coverage block size in pixels (default 4)")
+        parser.add_argument("--downsample", type=int, default=2, choices=(1, 2, 4, 8),
+                            help="coverage block size in pixels (default 2)")
         parser.add_argument("--ring", type=int, default=2, choices=(1, 2, 3), help="full-resolution k-ring (default 2)")
-        parser.add_argument("--coarse", type=int, default=512,
-                            help="coarse far-field mesh triangles (0: no hierarchy, full mesh); default 512")
+        parser.add_argument("--coarse", type=int, default=256,
+                            help="coarse far-field mesh triangles (0: no hierarchy, full mesh); default 256")
         parser.add_argument("--no-cull", dest="cull", action="store_false", help="disable cluster culling")
         parser.add_argument("--cluster", type=int, default=16, help="triangles per culling cluster (default 16)")
+        parser.add_argument("--exclude", type=float, default=0.35,
+                            help="coarse triangles nearer than this many k-ring radii are left to the k-ring")
         parser.add_argument("--mode", choices=("diffuse", "glossy"), default="diffuse",
                             help="diffuse transfer (CONTRACTS §2) or glossy Phong transfer for --view")
         parser.add_argument("--view", type=_parse_vec3, default=(0.0, 0.0, 1.0),
@@ -181,7 +178,8 @@ class HemirasterTransfer(TransferMethod):
     @classmethod
     def knobs_from_args(cls, args) -> dict:
         return {"mask": args.mask, "lut": args.lut, "downsample": args.downsample, "ring": args.ring,
-                "coarse": args.coarse, "cull": args.cull, "cluster": args.cluster, "mode": args.mode,
+                "coarse": args.coarse, "cull": args.cull, "cluster": args.cluster, "exclude": args.exclude,
+                "mode": args.mode,
                 "view": tuple(args.view), "phong": args.phong, "lut_dir": args.lut_dir}
 
     @classmethod
@@ -191,8 +189,8 @@ class HemirasterTransfer(TransferMethod):
         out = [{}]
         out += [{"mask": m} for m in (8, 16, 64)]
         out += [{"lut": r} for r in (32, 128)]
-        out += [{"downsample": s} for s in (1, 2, 8)]
-        out += [{"ring": 1}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 0}, {"cull": False}]
+        out += [{"downsample": s} for s in (1, 4)]
+        out += [{"ring": 1}, {"coarse": 160}, {"coarse": 512}, {"coarse": 0}, {"cull": False}]
         return out
 
     def knobs(self) -> dict:
@@ -241,10 +239,10 @@ class HemirasterTransfer(TransferMethod):
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
                     self._lut, self.lut_res, self._words,
-                    self._block_word, self._block_bits, self._block_valid, self._block_weights, self._block_dirs,
+                    self.downsample * self.downsample, self._block_valid, self._block_weights, self._block_dirs,
                     self._unoccluded, 1 if self.mode == "glossy" else 0, wp.vec3(*self.view.astype(np.float32)),
-                    self.phong, self._rot_dirs, self._rot_pinv, self._band, self.order, self._sh_norm, record],
-            outputs=[self._mask, self._local, self._proj, self._scratch, self._hits, self._counts, self.transfer],
+                    self.phong, self._rot_dirs, self._rot_pinv, self.order, self._sh_norm, record],
+            outputs=[self._mask, self._local, self._scaled_norm, self._hits, self._counts, self.transfer],
             device=self.device,
         )
 
@@ -271,8 +269,6 @@ class HemirasterTransfer(TransferMethod):
                 raise ValueError(f"{self.mesh.name}: pvs frame {f} has non-finite positions")
             self.set_points(pts)
             self._launch(record=1, use_pvs=0)
-        bits = tables.unpack_bits(self._hits.numpy().astype(np.uint64), self._hits.shape[1] * 32)
-        # hits bits are 32-bit words; unpack_bits reads 64-bit words, so rebuild per 32-bit word
         bits = ((self._hits.numpy()[..., None] >> np.arange(32, dtype=np.uint32)) & 1).astype(bool)
         bits = bits.reshape(nv, -1)[:, :self.num_blockers]
         lists = [np.sort(self._perm_inv[np.flatnonzero(row)]) for row in bits]

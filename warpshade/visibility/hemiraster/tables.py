@@ -17,6 +17,8 @@ mask-and-popcount and the LUT does not depend on ``D``.
 direction ``d`` has ``n·d > 0``. Normals are quantised with a cube map of ``6×R×R`` cells (paper
 §3.1.1): face ``2a`` (``n_a >= 0``) or ``2a+1`` on the major axis ``a`` (ties go to the lower axis),
 ``u = n_{(a+1)%3}/|n_a|``, ``v = n_{(a+2)%3}/|n_a|``, cell ``(⌊(u+1)R/2⌋, ⌊(v+1)R/2⌋)`` clamped.
+Each row has ``W + 1`` words: the ``W`` mask words and a bitmap of which of them are non-zero,
+so the rasterizer touches only words all three edge masks share.
 
 **SH weights.** Per ``D×D`` block intersecting the disk, ``W_b,i = ∫_{block ∩ disk} y_i dA`` in the
 tangent frame (supersampled, so ``Σ_b W_b`` is the analytic unoccluded transfer to ~1e-5). A block
@@ -122,11 +124,13 @@ def cube_cell_np(n: np.ndarray, lut: int) -> np.ndarray:
     a = np.abs(n)
     axis = np.where((a[..., 0] >= a[..., 1]) & (a[..., 0] >= a[..., 2]), 0, np.where(a[..., 1] >= a[..., 2], 1, 2))
     major = np.take_along_axis(n, axis[..., None], -1)[..., 0]
-    u = np.take_along_axis(n, ((axis + 1) % 3)[..., None], -1)[..., 0] / np.abs(major)
-    v = np.take_along_axis(n, ((axis + 2) % 3)[..., None], -1)[..., 0] / np.abs(major)
+    u = np.take_along_axis(n, ((axis + 1) % 3)[..., None], -1)[..., 0]
+    v = np.take_along_axis(n, ((axis + 2) % 3)[..., None], -1)[..., 0]
     face = 2 * axis + (major < 0)
-    iu = np.clip(((u + np.float32(1.0)) * np.float32(0.5 * lut)).astype(np.int64), 0, lut - 1)
-    iv = np.clip(((v + np.float32(1.0)) * np.float32(0.5 * lut)).astype(np.int64), 0, lut - 1)
+    half = np.float32(0.5 * lut)
+    inv = half / np.abs(major)
+    iu = np.clip((u * inv + half).astype(np.int64), 0, lut - 1)
+    iv = np.clip((v * inv + half).astype(np.int64), 0, lut - 1)
     return (face * lut + iu) * lut + iv
 
 
@@ -147,14 +151,17 @@ def build_lut_np(mask: int, lut: int) -> np.ndarray:
     """Plane LUT by plain NumPy (the obviously-correct reference of :func:`build_lut`).
 
     Returns:
-        shape (6R², W) uint64: bit k of row r set when valid pixel k lies strictly above cell r's plane.
+        shape (6R², W+1) uint64: bit k of row r set when valid pixel k lies strictly above cell r's
+        plane; the last column is the bitmap of non-zero words.
     """
     dirs, valid = pixel_directions(mask)
     normals = cube_cell_normals(lut)
-    out = np.empty((len(normals), words_per_mask(mask)), dtype=np.uint64)
+    nw = words_per_mask(mask)
+    out = np.empty((len(normals), nw + 1), dtype=np.uint64)
     for s in range(0, len(normals), 4096):
         above = (normals[s:s + 4096] @ dirs.T > 0.0) & valid
-        out[s:s + 4096] = pack_bits(above)
+        out[s:s + 4096, :nw] = pack_bits(above)
+    out[:, nw] = pack_bits(out[:, :nw] != 0)[:, 0]
     return out
 
 
@@ -164,19 +171,25 @@ def fill_plane_lut(
     pixel_dirs: wp.array[wp.vec3],
     lut: wp.array2d[wp.uint64],
 ):
-    """One uint64 word of the plane LUT: bit k set when pixel direction k is above the cell's plane.
+    """One plane LUT row: bit k set when pixel direction k is above the cell's plane; last word = occupancy.
 
     Pixels outside the disk carry a zero direction, so ``n·d > 0`` never holds for them.
     """
-    row, word = wp.tid()
+    row = wp.tid()
     n = normals[row]
-    bits = wp.uint64(0)
-    for k in range(64):
-        p = word * 64 + k
-        if p < pixel_dirs.shape[0]:
-            if wp.dot(n, pixel_dirs[p]) > 0.0:
-                bits = bits | (wp.uint64(1) << wp.uint64(k))
-    lut[row, word] = bits
+    nw = lut.shape[1] - 1
+    occ = wp.uint64(0)
+    for word in range(nw):
+        bits = wp.uint64(0)
+        for k in range(64):
+            p = word * 64 + k
+            if p < pixel_dirs.shape[0]:
+                if wp.dot(n, pixel_dirs[p]) > 0.0:
+                    bits = bits | (wp.uint64(1) << wp.uint64(k))
+        lut[row, word] = bits
+        if bits != wp.uint64(0):
+            occ = occ | (wp.uint64(1) << wp.uint64(word))
+    lut[row, nw] = occ
 
 
 _LUT_CACHE: dict[tuple[int, int], np.ndarray] = {}
@@ -201,17 +214,17 @@ def build_lut(mask: int, lut: int, cache_dir: str | None = None) -> tuple[np.nda
     if key in _LUT_CACHE:
         return _LUT_CACHE[key], _LUT_BUILD_SECONDS[key], "memory"
     t0 = time.perf_counter()
-    path = os.path.join(cache_dir, f"hemiraster_lut_M{mask}_R{lut}.npy") if cache_dir else None
+    path = os.path.join(cache_dir, f"hemiraster_lut_v2_M{mask}_R{lut}.npy") if cache_dir else None
     table, source = None, "built"
     if path and os.path.isfile(path):
         loaded = np.load(path)
-        if loaded.shape == (6 * lut * lut, words_per_mask(mask)) and loaded.dtype == np.uint64:
+        if loaded.shape == (6 * lut * lut, words_per_mask(mask) + 1) and loaded.dtype == np.uint64:
             table, source = loaded, "disk"
     if table is None:
         dirs, _ = pixel_directions(mask)
         normals = wp.array(cube_cell_normals(lut).astype(np.float32), dtype=wp.vec3, device="cpu")
-        out = wp.zeros((6 * lut * lut, words_per_mask(mask)), dtype=wp.uint64, device="cpu")
-        wp.launch(fill_plane_lut, dim=out.shape, inputs=[normals, wp.array(dirs.astype(np.float32), dtype=wp.vec3)],
+        out = wp.zeros((6 * lut * lut, words_per_mask(mask) + 1), dtype=wp.uint64, device="cpu")
+        wp.launch(fill_plane_lut, dim=out.shape[0], inputs=[normals, wp.array(dirs.astype(np.float32), dtype=wp.vec3)],
                   outputs=[out], device="cpu")
         table = out.numpy()
         if path:
@@ -227,7 +240,11 @@ def build_lut(mask: int, lut: int, cache_dir: str | None = None) -> tuple[np.nda
 # ---------------------------------------------------------------------------------------------
 # blocks and SH weights
 def block_tables(mask: int, downsample: int, order: int, supersample: int = 512) -> dict:
-    """Per-block tables for downsampled integration (blocks with at least one valid pixel).
+    """Per-block tables for downsampled integration, over all ``(M/D)²`` blocks in Morton block order.
+
+    Block ``b`` owns mask bits ``b·D² .. (b+1)·D² - 1`` (Morton contiguity), i.e. word
+    ``b·D² // 64``. Blocks with no valid pixel centre still carry the weight of their sliver of
+    the disk (it can never be blocked), so ``Σ_b W_b`` is the whole unoccluded integral.
 
     Args:
         mask: Mask resolution M.
@@ -236,49 +253,35 @@ def block_tables(mask: int, downsample: int, order: int, supersample: int = 512)
         supersample: Integration grid across the disk for the block integrals.
 
     Returns:
-        dict of arrays over the B blocks kept: ``word`` (B,) int32, ``bits`` (B,) uint64 (the block's
-        bits within its word), ``valid`` (B,) int32 (valid pixels), ``weights`` (B, N*N) float64
+        dict: ``valid`` (B,) int32 (valid pixels per block), ``weights`` (B, N*N) float64
         (``∫_{block∩disk} y_i dA``, tangent frame), ``dirs`` (B, 3) float64 (unit mean direction
-        of the block's disk part), ``area`` (B,) float64.
+        of the block's part of the disk, zero for blocks outside it), ``area`` (B,) float64.
     """
     check_mask(mask, downsample)
     _, valid = pixel_directions(mask)
     nb = mask // downsample
     bbits = downsample * downsample
     # fine grid of sample points (cell centres) covering [-1, 1]²
-    s = max(supersample, 4 * mask)
+    s = max(supersample, 8 * mask)
     s -= s % mask
     c = -1.0 + (np.arange(s) + 0.5) * 2.0 / s
     x, y = np.meshgrid(c, c, indexing="ij")
     r2 = x * x + y * y
     inside = r2 < 1.0
-    d = np.stack([x, y, np.sqrt(np.maximum(0.0, 1.0 - r2))], axis=-1)
-    ysh = sh_eval(d[inside], order) * (2.0 / s) ** 2
+    d = np.stack([x, y, np.sqrt(np.maximum(0.0, 1.0 - r2))], axis=-1)[inside]
+    ysh = sh_eval(d, order) * (2.0 / s) ** 2
     bi = (np.floor((x[inside] + 1.0) * 0.5 * nb)).astype(np.int64).clip(0, nb - 1)
     bj = (np.floor((y[inside] + 1.0) * 0.5 * nb)).astype(np.int64).clip(0, nb - 1)
-    bid = bi * nb + bj
+    bid = morton2(bi, bj)
     weights = np.zeros((nb * nb, order * order))
     np.add.at(weights, bid, ysh)
     dsum = np.zeros((nb * nb, 3))
-    np.add.at(dsum, bid, d[inside])
+    np.add.at(dsum, bid, d)
     area = np.bincount(bid, minlength=nb * nb) * (2.0 / s) ** 2
-    words, bits, counts, keep = [], [], [], []
-    for i in range(nb):
-        for j in range(nb):
-            first = int(morton2(np.array([i * downsample]), np.array([j * downsample]))[0])
-            nvalid = int(valid[first:first + bbits].sum())
-            if nvalid == 0:
-                continue
-            keep.append(i * nb + j)
-            words.append(first // 64)
-            run = np.uint64((1 << bbits) - 1) if bbits < 64 else np.uint64(0xFFFFFFFFFFFFFFFF)
-            bits.append(run << np.uint64(first % 64))
-            counts.append(nvalid)
-    keep = np.array(keep)
-    dn = dsum[keep]
-    dn /= np.linalg.norm(dn, axis=1, keepdims=True)
-    return {"word": np.array(words, dtype=np.int32), "bits": np.array(bits, dtype=np.uint64),
-            "valid": np.array(counts, dtype=np.int32), "weights": weights[keep], "dirs": dn, "area": area[keep]}
+    ln = np.linalg.norm(dsum, axis=1, keepdims=True)
+    dirs = np.where(ln > 0, dsum / np.where(ln > 0, ln, 1.0), 0.0)
+    counts = valid.reshape(nb * nb, bbits).sum(axis=1)
+    return {"valid": counts.astype(np.int32), "weights": weights, "dirs": dirs, "area": area}
 
 
 def rotation_directions(order: int) -> tuple[np.ndarray, np.ndarray]:
@@ -312,27 +315,28 @@ def rotation_directions(order: int) -> tuple[np.ndarray, np.ndarray]:
 
 def lut_bytes(mask: int, lut: int) -> int:
     """Memory of the plane LUT [bytes]."""
-    return 6 * lut * lut * words_per_mask(mask) * 8
+    return 6 * lut * lut * (words_per_mask(mask) + 1) * 8
 
 
-def projected_solid_angle_np(tri: np.ndarray) -> float:
-    """Projected solid angle (``∫ max(0, cos θ) dω``) of a spherical triangle wholly above the horizon.
+def projected_solid_angle_np(poly: np.ndarray) -> float:
+    """Projected solid angle (``∫ cos θ dω``) of a convex spherical polygon on or above the horizon.
 
     Lambert's formula: ``Φ = ½ Σ_edges θ_e (ĝ_e · z)`` with ``θ_e`` the angle an edge subtends and
-    ``ĝ_e`` the unit normal of the plane through the origin and the edge, oriented inwards.
+    ``ĝ_e`` the unit normal of the plane through the origin and the edge, pointing inwards.
 
     Args:
-        tri: Triangle corners in the tangent frame (normal +z), shape (3, 3), all with z > 0.
+        poly: Polygon corners in the tangent frame (normal +z), shape (K, 3), all with z >= 0,
+            convex as seen from the origin, either winding.
     """
-    a = np.asarray(tri, dtype=np.float64)
-    if (a[:, 2] <= 0).any():
-        raise ValueError("projected_solid_angle_np needs a triangle wholly above the horizon")
-    if np.dot(a[0], np.cross(a[1], a[2])) < 0:
-        a = a[[0, 2, 1]]
+    a = np.asarray(poly, dtype=np.float64)
+    if (a[:, 2] < 0).any():
+        raise ValueError("projected_solid_angle_np needs a polygon on or above the horizon (z >= 0)")
     u = a / np.linalg.norm(a, axis=1, keepdims=True)
+    if np.dot(u.mean(axis=0), np.cross(u[0], u[1])) < 0:
+        u = u[::-1]
     total = 0.0
-    for e in range(3):
-        p, q = u[e], u[(e + 1) % 3]
+    for e in range(len(u)):
+        p, q = u[e], u[(e + 1) % len(u)]
         g = np.cross(p, q)
         total += math.acos(np.clip(np.dot(p, q), -1, 1)) * g[2] / np.linalg.norm(g)
     return 0.5 * total

@@ -1,0 +1,109 @@
+"""Plain NumPy hemispherical rasterizer: the obviously-correct reference the Warp kernels are tested against.
+
+Brute force, one receiver at a time, no hierarchy and no culling structures: every triangle not
+incident to the receiver is tested pixel by pixel. With ``lut=None`` pixels are classified against
+the exact edge planes; with a LUT table they use the same cube-map quantisation as the kernels.
+The tangent-frame transfer is rotated to world space by a least-squares fit of the band rotation
+matrices on many directions (a different route from the kernel's sampling rotation).
+Conventions: :mod:`.tables`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...sh.basis import sh_eval
+from . import tables
+
+
+def tangent_frame_np(n: np.ndarray) -> np.ndarray:
+    """Columns (t, b, n) of the frame the kernels use (Duff et al. 2017), shape (3, 3) float64."""
+    n = np.asarray(n, dtype=np.float64)
+    sign = 1.0 if n[2] >= 0.0 else -1.0
+    a = -1.0 / (sign + n[2])
+    b = n[0] * n[1] * a
+    t = np.array([1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]])
+    bb = np.array([b, sign + n[1] * n[1] * a, -n[1]])
+    return np.stack([t, bb, n], axis=1)
+
+
+def rasterize_np(local_tris: np.ndarray, mask: int, lut: np.ndarray | None = None, lut_res: int = 0) -> np.ndarray:
+    """Blocked-pixel mask of triangles given in the receiver's tangent frame.
+
+    Args:
+        local_tris: Triangle corners relative to the receiver, tangent frame, shape (T, 3, 3).
+        mask: Mask resolution M.
+        lut: Optional plane LUT (:func:`.tables.build_lut`) to classify pixels as the kernels do.
+        lut_res: Its cube-map resolution R.
+
+    Returns:
+        Blocked pixels in bit order, shape (M*M,) bool.
+    """
+    dirs, valid = tables.pixel_directions(mask)
+    blocked = np.zeros(mask * mask, dtype=bool)
+    nw = tables.words_per_mask(mask)
+    for a, b, c in np.asarray(local_tris, dtype=np.float64):
+        if a[2] <= 0 and b[2] <= 0 and c[2] <= 0:
+            continue  # wholly at or below the horizon
+        planes = np.array([np.cross(a, b), np.cross(b, c), np.cross(c, a)])
+        det = np.dot(a, planes[1])
+        if det == 0:
+            continue  # edge-on or degenerate: no solid angle
+        planes *= np.sign(det)
+        if lut is None:
+            inside = (dirs @ planes.T > 0).all(axis=1) & valid
+        else:
+            rows = tables.cube_cell_np(planes.astype(np.float32), lut_res)
+            words = lut[rows[0], :nw] & lut[rows[1], :nw] & lut[rows[2], :nw]
+            inside = tables.unpack_bits(words, mask * mask)
+        blocked |= inside
+    return blocked
+
+
+def band_rotation_np(frame: np.ndarray, order: int, samples: int = 256) -> np.ndarray:
+    """Block-diagonal SH rotation taking tangent-frame coefficients to world ones, shape (N*N, N*N).
+
+    Least-squares fit of ``y(Q s) = R y(s)`` over seeded random directions ``s``.
+    """
+    s = np.random.default_rng(7).normal(size=(samples, 3))
+    s /= np.linalg.norm(s, axis=1, keepdims=True)
+    y_local = sh_eval(s, order)
+    y_world = sh_eval(s @ frame.T, order)
+    rot = np.zeros((order * order, order * order))
+    for l in range(order):
+        sl = slice(l * l, (l + 1) ** 2)
+        sol, *_ = np.linalg.lstsq(y_local[:, sl], y_world[:, sl], rcond=None)
+        rot[sl, sl] = sol.T
+    return rot
+
+
+def transfer_np(points: np.ndarray, faces: np.ndarray, normals: np.ndarray, order: int = 5, mask: int = 32,
+                downsample: int = 2, lut: np.ndarray | None = None, lut_res: int = 0,
+                vertices=None) -> np.ndarray:
+    """Diffuse transfer (CONTRACTS.md §2) by brute-force hemispherical rasterization of the full mesh.
+
+    Args:
+        points: Positions, shape (V, 3). faces: shape (F, 3). normals: unit normals, shape (V, 3).
+        order, mask, downsample: As the method's knobs.
+        lut, lut_res: Optional LUT (else exact planes).
+        vertices: Receivers to compute (default all).
+
+    Returns:
+        shape (len(vertices), N*N) float64, world space.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    faces = np.asarray(faces)
+    vertices = np.arange(len(points)) if vertices is None else np.asarray(vertices)
+    blocks = tables.block_tables(mask, downsample, order)
+    bb = downsample * downsample
+    out = np.zeros((len(vertices), order * order))
+    for row, v in enumerate(vertices):
+        frame = tangent_frame_np(normals[v])
+        keep = (faces != v).all(axis=1)
+        local = (points[faces[keep]] - points[v]) @ frame
+        blocked = rasterize_np(local, mask, lut, lut_res)
+        counts = blocked.reshape(-1, bb).sum(axis=1)
+        frac = np.where(blocks["valid"] > 0, counts / np.maximum(blocks["valid"], 1), 0.0)
+        local_t = ((1.0 - frac)[:, None] * blocks["weights"]).sum(axis=0)
+        out[row] = band_rotation_np(frame, order) @ local_t
+    return out
