@@ -37,12 +37,29 @@ def cube_cell(n: wp.vec3, res: int) -> int:
     major = wp.where(use_x, n[0], wp.where(use_y, n[1], n[2]))
     u = wp.where(use_x, n[1], wp.where(use_y, n[2], n[0]))
     v = wp.where(use_x, n[2], wp.where(use_y, n[0], n[1]))
-    face = wp.where(use_x, 0, wp.where(use_y, 2, 4)) + wp.where(major < 0.0, 1, 0)
+    neg = major < 0.0
+    # index the positive face and mirror for the negative one, so that cell(-n) is exactly the
+    # mirror of cell(n) (also when u or v is exactly 0): the two triangles sharing an edge then get
+    # complementary masks along it (no crack, no overlap)
+    u = wp.where(neg, -u, u)
+    v = wp.where(neg, -v, v)
+    face = wp.where(use_x, 0, wp.where(use_y, 2, 4)) + wp.where(neg, 1, 0)
     half = 0.5 * float(res)
     inv = half / wp.abs(major)
     iu = wp.clamp(int(u * inv + half), 0, res - 1)
     iv = wp.clamp(int(v * inv + half), 0, res - 1)
+    iu = wp.where(neg, res - 1 - iu, iu)
+    iv = wp.where(neg, res - 1 - iv, iv)
     return (face * res + iu) * res + iv
+
+
+@wp.func
+def edge_plane(a: wp.vec3, b: wp.vec3, ia: int, ib: int) -> wp.vec3:
+    """``a × b``, computed from the lower-indexed corner so the shared edge of two triangles gives
+    exactly opposite normals (a fused multiply-add would otherwise break ``b × a = -(a × b)``)."""
+    if ia < ib:
+        return wp.cross(a, b)
+    return -wp.cross(b, a)
 
 
 @wp.func
@@ -50,6 +67,9 @@ def rasterize_triangle(
     a: wp.vec3,
     b: wp.vec3,
     c: wp.vec3,
+    ia: int,
+    ib: int,
+    ic: int,
     frame: wp.mat33,
     lut: wp.array2d[wp.uint64],
     lut_res: int,
@@ -76,9 +96,9 @@ def rasterize_triangle(
     la = ft * a
     lb = ft * b
     lc = ft * c
-    nab = wp.cross(la, lb)
-    nbc = wp.cross(lb, lc)
-    nca = wp.cross(lc, la)
+    nab = edge_plane(la, lb, ia, ib)
+    nbc = edge_plane(lb, lc, ib, ic)
+    nca = edge_plane(lc, la, ic, ia)
     det = wp.dot(la, nbc)
     if det == 0.0:
         return 0
@@ -213,7 +233,7 @@ def rasterize_blocker(
     if use_excl != 0:
         if excluded(excl, v, src):
             return 0
-    r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, frame, lut, lut_res, words, mask, v)
+    r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, i, j, k, frame, lut, lut_res, words, mask, v)
     if record != 0 and r == 2:
         hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
     if r > 0:
@@ -290,8 +310,10 @@ def rasterize_transfer(
     # near field at full resolution
     for r in range(ring_start[v], ring_start[v + 1]):
         t = ring_tris[r]
-        count += wp.min(1, rasterize_triangle(points[faces[t, 0]] - p, points[faces[t, 1]] - p,
-                                              points[faces[t, 2]] - p, frame, lut, lut_res, words, mask, v))
+        i = faces[t, 0]
+        j = faces[t, 1]
+        k = faces[t, 2]
+        count += wp.min(1, rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, lut_res, words, mask, v))
     # far field
     offset = wp.dot(n, p)
     if use_pvs != 0:

@@ -16,7 +16,9 @@ mask-and-popcount and the LUT does not depend on ``D``.
 **Plane LUT.** For a plane through the origin with normal ``n``, the bitmask of valid pixels whose
 direction ``d`` has ``n·d > 0``. Normals are quantised with a cube map of ``6×R×R`` cells (paper
 §3.1.1): face ``2a`` (``n_a >= 0``) or ``2a+1`` on the major axis ``a`` (ties go to the lower axis),
-``u = n_{(a+1)%3}/|n_a|``, ``v = n_{(a+2)%3}/|n_a|``, cell ``(⌊(u+1)R/2⌋, ⌊(v+1)R/2⌋)`` clamped.
+``u = n_{(a+1)%3}/|n_a|``, ``v = n_{(a+2)%3}/|n_a|``, cell ``(⌊(u+1)R/2⌋, ⌊(v+1)R/2⌋)`` clamped;
+a negative face uses the mirror ``(R-1-i, R-1-j)`` of the cell of ``-n``, so ``cell(-n)`` mirrors
+``cell(n)`` exactly and the two triangles sharing an edge get exactly complementary masks.
 Each row has ``W + 1`` words: the ``W`` mask words and a bitmap of which of them are non-zero,
 so the rasterizer touches only words all three edge masks share.
 
@@ -126,11 +128,17 @@ def cube_cell_np(n: np.ndarray, lut: int) -> np.ndarray:
     major = np.take_along_axis(n, axis[..., None], -1)[..., 0]
     u = np.take_along_axis(n, ((axis + 1) % 3)[..., None], -1)[..., 0]
     v = np.take_along_axis(n, ((axis + 2) % 3)[..., None], -1)[..., 0]
-    face = 2 * axis + (major < 0)
+    neg = major < 0
+    face = 2 * axis + neg
+    # negative faces are indexed as the mirror of the positive one (see the kernel's cube_cell)
+    u = np.where(neg, -u, u)
+    v = np.where(neg, -v, v)
     half = np.float32(0.5 * lut)
     inv = half / np.abs(major)
     iu = np.clip((u * inv + half).astype(np.int64), 0, lut - 1)
     iv = np.clip((v * inv + half).astype(np.int64), 0, lut - 1)
+    iu = np.where(neg, lut - 1 - iu, iu)
+    iv = np.where(neg, lut - 1 - iv, iv)
     return (face * lut + iu) * lut + iv
 
 
@@ -243,8 +251,9 @@ def block_tables(mask: int, downsample: int, order: int, supersample: int = 512)
     """Per-block tables for downsampled integration, over all ``(M/D)²`` blocks in Morton block order.
 
     Block ``b`` owns mask bits ``b·D² .. (b+1)·D² - 1`` (Morton contiguity), i.e. word
-    ``b·D² // 64``. Blocks with no valid pixel centre still carry the weight of their sliver of
-    the disk (it can never be blocked), so ``Σ_b W_b`` is the whole unoccluded integral.
+    ``b·D² // 64``. A block with no valid pixel centre hands its sliver of the disk to the nearest
+    block that has one, so every part of the hemisphere can be blocked and ``Σ_b W_b`` is the whole
+    unoccluded integral.
 
     Args:
         mask: Mask resolution M.
@@ -278,9 +287,25 @@ def block_tables(mask: int, downsample: int, order: int, supersample: int = 512)
     dsum = np.zeros((nb * nb, 3))
     np.add.at(dsum, bid, d)
     area = np.bincount(bid, minlength=nb * nb) * (2.0 / s) ** 2
+    counts = valid.reshape(nb * nb, bbits).sum(axis=1)
+    # slivers of the disk in blocks without a valid pixel centre could never be blocked; hand their
+    # integrals to the nearest block that has one (Σ_b W_b stays the whole hemisphere)
+    bc = -1.0 + (np.arange(nb) + 0.5) * 2.0 / nb
+    ci, cj = np.meshgrid(bc, bc, indexing="ij")
+    centre = np.zeros((nb * nb, 2))
+    centre[morton2(*np.meshgrid(np.arange(nb), np.arange(nb), indexing="ij")).ravel()] = np.stack(
+        [ci.ravel(), cj.ravel()], 1)
+    live = np.flatnonzero(counts > 0)
+    for b in np.flatnonzero((counts == 0) & (area > 0)):
+        to = live[np.argmin(np.linalg.norm(centre[live] - centre[b], axis=1))]
+        weights[to] += weights[b]
+        dsum[to] += dsum[b]
+        area[to] += area[b]
+        weights[b] = 0.0
+        dsum[b] = 0.0
+        area[b] = 0.0
     ln = np.linalg.norm(dsum, axis=1, keepdims=True)
     dirs = np.where(ln > 0, dsum / np.where(ln > 0, ln, 1.0), 0.0)
-    counts = valid.reshape(nb * nb, bbits).sum(axis=1)
     return {"valid": counts.astype(np.int32), "weights": weights, "dirs": dirs, "area": area}
 
 
