@@ -112,9 +112,18 @@ def decimate(points: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.nda
     """Quadric decimation to about ``target`` triangles (``fast_simplification``); degenerate faces dropped."""
     import fast_simplification
 
+    points = np.asarray(points, dtype=np.float64)
     if target >= len(faces):
-        return points.astype(np.float64), faces.astype(np.int64)
-    pts, tris = fast_simplification.simplify(points.astype(np.float64), faces.astype(np.int32), target_count=int(target))
+        return points, faces.astype(np.int64)
+    # fast_simplification's collapse thresholds are absolute: decimate a copy normalised to a unit
+    # bounding-box diagonal so the coarse mesh does not depend on the mesh's scale or position
+    lo = points.min(axis=0)
+    scale = float(np.linalg.norm(points.max(axis=0) - lo)) or 1.0
+    # (snapped to a 2^-20 grid: float32 inputs at different scales differ in the last bits, and the
+    # greedy collapse order would amplify that into a different coarse mesh)
+    unit = np.round((points - lo) / scale * 2.0**20) / 2.0**20
+    pts, tris = fast_simplification.simplify(unit, faces.astype(np.int32), target_count=int(target))
+    pts = np.asarray(pts) * scale + lo
     tris = tris[(tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2]) & (tris[:, 0] != tris[:, 2])]
     return np.asarray(pts, dtype=np.float64), np.asarray(tris, dtype=np.int64)
 
