@@ -55,11 +55,13 @@ def cube_cell(n: wp.vec3, res: int) -> int:
 
 @wp.func
 def edge_plane(a: wp.vec3, b: wp.vec3, ia: int, ib: int) -> wp.vec3:
-    """``a × b``, computed from the lower-indexed corner so the shared edge of two triangles gives
-    exactly opposite normals (a fused multiply-add would otherwise break ``b × a = -(a × b)``)."""
-    if ia < ib:
-        return wp.cross(a, b)
-    return -wp.cross(b, a)
+    """``a × b``, always computed from the lower-indexed corner so the shared edge of two triangles
+    gives exactly opposite normals (a fused multiply-add would otherwise break ``b × a = -(a × b)``).
+    Branch-free: which corner comes first is unpredictable."""
+    swap = ib < ia
+    lo = wp.where(swap, b, a)
+    hi = wp.where(swap, a, b)
+    return wp.where(swap, -1.0, 1.0) * wp.cross(lo, hi)
 
 
 @wp.func
@@ -102,10 +104,11 @@ def rasterize_triangle(
     det = wp.dot(la, nbc)
     if det == 0.0:
         return 0
-    if det < 0.0:
-        nab = -nab
-        nbc = -nbc
-        nca = -nca
+    # orient the planes so the triangle's image is above all three (either winding blocks)
+    orient = wp.where(det < 0.0, -1.0, 1.0)
+    nab = orient * nab
+    nbc = orient * nbc
+    nca = orient * nca
     i0 = cube_cell(nab, lut_res)
     i1 = cube_cell(nbc, lut_res)
     i2 = cube_cell(nca, lut_res)
@@ -115,10 +118,9 @@ def rasterize_triangle(
         return 1
     hit = wp.uint64(0)
     for w in range(words):
-        if (occ >> wp.uint64(w)) & wp.uint64(1) != wp.uint64(0):
-            m = lut[i0, w] & lut[i1, w] & lut[i2, w]
-            hit = hit | m
-            mask[row, w] = mask[row, w] | m
+        m = lut[i0, w] & lut[i1, w] & lut[i2, w]
+        hit = hit | m
+        mask[row, w] = mask[row, w] | m
     if hit != wp.uint64(0):
         return 2
     return 1
