@@ -74,6 +74,8 @@ def rasterize_triangle(
     ic: int,
     frame: wp.mat33,
     lut: wp.array2d[wp.uint64],
+    lut_occ: wp.array[wp.uint64],
+    debruijn: wp.array[wp.int32],
     lut_res: int,
     words: int,
     mask: wp.array2d[wp.uint64],
@@ -112,12 +114,15 @@ def rasterize_triangle(
     i0 = cube_cell(nab, lut_res)
     i1 = cube_cell(nbc, lut_res)
     i2 = cube_cell(nca, lut_res)
-    # column ``words`` holds each row's bitmap of non-zero words: skip words no triangle bit can touch
-    occ = lut[i0, words] & lut[i1, words] & lut[i2, words]
-    if occ == wp.uint64(0):
-        return 1
+    # occupancy bitmaps (which words of each row are non-zero) live apart from the rows: they stay in
+    # cache, and only words all three edge masks share are fetched (set bits visited in order with
+    # a de Bruijn bit scan, no branch per word)
+    occ = lut_occ[i0] & lut_occ[i1] & lut_occ[i2]
     hit = wp.uint64(0)
-    for w in range(words):
+    while occ != wp.uint64(0):
+        low = occ & (~occ + wp.uint64(1))
+        w = debruijn[int((low * wp.uint64(0x03F79D71B4CB0A89)) >> wp.uint64(58))]
+        occ = occ ^ low
         m = lut[i0, w] & lut[i1, w] & lut[i2, w]
         hit = hit | m
         mask[row, w] = mask[row, w] | m
@@ -218,6 +223,8 @@ def rasterize_blocker(
     excl: wp.array2d[wp.uint32],
     frame: wp.mat33,
     lut: wp.array2d[wp.uint64],
+    lut_occ: wp.array[wp.uint64],
+    debruijn: wp.array[wp.int32],
     lut_res: int,
     words: int,
     mask: wp.array2d[wp.uint64],
@@ -235,12 +242,30 @@ def rasterize_blocker(
     if use_excl != 0:
         if excluded(excl, v, src):
             return 0
-    r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, i, j, k, frame, lut, lut_res, words, mask, v)
+    r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, i, j, k, frame, lut, lut_occ, debruijn, lut_res, words, mask, v)
     if record != 0 and r == 2:
         hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
     if r > 0:
         return 1
     return 0
+
+
+@wp.func
+def subtract_blocks(
+    nblk: int,
+    nn: int,
+    blk_index: wp.array2d[wp.int32],
+    blk_weight: wp.array2d[float],
+    block_weights: wp.array2d[float],
+    local: wp.array2d[float],
+    v: int,
+):
+    """``local[v, i] -= Σ_k blk_weight[v, k] · block_weights[blk_index[v, k], i]`` over the gathered blocks."""
+    for i in range(nn):
+        acc = float(0.0)
+        for k in range(nblk):
+            acc += blk_weight[v, k] * block_weights[blk_index[v, k], i]
+        local[v, i] = local[v, i] - acc
 
 
 @wp.kernel
@@ -267,6 +292,8 @@ def rasterize_transfer(
     pvs_start: wp.array[wp.int32],
     pvs_tris: wp.array[wp.int32],
     lut: wp.array2d[wp.uint64],
+    lut_occ: wp.array[wp.uint64],
+    debruijn: wp.array[wp.int32],
     lut_res: int,
     words: int,
     block_bits: int,
@@ -284,6 +311,8 @@ def rasterize_transfer(
     record: int,
     mask: wp.array2d[wp.uint64],
     local: wp.array2d[float],
+    blk_index: wp.array2d[wp.int32],
+    blk_weight: wp.array2d[float],
     scaled_norm: wp.array2d[float],
     hits: wp.array2d[wp.uint32],
     counts: wp.array[wp.int32],
@@ -315,13 +344,13 @@ def rasterize_transfer(
         i = faces[t, 0]
         j = faces[t, 1]
         k = faces[t, 2]
-        count += wp.min(1, rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, lut_res, words, mask, v))
+        count += wp.min(1, rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, lut_occ, debruijn, lut_res, words, mask, v))
     # far field
     offset = wp.dot(n, p)
     if use_pvs != 0:
         for r in range(pvs_start[v], pvs_start[v + 1]):
             count += rasterize_blocker(pvs_tris[r], v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
-                                       frame, lut, lut_res, words, mask, record, hits)
+                                       frame, lut, lut_occ, debruijn, lut_res, words, mask, record, hits)
     elif use_cull != 0:
         for s in range(super_start.shape[0] - 1):
             if box_above_plane(super_lo[s], super_hi[s], n, offset):
@@ -329,11 +358,11 @@ def rasterize_transfer(
                     if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
                         for t in range(cluster_start[c], cluster_start[c + 1]):
                             count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl,
-                                                       excl, frame, lut, lut_res, words, mask, record, hits)
+                                                       excl, frame, lut, lut_occ, debruijn, lut_res, words, mask, record, hits)
     else:
         for t in range(bfaces.shape[0]):
             count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
-                                       frame, lut, lut_res, words, mask, record, hits)
+                                       frame, lut, lut_occ, debruijn, lut_res, words, mask, record, hits)
     counts[v] = count
 
     # integrate (tangent frame): unoccluded integral minus blocked fractions of blocks
@@ -352,6 +381,9 @@ def rasterize_transfer(
                 lobe = lobe_norm * wp.pow(cosr, phong)
                 for i in range(nn):
                     local[v, i] = local[v, i] + lobe * block_weights[b, i]
+    # blocked blocks are gathered first, then subtracted coefficient by coefficient with a register
+    # accumulator (a block-by-block update would load and store the whole SH row per block)
+    nblk = int(0)
     per_word = 64 // block_bits
     run = wp.uint64(0xFFFFFFFFFFFFFFFF)
     if block_bits < 64:
@@ -370,8 +402,13 @@ def rasterize_transfer(
                             wgt = wgt * lobe_norm * wp.pow(cosr, phong)
                         else:
                             wgt = 0.0
-                    for i in range(nn):
-                        local[v, i] = local[v, i] - wgt * block_weights[b, i]
+                    blk_index[v, nblk] = b
+                    blk_weight[v, nblk] = wgt
+                    nblk += 1
+                    if nblk == blk_index.shape[1]:
+                        subtract_blocks(nblk, nn, blk_index, blk_weight, block_weights, local, v)
+                        nblk = 0
+    subtract_blocks(nblk, nn, blk_index, blk_weight, block_weights, local, v)
 
     # rotate to world, band by band: g_l = Σ_k y_l(Q s_k) (Y_l(S)^+ c_l)_k. The per-band factor of
     # direction k is folded into the normalisation constants handed to sh_accumulate (one SH

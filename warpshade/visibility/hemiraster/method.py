@@ -59,13 +59,13 @@ class HemirasterTransfer(TransferMethod):
     name = "hemiraster"
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 64,
-                 downsample: int = 2, ring: int = 2, coarse: int = 256, cull: bool = True, cluster: int = 16,
+                 downsample: int = 2, ring: int = 4, coarse: int = 512, cull: bool = True, cluster: int = 16,
                  exclude: float = 0.35, mode: str = "diffuse", view=(0.0, 0.0, 1.0), phong: float = 8.0,
                  lut_dir: str | None = None, pvs_frames=None):
         super().__init__(mesh, order, device)
         tables.check_mask(int(mask), int(downsample))
-        if ring not in (1, 2, 3):
-            raise ValueError(f"hemiraster: ring must be 1, 2 or 3, got {ring}")
+        if ring not in (1, 2, 3, 4):
+            raise ValueError(f"hemiraster: ring must be 1, 2, 3 or 4, got {ring}")
         if mode not in ("diffuse", "glossy"):
             raise ValueError(f"hemiraster: mode must be 'diffuse' or 'glossy', got {mode!r}")
         if int(coarse) < 0:
@@ -89,8 +89,10 @@ class HemirasterTransfer(TransferMethod):
 
         # plane LUT and integration tables (cached per (mask, R) / built per setting)
         lut_np, self._lut_seconds, self._lut_source = tables.build_lut(self.mask_res, self.lut_res, lut_dir)
-        self._lut = wp.array(lut_np, dtype=wp.uint64, device=d)
         self._words = tables.words_per_mask(self.mask_res)
+        self._lut = wp.array(np.ascontiguousarray(lut_np[:, :self._words]), dtype=wp.uint64, device=d)
+        self._lut_occ = wp.array(np.ascontiguousarray(lut_np[:, self._words]), dtype=wp.uint64, device=d)
+        self._debruijn = wp.array(tables.debruijn_table(), dtype=wp.int32, device=d)
         blocks = tables.block_tables(self.mask_res, self.downsample, self.order)
         self._block_valid = wp.array(blocks["valid"], dtype=wp.int32, device=d)
         self._block_weights = wp.array(blocks["weights"].astype(np.float32), dtype=float, device=d)
@@ -138,6 +140,8 @@ class HemirasterTransfer(TransferMethod):
         nn = self.order * self.order
         self._mask = wp.zeros((nv, self._words), dtype=wp.uint64, device=d)
         self._local = wp.zeros((nv, nn), dtype=float, device=d)
+        self._blk_index = wp.zeros((nv, 64), dtype=wp.int32, device=d)
+        self._blk_weight = wp.zeros((nv, 64), dtype=float, device=d)
         self._scaled_norm = wp.zeros((nv, nn), dtype=float, device=d)
         self._counts = wp.zeros(nv, dtype=wp.int32, device=d)
         self._hits = wp.zeros((1, 1), dtype=wp.uint32, device=d)
@@ -161,9 +165,9 @@ class HemirasterTransfer(TransferMethod):
         parser.add_argument("--lut", type=int, default=64, help="plane LUT cube-map resolution R (6*R*R planes)")
         parser.add_argument("--downsample", type=int, default=2, choices=(1, 2, 4, 8),
                             help="coverage block size in pixels (default 2)")
-        parser.add_argument("--ring", type=int, default=2, choices=(1, 2, 3), help="full-resolution k-ring (default 2)")
-        parser.add_argument("--coarse", type=int, default=256,
-                            help="coarse far-field mesh triangles (0: no hierarchy, full mesh); default 256")
+        parser.add_argument("--ring", type=int, default=2, choices=(1, 2, 3, 4), help="full-resolution k-ring (default 4)")
+        parser.add_argument("--coarse", type=int, default=512,
+                            help="coarse far-field mesh triangles (0: no hierarchy, full mesh); default 512")
         parser.add_argument("--no-cull", dest="cull", action="store_false", help="disable cluster culling")
         parser.add_argument("--cluster", type=int, default=16, help="triangles per culling cluster (default 16)")
         parser.add_argument("--exclude", type=float, default=0.35,
@@ -185,12 +189,12 @@ class HemirasterTransfer(TransferMethod):
     @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
         if quick:
-            return [{}, {"mask": 16}, {"coarse": 0}]
+            return [{}, {"mask": 16}, {"ring": 2, "coarse": 256}]
         out = [{}]
         out += [{"mask": m} for m in (8, 16, 64)]
         out += [{"lut": r} for r in (32, 128)]
         out += [{"downsample": s} for s in (1, 4)]
-        out += [{"ring": 1}, {"coarse": 160}, {"coarse": 512}, {"coarse": 0}, {"cull": False}]
+        out += [{"ring": 2}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 0}, {"cull": False}]
         return out
 
     def knobs(self) -> dict:
@@ -238,11 +242,11 @@ class HemirasterTransfer(TransferMethod):
                     1 if self.hierarchy else 0, self._excl,
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
-                    self._lut, self.lut_res, self._words,
+                    self._lut, self._lut_occ, self._debruijn, self.lut_res, self._words,
                     self.downsample * self.downsample, self._block_valid, self._block_weights, self._block_dirs,
                     self._unoccluded, 1 if self.mode == "glossy" else 0, wp.vec3(*self.view.astype(np.float32)),
                     self.phong, self._rot_dirs, self._rot_pinv, self.order, self._sh_norm, record],
-            outputs=[self._mask, self._local, self._scaled_norm, self._hits, self._counts, self.transfer],
+            outputs=[self._mask, self._local, self._blk_index, self._blk_weight, self._scaled_norm, self._hits, self._counts, self.transfer],
             device=self.device,
         )
 

@@ -338,6 +338,14 @@ def rotation_directions(order: int) -> tuple[np.ndarray, np.ndarray]:
     return best, pinv
 
 
+def debruijn_table() -> np.ndarray:
+    """Bit index of ``1 << k`` from ``((1 << k) * 0x03F79D71B4CB0A89 mod 2^64) >> 58``, shape (64,) int32."""
+    out = np.zeros(64, np.int32)
+    for k in range(64):
+        out[((1 << k) * 0x03F79D71B4CB0A89 % (1 << 64)) >> 58] = k
+    return out
+
+
 def lut_bytes(mask: int, lut: int) -> int:
     """Memory of the plane LUT [bytes]."""
     return 6 * lut * lut * (words_per_mask(mask) + 1) * 8
