@@ -78,6 +78,7 @@ def rasterize_triangle(
     debruijn: wp.array[wp.int32],
     lut_res: int,
     words: int,
+    backface: float,
     mask: wp.array2d[wp.uint64],
     row: int,
 ) -> int:
@@ -104,7 +105,10 @@ def rasterize_triangle(
     nbc = edge_plane(lb, lc, ib, ic)
     nca = edge_plane(lc, la, ic, ia)
     det = wp.dot(la, nbc)
-    if det == 0.0:
+    # det = -(face normal)·(receiver - a): on a closed mesh every blocked direction leaves the solid
+    # through a triangle facing away from the receiver, so the others add no bits (``backface`` = ±1
+    # skips the side facing the receiver for the mesh's orientation; 0 keeps both)
+    if det == 0.0 or det * backface > 0.0:
         return 0
     # orient the planes so the triangle's image is above all three (either winding blocks)
     orient = wp.where(det < 0.0, -1.0, 1.0)
@@ -227,6 +231,7 @@ def rasterize_blocker(
     debruijn: wp.array[wp.int32],
     lut_res: int,
     words: int,
+    backface: float,
     mask: wp.array2d[wp.uint64],
     record: int,
     hits: wp.array2d[wp.uint32],
@@ -242,7 +247,7 @@ def rasterize_blocker(
     if use_excl != 0:
         if excluded(excl, v, src):
             return 0
-    r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, i, j, k, frame, lut, lut_occ, debruijn, lut_res, words, mask, v)
+    r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, i, j, k, frame, lut, lut_occ, debruijn, lut_res, words, backface, mask, v)
     if record != 0 and r == 2:
         hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
     if r > 0:
@@ -296,6 +301,7 @@ def rasterize_transfer(
     debruijn: wp.array[wp.int32],
     lut_res: int,
     words: int,
+    backface: float,
     block_bits: int,
     block_valid: wp.array[wp.int32],
     block_weights: wp.array2d[float],
@@ -344,13 +350,13 @@ def rasterize_transfer(
         i = faces[t, 0]
         j = faces[t, 1]
         k = faces[t, 2]
-        count += wp.min(1, rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, lut_occ, debruijn, lut_res, words, mask, v))
+        count += wp.min(1, rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, lut_occ, debruijn, lut_res, words, backface, mask, v))
     # far field
     offset = wp.dot(n, p)
     if use_pvs != 0:
         for r in range(pvs_start[v], pvs_start[v + 1]):
             count += rasterize_blocker(pvs_tris[r], v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
-                                       frame, lut, lut_occ, debruijn, lut_res, words, mask, record, hits)
+                                       frame, lut, lut_occ, debruijn, lut_res, words, backface, mask, record, hits)
     elif use_cull != 0:
         for s in range(super_start.shape[0] - 1):
             if box_above_plane(super_lo[s], super_hi[s], n, offset):
@@ -358,11 +364,11 @@ def rasterize_transfer(
                     if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
                         for t in range(cluster_start[c], cluster_start[c + 1]):
                             count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl,
-                                                       excl, frame, lut, lut_occ, debruijn, lut_res, words, mask, record, hits)
+                                                       excl, frame, lut, lut_occ, debruijn, lut_res, words, backface, mask, record, hits)
     else:
         for t in range(bfaces.shape[0]):
             count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
-                                       frame, lut, lut_occ, debruijn, lut_res, words, mask, record, hits)
+                                       frame, lut, lut_occ, debruijn, lut_res, words, backface, mask, record, hits)
     counts[v] = count
 
     # integrate (tangent frame): unoccluded integral minus blocked fractions of blocks

@@ -48,6 +48,9 @@ class HemirasterTransfer(TransferMethod):
             per-triangle horizon test).
         cluster: Triangles per cluster (16 clusters form a super-cluster).
         exclude: Near-field exclusion radius of coarse triangles, in units of the k-ring radius.
+        backface: Rasterize only triangles facing away from the receiver when the mesh (and the
+            coarse mesh) is closed and consistently oriented: every blocked ray leaves the solid
+            through one of them, so the mask is the same with about half the triangles.
         mode: ``"diffuse"`` (CONTRACTS.md §2) or ``"glossy"`` (eq. 3 with a normalised Phong lobe).
         view: Glossy mode: unit direction towards the viewer, world space (distant viewer).
         phong: Glossy mode: Phong exponent e of ``(e+2)/(2π) cos^e α``.
@@ -60,7 +63,7 @@ class HemirasterTransfer(TransferMethod):
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 64,
                  downsample: int = 2, ring: int = 4, coarse: int = 512, cull: bool = True, cluster: int = 16,
-                 exclude: float = 0.35, mode: str = "diffuse", view=(0.0, 0.0, 1.0), phong: float = 8.0,
+                 exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0), phong: float = 8.0,
                  lut_dir: str | None = None, pvs_frames=None):
         super().__init__(mesh, order, device)
         tables.check_mask(int(mask), int(downsample))
@@ -81,6 +84,7 @@ class HemirasterTransfer(TransferMethod):
         self.ring, self.coarse_target, self.cull = int(ring), int(coarse), bool(cull)
         self.cluster, self.exclude, self.mode = int(cluster), float(exclude), mode
         self.view = view / np.linalg.norm(view)
+        self.backface = bool(backface)
         self.phong, self.lut_dir = float(phong), lut_dir
         t_start = time.perf_counter()
         d = device
@@ -125,6 +129,15 @@ class HemirasterTransfer(TransferMethod):
         self._ring_tris = wp.array(ring_tris if len(ring_tris) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
         self._ring_avg = float(ring_start[-1]) / nv
         rest_blockers = (self._bpoints_rest() if self.hierarchy else mesh.points)
+        # back-face culling needs closed, consistently oriented fine and blocker meshes; the sign
+        # of the enclosed volume says which side faces out
+        side = hierarchy.closed_orientation(mesh.points, faces)
+        if self.hierarchy:
+            cside = hierarchy.closed_orientation(rest_blockers, block_faces)
+            side = side if side == cside else 0
+        # keep the triangles facing away: every blocked ray leaves the solid through one of those,
+        # also rays that enter it right at the receiver (concave spots, under a skipped incident triangle)
+        self._backface_side = -float(side) if self.backface else 0.0
         perm, cstart, sstart = hierarchy.build_clusters(rest_blockers, block_faces, self.cluster, 16)
         self._bfaces = wp.array(block_faces[perm].astype(np.int32), dtype=wp.int32, device=d)
         self._bsource = wp.array(perm.astype(np.int32), dtype=wp.int32, device=d)
@@ -172,6 +185,8 @@ class HemirasterTransfer(TransferMethod):
         parser.add_argument("--cluster", type=int, default=16, help="triangles per culling cluster (default 16)")
         parser.add_argument("--exclude", type=float, default=0.35,
                             help="coarse triangles nearer than this many k-ring radii are left to the k-ring")
+        parser.add_argument("--no-backface", dest="backface", action="store_false",
+                            help="rasterize back faces too (only matters on closed meshes)")
         parser.add_argument("--mode", choices=("diffuse", "glossy"), default="diffuse",
                             help="diffuse transfer (CONTRACTS §2) or glossy Phong transfer for --view")
         parser.add_argument("--view", type=_parse_vec3, default=(0.0, 0.0, 1.0),
@@ -183,7 +198,7 @@ class HemirasterTransfer(TransferMethod):
     def knobs_from_args(cls, args) -> dict:
         return {"mask": args.mask, "lut": args.lut, "downsample": args.downsample, "ring": args.ring,
                 "coarse": args.coarse, "cull": args.cull, "cluster": args.cluster, "exclude": args.exclude,
-                "mode": args.mode,
+                "backface": args.backface, "mode": args.mode,
                 "view": tuple(args.view), "phong": args.phong, "lut_dir": args.lut_dir}
 
     @classmethod
@@ -200,7 +215,7 @@ class HemirasterTransfer(TransferMethod):
     def knobs(self) -> dict:
         return {"mask": self.mask_res, "lut": self.lut_res, "downsample": self.downsample, "ring": self.ring,
                 "coarse": self.coarse_target, "cull": self.cull, "cluster": self.cluster, "exclude": self.exclude,
-                "mode": self.mode, "view": self.view.tolist(), "phong": self.phong, "lut_dir": self.lut_dir,
+                "backface": self.backface, "mode": self.mode, "view": self.view.tolist(), "phong": self.phong, "lut_dir": self.lut_dir,
                 "pvs_frames": self._pvs_frames}
 
     def stats(self) -> dict:
@@ -210,6 +225,7 @@ class HemirasterTransfer(TransferMethod):
             "triangles_per_vertex_max": int(counts.max()),
             "blocker_triangles": self.num_blockers,
             "hierarchy": self.hierarchy,
+            "backface_culled": self._backface_side != 0.0,
             "ring_triangles_per_vertex": self._ring_avg,
             "clusters": int(self._cluster_start.shape[0] - 1),
             "lut_bytes": tables.lut_bytes(self.mask_res, self.lut_res),
@@ -242,7 +258,7 @@ class HemirasterTransfer(TransferMethod):
                     1 if self.hierarchy else 0, self._excl,
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
-                    self._lut, self._lut_occ, self._debruijn, self.lut_res, self._words,
+                    self._lut, self._lut_occ, self._debruijn, self.lut_res, self._words, self._backface_side,
                     self.downsample * self.downsample, self._block_valid, self._block_weights, self._block_dirs,
                     self._unoccluded, 1 if self.mode == "glossy" else 0, wp.vec3(*self.view.astype(np.float32)),
                     self.phong, self._rot_dirs, self._rot_pinv, self.order, self._sh_norm, record],
