@@ -289,6 +289,20 @@ def test_pvs_from_recorded_frames_reproduces_those_frames():
     assert pvs.stats()["triangles_per_vertex"] < full.stats()["triangles_per_vertex"]
 
 
+def test_backface_culling_keeps_the_mask_on_closed_meshes():
+    bear = load_mesh(warp_asset("bear.usd"))  # closed, outward oriented
+    on = hemiraster(bear, order=3, coarse=0)
+    off = hemiraster(bear, order=3, coarse=0, backface=False)
+    a, b = on.update().numpy(), off.update().numpy()
+    assert on.stats()["backface_culled"] and not off.stats()["backface_culled"]
+    # every blocked ray leaves the solid through a face pointing away; only quantised edges of the
+    # culled faces differ at silhouettes (measured 0.16 %)
+    assert rel_err(a, b) < 0.005
+    assert on.stats()["triangles_per_vertex"] < 0.8 * off.stats()["triangles_per_vertex"]
+    # an open mesh is never culled
+    assert not hemiraster(bumpy_grid(), order=2, coarse=0).stats()["backface_culled"]
+
+
 # ----------------------------------------------------------------------------------- real meshes
 @pytest.fixture(scope="module")
 def bear_reference():
