@@ -63,3 +63,88 @@ def sh_accumulate(
             else:
                 out[row, base + m] = out[row, base + m] + weight * k[base + m] * q * c
                 out[row, base - m] = out[row, base - m] + weight * k[base - m] * q * s
+
+
+def zh_normalization_array(order: int, device: str = "cpu") -> wp.array:
+    """``K_lm * sqrt(4 pi / (2l+1))`` per SH index for :func:`zh_rotate_accumulate`, shape (order*order,), float32.
+
+    Folding the eq. 3.17 band factor into the basis constants makes ZH rotation cost the same as
+    one basis evaluation.
+    """
+    from .zonal import zh_band_factors, zh_expand_index
+
+    k = normalization(order) * zh_band_factors(order)[zh_expand_index(order)]
+    return wp.array(k.astype(np.float32), dtype=float, device=device)
+
+
+@wp.func
+def zh_lerp_rotate_accumulate(
+    d: wp.vec3,
+    zh: wp.array2d[float],
+    zh_row_a: int,
+    zh_row_b: int,
+    t: float,
+    weight: float,
+    order: int,
+    kz: wp.array[float],
+    out: wp.array2d[float],
+    row: int,
+):
+    """Add ``weight * zh_rotate(lerp(zh[a], zh[b], t), d)`` to ``out[row, :order*order]`` (thesis eq. 3.17).
+
+    Interpolating two rows of a ZH table (e.g. a table by blocker angular radius) inside the
+    rotation costs no more than rotating one row. ``kz`` comes from :func:`zh_normalization_array`.
+    ``d`` is normalised here; a zero axis contributes nothing. Same recurrences as
+    :func:`sh_accumulate` (exact at the poles).
+    """
+    len_d = wp.length(d)
+    if len_d == 0.0:
+        return
+    n = d / len_d
+    x = n[0]
+    y = n[1]
+    z = n[2]
+    c = float(1.0)
+    s = float(0.0)
+    pmm = float(1.0)
+    for m in range(order):
+        if m > 0:
+            c_new = c * x - s * y
+            s = c * y + s * x
+            c = c_new
+            pmm = pmm * (-float(2 * m - 1))
+        q2 = float(0.0)
+        q1 = float(0.0)
+        for l in range(m, order):
+            q = pmm
+            if l == m + 1:
+                q = z * float(2 * m + 1) * pmm
+            elif l > m + 1:
+                q = (float(2 * l - 1) * z * q1 - float(l + m - 1) * q2) / float(l - m)
+            q2 = q1
+            q1 = q
+            g = weight * ((1.0 - t) * zh[zh_row_a, l] + t * zh[zh_row_b, l])
+            base = l * (l + 1)
+            if m == 0:
+                out[row, base] = out[row, base] + g * kz[base] * q
+            else:
+                out[row, base + m] = out[row, base + m] + g * kz[base + m] * q * c
+                out[row, base - m] = out[row, base - m] + g * kz[base - m] * q * s
+
+
+@wp.func
+def zh_rotate_accumulate(
+    d: wp.vec3,
+    zh: wp.array2d[float],
+    zh_row: int,
+    weight: float,
+    order: int,
+    kz: wp.array[float],
+    out: wp.array2d[float],
+    row: int,
+):
+    """Add ``weight * zh_rotate(zh[zh_row], d)`` to ``out[row, :order*order]`` (thesis eq. 3.17).
+
+    ``zh`` has shape (rows, >= order); ``kz`` comes from :func:`zh_normalization_array`.
+    """
+    zh_lerp_rotate_accumulate(d, zh, zh_row, zh_row, 0.0, weight, order, kz, out, row)
