@@ -148,3 +148,82 @@ def zh_rotate_accumulate(
     ``zh`` has shape (rows, >= order); ``kz`` comes from :func:`zh_normalization_array`.
     """
     zh_lerp_rotate_accumulate(d, zh, zh_row, zh_row, 0.0, weight, order, kz, out, row)
+
+
+@wp.struct
+class SHProductTable:
+    """Sparse symmetric Gaunt table on the device (:class:`~warpshade.sh.products.SymmetricProductTable`).
+
+    ``c_i += v (a_j b_k + a_k b_j)`` over all entries computes the truncated product ``a * b``
+    (thesis eq. 3.19); diagonal entries hold ``Gamma_ijj / 2``. Sorted by ``i``.
+    """
+
+    i: wp.array[wp.int32]
+    """Output index per entry, shape (nnz,), dtype int32."""
+    j: wp.array[wp.int32]
+    """First factor index (j <= k), shape (nnz,), dtype int32."""
+    k: wp.array[wp.int32]
+    """Second factor index, shape (nnz,), dtype int32."""
+    v: wp.array[float]
+    """Weight, shape (nnz,), dtype float32."""
+
+
+def product_table_arrays(order: int, device: str = "cpu") -> SHProductTable:
+    """Upload :func:`~warpshade.sh.products.symmetric_product_table` for ``order`` to ``device``."""
+    from .products import symmetric_product_table
+
+    t = symmetric_product_table(order)
+    s = SHProductTable()
+    s.i = wp.array(t.i, dtype=wp.int32, device=device)
+    s.j = wp.array(t.j, dtype=wp.int32, device=device)
+    s.k = wp.array(t.k, dtype=wp.int32, device=device)
+    s.v = wp.array(t.value.astype(np.float32), dtype=float, device=device)
+    return s
+
+
+@wp.func
+def sh_product_rows(
+    a: wp.array2d[float],
+    a_row: int,
+    b: wp.array2d[float],
+    b_row: int,
+    n: int,
+    table: SHProductTable,
+    out: wp.array2d[float],
+    out_row: int,
+):
+    """``out[out_row, :n] = a[a_row] * b[b_row]``, the truncated SH product (thesis eq. 3.19).
+
+    ``n`` is ``order*order`` of the table. ``out`` must not alias either input row. Entries are
+    sorted by output index, so each output is summed in a register and written once.
+    """
+    for i in range(n):
+        out[out_row, i] = 0.0
+    nnz = table.v.shape[0]
+    if nnz == 0:
+        return
+    cur = table.i[0]
+    acc = float(0.0)
+    for e in range(nnz):
+        i = table.i[e]
+        if i != cur:
+            out[out_row, cur] = acc
+            acc = 0.0
+            cur = i
+        j = table.j[e]
+        k = table.k[e]
+        acc = acc + table.v[e] * (a[a_row, j] * b[b_row, k] + a[a_row, k] * b[b_row, j])
+    out[out_row, cur] = acc
+
+
+@wp.kernel
+def multiply_sh(
+    a: wp.array2d[float],
+    b: wp.array2d[float],
+    n: int,
+    table: SHProductTable,
+    out: wp.array2d[float],
+):
+    """Row-wise truncated SH products ``out[v] = a[v] * b[v]``, shapes (V, n), float32."""
+    v = wp.tid()
+    sh_product_rows(a, v, b, v, n, table, out, v)
