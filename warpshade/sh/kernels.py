@@ -6,6 +6,9 @@ come in as an array made by :func:`normalization_array` so one compiled function
 
 from __future__ import annotations
 
+import functools
+from types import SimpleNamespace
+
 import numpy as np
 import warp as wp
 
@@ -148,6 +151,82 @@ def zh_rotate_accumulate(
     ``zh`` has shape (rows, >= order); ``kz`` comes from :func:`zh_normalization_array`.
     """
     zh_lerp_rotate_accumulate(d, zh, zh_row, zh_row, 0.0, weight, order, kz, out, row)
+
+
+@functools.lru_cache(maxsize=None)
+def zh_vector_funcs(order: int) -> SimpleNamespace:
+    """Fixed-order vector types and a register-resident ZH rotation for ``order`` (built once, cached).
+
+    Returns a namespace with:
+
+    * ``vec_sh``: ``wp.types.vector(length=order*order, dtype=float32)`` — an SH vector;
+    * ``vec_zh``: ``wp.types.vector(length=order, dtype=float32)`` — a ZH vector;
+    * ``zh_rotate``: ``@wp.func (d: vec3, g: vec_zh, kz: vec_sh) -> vec_sh``, thesis eq. 3.17, with
+      ``kz = zh_constants()`` (:func:`zh_normalization_array` as a ``vec_sh``); zero ``d`` gives zero;
+    * ``zh_constants()``: that ``kz`` value to pass into kernels.
+
+    Accumulating rotated lobes in a ``vec_sh`` local is ~2x faster than
+    :func:`zh_rotate_accumulate` into an array row at order 8 (benchmarks/sh_exp.py: 170 vs 360 ns
+    per rotation), at the price of one compiled function per order.
+    """
+    from .basis import check_order
+
+    order = check_order(order)
+    n_sh = order * order
+
+    class vec_sh(wp.types.vector(length=n_sh, dtype=wp.float32)):
+        pass
+
+    class vec_zh(wp.types.vector(length=order, dtype=wp.float32)):
+        pass
+
+    bands = wp.constant(order)
+
+    def zh_rotate(d: wp.vec3, g: vec_zh, kz: vec_sh) -> vec_sh:
+        out = vec_sh()
+        len_d = wp.length(d)
+        if len_d == 0.0:
+            return out
+        n = d / len_d
+        x = n[0]
+        y = n[1]
+        z = n[2]
+        c = float(1.0)
+        s = float(0.0)
+        pmm = float(1.0)
+        for m in range(bands):
+            if m > 0:
+                c_new = c * x - s * y
+                s = c * y + s * x
+                c = c_new
+                pmm = pmm * (-float(2 * m - 1))
+            q2 = float(0.0)
+            q1 = float(0.0)
+            for l in range(m, bands):
+                q = pmm
+                if l == m + 1:
+                    q = z * float(2 * m + 1) * pmm
+                elif l > m + 1:
+                    q = (float(2 * l - 1) * z * q1 - float(l + m - 1) * q2) / float(l - m)
+                q2 = q1
+                q1 = q
+                base = l * (l + 1)
+                if m == 0:
+                    out[base] = g[l] * kz[base] * q
+                else:
+                    out[base + m] = g[l] * kz[base + m] * q * c
+                    out[base - m] = g[l] * kz[base - m] * q * s
+        return out
+
+    # This module uses postponed annotations; Warp needs the real (closure-local) types.
+    zh_rotate.__annotations__ = {"d": wp.vec3, "g": vec_zh, "kz": vec_sh, "return": vec_sh}
+    zh_rotate.__name__ = f"zh_rotate_order{order}"
+    func = wp.func(zh_rotate)
+
+    def zh_constants():
+        return vec_sh(*zh_normalization_array(order).numpy().tolist())
+
+    return SimpleNamespace(order=order, vec_sh=vec_sh, vec_zh=vec_zh, zh_rotate=func, zh_constants=zh_constants)
 
 
 @wp.struct
