@@ -105,3 +105,11 @@ def test_resume_from_written_frames(spec, blob, inline):
 def test_dask_local_cluster_matches_inline(spec, blob, inline):
     out = list(shade_frames(spec, wobble_frames(blob, 8), workers=2, scheduler="local"))
     assert_same(out, inline)
+
+
+def test_dask_separate_process_cluster_on_loopback(spec, blob, inline):
+    from warpshade.cluster import loopback_cluster
+
+    with loopback_cluster(workers=2) as address:
+        out = list(shade_frames(spec, wobble_frames(blob, 8), scheduler=address))
+    assert_same(out, inline)
