@@ -158,31 +158,12 @@ def timing_table(order, n, repeat, rng):
     vec_out = wp.zeros(n, dtype=fn.vec_sh)
     zhv = wp.array(zh, dtype=fn.vec_zh)
     kzv = fn.zh_constants()
-    kernel = _vector_kernel(order)
+    kernel = fn.accumulate_lobes
     out["warp_zh_rotate_vector_ns"] = median_seconds(
         lambda: wp.launch(kernel, dim=n, inputs=[d, zhv, kzv], outputs=[vec_out]), repeat=repeat) / (n * lobes) * 1e9
     r = rotation_from_axis_angle([1.0, 2.0, 3.0], 0.7)
     out["numpy_rotation_matrix_ms"] = median_seconds(lambda: rotation_matrix(r, order), repeat=repeat) * 1e3
     return out
-
-
-_VECTOR_KERNELS = {}
-
-
-def _vector_kernel(order):
-    if order not in _VECTOR_KERNELS:
-        fn = zh_vector_funcs(order)
-
-        def sum_lobes(d: wp.array2d[wp.vec3], zh: wp.array[fn.vec_zh], kz: fn.vec_sh, out: wp.array[fn.vec_sh]):
-            v = wp.tid()
-            acc = fn.vec_sh()
-            for b in range(d.shape[1]):
-                acc = acc + fn.zh_rotate(d[v, b], zh[b], kz)
-            out[v] = acc
-
-        sum_lobes.__name__ = f"sum_lobes_order{order}"
-        _VECTOR_KERNELS[order] = wp.kernel(sum_lobes, enable_backward=False)
-    return _VECTOR_KERNELS[order]
 
 
 def fmt(x):

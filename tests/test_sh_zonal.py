@@ -152,20 +152,12 @@ def test_warp_zh_rotate_vector_types(order, rng):
 
     fn = zh_vector_funcs(order)
 
-    @wp.kernel(enable_backward=False)
-    def sum_lobes(d: wp.array2d[wp.vec3], zh: wp.array[fn.vec_zh], kz: fn.vec_sh, out: wp.array[fn.vec_sh]):
-        v = wp.tid()
-        acc = fn.vec_sh()
-        for b in range(d.shape[1]):
-            acc = acc + fn.zh_rotate(d[v, b], zh[b], kz)
-        out[v] = acc
-
     d = rng.normal(size=(20, 6, 3))
     d[0, 0] = 0.0  # a zero axis contributes nothing
     d[1, 0] = [0, 0, -2.0]
     zh = rng.normal(size=(6, order))
     out = wp.zeros(20, dtype=fn.vec_sh)
-    wp.launch(sum_lobes, dim=20, inputs=[wp.array(d.astype(np.float32), dtype=wp.vec3),
+    wp.launch(fn.accumulate_lobes, dim=20, inputs=[wp.array(d.astype(np.float32), dtype=wp.vec3),
                                          wp.array(zh.astype(np.float32), dtype=fn.vec_zh), fn.zh_constants()],
               outputs=[out])
     lobes = zh_rotate(zh[None], d)

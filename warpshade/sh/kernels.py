@@ -163,7 +163,9 @@ def zh_vector_funcs(order: int) -> SimpleNamespace:
     * ``vec_zh``: ``wp.types.vector(length=order, dtype=float32)`` — a ZH vector;
     * ``zh_rotate``: ``@wp.func (d: vec3, g: vec_zh, kz: vec_sh) -> vec_sh``, thesis eq. 3.17, with
       ``kz = zh_constants()`` (:func:`zh_normalization_array` as a ``vec_sh``); zero ``d`` gives zero;
-    * ``zh_constants()``: that ``kz`` value to pass into kernels.
+    * ``zh_constants()``: that ``kz`` value to pass into kernels;
+    * ``accumulate_lobes``: kernel ``(d (V, B) vec3, zh (B,) vec_zh, kz) -> out (V,) vec_sh`` summing
+      lobe ``b`` rotated to ``d[v, b]`` for every vertex ``v`` (an example of use, and the benchmark).
 
     Accumulating rotated lobes in a ``vec_sh`` local is ~2x faster than
     :func:`zh_rotate_accumulate` into an array row at order 8 (benchmarks/sh_exp.py: 170 vs 360 ns
@@ -226,7 +228,19 @@ def zh_vector_funcs(order: int) -> SimpleNamespace:
     def zh_constants():
         return vec_sh(*zh_normalization_array(order).numpy().tolist())
 
-    return SimpleNamespace(order=order, vec_sh=vec_sh, vec_zh=vec_zh, zh_rotate=func, zh_constants=zh_constants)
+    def accumulate_lobes(d: wp.array2d[wp.vec3], zh: wp.array[vec_zh], kz: vec_sh, out: wp.array[vec_sh]):
+        v = wp.tid()
+        acc = vec_sh()
+        for b in range(d.shape[1]):
+            acc = acc + func(d[v, b], zh[b], kz)
+        out[v] = acc
+
+    accumulate_lobes.__annotations__ = {"d": wp.array2d(dtype=wp.vec3), "zh": wp.array(dtype=vec_zh), "kz": vec_sh,
+                                        "out": wp.array(dtype=vec_sh)}
+    accumulate_lobes.__name__ = f"accumulate_lobes_order{order}"
+    kernel = wp.kernel(accumulate_lobes, enable_backward=False)
+    return SimpleNamespace(order=order, vec_sh=vec_sh, vec_zh=vec_zh, zh_rotate=func, zh_constants=zh_constants,
+                           accumulate_lobes=kernel)
 
 
 @wp.struct
