@@ -1,7 +1,17 @@
-"""Warp ``@wp.func``s for the real SH basis of :mod:`warpshade.sh.basis` (convention stated there).
+"""Warp ``@wp.func``s and kernels of the SH core (convention: :mod:`warpshade.sh.basis`), float32.
 
-Order is a runtime argument (1..:data:`~warpshade.sh.basis.MAX_ORDER`); the normalisation constants
-come in as an array made by :func:`normalization_array` so one compiled function serves all orders.
+* basis: :func:`sh_accumulate`;
+* zonal rotation (thesis eq. 3.17): :func:`zh_rotate_accumulate`, :func:`zh_lerp_rotate_accumulate`
+  (array rows, runtime order) and :func:`zh_vector_funcs` (fixed-order vector types, ~2x faster);
+* products (eq. 3.19): :class:`SHProductTable` / :func:`product_table_arrays`, :func:`sh_product_rows`,
+  kernel :func:`multiply_sh`;
+* exponential (eqs. 3.30, 3.32): :class:`OLTableArrays` / :func:`ol_table_arrays`, :func:`sh_exp_ol`,
+  :func:`sh_exp_hybrid`, kernels :func:`exponentiate_sh_ol`, :func:`exponentiate_sh_hybrid`, and the
+  host helper :func:`sh_exp_warp`.
+
+Order is a runtime argument (1..:data:`~warpshade.sh.basis.MAX_ORDER`) for the row-based functions;
+constants and tables come in as arrays so one compiled function serves all orders. Each NumPy
+reference lives beside its float64 API (:mod:`.zonal`, :mod:`.products`, :mod:`.exp`).
 """
 
 from __future__ import annotations
@@ -13,6 +23,9 @@ import numpy as np
 import warp as wp
 
 from .basis import normalization
+
+# The kernels here are forward-only; skipping adjoint generation roughly halves their compile time.
+wp.set_module_options({"enable_backward": False})
 
 
 def normalization_array(order: int, device: str = "cpu") -> wp.array:
