@@ -34,17 +34,24 @@ def normalization_array(order: int, device: str = "cpu") -> wp.array:
 
 
 @wp.func
-def sh_accumulate(
+def sh_accumulate_banded(
     d: wp.vec3,
+    zh: wp.array2d[float],
+    zh_row_a: int,
+    zh_row_b: int,
+    t: float,
+    use_bands: int,
     weight: float,
     order: int,
     k: wp.array[float],
     out: wp.array2d[float],
     row: int,
 ):
-    """Add ``weight * y_i(d)`` to ``out[row, i]`` for all ``i < order*order``.
+    """Add ``w_l * k[i] * Q_l^m(d) * (cos | sin)(m phi)`` to ``out[row, i]`` for all ``i < order*order``.
 
-    Cartesian recurrences (thesis eqs. A.1–A.3 without the ``sin^m`` factor), so the poles are exact.
+    ``w_l = weight`` when ``use_bands == 0`` (``zh`` is then not read), else
+    ``weight * lerp(zh[zh_row_a, l], zh[zh_row_b, l], t)``. The one implementation of the Cartesian
+    recurrences (thesis eqs. A.1–A.3 without the ``sin^m`` factor), so the poles are exact.
     ``d`` is normalised here; a zero vector contributes nothing.
     """
     len_d = wp.length(d)
@@ -73,12 +80,32 @@ def sh_accumulate(
                 q = (float(2 * l - 1) * z * q1 - float(l + m - 1) * q2) / float(l - m)
             q2 = q1
             q1 = q
+            g = weight
+            if use_bands != 0:
+                g = weight * ((1.0 - t) * zh[zh_row_a, l] + t * zh[zh_row_b, l])
             base = l * (l + 1)
             if m == 0:
-                out[row, base] = out[row, base] + weight * k[base] * q
+                out[row, base] = out[row, base] + g * k[base] * q
             else:
-                out[row, base + m] = out[row, base + m] + weight * k[base + m] * q * c
-                out[row, base - m] = out[row, base - m] + weight * k[base - m] * q * s
+                out[row, base + m] = out[row, base + m] + g * k[base + m] * q * c
+                out[row, base - m] = out[row, base - m] + g * k[base - m] * q * s
+
+
+@wp.func
+def sh_accumulate(
+    d: wp.vec3,
+    weight: float,
+    order: int,
+    k: wp.array[float],
+    out: wp.array2d[float],
+    row: int,
+):
+    """Add ``weight * y_i(d)`` to ``out[row, i]`` for all ``i < order*order``.
+
+    Cartesian recurrences (thesis eqs. A.1–A.3 without the ``sin^m`` factor), so the poles are exact.
+    ``d`` is normalised here; a zero vector contributes nothing.
+    """
+    sh_accumulate_banded(d, out, 0, 0, 0.0, 0, weight, order, k, out, row)
 
 
 def zh_normalization_array(order: int, device: str = "cpu") -> wp.array:
@@ -110,42 +137,9 @@ def zh_lerp_rotate_accumulate(
 
     Interpolating two rows of a ZH table (e.g. a table by blocker angular radius) inside the
     rotation costs no more than rotating one row. ``kz`` comes from :func:`zh_normalization_array`.
-    ``d`` is normalised here; a zero axis contributes nothing. Same recurrences as
-    :func:`sh_accumulate` (exact at the poles).
+    ``d`` is normalised here; a zero axis contributes nothing (exact at the poles).
     """
-    len_d = wp.length(d)
-    if len_d == 0.0:
-        return
-    n = d / len_d
-    x = n[0]
-    y = n[1]
-    z = n[2]
-    c = float(1.0)
-    s = float(0.0)
-    pmm = float(1.0)
-    for m in range(order):
-        if m > 0:
-            c_new = c * x - s * y
-            s = c * y + s * x
-            c = c_new
-            pmm = pmm * (-float(2 * m - 1))
-        q2 = float(0.0)
-        q1 = float(0.0)
-        for l in range(m, order):
-            q = pmm
-            if l == m + 1:
-                q = z * float(2 * m + 1) * pmm
-            elif l > m + 1:
-                q = (float(2 * l - 1) * z * q1 - float(l + m - 1) * q2) / float(l - m)
-            q2 = q1
-            q1 = q
-            g = weight * ((1.0 - t) * zh[zh_row_a, l] + t * zh[zh_row_b, l])
-            base = l * (l + 1)
-            if m == 0:
-                out[row, base] = out[row, base] + g * kz[base] * q
-            else:
-                out[row, base + m] = out[row, base + m] + g * kz[base + m] * q * c
-                out[row, base - m] = out[row, base - m] + g * kz[base - m] * q * s
+    sh_accumulate_banded(d, zh, zh_row_a, zh_row_b, t, 1, weight, order, kz, out, row)
 
 
 @wp.func
@@ -163,7 +157,7 @@ def zh_rotate_accumulate(
 
     ``zh`` has shape (rows, >= order); ``kz`` comes from :func:`zh_normalization_array`.
     """
-    zh_lerp_rotate_accumulate(d, zh, zh_row, zh_row, 0.0, weight, order, kz, out, row)
+    sh_accumulate_banded(d, zh, zh_row, zh_row, 0.0, 1, weight, order, kz, out, row)
 
 
 @functools.lru_cache(maxsize=None)
