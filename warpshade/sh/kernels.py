@@ -436,6 +436,11 @@ def sh_exp_hybrid(
     """
     f0 = f[f_row, 0]
     m = sh_dc_free_norm(f, f_row, n)
+    if not wp.isfinite(m) or not wp.isfinite(f0):
+        # NaN/inf input (or |f| beyond 1e19, whose squared norm overflows float32): say so, don't guess.
+        for i in range(n):
+            out[out_row, i] = wp.nan
+        return
     p = int(0)
     if m > threshold:
         p = int(wp.ceil(wp.log2(m / threshold)))
