@@ -1,0 +1,233 @@
+"""Analytic lights: directional (UsdLux DistantLight), point, sphere (UsdLux SphereLight) and rect
+(UsdLux RectLight), as RGB SH radiance in world space (conventions in :mod:`warpshade.lighting.base`).
+
+Mapping from UsdLux (``L = intensity · 2^exposure · color``, divided by the emitting area when
+``normalize`` is on — by the caller):
+
+* DistantLight → :class:`DirectionalLight` ``(direction = light's +Z axis in world, radiance=L,
+  angle=inputs:angle)`` via :meth:`DirectionalLight.from_radiance`; a normalized DistantLight gives
+  the irradiance directly: ``DirectionalLight(direction, irradiance=L, angle=...)``.
+* SphereLight → :class:`SphereLight` ``(position, radius, radiance=L)``; with ``treatAsPoint``
+  use :meth:`SphereLight.as_point` (same power).
+* RectLight → :class:`RectLight` ``(center, u = half width · local X, v = half height · local Y,
+  radiance=L)``; it emits towards local −Z, i.e. ``−(u × v)``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..sh import sh_eval
+from .base import Light, as_rgb, cap_zh, unit_vector, zh_rotate
+
+_CHUNK = 512  # receivers per block in per-point evaluation: bounds memory at (chunk, samples, N*N) floats
+
+
+def _cap_sh(axis, cos_alpha, radiance: np.ndarray, order: int) -> np.ndarray:
+    """SH of uniform caps: ``axis`` S+(3,), ``cos_alpha`` S -> S + (order*order, 3)."""
+    f = zh_rotate(cap_zh(cos_alpha, order), axis, order)
+    return f[..., None] * radiance
+
+
+@dataclasses.dataclass
+class DirectionalLight(Light):
+    """Light from one direction, as the sun (UsdLux DistantLight).
+
+    Attributes:
+        direction: Unit vector from the scene towards the light, world space, shape (3,).
+        irradiance: RGB irradiance on a surface facing the light (W/m², or any consistent unit).
+        angle: Angular diameter [degrees] (UsdLux ``inputs:angle``); 0 is a delta direction, > 0 a
+            uniform disc of radiance ``irradiance / (π sin²(angle/2))``.
+    """
+
+    direction: object = (0.0, 1.0, 0.0)
+    irradiance: object = 1.0
+    angle: float = 0.0
+
+    def __post_init__(self):
+        self.direction = unit_vector(self.direction, f"{self.name}: direction")
+        self.irradiance = as_rgb(self.irradiance, f"{self.name}: irradiance")
+        if not 0.0 <= float(self.angle) < 180.0:
+            raise ValueError(f"{self.name}: angle must be in [0, 180) degrees, got {self.angle}")
+        self.angle = float(self.angle)
+
+    @classmethod
+    def from_radiance(cls, direction, radiance, angle: float = 0.53, name: str = "light") -> "DirectionalLight":
+        """From the disc's radiance (an unnormalized UsdLux DistantLight): ``E = L π sin²(angle/2)``."""
+        if not 0.0 < float(angle) < 180.0:
+            raise ValueError(f"{name}: a light given by radiance needs angle in (0, 180) degrees, got {angle}")
+        s = math.sin(math.radians(angle) / 2)
+        return cls(direction=direction, irradiance=as_rgb(radiance, f"{name}: radiance") * math.pi * s * s,
+                   angle=angle, name=name)
+
+    @property
+    def radiance(self) -> np.ndarray:
+        """Radiance of the disc (RGB); infinite for angle 0."""
+        s = math.sin(math.radians(self.angle) / 2)
+        return self.irradiance / (math.pi * s * s) if s > 0 else np.full(3, np.inf)
+
+    def _sh(self, order: int) -> np.ndarray:
+        if self.angle == 0.0:
+            return sh_eval(self.direction, order)[:, None] * self.irradiance  # L(ω) = E δ(ω, d)
+        return _cap_sh(self.direction, math.cos(math.radians(self.angle) / 2), self.radiance, order)
+
+    def _rotated(self, rotation):
+        return dataclasses.replace(self, direction=rotation @ self.direction)
+
+
+@dataclasses.dataclass
+class PointLight(Light):
+    """Isotropic point light: irradiance ``I / r²`` from the light's direction.
+
+    Attributes:
+        position: World position [m], shape (3,).
+        intensity: RGB radiant intensity [W/sr] (or any consistent unit).
+        min_distance: Receivers closer than this [m] are treated as at this distance (keeps 1/r² finite).
+    """
+
+    position: object = (0.0, 0.0, 0.0)
+    intensity: object = 1.0
+    min_distance: float = 1e-4
+
+    local = True
+
+    def __post_init__(self):
+        self.position = np.asarray(self.position, dtype=np.float64).reshape(3)
+        if not np.isfinite(self.position).all():
+            raise ValueError(f"{self.name}: position must be finite, got {self.position}")
+        self.intensity = as_rgb(self.intensity, f"{self.name}: intensity")
+
+    def _sh_at(self, points, order):
+        d = self.position[None, :] - points
+        r2 = np.maximum((d * d).sum(axis=1), self.min_distance**2)
+        return sh_eval(d, order)[:, :, None] * (self.intensity[None, None, :] / r2[:, None, None])
+
+    def _rotated(self, rotation):
+        return dataclasses.replace(self, position=rotation @ self.position)
+
+
+@dataclasses.dataclass
+class SphereLight(Light):
+    """Uniformly emitting sphere (UsdLux SphereLight): from a receiver at distance ``r`` it is a cap
+    of half-angle ``asin(radius / r)``; inside the sphere it fills every direction.
+
+    The cap's zonal coefficients are analytic (:func:`~warpshade.lighting.base.cap_zh`) and rotated
+    with CONTRACTS.md §1's formula, so the SH is exact for every receiver.
+
+    Attributes:
+        position: Centre [m], shape (3,).
+        radius: Radius [m], > 0.
+        radiance: RGB surface radiance.
+    """
+
+    position: object = (0.0, 0.0, 0.0)
+    radius: float = 0.1
+    radiance: object = 1.0
+
+    local = True
+
+    def __post_init__(self):
+        self.position = np.asarray(self.position, dtype=np.float64).reshape(3)
+        if not np.isfinite(self.position).all():
+            raise ValueError(f"{self.name}: position must be finite, got {self.position}")
+        if not (math.isfinite(self.radius) and self.radius > 0):
+            raise ValueError(f"{self.name}: radius must be positive, got {self.radius}")
+        self.radiance = as_rgb(self.radiance, f"{self.name}: radiance")
+
+    def as_point(self) -> PointLight:
+        """The point light of equal power (UsdLux ``treatAsPoint``): ``I = L π radius²``."""
+        return PointLight(position=self.position, intensity=self.radiance * math.pi * self.radius**2,
+                          name=self.name, motion=self.motion)
+
+    def _sh_at(self, points, order):
+        d = self.position[None, :] - points
+        r = np.linalg.norm(d, axis=1)
+        s = np.clip(self.radius / np.maximum(r, 1e-300), 0.0, 1.0)
+        cos_alpha = np.where(r > self.radius, np.sqrt(1.0 - s * s), -1.0)
+        return _cap_sh(d, cos_alpha, self.radiance, order)
+
+    def _rotated(self, rotation):
+        return dataclasses.replace(self, position=rotation @ self.position)
+
+
+@dataclasses.dataclass
+class RectLight(Light):
+    """Uniformly emitting rectangle with corners ``center ± u ± v`` (UsdLux RectLight).
+
+    The SH seen from a receiver is integrated over the rectangle with a ``samples × samples``
+    Gauss–Legendre rule: ``L_i(p) = L ∫ y_i(ω_q) cos θ_q / |q − p|² dA``. Accurate when the
+    receiver is farther from the light than about its half-size (see the README for measured
+    errors); exact visibility of area lights is the GEARS method's job, this is the SH
+    approximation used with environment-style shading.
+
+    Attributes:
+        center: Centre [m], shape (3,).
+        u: Half-width vector [m] (UsdLux: ``width/2`` along local X), shape (3,).
+        v: Half-height vector [m] (UsdLux: ``height/2`` along local Y), shape (3,).
+        radiance: RGB radiance of the emitting side.
+        two_sided: Emit on both sides (the visibility contract's convention) instead of only
+            towards ``−(u × v)`` (UsdLux: local −Z).
+        samples: Gauss–Legendre nodes per axis.
+    """
+
+    center: object = (0.0, 0.0, 0.0)
+    u: object = (0.5, 0.0, 0.0)
+    v: object = (0.0, 0.5, 0.0)
+    radiance: object = 1.0
+    two_sided: bool = False
+    samples: int = 8
+
+    local = True
+
+    def __post_init__(self):
+        for attr in ("center", "u", "v"):
+            val = np.asarray(getattr(self, attr), dtype=np.float64).reshape(3)
+            if not np.isfinite(val).all():
+                raise ValueError(f"{self.name}: {attr} must be finite, got {val}")
+            setattr(self, attr, val)
+        if np.linalg.norm(np.cross(self.u, self.v)) == 0.0:
+            raise ValueError(f"{self.name}: u and v span no area (u={self.u}, v={self.v})")
+        self.radiance = as_rgb(self.radiance, f"{self.name}: radiance")
+        if int(self.samples) < 1:
+            raise ValueError(f"{self.name}: samples must be >= 1, got {self.samples}")
+        self.samples = int(self.samples)
+
+    @property
+    def emit_normal(self) -> np.ndarray:
+        """Unit normal of the emitting side, ``−(u × v)/|u × v|``."""
+        n = np.cross(self.u, self.v)
+        return -n / np.linalg.norm(n)
+
+    @property
+    def area(self) -> float:
+        """Area [m²] (one side)."""
+        return 4.0 * float(np.linalg.norm(np.cross(self.u, self.v)))
+
+    def corners(self) -> np.ndarray:
+        """Corners in order ``c−u−v, c+u−v, c+u+v, c−u+v``, shape (4, 3)."""
+        c, u, v = self.center, self.u, self.v
+        return np.array([c - u - v, c + u - v, c + u + v, c - u + v])
+
+    def _sh_at(self, points, order):
+        x, w = np.polynomial.legendre.leggauss(self.samples)
+        s, t = np.meshgrid(x, x, indexing="ij")
+        q = self.center + s.reshape(-1, 1) * self.u + t.reshape(-1, 1) * self.v  # (K, 3)
+        wq = np.outer(w, w).reshape(-1) * float(np.linalg.norm(np.cross(self.u, self.v)))  # dA, sums to area
+        n = self.emit_normal
+        out = np.empty((points.shape[0], order * order, 3))
+        for start in range(0, points.shape[0], _CHUNK):
+            p = points[start:start + _CHUNK]
+            d = q[None, :, :] - p[:, None, :]  # receiver -> sample, (P, K, 3)
+            r2 = np.maximum((d * d).sum(axis=2), 1e-300)
+            cos_e = -(d @ n) / np.sqrt(r2)  # cosine at the emitter, > 0 on the emitting side
+            cos_e = np.abs(cos_e) if self.two_sided else np.maximum(cos_e, 0.0)
+            dw = wq[None, :] * cos_e / r2  # solid angle per sample
+            f = np.einsum("pk,pki->pi", dw, sh_eval(d, order))
+            out[start:start + _CHUNK] = f[:, :, None] * self.radiance
+        return out
+
+    def _rotated(self, rotation):
+        return dataclasses.replace(self, center=rotation @ self.center, u=rotation @ self.u, v=rotation @ self.v)
