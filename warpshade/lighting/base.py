@@ -87,20 +87,13 @@ def spin(axis, degrees_per_second: float, start_degrees: float = 0.0) -> Motion:
     return motion
 
 
-def cap_zh(cos_alpha, order: int) -> np.ndarray:
-    """Zonal coefficients of the indicator of a spherical cap of half-angle α about +z.
+def cap_zh(angle, order: int) -> np.ndarray:
+    """ZH coefficients of a spherical cap of angular radius ``angle`` [rad] about +z, shape S + (order,).
 
-    ``g_l = ∫_cap y_l0 dω = 2π K_l ∫_{cos α}^1 P_l(t) dt`` with
-    ``∫_x^1 P_l = (P_{l-1}(x) − P_{l+1}(x)) / (2l+1)`` (l ≥ 1) and ``1 − x`` (l = 0).
-
-    Args:
-        cos_alpha: Cosine of the half-angle, any shape S (−1 = whole sphere).
-        order: SH order.
-
-    Returns:
-        ``g``, shape S + (order,), float64 (``g[..., l]`` is the ``y_l0`` coefficient).
+    ``g_l = 2π K_l ∫_{cos a}^1 P_l``; ``∫_x^1 P_l = (P_{l-1}(x) − P_{l+1}(x)) / (2l+1)``.
+    TEMPORARY: same signature as ``warpshade.sh.zonal.cap_zh`` (SH-core branch), which replaces it on merge.
     """
-    x = np.clip(np.asarray(cos_alpha, dtype=np.float64), -1.0, 1.0)
+    x = np.cos(np.asarray(angle, dtype=np.float64))
     p = [np.ones_like(x), x]  # Legendre P_0..P_order by Bonnet's recurrence
     for l in range(1, order):
         p.append(((2 * l + 1) * x * p[l] - l * p[l - 1]) / (l + 1))
@@ -108,27 +101,18 @@ def cap_zh(cos_alpha, order: int) -> np.ndarray:
     g[..., 0] = 1.0 - x
     for l in range(1, order):
         g[..., l] = (p[l - 1] - p[l + 1]) / (2 * l + 1)
-    k = np.sqrt((2 * np.arange(order) + 1) / (4 * np.pi))
-    return 2 * np.pi * k * g
+    return 2 * np.pi * np.sqrt((2 * np.arange(order) + 1) / (4 * np.pi)) * g
 
 
-def zh_rotate(g, axis, order: int) -> np.ndarray:
-    """Rotate zonal coefficients to point along ``axis``: ``f_lm = sqrt(4π/(2l+1)) g_l y_lm(axis)``.
+def zh_rotate(zh, axis) -> np.ndarray:
+    """Rotate ZH lobes to ``axis``: ``f_lm = sqrt(4π/(2l+1)) g_l y_lm(axis)`` (CONTRACTS.md §1), S + (order²,).
 
-    CONTRACTS.md §1 (thesis eq. 3.17).
-
-    Args:
-        g: Zonal coefficients, shape S + (order,).
-        axis: Directions, shape S + (3,) (normalised by ``sh_eval``).
-        order: SH order.
-
-    Returns:
-        Coefficients, shape S + (order*order,), float64.
+    TEMPORARY: same signature as ``warpshade.sh.zonal.zh_rotate`` (SH-core branch), which replaces it on merge.
     """
-    g = np.asarray(g, dtype=np.float64)
+    g = np.asarray(zh, dtype=np.float64)
+    order = g.shape[-1]
     l_of_i = np.repeat(np.arange(order), 2 * np.arange(order) + 1)
-    scale = np.sqrt(4 * np.pi / (2 * l_of_i + 1))
-    return sh_eval(axis, order) * (scale * g[..., l_of_i])
+    return sh_eval(axis, order) * (np.sqrt(4 * np.pi / (2 * l_of_i + 1)) * g[..., l_of_i])
 
 
 @dataclasses.dataclass

@@ -26,9 +26,9 @@ from .base import Light, as_rgb, cap_zh, unit_vector, zh_rotate
 _CHUNK = 512  # receivers per block in per-point evaluation: bounds memory at (chunk, samples, N*N) floats
 
 
-def _cap_sh(axis, cos_alpha, radiance: np.ndarray, order: int) -> np.ndarray:
-    """SH of uniform caps: ``axis`` S+(3,), ``cos_alpha`` S -> S + (order*order, 3)."""
-    f = zh_rotate(cap_zh(cos_alpha, order), axis, order)
+def _cap_sh(axis, angle, radiance: np.ndarray, order: int) -> np.ndarray:
+    """SH of uniform caps: ``axis`` S+(3,), angular radius ``angle`` [rad] S -> S + (order*order, 3)."""
+    f = zh_rotate(cap_zh(angle, order), axis)
     return f[..., None] * radiance
 
 
@@ -72,7 +72,7 @@ class DirectionalLight(Light):
     def _sh(self, order: int) -> np.ndarray:
         if self.angle == 0.0:
             return sh_eval(self.direction, order)[:, None] * self.irradiance  # L(ω) = E δ(ω, d)
-        return _cap_sh(self.direction, math.cos(math.radians(self.angle) / 2), self.radiance, order)
+        return _cap_sh(self.direction, math.radians(self.angle) / 2, self.radiance, order)
 
     def _rotated(self, rotation):
         return dataclasses.replace(self, direction=rotation @ self.direction)
@@ -146,8 +146,8 @@ class SphereLight(Light):
         d = self.position[None, :] - points
         r = np.linalg.norm(d, axis=1)
         s = np.clip(self.radius / np.maximum(r, 1e-300), 0.0, 1.0)
-        cos_alpha = np.where(r > self.radius, np.sqrt(1.0 - s * s), -1.0)
-        return _cap_sh(d, cos_alpha, self.radiance, order)
+        angle = np.where(r > self.radius, np.arcsin(s), np.pi)  # inside the sphere: every direction
+        return _cap_sh(d, angle, self.radiance, order)
 
     def _rotated(self, rotation):
         return dataclasses.replace(self, position=rotation @ self.position)

@@ -167,12 +167,12 @@ class Sky(Light):
             out[above] = self._sky_rgb(d[above])
         if with_sun:
             out[(d @ self._sun) >= self._sun_cos] += self._sun_radiance
-        return out * self._scale
+        return out  # unscaled (kcd/m²)
 
     def radiance(self, dirs) -> np.ndarray:
         """Radiance towards the viewer from world directions ``dirs`` (M, 3), RGB, (M, 3), float64 (sun included)."""
         d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3) @ self.rotation  # rows: R^T d
-        return self._radiance_local(d)
+        return self._radiance_local(d) * self._scale
 
     @property
     def sun_direction(self) -> np.ndarray:
@@ -191,7 +191,7 @@ class Sky(Light):
             # order 8). The sun disc is added analytically as a uniform cap.
             sky = project_function(lambda d: self._radiance_local(d, with_sun=False), order,
                                    n_theta=64, n_phi=256, pole=self._up, split=True)
-            sun = zh_rotate(cap_zh(self._sun_cos, order), self._sun, order)[:, None] * self._sun_radiance
+            sun = zh_rotate(cap_zh(math.radians(SUN_ANGLE_DEG) / 2, order), self._sun)[:, None] * self._sun_radiance
             self._cache[order] = (sky + sun) * self._scale
         return rotate_sh(self._cache[order], self.rotation, order)
 
