@@ -171,6 +171,7 @@ class RectLight(Light):
         two_sided: Emit on both sides (the visibility contract's convention) instead of only
             towards ``−(u × v)`` (UsdLux: local −Z).
         samples: Gauss–Legendre nodes per axis.
+        device: Warp device of the per-receiver kernel.
     """
 
     center: object = (0.0, 0.0, 0.0)
@@ -179,6 +180,7 @@ class RectLight(Light):
     radiance: object = 1.0
     two_sided: bool = False
     samples: int = 8
+    device: str = "cpu"
 
     local = True
 
@@ -211,11 +213,39 @@ class RectLight(Light):
         c, u, v = self.center, self.u, self.v
         return np.array([c - u - v, c + u - v, c + u + v, c - u + v])
 
-    def _sh_at(self, points, order):
+    def _rule(self):
+        """Tensor Gauss–Legendre nodes (K, 2) in [-1, 1]² and area weights (K,) summing to the area."""
         x, w = np.polynomial.legendre.leggauss(self.samples)
         s, t = np.meshgrid(x, x, indexing="ij")
-        q = self.center + s.reshape(-1, 1) * self.u + t.reshape(-1, 1) * self.v  # (K, 3)
-        wq = np.outer(w, w).reshape(-1) * float(np.linalg.norm(np.cross(self.u, self.v)))  # dA, sums to area
+        nodes = np.stack([s.reshape(-1), t.reshape(-1)], axis=1)
+        return nodes, np.outer(w, w).reshape(-1) * float(np.linalg.norm(np.cross(self.u, self.v)))
+
+    def _sh_at(self, points, order):
+        """Warp kernel :func:`~warpshade.lighting.kernels.integrate_rect_light` (orders 1..8)."""
+        import warp as wp
+
+        from ..sh.basis import check_order
+        from ..sh.kernels import normalization_array
+        from .kernels import integrate_rect_light
+
+        check_order(order)
+        nodes, wq = self._rule()
+        device = self.device
+        out = wp.zeros((points.shape[0], order * order), dtype=float, device=device)
+        wp.launch(integrate_rect_light, dim=points.shape[0],
+                  inputs=[wp.array(points.astype(np.float32), dtype=wp.vec3, device=device), wp.vec3(*self.center),
+                          wp.vec3(*self.u), wp.vec3(*self.v), wp.vec3(*self.emit_normal), int(self.two_sided),
+                          wp.array(nodes.astype(np.float32), dtype=wp.vec2, device=device),
+                          wp.array(wq.astype(np.float32), dtype=float, device=device), order,
+                          normalization_array(order, device)],
+                  outputs=[out], device=device)
+        return out.numpy().astype(np.float64)[:, :, None] * self.radiance
+
+    def sh_at_reference(self, points, order: int) -> np.ndarray:
+        """NumPy reference of :meth:`sh_at` (same quadrature, float64), shape (P, order*order, 3)."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        nodes, wq = self._rule()
+        q = self.center + nodes[:, :1] * self.u + nodes[:, 1:] * self.v  # (K, 3)
         n = self.emit_normal
         out = np.empty((points.shape[0], order * order, 3))
         for start in range(0, points.shape[0], _CHUNK):
