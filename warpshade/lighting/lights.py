@@ -23,7 +23,6 @@ import numpy as np
 from ..sh import sh_eval
 from .base import Light, as_rgb, cap_zh, unit_vector, zh_rotate
 
-_CHUNK = 512  # receivers per block in per-point evaluation: bounds memory at (chunk, samples, N*N) floats
 
 
 def _cap_sh(axis, angle, radiance: np.ndarray, order: int) -> np.ndarray:
@@ -170,7 +169,9 @@ class RectLight(Light):
         radiance: RGB radiance of the emitting side.
         two_sided: Emit on both sides (the visibility contract's convention) instead of only
             towards ``−(u × v)`` (UsdLux: local −Z).
-        samples: Gauss–Legendre nodes per axis.
+        samples: Gauss–Legendre nodes per axis and tile.
+        max_tiles: Upper bound on tiles per axis; a receiver at distance ``d`` from the rectangle
+            uses ``ceil(max(|u|, |v|) / d)`` tiles per axis so the rule stays accurate up close.
         device: Warp device of the per-receiver kernel.
     """
 
@@ -180,6 +181,7 @@ class RectLight(Light):
     radiance: object = 1.0
     two_sided: bool = False
     samples: int = 8
+    max_tiles: int = 16
     device: str = "cpu"
 
     local = True
@@ -193,9 +195,24 @@ class RectLight(Light):
         if np.linalg.norm(np.cross(self.u, self.v)) == 0.0:
             raise ValueError(f"{self.name}: u and v span no area (u={self.u}, v={self.v})")
         self.radiance = as_rgb(self.radiance, f"{self.name}: radiance")
-        if int(self.samples) < 1:
-            raise ValueError(f"{self.name}: samples must be >= 1, got {self.samples}")
+        if int(self.samples) < 1 or int(self.max_tiles) < 1:
+            raise ValueError(f"{self.name}: samples and max_tiles must be >= 1, got {self.samples}, {self.max_tiles}")
         self.samples = int(self.samples)
+        self.max_tiles = int(self.max_tiles)
+
+    @property
+    def _half_max(self) -> float:
+        return float(max(np.linalg.norm(self.u), np.linalg.norm(self.v)))
+
+    def _tiles(self, x: np.ndarray) -> int:
+        """Tiles per axis for receiver ``x`` (same rule as the kernel's ``rect_tiles``)."""
+        rel = x - self.center
+        s = np.clip(rel @ self.u / (self.u @ self.u), -1.0, 1.0)
+        t = np.clip(rel @ self.v / (self.v @ self.v), -1.0, 1.0)
+        dist = float(np.linalg.norm(self.center + s * self.u + t * self.v - x))
+        if dist * self.max_tiles <= self._half_max:
+            return self.max_tiles
+        return int(min(max(math.ceil(self._half_max / dist), 1), self.max_tiles))
 
     @property
     def emit_normal(self) -> np.ndarray:
@@ -236,27 +253,30 @@ class RectLight(Light):
                   inputs=[wp.array(points.astype(np.float32), dtype=wp.vec3, device=device), wp.vec3(*self.center),
                           wp.vec3(*self.u), wp.vec3(*self.v), wp.vec3(*self.emit_normal), int(self.two_sided),
                           wp.array(nodes.astype(np.float32), dtype=wp.vec2, device=device),
-                          wp.array(wq.astype(np.float32), dtype=float, device=device), order,
+                          wp.array(wq.astype(np.float32), dtype=float, device=device), self._half_max,
+                          self.max_tiles, order,
                           normalization_array(order, device)],
                   outputs=[out], device=device)
         return out.numpy().astype(np.float64)[:, :, None] * self.radiance
 
     def sh_at_reference(self, points, order: int) -> np.ndarray:
-        """NumPy reference of :meth:`sh_at` (same quadrature, float64), shape (P, order*order, 3)."""
+        """NumPy reference of :meth:`sh_at` (same tiled quadrature, float64, one receiver at a time),
+        shape (P, order*order, 3)."""
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         nodes, wq = self._rule()
-        q = self.center + nodes[:, :1] * self.u + nodes[:, 1:] * self.v  # (K, 3)
         n = self.emit_normal
         out = np.empty((points.shape[0], order * order, 3))
-        for start in range(0, points.shape[0], _CHUNK):
-            p = points[start:start + _CHUNK]
-            d = q[None, :, :] - p[:, None, :]  # receiver -> sample, (P, K, 3)
-            r2 = np.maximum((d * d).sum(axis=2), 1e-300)
+        for i, x in enumerate(points):
+            tiles = self._tiles(x)
+            centres = -1.0 + (2 * np.arange(tiles) + 1) / tiles
+            sc, tc = np.meshgrid(centres, centres, indexing="ij")
+            st = (np.stack([sc.reshape(-1), tc.reshape(-1)], 1)[:, None, :] + nodes[None] / tiles).reshape(-1, 2)
+            w = np.tile(wq / tiles**2, tiles * tiles)
+            d = self.center + st[:, :1] * self.u + st[:, 1:] * self.v - x  # receiver -> sample
+            r2 = np.maximum((d * d).sum(axis=1), 1e-300)
             cos_e = -(d @ n) / np.sqrt(r2)  # cosine at the emitter, > 0 on the emitting side
             cos_e = np.abs(cos_e) if self.two_sided else np.maximum(cos_e, 0.0)
-            dw = wq[None, :] * cos_e / r2  # solid angle per sample
-            f = np.einsum("pk,pki->pi", dw, sh_eval(d, order))
-            out[start:start + _CHUNK] = f[:, :, None] * self.radiance
+            out[i] = ((w * cos_e / r2) @ sh_eval(d, order))[:, None] * self.radiance
         return out
 
     def _rotated(self, rotation):
