@@ -42,6 +42,11 @@ def up_frame(up: str) -> np.ndarray:
 class EnvironmentMap(Light):
     """A lat-long HDR environment (UsdLux DomeLight with a ``latlong`` texture).
 
+    From USD: ``EnvironmentMap.from_file(texture, intensity=intensity * 2**exposure * color,
+    up="Y", rotation=<rotation part of the dome prim's world transform>)``. A plain DomeLight's pole
+    is +Y in its own frame whatever the stage up axis; a DomeLight_1 with ``poleAxis`` Z (or "scene"
+    on a Z-up stage) uses ``up="Z"``, which is a +90° turn about X.
+
     Attributes:
         image: Radiance per texel, linear RGB, shape (H, W, 3), float32 (before ``intensity``).
         intensity: RGB or scalar multiplier (UsdLux ``intensity * 2^exposure * color``).

@@ -174,6 +174,32 @@ class Sky(Light):
         d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3) @ self.rotation  # rows: R^T d
         return self._radiance_local(d) * self._scale
 
+    def to_image(self, height: int = 512, up: str | None = None) -> np.ndarray:
+        """Render to a lat-long image (OpenEXR layout, pole along ``up``, default the sky's own),
+        e.g. as a UsdLux DomeLight texture so viewers see the same sky.
+
+        The sun disc is usually smaller than a texel: it is splatted into the texel that contains
+        its direction with radiance ``L_sun Ω_sun / Ω_texel``, so the image carries the sun's energy.
+
+        Returns:
+            Radiance, shape (height, 2*height, 3), float32.
+        """
+        from ..sh.projection import latlong_directions, latlong_row_solid_angles
+
+        frame = up_frame(self.up if up is None else up)
+        w = 2 * height
+        dirs = latlong_directions(height, w).reshape(-1, 3) @ frame.T  # world directions
+        local = dirs @ self.rotation  # rows: R^T d
+        img = self._radiance_local(local, with_sun=False).reshape(height, w, 3)
+        if self.sun:
+            d = frame.T @ self.sun_direction  # sun in the map frame
+            lat, lon = math.asin(max(-1.0, min(1.0, d[1]))), math.atan2(d[0], d[2])
+            row = min(int((math.pi / 2 - lat) / math.pi * height), height - 1)
+            col = min(int((math.pi - lon) / (2 * math.pi) * w), w - 1)
+            omega_sun = 2 * math.pi * (1 - self._sun_cos)
+            img[row, col] += self._sun_radiance * omega_sun / latlong_row_solid_angles(height, w)[row]
+        return (img * self._scale).astype(np.float32)
+
     @property
     def sun_direction(self) -> np.ndarray:
         """World direction towards the sun (rotation applied), shape (3,)."""
