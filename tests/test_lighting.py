@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from warpshade.lighting import (ConstantEnvironment, DirectionalLight, EnvironmentMap, ImageError, PointLight,
-                                RectLight, Sky, SphereLight, axis_angle_matrix, default_environment, lights_sh,
+                                RectLight, Sky, SphereLight, default_environment, lights_sh,
                                 read_image, spin, sun_direction, up_frame, write_image)
-from warpshade.sh import sh_eval
+from warpshade.sh import rotation_from_axis_angle, sh_eval
 from warpshade.sh.projection import latlong_directions, project_latlong_reference, sphere_quadrature
 
 SQRT_4PI = math.sqrt(4 * math.pi)
@@ -363,7 +363,7 @@ def test_rect_light_kernel_matches_numpy(rng, two_sided):
 
 def test_rect_light_rotation_and_validation(rng):
     light = RectLight(center=[0, 1, 0], u=[0.2, 0, 0], v=[0, 0, 0.3], radiance=1.0)
-    r = axis_angle_matrix([1, 1, 0], 0.7)
+    r = rotation_from_axis_angle([1, 1, 0], 0.7)
     p = np.array([[0.1, -1.0, 0.4]])
     # Rotating light and receiver together rotates the SH; bands 0-1 rotate as a scalar and a vector.
     np.testing.assert_allclose(light.rotated(r).sh_at(p @ r.T, 2)[0], _rotate_band01(light.sh_at(p, 2)[0], r),

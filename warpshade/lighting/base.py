@@ -20,7 +20,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
-from ..sh import sh_eval
+from ..sh.rotation import _check_rotation, rotation_from_axis_angle
 
 Motion = Callable[[float], np.ndarray]
 
@@ -58,19 +58,10 @@ def check_rotation(rotation, what: str = "rotation") -> np.ndarray:
     Raises:
         ValueError: naming ``what`` if it is not orthonormal with determinant +1 (to 1e-6).
     """
-    r = np.asarray(rotation, dtype=np.float64)
-    if r.shape != (3, 3) or not np.isfinite(r).all():
-        raise ValueError(f"{what} must be a finite 3x3 matrix, got shape {r.shape}")
-    if np.abs(r @ r.T - np.eye(3)).max() > 1e-6 or abs(np.linalg.det(r) - 1.0) > 1e-6:
-        raise ValueError(f"{what} is not a proper rotation (R R^T != I or det != 1):\n{r}")
-    return r
-
-
-def axis_angle_matrix(axis, angle: float) -> np.ndarray:
-    """Rotation by ``angle`` [rad] about ``axis`` (right-handed, Rodrigues), shape (3, 3)."""
-    k = unit_vector(axis, "rotation axis")
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * kx + (1.0 - math.cos(angle)) * (kx @ kx)
+    try:
+        return _check_rotation(rotation)
+    except ValueError as exc:
+        raise ValueError(f"{what}: {exc}") from None
 
 
 def spin(axis, degrees_per_second: float, start_degrees: float = 0.0) -> Motion:
@@ -82,37 +73,9 @@ def spin(axis, degrees_per_second: float, start_degrees: float = 0.0) -> Motion:
     axis = unit_vector(axis, "spin axis")
 
     def motion(t: float) -> np.ndarray:
-        return axis_angle_matrix(axis, math.radians(start_degrees + degrees_per_second * float(t)))
+        return rotation_from_axis_angle(axis, math.radians(start_degrees + degrees_per_second * float(t)))
 
     return motion
-
-
-def cap_zh(angle, order: int) -> np.ndarray:
-    """ZH coefficients of a spherical cap of angular radius ``angle`` [rad] about +z, shape S + (order,).
-
-    ``g_l = 2π K_l ∫_{cos a}^1 P_l``; ``∫_x^1 P_l = (P_{l-1}(x) − P_{l+1}(x)) / (2l+1)``.
-    TEMPORARY: same signature as ``warpshade.sh.zonal.cap_zh`` (SH-core branch), which replaces it on merge.
-    """
-    x = np.cos(np.asarray(angle, dtype=np.float64))
-    p = [np.ones_like(x), x]  # Legendre P_0..P_order by Bonnet's recurrence
-    for l in range(1, order):
-        p.append(((2 * l + 1) * x * p[l] - l * p[l - 1]) / (l + 1))
-    g = np.empty(x.shape + (order,))
-    g[..., 0] = 1.0 - x
-    for l in range(1, order):
-        g[..., l] = (p[l - 1] - p[l + 1]) / (2 * l + 1)
-    return 2 * np.pi * np.sqrt((2 * np.arange(order) + 1) / (4 * np.pi)) * g
-
-
-def zh_rotate(zh, axis) -> np.ndarray:
-    """Rotate ZH lobes to ``axis``: ``f_lm = sqrt(4π/(2l+1)) g_l y_lm(axis)`` (CONTRACTS.md §1), S + (order²,).
-
-    TEMPORARY: same signature as ``warpshade.sh.zonal.zh_rotate`` (SH-core branch), which replaces it on merge.
-    """
-    g = np.asarray(zh, dtype=np.float64)
-    order = g.shape[-1]
-    l_of_i = np.repeat(np.arange(order), 2 * np.arange(order) + 1)
-    return sh_eval(axis, order) * (np.sqrt(4 * np.pi / (2 * l_of_i + 1)) * g[..., l_of_i])
 
 
 @dataclasses.dataclass

@@ -15,7 +15,8 @@ import math
 
 import numpy as np
 
-from ..sh.projection import latlong_row_solid_angles, project_latlong, rotate_sh
+from ..sh.projection import latlong_row_solid_angles, project_latlong
+from ..sh.rotation import rotate
 from .base import Light, as_rgb, check_rotation
 from .images import ImageError, read_image
 
@@ -95,7 +96,7 @@ class EnvironmentMap(Light):
         # rotation per frame then costs one SH rotation.
         if order not in self._cache:
             self._cache[order] = project_latlong(self.image, order)
-        return rotate_sh(self._cache[order], self.frame, order) * self.intensity
+        return rotate(self._cache[order], self.frame, axis=0) * self.intensity
 
     def _rotated(self, rotation: np.ndarray) -> "EnvironmentMap":
         out = copy.copy(self)  # same image, same map-frame projection cache

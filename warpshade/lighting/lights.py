@@ -21,7 +21,8 @@ import math
 import numpy as np
 
 from ..sh import sh_eval
-from .base import Light, as_rgb, cap_zh, unit_vector, zh_rotate
+from ..sh.zonal import cap_zh, zh_rotate
+from .base import Light, as_rgb, unit_vector
 
 
 
@@ -113,7 +114,7 @@ class SphereLight(Light):
     """Uniformly emitting sphere (UsdLux SphereLight): from a receiver at distance ``r`` it is a cap
     of half-angle ``asin(radius / r)``; inside the sphere it fills every direction.
 
-    The cap's zonal coefficients are analytic (:func:`~warpshade.lighting.base.cap_zh`) and rotated
+    The cap's zonal coefficients are analytic (:func:`~warpshade.sh.zonal.cap_zh`) and rotated
     with CONTRACTS.md §1's formula, so the SH is exact for every receiver.
 
     Attributes:

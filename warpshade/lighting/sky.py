@@ -30,8 +30,10 @@ import math
 
 import numpy as np
 
-from ..sh.projection import project_function, rotate_sh
-from .base import Light, as_rgb, cap_zh, check_rotation, zh_rotate
+from ..sh.projection import project_function
+from ..sh.rotation import rotate
+from ..sh.zonal import cap_zh, zh_rotate
+from .base import Light, as_rgb, check_rotation
 from .environment import up_frame
 
 SUN_ANGLE_DEG = 0.53
@@ -219,7 +221,7 @@ class Sky(Light):
                                    n_theta=64, n_phi=256, pole=self._up, split=True)
             sun = zh_rotate(cap_zh(math.radians(SUN_ANGLE_DEG) / 2, order), self._sun)[:, None] * self._sun_radiance
             self._cache[order] = (sky + sun) * self._scale
-        return rotate_sh(self._cache[order], self.rotation, order)
+        return rotate(self._cache[order], self.rotation, axis=0)
 
     def _rotated(self, rotation):
         out = copy.copy(self)  # shares the model and the per-order projection cache; no re-setup

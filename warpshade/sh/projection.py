@@ -35,30 +35,12 @@ import math
 import numpy as np
 
 from .basis import sh_eval, sh_index
+from .rotation import rotate
 
 # Polar frame used internally for the separable lat-long projection: pole (SH z axis) = map +Y,
 # SH x = map +Z (longitude 0), SH y = map +X (longitude π/2). ``map = _POLAR_TO_MAP @ polar``.
 # A cyclic permutation, so a proper rotation (det = +1).
 _POLAR_TO_MAP = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
-
-
-def rotate_sh(coeffs: np.ndarray, rotation: np.ndarray, order: int) -> np.ndarray:
-    """Coefficients of ``f(R^T ω)`` (the function ``f`` rotated by ``R``), world space.
-
-    Args:
-        coeffs: SH coefficients of ``f``, shape (order*order,) or (order*order, C).
-        rotation: Proper rotation matrix ``R``, shape (3, 3).
-        order: SH order.
-
-    Returns:
-        Rotated coefficients, same shape, dtype float64.
-    """
-    from .rotation import rotation_matrix  # written by the SH-rotation work; imported lazily
-
-    r = np.asarray(rotation, dtype=np.float64)
-    if np.allclose(r, np.eye(3), atol=0.0, rtol=0.0):
-        return np.asarray(coeffs, dtype=np.float64).copy()
-    return np.asarray(rotation_matrix(r, order), dtype=np.float64) @ np.asarray(coeffs, dtype=np.float64)
 
 
 def quadrature_size(order: int, band: int) -> tuple[int, int]:
@@ -247,7 +229,7 @@ def project_latlong(image, order: int, frame=None, row_nodes: int | None = None)
             coeffs[sh_index(l, m)] = a[:, l, m] @ fc[:, :, m]
             coeffs[sh_index(l, -m)] = a[:, l, m] @ fs[:, :, m]
     to_world = _POLAR_TO_MAP if frame is None else np.asarray(frame, dtype=np.float64) @ _POLAR_TO_MAP
-    coeffs = rotate_sh(coeffs, to_world, order)
+    coeffs = rotate(coeffs, to_world, axis=0)
     return coeffs[:, 0] if squeeze else coeffs
 
 
