@@ -64,18 +64,23 @@ def check_rotation(rotation, what: str = "rotation") -> np.ndarray:
         raise ValueError(f"{what}: {exc}") from None
 
 
-def spin(axis, degrees_per_second: float, start_degrees: float = 0.0) -> Motion:
-    """Motion rotating at a constant rate about ``axis`` through the origin.
+@dataclasses.dataclass(frozen=True)
+class Spin:
+    """Constant-rate rotation about an axis through the origin: ``t [s] -> (3, 3)`` rotation by
+    ``start_degrees + degrees_per_second * t``. A plain dataclass, so lights carrying it pickle
+    (e.g. to parallel workers)."""
 
-    Returns:
-        Callable ``t [s] -> (3, 3)`` rotation by ``start_degrees + degrees_per_second * t``.
-    """
-    axis = unit_vector(axis, "spin axis")
+    axis: tuple
+    degrees_per_second: float
+    start_degrees: float = 0.0
 
-    def motion(t: float) -> np.ndarray:
-        return rotation_from_axis_angle(axis, math.radians(start_degrees + degrees_per_second * float(t)))
+    def __call__(self, t: float) -> np.ndarray:
+        return rotation_from_axis_angle(self.axis, math.radians(self.start_degrees + self.degrees_per_second * float(t)))
 
-    return motion
+
+def spin(axis, degrees_per_second: float, start_degrees: float = 0.0) -> Spin:
+    """Motion rotating at a constant rate about ``axis`` through the origin (see :class:`Spin`)."""
+    return Spin(tuple(unit_vector(axis, "spin axis").tolist()), float(degrees_per_second), float(start_degrees))
 
 
 @dataclasses.dataclass
