@@ -24,7 +24,7 @@ def _albedo_rows(albedo, n_vertices: int) -> np.ndarray:
     return a
 
 
-def exit_radiance_reference(transfer, light_sh, albedo, local_sh=None) -> np.ndarray:
+def exit_radiance_reference(transfer, light_sh, albedo, local_sh=None, clamp: bool = True) -> np.ndarray:
     """NumPy reference of :func:`exit_radiance`, float64, shape (V, 3)."""
     t = np.asarray(transfer, dtype=np.float64)
     lsh = np.asarray(light_sh, dtype=np.float64)
@@ -32,11 +32,12 @@ def exit_radiance_reference(transfer, light_sh, albedo, local_sh=None) -> np.nda
     out = t @ lsh[:n]
     if local_sh is not None:
         out += np.einsum("vi,vic->vc", t, np.asarray(local_sh, dtype=np.float64)[:, :n])
-    return _albedo_rows(albedo, t.shape[0]).astype(np.float64) / np.pi * out
+    out = _albedo_rows(albedo, t.shape[0]).astype(np.float64) / np.pi * out
+    return np.maximum(out, 0.0) if clamp else out
 
 
 def exit_radiance(transfer, light_sh, albedo=1.0, local_sh=None, out: wp.array | None = None,
-                  device: str = "cpu") -> wp.array:
+                  clamp: bool = True, device: str = "cpu") -> wp.array:
     """Exit radiance per vertex (Warp kernel).
 
     Args:
@@ -45,6 +46,7 @@ def exit_radiance(transfer, light_sh, albedo=1.0, local_sh=None, out: wp.array |
         albedo: Diffuse albedo ρ: scalar, RGB (3,) or per vertex (V, 3).
         local_sh: Optional per-vertex SH of local lights, shape (V, M*M, 3).
         out: Optional output array, shape (V,), dtype vec3 (reused between frames).
+        clamp: Clamp negative radiance (SH truncation ringing behind bright lights) to 0.
         device: Warp device.
 
     Returns:
@@ -72,12 +74,13 @@ def exit_radiance(transfer, light_sh, albedo=1.0, local_sh=None, out: wp.array |
         out = wp.empty(n_vertices, dtype=wp.vec3, device=device)
     elif out.shape != (n_vertices,):
         raise ValueError(f"out must have shape ({n_vertices},), got {out.shape}")
-    wp.launch(shade_vertices, dim=n_vertices, inputs=[transfer, light, local, alb], outputs=[out], device=device)
+    wp.launch(shade_vertices, dim=n_vertices, inputs=[transfer, light, local, alb, int(bool(clamp))],
+              outputs=[out], device=device)
     return out
 
 
 def shade(transfer, lights, order: int, albedo=1.0, points=None, time: float | None = None,
-          device: str = "cpu") -> wp.array:
+          clamp: bool = True, device: str = "cpu") -> wp.array:
     """Convenience: sum ``lights`` (at ``time`` if given) and shade.
 
     Args:
@@ -87,6 +90,7 @@ def shade(transfer, lights, order: int, albedo=1.0, points=None, time: float | N
         albedo: As in :func:`exit_radiance`.
         points: Vertex positions (V, 3), needed for local lights.
         time: Seconds; each light is taken ``at_time(time)`` when given.
+        clamp: As in :func:`exit_radiance`.
         device: Warp device.
     """
     from .lighting import lights_sh
@@ -95,4 +99,4 @@ def shade(transfer, lights, order: int, albedo=1.0, points=None, time: float | N
     if time is not None:
         lights = [lt.at_time(time) for lt in lights]
     distant, local = lights_sh(lights, order, points)
-    return exit_radiance(transfer, distant, albedo, local, device=device)
+    return exit_radiance(transfer, distant, albedo, local, clamp=clamp, device=device)

@@ -11,9 +11,11 @@ def shade_vertices(
     light: wp.array[wp.vec3],
     local_light: wp.array2d[wp.vec3],
     albedo: wp.array[wp.vec3],
+    clamp: int,
     radiance: wp.array[wp.vec3],
 ):
-    """``radiance[v] = albedo[v]/π ⊙ Σ_i T[v,i] (L_i + L_local[v,i])`` (CONTRACTS.md §2).
+    """``radiance[v] = albedo[v]/π ⊙ Σ_i T[v,i] (L_i + L_local[v,i])`` (CONTRACTS.md §2), clamped
+    at 0 per channel when ``clamp`` is non-zero (truncated SH ring slightly negative behind lights).
 
     ``local_light`` has 0 rows when no light is local; ``albedo`` has 1 row (shared) or V rows.
     """
@@ -29,4 +31,7 @@ def shade_vertices(
     a = albedo[0]
     if albedo.shape[0] > 1:
         a = albedo[v]
-    radiance[v] = wp.cw_mul(a, acc) * (1.0 / wp.pi)
+    r = wp.cw_mul(a, acc) * (1.0 / wp.pi)
+    if clamp != 0:
+        r = wp.vec3(wp.max(r[0], 0.0), wp.max(r[1], 0.0), wp.max(r[2], 0.0))
+    radiance[v] = r

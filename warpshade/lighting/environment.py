@@ -76,7 +76,8 @@ class EnvironmentMap(Light):
         self.rotation = check_rotation(self.rotation, f"{where}: rotation")
 
     @classmethod
-    def from_file(cls, path, intensity=1.0, up: str = "Y", rotation=None, name: str | None = None) -> "EnvironmentMap":
+    def from_file(cls, path, intensity=1.0, up: str = "Y", rotation=None, name: str | None = None,
+                  motion=None) -> "EnvironmentMap":
         """Load a lat-long ``.exr`` or ``.hdr`` file (see :func:`warpshade.lighting.read_image`).
 
         Raises:
@@ -84,7 +85,7 @@ class EnvironmentMap(Light):
         """
         img = read_image(path)
         return cls(image=img, intensity=intensity, up=up, rotation=np.eye(3) if rotation is None else rotation,
-                   path=str(path), name=name or str(path))
+                   path=str(path), name=name or str(path), motion=motion)
 
     @property
     def frame(self) -> np.ndarray:
