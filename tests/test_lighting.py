@@ -423,3 +423,21 @@ def test_lights_pickle_with_motion(tmp_path):
         back = pickle.loads(pickle.dumps(light))
         p = np.array([[0.0, 0.0, 0.5]])
         np.testing.assert_allclose(back.at_time(2.0).sh_at(p, 3), light.at_time(2.0).sh_at(p, 3), atol=1e-12)
+
+
+def test_exr_rgba_and_luminance_only(tmp_path):
+    import OpenEXR
+
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    rgba = np.arange(2 * 4 * 4, dtype=np.float32).reshape(2, 4, 4)
+    with OpenEXR.File(header, {c: np.ascontiguousarray(rgba[:, :, i]) for i, c in enumerate("RGBA")}) as f:
+        f.write(str(tmp_path / "rgba.exr"))
+    np.testing.assert_array_equal(read_image(tmp_path / "rgba.exr"), rgba[:, :, :3])
+    y = np.linspace(0, 5, 8, dtype=np.float32).reshape(2, 4)
+    with OpenEXR.File(header, {"Y": y}) as f:
+        f.write(str(tmp_path / "grey.exr"))
+    np.testing.assert_array_equal(read_image(tmp_path / "grey.exr"), np.stack([y, y, y], -1))
+    with OpenEXR.File(header, {"Z": y}) as f:
+        f.write(str(tmp_path / "depth.exr"))
+    with pytest.raises(ImageError, match="depth.exr.*channels"):
+        read_image(tmp_path / "depth.exr")
