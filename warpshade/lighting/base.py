@@ -1,4 +1,4 @@
-"""Common light interface, zonal-harmonic helpers and light-list summation.
+"""Common light interface, validation helpers, motion over time and light-list summation.
 
 Every light turns into RGB SH radiance coefficients in world space (SH convention:
 :mod:`warpshade.sh.basis`), shape (N*N, 3), float64: ``L(ω) ≈ Σ_i L_i y_i(ω)`` is the radiance

@@ -25,7 +25,6 @@ from ..sh.zonal import cap_zh, zh_rotate
 from .base import Light, as_rgb, unit_vector
 
 
-
 def _cap_sh(axis, angle, radiance: np.ndarray, order: int) -> np.ndarray:
     """SH of uniform caps: ``axis`` S+(3,), angular radius ``angle`` [rad] S -> S + (order*order, 3)."""
     f = zh_rotate(cap_zh(angle, order), axis)
