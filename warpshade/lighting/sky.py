@@ -215,8 +215,8 @@ class Sky(Light):
     def _sh(self, order: int) -> np.ndarray:
         if order not in self._cache:
             # Sky + ground are smooth on each side of the horizon: a product rule split there,
-            # 64 GL nodes per hemisphere × 256 azimuths (measured converged to < 1e-6 relative at
-            # order 8). The sun disc is added analytically as a uniform cap.
+            # 64 GL nodes per hemisphere × 256 azimuths (measured against 256 × 1024 at order 8: within
+            # 1.3e-6 of DC, worst case sun 5° up). The sun disc is added analytically as a uniform cap.
             sky = project_function(lambda d: self._radiance_local(d, with_sun=False), order,
                                    n_theta=64, n_phi=256, pole=self._up, split=True)
             sun = zh_rotate(cap_zh(math.radians(SUN_ANGLE_DEG) / 2, order), self._sun)[:, None] * self._sun_radiance
