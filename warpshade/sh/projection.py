@@ -200,9 +200,10 @@ def project_latlong(image, order: int, frame=None, row_nodes: int | None = None)
         image: Radiance, shape (H, W) or (H, W, C) (e.g. linear RGB), layout of the module docstring.
         order: SH order of the result.
         frame: Rotation from the map frame (+Y up) to world space, shape (3, 3); default identity.
-        row_nodes: Gauss–Legendre nodes per texel row; default ``order + 2`` (more for maps with
-            fewer rows than ``order``), which makes the odd-``m`` polar integrals accurate to
-            ~1e-12 relative (measured; even ``m`` are exact).
+        row_nodes: Gauss–Legendre nodes per texel row; default ``max(order + 4, 10)`` (``2 order + 8``
+            for maps with fewer rows than ``order``): the odd-``m`` polar integrals then agree with
+            a 64-node rule to 1e-14 relative for 1..256 rows and orders 1..8 (measured; even ``m``
+            are exact anyway).
 
     Returns:
         World-space coefficients, shape (order*order,) or (order*order, C), dtype float64.
@@ -215,7 +216,7 @@ def project_latlong(image, order: int, frame=None, row_nodes: int | None = None)
         raise ValueError(f"lat-long image must have shape (H, W) or (H, W, C), got {np.shape(image)}")
     h, w, nc = img.shape
     if row_nodes is None:
-        row_nodes = order + 2 if h >= order else 2 * order + 8
+        row_nodes = max(order + 4, 10) if h >= order else 2 * order + 8
     a = _row_basis_integrals(h, order, int(row_nodes))  # (H, order, order)
     cos_i, sin_i = _column_trig_integrals(w, order)  # (W, order)
     # Azimuthal sums per row: one BLAS product over the W axis, (H*C, W) @ (W, 2*order).
