@@ -38,20 +38,13 @@ from warpshade.sh.exp import DEFAULT_HYBRID_THRESHOLD, SQRT_4PI, sh_exp, trainin
 from warpshade.sh.kernels import (multiply_sh, product_table_arrays, sh_exp_warp, zh_normalization_array,
                                   zh_rotate_accumulate, zh_vector_funcs)
 from warpshade.sh.products import product_matrix
+from warpshade.sh.projection import sphere_quadrature
 from warpshade.sh.rotation import rotation_from_axis_angle, rotation_matrix
 from warpshade.sh.zonal import sphere_visibility_zh, zh_rotate
 from warpshade.timing import median_seconds
 
 BINS = [0, 1, 2, 5, 10, 20, 35, 50, 100, 1e9]
 METHODS = ["ol", "hybrid", "series", "exact"]
-
-
-def quadrature(nt=200, nphi=400):
-    x, w = np.polynomial.legendre.leggauss(nt)
-    phi = (np.arange(nphi) + 0.5) * 2 * np.pi / nphi
-    st = np.sqrt(1 - x**2)
-    dirs = np.stack([np.outer(st, np.cos(phi)), np.outer(st, np.sin(phi)), np.outer(x, np.ones(nphi))], -1).reshape(-1, 3)
-    return dirs, np.repeat(w * 2 * np.pi / nphi, nphi)
 
 
 def blocker_sets(order, count, rng, dirs, weights):
@@ -181,7 +174,7 @@ def main(argv=None) -> int:
     rng = np.random.default_rng(0)
     count = 60 if args.quick else 300
     repeat = 3 if args.quick else 7
-    quad = quadrature()
+    quad = sphere_quadrature(200, 400)
     result = {"machine": platform.processor() or platform.machine(), "python": sys.version.split()[0],
               "warp": wp.__version__, "hybrid_threshold": DEFAULT_HYBRID_THRESHOLD,
               "note": "shared, loaded 2-core machine; medians after warm-up, compilation excluded", "orders": {}}
