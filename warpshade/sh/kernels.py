@@ -174,9 +174,9 @@ def zh_vector_funcs(order: int) -> SimpleNamespace:
     * ``accumulate_lobes``: kernel ``(d (V, B) vec3, zh (B,) vec_zh, kz) -> out (V,) vec_sh`` summing
       lobe ``b`` rotated to ``d[v, b]`` for every vertex ``v`` (an example of use, and the benchmark).
 
-    Accumulating rotated lobes in a ``vec_sh`` local is ~2x faster than
-    :func:`zh_rotate_accumulate` into an array row at order 8 (benchmarks/sh_exp.py: 170 vs 360 ns
-    per rotation), at the price of one compiled function per order.
+    Accumulating rotated lobes in a ``vec_sh`` local is 2–4x faster than
+    :func:`zh_rotate_accumulate` into an array row at order 8 (benchmarks/sh_exp.py: 99–188 vs
+    380–405 ns per rotation), at the price of one compiled function per order.
     """
     from .basis import check_order
 
