@@ -14,6 +14,24 @@ from ...sh.kernels import sh_accumulate
 from ..reference_kernels import orthonormal_basis
 
 
+@wp.struct
+class PlaneLut:
+    """The plane LUT and how triangles use it (see :mod:`.tables`)."""
+
+    rows: wp.array2d[wp.uint64]
+    """Mask words above each quantised plane, shape (6R², W), dtype uint64."""
+    occupancy: wp.array[wp.uint64]
+    """Bitmap of the non-zero words of each row, shape (6R²,), dtype uint64."""
+    debruijn: wp.array[wp.int32]
+    """Bit index lookup of the de Bruijn bit scan, shape (64,), dtype int32."""
+    res: int
+    """Cube-map resolution R."""
+    words: int
+    """Words per mask W."""
+    backface: float
+    """Skip triangles with ``det * backface > 0`` (0: keep both sides)."""
+
+
 @wp.func
 def popcount64(x: wp.uint64) -> int:
     """Number of set bits (SWAR; Warp has no popcount intrinsic)."""
@@ -73,12 +91,7 @@ def rasterize_triangle(
     ib: int,
     ic: int,
     frame: wp.mat33,
-    lut: wp.array2d[wp.uint64],
-    lut_occ: wp.array[wp.uint64],
-    debruijn: wp.array[wp.int32],
-    lut_res: int,
-    words: int,
-    backface: float,
+    lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
     row: int,
 ) -> int:
@@ -108,26 +121,26 @@ def rasterize_triangle(
     # det = -(face normal)·(receiver - a): on a closed mesh every blocked direction leaves the solid
     # through a triangle facing away from the receiver, so the others add no bits (``backface`` = ±1
     # skips the side facing the receiver for the mesh's orientation; 0 keeps both)
-    if det == 0.0 or det * backface > 0.0:
+    if det == 0.0 or det * lut.backface > 0.0:
         return 0
     # orient the planes so the triangle's image is above all three (either winding blocks)
     orient = wp.where(det < 0.0, -1.0, 1.0)
     nab = orient * nab
     nbc = orient * nbc
     nca = orient * nca
-    i0 = cube_cell(nab, lut_res)
-    i1 = cube_cell(nbc, lut_res)
-    i2 = cube_cell(nca, lut_res)
+    i0 = cube_cell(nab, lut.res)
+    i1 = cube_cell(nbc, lut.res)
+    i2 = cube_cell(nca, lut.res)
     # occupancy bitmaps (which words of each row are non-zero) live apart from the rows: they stay in
     # cache, and only words all three edge masks share are fetched (set bits visited in order with
     # a de Bruijn bit scan, no branch per word)
-    occ = lut_occ[i0] & lut_occ[i1] & lut_occ[i2]
+    occ = lut.occupancy[i0] & lut.occupancy[i1] & lut.occupancy[i2]
     hit = wp.uint64(0)
     while occ != wp.uint64(0):
         low = occ & (~occ + wp.uint64(1))
-        w = debruijn[int((low * wp.uint64(0x03F79D71B4CB0A89)) >> wp.uint64(58))]
+        w = lut.debruijn[int((low * wp.uint64(0x03F79D71B4CB0A89)) >> wp.uint64(58))]
         occ = occ ^ low
-        m = lut[i0, w] & lut[i1, w] & lut[i2, w]
+        m = lut.rows[i0, w] & lut.rows[i1, w] & lut.rows[i2, w]
         hit = hit | m
         mask[row, w] = mask[row, w] | m
     if hit != wp.uint64(0):
@@ -226,12 +239,7 @@ def rasterize_blocker(
     use_excl: int,
     excl: wp.array2d[wp.uint32],
     frame: wp.mat33,
-    lut: wp.array2d[wp.uint64],
-    lut_occ: wp.array[wp.uint64],
-    debruijn: wp.array[wp.int32],
-    lut_res: int,
-    words: int,
-    backface: float,
+    lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
     record: int,
     hits: wp.array2d[wp.uint32],
@@ -247,7 +255,7 @@ def rasterize_blocker(
     if use_excl != 0:
         if excluded(excl, v, src):
             return 0
-    r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, i, j, k, frame, lut, lut_occ, debruijn, lut_res, words, backface, mask, v)
+    r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, i, j, k, frame, lut, mask, v)
     if record != 0 and r == 2:
         hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
     if r > 0:
@@ -296,12 +304,7 @@ def rasterize_transfer(
     use_pvs: int,
     pvs_start: wp.array[wp.int32],
     pvs_tris: wp.array[wp.int32],
-    lut: wp.array2d[wp.uint64],
-    lut_occ: wp.array[wp.uint64],
-    debruijn: wp.array[wp.int32],
-    lut_res: int,
-    words: int,
-    backface: float,
+    lut: PlaneLut,
     block_bits: int,
     block_valid: wp.array[wp.int32],
     block_weights: wp.array2d[float],
@@ -341,7 +344,7 @@ def rasterize_transfer(
     n = normals[v]
     frame = orthonormal_basis(n)
     nn = order * order
-    for w in range(words):
+    for w in range(lut.words):
         mask[v, w] = wp.uint64(0)
     count = int(0)
     # near field at full resolution
@@ -350,13 +353,13 @@ def rasterize_transfer(
         i = faces[t, 0]
         j = faces[t, 1]
         k = faces[t, 2]
-        count += wp.min(1, rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, lut_occ, debruijn, lut_res, words, backface, mask, v))
+        count += wp.min(1, rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, mask, v))
     # far field
     offset = wp.dot(n, p)
     if use_pvs != 0:
         for r in range(pvs_start[v], pvs_start[v + 1]):
             count += rasterize_blocker(pvs_tris[r], v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
-                                       frame, lut, lut_occ, debruijn, lut_res, words, backface, mask, record, hits)
+                                       frame, lut, mask, record, hits)
     elif use_cull != 0:
         for s in range(super_start.shape[0] - 1):
             if box_above_plane(super_lo[s], super_hi[s], n, offset):
@@ -364,11 +367,11 @@ def rasterize_transfer(
                     if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
                         for t in range(cluster_start[c], cluster_start[c + 1]):
                             count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl,
-                                                       excl, frame, lut, lut_occ, debruijn, lut_res, words, backface, mask, record, hits)
+                                                       excl, frame, lut, mask, record, hits)
     else:
         for t in range(bfaces.shape[0]):
             count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
-                                       frame, lut, lut_occ, debruijn, lut_res, words, backface, mask, record, hits)
+                                       frame, lut, mask, record, hits)
     counts[v] = count
 
     # integrate (tangent frame): unoccluded integral minus blocked fractions of blocks
@@ -394,7 +397,7 @@ def rasterize_transfer(
     run = wp.uint64(0xFFFFFFFFFFFFFFFF)
     if block_bits < 64:
         run = (wp.uint64(1) << wp.uint64(block_bits)) - wp.uint64(1)
-    for w in range(words):
+    for w in range(lut.words):
         x = mask[v, w]
         if x != wp.uint64(0):
             for j in range(per_word):

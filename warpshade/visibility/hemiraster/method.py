@@ -21,7 +21,7 @@ from ...geometry.mesh import TriMesh
 from ...sh.kernels import normalization_array
 from ..base import TransferMethod
 from . import hierarchy, tables
-from .kernels import follow_coarse_points, rasterize_transfer, refit_clusters, refit_super_clusters
+from .kernels import PlaneLut, follow_coarse_points, rasterize_transfer, refit_clusters, refit_super_clusters
 
 
 def _parse_vec3(text: str) -> tuple[float, float, float]:
@@ -94,9 +94,12 @@ class HemirasterTransfer(TransferMethod):
         # plane LUT and integration tables (cached per (mask, R) / built per setting)
         lut_np, self._lut_seconds, self._lut_source = tables.build_lut(self.mask_res, self.lut_res, lut_dir)
         self._words = tables.words_per_mask(self.mask_res)
-        self._lut = wp.array(np.ascontiguousarray(lut_np[:, :self._words]), dtype=wp.uint64, device=d)
-        self._lut_occ = wp.array(np.ascontiguousarray(lut_np[:, self._words]), dtype=wp.uint64, device=d)
-        self._debruijn = wp.array(tables.debruijn_table(), dtype=wp.int32, device=d)
+        self._lut = PlaneLut()
+        self._lut.rows = wp.array(np.ascontiguousarray(lut_np[:, :self._words]), dtype=wp.uint64, device=d)
+        self._lut.occupancy = wp.array(np.ascontiguousarray(lut_np[:, self._words]), dtype=wp.uint64, device=d)
+        self._lut.debruijn = wp.array(tables.debruijn_table(), dtype=wp.int32, device=d)
+        self._lut.res = self.lut_res
+        self._lut.words = self._words
         blocks = tables.block_tables(self.mask_res, self.downsample, self.order)
         self._block_valid = wp.array(blocks["valid"], dtype=wp.int32, device=d)
         self._block_weights = wp.array(blocks["weights"].astype(np.float32), dtype=float, device=d)
@@ -138,6 +141,7 @@ class HemirasterTransfer(TransferMethod):
         # keep the triangles facing away: every blocked ray leaves the solid through one of those,
         # also rays that enter it right at the receiver (concave spots, under a skipped incident triangle)
         self._backface_side = -float(side) if self.backface else 0.0
+        self._lut.backface = self._backface_side
         perm, cstart, sstart = hierarchy.build_clusters(rest_blockers, block_faces, self.cluster, 16)
         self._bfaces = wp.array(block_faces[perm].astype(np.int32), dtype=wp.int32, device=d)
         self._bsource = wp.array(perm.astype(np.int32), dtype=wp.int32, device=d)
@@ -258,7 +262,7 @@ class HemirasterTransfer(TransferMethod):
                     1 if self.hierarchy else 0, self._excl,
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
-                    self._lut, self._lut_occ, self._debruijn, self.lut_res, self._words, self._backface_side,
+                    self._lut,
                     self.downsample * self.downsample, self._block_valid, self._block_weights, self._block_dirs,
                     self._unoccluded, 1 if self.mode == "glossy" else 0, wp.vec3(*self.view.astype(np.float32)),
                     self.phong, self._rot_dirs, self._rot_pinv, self.order, self._sh_norm, record],

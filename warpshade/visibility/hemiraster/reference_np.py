@@ -3,8 +3,8 @@
 Brute force, one receiver at a time, no hierarchy and no culling structures: every triangle not
 incident to the receiver is tested pixel by pixel. With ``lut=None`` pixels are classified against
 the exact edge planes; with a LUT table they use the same cube-map quantisation as the kernels.
-The tangent-frame transfer is rotated to world space by a least-squares fit of the band rotation
-matrices on many directions (a different route from the kernel's sampling rotation).
+The tangent-frame transfer is rotated to world space with the Ivanic–Ruedenberg matrices of
+:mod:`warpshade.sh.rotation` (a different route from the kernel's sampling rotation).
 Conventions: :mod:`.tables`.
 """
 
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...sh.basis import sh_eval
+from ...sh.rotation import rotation_matrix
 from . import tables
 
 
@@ -60,23 +60,6 @@ def rasterize_np(local_tris: np.ndarray, mask: int, lut: np.ndarray | None = Non
     return blocked
 
 
-def band_rotation_np(frame: np.ndarray, order: int, samples: int = 256) -> np.ndarray:
-    """Block-diagonal SH rotation taking tangent-frame coefficients to world ones, shape (N*N, N*N).
-
-    Least-squares fit of ``y(Q s) = R y(s)`` over seeded random directions ``s``.
-    """
-    s = np.random.default_rng(7).normal(size=(samples, 3))
-    s /= np.linalg.norm(s, axis=1, keepdims=True)
-    y_local = sh_eval(s, order)
-    y_world = sh_eval(s @ frame.T, order)
-    rot = np.zeros((order * order, order * order))
-    for l in range(order):
-        sl = slice(l * l, (l + 1) ** 2)
-        sol, *_ = np.linalg.lstsq(y_local[:, sl], y_world[:, sl], rcond=None)
-        rot[sl, sl] = sol.T
-    return rot
-
-
 def transfer_np(points: np.ndarray, faces: np.ndarray, normals: np.ndarray, order: int = 5, mask: int = 32,
                 downsample: int = 2, lut: np.ndarray | None = None, lut_res: int = 0,
                 vertices=None) -> np.ndarray:
@@ -105,5 +88,5 @@ def transfer_np(points: np.ndarray, faces: np.ndarray, normals: np.ndarray, orde
         counts = blocked.reshape(-1, bb).sum(axis=1)
         frac = np.where(blocks["valid"] > 0, counts / np.maximum(blocks["valid"], 1), 0.0)
         local_t = ((1.0 - frac)[:, None] * blocks["weights"]).sum(axis=0)
-        out[row] = band_rotation_np(frame, order) @ local_t
+        out[row] = rotation_matrix(frame, order) @ local_t  # f(Q^T ω): tangent frame -> world
     return out
