@@ -128,30 +128,39 @@ def decimate(points: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.nda
     return np.asarray(pts, dtype=np.float64), np.asarray(tris, dtype=np.int64)
 
 
-def bind_to_surface(query: np.ndarray, points: np.ndarray, faces: np.ndarray, chunk: int = 64):
+def bind_to_surface(query: np.ndarray, points: np.ndarray, faces: np.ndarray, neighbours: int = 16):
     """Bind query points to their closest triangle of (points, faces).
+
+    Candidates are the triangles incident to the ``neighbours`` nearest vertices (a KD-tree), which
+    contain the closest triangle on any mesh whose triangles are not far larger than their
+    neighbours'.
 
     Returns:
         ``(face, bary, offset)``: face (Q,) int32, bary (Q, 3) float32, offset (Q,) float32: signed
         distance along that triangle's unit normal, so
         ``q = Σ bary_k p[f_k] + offset · n̂_f`` reproduces the query point at rest.
     """
-    a, b, c = (points[faces[:, k]].astype(np.float64) for k in range(3))
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, dtype=np.float64)
+    query = np.asarray(query, dtype=np.float64)
+    a, b, c = (points[faces[:, k]] for k in range(3))
     fn = np.cross(b - a, c - a)
     ln = np.linalg.norm(fn, axis=1, keepdims=True)
     fn = np.where(ln > 0, fn / np.where(ln > 0, ln, 1.0), 0.0)
+    vf = vertex_faces(faces, len(points))
+    _, near = cKDTree(points).query(query, k=min(neighbours, len(points)))
+    near = np.atleast_2d(near)
     face = np.zeros(len(query), np.int32)
     bary = np.zeros((len(query), 3))
     off = np.zeros(len(query))
-    for s in range(0, len(query), chunk):
-        q = query[s:s + chunk, None, :]
-        cp, bc = closest_points_on_triangles(q, a[None], b[None], c[None])
-        d2 = ((cp - q) ** 2).sum(-1)
-        best = d2.argmin(axis=1)
-        rows = np.arange(len(best))
-        face[s:s + chunk] = best
-        bary[s:s + chunk] = bc[rows, best]
-        off[s:s + chunk] = np.einsum("ij,ij->i", query[s:s + chunk] - cp[rows, best], fn[best])
+    for i, q in enumerate(query):
+        cand = np.unique(np.concatenate([vf[v] for v in near[i]]))
+        cp, bc = closest_points_on_triangles(q[None], a[cand], b[cand], c[cand])
+        best = int(np.argmin(((cp - q) ** 2).sum(-1)))
+        face[i] = cand[best]
+        bary[i] = bc[best]
+        off[i] = np.dot(q - cp[best], fn[cand[best]])
     return face, bary.astype(np.float32), off.astype(np.float32)
 
 
