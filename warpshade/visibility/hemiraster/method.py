@@ -63,8 +63,8 @@ class HemirasterTransfer(TransferMethod):
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 64,
                  downsample: int = 2, ring: int = 4, coarse: int = 512, cull: bool = True, cluster: int = 16,
-                 exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0), phong: float = 8.0,
-                 lut_dir: str | None = None, pvs_frames=None):
+                 exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
+                 phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None):
         super().__init__(mesh, order, device)
         tables.check_mask(int(mask), int(downsample))
         if ring not in (1, 2, 3, 4):
