@@ -1,0 +1,374 @@
+"""Kernels of disk-hierarchy anisotropic occlusion (Gong et al.; Bunnell's disk form factors).
+
+Direction bins: the receiver's hemisphere is split by a 4×4 grid (the paper's 16 directions) in
+the square ``[0,1]²`` mapped onto the tangent-plane unit disk by the Shirley–Chiu concentric map.
+The map preserves area, so every bin has the same projected (cosine-weighted) solid angle π/16;
+occlusion of bin ``b`` is the fraction of that cosine measure that disks cover.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from ...sh.kernels import sh_accumulate
+from ..reference_kernels import concentric_disk, orthonormal_basis
+
+wp.set_module_options({"enable_backward": False})
+
+GRID = 4
+BINS = GRID * GRID
+STACK = 64  # traversal stack; median splits keep the depth near log2(V), far below this
+stack_t = wp.types.vector(length=STACK, dtype=int)
+
+
+@wp.func
+def concentric_inverse(x: float, y: float) -> wp.vec2:
+    """Inverse of :func:`concentric_disk`: unit-disk point -> ``[0,1]²``."""
+    r = wp.sqrt(x * x + y * y)
+    if r == 0.0:
+        return wp.vec2(0.5, 0.5)
+    phi = wp.atan2(y, x)
+    q = wp.pi / 4.0
+    if phi < -q:
+        phi += 2.0 * wp.pi
+    a = float(0.0)
+    b = float(0.0)
+    if phi < q:
+        a = r
+        b = phi * a / q
+    elif phi < 3.0 * q:
+        b = r
+        a = -(phi - 2.0 * q) * b / q
+    elif phi < 5.0 * q:
+        a = -r
+        b = (phi - 4.0 * q) * a / q
+    else:
+        b = -r
+        a = -(phi - 6.0 * q) * b / q
+    return wp.vec2(0.5 * (a + 1.0), 0.5 * (b + 1.0))
+
+
+@wp.func
+def box_overlap(lo: float, hi: float, cell: int) -> float:
+    """Length of ``[lo, hi] ∩ [cell/4, (cell+1)/4]``."""
+    a = wp.max(lo, float(cell) / float(GRID))
+    b = wp.min(hi, float(cell + 1) / float(GRID))
+    return wp.max(0.0, b - a)
+
+
+# -- per-frame disks and hierarchy ------------------------------------------------------------------
+@wp.kernel
+def accumulate_disk_areas(points: wp.array[wp.vec3], faces: wp.array2d[wp.int32], areas: wp.array[float]):
+    """Disk area of each vertex: a third of each incident triangle's area (the one-ring's barycentric share)."""
+    f = wp.tid()
+    i = faces[f, 0]
+    j = faces[f, 1]
+    k = faces[f, 2]
+    a = 0.5 * wp.length(wp.cross(points[j] - points[i], points[k] - points[i])) / 3.0
+    wp.atomic_add(areas, i, a)
+    wp.atomic_add(areas, j, a)
+    wp.atomic_add(areas, k, a)
+
+
+@wp.kernel
+def set_leaf_disks(
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    areas: wp.array[float],
+    leaf_of_vertex: wp.array[int],
+    node_pos: wp.array[wp.vec3],
+    node_nrm: wp.array[wp.vec3],
+    node_area: wp.array[float],
+    node_radius: wp.array[float],
+    node_coherence: wp.array[float],
+):
+    """Leaf disk = the vertex: position, unit normal, area; bounding radius sqrt(A/π); coherence 1."""
+    v = wp.tid()
+    node = leaf_of_vertex[v]
+    node_pos[node] = points[v]
+    node_nrm[node] = normals[v]
+    node_area[node] = areas[v]
+    node_radius[node] = wp.sqrt(areas[v] / wp.pi)
+    node_coherence[node] = 1.0
+
+
+@wp.kernel
+def merge_child_disks(
+    level: wp.array[int],
+    left: wp.array[int],
+    right: wp.array[int],
+    node_pos: wp.array[wp.vec3],
+    node_nrm: wp.array[wp.vec3],
+    node_area: wp.array[float],
+    node_radius: wp.array[float],
+    node_coherence: wp.array[float],
+):
+    """Parent disk from its two children (the paper: "a larger disk whose value is the average").
+
+    Area = sum; centre = area-weighted mean; normal = normalised area-weighted mean; coherence =
+    |Σ a n| / Σ a (1 for a flat cluster, 0 for a closed one) feeds the projected-area estimate in
+    :func:`disk_form_factor`; radius bounds both children's spheres (for the LOD test).
+    """
+    node = level[wp.tid()]
+    l = left[node]
+    r = right[node]
+    al = node_area[l]
+    ar = node_area[r]
+    a = al + ar
+    c = (node_pos[l] + node_pos[r]) * 0.5
+    if a > 0.0:
+        c = (node_pos[l] * al + node_pos[r] * ar) / a
+    s = node_nrm[l] * (al * node_coherence[l]) + node_nrm[r] * (ar * node_coherence[r])
+    ls = wp.length(s)
+    n = wp.vec3(0.0, 0.0, 1.0)
+    coh = float(0.0)
+    if ls > 0.0:
+        n = s / ls
+        if a > 0.0:
+            coh = wp.min(1.0, ls / a)
+    node_pos[node] = c
+    node_nrm[node] = n
+    node_area[node] = a
+    node_coherence[node] = coh
+    node_radius[node] = wp.max(wp.length(node_pos[l] - c) + node_radius[l], wp.length(node_pos[r] - c) + node_radius[r])
+
+
+@wp.kernel
+def merge_child_access(level: wp.array[int], left: wp.array[int], right: wp.array[int],
+                       node_area: wp.array[float], node_access: wp.array[float]):
+    """Parent accessibility = area-weighted mean of its children's (for the second pass)."""
+    node = level[wp.tid()]
+    l = left[node]
+    r = right[node]
+    a = node_area[l] + node_area[r]
+    acc = 0.5 * (node_access[l] + node_access[r])
+    if a > 0.0:
+        acc = (node_access[l] * node_area[l] + node_access[r] * node_area[r]) / a
+    node_access[node] = acc
+
+
+@wp.kernel
+def set_leaf_access(occlusion: wp.array2d[float], leaf_of_vertex: wp.array[int], node_access: wp.array[float]):
+    """Leaf accessibility = 1 - ambient occlusion = mean over bins of the visible fraction."""
+    v = wp.tid()
+    s = float(0.0)
+    for b in range(BINS):
+        s += wp.min(1.0, occlusion[v, b])
+    node_access[leaf_of_vertex[v]] = 1.0 - s / float(BINS)
+
+
+# -- occlusion -------------------------------------------------------------------------------------
+@wp.func
+def disk_form_factor(x: wp.vec3, n: wp.vec3, c: wp.vec3, ne: wp.vec3, area: float, coherence: float,
+                     two_sided: int) -> float:
+    """Fraction of the receiver's cosine-weighted hemisphere (π) covered by a disk (thesis eq. 3.44).
+
+    ``F = A cos θ_e cos θ_p / (π r² + A)`` is exact for a disk facing the receiver on its axis.
+    For cluster disks the projected area ``A cos θ_e`` is blended toward ``A/4`` (the mean projected
+    area of a closed surface, Cauchy) by ``1 - coherence``. One-sided disks seen from behind and
+    disks below the receiver's horizon cover nothing.
+    """
+    d = c - x
+    r2 = wp.dot(d, d)
+    if r2 == 0.0 or area <= 0.0:
+        return 0.0
+    w = d / wp.sqrt(r2)
+    cp = wp.dot(n, w)
+    if cp <= 0.0:
+        return 0.0
+    ce = -wp.dot(ne, w)
+    if two_sided != 0:
+        ce = wp.abs(ce)
+    else:
+        ce = wp.max(ce, 0.0)
+    proj = area * (coherence * ce + (1.0 - coherence) * 0.25)
+    return proj * cp / (wp.pi * r2 + area)
+
+
+@wp.func
+def splat_bins(x: wp.vec3, frame: wp.mat33, c: wp.vec3, ff: float, area: float, row: int,
+               occlusion: wp.array2d[float]):
+    """Spread form factor ``ff`` over the 16 bins with a box footprint of the disk's angular size.
+
+    Each bin holds π/16 of the cosine measure, so a fraction ``ff`` of π landing in one bin
+    occludes ``16 ff`` of it (eq. 5's per-direction coverage, normalised to conserve the total).
+    """
+    d = c - x
+    r2 = wp.dot(d, d)
+    w = d / wp.sqrt(r2)
+    local = wp.transpose(frame) * w
+    uv = concentric_inverse(local[0], local[1])
+    # disk angular radius: sin² α = A / (π r² + A); the unit disk spans [0,1] so half that size
+    half = wp.max(0.5 * wp.sqrt(area / (wp.pi * r2 + area)), 0.5 / float(GRID))
+    u0 = wp.max(0.0, uv[0] - half)
+    u1 = wp.min(1.0, uv[0] + half)
+    v0 = wp.max(0.0, uv[1] - half)
+    v1 = wp.min(1.0, uv[1] + half)
+    norm = (u1 - u0) * (v1 - v0)
+    if norm <= 0.0:
+        return
+    scale = ff * float(BINS) / norm
+    for i in range(GRID):
+        ou = box_overlap(u0, u1, i)
+        if ou > 0.0:
+            for j in range(GRID):
+                ov = box_overlap(v0, v1, j)
+                if ov > 0.0:
+                    occlusion[row, i * GRID + j] = occlusion[row, i * GRID + j] + scale * ou * ov
+
+
+@wp.kernel
+def accumulate_occlusion(
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    left: wp.array[int],
+    right: wp.array[int],
+    node_vertex: wp.array[int],
+    node_pos: wp.array[wp.vec3],
+    node_nrm: wp.array[wp.vec3],
+    node_area: wp.array[float],
+    node_radius: wp.array[float],
+    node_coherence: wp.array[float],
+    node_access: wp.array[float],
+    use_access: int,
+    lod: float,
+    two_sided: int,
+    occlusion: wp.array2d[float],
+    visited: wp.array[int],
+):
+    """Per receiver vertex: walk the disk tree and add every disk's coverage to its 16 direction bins.
+
+    A node whose bounding sphere is farther than ``lod`` radii stands for its subtree (level of
+    detail by distance); otherwise its children are visited. Leaves are vertex disks; the receiver's
+    own is skipped. With ``use_access`` (second pass, Bunnell) each disk's coverage is scaled by its
+    accessibility from the first pass, which discounts occluders that are themselves hidden.
+    """
+    v = wp.tid()
+    x = points[v]
+    n = normals[v]
+    frame = orthonormal_basis(n)
+    for b in range(BINS):
+        occlusion[v, b] = 0.0
+    stack = stack_t()
+    stack[0] = 0
+    top = int(1)
+    count = int(0)
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        leaf = left[node] < 0
+        if leaf and node_vertex[node] == v:
+            continue
+        c = node_pos[node]
+        far = wp.length(c - x) > lod * node_radius[node]
+        if leaf or far:
+            count += 1
+            ff = disk_form_factor(x, n, c, node_nrm[node], node_area[node], node_coherence[node], two_sided)
+            if ff > 0.0:
+                if use_access != 0:
+                    ff = ff * node_access[node]
+                splat_bins(x, frame, c, ff, node_area[node], v, occlusion)
+        elif top + 2 <= STACK:
+            stack[top] = left[node]
+            stack[top + 1] = right[node]
+            top += 2
+    visited[v] = count
+
+
+@wp.kernel
+def combine_passes(occ1: wp.array2d[float], occ2: wp.array2d[float], passes: int, occlusion: wp.array2d[float]):
+    """Bin occlusion clamped to [0, 1]: pass 1 alone, or the mean of passes 1 and 2 (Bunnell: the
+    first over-, the second under-estimates overlapping occluders)."""
+    v, b = wp.tid()
+    o = wp.min(1.0, occ1[v, b])
+    if passes > 1:
+        o = 0.5 * (o + wp.min(1.0, occ2[v, b]))
+    occlusion[v, b] = o
+
+
+# -- shading ---------------------------------------------------------------------------------------
+@wp.kernel
+def integrate_disk_transfer(
+    normals: wp.array[wp.vec3],
+    occlusion: wp.array2d[float],
+    zh: wp.array[float],
+    samples: int,
+    order: int,
+    k: wp.array[float],
+    transfer: wp.array2d[float],
+):
+    """Diffuse transfer (CONTRACTS.md §2): analytic unoccluded transfer minus the occluded bins.
+
+    ``T = sqrt(4π/(2l+1)) A_l y_lm(n) - Σ_b O_b ∫_bin y cos dω``. Each bin integral is a
+    ``samples²`` midpoint rule in the concentric square, i.e. equal-weight cosine-distributed
+    directions (weight π / (16 samples²)), so an unoccluded vertex is exact and the quadrature
+    error only touches the occluded part.
+    """
+    v = wp.tid()
+    n = normals[v]
+    frame = orthonormal_basis(n)
+    for i in range(order * order):
+        transfer[v, i] = 0.0
+    # unoccluded part: zonal clamped cosine rotated to n, zh[i] = sqrt(4π/(2l+1)) A_l per index
+    sh_accumulate(n, 1.0, order, k, transfer, v)
+    for i in range(order * order):
+        transfer[v, i] = transfer[v, i] * zh[i]
+    weight = wp.pi / float(BINS * samples * samples)
+    for b in range(BINS):
+        o = occlusion[v, b]
+        if o > 0.0:
+            bi = b / GRID
+            bj = b % GRID
+            for si in range(samples):
+                for sj in range(samples):
+                    u = (float(bi) + (float(si) + 0.5) / float(samples)) / float(GRID)
+                    w = (float(bj) + (float(sj) + 0.5) / float(samples)) / float(GRID)
+                    d2 = concentric_disk(u, w)
+                    z = wp.sqrt(wp.max(0.0, 1.0 - wp.dot(d2, d2)))
+                    sh_accumulate(frame * wp.vec3(d2[0], d2[1], z), -o * weight, order, k, transfer, v)
+
+
+@wp.kernel
+def lookup_light_visibility(
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    occlusion: wp.array2d[float],
+    direction: wp.vec3,
+    position: wp.vec3,
+    is_point: int,
+    visibility: wp.array[float],
+):
+    """Visibility toward a light: bilinear interpolation of the 16 bins' ``1 - O`` at the light direction.
+
+    ``direction`` points toward a directional light; point and spot lights use ``position``. Below
+    the receiver's horizon the surface itself blocks the light: 0.
+    """
+    v = wp.tid()
+    x = points[v]
+    n = normals[v]
+    w = direction
+    if is_point != 0:
+        w = position - x
+    lw = wp.length(w)
+    if lw == 0.0:
+        visibility[v] = 1.0
+        return
+    w = w / lw
+    if wp.dot(w, n) <= 0.0:
+        visibility[v] = 0.0
+        return
+    local = wp.transpose(orthonormal_basis(n)) * w
+    uv = concentric_inverse(local[0], local[1])
+    # bin centres sit at (i + 0.5)/4: interpolate between the nearest four (clamped at the rim)
+    fu = wp.clamp(uv[0] * float(GRID) - 0.5, 0.0, float(GRID - 1))
+    fv = wp.clamp(uv[1] * float(GRID) - 0.5, 0.0, float(GRID - 1))
+    i0 = wp.min(int(fu), GRID - 2)
+    j0 = wp.min(int(fv), GRID - 2)
+    tu = fu - float(i0)
+    tv = fv - float(j0)
+    o00 = occlusion[v, i0 * GRID + j0]
+    o10 = occlusion[v, (i0 + 1) * GRID + j0]
+    o01 = occlusion[v, i0 * GRID + j0 + 1]
+    o11 = occlusion[v, (i0 + 1) * GRID + j0 + 1]
+    o = (1.0 - tu) * ((1.0 - tv) * o00 + tv * o01) + tu * ((1.0 - tv) * o10 + tv * o11)
+    visibility[v] = 1.0 - wp.clamp(o, 0.0, 1.0)
