@@ -166,16 +166,24 @@ def disk_form_factor(x: wp.vec3, n: wp.vec3, c: wp.vec3, ne: wp.vec3, area: floa
     ``F = A cos θ_e cos θ_p / (π r² + A)`` is exact for a disk facing the receiver on its axis.
     For cluster disks the projected area ``A cos θ_e`` is blended toward ``A/4`` (the mean projected
     area of a closed surface, Cauchy) by ``1 - coherence``. One-sided disks seen from behind and
-    disks below the receiver's horizon cover nothing.
+    disks below the receiver's horizon cover nothing (with a smooth blend across it).
     """
     d = c - x
     r2 = wp.dot(d, d)
     if r2 == 0.0 or area <= 0.0:
         return 0.0
-    w = d / wp.sqrt(r2)
-    cp = wp.dot(n, w)
-    if cp <= 0.0:
+    dist = wp.sqrt(r2)
+    w = d / dist
+    # A disk whose centre is just below the horizon still pokes above it: with the disk radius rho
+    # and height z = n·d, use (z + rho)² / (4 rho r) for |z| < rho, the C1 blend between 0
+    # (entirely below) and the cosine z / r (entirely above).
+    rho = wp.sqrt(area / wp.pi)
+    z = wp.dot(n, d)
+    cp = z / dist
+    if z <= -rho:
         return 0.0
+    if z < rho:
+        cp = (z + rho) * (z + rho) / (4.0 * rho * dist)
     ce = -wp.dot(ne, w)
     if two_sided != 0:
         ce = wp.abs(ce)
