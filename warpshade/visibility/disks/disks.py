@@ -68,7 +68,9 @@ def build_disk_tree(points: np.ndarray) -> dict:
             node_vertex[node] = idx[0]
             continue
         ext = p[idx].max(axis=0) - p[idx].min(axis=0)
-        axis = int(np.argmax(ext))
+        # ties (common on grid-like meshes) go to the lowest axis, with a tolerance so that float
+        # rounding of a scaled copy of the mesh builds the same tree
+        axis = int(np.flatnonzero(ext >= ext.max() * (1.0 - 1e-5))[0])
         order = idx[np.argsort(p[idx, axis], kind="stable")]
         half = len(order) // 2
         left[node], right[node] = next_id, next_id + 1
@@ -145,8 +147,11 @@ class DiskTransfer(TransferMethod):
         self._node_access = wp.zeros(n_nodes, dtype=float, device=dev)
         nv = mesh.num_vertices
         self._areas = wp.zeros(nv, dtype=float, device=dev)
-        self._occ1 = wp.zeros((nv, BINS), dtype=float, device=dev)
-        self._occ2 = wp.zeros((nv, BINS), dtype=float, device=dev)
+        # per pass: unclamped bin occlusion and its u, v centroid sums
+        self._occ1, self._cu1, self._cv1 = (wp.zeros((nv, BINS), dtype=float, device=dev) for _ in range(3))
+        self._occ2, self._cu2, self._cv2 = (wp.zeros((nv, BINS), dtype=float, device=dev) for _ in range(3))
+        self.centroid = wp.zeros((nv, BINS, 2), dtype=float, device=dev)
+        """Occlusion-weighted centroid of each bin's occluders in the concentric square, shape (V, 16, 2)."""
         self.occlusion = wp.zeros((nv, BINS), dtype=float, device=dev)
         """Occluded fraction of each of the 16 direction bins, shape (V, 16), dtype float32, in [0, 1]."""
         self._visited = wp.zeros(nv, dtype=int, device=dev)
@@ -201,18 +206,18 @@ class DiskTransfer(TransferMethod):
                       outputs=[self.node_pos, self.node_nrm, self.node_area, self._node_radius, self._node_coherence],
                       device=dev)
 
-    def _occlusion_pass(self, use_access: bool, out: wp.array) -> None:
+    def _occlusion_pass(self, use_access: bool, out: list) -> None:
         wp.launch(accumulate_occlusion, dim=self.mesh.num_vertices,
                   inputs=[self.points, self.normals, self._left, self._right, self._node_vertex, self.node_pos,
                           self.node_nrm, self.node_area, self._node_radius, self._node_coherence, self._node_access,
                           int(use_access), self.lod, int(self.two_sided)],
-                  outputs=[out, self._visited], device=self.device)
+                  outputs=[*out, self._visited], device=self.device)
 
     def compute_occlusion(self) -> wp.array:
         """Fill :attr:`occlusion` (both passes) from the current points; returns it."""
         dev = self.device
         self.update_disks()
-        self._occlusion_pass(False, self._occ1)
+        self._occlusion_pass(False, [self._occ1, self._cu1, self._cv1])
         if self.passes > 1:
             wp.launch(set_leaf_access, dim=self.mesh.num_vertices, inputs=[self._occ1, self._leaf_of_vertex],
                       outputs=[self._node_access], device=dev)
@@ -220,15 +225,16 @@ class DiskTransfer(TransferMethod):
                 wp.launch(merge_child_access, dim=level.shape[0],
                           inputs=[level, self._left, self._right, self.node_area], outputs=[self._node_access],
                           device=dev)
-            self._occlusion_pass(True, self._occ2)
-        wp.launch(combine_passes, dim=(self.mesh.num_vertices, BINS), inputs=[self._occ1, self._occ2, self.passes],
-                  outputs=[self.occlusion], device=dev)
+            self._occlusion_pass(True, [self._occ2, self._cu2, self._cv2])
+        wp.launch(combine_passes, dim=(self.mesh.num_vertices, BINS),
+                  inputs=[self._occ1, self._cu1, self._cv1, self._occ2, self._cu2, self._cv2, self.passes],
+                  outputs=[self.occlusion, self.centroid], device=dev)
         return self.occlusion
 
     def _compute(self) -> None:
         self.compute_occlusion()
         wp.launch(integrate_disk_transfer, dim=self.mesh.num_vertices,
-                  inputs=[self.normals, self.occlusion, self._zh, self.samples, self.order, self._k],
+                  inputs=[self.normals, self.occlusion, self.centroid, self._zh, self.samples, self.order, self._k],
                   outputs=[self.transfer], device=self.device)
 
     def light_visibility(self, direction=None, position=None) -> np.ndarray:

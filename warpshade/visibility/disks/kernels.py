@@ -19,6 +19,8 @@ GRID = 4
 BINS = GRID * GRID
 STACK = 64  # traversal stack; median splits keep the depth near log2(V), far below this
 stack_t = wp.types.vector(length=STACK, dtype=int)
+weights_t = wp.types.vector(length=STACK, dtype=float)
+LOD_BAND = 1.5  # nodes between lod and LOD_BAND*lod radii blend parent and children (no popping)
 
 
 @wp.func
@@ -195,11 +197,13 @@ def disk_form_factor(x: wp.vec3, n: wp.vec3, c: wp.vec3, ne: wp.vec3, area: floa
 
 @wp.func
 def splat_bins(x: wp.vec3, frame: wp.mat33, c: wp.vec3, ff: float, area: float, row: int,
-               occlusion: wp.array2d[float]):
+               occlusion: wp.array2d[float], centroid_u: wp.array2d[float], centroid_v: wp.array2d[float]):
     """Spread form factor ``ff`` over the 16 bins with a box footprint of the disk's angular size.
 
     Each bin holds π/16 of the cosine measure, so a fraction ``ff`` of π landing in one bin
     occludes ``16 ff`` of it (eq. 5's per-direction coverage, normalised to conserve the total).
+    Beyond the paper, each bin also accumulates the occlusion-weighted centroid (in the concentric
+    square) of what covers it, so the SH integral can place a partial occlusion where it is.
     """
     d = c - x
     r2 = wp.dot(d, d)
@@ -207,7 +211,7 @@ def splat_bins(x: wp.vec3, frame: wp.mat33, c: wp.vec3, ff: float, area: float, 
     local = wp.transpose(frame) * w
     uv = concentric_inverse(local[0], local[1])
     # disk angular radius: sin² α = A / (π r² + A); the unit disk spans [0,1] so half that size
-    half = wp.max(0.5 * wp.sqrt(area / (wp.pi * r2 + area)), 0.5 / float(GRID))
+    half = wp.max(0.5 * wp.sqrt(area / (wp.pi * r2 + area)), 1.0e-4)
     u0 = wp.max(0.0, uv[0] - half)
     u1 = wp.min(1.0, uv[0] + half)
     v0 = wp.max(0.0, uv[1] - half)
@@ -219,10 +223,16 @@ def splat_bins(x: wp.vec3, frame: wp.mat33, c: wp.vec3, ff: float, area: float, 
     for i in range(GRID):
         ou = box_overlap(u0, u1, i)
         if ou > 0.0:
+            cu = wp.clamp(uv[0], float(i) / float(GRID), float(i + 1) / float(GRID))
             for j in range(GRID):
                 ov = box_overlap(v0, v1, j)
                 if ov > 0.0:
-                    occlusion[row, i * GRID + j] = occlusion[row, i * GRID + j] + scale * ou * ov
+                    cv = wp.clamp(uv[1], float(j) / float(GRID), float(j + 1) / float(GRID))
+                    b = i * GRID + j
+                    o = scale * ou * ov
+                    occlusion[row, b] = occlusion[row, b] + o
+                    centroid_u[row, b] = centroid_u[row, b] + o * cu
+                    centroid_v[row, b] = centroid_v[row, b] + o * cv
 
 
 @wp.kernel
@@ -242,14 +252,18 @@ def accumulate_occlusion(
     lod: float,
     two_sided: int,
     occlusion: wp.array2d[float],
+    centroid_u: wp.array2d[float],
+    centroid_v: wp.array2d[float],
     visited: wp.array[int],
 ):
     """Per receiver vertex: walk the disk tree and add every disk's coverage to its 16 direction bins.
 
-    A node whose bounding sphere is farther than ``lod`` radii stands for its subtree (level of
-    detail by distance); otherwise its children are visited. Leaves are vertex disks; the receiver's
-    own is skipped. With ``use_access`` (second pass, Bunnell) each disk's coverage is scaled by its
-    accessibility from the first pass, which discounts occluders that are themselves hidden.
+    A node whose bounding sphere is farther than ``LOD_BAND * lod`` radii stands for its subtree
+    (level of detail by distance); closer than ``lod`` radii its children are visited; in between
+    both are used with smoothstep weights, so a deforming mesh never pops between levels. Leaves are
+    vertex disks; the receiver's own is skipped. With ``use_access`` (second pass, Bunnell) each
+    disk's coverage is scaled by its accessibility from the first pass, which discounts occluders
+    that are themselves hidden.
     """
     v = wp.tid()
     x = points[v]
@@ -257,41 +271,79 @@ def accumulate_occlusion(
     frame = orthonormal_basis(n)
     for b in range(BINS):
         occlusion[v, b] = 0.0
+        centroid_u[v, b] = 0.0
+        centroid_v[v, b] = 0.0
     stack = stack_t()
+    weight = weights_t()
     stack[0] = 0
+    weight[0] = 1.0
     top = int(1)
     count = int(0)
     while top > 0:
         top -= 1
         node = stack[top]
+        wn = weight[top]
         leaf = left[node] < 0
         if leaf and node_vertex[node] == v:
             continue
         c = node_pos[node]
-        far = wp.length(c - x) > lod * node_radius[node]
-        if leaf or far:
+        ratio = wp.length(c - x) / wp.max(lod * node_radius[node], 1.0e-30)
+        use = float(1.0)
+        if not leaf:
+            # 0 below lod radii, 1 beyond LOD_BAND * lod radii, smoothstep in between
+            use = wp.smoothstep(1.0, LOD_BAND, ratio)
+        if use > 0.0:
             count += 1
             ff = disk_form_factor(x, n, c, node_nrm[node], node_area[node], node_coherence[node], two_sided)
             if ff > 0.0:
                 if use_access != 0:
                     ff = ff * node_access[node]
-                splat_bins(x, frame, c, ff, node_area[node], v, occlusion)
-        elif top + 2 <= STACK:
+                splat_bins(x, frame, c, ff * wn * use, node_area[node], v, occlusion, centroid_u, centroid_v)
+        if use < 1.0 and top + 2 <= STACK:
             stack[top] = left[node]
             stack[top + 1] = right[node]
+            weight[top] = wn * (1.0 - use)
+            weight[top + 1] = wn * (1.0 - use)
             top += 2
     visited[v] = count
 
 
 @wp.kernel
-def combine_passes(occ1: wp.array2d[float], occ2: wp.array2d[float], passes: int, occlusion: wp.array2d[float]):
-    """Bin occlusion clamped to [0, 1]: pass 1 alone, or the mean of passes 1 and 2 (Bunnell: the
-    first over-, the second under-estimates overlapping occluders)."""
+def combine_passes(
+    occ1: wp.array2d[float],
+    cu1: wp.array2d[float],
+    cv1: wp.array2d[float],
+    occ2: wp.array2d[float],
+    cu2: wp.array2d[float],
+    cv2: wp.array2d[float],
+    passes: int,
+    occlusion: wp.array2d[float],
+    centroid: wp.array3d[float],
+):
+    """Bin occlusion clamped to [0, 1] and its centroid in the concentric square, shape (V, 16, 2).
+
+    One pass, or the mean of passes 1 and 2 (Bunnell: the first over-, the second under-estimates
+    overlapping occluders). Empty bins get their centre as centroid.
+    """
     v, b = wp.tid()
-    o = wp.min(1.0, occ1[v, b])
+    o = occ1[v, b]
+    su = cu1[v, b]
+    sv = cv1[v, b]
+    oc = wp.min(1.0, o)
     if passes > 1:
-        o = 0.5 * (o + wp.min(1.0, occ2[v, b]))
-    occlusion[v, b] = o
+        oc = 0.5 * (oc + wp.min(1.0, occ2[v, b]))
+        o += occ2[v, b]
+        su += cu2[v, b]
+        sv += cv2[v, b]
+    occlusion[v, b] = oc
+    bi = b / GRID
+    bj = b % GRID
+    if o > 0.0:
+        centroid[v, b, 0] = su / o
+        centroid[v, b, 1] = sv / o
+    else:
+        centroid[v, b, 0] = (float(bi) + 0.5) / float(GRID)
+        centroid[v, b, 1] = (float(bj) + 0.5) / float(GRID)
 
 
 # -- shading ---------------------------------------------------------------------------------------
@@ -299,6 +351,7 @@ def combine_passes(occ1: wp.array2d[float], occ2: wp.array2d[float], passes: int
 def integrate_disk_transfer(
     normals: wp.array[wp.vec3],
     occlusion: wp.array2d[float],
+    centroid: wp.array3d[float],
     zh: wp.array[float],
     samples: int,
     order: int,
@@ -307,10 +360,11 @@ def integrate_disk_transfer(
 ):
     """Diffuse transfer (CONTRACTS.md §2): analytic unoccluded transfer minus the occluded bins.
 
-    ``T = sqrt(4π/(2l+1)) A_l y_lm(n) - Σ_b O_b ∫_bin y cos dω``. Each bin integral is a
-    ``samples²`` midpoint rule in the concentric square, i.e. equal-weight cosine-distributed
-    directions (weight π / (16 samples²)), so an unoccluded vertex is exact and the quadrature
-    error only touches the occluded part.
+    ``T = sqrt(4π/(2l+1)) A_l y_lm(n) - Σ_b ∫_{occluded part of b} y cos dω``. The occluded part of
+    bin b is modelled as a square of area ``O_b`` (in bin units) around the occluders' centroid,
+    kept inside the bin; its integral is a ``samples²`` midpoint rule in the concentric square, i.e.
+    equal-weight cosine-distributed directions of weight ``O_b π / (16 samples²)``. An unoccluded
+    vertex is therefore exact, and a fully occluded bin integrates the whole bin.
     """
     v = wp.tid()
     n = normals[v]
@@ -321,19 +375,25 @@ def integrate_disk_transfer(
     sh_accumulate(n, 1.0, order, k, transfer, v)
     for i in range(order * order):
         transfer[v, i] = transfer[v, i] * zh[i]
-    weight = wp.pi / float(BINS * samples * samples)
+    cell = 1.0 / float(GRID)
     for b in range(BINS):
         o = occlusion[v, b]
         if o > 0.0:
             bi = b / GRID
             bj = b % GRID
+            side = wp.sqrt(o) * cell
+            lo_u = float(bi) * cell
+            lo_v = float(bj) * cell
+            cu = wp.clamp(centroid[v, b, 0], lo_u + 0.5 * side, lo_u + cell - 0.5 * side)
+            cv = wp.clamp(centroid[v, b, 1], lo_v + 0.5 * side, lo_v + cell - 0.5 * side)
+            weight = -o * wp.pi / float(BINS * samples * samples)
             for si in range(samples):
                 for sj in range(samples):
-                    u = (float(bi) + (float(si) + 0.5) / float(samples)) / float(GRID)
-                    w = (float(bj) + (float(sj) + 0.5) / float(samples)) / float(GRID)
+                    u = cu + side * ((float(si) + 0.5) / float(samples) - 0.5)
+                    w = cv + side * ((float(sj) + 0.5) / float(samples) - 0.5)
                     d2 = concentric_disk(u, w)
                     z = wp.sqrt(wp.max(0.0, 1.0 - wp.dot(d2, d2)))
-                    sh_accumulate(frame * wp.vec3(d2[0], d2[1], z), -o * weight, order, k, transfer, v)
+                    sh_accumulate(frame * wp.vec3(d2[0], d2[1], z), weight, order, k, transfer, v)
 
 
 @wp.kernel

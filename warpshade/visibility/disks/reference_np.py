@@ -83,7 +83,7 @@ def bin_occlusion_np(points, normals, faces, two_sided: bool) -> np.ndarray:
                 continue
             loc = fr.T @ w
             u, vv = concentric_inverse_np(loc[0], loc[1])
-            half = max(0.5 * np.sqrt(area[e] / (np.pi * dist * dist + area[e])), 0.5 / GRID)
+            half = max(0.5 * np.sqrt(area[e] / (np.pi * dist * dist + area[e])), 1e-4)
             u0, u1, v0, v1 = max(0, u - half), min(1, u + half), max(0, vv - half), min(1, vv + half)
             norm = (u1 - u0) * (v1 - v0)
             for i in range(GRID):
