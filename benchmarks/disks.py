@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 
@@ -27,10 +26,9 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from warpshade.geometry import load_mesh  # noqa: E402
 from warpshade.metrics import error_summary  # noqa: E402
-from warpshade.sh import sh_eval  # noqa: E402
+from warpshade.sh import clamped_cosine_zh, zh_rotate  # noqa: E402
 from warpshade.timing import time_transfer  # noqa: E402
 from warpshade.visibility import METHODS, get_method  # noqa: E402
-from warpshade.visibility.disks import clamped_cosine_zh  # noqa: E402
 
 ASSETS = os.path.join(os.path.dirname(wp.__file__), "examples", "assets")
 CACHE = os.path.join(os.path.dirname(__file__), "cache")
@@ -50,9 +48,7 @@ def ground_truth(name: str, mesh, order: int) -> np.ndarray:
 
 
 def unoccluded(mesh, order: int) -> np.ndarray:
-    a = clamped_cosine_zh(order)
-    scale = np.concatenate([[math.sqrt(4 * math.pi / (2 * l + 1)) * a[l]] * (2 * l + 1) for l in range(order)])
-    return sh_eval(mesh.normals, order) * scale
+    return zh_rotate(clamped_cosine_zh(order), mesh.normals)
 
 
 def main() -> int:

@@ -12,36 +12,17 @@ directional, point and spot lights.
 from __future__ import annotations
 
 import argparse
-import math
 
 import numpy as np
 import warp as wp
 
 from ...geometry.mesh import TriMesh
 from ...sh.kernels import normalization_array
+from ...sh.zonal import clamped_cosine_zh, zh_band_factors, zh_expand_index
 from ..base import TransferMethod
 from .kernels import (BINS, STACK, accumulate_disk_areas, accumulate_occlusion, combine_passes,
                       integrate_disk_transfer, lookup_light_visibility, merge_child_access, merge_child_disks,
                       set_leaf_access, set_leaf_disks)
-
-
-def clamped_cosine_zh(order: int) -> np.ndarray:
-    """Zonal coefficients ``A_l`` of ``max(0, cos θ)`` (CONTRACTS.md §2), shape (order,), float64.
-
-    Closed form: ``A_0 = √π/2``, ``A_1 = √(π/3)``, odd ``l > 1``: 0, even ``l``:
-    ``2π √((2l+1)/4π) (-1)^(l/2+1) (l-2)! / (2^l (l/2-1)! (l/2+1)!)``.
-    """
-    out = np.zeros(order)
-    for l in range(order):
-        if l == 0:
-            out[l] = math.sqrt(math.pi) / 2
-        elif l == 1:
-            out[l] = math.sqrt(math.pi / 3)
-        elif l % 2 == 0:
-            h = l // 2
-            out[l] = (2 * math.pi * math.sqrt((2 * l + 1) / (4 * math.pi)) * (-1) ** (h + 1) * math.factorial(l - 2)
-                      / (2 ** l * math.factorial(h - 1) * math.factorial(h + 1)))
-    return out
 
 
 def build_disk_tree(points: np.ndarray) -> dict:
@@ -156,9 +137,9 @@ class DiskTransfer(TransferMethod):
         """Occluded fraction of each of the 16 direction bins, shape (V, 16), dtype float32, in [0, 1]."""
         self._visited = wp.zeros(nv, dtype=int, device=dev)
         self._k = normalization_array(self.order, dev)
-        zh = clamped_cosine_zh(self.order)
-        self._zh = wp.array(np.concatenate([[math.sqrt(4 * math.pi / (2 * l + 1)) * zh[l]] * (2 * l + 1)
-                                            for l in range(self.order)]).astype(np.float32), dtype=float, device=dev)
+        # sqrt(4π/(2l+1)) A_l per SH index: the unoccluded transfer is this times y(n) (CONTRACTS.md §2)
+        zh = (clamped_cosine_zh(self.order) * zh_band_factors(self.order))[zh_expand_index(self.order)]
+        self._zh = wp.array(zh.astype(np.float32), dtype=float, device=dev)
 
     # -- command line ------------------------------------------------------------------------
     @classmethod
