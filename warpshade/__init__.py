@@ -5,6 +5,7 @@ __version__ = "0.1.0"
 from .geometry import MeshError, TriMesh, load_mesh
 from .sh import n_coeffs, sh_eval
 from .visibility import METHODS, TransferMethod, get_method
+from .visibility.gears import AreaVisibilityMethod, RectLight, get_area_method
 
-__all__ = ["METHODS", "MeshError", "TransferMethod", "TriMesh", "__version__", "get_method", "load_mesh",
+__all__ = ["AreaVisibilityMethod", "RectLight", "get_area_method", "METHODS", "MeshError", "TransferMethod", "TriMesh", "__version__", "get_method", "load_mesh",
            "n_coeffs", "sh_eval"]

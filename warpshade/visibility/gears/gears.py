@@ -17,8 +17,8 @@ import warp as wp
 
 from ...geometry.mesh import TriMesh
 from .base import AreaVisibilityMethod, RectLight
-from .kernels import (bound_shadow_volumes, count_cell_triangles, fill_cell_triangles, locate_receivers,
-                      rasterize_light_masks)
+from .kernels import (add_counts, bound_shadow_volumes, count_cell_triangles, fill_cell_triangles,
+                      locate_receivers, rasterize_light_masks)
 
 
 class GearsVisibility(AreaVisibilityMethod):
@@ -43,15 +43,20 @@ class GearsVisibility(AreaVisibilityMethod):
         self._cell_of = wp.zeros(n, dtype=int, device=device)
         self._tri_count = wp.zeros(n, dtype=int, device=device)
         self._boxes = wp.zeros((2 * f, 4), dtype=int, device=device)
+        self._near = wp.zeros(2 * f, dtype=float, device=device)
         g = max(1, self.grid)
         self._cell_count = wp.zeros(2 * g * g, dtype=int, device=device)
         self._cell_start = wp.zeros(2 * g * g, dtype=int, device=device)
         self._cell_fill = wp.zeros(2 * g * g, dtype=int, device=device)
-        self._cell_tris = wp.zeros(max(1, f), dtype=int, device=device)
+        self._cell_end = wp.zeros(2 * g * g, dtype=int, device=device)
+        # sort scratch: segmented_sort_pairs needs twice the pair count
+        self._cell_tris = wp.zeros(2 * max(1, f), dtype=int, device=device)
+        self._cell_keys = wp.zeros(2 * max(1, f), dtype=float, device=device)
         if self.grid == 0:
             self._cell_of.fill_(-2)
             self._cell_count.fill_(f)
             self._cell_tris = wp.array(np.arange(f, dtype=np.int32), dtype=int, device=device)
+            self._cell_keys = wp.full(f, -np.inf, dtype=float, device=device)
         self._assigned = 0
 
     @classmethod
@@ -107,18 +112,25 @@ class GearsVisibility(AreaVisibilityMethod):
         wp.launch(bound_shadow_volumes, dim=(self.mesh.num_faces, 2),
                   inputs=[self.points, self.faces, cw, wp.vec3(*lt.u), wp.vec3(*lt.v), nlw, e1w, e2w, side_height,
                           grid_lo, grid_cell, g],
-                  outputs=[self._boxes], device=dev)
+                  outputs=[self._boxes, self._near], device=dev)
         self._cell_count.zero_()
         wp.launch(count_cell_triangles, dim=2 * self.mesh.num_faces, inputs=[self._boxes, g],
                   outputs=[self._cell_count], device=dev)
         wp.utils.array_scan(self._cell_count, self._cell_start, inclusive=False)
         total = int(self._cell_start.numpy()[-1] + self._cell_count.numpy()[-1])
         self._assigned = total
-        if self._cell_tris.shape[0] < total:
-            self._cell_tris = wp.zeros(int(total * 1.25) + 1, dtype=int, device=dev)
+        if self._cell_tris.shape[0] < 2 * total:
+            n = 2 * (int(total * 1.25) + 1)
+            self._cell_tris = wp.zeros(n, dtype=int, device=dev)
+            self._cell_keys = wp.zeros(n, dtype=float, device=dev)
         self._cell_fill.zero_()
-        wp.launch(fill_cell_triangles, dim=2 * self.mesh.num_faces, inputs=[self._boxes, g, self._cell_start],
-                  outputs=[self._cell_fill, self._cell_tris], device=dev)
+        wp.launch(fill_cell_triangles, dim=2 * self.mesh.num_faces, inputs=[self._boxes, g, self._near, self._cell_start],
+                  outputs=[self._cell_fill, self._cell_tris, self._cell_keys], device=dev)
+        if total > 0:
+            wp.copy(self._cell_end, self._cell_start)
+            wp.launch(add_counts, dim=self._cell_end.shape[0], inputs=[self._cell_count], outputs=[self._cell_end],
+                      device=dev)
+            wp.utils.segmented_sort_pairs(self._cell_keys, self._cell_tris, total, self._cell_start, self._cell_end)
 
     def _compute(self) -> None:
         offset = self._offset_abs()
@@ -131,5 +143,5 @@ class GearsVisibility(AreaVisibilityMethod):
         dv = np.asarray(lt.v) / np.dot(lt.v, lt.v)
         wp.launch(rasterize_light_masks, dim=self.mesh.num_vertices,
                   inputs=[self.points, self.normals, self.faces, offset, c, u, v, wp.vec3(*du), wp.vec3(*dv), nl, self.k,
-                          self._cell_of, self._cell_start, self._cell_count, self._cell_tris],
+                          self._cell_of, self._cell_start, self._cell_count, self._cell_tris, self._cell_keys],
                   outputs=[self.masks, self.visibility, self.form_factor, self._tri_count], device=self.device)

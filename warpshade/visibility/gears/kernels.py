@@ -175,6 +175,7 @@ def bound_shadow_volumes(
     grid_cell: wp.array[float],
     grid_res: int,
     boxes: wp.array2d[int],
+    near_height: wp.array[float],
 ):
     """Grid-cell AABB of each triangle's shadow volume, per side of the light (A.3), shape (F, 2) x 4.
 
@@ -185,6 +186,8 @@ def bound_shadow_volumes(
     <= H lies in conv{B_i, F_ij} (F is affine in L and projective in B), so the AABB of their
     orthographic projections never misses a receiver. Parts touching the light's plane (h -> 0)
     reach infinitely far and get the whole grid. ``boxes[f*2+side] = (x0, y0, x1, y1)``; x0 = -1: none.
+    ``near_height[f*2+side]`` is the clipped triangle's smallest height above the light: it cannot
+    block a receiver at that height or lower (the grid is 2-D; this restores the third dimension).
     """
     f, side = wp.tid()
     row = f * 2 + side
@@ -210,10 +213,12 @@ def bound_shadow_volumes(
     ymin = inf
     xmax = -inf
     ymax = -inf
+    hmin = inf
     whole = bool(False)
     for i in range(m):
         b = poly[i]
         hb = wp.dot(b - c, nrm)
+        hmin = wp.min(hmin, hb)
         px = wp.dot(b - c, e1)
         py = wp.dot(b - c, e2)
         xmin = wp.min(xmin, px)
@@ -235,6 +240,7 @@ def bound_shadow_volumes(
                 ymin = wp.min(ymin, qy)
                 ymax = wp.max(ymax, qy)
     g = float(grid_res)
+    near_height[row] = hmin
     if whole:
         boxes[row, 0] = 0
         boxes[row, 1] = 0
@@ -272,11 +278,13 @@ def count_cell_triangles(boxes: wp.array2d[int], grid_res: int, cell_count: wp.a
 def fill_cell_triangles(
     boxes: wp.array2d[int],
     grid_res: int,
+    near_height: wp.array[float],
     cell_start: wp.array[int],
     cell_fill: wp.array[int],
     cell_tris: wp.array[int],
+    cell_keys: wp.array[float],
 ):
-    """Scatter triangle ids into the per-cell lists (order within a cell does not matter: masks are OR-ed)."""
+    """Scatter triangle ids (and their near heights, the sort key) into the per-cell lists."""
     row = wp.tid()
     if boxes[row, 0] < 0:
         return
@@ -287,6 +295,14 @@ def fill_cell_triangles(
             cell = (side * grid_res + y) * grid_res + x
             slot = wp.atomic_add(cell_fill, cell, 1)
             cell_tris[cell_start[cell] + slot] = f
+            cell_keys[cell_start[cell] + slot] = near_height[row]
+
+
+@wp.kernel
+def add_counts(count: wp.array[int], end: wp.array[int]):
+    """``end += count`` (segment ends from starts)."""
+    i = wp.tid()
+    end[i] = end[i] + count[i]
 
 
 # -- GEARS visibility masks (the paper's step 4) ---------------------------------------------------
@@ -307,6 +323,7 @@ def rasterize_light_masks(
     cell_start: wp.array[int],
     cell_count: wp.array[int],
     cell_tris: wp.array[int],
+    cell_keys: wp.array[float],
     masks: wp.array2d[wp.uint32],
     visibility: wp.array[float],
     form_factor: wp.array[float],
@@ -318,7 +335,10 @@ def rasterize_light_masks(
     (``0 < h < 1`` with ``h(X) = n_L·(X-P) / n_L·(c-P)``), projected centrally from P onto the light
     plane (``X' = P + (X-P)/h``), expressed in light coordinates through the dual axes ``du, dv``
     (``s = du·(X'-c)``), and scan-converted row by row into bit spans. ``cell_of[r] = -2`` means
-    "all triangles" (brute force: ``cell_start[0] = 0``, ``cell_count[0] = F``).
+    "all triangles" (brute force: ``cell_start[0] = 0``, ``cell_count[0] = F``). Each cell's list is
+    sorted by the triangles' near height above the light: triangles no closer to the light than the
+    receiver are skipped by a binary search (the near clip would reject them), and the rest are
+    walked from the receiver toward the light.
     """
     r = wp.tid()
     n = normals[r]
@@ -338,8 +358,20 @@ def rasterize_light_masks(
         full = ~full >> wp.uint32(32 - k)
         poly = mat63()
         tmp = mat63()
-        for e in range(count):
-            f = cell_tris[start + e]
+        height = wp.abs(denom)
+        # triangles with near height > receiver height cannot block (sorted: binary search the cut)
+        lo = int(0)
+        hi = count
+        while lo < hi:
+            mid = (lo + hi) / 2
+            if cell_keys[start + mid] > height:
+                hi = mid
+            else:
+                lo = mid + 1
+        # walk from the receiver toward the light: near triangles subtend more of the light, so
+        # fully shadowed receivers fill their mask and stop early
+        for e in range(lo):
+            f = cell_tris[start + lo - 1 - e]
             a0 = points[faces[f, 0]]
             a1 = points[faces[f, 1]]
             a2 = points[faces[f, 2]]
@@ -395,7 +427,7 @@ def rasterize_light_masks(
                     if cols[0] <= cols[1]:
                         masks[r, j] = masks[r, j] | bit_span(cols[0], cols[1])
             # fully blocked: no later triangle can change the mask
-            if e % 8 == 7:
+            if e % 4 == 3:
                 done = bool(True)
                 for j in range(k):
                     if masks[r, j] != full:
