@@ -19,13 +19,7 @@ Rays = get_area_method("reference")
 
 
 def light_above(mesh: TriMesh, height=1.5, size=0.3, tilt=0.0) -> RectLight:
-    """A light over the mesh (y up), ``size`` times the bbox extent, optionally tilted about x."""
-    lo, hi = mesh.points.min(0).astype(float), mesh.points.max(0).astype(float)
-    d = hi - lo
-    c = lo + d * np.array([0.5, height, 0.5])
-    u = np.array([d[0] * size, 0.0, 0.0])
-    v = np.array([0.0, -np.sin(tilt), np.cos(tilt)]) * d[2] * size
-    return RectLight(tuple(c), tuple(u), tuple(v))
+    return RectLight.over_points(mesh.points, size=size, height=height, tilt=tilt)
 
 
 def plane_scene(blocker_x0=0.0):

@@ -17,8 +17,8 @@ import numpy as np
 import warp as wp
 
 from ...geometry.mesh import TriMesh
-from ...sh.kernels import normalization_array
-from ...sh.zonal import clamped_cosine_zh, zh_band_factors, zh_expand_index
+from ...sh.kernels import normalization_array, zh_normalization_array
+from ...sh.zonal import clamped_cosine_zh
 from ..base import TransferMethod
 from .kernels import (BINS, STACK, accumulate_disk_areas, accumulate_occlusion, combine_passes,
                       integrate_disk_transfer, lookup_light_visibility, merge_child_access, merge_child_disks,
@@ -137,9 +137,8 @@ class DiskTransfer(TransferMethod):
         """Occluded fraction of each of the 16 direction bins, shape (V, 16), dtype float32, in [0, 1]."""
         self._visited = wp.zeros(nv, dtype=int, device=dev)
         self._k = normalization_array(self.order, dev)
-        # sqrt(4π/(2l+1)) A_l per SH index: the unoccluded transfer is this times y(n) (CONTRACTS.md §2)
-        zh = (clamped_cosine_zh(self.order) * zh_band_factors(self.order))[zh_expand_index(self.order)]
-        self._zh = wp.array(zh.astype(np.float32), dtype=float, device=dev)
+        self._cosine_zh = wp.array(clamped_cosine_zh(self.order)[None, :].astype(np.float32), dtype=float, device=dev)
+        self._kz = zh_normalization_array(self.order, dev)
 
     # -- command line ------------------------------------------------------------------------
     @classmethod
@@ -215,7 +214,8 @@ class DiskTransfer(TransferMethod):
     def _compute(self) -> None:
         self.compute_occlusion()
         wp.launch(integrate_disk_transfer, dim=self.mesh.num_vertices,
-                  inputs=[self.normals, self.occlusion, self.centroid, self._zh, self.samples, self.order, self._k],
+                  inputs=[self.normals, self.occlusion, self.centroid, self._cosine_zh, self._kz, self.samples, self.order,
+                          self._k],
                   outputs=[self.transfer], device=self.device)
 
     def light_visibility(self, direction=None, position=None) -> np.ndarray:

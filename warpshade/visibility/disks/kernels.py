@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ...sh.kernels import sh_accumulate
+from ...sh.kernels import sh_accumulate, zh_rotate_accumulate
 from ..reference_kernels import concentric_disk, orthonormal_basis
 
 wp.set_module_options({"enable_backward": False})
@@ -352,7 +352,8 @@ def integrate_disk_transfer(
     normals: wp.array[wp.vec3],
     occlusion: wp.array2d[float],
     centroid: wp.array3d[float],
-    zh: wp.array[float],
+    cosine_zh: wp.array2d[float],
+    kz: wp.array[float],
     samples: int,
     order: int,
     k: wp.array[float],
@@ -371,10 +372,8 @@ def integrate_disk_transfer(
     frame = orthonormal_basis(n)
     for i in range(order * order):
         transfer[v, i] = 0.0
-    # unoccluded part: zonal clamped cosine rotated to n, zh[i] = sqrt(4π/(2l+1)) A_l per index
-    sh_accumulate(n, 1.0, order, k, transfer, v)
-    for i in range(order * order):
-        transfer[v, i] = transfer[v, i] * zh[i]
+    # unoccluded part: the clamped cosine's zonal coefficients A_l (row 0 of cosine_zh) rotated to n
+    zh_rotate_accumulate(n, cosine_zh, 0, 1.0, order, kz, transfer, v)
     cell = 1.0 / float(GRID)
     for b in range(BINS):
         o = occlusion[v, b]

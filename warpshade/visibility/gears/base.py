@@ -61,6 +61,24 @@ class RectLight:
             raise ValueError(f"--rect-light expects 9 comma-separated numbers (c, u, v), got {len(vals)}: '{text}'")
         return cls(tuple(vals[0:3]), tuple(vals[3:6]), tuple(vals[6:9]))
 
+    @classmethod
+    def over_points(cls, points, size: float = 0.3, height: float = 1.5, tilt: float = 0.0) -> RectLight:
+        """A light over a point set's bounding box (y up), for tests, benchmarks and quick looks.
+
+        Args:
+            points: Positions [m], shape (V, 3).
+            size: Half-axes as fractions of the box's x and z extents.
+            height: Centre height as a fraction of the y extent above the box's bottom (1 = top).
+            tilt: Rotation of the v axis about x [rad] (0: horizontal light facing down and up).
+        """
+        p = np.asarray(points, dtype=np.float64)
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        d = hi - lo
+        c = lo + d * np.array([0.5, height, 0.5])
+        u = np.array([d[0] * size, 0.0, 0.0])
+        v = np.array([0.0, -np.sin(tilt), np.cos(tilt)]) * d[2] * size
+        return cls(tuple(c), tuple(u), tuple(v))
+
     @property
     def normal(self) -> np.ndarray:
         """Unit normal ``u × v / |u × v|``, shape (3,)."""
