@@ -84,9 +84,9 @@ def main() -> int:
             records.append(rec)
 
         for k in ks:
-            row("k", k, 0.3, 32, True)
+            row("k", k, 0.3, 16, True)
         for size in sizes:
-            row("size", 16, size, 32, True)
+            row("size", 16, size, 16, True)
         for grid in grids:
             row("grid", 16, 0.3, grid, False)
     print("\nspeedup = ray-traced time (k×k jittered shadow rays, wp.mesh_query_ray BVH) / GEARS time;"

@@ -212,7 +212,7 @@ def test_cli_contract(tmp_path):
     assert 0.0 <= z["visibility"].min() and z["visibility"].max() == 1.0
     s = json.loads(stats.read_text())
     assert s["method"] == "gears" and s["order"] is None and s["vertices"] == 1986 and s["triangles"] == 3968
-    assert s["seconds"] > 0 and s["knobs"]["k"] == 8 and s["knobs"]["grid"] == 32
+    assert s["seconds"] > 0 and s["knobs"]["k"] == 8 and s["knobs"]["grid"] == 16
     rc = cli_main(["visibility", warp_asset("bear.usd"), "--rect-light", "0,7,0,1.5,0,0,0,0,1.5", "--method",
                    "reference", "--k", "8", "--repeat", "1", "--save", str(tmp_path / "r.npz")])
     assert rc == 0

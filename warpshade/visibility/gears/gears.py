@@ -28,13 +28,13 @@ class GearsVisibility(AreaVisibilityMethod):
         mesh, light, k, device, offset: see :class:`AreaVisibilityMethod`.
         grid: Acceleration grid resolution per side of the light (grid×grid cells); 0 assigns every
             triangle to every receiver (brute force, for testing). The paper found 128 best at
-            ~1M pixel samples; for a few thousand vertices 16–32 is best (benchmarks/gears.py).
+            ~1M pixel samples; for a few thousand vertices 8–16 is best (benchmarks/gears.py).
     """
 
     name = "gears"
 
     def __init__(self, mesh: TriMesh, light: RectLight, k: int = 16, device: str = "cpu", offset: float = 1e-5,
-                 grid: int = 32):
+                 grid: int = 16):
         if int(grid) != grid or grid < 0 or grid > 1024:
             raise ValueError(f"grid must be an integer in 0..1024 (0 = brute force), got {grid!r}")
         super().__init__(mesh, light, k, device, offset)
@@ -61,7 +61,7 @@ class GearsVisibility(AreaVisibilityMethod):
 
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--grid", type=int, default=32,
+        parser.add_argument("--grid", type=int, default=16,
                             help="acceleration grid cells per side (0 = every triangle for every vertex)")
 
     @classmethod
