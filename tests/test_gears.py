@@ -103,8 +103,8 @@ def test_masks_match_numpy_segment_tests(seed):
 
 
 @pytest.mark.parametrize("asset,height,size,tilt", [
-    ("bunny.usd", 1.5, 0.3, 0.0),    # light above
-    ("bunny.usd", 0.5, 0.8, 0.3),    # light plane through the mesh: receivers on both sides
+    ("bear.usd", 1.5, 0.3, 0.0),     # light above
+    ("bear.usd", 0.5, 0.8, 0.3),     # light plane through the mesh: receivers on both sides
     ("bear.usd", 1.2, 0.05, 1.2),    # small, strongly tilted light
 ])
 def test_grid_never_misses_a_blocker(asset, height, size, tilt):
