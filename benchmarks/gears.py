@@ -25,14 +25,14 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from warpshade.geometry import load_mesh  # noqa: E402
 from warpshade.timing import median_seconds  # noqa: E402
-from warpshade.visibility.gears import RectLight, get_area_method  # noqa: E402
+from warpshade.visibility.gears import LightRect, get_area_method  # noqa: E402
 
 ASSETS = os.path.join(os.path.dirname(wp.__file__), "examples", "assets")
 
 
-def light_over(mesh, size: float, height: float = 1.4, tilt: float = 0.4) -> RectLight:
+def light_over(mesh, size: float, height: float = 1.4, tilt: float = 0.4) -> LightRect:
     """Light above the mesh (y up): half-axes ``size`` times the bbox extent, tilted 0.4 rad."""
-    return RectLight.over_points(mesh.points, size=size, height=height, tilt=tilt)
+    return LightRect.over_points(mesh.points, size=size, height=height, tilt=tilt)
 
 
 def measure(method, repeat: int) -> float:

@@ -11,15 +11,15 @@ import trimesh
 from conftest import warp_asset
 from warpshade.cli import main as cli_main
 from warpshade.geometry import TriMesh, load_mesh
-from warpshade.visibility.gears import RectLight, get_area_method
+from warpshade.visibility.gears import LightRect, get_area_method
 from warpshade.visibility.gears.reference_np import blocked_samples_np, masks_to_bool
 
 Gears = get_area_method("gears")
 Rays = get_area_method("reference")
 
 
-def light_above(mesh: TriMesh, height=1.5, size=0.3, tilt=0.0) -> RectLight:
-    return RectLight.over_points(mesh.points, size=size, height=height, tilt=tilt)
+def light_above(mesh: TriMesh, height=1.5, size=0.3, tilt=0.0) -> LightRect:
+    return LightRect.over_points(mesh.points, size=size, height=height, tilt=tilt)
 
 
 def plane_scene(blocker_x0=0.0):
@@ -31,7 +31,7 @@ def plane_scene(blocker_x0=0.0):
 
 def test_unoccluded_rectangle_is_fully_visible():
     m = TriMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
-    light = RectLight((0.3, 0.3, 2.0), (0.5, 0, 0), (0, 0.7, 0))
+    light = LightRect((0.3, 0.3, 2.0), (0.5, 0, 0), (0, 0.7, 0))
     for cls in (Gears, Rays):
         vis = cls(m, light, k=8).update().numpy()
         assert np.array_equal(vis, np.ones(3, np.float32)), (cls.name, vis)
@@ -43,7 +43,7 @@ def test_half_covered_light(k):
     # never lie on the edge for even k (exactly 0.5); for odd k the middle column sits on it, so the
     # answer is within half a column, 1/(2k), of 0.5.
     m = plane_scene(0.0)
-    light = RectLight((0.0, 0.0, 2.0), (0.5, 0, 0), (0, 0.5, 0))
+    light = LightRect((0.0, 0.0, 2.0), (0.5, 0, 0), (0, 0.5, 0))
     vis = Gears(m, light, k=k, grid=8).update().numpy()[0]
     assert abs(vis - 0.5) <= 1.0 / (2 * k) + 1e-6, vis
     if k % 2 == 0:
@@ -59,7 +59,7 @@ def test_fully_blocked_and_facing_away():
     # subdivision 3), so "whole light above/below" is required with a 10° margin.
     ico = trimesh.creation.icosphere(3)
     m = TriMesh(ico.vertices, ico.faces)
-    light = RectLight((0, 0, 3.0), (0.4, 0, 0), (0, 0.4, 0))
+    light = LightRect((0, 0, 3.0), (0.4, 0, 0), (0, 0.4, 0))
     vis = Gears(m, light, k=8).update().numpy()
     corners = light.point([-1, 1, -1, 1], [-1, -1, 1, 1])
     to_corner = corners[:, None, :] - m.points[None]
@@ -87,7 +87,7 @@ def random_scene(seed, n_tris=12):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_masks_match_numpy_segment_tests(seed):
     m = random_scene(seed)
-    light = RectLight((0.2, -0.1, 2.2), (0.8, 0.1, 0), (-0.05, 0.4, 0.0))
+    light = LightRect((0.2, -0.1, 2.2), (0.8, 0.1, 0), (-0.05, 0.4, 0.0))
     k = 8
     g = Gears(m, light, k=k, grid=4)
     g.update()
@@ -145,7 +145,7 @@ def test_form_factor_of_unoccluded_square_light():
     # form factor is (2/π) [a/sqrt(h²+a²) atan(a/sqrt(h²+a²))]·2 (two-axis closed form, Howell C-11).
     a, h = 0.5, 1.0
     m = TriMesh([[0, 0, 0], [1e-3, 0, 0], [0, 1e-3, 0]], [[0, 1, 2]])
-    light = RectLight((0, 0, h), (a, 0, 0), (0, a, 0))
+    light = LightRect((0, 0, h), (a, 0, 0), (0, a, 0))
     g = Gears(m, light, k=32)
     g.update()
     x = a / np.hypot(h, a)
@@ -172,7 +172,7 @@ def test_scale_invariance(scale):
     light = light_above(m, 1.3, 0.3, 0.2)
     base = Gears(m, light, k=16).update().numpy()
     ms = TriMesh(m.points * scale, m.faces)
-    ls = RectLight(tuple(np.array(light.center) * scale), tuple(np.array(light.u) * scale),
+    ls = LightRect(tuple(np.array(light.center) * scale), tuple(np.array(light.u) * scale),
                    tuple(np.array(light.v) * scale))
     got = Gears(ms, ls, k=16).update().numpy()
     # float32 rounding could move samples lying on triangle edges (measured: none move)
@@ -182,7 +182,7 @@ def test_scale_invariance(scale):
 
 def test_updates_follow_moving_points():
     m = plane_scene(0.0)
-    light = RectLight((0.0, 0.0, 2.0), (0.5, 0, 0), (0, 0.5, 0))
+    light = LightRect((0.0, 0.0, 2.0), (0.5, 0, 0), (0, 0.5, 0))
     g = Gears(m, light, k=8)
     assert g.update().numpy()[0] == 0.5
     moved = m.points.copy()
@@ -190,14 +190,22 @@ def test_updates_follow_moving_points():
     assert g.update(moved).numpy()[0] == 1.0
 
 
+def test_accepts_the_lighting_rect_light():
+    from warpshade.lighting import RectLight
+
+    m = plane_scene(0.0)
+    g = Gears(m, RectLight(center=[0.0, 0.0, 2.0], u=[0.5, 0, 0], v=[0, 0.5, 0], radiance=3.0), k=8)
+    assert g.update().numpy()[0] == 0.5 and isinstance(g.light, LightRect)
+
+
 def test_bad_inputs_are_clear_errors():
     m = plane_scene()
     with pytest.raises(ValueError, match="orthogonal"):
-        RectLight((0, 0, 1), (1, 0, 0), (1, 1, 0))
+        LightRect((0, 0, 1), (1, 0, 0), (1, 1, 0))
     with pytest.raises(ValueError, match="9 comma"):
-        RectLight.parse("1,2,3")
+        LightRect.parse("1,2,3")
     with pytest.raises(ValueError, match="k"):
-        Gears(m, RectLight((0, 0, 1), (1, 0, 0), (0, 1, 0)), k=33)
+        Gears(m, LightRect((0, 0, 1), (1, 0, 0), (0, 1, 0)), k=33)
 
 
 def test_cli_contract(tmp_path):

@@ -30,10 +30,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args) -> int:
     from ..geometry import load_mesh
     from ..timing import median_seconds
-    from ..visibility.gears import RectLight, get_area_method
+    from ..visibility.gears import LightRect, get_area_method
     from .cmd_transfer import parse_knobs, save_npz, write_json
 
-    light = RectLight.parse(args.rect_light)
+    light = LightRect.parse(args.rect_light)
     cls = get_area_method(args.method)
     knobs = parse_knobs(cls, args.extra)
     mesh = load_mesh(args.mesh, prim=args.prim)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .base import AreaVisibilityMethod, RectLight
+from .base import AreaVisibilityMethod, LightRect
 
 
 def get_area_method(name: str) -> type[AreaVisibilityMethod]:
@@ -20,4 +20,4 @@ def get_area_method(name: str) -> type[AreaVisibilityMethod]:
 
 AREA_METHODS = ("gears", "reference")
 
-__all__ = ["AREA_METHODS", "AreaVisibilityMethod", "RectLight", "get_area_method"]
+__all__ = ["AREA_METHODS", "AreaVisibilityMethod", "LightRect", "get_area_method"]

@@ -22,8 +22,8 @@ from ..base import TransferMethod
 
 
 @dataclass(frozen=True)
-class RectLight:
-    """A two-sided rectangular area light (UsdLux RectLight) with corners ``center ± u ± v``.
+class LightRect:
+    """A two-sided rectangular area light (UsdLux LightRect) with corners ``center ± u ± v``.
 
     Attributes:
         center: Centre [m], shape (3,).
@@ -51,7 +51,7 @@ class RectLight:
         object.__setattr__(self, "v", tuple(v.tolist()))
 
     @classmethod
-    def parse(cls, text: str) -> RectLight:
+    def parse(cls, text: str) -> LightRect:
         """From ``"cx,cy,cz,ux,uy,uz,vx,vy,vz"`` (the ``--rect-light`` syntax)."""
         try:
             vals = [float(x) for x in text.split(",")]
@@ -62,7 +62,7 @@ class RectLight:
         return cls(tuple(vals[0:3]), tuple(vals[3:6]), tuple(vals[6:9]))
 
     @classmethod
-    def over_points(cls, points, size: float = 0.3, height: float = 1.5, tilt: float = 0.0) -> RectLight:
+    def over_points(cls, points, size: float = 0.3, height: float = 1.5, tilt: float = 0.0) -> LightRect:
         """A light over a point set's bounding box (y up), for tests, benchmarks and quick looks.
 
         Args:
@@ -117,7 +117,7 @@ class AreaVisibilityMethod(ABC):
 
     name: ClassVar[str] = ""
 
-    def __init__(self, mesh: TriMesh, light: RectLight, k: int = 16, device: str = "cpu", offset: float = 1e-5):
+    def __init__(self, mesh: TriMesh, light: LightRect, k: int = 16, device: str = "cpu", offset: float = 1e-5):
         if int(k) != k or not 1 <= k <= 32:
             raise ValueError(f"k (light samples per side) must be an integer in 1..32, got {k!r}")
         if not offset >= 0.0:
@@ -143,10 +143,19 @@ class AreaVisibilityMethod(ABC):
         """
         self.set_light(light)
 
-    def set_light(self, light: RectLight) -> None:
-        """Use another light from the next :meth:`update` on."""
-        if not isinstance(light, RectLight):
-            raise TypeError(f"expected a RectLight, got {type(light).__name__}")
+    def set_light(self, light) -> None:
+        """Use another light from the next :meth:`update` on.
+
+        Args:
+            light: A :class:`LightRect`, or anything with ``center``, ``u``, ``v`` (e.g.
+                :class:`warpshade.lighting.RectLight`); visibility is geometric, so emission
+                (radiance, sidedness) is ignored and :attr:`form_factor` treats the light as two-sided.
+        """
+        if not isinstance(light, LightRect):
+            if not all(hasattr(light, a) for a in ("center", "u", "v")):
+                raise TypeError(f"expected a LightRect or a light with center, u, v; got {type(light).__name__}")
+            light = LightRect(tuple(np.asarray(light.center, float).reshape(3)),
+                              tuple(np.asarray(light.u, float).reshape(3)), tuple(np.asarray(light.v, float).reshape(3)))
         self.light = light
 
     # -- command line ------------------------------------------------------------------------

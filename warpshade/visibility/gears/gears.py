@@ -16,7 +16,7 @@ import numpy as np
 import warp as wp
 
 from ...geometry.mesh import TriMesh
-from .base import AreaVisibilityMethod, RectLight
+from .base import AreaVisibilityMethod, LightRect
 from .kernels import (add_counts, bound_shadow_volumes, count_cell_triangles, fill_cell_triangles,
                       locate_receivers, rasterize_light_masks)
 
@@ -33,7 +33,7 @@ class GearsVisibility(AreaVisibilityMethod):
 
     name = "gears"
 
-    def __init__(self, mesh: TriMesh, light: RectLight, k: int = 16, device: str = "cpu", offset: float = 1e-5,
+    def __init__(self, mesh: TriMesh, light: LightRect, k: int = 16, device: str = "cpu", offset: float = 1e-5,
                  grid: int = 16):
         if int(grid) != grid or grid < 0 or grid > 1024:
             raise ValueError(f"grid must be an integer in 0..1024 (0 = brute force), got {grid!r}")

@@ -7,7 +7,7 @@ import argparse
 import warp as wp
 
 from ...geometry.mesh import TriMesh
-from .base import AreaVisibilityMethod, RectLight
+from .base import AreaVisibilityMethod, LightRect
 from .kernels import trace_light_masks
 
 
@@ -23,7 +23,7 @@ class RayVisibility(AreaVisibilityMethod):
 
     name = "reference"
 
-    def __init__(self, mesh: TriMesh, light: RectLight, k: int = 16, device: str = "cpu", offset: float = 1e-5,
+    def __init__(self, mesh: TriMesh, light: LightRect, k: int = 16, device: str = "cpu", offset: float = 1e-5,
                  jitter: bool = True, seed: int = 0):
         super().__init__(mesh, light, k, device, offset)
         self.jitter = bool(jitter)

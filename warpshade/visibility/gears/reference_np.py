@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RectLight
+from .base import LightRect
 
 
-def blocked_samples_np(points, normals, faces, light: RectLight, k: int, offset_abs: float) -> np.ndarray:
+def blocked_samples_np(points, normals, faces, light: LightRect, k: int, offset_abs: float) -> np.ndarray:
     """Blocked flags of the k×k cell-centre light samples per vertex, shape (V, k, k) bool, [v, row j, col i].
 
     A sample is blocked when the segment from the (offset) vertex to the light point crosses a
