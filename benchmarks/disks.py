@@ -61,7 +61,7 @@ def main() -> int:
     wp.config.quiet = True
     meshes = ["bear.usd"] if args.quick else ["bunny.usd", "bear.usd"]
     configs = [("disks", k) for k in get_method("disks").sweep(args.quick)]
-    configs += [("disks", {"passes": 1}), ("disks", {"passes": 2}), ("disks", {"sides": "two"})] if not args.quick else []
+    configs += [("disks", {"sides": "two"})] if not args.quick else []
     configs += [("reference", {"rays": n}) for n in ((64, 256) if args.quick else (64, 256, 1024))]
     if "hemiraster" in METHODS:
         configs += [("hemiraster", k) for k in get_method("hemiraster").sweep(True)]

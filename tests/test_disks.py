@@ -126,10 +126,10 @@ def test_kernels_match_numpy_reference():
     pts = ico.vertices * (1 + 0.3 * rng.random((len(ico.vertices), 1)))
     plane_p, plane_f = disk_mesh(2.0, -1.3, rings=2, segments=8, facing_down=False)
     m = TriMesh(np.concatenate([pts, plane_p]), np.concatenate([ico.faces, plane_f + len(pts)]))
-    for sides in ("one", "two"):
-        d = Disks(m, order=3, passes=1, lod=1e6, sides=sides)
+    for sides, bw in (("one", 0.0), ("two", 1.0), ("one", 0.4)):
+        d = Disks(m, order=3, passes=1, lod=1e6, sides=sides, back_weight=None if bw in (0.0, 1.0) else bw)
         d.update()
-        want = bin_occlusion_np(d.points.numpy(), d.normals.numpy(), m.faces, sides == "two")
+        want = bin_occlusion_np(d.points.numpy(), d.normals.numpy(), m.faces, bw)
         got = d._occ1.numpy()
         assert want.max() > 0.05
         np.testing.assert_allclose(got, want, atol=2e-5, err_msg=sides)
@@ -230,5 +230,6 @@ def test_cli(tmp_path):
     z = np.load(out)
     assert z["transfer"].shape == (1986, 9) and z["transfer"].dtype == np.float32
     s = json.loads(stats.read_text())
-    assert s["method"] == "disks" and s["knobs"] == {"lod": 3.0, "passes": 2, "sides": "one", "samples": 3}
+    assert s["method"] == "disks" and s["knobs"] == {"lod": 3.0, "passes": 2, "sides": "auto", "back_weight": 0.0,
+                                                     "samples": 3}
     assert s["disks_visited_per_vertex"] > 0

@@ -87,13 +87,17 @@ class DiskTransfer(TransferMethod):
         sides: ``"one"`` (disks occlude only from their front: right for closed surfaces, whose back
             faces hide behind front faces), ``"two"`` (cloth, open sheets) or ``"auto"`` (one for
             a closed mesh, two if the mesh has boundary edges).
+        back_weight: Weight of disks seen from behind, in [0, 1]; overrides ``sides`` (one = 0,
+            two = 1). Intermediate values help closed meshes with sharp concave corners, whose
+            directions into the solid only back faces block (bear: 0.5 with 2 passes measured
+            10.0 % error against 12.0 % one-sided; the smooth bunny is best at 0).
         samples: Bin quadrature: ``samples²`` directions per occluded bin for the SH integral.
     """
 
     name = "disks"
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", lod: float = 2.0, passes: int = 0,
-                 sides: str = "auto", samples: int = 3):
+                 sides: str = "auto", samples: int = 3, back_weight: float | None = None):
         super().__init__(mesh, order, device)
         if not lod >= 1.0:
             raise ValueError(f"lod must be >= 1 (node distance in bounding radii), got {lod}")
@@ -104,8 +108,12 @@ class DiskTransfer(TransferMethod):
         if int(samples) != samples or not 1 <= samples <= 16:
             raise ValueError(f"samples must be an integer in 1..16, got {samples!r}")
         self.lod = float(lod)
+        if back_weight is not None and not 0.0 <= back_weight <= 1.0:
+            raise ValueError(f"back_weight must be in [0, 1], got {back_weight}")
         self.sides = sides
-        self.two_sided = (sides == "two") or (sides == "auto" and has_boundary(mesh.faces))
+        two_sided = (sides == "two") or (sides == "auto" and has_boundary(mesh.faces))
+        self.back_weight = float(two_sided) if back_weight is None else float(back_weight)
+        self.two_sided = self.back_weight > 0.0
         self.passes = int(passes) if passes else (2 if self.two_sided else 1)
         self.samples = int(samples)
         tree = build_disk_tree(mesh.points)
@@ -150,19 +158,23 @@ class DiskTransfer(TransferMethod):
         parser.add_argument("--sides", default="auto", choices=("auto", "one", "two"),
                             help="disks occlude from one side (closed meshes) or both (cloth); auto: by boundary")
         parser.add_argument("--samples", type=int, default=3, help="SH quadrature: samples² directions per bin")
+        parser.add_argument("--back-weight", type=float, default=None,
+                            help="weight of disks seen from behind, 0..1 (overrides --sides: one = 0, two = 1)")
 
     @classmethod
     def knobs_from_args(cls, args) -> dict:
-        return {"lod": args.lod, "passes": args.passes, "sides": args.sides, "samples": args.samples}
+        return {"lod": args.lod, "passes": args.passes, "sides": args.sides, "samples": args.samples,
+                "back_weight": args.back_weight}
 
     @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
         if quick:
             return [{"lod": 1.5}, {}, {"lod": 4.0}]
-        return [{"lod": 1.5}, {}, {"lod": 4.0}, {"lod": 8.0}, {"lod": 16.0}, {"passes": 2}]
+        return [{"lod": 1.5}, {}, {"lod": 4.0}, {"lod": 8.0}, {"lod": 16.0}, {"passes": 2},
+                {"back_weight": 0.5, "passes": 2}]
 
     def knobs(self) -> dict:
-        return {"lod": self.lod, "passes": self.passes, "sides": "two" if self.two_sided else "one",
+        return {"lod": self.lod, "passes": self.passes, "sides": self.sides, "back_weight": self.back_weight,
                 "samples": self.samples}
 
     def stats(self) -> dict:
@@ -190,7 +202,7 @@ class DiskTransfer(TransferMethod):
         wp.launch(accumulate_occlusion, dim=self.mesh.num_vertices,
                   inputs=[self.points, self.normals, self._left, self._right, self._node_vertex, self.node_pos,
                           self.node_nrm, self.node_area, self._node_radius, self._node_coherence, self._node_access,
-                          int(use_access), self.lod, int(self.two_sided)],
+                          int(use_access), self.lod, self.back_weight],
                   outputs=[*out, self._visited], device=self.device)
 
     def compute_occlusion(self) -> wp.array:

@@ -162,13 +162,14 @@ def set_leaf_access(occlusion: wp.array2d[float], leaf_of_vertex: wp.array[int],
 # -- occlusion -------------------------------------------------------------------------------------
 @wp.func
 def disk_form_factor(x: wp.vec3, n: wp.vec3, c: wp.vec3, ne: wp.vec3, area: float, coherence: float,
-                     two_sided: int) -> float:
+                     back_weight: float) -> float:
     """Fraction of the receiver's cosine-weighted hemisphere (π) covered by a disk (thesis eq. 3.44).
 
     ``F = A cos θ_e cos θ_p / (π r² + A)`` is exact for a disk facing the receiver on its axis.
     For cluster disks the projected area ``A cos θ_e`` is blended toward ``A/4`` (the mean projected
-    area of a closed surface, Cauchy) by ``1 - coherence``. One-sided disks seen from behind and
-    disks below the receiver's horizon cover nothing (with a smooth blend across it).
+    area of a closed surface, Cauchy) by ``1 - coherence``. Disks seen from behind count with
+    ``back_weight`` (0: one-sided, 1: two-sided); disks below the receiver's horizon cover nothing
+    (with a smooth blend across it).
     """
     d = c - x
     r2 = wp.dot(d, d)
@@ -187,10 +188,8 @@ def disk_form_factor(x: wp.vec3, n: wp.vec3, c: wp.vec3, ne: wp.vec3, area: floa
     if z < rho:
         cp = (z + rho) * (z + rho) / (4.0 * rho * dist)
     ce = -wp.dot(ne, w)
-    if two_sided != 0:
-        ce = wp.abs(ce)
-    else:
-        ce = wp.max(ce, 0.0)
+    if ce < 0.0:
+        ce = -ce * back_weight
     proj = area * (coherence * ce + (1.0 - coherence) * 0.25)
     return proj * cp / (wp.pi * r2 + area)
 
@@ -250,7 +249,7 @@ def accumulate_occlusion(
     node_access: wp.array[float],
     use_access: int,
     lod: float,
-    two_sided: int,
+    back_weight: float,
     occlusion: wp.array2d[float],
     centroid_u: wp.array2d[float],
     centroid_v: wp.array2d[float],
@@ -294,7 +293,7 @@ def accumulate_occlusion(
             use = wp.smoothstep(1.0, LOD_BAND, ratio)
         if use > 0.0:
             count += 1
-            ff = disk_form_factor(x, n, c, node_nrm[node], node_area[node], node_coherence[node], two_sided)
+            ff = disk_form_factor(x, n, c, node_nrm[node], node_area[node], node_coherence[node], back_weight)
             if ff > 0.0:
                 if use_access != 0:
                     ff = ff * node_access[node]

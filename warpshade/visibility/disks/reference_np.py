@@ -55,7 +55,7 @@ def concentric_inverse_np(x: float, y: float) -> tuple[float, float]:
     return 0.5 * (a + 1), 0.5 * (b + 1)
 
 
-def bin_occlusion_np(points, normals, faces, two_sided: bool) -> np.ndarray:
+def bin_occlusion_np(points, normals, faces, back_weight: float) -> np.ndarray:
     """Single-pass, unclamped bin occlusion of every vertex by every other vertex disk, shape (V, 16)."""
     p = np.asarray(points, np.float64)
     nrm = np.asarray(normals, np.float64)
@@ -77,7 +77,8 @@ def bin_occlusion_np(points, normals, faces, two_sided: bool) -> np.ndarray:
                 continue
             cp = z / dist if z >= rho else (z + rho) ** 2 / (4 * rho * dist)
             ce = -(nrm[e] @ w)
-            ce = abs(ce) if two_sided else max(ce, 0.0)
+            if ce < 0:
+                ce = -ce * back_weight
             ff = area[e] * ce * cp / (np.pi * dist * dist + area[e])
             if ff <= 0:
                 continue
