@@ -219,11 +219,16 @@ def splat_bins(x: wp.vec3, frame: wp.mat33, c: wp.vec3, ff: float, area: float, 
     if norm <= 0.0:
         return
     scale = ff * float(BINS) / norm
-    for i in range(GRID):
+    # only the bins under the footprint (most disks are small and touch one or two)
+    i0 = wp.min(int(u0 * float(GRID)), GRID - 1)
+    i1 = wp.min(int(u1 * float(GRID)), GRID - 1)
+    j0 = wp.min(int(v0 * float(GRID)), GRID - 1)
+    j1 = wp.min(int(v1 * float(GRID)), GRID - 1)
+    for i in range(i0, i1 + 1):
         ou = box_overlap(u0, u1, i)
         if ou > 0.0:
             cu = wp.clamp(uv[0], float(i) / float(GRID), float(i + 1) / float(GRID))
-            for j in range(GRID):
+            for j in range(j0, j1 + 1):
                 ov = box_overlap(v0, v1, j)
                 if ov > 0.0:
                     cv = wp.clamp(uv[1], float(j) / float(GRID), float(j + 1) / float(GRID))
