@@ -133,6 +133,7 @@ class DiskTransfer(TransferMethod):
         """Disk areas [m²], shape (2V-1,), dtype float32."""
         self._node_radius = wp.zeros(n_nodes, dtype=float, device=dev)
         self._node_coherence = wp.zeros(n_nodes, dtype=float, device=dev)
+        self._node_cone = wp.zeros(n_nodes, dtype=float, device=dev)
         self._node_access = wp.zeros(n_nodes, dtype=float, device=dev)
         nv = mesh.num_vertices
         self._areas = wp.zeros(nv, dtype=float, device=dev)
@@ -191,17 +192,20 @@ class DiskTransfer(TransferMethod):
                   outputs=[self._areas], device=dev)
         wp.launch(set_leaf_disks, dim=self.mesh.num_vertices,
                   inputs=[self.points, self.normals, self._areas, self._leaf_of_vertex],
-                  outputs=[self.node_pos, self.node_nrm, self.node_area, self._node_radius, self._node_coherence],
+                  outputs=[self.node_pos, self.node_nrm, self.node_area, self._node_radius, self._node_coherence,
+                           self._node_cone],
                   device=dev)
         for level in self._levels:
             wp.launch(merge_child_disks, dim=level.shape[0], inputs=[level, self._left, self._right],
-                      outputs=[self.node_pos, self.node_nrm, self.node_area, self._node_radius, self._node_coherence],
+                      outputs=[self.node_pos, self.node_nrm, self.node_area, self._node_radius, self._node_coherence,
+                           self._node_cone],
                       device=dev)
 
     def _occlusion_pass(self, use_access: bool, out: list) -> None:
         wp.launch(accumulate_occlusion, dim=self.mesh.num_vertices,
                   inputs=[self.points, self.normals, self._left, self._right, self._node_vertex, self.node_pos,
-                          self.node_nrm, self.node_area, self._node_radius, self._node_coherence, self._node_access,
+                          self.node_nrm, self.node_area, self._node_radius, self._node_coherence, self._node_cone,
+                          self._node_access,
                           int(use_access), self.lod, self.back_weight],
                   outputs=[*out, self._visited], device=self.device)
 

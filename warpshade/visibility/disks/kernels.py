@@ -83,8 +83,9 @@ def set_leaf_disks(
     node_area: wp.array[float],
     node_radius: wp.array[float],
     node_coherence: wp.array[float],
+    node_cone: wp.array[float],
 ):
-    """Leaf disk = the vertex: position, unit normal, area; bounding radius sqrt(A/π); coherence 1."""
+    """Leaf disk = the vertex: position, unit normal, area; bounding radius sqrt(A/π); coherence 1; normal cone 0."""
     v = wp.tid()
     node = leaf_of_vertex[v]
     node_pos[node] = points[v]
@@ -92,6 +93,7 @@ def set_leaf_disks(
     node_area[node] = areas[v]
     node_radius[node] = wp.sqrt(areas[v] / wp.pi)
     node_coherence[node] = 1.0
+    node_cone[node] = 0.0
 
 
 @wp.kernel
@@ -104,12 +106,14 @@ def merge_child_disks(
     node_area: wp.array[float],
     node_radius: wp.array[float],
     node_coherence: wp.array[float],
+    node_cone: wp.array[float],
 ):
     """Parent disk from its two children (the paper: "a larger disk whose value is the average").
 
     Area = sum; centre = area-weighted mean; normal = normalised area-weighted mean; coherence =
     |Σ a n| / Σ a (1 for a flat cluster, 0 for a closed one) feeds the projected-area estimate in
-    :func:`disk_form_factor`; radius bounds both children's spheres (for the LOD test).
+    :func:`disk_form_factor`; radius bounds both children's spheres (for the LOD test) and the
+    cone half-angle [rad] around the normal bounds all leaf normals (for back-face culling).
     """
     node = level[wp.tid()]
     l = left[node]
@@ -132,6 +136,9 @@ def merge_child_disks(
     node_nrm[node] = n
     node_area[node] = a
     node_coherence[node] = coh
+    cone_l = wp.acos(wp.clamp(wp.dot(n, node_nrm[l]), -1.0, 1.0)) + node_cone[l]
+    cone_r = wp.acos(wp.clamp(wp.dot(n, node_nrm[r]), -1.0, 1.0)) + node_cone[r]
+    node_cone[node] = wp.min(wp.pi, wp.max(cone_l, cone_r))
     node_radius[node] = wp.max(wp.length(node_pos[l] - c) + node_radius[l], wp.length(node_pos[r] - c) + node_radius[r])
 
 
@@ -251,6 +258,7 @@ def accumulate_occlusion(
     node_area: wp.array[float],
     node_radius: wp.array[float],
     node_coherence: wp.array[float],
+    node_cone: wp.array[float],
     node_access: wp.array[float],
     use_access: int,
     lod: float,
@@ -264,7 +272,10 @@ def accumulate_occlusion(
 
     A node whose bounding sphere is farther than ``LOD_BAND * lod`` radii stands for its subtree
     (level of detail by distance); closer than ``lod`` radii its children are visited; in between
-    both are used with smoothstep weights, so a deforming mesh never pops between levels. Leaves are
+    both are used with smoothstep weights, so a deforming mesh never pops between levels. Subtrees
+    below the receiver's horizon are skipped (exact), and with one-sided disks so are subtrees whose
+    normal cone faces away from the receiver (their only loss is the A/4 term of incoherent
+    clusters, which back-facing clusters should not have). Leaves are
     vertex disks; the receiver's own is skipped. With ``use_access`` (second pass, Bunnell) each
     disk's coverage is scaled by its accessibility from the first pass, which discounts occluders
     that are themselves hidden.
@@ -291,7 +302,19 @@ def accumulate_occlusion(
         if leaf and node_vertex[node] == v:
             continue
         c = node_pos[node]
-        ratio = wp.length(c - x) / wp.max(lod * node_radius[node], 1.0e-30)
+        d = c - x
+        dist = wp.length(d)
+        radius = node_radius[node]
+        # Subtree entirely below the receiver's horizon (its own disk included): nothing to add.
+        if wp.dot(n, d) <= -wp.max(radius, wp.sqrt(node_area[node] / wp.pi)):
+            continue
+        # One-sided: subtree whose every disk faces away (normal cone + view cone within 90°).
+        if back_weight == 0.0 and dist > radius:
+            view = wp.asin(wp.min(1.0, radius / dist))
+            facing = wp.acos(wp.clamp(wp.dot(node_nrm[node], d / dist), -1.0, 1.0))
+            if facing + node_cone[node] + view <= 0.5 * wp.pi:
+                continue
+        ratio = dist / wp.max(lod * radius, 1.0e-30)
         use = float(1.0)
         if not leaf:
             # 0 below lod radii, 1 beyond LOD_BAND * lod radii, smoothstep in between
