@@ -140,6 +140,17 @@ def test_bitmask_agrees_with_ray_tracing_on_bunny():
     assert np.abs(rj.visibility.numpy() - g.visibility.numpy()).mean() < 0.02
 
 
+def test_light_inside_a_closed_mesh_is_invisible():
+    # A small light inside the bunny: every segment to it crosses the surface, so rays give 0
+    # everywhere. Vertices near the light's plane see it edge-on and are blocked only by their
+    # own triangles within 5e-5 of the way (a regression: float32 projection once lost those and
+    # reported 1). Measured after the homogeneous clip: mean 1.8e-5, worst 2 samples of 256.
+    m = load_mesh(warp_asset("bunny.usd"))
+    light = LightRect((0.0, 0.3, 0.0), (0.05, 0, 0), (0, 0, 0.05))
+    vis = Gears(m, light, k=16).update().numpy()
+    assert vis.mean() < 1e-4 and vis.max() <= 2 / 256, (vis.mean(), np.argsort(-vis)[:5])
+
+
 def test_form_factor_of_unoccluded_square_light():
     # Receiver under the centre of a parallel square of half-side a at height h: the point-to-square
     # form factor is (2/π) [a/sqrt(h²+a²) atan(a/sqrt(h²+a²))]·2 (two-axis closed form, Howell C-11).

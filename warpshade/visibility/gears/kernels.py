@@ -13,7 +13,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-MAX_POLY = 6  # a triangle clipped by two planes has at most 5 vertices
+MAX_POLY = 10  # a triangle clipped by six planes has at most 9 vertices
 mat63 = wp.types.matrix(shape=(MAX_POLY, 3), dtype=float)
 
 
@@ -354,6 +354,8 @@ def rasterize_light_masks(
         start = cell_start[cell]
         count = cell_count[cell]
         nrm = light_normal / denom  # h(X) = dot(X - p, nrm)
+        s0 = wp.dot(p - c, du)
+        t0 = wp.dot(p - c, dv)
         full = wp.uint32(0)
         full = ~full >> wp.uint32(32 - k)
         poly = mat63()
@@ -394,21 +396,50 @@ def rasterize_light_masks(
                 poly, m = clip_polygon(tmp, m, -nrm, -1.0, p)
                 if m < 3:
                     continue
-            tmin = float(1.0e30)
-            tmax = float(-1.0e30)
-            smin_all = float(1.0e30)
-            smax_all = float(-1.0e30)
+            # Homogeneous light coordinates (S, T, H) = (s h, t h, h), linear in X: the central
+            # projection X' = P + (X - P)/h has s = s0 + du·(X - P)/h with s0 = du·(P - c).
+            # all tests in homogeneous form (H >= 0 after the near clip, possibly rounded to 0)
+            out_lo_s = bool(True)
+            out_hi_s = bool(True)
+            out_lo_t = bool(True)
+            out_hi_t = bool(True)
+            big = bool(False)
             for i in range(m):
                 x = poly[i]
-                xp = p + (x - p) / wp.dot(x - p, nrm)
-                st = wp.vec3(wp.dot(xp - c, du), wp.dot(xp - c, dv), 0.0)
-                tmp[i] = st
-                tmin = wp.min(tmin, st[1])
-                tmax = wp.max(tmax, st[1])
-                smin_all = wp.min(smin_all, st[0])
-                smax_all = wp.max(smax_all, st[0])
-            if smin_all > 1.0 or smax_all < -1.0:
+                hx = wp.dot(x - p, nrm)
+                hom = wp.vec3(hx * s0 + wp.dot(x - p, du), hx * t0 + wp.dot(x - p, dv), hx)
+                poly[i] = hom
+                out_lo_s = out_lo_s and hom[0] < -hx
+                out_hi_s = out_hi_s and hom[0] > hx
+                out_lo_t = out_lo_t and hom[1] < -hx
+                out_hi_t = out_hi_t and hom[1] > hx
+                if not (wp.abs(hom[0]) <= 4.0 * hx and wp.abs(hom[1]) <= 4.0 * hx):
+                    big = True
+            if out_lo_s or out_hi_s or out_lo_t or out_hi_t:
                 continue  # projection misses the light
+            if big:
+                # The projection reaches far past the light (a blocker close to the receiver, or a
+                # light seen almost edge-on), where float32 spans on huge coordinates lose samples.
+                # Clip in homogeneous coordinates to |s|, |t| <= 1.5 H (GPU-style clipping, well
+                # conditioned where 3-D planes through the receiver would be nearly parallel).
+                zero = wp.vec3(0.0, 0.0, 0.0)
+                for j in range(4):
+                    plane = wp.vec3(wp.where(j == 0, -1.0, wp.where(j == 1, 1.0, 0.0)),
+                                    wp.where(j == 2, -1.0, wp.where(j == 3, 1.0, 0.0)), 1.5)
+                    tmp, m = clip_polygon(poly, m, plane, 0.0, zero)
+                    poly = tmp
+                    if m == 0:
+                        break
+                if m < 3:
+                    continue
+            tmin = float(1.0e30)
+            tmax = float(-1.0e30)
+            for i in range(m):
+                hom = poly[i]
+                hh = wp.max(hom[2], 1.0e-30)
+                tmp[i] = wp.vec3(hom[0] / hh, hom[1] / hh, 0.0)
+                tmin = wp.min(tmin, tmp[i][1])
+                tmax = wp.max(tmax, tmp[i][1])
             rows = sample_index_range(tmin, tmax, k)
             for j in range(rows[0], rows[1] + 1):
                 t = -1.0 + (2.0 * float(j) + 1.0) / float(k)
