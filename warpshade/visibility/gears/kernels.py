@@ -334,7 +334,9 @@ def rasterize_light_masks(
     Each triangle is clipped to the part strictly between receiver P and the light's plane
     (``0 < h < 1`` with ``h(X) = n_L·(X-P) / n_L·(c-P)``), projected centrally from P onto the light
     plane (``X' = P + (X-P)/h``), expressed in light coordinates through the dual axes ``du, dv``
-    (``s = du·(X'-c)``), and scan-converted row by row into bit spans. ``cell_of[r] = -2`` means
+    (``s = du·(X'-c)``, computed homogeneously as ``(s h, t h, h)``, which is linear in X and is
+    clipped to 1.5× the light when the projection would reach far past it), and scan-converted row
+    by row into bit spans. ``cell_of[r] = -2`` means
     "all triangles" (brute force: ``cell_start[0] = 0``, ``cell_count[0] = F``). Each cell's list is
     sorted by the triangles' near height above the light: triangles no closer to the light than the
     receiver are skipped by a binary search (the near clip would reject them), and the rest are
