@@ -1,0 +1,563 @@
+"""Warp kernels of the XPBD cloth solver (orchestrated by :mod:`warpshade.sim.solver_xpbd`).
+
+Method: extended position-based dynamics (XPBD, Macklin, Müller & Chentanez 2016) in the
+small-steps regime (Macklin et al. 2019): many substeps with one Gauss-Seidel sweep each. Stretch
+and bending constraints are graph-coloured so that each launch updates disjoint vertices in place
+(Gauss-Seidel on every device, no atomics); contacts are solved Jacobi-style with averaged
+corrections (Macklin et al. 2014, "Unified particle physics", §4.2).
+
+Conventions: positions in metres, velocities in m/s, ``inv_mass`` in 1/kg (0 = kinematic).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+# ---------------------------------------------------------------------------------------------
+# Small geometric helpers
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.func
+def triangle_closest_barycentric(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec3:
+    """Barycentric coordinates (u, v, w) of the point of triangle abc closest to p (Ericson 5.1.5)."""
+    ab = b - a
+    ac = c - a
+    ap = p - a
+    d1 = wp.dot(ab, ap)
+    d2 = wp.dot(ac, ap)
+    if d1 <= 0.0 and d2 <= 0.0:
+        return wp.vec3(1.0, 0.0, 0.0)
+    bp = p - b
+    d3 = wp.dot(ab, bp)
+    d4 = wp.dot(ac, bp)
+    if d3 >= 0.0 and d4 <= d3:
+        return wp.vec3(0.0, 1.0, 0.0)
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        t = d1 / (d1 - d3)
+        return wp.vec3(1.0 - t, t, 0.0)
+    cp = p - c
+    d5 = wp.dot(ab, cp)
+    d6 = wp.dot(ac, cp)
+    if d6 >= 0.0 and d5 <= d6:
+        return wp.vec3(0.0, 0.0, 1.0)
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        t = d2 / (d2 - d6)
+        return wp.vec3(1.0 - t, 0.0, t)
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return wp.vec3(0.0, 1.0 - t, t)
+    denom = va + vb + vc
+    if denom == 0.0:  # degenerate triangle: fall back to its first vertex
+        return wp.vec3(1.0, 0.0, 0.0)
+    v = vb / denom
+    w = vc / denom
+    return wp.vec3(1.0 - v - w, v, w)
+
+
+@wp.func
+def dihedral_angle(x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, x4: wp.vec3) -> float:
+    """Signed dihedral angle [rad] of the hinge with shared edge x3-x4 and wings x1, x2.
+
+    Zero for a flat hinge; atan2 keeps it accurate near 0 and +-pi, where acos loses precision.
+    """
+    e = x4 - x3
+    n1 = wp.cross(x1 - x3, x1 - x4)
+    n2 = wp.cross(x2 - x4, x2 - x3)
+    le = wp.length(e)
+    if le == 0.0:
+        return 0.0
+    s = wp.dot(wp.cross(n1, n2), e) / le
+    c = wp.dot(n1, n2)
+    return wp.atan2(s, c)
+
+
+# ---------------------------------------------------------------------------------------------
+# Integration
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def predict_positions(
+    x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    inv_mass: wp.array[float],
+    force: wp.array[wp.vec3],
+    gravity: wp.vec3,
+    drag: float,
+    dt: float,
+    x_prev: wp.array[wp.vec3],
+    x_out: wp.array[wp.vec3],
+    v_out: wp.array[wp.vec3],
+):
+    """Symplectic Euler prediction (XPBD Alg. 1, line 3); kinematic vertices keep their velocity."""
+    i = wp.tid()
+    x0 = x[i]
+    x_prev[i] = x0
+    w = inv_mass[i]
+    v1 = v[i]
+    if w > 0.0:
+        v1 = v1 + (gravity + force[i] * w) * dt
+        # exact exponential decay of a linear drag, unconditionally stable for any drag * dt
+        v1 = v1 * wp.exp(-drag * dt)
+    v_out[i] = v1
+    x_out[i] = x0 + v1 * dt
+
+
+@wp.kernel
+def drive_attachments(
+    indices: wp.array[int],
+    start: wp.array[wp.vec3],
+    target: wp.array[wp.vec3],
+    alpha: float,
+    x: wp.array[wp.vec3],
+):
+    """Kinematic attachments follow their target: linear interpolation over the step's substeps."""
+    k = wp.tid()
+    x[indices[k]] = wp.lerp(start[k], target[k], alpha)
+
+
+@wp.kernel
+def gather_points(
+    indices: wp.array[int],
+    x: wp.array[wp.vec3],
+    out: wp.array[wp.vec3],
+):
+    """out[k] = x[indices[k]]."""
+    k = wp.tid()
+    out[k] = x[indices[k]]
+
+
+@wp.kernel
+def update_velocities(
+    x: wp.array[wp.vec3],
+    x_prev: wp.array[wp.vec3],
+    dt: float,
+    v: wp.array[wp.vec3],
+):
+    """XPBD Alg. 1, line 11: velocities from the position change of the substep."""
+    i = wp.tid()
+    v[i] = (x[i] - x_prev[i]) / dt
+
+
+# ---------------------------------------------------------------------------------------------
+# Elastic constraints (graph-coloured Gauss-Seidel)
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def solve_stretch(
+    edges: wp.array2d[int],
+    rest_length: wp.array[float],
+    compliance: wp.array[float],
+    inv_mass: wp.array[float],
+    offset: int,
+    dt: float,
+    relaxation: float,
+    lam: wp.array[float],
+    x: wp.array[wp.vec3],
+):
+    """Distance constraints C = |xi - xj| - L (XPBD eq. 18), over-relaxed by `relaxation`.
+
+    Damping is not folded in here (XPBD eq. 26): with one sweep per substep its (1 + gamma)
+    factor only slows convergence; :func:`damp_stretch` damps velocities instead.
+    """
+    e = wp.tid() + offset
+    i = edges[e, 0]
+    j = edges[e, 1]
+    wi = inv_mass[i]
+    wj = inv_mass[j]
+    wsum = wi + wj
+    if wsum == 0.0:
+        return
+    d = x[i] - x[j]
+    length = wp.length(d)
+    if length < 1.0e-12:
+        return
+    n = d / length
+    c = length - rest_length[e]
+    alpha = compliance[e] / (dt * dt)
+    dlam = -relaxation * (c + alpha * lam[e]) / (wsum + alpha)
+    lam[e] = lam[e] + dlam
+    x[i] = x[i] + n * (wi * dlam)
+    x[j] = x[j] - n * (wj * dlam)
+
+
+@wp.kernel
+def solve_bending(
+    hinges: wp.array2d[int],
+    rest_angle: wp.array[float],
+    compliance: wp.array[float],
+    inv_mass: wp.array[float],
+    offset: int,
+    dt: float,
+    lam: wp.array[float],
+    x: wp.array[wp.vec3],
+):
+    """Dihedral-angle bending constraints C = theta - theta0.
+
+    Hinge (x1, x2, x3, x4): wings x1, x2, shared edge x3-x4. The angle gradients are the exact
+    ones of Bridson, Marino & Fedkiw 2003 (eq. 8, the "bending modes" u1..u4), not Müller 2007's
+    approximation; they sum to zero, so the correction conserves linear momentum.
+    """
+    h = wp.tid() + offset
+    i1 = hinges[h, 0]
+    i2 = hinges[h, 1]
+    i3 = hinges[h, 2]
+    i4 = hinges[h, 3]
+    w1 = inv_mass[i1]
+    w2 = inv_mass[i2]
+    w3 = inv_mass[i3]
+    w4 = inv_mass[i4]
+    if w1 + w2 + w3 + w4 == 0.0:
+        return
+    x1 = x[i1]
+    x2 = x[i2]
+    x3 = x[i3]
+    x4 = x[i4]
+    e = x4 - x3
+    le = wp.length(e)
+    n1 = wp.cross(x1 - x3, x1 - x4)
+    n2 = wp.cross(x2 - x4, x2 - x3)
+    a1 = wp.length_sq(n1)
+    a2 = wp.length_sq(n2)
+    if le < 1.0e-12 or a1 < 1.0e-24 or a2 < 1.0e-24:
+        return
+    u1 = n1 * (le / a1)
+    u2 = n2 * (le / a2)
+    u3 = n1 * (wp.dot(x1 - x4, e) / (le * a1)) + n2 * (wp.dot(x2 - x4, e) / (le * a2))
+    u4 = -(n1 * (wp.dot(x1 - x3, e) / (le * a1)) + n2 * (wp.dot(x2 - x3, e) / (le * a2)))
+    theta = dihedral_angle(x1, x2, x3, x4)
+    c = theta - rest_angle[h]
+    # keep the error in (-pi, pi] so a hinge passing through +-pi does not flip its correction
+    if c > wp.pi:
+        c = c - 2.0 * wp.pi
+    if c < -wp.pi:
+        c = c + 2.0 * wp.pi
+    denom = w1 * wp.length_sq(u1) + w2 * wp.length_sq(u2) + w3 * wp.length_sq(u3) + w4 * wp.length_sq(u4)
+    if denom < 1.0e-20:
+        return
+    alpha = compliance[h] / (dt * dt)
+    dlam = -(c + alpha * lam[h]) / (denom + alpha)
+    lam[h] = lam[h] + dlam
+    x[i1] = x1 + u1 * (w1 * dlam)
+    x[i2] = x2 + u2 * (w2 * dlam)
+    x[i3] = x3 + u3 * (w3 * dlam)
+    x[i4] = x4 + u4 * (w4 * dlam)
+
+
+@wp.kernel
+def damp_stretch(
+    edges: wp.array2d[int],
+    compliance: wp.array[float],
+    inv_mass: wp.array[float],
+    x: wp.array[wp.vec3],
+    offset: int,
+    dt: float,
+    damping: float,
+    v: wp.array[wp.vec3],
+):
+    """Stiffness-proportional damper along each edge, k_d = damping * k, integrated implicitly.
+
+    The relative normal velocity u of the edge decays as u' = u / (1 + h k_d (wi + wj)) (implicit
+    Euler of the 1-D damper), stable for any k_d; an inextensible edge (k = inf) loses all of it.
+    """
+    e = wp.tid() + offset
+    i = edges[e, 0]
+    j = edges[e, 1]
+    wi = inv_mass[i]
+    wj = inv_mass[j]
+    wsum = wi + wj
+    if wsum == 0.0:
+        return
+    d = x[i] - x[j]
+    length = wp.length(d)
+    if length < 1.0e-12:
+        return
+    n = d / length
+    u = wp.dot(v[i] - v[j], n)
+    c = compliance[e]
+    # fraction of u removed: h kd wsum / (1 + h kd wsum), written with kd = damping / c
+    frac = float(1.0)
+    if c > 0.0:
+        a = dt * damping * wsum
+        frac = a / (c + a)
+    p = -u * frac / wsum
+    v[i] = v[i] + n * (wi * p)
+    v[j] = v[j] - n * (wj * p)
+
+
+@wp.kernel
+def solve_tethers(
+    anchor: wp.array2d[int],
+    max_length: wp.array2d[float],
+    inv_mass: wp.array[float],
+    x: wp.array[wp.vec3],
+):
+    """Long-range attachments (Kim, Chentanez & Müller 2012, eq. 3): |x - x_anchor| <= L.
+
+    L bounds the rest geodesic distance to a kinematic vertex, so a tether only acts on stretch:
+    it removes in one projection the sag that Gauss-Seidel sweeps leave in long hanging cloth
+    (their error grows with the square of the number of vertices along the hang).
+    """
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    for c in range(anchor.shape[1]):
+        a = anchor[i, c]
+        if a >= 0:
+            d = x[i] - x[a]
+            length = wp.length(d)
+            lmax = max_length[i, c]
+            if length > lmax and length > 0.0:
+                x[i] = x[i] - d * ((length - lmax) / length)
+
+
+# ---------------------------------------------------------------------------------------------
+# Aerodynamics
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def accumulate_aero_forces(
+    x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    inv_mass: wp.array[float],
+    wind: wp.vec3,
+    air_density: float,
+    drag_coefficient: float,
+    lift_coefficient: float,
+    dt: float,
+    force: wp.array[wp.vec3],
+):
+    """Per-triangle aerodynamic drag and lift, a third to each corner.
+
+    With relative air velocity u = v_tri - wind, unit normal n and cos(t) = u.n / |u| (flat-plate
+    model): drag = -1/2 rho Cd A |cos t| |u|^2 u_hat (projected area), lift = -1/2 rho Cl A |u|^2
+    cos t (n - cos t u_hat), perpendicular to the flow with magnitude ~ sin 2t as for a flat plate.
+    The force on each corner is capped so that within one substep it cannot more than cancel the
+    corner's relative velocity: explicit drag would otherwise blow up for very light cloth.
+    """
+    t = wp.tid()
+    i = tris[t, 0]
+    j = tris[t, 1]
+    k = tris[t, 2]
+    nn = wp.cross(x[j] - x[i], x[k] - x[i])
+    ln = wp.length(nn)
+    if ln == 0.0:
+        return
+    area = 0.5 * ln
+    n = nn / ln
+    u = (v[i] + v[j] + v[k]) / 3.0 - wind
+    speed = wp.length(u)
+    if speed == 0.0:
+        return
+    uh = u / speed
+    cs = wp.dot(uh, n)
+    q = 0.5 * air_density * area * speed * speed
+    f = -uh * (q * drag_coefficient * wp.abs(cs)) - (n - uh * cs) * (q * lift_coefficient * cs)
+    fc = f / 3.0
+    # cap: |fc| * w * dt <= speed for the lightest corner
+    wmax = wp.max(inv_mass[i], wp.max(inv_mass[j], inv_mass[k]))
+    fl = wp.length(fc)
+    if wmax > 0.0 and fl * wmax * dt > speed:
+        fc = fc * (speed / (fl * wmax * dt))
+    wp.atomic_add(force, i, fc)
+    wp.atomic_add(force, j, fc)
+    wp.atomic_add(force, k, fc)
+
+
+# ---------------------------------------------------------------------------------------------
+# Self-collision: vertex-triangle, swept-box broad phase once per detection, Jacobi solve
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def compute_triangle_bounds(
+    x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    horizon: float,
+    pad: float,
+    lower: wp.array[wp.vec3],
+    upper: wp.array[wp.vec3],
+):
+    """Box around a triangle now and after `horizon` seconds of its current velocity, padded."""
+    t = wp.tid()
+    lo = wp.vec3(1.0e30)
+    hi = wp.vec3(-1.0e30)
+    for c in range(3):
+        p = x[tris[t, c]]
+        q = p + v[tris[t, c]] * horizon
+        lo = wp.min(lo, wp.min(p, q))
+        hi = wp.max(hi, wp.max(p, q))
+    lower[t] = lo - wp.vec3(pad)
+    upper[t] = hi + wp.vec3(pad)
+
+
+@wp.kernel
+def find_self_contacts(
+    bvh: wp.uint64,
+    x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    rest: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    horizon: float,
+    pad: float,
+    exclusion: float,
+    max_contacts: int,
+    contact_tri: wp.array2d[int],
+    contact_side: wp.array2d[float],
+    contact_count: wp.array[int],
+    overflow: wp.array[int],
+):
+    """Vertex-triangle candidate pairs whose swept boxes overlap.
+
+    Pairs whose vertices lie within `exclusion` of each other in the rest shape are skipped: they
+    are neighbours in the cloth, kept apart by stretch and bending, not by contact. The side of
+    the triangle the vertex is on now is stored; the solve keeps it there, which is what stops
+    folds from passing through (the cloth is assumed free of intersections at detection time).
+    """
+    i = wp.tid()
+    p = x[i]
+    q = p + v[i] * horizon
+    lo = wp.min(p, q) - wp.vec3(pad)
+    hi = wp.max(p, q) + wp.vec3(pad)
+    r = rest[i]
+    ex2 = exclusion * exclusion
+    count = int(0)
+    query = wp.bvh_query_aabb(bvh, lo, hi)
+    t = int(0)
+    while wp.bvh_query_next(query, t):
+        a = tris[t, 0]
+        b = tris[t, 1]
+        c = tris[t, 2]
+        if a == i or b == i or c == i:
+            continue
+        if (wp.length_sq(rest[a] - r) < ex2 or wp.length_sq(rest[b] - r) < ex2
+                or wp.length_sq(rest[c] - r) < ex2):
+            continue
+        if count < max_contacts:
+            xa = x[a]
+            nn = wp.cross(x[b] - xa, x[c] - xa)
+            d = wp.dot(p - xa, nn)
+            side = float(0.0)
+            # an in-plane vertex has no side yet: the solve decides at first contact
+            if d > 1.0e-9 * wp.length_sq(nn):
+                side = 1.0
+            elif d < -1.0e-9 * wp.length_sq(nn):
+                side = -1.0
+            contact_tri[i, count] = t
+            contact_side[i, count] = side
+            count += 1
+        else:
+            wp.atomic_add(overflow, 0, 1)
+    contact_count[i] = count
+
+
+@wp.kernel
+def solve_self_contacts(
+    x: wp.array[wp.vec3],
+    inv_mass: wp.array[float],
+    tris: wp.array2d[int],
+    contact_tri: wp.array2d[int],
+    contact_side: wp.array2d[float],
+    contact_count: wp.array[int],
+    thickness: float,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Vertex-triangle separation C = s n.(p - q) - thickness >= 0 (q: projection of p).
+
+    Only projections inside the triangle respond (near edges a neighbouring triangle holds the
+    projection); corrections are accumulated for averaging (Macklin et al. 2014, eq. 11).
+    """
+    i = wp.tid()
+    wp_ = inv_mass[i]
+    p = x[i]
+    for k in range(contact_count[i]):
+        t = contact_tri[i, k]
+        a = tris[t, 0]
+        b = tris[t, 1]
+        c = tris[t, 2]
+        xa = x[a]
+        xb = x[b]
+        xc = x[c]
+        nn = wp.cross(xb - xa, xc - xa)
+        ln2 = wp.length_sq(nn)
+        if ln2 < 1.0e-24:
+            continue
+        n = nn / wp.sqrt(ln2)
+        s = contact_side[i, k]
+        dn = wp.dot(p - xa, n)
+        if s == 0.0:
+            s = wp.sign(dn)
+            if dn == 0.0:
+                s = 1.0
+            contact_side[i, k] = s
+        d = s * dn
+        if d >= thickness:
+            continue
+        # barycentric coordinates of the projection of p onto the triangle's plane
+        pp = p - n * dn
+        bw = wp.dot(wp.cross(xb - xa, pp - xa), n) / wp.sqrt(ln2)
+        bv = wp.dot(wp.cross(pp - xa, xc - xa), n) / wp.sqrt(ln2)
+        bu = 1.0 - bv - bw
+        if bu < 0.0 or bv < 0.0 or bw < 0.0:
+            continue
+        wa = inv_mass[a]
+        wb = inv_mass[b]
+        wc = inv_mass[c]
+        denom = wp_ + bu * bu * wa + bv * bv * wb + bw * bw * wc
+        if denom == 0.0:
+            continue
+        lam = (thickness - d) / denom
+        g = n * (s * lam)
+        wp.atomic_add(delta, i, g * wp_)
+        wp.atomic_add(delta_count, i, 1.0)
+        wp.atomic_add(delta, a, -g * (bu * wa))
+        wp.atomic_add(delta_count, a, 1.0)
+        wp.atomic_add(delta, b, -g * (bv * wb))
+        wp.atomic_add(delta_count, b, 1.0)
+        wp.atomic_add(delta, c, -g * (bw * wc))
+        wp.atomic_add(delta_count, c, 1.0)
+
+
+@wp.kernel
+def apply_averaged_deltas(
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+    x: wp.array[wp.vec3],
+):
+    """x += delta / count, then clear the accumulators for the next use."""
+    i = wp.tid()
+    n = delta_count[i]
+    if n > 0.0:
+        x[i] = x[i] + delta[i] / n
+        delta[i] = wp.vec3(0.0)
+        delta_count[i] = 0.0
+
+
+# ---------------------------------------------------------------------------------------------
+# Health check
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def find_nonfinite(
+    x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    first: wp.array[int],
+):
+    """first[0] = smallest index of a vertex whose position or velocity is not finite."""
+    i = wp.tid()
+    p = x[i]
+    u = v[i]
+    ok = wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2])
+    ok = ok and wp.isfinite(u[0]) and wp.isfinite(u[1]) and wp.isfinite(u[2])
+    if not ok:
+        wp.atomic_min(first, 0, i)

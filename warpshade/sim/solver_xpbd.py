@@ -1,0 +1,241 @@
+"""XPBD cloth solver: orchestrates the kernels in :mod:`warpshade.sim.kernels` and
+:mod:`warpshade.sim.collision_kernels`.
+
+One :meth:`XPBDSolver.step` advances ``dt`` seconds in ``substeps`` substeps of ``iterations``
+constraint sweeps each (small steps, Macklin et al. 2019: substeps buy more accuracy per cost than
+iterations). Per substep: aerodynamic forces, symplectic-Euler prediction, attachments driven to
+their interpolated targets, then per iteration: coloured stretch and bending sweeps, long-range
+tethers, self-contacts, colliders (last, so collider contacts hold at the end of every substep);
+finally velocities from positions. Self-contact candidates are found every ``contact_interval``
+substeps with a swept-box BVH query.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import warp as wp
+
+from . import kernels as k
+from .colliders import ColliderSet
+from .model import ClothModel, SimulationError, _check_param
+from .state import ClothControl, ClothState
+
+
+class XPBDSolver:
+    """Extended position-based dynamics for cloth.
+
+    Args:
+        model: The cloth.
+        colliders: Kinematic colliders, or None.
+        substeps: Substeps per :meth:`step` (>= 1).
+        iterations: Constraint sweeps per substep (>= 1).
+        gravity: Acceleration [m/s^2], (3,).
+        drag: Linear velocity damping [1/s] (>= 0), applied as an exact exponential decay.
+        air_density: [kg/m^3] (>= 0) for aerodynamic drag and lift; 0 disables aerodynamics.
+        drag_coefficient, lift_coefficient: Flat-plate coefficients (>= 0).
+        self_collision: Vertex-triangle self-contact on/off.
+        contact_interval: Substeps between self-contact detections (>= 1; default: once per step).
+        self_exclusion: Rest distance [m] below which two vertices never self-collide (default:
+            1.5 x the mean edge length: neighbours are held apart by stretch and bending).
+        max_contacts: Self-contact candidates kept per vertex (>= 1).
+        tethers: Long-range attachments to the nearest kinematic vertex (Kim et al. 2012).
+        check_finite: Stop with :class:`SimulationError` when the state turns non-finite.
+
+    Raises:
+        ValueError: for an out-of-range parameter, naming it.
+    """
+
+    def __init__(self, model: ClothModel, colliders: ColliderSet | None = None, substeps: int = 8,
+                 iterations: int = 1, gravity=(0.0, -9.81, 0.0), drag: float = 0.0, air_density: float = 1.2,
+                 drag_coefficient: float = 0.8, lift_coefficient: float = 0.3, self_collision: bool = True,
+                 contact_interval: int | None = None, self_exclusion: float | None = None, max_contacts: int = 16,
+                 tethers: bool = True, check_finite: bool = True, relaxation: float = 1.0):
+        if int(substeps) != substeps or substeps < 1:
+            raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
+        if int(iterations) != iterations or iterations < 1:
+            raise ValueError(f"iterations must be an integer >= 1, got {iterations}")
+        self.model = model
+        self.device = model.device
+        self.colliders = colliders
+        self.substeps = int(substeps)
+        self.iterations = int(iterations)
+        g = np.asarray(gravity, dtype=np.float64).reshape(-1)
+        if g.shape != (3,) or not np.isfinite(g).all():
+            raise ValueError(f"gravity must be 3 finite numbers, got {gravity}")
+        self.gravity = tuple(float(c) for c in g)
+        self.drag = _check_param("drag", drag)
+        self.air_density = _check_param("air_density", air_density)
+        self.drag_coefficient = _check_param("drag_coefficient", drag_coefficient)
+        self.lift_coefficient = _check_param("lift_coefficient", lift_coefficient)
+        self.self_collision = bool(self_collision)
+        ci = self.substeps if contact_interval is None else contact_interval
+        if int(ci) != ci or ci < 1:
+            raise ValueError(f"contact_interval must be an integer >= 1, got {contact_interval}")
+        self.contact_interval = int(ci)
+        self.self_exclusion = _check_param("self_exclusion", 1.5 * model.mean_edge_length
+                                           if self_exclusion is None else self_exclusion)
+        if int(max_contacts) != max_contacts or max_contacts < 1:
+            raise ValueError(f"max_contacts must be an integer >= 1, got {max_contacts}")
+        self.max_contacts = int(max_contacts)
+        self.tethers = bool(tethers) and bool((model.tether_anchor.numpy() >= 0).any())
+        self.check_finite = bool(check_finite)
+        self.relaxation = _check_param("relaxation", relaxation, 0.0, False)
+        if self.relaxation >= 2.0:
+            raise ValueError(f"relaxation must be < 2 (successive over-relaxation diverges beyond), got {relaxation}")
+        self.step_count = 0
+        self.contact_overflow = 0
+
+        v, f, d = model.particle_count, model.tri_count, self.device
+        self._x_prev = wp.zeros(v, dtype=wp.vec3, device=d)
+        self._force = wp.zeros(v, dtype=wp.vec3, device=d)
+        self._edge_lambda = wp.zeros(model.edge_count, dtype=wp.float32, device=d)
+        self._hinge_lambda = wp.zeros(max(model.hinge_count, 1), dtype=wp.float32, device=d)
+        self._attach_start = wp.zeros(max(model.attachment_count, 1), dtype=wp.vec3, device=d)
+        self._first_bad = wp.zeros(1, dtype=wp.int32, device=d)
+        if self.self_collision:
+            self._lower = wp.zeros(f, dtype=wp.vec3, device=d)
+            self._upper = wp.zeros(f, dtype=wp.vec3, device=d)
+            self._bvh = None
+            self._contact_tri = wp.zeros((v, self.max_contacts), dtype=wp.int32, device=d)
+            self._contact_side = wp.zeros((v, self.max_contacts), dtype=wp.float32, device=d)
+            self._contact_count = wp.zeros(v, dtype=wp.int32, device=d)
+            self._overflow = wp.zeros(1, dtype=wp.int32, device=d)
+            self._delta = wp.zeros(v, dtype=wp.vec3, device=d)
+            self._delta_count = wp.zeros(v, dtype=wp.float32, device=d)
+
+    # ------------------------------------------------------------------------------------------
+
+    def step(self, state_in: ClothState, state_out: ClothState, dt: float, control: ClothControl | None = None):
+        """Advance ``dt`` seconds from ``state_in`` into ``state_out`` (they may be the same object).
+
+        Args:
+            state_in: State at the start of the step.
+            state_out: Receives the state at the end of the step.
+            dt: Step length [s] (> 0, finite).
+            control: Attachment targets at the end of the step and wind; None keeps attachments in
+                place and the air still.
+
+        Raises:
+            ValueError: for a bad ``dt``.
+            SimulationError: when the state turns non-finite, naming the step and the vertex.
+        """
+        dt = float(dt)
+        if not math.isfinite(dt) or dt <= 0:
+            raise ValueError(f"step {self.step_count}: dt must be finite and > 0, got {dt}")
+        m, d = self.model, self.device
+        n = m.particle_count
+        if state_out is not state_in:
+            state_out.assign(state_in)
+        x, v = state_out.points, state_out.velocities
+        h = dt / self.substeps
+        wind = wp.vec3(*(control.wind if control is not None else (0.0, 0.0, 0.0)))
+        if self.colliders is not None:
+            self.colliders.begin_step()
+        attach = m.attachment_count > 0 and control is not None
+        if attach:
+            wp.launch(k.gather_points, dim=m.attachment_count, inputs=[m.attachment_indices, x],
+                      outputs=[self._attach_start], device=d)
+        aero = self.air_density > 0 and (self.drag_coefficient > 0 or self.lift_coefficient > 0)
+        g = wp.vec3(*self.gravity)
+
+        for s in range(self.substeps):
+            if self.self_collision and s % self.contact_interval == 0:
+                self._detect_self_contacts(x, v, h * min(self.contact_interval, self.substeps - s))
+            self._force.zero_()
+            if aero:
+                wp.launch(k.accumulate_aero_forces, dim=m.tri_count,
+                          inputs=[x, v, m.tris, m.inv_mass, wind, self.air_density, self.drag_coefficient,
+                                  self.lift_coefficient, h], outputs=[self._force], device=d)
+            wp.launch(k.predict_positions, dim=n, inputs=[x, v, m.inv_mass, self._force, g, self.drag, h],
+                      outputs=[self._x_prev, x, v], device=d)
+            if attach:
+                wp.launch(k.drive_attachments, dim=m.attachment_count,
+                          inputs=[m.attachment_indices, self._attach_start, control.attachment_targets,
+                                  (s + 1) / self.substeps], outputs=[x], device=d)
+            if self.colliders is not None:
+                self.colliders.pose_substep(s / self.substeps, (s + 1) / self.substeps)
+            self._edge_lambda.zero_()
+            self._hinge_lambda.zero_()
+            for _ in range(self.iterations):
+                self._solve_constraints(x, h)
+            wp.launch(k.update_velocities, dim=n, inputs=[x, self._x_prev, h], outputs=[v], device=d)
+            if m.damping > 0:
+                for off, cnt in m.edge_colors:
+                    wp.launch(k.damp_stretch, dim=cnt, inputs=[m.edges, m.edge_compliance, m.inv_mass, x, off, h,
+                                                               m.damping], outputs=[v], device=d)
+
+        if self.colliders is not None:
+            self.colliders.end_step()
+        if self.check_finite:
+            self._check_finite(state_in, state_out)
+        self.step_count += 1
+
+    # ------------------------------------------------------------------------------------------
+
+    def _solve_constraints(self, x, h: float) -> None:
+        m, d = self.model, self.device
+        for off, cnt in m.edge_colors:
+            wp.launch(k.solve_stretch, dim=cnt,
+                      inputs=[m.edges, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
+                              self.relaxation], outputs=[self._edge_lambda, x], device=d)
+        for off, cnt in m.hinge_colors:
+            wp.launch(k.solve_bending, dim=cnt,
+                      inputs=[m.hinges, m.hinge_rest_angle, m.hinge_compliance, m.inv_mass, off, h],
+                      outputs=[self._hinge_lambda, x], device=d)
+        if self.tethers:
+            wp.launch(k.solve_tethers, dim=m.particle_count, inputs=[m.tether_anchor, m.tether_length, m.inv_mass],
+                      outputs=[x], device=d)
+        if self.self_collision:
+            wp.launch(k.solve_self_contacts, dim=m.particle_count,
+                      inputs=[x, m.inv_mass, m.tris, self._contact_tri, self._contact_side, self._contact_count,
+                              m.thickness], outputs=[self._delta, self._delta_count], device=d)
+            wp.launch(k.apply_averaged_deltas, dim=m.particle_count, inputs=[], outputs=[self._delta,
+                      self._delta_count, x], device=d)
+        if self.colliders is not None:
+            self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+
+    def _detect_self_contacts(self, x, v, horizon: float) -> None:
+        m, d = self.model, self.device
+        pad = 0.5 * m.thickness  # boxes of both sides padded: overlap <=> gap < thickness
+        wp.launch(k.compute_triangle_bounds, dim=m.tri_count, inputs=[x, v, m.tris, horizon, pad],
+                  outputs=[self._lower, self._upper], device=d)
+        if self._bvh is None:
+            self._bvh = wp.Bvh(self._lower, self._upper)
+        else:
+            self._bvh.refit()
+        wp.launch(k.find_self_contacts, dim=m.particle_count,
+                  inputs=[self._bvh.id, x, v, m.rest_points, m.tris, horizon, pad, self.self_exclusion,
+                          self.max_contacts],
+                  outputs=[self._contact_tri, self._contact_side, self._contact_count, self._overflow], device=d)
+
+    def _check_finite(self, state_in: ClothState, state_out: ClothState) -> None:
+        n = self.model.particle_count
+        self._first_bad.fill_(n)
+        wp.launch(k.find_nonfinite, dim=n, inputs=[state_out.points, state_out.velocities],
+                  outputs=[self._first_bad], device=self.device)
+        bad = int(self._first_bad.numpy()[0])
+        if bad < n:
+            x = state_out.points.numpy()[bad]
+            vel = state_out.velocities.numpy()[bad]
+            raise SimulationError(f"step {self.step_count}: vertex {bad} became non-finite (position {x.tolist()}, "
+                                  f"velocity {vel.tolist()}); the state was not advanced further")
+
+    def stats(self) -> dict:
+        """Counters: steps taken, self-contact candidates now, candidates dropped (overflow) so far."""
+        out = {"steps": self.step_count, "substeps": self.substeps, "iterations": self.iterations,
+               "edge_colors": len(self.model.edge_colors), "hinge_colors": len(self.model.hinge_colors)}
+        if self.self_collision:
+            out["self_contact_candidates"] = int(self._contact_count.numpy().sum())
+            out["self_contact_overflow"] = int(self._overflow.numpy()[0])
+        return out
+
+    def knobs(self) -> dict:
+        """Every solver setting as used."""
+        return {"substeps": self.substeps, "iterations": self.iterations, "gravity": list(self.gravity),
+                "drag": self.drag, "air_density": self.air_density, "drag_coefficient": self.drag_coefficient,
+                "lift_coefficient": self.lift_coefficient, "self_collision": self.self_collision,
+                "contact_interval": self.contact_interval, "self_exclusion": self.self_exclusion,
+                "max_contacts": self.max_contacts, "tethers": self.tethers, "check_finite": self.check_finite,
+                "thickness": self.model.thickness, "damping": self.model.damping}
