@@ -85,7 +85,9 @@ def predict_positions(
     x: wp.array[wp.vec3],
     v: wp.array[wp.vec3],
     inv_mass: wp.array[float],
-    force: wp.array[wp.vec3],
+    lift: wp.array[wp.vec3],
+    air_drag: wp.array[float],
+    wind: wp.vec3,
     gravity: wp.vec3,
     drag: float,
     dt: float,
@@ -93,14 +95,25 @@ def predict_positions(
     x_out: wp.array[wp.vec3],
     v_out: wp.array[wp.vec3],
 ):
-    """Symplectic Euler prediction (XPBD Alg. 1, line 3); kinematic vertices keep their velocity."""
+    """Symplectic Euler prediction (XPBD Alg. 1, line 3); kinematic vertices keep their velocity.
+
+    Aerodynamic drag -D (v - wind) is integrated implicitly (stable for any D dt / m); the lift
+    impulse is capped at the vertex's speed relative to the air, which it could at most redirect.
+    """
     i = wp.tid()
     x0 = x[i]
     x_prev[i] = x0
     w = inv_mass[i]
     v1 = v[i]
     if w > 0.0:
-        v1 = v1 + (gravity + force[i] * w) * dt
+        u = v1 - wind
+        dv = lift[i] * (w * dt)
+        ldv = wp.length(dv)
+        lu = wp.length(u)
+        if ldv > lu:
+            dv = dv * (lu / ldv)
+        a = air_drag[i] * w * dt
+        v1 = (v1 + gravity * dt + dv + wind * a) / (1.0 + a)
         # exact exponential decay of a linear drag, unconditionally stable for any drag * dt
         v1 = v1 * wp.exp(-drag * dt)
     v_out[i] = v1
@@ -226,10 +239,11 @@ def solve_bending(
     a2 = wp.length_sq(n2)
     if le < 1.0e-12 or a1 < 1.0e-24 or a2 < 1.0e-24:
         return
-    u1 = n1 * (le / a1)
-    u2 = n2 * (le / a2)
-    u3 = n1 * (wp.dot(x1 - x4, e) / (le * a1)) + n2 * (wp.dot(x2 - x4, e) / (le * a2))
-    u4 = -(n1 * (wp.dot(x1 - x3, e) / (le * a1)) + n2 * (wp.dot(x2 - x3, e) / (le * a2)))
+    # d theta / d x_k; with these normals the bending modes of Bridson et al. point down the gradient
+    u1 = -n1 * (le / a1)
+    u2 = -n2 * (le / a2)
+    u3 = -(n1 * (wp.dot(x1 - x4, e) / (le * a1)) + n2 * (wp.dot(x2 - x4, e) / (le * a2)))
+    u4 = n1 * (wp.dot(x1 - x3, e) / (le * a1)) + n2 * (wp.dot(x2 - x3, e) / (le * a2))
     theta = dihedral_angle(x1, x2, x3, x4)
     c = theta - rest_angle[h]
     # keep the error in (-pi, pi] so a hinge passing through +-pi does not flip its correction
@@ -326,21 +340,20 @@ def accumulate_aero_forces(
     x: wp.array[wp.vec3],
     v: wp.array[wp.vec3],
     tris: wp.array2d[int],
-    inv_mass: wp.array[float],
     wind: wp.vec3,
     air_density: float,
     drag_coefficient: float,
     lift_coefficient: float,
-    dt: float,
-    force: wp.array[wp.vec3],
+    lift: wp.array[wp.vec3],
+    drag: wp.array[float],
 ):
     """Per-triangle aerodynamic drag and lift, a third to each corner.
 
     With relative air velocity u = v_tri - wind, unit normal n and cos(t) = u.n / |u| (flat-plate
-    model): drag = -1/2 rho Cd A |cos t| |u|^2 u_hat (projected area), lift = -1/2 rho Cl A |u|^2
-    cos t (n - cos t u_hat), perpendicular to the flow with magnitude ~ sin 2t as for a flat plate.
-    The force on each corner is capped so that within one substep it cannot more than cancel the
-    corner's relative velocity: explicit drag would otherwise blow up for very light cloth.
+    model): drag = -D u with D = 1/2 rho Cd A |cos t| |u| (projected area), lift = -1/2 rho Cl A
+    |u|^2 cos t (n - cos t u_hat), perpendicular to the flow with magnitude ~ sin 2t as for a flat
+    plate. Drag is returned as the coefficient D [kg/s] so that :func:`predict_positions` can
+    integrate it implicitly (explicit drag on light cloth overshoots and blows up).
     """
     t = wp.tid()
     i = tris[t, 0]
@@ -358,17 +371,15 @@ def accumulate_aero_forces(
         return
     uh = u / speed
     cs = wp.dot(uh, n)
-    q = 0.5 * air_density * area * speed * speed
-    f = -uh * (q * drag_coefficient * wp.abs(cs)) - (n - uh * cs) * (q * lift_coefficient * cs)
-    fc = f / 3.0
-    # cap: |fc| * w * dt <= speed for the lightest corner
-    wmax = wp.max(inv_mass[i], wp.max(inv_mass[j], inv_mass[k]))
-    fl = wp.length(fc)
-    if wmax > 0.0 and fl * wmax * dt > speed:
-        fc = fc * (speed / (fl * wmax * dt))
-    wp.atomic_add(force, i, fc)
-    wp.atomic_add(force, j, fc)
-    wp.atomic_add(force, k, fc)
+    q = 0.5 * air_density * area * speed
+    d = q * drag_coefficient * wp.abs(cs) / 3.0
+    fl = -(n - uh * cs) * (q * speed * lift_coefficient * cs / 3.0)
+    wp.atomic_add(drag, i, d)
+    wp.atomic_add(drag, j, d)
+    wp.atomic_add(drag, k, d)
+    wp.atomic_add(lift, i, fl)
+    wp.atomic_add(lift, j, fl)
+    wp.atomic_add(lift, k, fl)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -89,7 +89,8 @@ class XPBDSolver:
 
         v, f, d = model.particle_count, model.tri_count, self.device
         self._x_prev = wp.zeros(v, dtype=wp.vec3, device=d)
-        self._force = wp.zeros(v, dtype=wp.vec3, device=d)
+        self._lift = wp.zeros(v, dtype=wp.vec3, device=d)
+        self._air_drag = wp.zeros(v, dtype=wp.float32, device=d)
         self._edge_lambda = wp.zeros(model.edge_count, dtype=wp.float32, device=d)
         self._hinge_lambda = wp.zeros(max(model.hinge_count, 1), dtype=wp.float32, device=d)
         self._attach_start = wp.zeros(max(model.attachment_count, 1), dtype=wp.vec3, device=d)
@@ -143,12 +144,14 @@ class XPBDSolver:
         for s in range(self.substeps):
             if self.self_collision and s % self.contact_interval == 0:
                 self._detect_self_contacts(x, v, h * min(self.contact_interval, self.substeps - s))
-            self._force.zero_()
             if aero:
+                self._lift.zero_()
+                self._air_drag.zero_()
                 wp.launch(k.accumulate_aero_forces, dim=m.tri_count,
-                          inputs=[x, v, m.tris, m.inv_mass, wind, self.air_density, self.drag_coefficient,
-                                  self.lift_coefficient, h], outputs=[self._force], device=d)
-            wp.launch(k.predict_positions, dim=n, inputs=[x, v, m.inv_mass, self._force, g, self.drag, h],
+                          inputs=[x, v, m.tris, wind, self.air_density, self.drag_coefficient, self.lift_coefficient],
+                          outputs=[self._lift, self._air_drag], device=d)
+            wp.launch(k.predict_positions, dim=n,
+                      inputs=[x, v, m.inv_mass, self._lift, self._air_drag, wind, g, self.drag, h],
                       outputs=[self._x_prev, x, v], device=d)
             if attach:
                 wp.launch(k.drive_attachments, dim=m.attachment_count,
