@@ -95,6 +95,9 @@ class XPBDSolver:
         self._hinge_lambda = wp.zeros(max(model.hinge_count, 1), dtype=wp.float32, device=d)
         self._attach_start = wp.zeros(max(model.attachment_count, 1), dtype=wp.vec3, device=d)
         self._first_bad = wp.zeros(1, dtype=wp.int32, device=d)
+        self._x = wp.zeros(v, dtype=wp.vec3, device=d)
+        self._v = wp.zeros(v, dtype=wp.vec3, device=d)
+        self._cmd_cache = None
         if self.self_collision:
             self._lower = wp.zeros(f, dtype=wp.vec3, device=d)
             self._upper = wp.zeros(f, dtype=wp.vec3, device=d)
@@ -126,78 +129,107 @@ class XPBDSolver:
         if not math.isfinite(dt) or dt <= 0:
             raise ValueError(f"step {self.step_count}: dt must be finite and > 0, got {dt}")
         m, d = self.model, self.device
-        n = m.particle_count
-        if state_out is not state_in:
-            state_out.assign(state_in)
-        x, v = state_out.points, state_out.velocities
+        x, v = self._x, self._v
+        wp.copy(x, state_in.points)
+        wp.copy(v, state_in.velocities)
         h = dt / self.substeps
+        cmds = self._commands(h)
         wind = wp.vec3(*(control.wind if control is not None else (0.0, 0.0, 0.0)))
+        cmds["predict"].set_param_by_name("wind", wind)
+        if "aero" in cmds:
+            cmds["aero"].set_param_by_name("wind", wind)
         if self.colliders is not None:
             self.colliders.begin_step()
         attach = m.attachment_count > 0 and control is not None
         if attach:
             wp.launch(k.gather_points, dim=m.attachment_count, inputs=[m.attachment_indices, x],
                       outputs=[self._attach_start], device=d)
-        aero = self.air_density > 0 and (self.drag_coefficient > 0 or self.lift_coefficient > 0)
-        g = wp.vec3(*self.gravity)
 
         for s in range(self.substeps):
             if self.self_collision and s % self.contact_interval == 0:
                 self._detect_self_contacts(x, v, h * min(self.contact_interval, self.substeps - s))
-            if aero:
+            if "aero" in cmds:
                 self._lift.zero_()
                 self._air_drag.zero_()
-                wp.launch(k.accumulate_aero_forces, dim=m.tri_count,
-                          inputs=[x, v, m.tris, wind, self.air_density, self.drag_coefficient, self.lift_coefficient],
-                          outputs=[self._lift, self._air_drag], device=d)
-            wp.launch(k.predict_positions, dim=n,
-                      inputs=[x, v, m.inv_mass, self._lift, self._air_drag, wind, g, self.drag, h],
-                      outputs=[self._x_prev, x, v], device=d)
+                cmds["aero"].launch()
+            cmds["predict"].launch()
             if attach:
                 wp.launch(k.drive_attachments, dim=m.attachment_count,
                           inputs=[m.attachment_indices, self._attach_start, control.attachment_targets,
                                   (s + 1) / self.substeps], outputs=[x], device=d)
             if self.colliders is not None:
                 self.colliders.pose_substep(s / self.substeps, (s + 1) / self.substeps)
-            self._edge_lambda.zero_()
-            self._hinge_lambda.zero_()
+            if self.iterations > 1:
+                self._edge_lambda.zero_()
+                self._hinge_lambda.zero_()
             for _ in range(self.iterations):
-                self._solve_constraints(x, h)
-            wp.launch(k.update_velocities, dim=n, inputs=[x, self._x_prev, h], outputs=[v], device=d)
-            if m.damping > 0:
-                for off, cnt in m.edge_colors:
-                    wp.launch(k.damp_stretch, dim=cnt, inputs=[m.edges, m.edge_compliance, m.inv_mass, x, off, h,
-                                                               m.damping], outputs=[v], device=d)
+                for c in cmds["constraints"]:
+                    c.launch()
+                if self.colliders is not None:
+                    self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+            for c in cmds["velocities"]:
+                c.launch()
 
         if self.colliders is not None:
             self.colliders.end_step()
         if self.check_finite:
-            self._check_finite(state_in, state_out)
+            self._check_finite(state_in, x, v)
+        wp.copy(state_out.points, x)
+        wp.copy(state_out.velocities, v)
         self.step_count += 1
 
     # ------------------------------------------------------------------------------------------
 
-    def _solve_constraints(self, x, h: float) -> None:
+    def _commands(self, h: float) -> dict:
+        """Recorded launches for substep length h (recording once saves most of the Python
+        overhead of ~400 launches per step; re-recorded only when h changes)."""
+        if self._cmd_cache is not None and self._cmd_cache[0] == h:
+            return self._cmd_cache[1]
         m, d = self.model, self.device
+        x, v = self._x, self._v
+        n = m.particle_count
+        zero3 = wp.vec3(0.0, 0.0, 0.0)
+        cmds: dict = {}
+        if self.air_density > 0 and (self.drag_coefficient > 0 or self.lift_coefficient > 0):
+            cmds["aero"] = wp.launch(k.accumulate_aero_forces, dim=m.tri_count,
+                                     inputs=[x, v, m.tris, zero3, self.air_density, self.drag_coefficient,
+                                             self.lift_coefficient], outputs=[self._lift, self._air_drag],
+                                     device=d, record_cmd=True)
+        cmds["predict"] = wp.launch(k.predict_positions, dim=n,
+                                    inputs=[x, v, m.inv_mass, self._lift, self._air_drag, zero3,
+                                            wp.vec3(*self.gravity), self.drag, h],
+                                    outputs=[self._x_prev, x, v], device=d, record_cmd=True)
+        cons = []
         for off, cnt in m.edge_colors:
-            wp.launch(k.solve_stretch, dim=cnt,
-                      inputs=[m.edges, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
-                              self.relaxation], outputs=[self._edge_lambda, x], device=d)
+            cons.append(wp.launch(k.solve_stretch, dim=cnt,
+                                  inputs=[m.edges, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
+                                          self.relaxation], outputs=[self._edge_lambda, x], device=d,
+                                  record_cmd=True))
         for off, cnt in m.hinge_colors:
-            wp.launch(k.solve_bending, dim=cnt,
-                      inputs=[m.hinges, m.hinge_rest_angle, m.hinge_compliance, m.inv_mass, off, h],
-                      outputs=[self._hinge_lambda, x], device=d)
+            cons.append(wp.launch(k.solve_bending, dim=cnt,
+                                  inputs=[m.hinges, m.hinge_rest_angle, m.hinge_compliance, m.inv_mass, off, h],
+                                  outputs=[self._hinge_lambda, x], device=d, record_cmd=True))
         if self.tethers:
-            wp.launch(k.solve_tethers, dim=m.particle_count, inputs=[m.tether_anchor, m.tether_length, m.inv_mass],
-                      outputs=[x], device=d)
+            cons.append(wp.launch(k.solve_tethers, dim=n, inputs=[m.tether_anchor, m.tether_length, m.inv_mass],
+                                  outputs=[x], device=d, record_cmd=True))
         if self.self_collision:
-            wp.launch(k.solve_self_contacts, dim=m.particle_count,
-                      inputs=[x, m.inv_mass, m.tris, self._contact_tri, self._contact_side, self._contact_count,
-                              m.thickness], outputs=[self._delta, self._delta_count], device=d)
-            wp.launch(k.apply_averaged_deltas, dim=m.particle_count, inputs=[], outputs=[self._delta,
-                      self._delta_count, x], device=d)
-        if self.colliders is not None:
-            self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+            cons.append(wp.launch(k.solve_self_contacts, dim=n,
+                                  inputs=[x, m.inv_mass, m.tris, self._contact_tri, self._contact_side,
+                                          self._contact_count, m.thickness],
+                                  outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
+            cons.append(wp.launch(k.apply_averaged_deltas, dim=n, inputs=[],
+                                  outputs=[self._delta, self._delta_count, x], device=d, record_cmd=True))
+        cmds["constraints"] = cons
+        vel = [wp.launch(k.update_velocities, dim=n, inputs=[x, self._x_prev, h], outputs=[v], device=d,
+                         record_cmd=True)]
+        if m.damping > 0:
+            for off, cnt in m.edge_colors:
+                vel.append(wp.launch(k.damp_stretch, dim=cnt,
+                                     inputs=[m.edges, m.edge_compliance, m.inv_mass, x, off, h, m.damping],
+                                     outputs=[v], device=d, record_cmd=True))
+        cmds["velocities"] = vel
+        self._cmd_cache = (h, cmds)
+        return cmds
 
     def _detect_self_contacts(self, x, v, horizon: float) -> None:
         m, d = self.model, self.device
@@ -213,17 +245,22 @@ class XPBDSolver:
                           self.max_contacts],
                   outputs=[self._contact_tri, self._contact_side, self._contact_count, self._overflow], device=d)
 
-    def _check_finite(self, state_in: ClothState, state_out: ClothState) -> None:
+    def _first_nonfinite(self, x, v) -> int:
         n = self.model.particle_count
         self._first_bad.fill_(n)
-        wp.launch(k.find_nonfinite, dim=n, inputs=[state_out.points, state_out.velocities],
-                  outputs=[self._first_bad], device=self.device)
+        wp.launch(k.find_nonfinite, dim=n, inputs=[x, v], outputs=[self._first_bad], device=self.device)
         bad = int(self._first_bad.numpy()[0])
-        if bad < n:
-            x = state_out.points.numpy()[bad]
-            vel = state_out.velocities.numpy()[bad]
-            raise SimulationError(f"step {self.step_count}: vertex {bad} became non-finite (position {x.tolist()}, "
-                                  f"velocity {vel.tolist()}); the state was not advanced further")
+        return bad if bad < n else -1
+
+    def _check_finite(self, state_in: ClothState, x, v) -> None:
+        bad = self._first_nonfinite(x, v)
+        if bad >= 0:
+            p = x.numpy()[bad]
+            vel = v.numpy()[bad]
+            before = self._first_nonfinite(state_in.points, state_in.velocities)
+            why = (f"; the input state was already non-finite at vertex {before}" if before >= 0 else "")
+            raise SimulationError(f"step {self.step_count}: vertex {bad} became non-finite (position {p.tolist()}, "
+                                  f"velocity {vel.tolist()}){why}; state_out was left unchanged")
 
     def stats(self) -> dict:
         """Counters: steps taken, self-contact candidates now, candidates dropped (overflow) so far."""
