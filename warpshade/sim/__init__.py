@@ -6,9 +6,11 @@ them with :meth:`XPBDSolver.step`. Colliders live in a :class:`ColliderSet`; cha
 """
 
 from .colliders import ColliderSet, MeshCollider
+from .figure import WalkingFigure
 from .model import ClothBuilder, ClothModel, SimulationError
 from .solver_xpbd import XPBDSolver
+from .skinning import LBSSkinner
 from .state import ClothControl, ClothState
 
-__all__ = ["ClothBuilder", "ClothControl", "ClothModel", "ClothState", "ColliderSet", "MeshCollider",
-           "SimulationError", "XPBDSolver"]
+__all__ = ["ClothBuilder", "ClothControl", "ClothModel", "ClothState", "ColliderSet", "LBSSkinner", "MeshCollider",
+           "SimulationError", "WalkingFigure", "XPBDSolver"]

@@ -94,7 +94,6 @@ class ColliderSet:
         self.meshes: list[MeshCollider] = []
         self._dirty = True
         self._arrays = None
-        self._alpha = (0.0, 1.0)
 
     # -- building ---------------------------------------------------------------------------
 
@@ -198,6 +197,10 @@ class ColliderSet:
                     "size": wp.array(np.array(self._size, dtype=np.float32), dtype=wp.vec3, device=d),
                     "friction": wp.array(np.array(self._friction, dtype=np.float32), dtype=wp.float32, device=d),
                 }
+                for key in ("a0", "a1", "b0", "b1"):
+                    self._arrays[key] = wp.array(a if key[0] == "a" else b, dtype=wp.vec3, device=d)
+                for key in ("r0", "r1"):
+                    self._arrays[key] = wp.array(r, dtype=wp.quat, device=d)
             elif self._dirty:
                 ar = self._arrays
                 ar["a_end"].assign(np.array(self._a, dtype=np.float32))
@@ -221,7 +224,12 @@ class ColliderSet:
 
     def pose_substep(self, alpha0: float, alpha1: float) -> None:
         """Pose the colliders for the substep spanning fractions alpha0..alpha1 of the step."""
-        self._alpha = (alpha0, alpha1)
+        if self._arrays is not None:
+            ar = self._arrays
+            wp.launch(ck.pose_shapes, dim=len(self._kind),
+                      inputs=[ar["a_start"], ar["a_end"], ar["b_start"], ar["b_end"], ar["rot_start"], ar["rot_end"],
+                              alpha0, alpha1], outputs=[ar["a0"], ar["a1"], ar["b0"], ar["b1"], ar["r0"], ar["r1"]],
+                      device=self.device)
         for m in self.meshes:
             wp.launch(ck.interpolate_points, dim=m.points_start.shape[0],
                       inputs=[m.points_start, m.points_end, alpha0], outputs=[m.points_prev], device=self.device)
@@ -239,13 +247,11 @@ class ColliderSet:
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
         """
         n = x.shape[0]
-        alpha0, alpha1 = self._alpha
         if self._arrays is not None:
             ar = self._arrays
             wp.launch(ck.collide_shapes, dim=n,
-                      inputs=[ar["kind"], ar["a_start"], ar["a_end"], ar["b_start"], ar["b_end"], ar["rot_start"],
-                              ar["rot_end"], ar["size"], ar["friction"], alpha0, alpha1, thickness, inv_mass, x_prev],
-                      outputs=[x], device=self.device)
+                      inputs=[ar["kind"], ar["a0"], ar["a1"], ar["b0"], ar["b1"], ar["r0"], ar["r1"], ar["size"],
+                              ar["friction"], thickness, inv_mass, x_prev], outputs=[x], device=self.device)
         for m in self.meshes:
             wp.launch(ck.collide_mesh, dim=n,
                       inputs=[m.mesh.id, m.points_prev, m.indices, thickness + self.mesh_query_distance, thickness,

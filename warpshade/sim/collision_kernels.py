@@ -99,42 +99,62 @@ def apply_friction(dx: wp.vec3, n: wp.vec3, depth: float, mu: float) -> wp.vec3:
 
 
 @wp.kernel
-def collide_shapes(
-    kind: wp.array[int],
+def pose_shapes(
     a_start: wp.array[wp.vec3],
     a_end: wp.array[wp.vec3],
     b_start: wp.array[wp.vec3],
     b_end: wp.array[wp.vec3],
     rot_start: wp.array[wp.quat],
     rot_end: wp.array[wp.quat],
-    size: wp.array[wp.vec3],
-    friction: wp.array[float],
     alpha0: float,
     alpha1: float,
+    a0: wp.array[wp.vec3],
+    a1: wp.array[wp.vec3],
+    b0: wp.array[wp.vec3],
+    b1: wp.array[wp.vec3],
+    r0: wp.array[wp.quat],
+    r1: wp.array[wp.quat],
+):
+    """Shape poses at the start (alpha0) and end (alpha1) of a substep, once per substep."""
+    s = wp.tid()
+    a0[s] = wp.lerp(a_start[s], a_end[s], alpha0)
+    a1[s] = wp.lerp(a_start[s], a_end[s], alpha1)
+    b0[s] = wp.lerp(b_start[s], b_end[s], alpha0)
+    b1[s] = wp.lerp(b_start[s], b_end[s], alpha1)
+    r0[s] = wp.normalize(wp.quat_slerp(rot_start[s], rot_end[s], alpha0))
+    r1[s] = wp.normalize(wp.quat_slerp(rot_start[s], rot_end[s], alpha1))
+
+
+@wp.kernel
+def collide_shapes(
+    kind: wp.array[int],
+    a0: wp.array[wp.vec3],
+    a1: wp.array[wp.vec3],
+    b0: wp.array[wp.vec3],
+    b1: wp.array[wp.vec3],
+    r0: wp.array[wp.quat],
+    r1: wp.array[wp.quat],
+    size: wp.array[wp.vec3],
+    friction: wp.array[float],
     thickness: float,
     inv_mass: wp.array[float],
     x_prev: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
 ):
-    """Push each free vertex out of every analytic shape (pose interpolated at alpha1 of the step)."""
+    """Push each free vertex out of every analytic shape posed (a1, b1, r1) at the substep's end;
+    (a0, b0, r0), the pose at its start, gives the surface motion for friction."""
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
     p = x[i]
     for s in range(kind.shape[0]):
         k = kind[s]
-        a1 = wp.lerp(a_start[s], a_end[s], alpha1)
-        b1 = wp.lerp(b_start[s], b_end[s], alpha1)
-        r1 = wp.normalize(wp.quat_slerp(rot_start[s], rot_end[s], alpha1))
-        sd = shape_distance(k, p, a1, b1, r1, size[s])
+        sd = shape_distance(k, p, a1[s], b1[s], r1[s], size[s])
         depth = thickness - sd[3]
         if depth > 0.0:
             n = wp.vec3(sd[0], sd[1], sd[2])
             p = p + n * depth
-            a0 = wp.lerp(a_start[s], a_end[s], alpha0)
-            b0 = wp.lerp(b_start[s], b_end[s], alpha0)
-            r0 = wp.normalize(wp.quat_slerp(rot_start[s], rot_end[s], alpha0))
-            motion = shape_point_motion(k, p, a0, a1, b0, b1, r0, r1)
+            motion = shape_point_motion(k, p, a0[s], a1[s], b0[s], b1[s], r0[s], r1[s])
             p = p + apply_friction((p - x_prev[i]) - motion, n, depth, friction[s])
     x[i] = p
 

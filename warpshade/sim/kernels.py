@@ -244,7 +244,8 @@ def solve_bending(
     u2 = -n2 * (le / a2)
     u3 = -(n1 * (wp.dot(x1 - x4, e) / (le * a1)) + n2 * (wp.dot(x2 - x4, e) / (le * a2)))
     u4 = n1 * (wp.dot(x1 - x3, e) / (le * a1)) + n2 * (wp.dot(x2 - x3, e) / (le * a2))
-    theta = dihedral_angle(x1, x2, x3, x4)
+    # same angle as dihedral_angle(), reusing the normals computed above
+    theta = wp.atan2(wp.dot(wp.cross(n1, n2), e) / le, wp.dot(n1, n2))
     c = theta - rest_angle[h]
     # keep the error in (-pi, pi] so a hinge passing through +-pi does not flip its correction
     if c > wp.pi:
@@ -572,3 +573,34 @@ def find_nonfinite(
     ok = ok and wp.isfinite(u[0]) and wp.isfinite(u[1]) and wp.isfinite(u[2])
     if not ok:
         wp.atomic_min(first, 0, i)
+
+
+# ---------------------------------------------------------------------------------------------
+# Linear blend skinning
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def skin_points(
+    rest: wp.array[wp.vec3],
+    joint_index: wp.array2d[int],
+    joint_weight: wp.array2d[float],
+    transforms: wp.array[wp.mat44],
+    out: wp.array[wp.vec3],
+):
+    """Linear blend skinning x = sum_k w_k (M_{j_k} [rest, 1])[:3] (column-vector matrices).
+
+    Evaluated as x = rest + sum_k w_k ((M_k - I) [rest, 1])[:3], the same sum when the weights add
+    up to 1, but exact for vertices whose joints do not move: their float32 weights need not sum
+    to exactly 1 for the rest pose to come back bit for bit.
+    """
+    i = wp.tid()
+    m = wp.mat44(0.0)
+    for k in range(joint_index.shape[1]):
+        w = joint_weight[i, k]
+        if w != 0.0:
+            m = m + (transforms[joint_index[i, k]] - wp.identity(n=4, dtype=float)) * w
+    p = rest[i]
+    out[i] = p + wp.vec3(m[0, 0] * p[0] + m[0, 1] * p[1] + m[0, 2] * p[2] + m[0, 3],
+                         m[1, 0] * p[0] + m[1, 1] * p[1] + m[1, 2] * p[2] + m[1, 3],
+                         m[2, 0] * p[0] + m[2, 1] * p[1] + m[2, 2] * p[2] + m[2, 3])
