@@ -19,46 +19,6 @@ import warp as wp
 
 
 @wp.func
-def triangle_closest_barycentric(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec3:
-    """Barycentric coordinates (u, v, w) of the point of triangle abc closest to p (Ericson 5.1.5)."""
-    ab = b - a
-    ac = c - a
-    ap = p - a
-    d1 = wp.dot(ab, ap)
-    d2 = wp.dot(ac, ap)
-    if d1 <= 0.0 and d2 <= 0.0:
-        return wp.vec3(1.0, 0.0, 0.0)
-    bp = p - b
-    d3 = wp.dot(ab, bp)
-    d4 = wp.dot(ac, bp)
-    if d3 >= 0.0 and d4 <= d3:
-        return wp.vec3(0.0, 1.0, 0.0)
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-        t = d1 / (d1 - d3)
-        return wp.vec3(1.0 - t, t, 0.0)
-    cp = p - c
-    d5 = wp.dot(ab, cp)
-    d6 = wp.dot(ac, cp)
-    if d6 >= 0.0 and d5 <= d6:
-        return wp.vec3(0.0, 0.0, 1.0)
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-        t = d2 / (d2 - d6)
-        return wp.vec3(1.0 - t, 0.0, t)
-    va = d3 * d6 - d5 * d4
-    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return wp.vec3(0.0, 1.0 - t, t)
-    denom = va + vb + vc
-    if denom == 0.0:  # degenerate triangle: fall back to its first vertex
-        return wp.vec3(1.0, 0.0, 0.0)
-    v = vb / denom
-    w = vc / denom
-    return wp.vec3(1.0 - v - w, v, w)
-
-
-@wp.func
 def dihedral_angle(x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, x4: wp.vec3) -> float:
     """Signed dihedral angle [rad] of the hinge with shared edge x3-x4 and wings x1, x2.
 
@@ -411,17 +371,32 @@ def compute_triangle_bounds(
     upper[t] = hi + wp.vec3(pad)
 
 
+@wp.func
+def in_one_ring(i: int, j: int, ring_offsets: wp.array[int], ring: wp.array[int]) -> bool:
+    """Whether vertex j is vertex i or one of its edge neighbours (CSR adjacency)."""
+    if i == j:
+        return True
+    for k in range(ring_offsets[i], ring_offsets[i + 1]):
+        if ring[k] == j:
+            return True
+    return False
+
+
 @wp.kernel
 def find_self_contacts(
     bvh: wp.uint64,
     x: wp.array[wp.vec3],
     v: wp.array[wp.vec3],
-    rest: wp.array[wp.vec3],
     tris: wp.array2d[int],
+    ring_offsets: wp.array[int],
+    ring: wp.array[int],
     horizon: float,
     pad: float,
-    exclusion: float,
+    thickness: float,
     max_contacts: int,
+    prev_tri: wp.array2d[int],
+    prev_side: wp.array2d[float],
+    prev_count: wp.array[int],
     contact_tri: wp.array2d[int],
     contact_side: wp.array2d[float],
     contact_count: wp.array[int],
@@ -429,8 +404,9 @@ def find_self_contacts(
 ):
     """Vertex-triangle candidate pairs whose swept boxes overlap.
 
-    Pairs whose vertices lie within `exclusion` of each other in the rest shape are skipped: they
-    are neighbours in the cloth, kept apart by stretch and bending, not by contact. The side of
+    Triangles touching the vertex or its one-ring are skipped: they are neighbours in the cloth,
+    kept apart by stretch and bending, not by contact (a topological test, so it also holds for
+    garments whose rest shape is folded). The side of
     the triangle the vertex is on now is stored; the solve keeps it there, which is what stops
     folds from passing through (the cloth is assumed free of intersections at detection time).
     """
@@ -439,8 +415,6 @@ def find_self_contacts(
     q = p + v[i] * horizon
     lo = wp.min(p, q) - wp.vec3(pad)
     hi = wp.max(p, q) + wp.vec3(pad)
-    r = rest[i]
-    ex2 = exclusion * exclusion
     count = int(0)
     query = wp.bvh_query_aabb(bvh, lo, hi)
     t = int(0)
@@ -448,10 +422,8 @@ def find_self_contacts(
         a = tris[t, 0]
         b = tris[t, 1]
         c = tris[t, 2]
-        if a == i or b == i or c == i:
-            continue
-        if (wp.length_sq(rest[a] - r) < ex2 or wp.length_sq(rest[b] - r) < ex2
-                or wp.length_sq(rest[c] - r) < ex2):
+        if in_one_ring(i, a, ring_offsets, ring) or in_one_ring(i, b, ring_offsets, ring) or in_one_ring(
+                i, c, ring_offsets, ring):
             continue
         if count < max_contacts:
             xa = x[a]
@@ -463,6 +435,13 @@ def find_self_contacts(
                 side = 1.0
             elif d < -1.0e-9 * wp.length_sq(nn):
                 side = -1.0
+            # a pair already in contact keeps the side it had: inside the contact layer the
+            # current side may be the wrong one (a correction left unfinished), and re-reading it
+            # would lock a crossing in
+            if wp.abs(d) < thickness * wp.sqrt(wp.length_sq(nn)):
+                for r in range(prev_count[i]):
+                    if prev_tri[i, r] == t and prev_side[i, r] != 0.0:
+                        side = prev_side[i, r]
             contact_tri[i, count] = t
             contact_side[i, count] = side
             count += 1
@@ -519,8 +498,17 @@ def solve_self_contacts(
         bw = wp.dot(wp.cross(xb - xa, pp - xa), n) / wp.sqrt(ln2)
         bv = wp.dot(wp.cross(pp - xa, xc - xa), n) / wp.sqrt(ln2)
         bu = 1.0 - bv - bw
-        if bu < 0.0 or bv < 0.0 or bw < 0.0:
+        # a small tolerance: a vertex right above a shared edge or corner (aligned layers) would
+        # otherwise fall between its triangles through round-off
+        if bu < -0.01 or bv < -0.01 or bw < -0.01:
             continue
+        bu = wp.max(bu, 0.0)
+        bv = wp.max(bv, 0.0)
+        bw = wp.max(bw, 0.0)
+        bs = bu + bv + bw
+        bu = bu / bs
+        bv = bv / bs
+        bw = bw / bs
         wa = inv_mass[a]
         wb = inv_mass[b]
         wc = inv_mass[c]

@@ -383,6 +383,8 @@ class ClothModel:
         hinge_colors: (offset, count) of each colour's hinges.
         tether_anchor: Nearest kinematic vertices per vertex, shape (V, T), dtype int32 (-1: none).
         tether_length: Upper bound of the rest geodesic distance to them [m], shape (V, T), dtype float32.
+        ring_offsets, ring: One-ring adjacency (CSR): the edge neighbours of vertex i are
+            ``ring[ring_offsets[i]:ring_offsets[i + 1]]``, shapes (V + 1,) and (2E,), dtype int32.
         attachment_indices: Attached vertices, shape (A,), dtype int32 (slot k drives vertex [k]).
         pinned: Pinned vertex indices on the host, shape (P,), int64.
         thickness, damping: As given to the builder.
@@ -436,6 +438,11 @@ class ClothModel:
         self.hinges = wp.array(hinges.astype(np.int32).reshape(-1, 4), dtype=wp.int32, device=d)
         self.hinge_rest_angle = wp.array(hinge_rest.astype(np.float32), dtype=wp.float32, device=d)
         self.hinge_compliance = wp.array(_compliance(hinge_k), dtype=wp.float32, device=d)
+        both = np.concatenate([edges, edges[:, ::-1]]).astype(np.int64)
+        both = both[np.lexsort((both[:, 1], both[:, 0]))]
+        offsets = np.concatenate([[0], np.cumsum(np.bincount(both[:, 0], minlength=v))])
+        self.ring_offsets = wp.array(offsets.astype(np.int32), dtype=wp.int32, device=d)
+        self.ring = wp.array(both[:, 1].astype(np.int32), dtype=wp.int32, device=d)
         self.tether_anchor = wp.array(anchor, dtype=wp.int32, device=d)
         self.tether_length = wp.array(tlen, dtype=wp.float32, device=d)
         self.attachment_indices = wp.array(attached.astype(np.int32), dtype=wp.int32, device=d)

@@ -21,23 +21,32 @@ def dihedral_angle_np(x1, x2, x3, x4) -> np.ndarray:
     return np.where(le > 0, np.arctan2(s, c), 0.0)
 
 
-def triangle_closest_point_np(p, a, b, c) -> np.ndarray:
-    """Closest point of triangle abc to p by brute force over interior projection, edges and corners."""
-    p, a, b, c = (np.asarray(v, dtype=np.float64) for v in (p, a, b, c))
-    cands = [a, b, c]
+def point_triangle_distance_np(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Unsigned distance of every point to every triangle, shape (N, M).
+
+    Args:
+        p: Points, shape (N, 3). a, b, c: Triangle corners, shape (M, 3).
+
+    The closest point is the projection onto the plane when it falls inside the triangle, else the
+    closest point of the three edges (a segment clamp): the textbook case split, vectorised.
+    """
+    p = np.asarray(p, dtype=np.float64)[:, None, :]
+    a, b, c = (np.asarray(v, dtype=np.float64)[None] for v in (a, b, c))
+    n = np.cross(b - a, c - a)
+    nn = np.einsum("...i,...i", n, n)
+    safe = np.where(nn > 0, nn, 1.0)
+    dpl = np.einsum("...i,...i", p - a, n) / safe
+    q = p - dpl[..., None] * n
+    # inside test with signed sub-areas
+    inside = ((np.einsum("...i,...i", np.cross(b - a, q - a), n) >= 0)
+              & (np.einsum("...i,...i", np.cross(c - b, q - b), n) >= 0)
+              & (np.einsum("...i,...i", np.cross(a - c, q - c), n) >= 0) & (nn > 0))
+    best = np.where(inside, np.linalg.norm(p - q, axis=-1), np.inf)
     for u, w in ((a, b), (b, c), (c, a)):
         d = w - u
-        t = np.clip(np.dot(p - u, d) / max(np.dot(d, d), 1e-300), 0.0, 1.0)
-        cands.append(u + t * d)
-    n = np.cross(b - a, c - a)
-    if np.dot(n, n) > 0:
-        q = p - np.dot(p - a, n) / np.dot(n, n) * n
-        m = np.array([[*(a - c)], [*(b - c)]]).T
-        lam, *_ = np.linalg.lstsq(m, q - c, rcond=None)
-        if lam.min() >= 0 and lam.sum() <= 1:
-            cands.append(q)
-    cands = np.array(cands)
-    return cands[np.argmin(np.linalg.norm(cands - p, axis=1))]
+        t = np.clip(np.einsum("...i,...i", p - u, d) / np.maximum(np.einsum("...i,...i", d, d), 1e-300), 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(p - (u + t[..., None] * d), axis=-1))
+    return best
 
 
 def skin_points_np(rest: np.ndarray, indices: np.ndarray, weights: np.ndarray,

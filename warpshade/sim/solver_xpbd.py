@@ -37,9 +37,9 @@ class XPBDSolver:
         drag_coefficient, lift_coefficient: Flat-plate coefficients (>= 0).
         self_collision: Vertex-triangle self-contact on/off.
         contact_interval: Substeps between self-contact detections (>= 1; default: once per step).
-        self_exclusion: Rest distance [m] below which two vertices never self-collide (default:
-            1.5 x the mean edge length: neighbours are held apart by stretch and bending).
         max_contacts: Self-contact candidates kept per vertex (>= 1).
+        contact_iterations: Passes of self-contact and collider projection per iteration (>= 1).
+        relaxation: Over-relaxation of the stretch sweeps (0 < relaxation < 2; 1 = plain Gauss-Seidel).
         tethers: Long-range attachments to the nearest kinematic vertex (Kim et al. 2012).
         check_finite: Stop with :class:`SimulationError` when the state turns non-finite.
 
@@ -50,8 +50,9 @@ class XPBDSolver:
     def __init__(self, model: ClothModel, colliders: ColliderSet | None = None, substeps: int = 8,
                  iterations: int = 1, gravity=(0.0, -9.81, 0.0), drag: float = 0.0, air_density: float = 1.2,
                  drag_coefficient: float = 0.8, lift_coefficient: float = 0.3, self_collision: bool = True,
-                 contact_interval: int | None = None, self_exclusion: float | None = None, max_contacts: int = 16,
-                 tethers: bool = True, check_finite: bool = True, relaxation: float = 1.0):
+                 contact_interval: int | None = None, max_contacts: int = 16,
+                 tethers: bool = True, check_finite: bool = True, relaxation: float = 1.0,
+                 contact_iterations: int = 2):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -74,11 +75,12 @@ class XPBDSolver:
         if int(ci) != ci or ci < 1:
             raise ValueError(f"contact_interval must be an integer >= 1, got {contact_interval}")
         self.contact_interval = int(ci)
-        self.self_exclusion = _check_param("self_exclusion", 1.5 * model.mean_edge_length
-                                           if self_exclusion is None else self_exclusion)
         if int(max_contacts) != max_contacts or max_contacts < 1:
             raise ValueError(f"max_contacts must be an integer >= 1, got {max_contacts}")
         self.max_contacts = int(max_contacts)
+        if int(contact_iterations) != contact_iterations or contact_iterations < 1:
+            raise ValueError(f"contact_iterations must be an integer >= 1, got {contact_iterations}")
+        self.contact_iterations = int(contact_iterations)
         self.tethers = bool(tethers) and bool((model.tether_anchor.numpy() >= 0).any())
         self.check_finite = bool(check_finite)
         self.relaxation = _check_param("relaxation", relaxation, 0.0, False)
@@ -105,6 +107,9 @@ class XPBDSolver:
             self._contact_tri = wp.zeros((v, self.max_contacts), dtype=wp.int32, device=d)
             self._contact_side = wp.zeros((v, self.max_contacts), dtype=wp.float32, device=d)
             self._contact_count = wp.zeros(v, dtype=wp.int32, device=d)
+            self._prev_tri = wp.zeros((v, self.max_contacts), dtype=wp.int32, device=d)
+            self._prev_side = wp.zeros((v, self.max_contacts), dtype=wp.float32, device=d)
+            self._prev_count = wp.zeros(v, dtype=wp.int32, device=d)
             self._overflow = wp.zeros(1, dtype=wp.int32, device=d)
             self._delta = wp.zeros(v, dtype=wp.vec3, device=d)
             self._delta_count = wp.zeros(v, dtype=wp.float32, device=d)
@@ -159,14 +164,19 @@ class XPBDSolver:
                                   (s + 1) / self.substeps], outputs=[x], device=d)
             if self.colliders is not None:
                 self.colliders.pose_substep(s / self.substeps, (s + 1) / self.substeps)
-            if self.iterations > 1:
-                self._edge_lambda.zero_()
-                self._hinge_lambda.zero_()
+            # XPBD multipliers restart every substep (Macklin et al. 2016, Alg. 1 line 4)
+            self._edge_lambda.zero_()
+            self._hinge_lambda.zero_()
             for _ in range(self.iterations):
                 for c in cmds["constraints"]:
                     c.launch()
-                if self.colliders is not None:
-                    self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+                # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
+                # more than one Jacobi pass to stop a fast layer within one substep
+                for _c in range(self.contact_iterations):
+                    for c in cmds["contacts"]:
+                        c.launch()
+                    if self.colliders is not None:
+                        self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             for c in cmds["velocities"]:
                 c.launch()
 
@@ -212,14 +222,16 @@ class XPBDSolver:
         if self.tethers:
             cons.append(wp.launch(k.solve_tethers, dim=n, inputs=[m.tether_anchor, m.tether_length, m.inv_mass],
                                   outputs=[x], device=d, record_cmd=True))
-        if self.self_collision:
-            cons.append(wp.launch(k.solve_self_contacts, dim=n,
-                                  inputs=[x, m.inv_mass, m.tris, self._contact_tri, self._contact_side,
-                                          self._contact_count, m.thickness],
-                                  outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
-            cons.append(wp.launch(k.apply_averaged_deltas, dim=n, inputs=[],
-                                  outputs=[self._delta, self._delta_count, x], device=d, record_cmd=True))
         cmds["constraints"] = cons
+        contacts = []
+        if self.self_collision:
+            contacts.append(wp.launch(k.solve_self_contacts, dim=n,
+                                      inputs=[x, m.inv_mass, m.tris, self._contact_tri, self._contact_side,
+                                              self._contact_count, m.thickness],
+                                      outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
+            contacts.append(wp.launch(k.apply_averaged_deltas, dim=n, inputs=[],
+                                      outputs=[self._delta, self._delta_count, x], device=d, record_cmd=True))
+        cmds["contacts"] = contacts
         vel = [wp.launch(k.update_velocities, dim=n, inputs=[x, self._x_prev, h], outputs=[v], device=d,
                          record_cmd=True)]
         if m.damping > 0:
@@ -240,9 +252,12 @@ class XPBDSolver:
             self._bvh = wp.Bvh(self._lower, self._upper)
         else:
             self._bvh.refit()
+        wp.copy(self._prev_tri, self._contact_tri)
+        wp.copy(self._prev_side, self._contact_side)
+        wp.copy(self._prev_count, self._contact_count)
         wp.launch(k.find_self_contacts, dim=m.particle_count,
-                  inputs=[self._bvh.id, x, v, m.rest_points, m.tris, horizon, pad, self.self_exclusion,
-                          self.max_contacts],
+                  inputs=[self._bvh.id, x, v, m.tris, m.ring_offsets, m.ring, horizon, pad, m.thickness,
+                          self.max_contacts, self._prev_tri, self._prev_side, self._prev_count],
                   outputs=[self._contact_tri, self._contact_side, self._contact_count, self._overflow], device=d)
 
     def _first_nonfinite(self, x, v) -> int:
@@ -276,6 +291,7 @@ class XPBDSolver:
         return {"substeps": self.substeps, "iterations": self.iterations, "gravity": list(self.gravity),
                 "drag": self.drag, "air_density": self.air_density, "drag_coefficient": self.drag_coefficient,
                 "lift_coefficient": self.lift_coefficient, "self_collision": self.self_collision,
-                "contact_interval": self.contact_interval, "self_exclusion": self.self_exclusion,
-                "max_contacts": self.max_contacts, "tethers": self.tethers, "check_finite": self.check_finite,
+                "contact_interval": self.contact_interval,
+                "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
+                "relaxation": self.relaxation, "tethers": self.tethers, "check_finite": self.check_finite,
                 "thickness": self.model.thickness, "damping": self.model.damping}
