@@ -36,7 +36,7 @@ class XPBDSolver:
         air_density: [kg/m^3] (>= 0) for aerodynamic drag and lift; 0 disables aerodynamics.
         drag_coefficient, lift_coefficient: Flat-plate coefficients (>= 0).
         self_collision: Vertex-triangle self-contact on/off.
-        contact_interval: Substeps between self-contact detections (>= 1; default 4: longer
+        contact_interval: Substeps between self-contact detections (>= 1; default 3: longer
             intervals let candidate lists and contact sides go stale in fast folding cloth).
         max_contacts: Self-contact candidates kept per vertex (>= 1).
         contact_iterations: Passes of self-contact and collider projection per iteration (>= 1).
@@ -48,7 +48,7 @@ class XPBDSolver:
         ValueError: for an out-of-range parameter, naming it.
     """
 
-    def __init__(self, model: ClothModel, colliders: ColliderSet | None = None, substeps: int = 8,
+    def __init__(self, model: ClothModel, colliders: ColliderSet | None = None, substeps: int = 6,
                  iterations: int = 1, gravity=(0.0, -9.81, 0.0), drag: float = 0.0, air_density: float = 1.2,
                  drag_coefficient: float = 0.8, lift_coefficient: float = 0.3, self_collision: bool = True,
                  contact_interval: int | None = None, max_contacts: int = 16,
@@ -72,7 +72,7 @@ class XPBDSolver:
         self.drag_coefficient = _check_param("drag_coefficient", drag_coefficient)
         self.lift_coefficient = _check_param("lift_coefficient", lift_coefficient)
         self.self_collision = bool(self_collision)
-        ci = min(self.substeps, 4) if contact_interval is None else contact_interval
+        ci = min(self.substeps, 3) if contact_interval is None else contact_interval
         if int(ci) != ci or ci < 1:
             raise ValueError(f"contact_interval must be an integer >= 1, got {contact_interval}")
         self.contact_interval = int(ci)
