@@ -386,3 +386,42 @@ def test_usd_cloth_mesh_from_warp_assets():
     st = m.state()
     x = _run(XPBDSolver(m, self_collision=True), st, 10)
     assert np.isfinite(x).all() and x[:, 1].min() < 1.0 - 1e-3
+
+
+def test_pins_stay_and_attachments_follow_their_targets():
+    b = ClothBuilder()
+    ids = b.add_grid(8, 8, 0.5, 0.5, origin=(0, 1, 0))
+    b.pin([ids[0, 0]])
+    slots = b.attach(ids[0, 1:])
+    m = b.finalize()
+    s = XPBDSolver(m)
+    st, ctl = m.state(), m.control()
+    rest = m.rest_points_np
+    for f in range(20):
+        target = rest[ids[0, 1:]] + [0.0, 0.0, 0.01 * (f + 1)]  # slide the attached edge along z
+        ordered = np.empty_like(target)
+        ordered[slots] = target
+        ctl.set_targets(ordered)
+        s.step(st, st, DT, ctl)
+        x = st.points.numpy()
+        np.testing.assert_allclose(x[ids[0, 1:]], target, atol=1e-6, err_msg=f"frame {f}")
+        assert np.array_equal(x[ids[0, 0]], rest[ids[0, 0]])
+    with pytest.raises(ValueError, match=r"target 2 \(vertex \d+\) is not finite"):
+        bad = ordered.copy()
+        bad[2, 0] = np.nan
+        ctl.set_targets(bad)
+    with pytest.raises(ValueError, match="attach: vertex 3 attached twice"):
+        b.attach([3, 3])
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda c: c.add_sphere((0, 0, 0), -1.0), "sphere radius must be finite and > 0"),
+    (lambda c: c.add_capsule((0, 0, 0), (0, np.nan, 0), 0.1), "capsule p1 must be 3 finite numbers"),
+    (lambda c: c.add_box((0, 0, 0), (1, 0, 1)), "half_extents must be > 0"),
+    (lambda c: c.add_plane((0, 0, 0)), "plane normal must be non-zero"),
+    (lambda c: c.add_plane((0, 1, 0), friction=-1), "friction must be finite and >= 0"),
+    (lambda c: c.add_mesh(np.array([[0, 0, 0], [1, 0, 0], [0, np.inf, 0]]), [[0, 1, 2]]), "vertex 2 is not finite"),
+])
+def test_bad_collider_input(call, match):
+    with pytest.raises(ValueError, match=match):
+        call(ColliderSet())
