@@ -18,6 +18,16 @@ SHAPE_BOX = wp.constant(3)
 
 
 @wp.func
+def segment_parameter(p: wp.vec3, a: wp.vec3, b: wp.vec3) -> float:
+    """Parameter in [0, 1] of the point of segment a-b closest to p (0 for a degenerate segment)."""
+    ab = b - a
+    l2 = wp.length_sq(ab)
+    if l2 == 0.0:
+        return 0.0
+    return wp.clamp(wp.dot(p - a, ab) / l2, 0.0, 1.0)
+
+
+@wp.func
 def shape_distance(kind: int, p: wp.vec3, a: wp.vec3, b: wp.vec3, rot: wp.quat, size: wp.vec3) -> wp.vec4:
     """Signed distance [m] of p to a shape and the outward unit normal: vec4(nx, ny, nz, d).
 
@@ -35,12 +45,7 @@ def shape_distance(kind: int, p: wp.vec3, a: wp.vec3, b: wp.vec3, rot: wp.quat, 
             n = d / ld
         return wp.vec4(n[0], n[1], n[2], ld - size[0])
     if kind == SHAPE_CAPSULE:
-        ab = b - a
-        l2 = wp.length_sq(ab)
-        t = float(0.0)
-        if l2 > 0.0:
-            t = wp.clamp(wp.dot(p - a, ab) / l2, 0.0, 1.0)
-        d = p - (a + ab * t)
+        d = p - wp.lerp(a, b, segment_parameter(p, a, b))
         ld = wp.length(d)
         n = wp.vec3(0.0, 1.0, 0.0)
         if ld > 0.0:
@@ -76,11 +81,7 @@ def shape_point_motion(kind: int, p: wp.vec3, a0: wp.vec3, a1: wp.vec3, b0: wp.v
                        r0: wp.quat, r1: wp.quat) -> wp.vec3:
     """Displacement over the substep of the surface point attached to p (pose 0 -> pose 1)."""
     if kind == SHAPE_CAPSULE:
-        ab = b1 - a1
-        l2 = wp.length_sq(ab)
-        t = float(0.0)
-        if l2 > 0.0:
-            t = wp.clamp(wp.dot(p - a1, ab) / l2, 0.0, 1.0)
+        t = segment_parameter(p, a1, b1)
         return wp.lerp(a1, b1, t) - wp.lerp(a0, b0, t)
     if kind == SHAPE_BOX:
         local = wp.quat_rotate_inv(r1, p - a1)

@@ -19,6 +19,17 @@ import warp as wp
 
 
 @wp.func
+def edge_axis(xi: wp.vec3, xj: wp.vec3) -> wp.vec4:
+    """Unit direction from xj to xi and the edge length: vec4(nx, ny, nz, length); zero when degenerate."""
+    d = xi - xj
+    length = wp.length(d)
+    if length < 1.0e-12:
+        return wp.vec4(0.0)
+    n = d / length
+    return wp.vec4(n[0], n[1], n[2], length)
+
+
+@wp.func
 def dihedral_angle(x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, x4: wp.vec3) -> float:
     """Signed dihedral angle [rad] of the hinge with shared edge x3-x4 and wings x1, x2.
 
@@ -144,14 +155,11 @@ def solve_stretch(
     wi = inv_mass[i]
     wj = inv_mass[j]
     wsum = wi + wj
-    if wsum == 0.0:
+    axis = edge_axis(x[i], x[j])
+    if wsum == 0.0 or axis[3] < 1.0e-12:
         return
-    d = x[i] - x[j]
-    length = wp.length(d)
-    if length < 1.0e-12:
-        return
-    n = d / length
-    c = length - rest_length[e]
+    n = wp.vec3(axis[0], axis[1], axis[2])
+    c = axis[3] - rest_length[e]
     alpha = compliance[e] / (dt * dt)
     dlam = -relaxation * (c + alpha * lam[e]) / (wsum + alpha)
     lam[e] = lam[e] + dlam
@@ -246,13 +254,10 @@ def damp_stretch(
     wi = inv_mass[i]
     wj = inv_mass[j]
     wsum = wi + wj
-    if wsum == 0.0:
+    axis = edge_axis(x[i], x[j])
+    if wsum == 0.0 or axis[3] < 1.0e-12:
         return
-    d = x[i] - x[j]
-    length = wp.length(d)
-    if length < 1.0e-12:
-        return
-    n = d / length
+    n = wp.vec3(axis[0], axis[1], axis[2])
     u = wp.dot(v[i] - v[j], n)
     c = compliance[e]
     # fraction of u removed: h kd wsum / (1 + h kd wsum), written with kd = damping / c
