@@ -40,6 +40,8 @@ class XPBDSolver:
             intervals let candidate lists and contact sides go stale in fast folding cloth).
         max_contacts: Self-contact candidates kept per vertex (>= 1).
         contact_iterations: Passes of self-contact and collider projection per iteration (>= 1).
+        stretch_sweeps: Stretch sweeps per iteration (>= 1); the multipliers accumulate across
+            them (XPBD iterations restricted to the stiffest constraints).
         relaxation: Over-relaxation of the stretch sweeps (0 < relaxation < 2; 1 = plain Gauss-Seidel).
         tethers: Long-range attachments to the nearest kinematic vertex (Kim et al. 2012).
         check_finite: Stop with :class:`SimulationError` when the state turns non-finite.
@@ -53,7 +55,7 @@ class XPBDSolver:
                  drag_coefficient: float = 0.8, lift_coefficient: float = 0.3, self_collision: bool = True,
                  contact_interval: int | None = None, max_contacts: int = 16,
                  tethers: bool = True, check_finite: bool = True, relaxation: float = 1.0,
-                 contact_iterations: int = 2):
+                 contact_iterations: int = 2, stretch_sweeps: int = 1):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -82,6 +84,9 @@ class XPBDSolver:
         if int(contact_iterations) != contact_iterations or contact_iterations < 1:
             raise ValueError(f"contact_iterations must be an integer >= 1, got {contact_iterations}")
         self.contact_iterations = int(contact_iterations)
+        if int(stretch_sweeps) != stretch_sweeps or stretch_sweeps < 1:
+            raise ValueError(f"stretch_sweeps must be an integer >= 1, got {stretch_sweeps}")
+        self.stretch_sweeps = int(stretch_sweeps)
         self.tethers = bool(tethers) and bool((model.tether_anchor.numpy() >= 0).any())
         self.check_finite = bool(check_finite)
         self.relaxation = _check_param("relaxation", relaxation, 0.0, False)
@@ -211,11 +216,12 @@ class XPBDSolver:
                                             wp.vec3(*self.gravity), self.drag, h],
                                     outputs=[self._x_prev, x, v], device=d, record_cmd=True)
         cons = []
-        for off, cnt in m.edge_colors:
-            cons.append(wp.launch(k.solve_stretch, dim=cnt,
-                                  inputs=[m.edges, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
-                                          self.relaxation], outputs=[self._edge_lambda, x], device=d,
-                                  record_cmd=True))
+        stretch = [wp.launch(k.solve_stretch, dim=cnt,
+                             inputs=[m.edges, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
+                                     self.relaxation], outputs=[self._edge_lambda, x], device=d, record_cmd=True)
+                   for off, cnt in m.edge_colors]
+        # extra stretch sweeps: cheap (edges only) and the stretch residual is what shows as sag
+        cons.extend(stretch * self.stretch_sweeps)
         for off, cnt in m.hinge_colors:
             cons.append(wp.launch(k.solve_bending, dim=cnt,
                                   inputs=[m.hinges, m.hinge_rest_angle, m.hinge_compliance, m.inv_mass, off, h],
@@ -294,5 +300,6 @@ class XPBDSolver:
                 "lift_coefficient": self.lift_coefficient, "self_collision": self.self_collision,
                 "contact_interval": self.contact_interval,
                 "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
+                "stretch_sweeps": self.stretch_sweeps,
                 "relaxation": self.relaxation, "tethers": self.tethers, "check_finite": self.check_finite,
                 "thickness": self.model.thickness, "damping": self.model.damping}
