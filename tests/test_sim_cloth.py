@@ -425,3 +425,32 @@ def test_pins_stay_and_attachments_follow_their_targets():
 def test_bad_collider_input(call, match):
     with pytest.raises(ValueError, match=match):
         call(ColliderSet())
+
+
+def test_tethers_never_pull_a_cloth_at_rest():
+    """Tether lengths bound the rest geodesic distance from above, for a convex flat piece
+    (Euclidean, exact), an L-shaped flat piece (edge paths: the straight line leaves the cloth)
+    and a second, unpinned piece (no tethers across pieces): without gravity nothing moves."""
+    b = ClothBuilder()
+    g = b.add_grid(9, 9, 0.8, 0.8)
+    b.pin([g[0, 0], g[8, 8]])
+    pts = np.array([[x, 0.0, z] for z in range(5) for x in range(5)], dtype=float) * 0.1 + [2, 0, 0]
+    faces = []
+    for j in range(4):
+        for i in range(4):
+            if i >= 2 and j >= 2:  # cut the corner out: an L
+                continue
+            a = j * 5 + i
+            faces += [[a, a + 5, a + 1], [a + 1, a + 5, a + 6]]
+    used = np.unique(faces)
+    remap = np.full(25, -1)
+    remap[used] = np.arange(len(used))
+    ell = b.add_mesh(pts[used], remap[np.array(faces)])
+    b.pin([ell[remap[4]]])  # end of one arm: straight lines to the other arm cross the cut-out
+    b.add_grid(4, 4, 0.3, 0.3, origin=(0, 1, 0))  # unpinned
+    m = b.finalize()
+    anchors = m.tether_anchor.numpy()
+    assert (anchors[-16:] == -1).all()  # the unpinned piece has no tethers
+    st = m.state()
+    _run(XPBDSolver(m, gravity=(0, 0, 0), air_density=0.0), st, 10)
+    np.testing.assert_allclose(st.points.numpy(), m.rest_points_np, atol=1e-6)

@@ -134,49 +134,80 @@ def color_constraints(elements: np.ndarray, num_vertices: int) -> tuple[np.ndarr
     return order, [(int(o), int(c)) for o, c in zip(offsets, counts) if c > 0]
 
 
-def tether_anchors(points: np.ndarray, edges: np.ndarray, kinematic: np.ndarray, planar: np.ndarray,
-                   count: int = 2):
-    """The ``count`` nearest kinematic vertices of each vertex and an upper bound of the rest
-    geodesic distance to them.
+def tether_anchors(points: np.ndarray, edges: np.ndarray, kinematic: np.ndarray, piece: np.ndarray,
+                   convex_flat: np.ndarray, count: int = 2):
+    """Nearest kinematic vertices of each vertex and an upper bound of the rest geodesic distance.
 
-    On a flat piece the geodesic distance is the Euclidean rest distance (exact, so the tether
-    is taut exactly when the cloth path to the anchor is unstretched); elsewhere the shortest
-    edge path, which over-estimates the geodesic (a looser but never over-constraining bound).
+    On a flat, convex piece the geodesic distance is the Euclidean rest distance (exact, so a
+    tether is taut exactly when the cloth between vertex and anchor is unstretched): the ``count``
+    nearest anchors of the same piece by a k-d tree. Elsewhere the shortest edge path, which
+    over-estimates the geodesic (a looser but never over-constraining bound), to the single
+    nearest anchor (multi-source Dijkstra). Memory stays O(V) for any number of anchors.
 
     Args:
         points: Rest positions, shape (V, 3).
         edges: Mesh edges, shape (E, 2).
         kinematic: Pinned or attached vertices, shape (V,), bool.
-        planar: Whether each vertex's piece is flat, shape (V,), bool.
-        count: Anchors per vertex.
+        piece: Piece index of each vertex, shape (V,), int.
+        convex_flat: Per piece, whether it is flat and convex, shape (P,), bool.
+        count: Anchors per vertex on flat convex pieces.
 
     Returns:
-        (anchor (V, count) int32, -1 for none; length (V, count) float32 [m]).
+        (anchor (V, T) int32, -1 for none; length (V, T) float32 [m]), T = min(count, #anchors).
     """
-    v = len(points)
-    kin = np.flatnonzero(kinematic)
-    k = max(1, min(count, len(kin)))
-    anchor = np.full((v, k), -1, dtype=np.int32)
-    length = np.zeros((v, k), dtype=np.float32)
-    if len(kin) == 0:
-        return anchor, length
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
+    from scipy.spatial import cKDTree
 
-    w = np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)
-    g = coo_matrix((np.concatenate([w, w]), (np.concatenate([edges[:, 0], edges[:, 1]]),
-                                             np.concatenate([edges[:, 1], edges[:, 0]]))), shape=(v, v)).tocsr()
-    geo = dijkstra(g, directed=False, indices=kin)  # (K, V) edge-path distances
-    euclid = np.linalg.norm(points[kin][:, None, :] - points[None, :, :], axis=2)
-    bound = np.where(planar[None, :], euclid, geo)
-    bound[:, kinematic] = np.inf
-    order = np.argsort(bound, axis=0)[:k]  # nearest anchors first
-    for c in range(k):
-        d = bound[order[c], np.arange(v)]
-        ok = np.isfinite(d)
-        anchor[ok, c] = kin[order[c][ok]]
-        length[ok, c] = d[ok]
+    v = len(points)
+    k = max(1, min(count, int(kinematic.sum())))
+    anchor = np.full((v, k), -1, dtype=np.int32)
+    length = np.zeros((v, k), dtype=np.float32)
+    if not kinematic.any():
+        return anchor, length
+    curved = np.zeros(v, dtype=bool)
+    for pc in range(len(convex_flat)):
+        mine = piece == pc
+        kin = np.flatnonzero(mine & kinematic)
+        free = np.flatnonzero(mine & ~kinematic)
+        if len(kin) == 0 or len(free) == 0:
+            continue
+        if not convex_flat[pc]:
+            curved[free] = True
+            continue
+        kk = min(k, len(kin))
+        dist, near = cKDTree(points[kin]).query(points[free], k=kk)
+        anchor[free, :kk] = kin[near.reshape(len(free), kk)]
+        length[free, :kk] = dist.reshape(len(free), kk)
+    if curved.any():
+        w = np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)
+        g = coo_matrix((np.concatenate([w, w]), (np.concatenate([edges[:, 0], edges[:, 1]]),
+                                                 np.concatenate([edges[:, 1], edges[:, 0]]))), shape=(v, v)).tocsr()
+        dist, _, src = dijkstra(g, directed=False, indices=np.flatnonzero(kinematic), min_only=True,
+                                return_predecessors=True)
+        ok = np.flatnonzero(curved & np.isfinite(dist))
+        anchor[ok, 0] = src[ok]
+        length[ok, 0] = dist[ok]
     return anchor, length
+
+
+def convex_and_flat(points: np.ndarray, faces: np.ndarray) -> bool:
+    """Whether a piece is planar (thinnest principal extent < 1e-6 of the widest) and convex
+    (its area equals the area of its 2-D convex hull to 1e-6)."""
+    from scipy.spatial import ConvexHull
+
+    c = points - points.mean(axis=0)
+    _, sv, vt = np.linalg.svd(c, full_matrices=False)
+    if sv[-1] > 1e-6 * max(sv[0], 1e-30):
+        return False
+    uv = c @ vt[:2].T
+    a, b, cc = points[faces[:, 0]], points[faces[:, 1]], points[faces[:, 2]]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, cc - a), axis=1).sum()
+    try:
+        hull = ConvexHull(uv).volume  # the "volume" of a 2-D hull is its area
+    except Exception:  # degenerate hull (collinear): not a usable flat piece
+        return False
+    return bool(abs(hull - area) <= 1e-6 * hull)
 
 
 @dataclass
@@ -416,17 +447,14 @@ class ClothModel:
         hinges, hinge_k, hinge_rest = hinges[horder], hinge_k[horder], hinge_rest[horder]
         self.edges_np = edges
         self.hinges_np = hinges
-        planar = np.zeros(v, dtype=bool)
+        piece = np.zeros(v, dtype=np.int64)
+        convex_flat = np.zeros(len(builder._pieces), dtype=bool)
         start = 0
-        for pc in builder._pieces:
-            c = pc.points - pc.points.mean(axis=0)
-            sv = np.linalg.svd(c, compute_uv=False)
-            # flat when the thinnest principal extent is below 1e-6 of the widest
-            planar[start:start + len(pc.points)] = sv[-1] <= 1e-6 * max(sv[0], 1e-30)
+        for pi, pc in enumerate(builder._pieces):
+            piece[start:start + len(pc.points)] = pi
+            convex_flat[pi] = convex_and_flat(pc.points, pc.faces)
             start += len(pc.points)
-        anchor, tlen = tether_anchors(points, edges, kinematic, planar)
-        self.min_edge_length = float(rest.min())
-        self.mean_edge_length = float(rest.mean())
+        anchor, tlen = tether_anchors(points, edges, kinematic, piece, convex_flat)
 
         d = self.device
         self.rest_points = wp.array(self.rest_points_np, dtype=wp.vec3, device=d)
