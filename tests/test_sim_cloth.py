@@ -428,9 +428,9 @@ def test_bad_collider_input(call, match):
 
 
 def test_tethers_never_pull_a_cloth_at_rest():
-    """Tether lengths bound the rest geodesic distance from above, for a convex flat piece
-    (Euclidean, exact), an L-shaped flat piece (edge paths: the straight line leaves the cloth)
-    and a second, unpinned piece (no tethers across pieces): without gravity nothing moves."""
+    """Tethers only act on stretch: a convex flat piece (Euclidean lengths), an L-shaped flat
+    piece (edge-path lengths) and a second, unpinned piece (which must get no tethers to the other
+    pieces' pins) stay exactly at rest without gravity."""
     b = ClothBuilder()
     g = b.add_grid(9, 9, 0.8, 0.8)
     b.pin([g[0, 0], g[8, 8]])
