@@ -50,6 +50,57 @@ def test_dihedral_angle_kernel_matches_numpy(rng):
     assert abs(flat[0]) < 1e-12 and abs(abs(folded[0]) - np.pi / 2) < 1e-12
 
 
+def test_dihedral_gradients_match_finite_differences(rng):
+    from warpshade.sim.kernels import dihedral_gradients
+
+    @wp.kernel
+    def eval_gradients(x: wp.array2d[wp.vec3], out: wp.array[wp.mat33]):
+        i = wp.tid()
+        out[i] = dihedral_gradients(x[i, 0], x[i, 1], x[i, 2], x[i, 3])
+
+    x = rng.normal(size=(16, 4, 3))
+    out = wp.zeros(16, dtype=wp.mat33)
+    wp.launch(eval_gradients, dim=16, inputs=[wp.array(x.astype(np.float32), dtype=wp.vec3)], outputs=[out])
+    g = out.numpy()
+    eps = 1e-6
+    for h in range(16):
+        for k in range(4):
+            fd = np.zeros(3)
+            for c in range(3):
+                xp, xm = x[h].copy(), x[h].copy()
+                xp[k, c] += eps
+                xm[k, c] -= eps
+                fd[c] = (dihedral_angle_np(*xp)[0] - dihedral_angle_np(*xm)[0]) / (2 * eps)
+            got = g[h][k] if k < 3 else -g[h].sum(axis=0)
+            # float32 kernel vs float64 central differences (O(eps^2) truncation): 1e-3 relative
+            np.testing.assert_allclose(got, fd, rtol=1e-3, atol=1e-3 * np.abs(fd).max(),
+                                       err_msg=f"hinge {h} vertex {k}: {x[h].tolist()}")
+
+
+def test_bending_damping_removes_hinge_oscillation():
+    """A hinge (edge pinned) kicked into bending keeps oscillating without bending damping
+    (XPBD's own dissipation is slow) and settles with it. The angle is measured, not the speed:
+    the wings' common rigid rotation about the pinned edge is not bending and is not damped."""
+    pts = np.array([[0, 0, 1], [0, 0, -1], [0, 0, 0], [1, 0, 0]], dtype=float)
+    faces = np.array([[0, 2, 3], [1, 3, 2]])
+    late = []
+    for bd in (0.0, 0.05):
+        b = ClothBuilder(bend_stiffness=1.0, stretch_stiffness=np.inf, bend_damping=bd)
+        b.add_mesh(pts, faces)
+        b.pin([2, 3])
+        m = b.finalize()
+        s = XPBDSolver(m, gravity=(0, 0, 0), air_density=0.0, self_collision=False)
+        st = m.state()
+        vel = np.zeros_like(pts)
+        vel[0, 1] = 1.0
+        st.set_points(pts, vel)
+        amp = []
+        _run(s, st, 120, each=lambda f, x: amp.append(abs(dihedral_angle_np(*x)[0])))
+        late.append(max(amp[-20:]))
+    # measured: 0.048 rad undamped vs 1e-4 rad damped after 2 s
+    assert late[1] < 0.05 * late[0], late
+
+
 def test_bending_relaxes_a_bent_hinge_to_its_rest_angle():
     """Two triangles, flat at rest, folded by 60 degrees: bending alone must unfold them (a wrong
     gradient sign folds them further, which is how this test once failed)."""

@@ -167,6 +167,28 @@ def solve_stretch(
     x[j] = x[j] - n * (wj * dlam)
 
 
+@wp.func
+def dihedral_gradients(x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, x4: wp.vec3) -> wp.mat33:
+    """Rows: d theta / d x1, x2, x3 of :func:`dihedral_angle` (d/dx4 is minus their sum).
+
+    The exact gradients of Bridson, Marino & Fedkiw 2003 (eq. 8, the "bending modes"); zero for a
+    degenerate hinge (zero-length edge or zero-area wing).
+    """
+    e = x4 - x3
+    le = wp.length(e)
+    n1 = wp.cross(x1 - x3, x1 - x4)
+    n2 = wp.cross(x2 - x4, x2 - x3)
+    a1 = wp.length_sq(n1)
+    a2 = wp.length_sq(n2)
+    if le < 1.0e-12 or a1 < 1.0e-24 or a2 < 1.0e-24:
+        return wp.mat33(0.0)
+    # with these normals the bending modes point down the gradient of atan2(sin, cos)
+    u1 = -n1 * (le / a1)
+    u2 = -n2 * (le / a2)
+    u3 = -(n1 * (wp.dot(x1 - x4, e) / (le * a1)) + n2 * (wp.dot(x2 - x4, e) / (le * a2)))
+    return wp.matrix_from_rows(u1, u2, u3)
+
+
 @wp.kernel
 def solve_bending(
     hinges: wp.array2d[int],
@@ -199,21 +221,12 @@ def solve_bending(
     x2 = x[i2]
     x3 = x[i3]
     x4 = x[i4]
-    e = x4 - x3
-    le = wp.length(e)
-    n1 = wp.cross(x1 - x3, x1 - x4)
-    n2 = wp.cross(x2 - x4, x2 - x3)
-    a1 = wp.length_sq(n1)
-    a2 = wp.length_sq(n2)
-    if le < 1.0e-12 or a1 < 1.0e-24 or a2 < 1.0e-24:
-        return
-    # d theta / d x_k; with these normals the bending modes of Bridson et al. point down the gradient
-    u1 = -n1 * (le / a1)
-    u2 = -n2 * (le / a2)
-    u3 = -(n1 * (wp.dot(x1 - x4, e) / (le * a1)) + n2 * (wp.dot(x2 - x4, e) / (le * a2)))
-    u4 = n1 * (wp.dot(x1 - x3, e) / (le * a1)) + n2 * (wp.dot(x2 - x3, e) / (le * a2))
-    # same angle as dihedral_angle(), reusing the normals computed above
-    theta = wp.atan2(wp.dot(wp.cross(n1, n2), e) / le, wp.dot(n1, n2))
+    g = dihedral_gradients(x1, x2, x3, x4)
+    u1 = g[0]
+    u2 = g[1]
+    u3 = g[2]
+    u4 = -(u1 + u2 + u3)  # the gradients of an angle sum to zero (translation invariance)
+    theta = dihedral_angle(x1, x2, x3, x4)
     c = theta - rest_angle[h]
     # keep the error in (-pi, pi] so a hinge passing through +-pi does not flip its correction
     if c > wp.pi:
@@ -268,6 +281,52 @@ def damp_stretch(
     p = -u * frac / wsum
     v[i] = v[i] + n * (wi * p)
     v[j] = v[j] - n * (wj * p)
+
+
+@wp.kernel
+def damp_bending(
+    hinges: wp.array2d[int],
+    compliance: wp.array[float],
+    inv_mass: wp.array[float],
+    x: wp.array[wp.vec3],
+    offset: int,
+    dt: float,
+    damping: float,
+    v: wp.array[wp.vec3],
+):
+    """Stiffness-proportional damper on each hinge's angular velocity, integrated implicitly.
+
+    With theta_dot = sum_k u_k . v_k and D = sum_k w_k |u_k|^2, the angular velocity decays as
+    theta_dot' = theta_dot / (1 + h k_d D), k_d = damping * k (as :func:`damp_stretch`).
+    """
+    h = wp.tid() + offset
+    c = compliance[h]
+    i1 = hinges[h, 0]
+    i2 = hinges[h, 1]
+    i3 = hinges[h, 2]
+    i4 = hinges[h, 3]
+    g = dihedral_gradients(x[i1], x[i2], x[i3], x[i4])
+    u1 = g[0]
+    u2 = g[1]
+    u3 = g[2]
+    u4 = -(u1 + u2 + u3)
+    w1 = inv_mass[i1]
+    w2 = inv_mass[i2]
+    w3 = inv_mass[i3]
+    w4 = inv_mass[i4]
+    denom = w1 * wp.length_sq(u1) + w2 * wp.length_sq(u2) + w3 * wp.length_sq(u3) + w4 * wp.length_sq(u4)
+    if denom < 1.0e-20:
+        return
+    rate = wp.dot(u1, v[i1]) + wp.dot(u2, v[i2]) + wp.dot(u3, v[i3]) + wp.dot(u4, v[i4])
+    frac = float(1.0)
+    if c > 0.0:
+        a = dt * damping * denom
+        frac = a / (c + a)
+    p = -rate * frac / denom
+    v[i1] = v[i1] + u1 * (w1 * p)
+    v[i2] = v[i2] + u2 * (w2 * p)
+    v[i3] = v[i3] + u3 * (w3 * p)
+    v[i4] = v[i4] + u4 * (w4 * p)
 
 
 @wp.kernel

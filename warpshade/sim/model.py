@@ -9,7 +9,8 @@ Material parameters and their units:
   value does not need rescaling when the mesh is refined. ``inf`` makes the edges inextensible.
 * ``bend_stiffness`` [N m]: bending modulus B. Each interior edge gets the discrete-shell weight
   k = 3 B |e|^2 / (A1 + A2) (Grinspun et al. 2003, eq. 4), again independent of resolution.
-* ``damping`` [s]: stiffness-proportional (Rayleigh) damping of stretch and bending, k_d = damping x k.
+* ``damping``, ``bend_damping`` [s]: stiffness-proportional (Rayleigh) damping of stretch and of
+  bending, k_d = damping x k, integrated implicitly on velocities.
 * ``thickness`` [m]: distance kept from colliders and between cloth layers.
 """
 
@@ -227,7 +228,8 @@ class ClothBuilder:
         density: Default area density [kg/m^2] (> 0).
         stretch_stiffness: Default edge spring constant [N/m] (> 0, ``inf`` = inextensible).
         bend_stiffness: Default bending modulus [N m] (>= 0; 0 disables bending).
-        damping: Rayleigh damping time [s] of stretch and bending (>= 0).
+        damping: Stiffness-proportional damping time [s] of stretch (>= 0).
+        bend_damping: The same for bending [s] (>= 0; 0, the default, skips the pass).
         thickness: Contact distance [m] to colliders and between layers (>= 0).
 
     Raises:
@@ -235,11 +237,12 @@ class ClothBuilder:
     """
 
     def __init__(self, density: float = 0.2, stretch_stiffness: float = 5.0e4, bend_stiffness: float = 5.0e-5,
-                 damping: float = 1.0e-3, thickness: float = 0.005):
+                 damping: float = 1.0e-3, thickness: float = 0.005, bend_damping: float = 0.0):
         self.density = _check_param("density", density, 0.0, low_inclusive=False)
         self.stretch_stiffness = _check_param("stretch_stiffness", stretch_stiffness, 0.0, False, allow_inf=True)
         self.bend_stiffness = _check_param("bend_stiffness", bend_stiffness, 0.0, allow_inf=True)
         self.damping = _check_param("damping", damping)
+        self.bend_damping = _check_param("bend_damping", bend_damping)
         self.thickness = _check_param("thickness", thickness)
         self._pieces: list[_Piece] = []
         self._count = 0
@@ -418,7 +421,7 @@ class ClothModel:
             ``ring[ring_offsets[i]:ring_offsets[i + 1]]``, shapes (V + 1,) and (2E,), dtype int32.
         attachment_indices: Attached vertices, shape (A,), dtype int32 (slot k drives vertex [k]).
         pinned: Pinned vertex indices on the host, shape (P,), int64.
-        thickness, damping: As given to the builder.
+        thickness, damping, bend_damping: As given to the builder.
     """
 
     def __init__(self, builder: ClothBuilder, points, faces, mass, edges, edge_k, hinges, hinge_k, hinge_rest,
@@ -429,6 +432,7 @@ class ClothModel:
         self.tri_count = len(faces)
         self.thickness = builder.thickness
         self.damping = builder.damping
+        self.bend_damping = builder.bend_damping
         self.faces = faces.astype(np.int32)
         self.rest_points_np = points.astype(np.float32)
         self.mass = mass

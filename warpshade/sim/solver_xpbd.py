@@ -246,6 +246,11 @@ class XPBDSolver:
                 vel.append(wp.launch(k.damp_stretch, dim=cnt,
                                      inputs=[m.edges, m.edge_compliance, m.inv_mass, x, off, h, m.damping],
                                      outputs=[v], device=d, record_cmd=True))
+        if m.bend_damping > 0:
+            for off, cnt in m.hinge_colors:
+                vel.append(wp.launch(k.damp_bending, dim=cnt,
+                                     inputs=[m.hinges, m.hinge_compliance, m.inv_mass, x, off, h, m.bend_damping],
+                                     outputs=[v], device=d, record_cmd=True))
         cmds["velocities"] = vel
         self._cmd_cache = (h, cmds)
         return cmds
@@ -302,4 +307,5 @@ class XPBDSolver:
                 "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
                 "stretch_sweeps": self.stretch_sweeps,
                 "relaxation": self.relaxation, "tethers": self.tethers, "check_finite": self.check_finite,
-                "thickness": self.model.thickness, "damping": self.model.damping}
+                "thickness": self.model.thickness, "damping": self.model.damping,
+                "bend_damping": self.model.bend_damping}
