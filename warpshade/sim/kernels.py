@@ -555,7 +555,10 @@ def solve_self_contacts(
                 s = 1.0
             contact_side[i, k] = s
         d = s * dn
-        if d >= thickness:
+        # respond within the contact layer and a few thicknesses past it (fast layers overshoot
+        # within one substep); deeper "penetrations" are tangles or stale pairs whose huge
+        # corrections would only inject energy
+        if d >= thickness or d < -4.0 * thickness:
             continue
         # barycentric coordinates of the projection of p onto the triangle's plane
         pp = p - n * dn
