@@ -237,3 +237,24 @@ def sphere_tables(order: int) -> SphereTables:
     scale = per_coeff(np.array([math.sqrt(4 * math.pi / (2 * l + 1)) for l in range(order)]))
     return SphereTables(order=order, log_blocker=logs, form_factor=ffs, band_scale=scale,
                         cosine=scale * per_coeff(clamped_cosine_zh(order)), exp=exp_table(order))
+
+
+@lru_cache(maxsize=None)
+def gaunt_sparse(order: int, tol: float = 1e-10):
+    """Nonzero SH triple products ``Γ_ijk`` (eq. 3.20) of one order as ``(i, j, k, value)`` arrays.
+
+    Product quadrature (Gauss–Legendre in z × uniform in φ) exact for the degree ``3(order-1)`` integrand.
+    """
+    from ...sh.basis import sh_eval
+
+    z, wz = _gl_nodes(2 * order)
+    nphi = 3 * order + 1
+    phi = 2 * math.pi * np.arange(nphi) / nphi
+    zz, pp = np.meshgrid(z, phi, indexing="ij")
+    s = np.sqrt(1 - zz ** 2)
+    dirs = np.stack([s * np.cos(pp), s * np.sin(pp), zz], axis=-1).reshape(-1, 3)
+    w = (np.repeat(wz, nphi) * (2 * math.pi / nphi))
+    y = sh_eval(dirs, order)
+    g = np.einsum("q,qi,qj,qk->ijk", w, y, y, y)
+    i, j, k = np.nonzero(np.abs(g) > tol)
+    return i.astype(np.int32), j.astype(np.int32), k.astype(np.int32), g[i, j, k].astype(np.float32)

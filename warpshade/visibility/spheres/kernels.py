@@ -1,0 +1,476 @@
+"""Warp kernels of the sphere-set method (orchestration in :mod:`.method`, NumPy reference in :mod:`.reference`).
+
+Per frame: ``refit_spheres``/``bound_parents`` move the spheres with the mesh, ``fit_clusters`` bounds
+the receiver clusters, ``compute_cut_ratios`` evaluates eq. 4.9 at cluster centres, and
+``shade_sphere_shadows`` does, per receiver: tangent-plane adjustment (§4.2), table lookup of the log
+blocker ZH vector, ZH rotation (eq. 3.17), log accumulation (eq. 4.7), SH exponential (eq. 3.30 /
+3.32) and the product with the clamped cosine (CONTRACTS.md §2). ``shade_sphere_reflections`` adds the
+one-bounce reflections (§4.3.3, eqs. 4.22, 4.25, 4.32).
+
+SH vectors live in rows of 2D scratch arrays (one row per thread), so one compiled kernel serves every
+order; SH convention: :mod:`warpshade.sh.basis`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ...sh.kernels import sh_accumulate
+
+SQRT_4PI = 3.5449077018110318
+EXP_OL = 0
+EXP_HYBRID = 1
+EXP_SERIES = 2
+
+
+# --------------------------------------------------------------------------------------------------
+# geometry
+@wp.kernel
+def classify_inside(mesh: wp.uint64, query: wp.array[wp.vec3], max_dist: float, inside: wp.array[wp.int32]):
+    """``inside[i] = 1`` if the generalised winding number of ``query[i]`` exceeds 0.5 (closed mesh)."""
+    i = wp.tid()
+    q = wp.mesh_query_point_sign_winding_number(mesh, query[i], max_dist, 2.0, 0.5)
+    inside[i] = 0
+    if q.result and q.sign < 0.0:
+        inside[i] = 1
+
+
+def winding_inside(points: np.ndarray, faces: np.ndarray, query: np.ndarray, device: str = "cpu") -> np.ndarray:
+    """Boolean mask (len(query),) of query points inside the closed mesh."""
+    pts = wp.array(np.asarray(points, dtype=np.float32), dtype=wp.vec3, device=device)
+    idx = wp.array(np.asarray(faces, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
+    mesh = wp.Mesh(points=pts, indices=idx, support_winding_number=True)
+    q = wp.array(np.asarray(query, dtype=np.float32), dtype=wp.vec3, device=device)
+    out = wp.zeros(len(query), dtype=wp.int32, device=device)
+    diag = float(np.linalg.norm(np.ptp(np.asarray(points), axis=0))) + 1.0
+    wp.launch(classify_inside, dim=len(query), inputs=[mesh.id, q, 4.0 * diag], outputs=[out], device=device)
+    return out.numpy().astype(bool)
+
+
+@wp.kernel
+def refit_spheres(
+    vert_start: wp.array[wp.int32],
+    vert_index: wp.array[wp.int32],
+    rest_points: wp.array[wp.vec3],
+    points: wp.array[wp.vec3],
+    rest_centroid: wp.array[wp.vec3],
+    rest_offset: wp.array[wp.vec3],
+    rest_radius: wp.array[float],
+    rest_spread: wp.array[float],
+    centers: wp.array[wp.vec3],
+    radii: wp.array[float],
+    rotations: wp.array[wp.mat33],
+):
+    """Move sphere ``s`` rigidly with its vertices (Kabsch) and change its radius with their spread.
+
+    The thesis refits nothing (rigid objects only); this keeps each sphere on the part of the mesh it
+    was fitted to without re-running the fit. ``radius >= spread`` keeps the vertices bounded.
+    """
+    s = wp.tid()
+    a = vert_start[s]
+    b = vert_start[s + 1]
+    m = wp.vec3(0.0)
+    for k in range(a, b):
+        m = m + points[vert_index[k]]
+    m = m / float(wp.max(b - a, 1))
+    h = wp.mat33(0.0)
+    m0 = rest_centroid[s]
+    for k in range(a, b):
+        v = vert_index[k]
+        h = h + wp.outer(rest_points[v] - m0, points[v] - m)
+    u = wp.mat33()
+    sig = wp.vec3()
+    vv = wp.mat33()
+    wp.svd3(h, u, sig, vv)
+    rot = vv * wp.transpose(u)
+    if wp.determinant(rot) < 0.0:  # reflection from a degenerate (planar) vertex set: flip the weakest axis
+        vv = wp.matrix_from_cols(wp.vec3(vv[0, 0], vv[1, 0], vv[2, 0]), wp.vec3(vv[0, 1], vv[1, 1], vv[2, 1]),
+                                 -wp.vec3(vv[0, 2], vv[1, 2], vv[2, 2]))
+        rot = vv * wp.transpose(u)
+    c = m + rot * rest_offset[s]
+    spread = float(0.0)
+    for k in range(a, b):
+        spread = wp.max(spread, wp.length(points[vert_index[k]] - c))
+    centers[s] = c
+    radii[s] = wp.max(rest_radius[s] + spread - rest_spread[s], spread)
+    rotations[s] = rot
+
+
+@wp.kernel
+def bound_parents(
+    child_start: wp.array[wp.int32],
+    child_index: wp.array[wp.int32],
+    spheres: wp.array[wp.int32],
+    centers: wp.array[wp.vec3],
+    radii: wp.array[float],
+):
+    """Grow each parent in ``spheres`` until it bounds its children (launched level by level, bottom up)."""
+    t = wp.tid()
+    s = spheres[t]
+    c = centers[s]
+    r = radii[s]
+    for k in range(child_start[s], child_start[s + 1]):
+        j = child_index[k]
+        r = wp.max(r, wp.length(centers[j] - c) + radii[j])
+    radii[s] = r
+
+
+@wp.kernel
+def fit_clusters(
+    member_start: wp.array[wp.int32],
+    member_index: wp.array[wp.int32],
+    points: wp.array[wp.vec3],
+    centers: wp.array[wp.vec3],
+    radii: wp.array[float],
+):
+    """Bounding sphere (centroid, farthest member) of each receiver cluster."""
+    k = wp.tid()
+    a = member_start[k]
+    b = member_start[k + 1]
+    m = wp.vec3(0.0)
+    for i in range(a, b):
+        m = m + points[member_index[i]]
+    m = m / float(wp.max(b - a, 1))
+    r = float(0.0)
+    for i in range(a, b):
+        r = wp.max(r, wp.length(points[member_index[i]] - m))
+    centers[k] = m
+    radii[k] = r
+
+
+# --------------------------------------------------------------------------------------------------
+# SH helpers on rows of 2D arrays
+@wp.func
+def adjust_sphere(p: wp.vec3, n: wp.vec3, c: wp.vec3, r: float) -> wp.vec4:
+    """Tangent-plane rules of §4.2 (Ren et al. 2006) with the continuity factor α; returns (centre, radius).
+
+    Radius 0 means the sphere is removed. A sphere straddling ``T_p`` becomes the sphere tangent to ``T_p``
+    at the foot ``q1`` of its centre, keeping its highest point (radius ``(r+h)/2``), scaled by α about
+    ``q1``. α = 0 while ``p`` is inside the sphere and rises to 1 at twice the cut circle's radius ``d``
+    (the thesis' ``α = min(1, (|p-q1| - d)/d)``). For a centre in front of ``T_p`` (h > 0) the thesis
+    applies no α; we blend ``α + (1-α) h/r`` so the two straddling rules meet continuously at h = 0.
+    """
+    h = wp.dot(c - p, n)
+    if h >= r:
+        return wp.vec4(c[0], c[1], c[2], r)
+    if h <= -r:
+        return wp.vec4(0.0, 0.0, 0.0, 0.0)
+    q1 = c - h * n
+    d = wp.sqrt(wp.max(r * r - h * h, 0.0))
+    alpha = float(1.0)
+    if d > 1.0e-6 * r:
+        alpha = wp.clamp((wp.length(p - q1) - d) / d, 0.0, 1.0)
+    if h > 0.0:
+        alpha = alpha + (1.0 - alpha) * (h / r)
+    rho = alpha * 0.5 * (r + h)
+    cc = q1 + n * rho
+    return wp.vec4(cc[0], cc[1], cc[2], rho)
+
+
+@wp.func
+def lookup_zh(table: wp.array2d[float], theta: float, step: float, l: int) -> float:
+    """Linear interpolation of a ZH table row by angular radius ``theta`` (clamped to the table)."""
+    t = wp.clamp(theta / step, 0.0, float(table.shape[0] - 1))
+    i0 = wp.min(int(t), table.shape[0] - 2)
+    f = t - float(i0)
+    return table[i0, l] * (1.0 - f) + table[i0 + 1, l] * f
+
+
+@wp.func
+def zh_rotate_add(
+    d: wp.vec3,
+    table: wp.array2d[float],
+    theta: float,
+    step: float,
+    weight: wp.array2d[float],
+    wrow: int,
+    band_scale: wp.array[float],
+    order: int,
+    k: wp.array[float],
+    ybuf: wp.array2d[float],
+    out: wp.array2d[float],
+    row: int,
+):
+    """``out[row] += w_l sqrt(4π/(2l+1)) g_l(θ) y_lm(d)`` (eq. 3.17; ``w`` = ratio row, eq. 4.9)."""
+    n2 = order * order
+    for i in range(n2):
+        ybuf[row, i] = 0.0
+    sh_accumulate(d, 1.0, order, k, ybuf, row)
+    for l in range(order):
+        g = lookup_zh(table, theta, step, l) * weight[wrow, l]
+        for i in range(l * l, (l + 1) * (l + 1)):
+            out[row, i] = out[row, i] + g * band_scale[i] * ybuf[row, i]
+
+
+@wp.func
+def sh_product_rows(
+    a: wp.array2d[float],
+    b: wp.array2d[float],
+    row: int,
+    gi: wp.array[wp.int32],
+    gj: wp.array[wp.int32],
+    gk: wp.array[wp.int32],
+    gv: wp.array[float],
+    n2: int,
+    out: wp.array2d[float],
+):
+    """``out[row] = a[row] * b[row]`` (SH product, eq. 3.19, sparse Gaunt list of the order in use)."""
+    for i in range(n2):
+        out[row, i] = 0.0
+    for e in range(gv.shape[0]):
+        out[row, gi[e]] = out[row, gi[e]] + gv[e] * a[row, gj[e]] * b[row, gk[e]]
+
+
+@wp.func
+def exp_ab(exp_a: wp.array[float], exp_b: wp.array[float], m_max: float, m: float) -> wp.vec2:
+    t = wp.clamp(m / m_max * float(exp_a.shape[0] - 1), 0.0, float(exp_a.shape[0] - 1))
+    i0 = wp.min(int(t), exp_a.shape[0] - 2)
+    f = t - float(i0)
+    return wp.vec2(exp_a[i0] * (1.0 - f) + exp_a[i0 + 1] * f, exp_b[i0] * (1.0 - f) + exp_b[i0 + 1] * f)
+
+
+@wp.func
+def sh_exp_rows(
+    f: wp.array2d[float],
+    row: int,
+    mode: int,
+    tau: float,
+    order: int,
+    exp_a: wp.array[float],
+    exp_b: wp.array[float],
+    m_max: float,
+    gi: wp.array[wp.int32],
+    gj: wp.array[wp.int32],
+    gk: wp.array[wp.int32],
+    gv: wp.array[float],
+    out: wp.array2d[float],
+    tmp: wp.array2d[float],
+    tmp2: wp.array2d[float],
+):
+    """``out[row] = exp_*(f[row])``.
+
+    ``mode`` EXP_OL: optimal linear (eq. 3.30), DC isolated. EXP_HYBRID: scale the whole vector by
+    ``2^-p`` so ``||f̂|| 2^-p <= tau``, optimal linear, then ``p`` squarings (eqs. 3.31–3.32; scaling
+    the DC too keeps every intermediate a visibility-like vector, so nothing overflows). EXP_SERIES:
+    scaling to ``||f̂|| <= 1/4``, 8 Taylor terms with SH products (eq. 3.25), squarings: the accurate one.
+    """
+    n2 = order * order
+    m = float(0.0)
+    for i in range(1, n2):
+        m = m + f[row, i] * f[row, i]
+    m = wp.sqrt(m)
+    p = int(0)
+    lim = tau
+    if mode == EXP_SERIES:
+        lim = 0.25
+    if mode != EXP_OL:
+        while m * wp.pow(0.5, float(p)) > lim and p < 16:
+            p = p + 1
+    s = wp.pow(0.5, float(p))
+    dc = wp.exp(f[row, 0] * s / SQRT_4PI)
+    if mode == EXP_SERIES:
+        # out = 1 + x + x^2/2! + ... with x = s f̂; tmp holds the running term. f's DC is zeroed while
+        # multiplying by f̂ and restored afterwards.
+        f0 = f[row, 0]
+        f[row, 0] = 0.0
+        for i in range(n2):
+            tmp[row, i] = s * f[row, i]
+            out[row, i] = s * f[row, i]
+        out[row, 0] = SQRT_4PI
+        for kk in range(2, 9):
+            sh_product_rows(tmp, f, row, gi, gj, gk, gv, n2, tmp2)
+            for i in range(n2):
+                tmp[row, i] = tmp2[row, i] * s / float(kk)
+                out[row, i] = out[row, i] + tmp[row, i]
+        f[row, 0] = f0
+        for i in range(n2):
+            out[row, i] = out[row, i] * dc
+    else:
+        ab = exp_ab(exp_a, exp_b, m_max, m * s)
+        out[row, 0] = dc * ab[0] * SQRT_4PI
+        for i in range(1, n2):
+            out[row, i] = dc * ab[1] * s * f[row, i]
+    for _q in range(p):
+        sh_product_rows(out, out, row, gi, gj, gk, gv, n2, tmp)
+        for i in range(n2):
+            out[row, i] = tmp[row, i]
+
+
+@wp.func
+def cosine_row(n: wp.vec3, cosine: wp.array[float], order: int, k: wp.array[float], out: wp.array2d[float], row: int):
+    """``out[row]`` = clamped cosine about ``n`` (the unoccluded transfer, CONTRACTS.md §2)."""
+    for i in range(order * order):
+        out[row, i] = 0.0
+    sh_accumulate(n, 1.0, order, k, out, row)
+    for i in range(order * order):
+        out[row, i] = out[row, i] * cosine[i]
+
+
+@wp.func
+def accumulate_blockers(
+    p: wp.vec3,
+    n: wp.vec3,
+    first: int,
+    last: int,
+    cut_sphere: wp.array[wp.int32],
+    cut_ratio: wp.array2d[float],
+    centers: wp.array[wp.vec3],
+    radii: wp.array[float],
+    log_table: wp.array2d[float],
+    theta_step: float,
+    band_scale: wp.array[float],
+    order: int,
+    k: wp.array[float],
+    ybuf: wp.array2d[float],
+    logsum: wp.array2d[float],
+    row: int,
+) -> int:
+    """Add the rotated, ratio-scaled log blocker vectors of cut entries ``first..last-1`` (eq. 4.7); returns how many."""
+    used = int(0)
+    for e in range(first, last):
+        s = cut_sphere[e]
+        a = adjust_sphere(p, n, centers[s], radii[s])
+        rho = a[3]
+        if rho <= 0.0:
+            continue
+        d = wp.vec3(a[0], a[1], a[2]) - p
+        dist = wp.length(d)
+        if dist <= 0.0:
+            continue
+        theta = wp.asin(wp.min(rho / dist, 1.0))
+        zh_rotate_add(d, log_table, theta, theta_step, cut_ratio, e, band_scale, order, k, ybuf, logsum, row)
+        used = used + 1
+    return used
+
+
+@wp.kernel
+def shade_sphere_shadows(
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    cluster: wp.array[wp.int32],
+    centers: wp.array[wp.vec3],
+    radii: wp.array[float],
+    cut_start: wp.array[wp.int32],
+    cut_sphere: wp.array[wp.int32],
+    cut_ratio: wp.array2d[float],
+    log_table: wp.array2d[float],
+    theta_step: float,
+    band_scale: wp.array[float],
+    cosine: wp.array[float],
+    k: wp.array[float],
+    exp_a: wp.array[float],
+    exp_b: wp.array[float],
+    m_max: float,
+    mode: int,
+    tau: float,
+    gi: wp.array[wp.int32],
+    gj: wp.array[wp.int32],
+    gk: wp.array[wp.int32],
+    gv: wp.array[float],
+    order: int,
+    logsum: wp.array2d[float],
+    ybuf: wp.array2d[float],
+    tmp: wp.array2d[float],
+    tmp2: wp.array2d[float],
+    used: wp.array[wp.int32],
+    visibility: wp.array2d[float],
+    transfer: wp.array2d[float],
+):
+    """Sphere-set visibility (eq. 4.7) and diffuse transfer ``V * cos`` (CONTRACTS.md §2) of receiver ``v``.
+
+    ``transfer_0`` (irradiance under a uniform sky) is physically >= 0; SH ringing of a nearly closed
+    visibility can push it below, in which case the row is set to 0.
+    """
+    v = wp.tid()
+    c = cluster[v]
+    n2 = order * order
+    for i in range(n2):
+        logsum[v, i] = 0.0
+    used[v] = accumulate_blockers(points[v], normals[v], cut_start[c], cut_start[c + 1], cut_sphere, cut_ratio,
+                                  centers, radii, log_table, theta_step, band_scale, order, k, ybuf, logsum, v)
+    sh_exp_rows(logsum, v, mode, tau, order, exp_a, exp_b, m_max, gi, gj, gk, gv, visibility, tmp, tmp2)
+    cosine_row(normals[v], cosine, order, k, ybuf, v)
+    sh_product_rows(visibility, ybuf, v, gi, gj, gk, gv, n2, transfer)
+    if transfer[v, 0] < 0.0:
+        for i in range(n2):
+            transfer[v, i] = 0.0
+
+
+@wp.kernel
+def multiply_transfer(
+    transfer_in: wp.array2d[float],
+    visibility: wp.array2d[float],
+    gi: wp.array[wp.int32],
+    gj: wp.array[wp.int32],
+    gk: wp.array[wp.int32],
+    gv: wp.array[float],
+    order: int,
+    transfer: wp.array2d[float],
+):
+    """``transfer = transfer_in * visibility`` (SH product): another method's self-shadowed transfer
+    times the sphere visibility of other objects (visibilities multiply, §4.2 eq. 4.5)."""
+    v = wp.tid()
+    sh_product_rows(transfer_in, visibility, v, gi, gj, gk, gv, order * order, transfer)
+    if transfer[v, 0] < 0.0:
+        for i in range(order * order):
+            transfer[v, i] = 0.0
+
+
+@wp.kernel
+def compute_cut_ratios(
+    cut_cluster: wp.array[wp.int32],
+    cut_sphere: wp.array[wp.int32],
+    cluster_centers: wp.array[wp.vec3],
+    centers: wp.array[wp.vec3],
+    radii: wp.array[float],
+    leaf_start: wp.array[wp.int32],
+    leaf_index: wp.array[wp.int32],
+    log_table: wp.array2d[float],
+    theta_step: float,
+    band_scale: wp.array[float],
+    ones: wp.array2d[float],
+    order: int,
+    k: wp.array[float],
+    ybuf: wp.array2d[float],
+    fd: wp.array2d[float],
+    ratio: wp.array2d[float],
+):
+    """Ratio vector of eq. 4.9 for cut entry ``e``: per band, the least-squares scale of the parent's log
+    vector ``F_b`` onto the sum ``F_d`` of its leaves' log vectors, both at the cluster centre.
+
+    Leaves, and parents whose (or whose leaves') sphere contains the centre, get ratio 1.
+    """
+    e = wp.tid()
+    s = cut_sphere[e]
+    x = cluster_centers[cut_cluster[e]]
+    for l in range(order):
+        ratio[e, l] = 1.0
+    a = leaf_start[s]
+    b = leaf_start[s + 1]
+    if b - a == 1 and leaf_index[a] == s:
+        return
+    d = centers[s] - x
+    dist = wp.length(d)
+    if dist <= radii[s]:
+        return
+    for i in range(order * order):
+        fd[e, i] = 0.0
+    for q in range(a, b):
+        j = leaf_index[q]
+        dj = centers[j] - x
+        lj = wp.length(dj)
+        if lj <= radii[j]:
+            return
+        zh_rotate_add(dj, log_table, wp.asin(radii[j] / lj), theta_step, ones, 0, band_scale, order, k, ybuf, fd, e)
+    theta = wp.asin(radii[s] / dist)
+    for i in range(order * order):
+        ybuf[e, i] = 0.0
+    sh_accumulate(d, 1.0, order, k, ybuf, e)
+    for l in range(order):
+        g = lookup_zh(log_table, theta, theta_step, l)
+        num = float(0.0)
+        for i in range(l * l, (l + 1) * (l + 1)):
+            num = num + g * band_scale[i] * ybuf[e, i] * fd[e, i]
+        if g * g > 1.0e-12:
+            ratio[e, l] = wp.clamp(num / (g * g), -4.0, 4.0)
