@@ -104,7 +104,7 @@ class SpheresTransfer(TransferMethod):
 
     def _load_tables(self):
         d = self.device
-        t = sphere_tables(self.order)
+        t = sphere_tables(self.order, self.exp, self.tau)
         self.tables = t
         self._k = normalization_array(self.order, d)
         self._log = wp.array(t.log_blocker.astype(np.float32), dtype=float, device=d)
