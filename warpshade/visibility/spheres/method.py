@@ -52,13 +52,15 @@ class SpheresTransfer(TransferMethod):
             hemispherical rasterization, does self-shadowing and this one adds other objects).
         blockers: Other objects that cast shadows on ``mesh``: :class:`TriMesh` (fitted here with the
             same knobs) or ``(SphereTree, rest_points)`` pairs.
+        ratios: Apply the ratio vectors of eq. 4.9 to cut spheres above the leaves (off only to measure
+            what they do).
     """
 
     name = "spheres"
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", spheres: int = 30, levels: int = 3,
-                 threshold: float = 0.35, exp: str = "hyb", clusters: int = 0, tau: float = 1.0, seed: int = 0,
-                 self_shadow: bool = True, blockers: list | None = None):
+                 threshold: float = 0.35, exp: str = "hyb", clusters: int = 0, tau: float = 0.5, seed: int = 0,
+                 self_shadow: bool = True, blockers: list | None = None, ratios: bool = True):
         super().__init__(mesh, order, device)
         if exp not in EXP_MODES:
             raise ValueError(f"exp must be one of {', '.join(EXP_MODES)}, got {exp!r}")
@@ -68,6 +70,7 @@ class SpheresTransfer(TransferMethod):
             raise ValueError(f"tau must be > 0, got {tau}")
         self.spheres, self.levels, self.threshold, self.exp = int(spheres), int(levels), float(threshold), exp
         self.tau, self.seed, self.self_shadow = float(tau), int(seed), bool(self_shadow)
+        self.ratios = bool(ratios)
         self.clusters = int(clusters) if clusters else auto_clusters(mesh.num_vertices)
         trees, rests = [], []
         if self_shadow:
@@ -145,7 +148,7 @@ class SpheresTransfer(TransferMethod):
     def knobs(self) -> dict:
         return {"spheres": self.spheres, "levels": self.levels, "threshold": self.threshold, "exp": self.exp,
                 "clusters": self.clusters, "tau": self.tau, "seed": self.seed, "self_shadow": self.self_shadow,
-                "blockers": self.num_blockers}
+                "blockers": self.num_blockers, "ratios": self.ratios}
 
     def stats(self) -> dict:
         return dict(self._stats)
@@ -182,10 +185,10 @@ class SpheresTransfer(TransferMethod):
         self._cut_start = wp.array(start, dtype=wp.int32, device=d)
         self._cut_sphere = wp.array(np.resize(sph, E) if len(sph) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
         cut_cluster = wp.array(np.resize(clu, E) if len(clu) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
-        self._cut_ratio = wp.zeros((E, self.order), dtype=float, device=d)
+        self._cut_ratio = wp.array(np.ones((E, self.order), np.float32), dtype=float, device=d)
         scratch = [wp.zeros((E, self.order * self.order), dtype=float, device=d) for _ in range(2)]
         sc = self.scene
-        if len(sph):
+        if len(sph) and self.ratios:
             wp.launch(compute_cut_ratios, dim=len(sph),
                       inputs=[cut_cluster, self._cut_sphere, self.cluster_centers, sc.centers, sc.radii,
                               wp.array(sc.leaf_start, dtype=wp.int32, device=d),
