@@ -230,12 +230,19 @@ def exp_ab(exp_a: wp.array[float], exp_b: wp.array[float], m_max: float, m: floa
     return wp.vec2(exp_a[i0] * (1.0 - f) + exp_a[i0 + 1] * f, exp_b[i0] * (1.0 - f) + exp_b[i0 + 1] * f)
 
 
+EXP_BLEND = 0.25
+"""Width (in octaves of ``||f̂||``) over which the scaled exponentials of ``p`` and ``p+1`` squarings are
+blended, so the result is continuous where the squaring count changes (a jump of up to 0.1 in a
+coefficient otherwise, i.e. visible flicker as receivers move)."""
+
+
 @wp.func
-def sh_exp_rows(
+def exp_scaled(
     f: wp.array2d[float],
     row: int,
     mode: int,
-    tau: float,
+    p: int,
+    m: float,
     order: int,
     exp_a: wp.array[float],
     exp_b: wp.array[float],
@@ -248,25 +255,8 @@ def sh_exp_rows(
     tmp: wp.array2d[float],
     tmp2: wp.array2d[float],
 ):
-    """``out[row] = exp_*(f[row])``.
-
-    ``mode`` EXP_OL: optimal linear (eq. 3.30), DC isolated. EXP_HYBRID: scale the whole vector by
-    ``2^-p`` so ``||f̂|| 2^-p <= tau``, optimal linear, then ``p`` squarings (eqs. 3.31–3.32; scaling
-    the DC too keeps every intermediate a visibility-like vector, so nothing overflows). EXP_SERIES:
-    scaling to ``||f̂|| <= 1/4``, 8 Taylor terms with SH products (eq. 3.25), squarings: the accurate one.
-    """
+    """``out[row] = (exp(2^-p f))^(2^p)``: optimal linear or Taylor at the small scale, then p squarings."""
     n2 = order * order
-    m = float(0.0)
-    for i in range(1, n2):
-        m = m + f[row, i] * f[row, i]
-    m = wp.sqrt(m)
-    p = int(0)
-    lim = tau
-    if mode == EXP_SERIES:
-        lim = 0.25
-    if mode != EXP_OL:
-        while m * wp.pow(0.5, float(p)) > lim and p < 16:
-            p = p + 1
     s = wp.pow(0.5, float(p))
     dc = wp.exp(f[row, 0] * s / SQRT_4PI)
     if mode == EXP_SERIES:
@@ -295,6 +285,83 @@ def sh_exp_rows(
         sh_product_rows(out, out, row, gi, gj, gk, gv, n2, tmp)
         for i in range(n2):
             out[row, i] = tmp[row, i]
+
+
+@wp.func
+def sh_exp_rows(
+    f: wp.array2d[float],
+    row: int,
+    mode: int,
+    tau: float,
+    order: int,
+    exp_a: wp.array[float],
+    exp_b: wp.array[float],
+    m_max: float,
+    gi: wp.array[wp.int32],
+    gj: wp.array[wp.int32],
+    gk: wp.array[wp.int32],
+    gv: wp.array[float],
+    out: wp.array2d[float],
+    alt: wp.array2d[float],
+    tmp: wp.array2d[float],
+    tmp2: wp.array2d[float],
+):
+    """``out[row] = exp_*(f[row])``.
+
+    ``mode`` EXP_OL: optimal linear (eq. 3.30), DC isolated. EXP_HYBRID: scale the whole vector by
+    ``2^-p`` so ``||f̂|| 2^-p <= tau``, optimal linear, then ``p`` squarings (eqs. 3.31–3.32; scaling
+    the DC too keeps every intermediate a visibility-like vector, so nothing overflows). EXP_SERIES:
+    scaling to ``||f̂|| <= 1/4``, 8 Taylor terms with SH products (eq. 3.25), squarings: the accurate one.
+    Within :data:`EXP_BLEND` octaves below a change of ``p`` the results for ``p`` and ``p+1`` are
+    blended linearly in ``log2 ||f̂||`` (continuity).
+    """
+    n2 = order * order
+    m = float(0.0)
+    for i in range(1, n2):
+        m = m + f[row, i] * f[row, i]
+    m = wp.sqrt(m)
+    lim = tau
+    if mode == EXP_SERIES:
+        lim = 0.25
+    p = int(0)
+    w = float(0.0)
+    if mode != EXP_OL and m > 0.0:
+        q = wp.log2(m / lim)
+        p = wp.clamp(int(wp.ceil(q)), 0, 16)
+        w = wp.clamp((q - (float(p) - EXP_BLEND)) / EXP_BLEND, 0.0, 1.0)
+    exp_scaled(f, row, mode, p, m, order, exp_a, exp_b, m_max, gi, gj, gk, gv, out, tmp, tmp2)
+    if w > 0.0:
+        exp_scaled(f, row, mode, p + 1, m, order, exp_a, exp_b, m_max, gi, gj, gk, gv, alt, tmp, tmp2)
+        for i in range(n2):
+            out[row, i] = (1.0 - w) * out[row, i] + w * alt[row, i]
+
+
+VIS_NORM_SLACK = 1.1
+"""A visibility in [0, 1] has ``||V|| <= sqrt(4π)`` and ``0 <= V_0 <= sqrt(4π)``; 10 % slack admits SH
+ringing of legitimate results. Beyond it the exponential has diverged (see :func:`guard_visibility`)."""
+
+
+@wp.func
+def guard_visibility(f: wp.array2d[float], row: int, order: int, vis: wp.array2d[float]) -> int:
+    """Replace an implausible exponential by the geometric-mean visibility ``exp(f_0/sqrt(4π))`` (DC only).
+
+    When many blockers overlap in one direction the log sum is a deep narrow well whose order-N SH
+    truncation rings positive elsewhere, and exp of that ringing explodes (1000 overlapping spheres:
+    V_0 ~ 200). No exponential can recover from it; the geometric mean is bounded by the true mean
+    visibility (Jensen) and goes to 0 as blockers accumulate. Returns 1 when the fallback was used.
+    """
+    n2 = order * order
+    nv = float(0.0)
+    for i in range(n2):
+        nv = nv + vis[row, i] * vis[row, i]
+    bound = VIS_NORM_SLACK * SQRT_4PI
+    v0 = vis[row, 0]
+    if v0 >= 0.0 and v0 <= bound and nv <= bound * bound:
+        return 0
+    for i in range(n2):
+        vis[row, i] = 0.0
+    vis[row, 0] = SQRT_4PI * wp.exp(wp.min(f[row, 0] / SQRT_4PI, 0.0))
+    return 1
 
 
 @wp.func
@@ -371,16 +438,19 @@ def shade_sphere_shadows(
     order: int,
     logsum: wp.array2d[float],
     ybuf: wp.array2d[float],
+    alt: wp.array2d[float],
     tmp: wp.array2d[float],
     tmp2: wp.array2d[float],
     used: wp.array[wp.int32],
+    fallback: wp.array[wp.int32],
     visibility: wp.array2d[float],
     transfer: wp.array2d[float],
 ):
     """Sphere-set visibility (eq. 4.7) and diffuse transfer ``V * cos`` (CONTRACTS.md §2) of receiver ``v``.
 
     ``transfer_0`` (irradiance under a uniform sky) is physically >= 0; SH ringing of a nearly closed
-    visibility can push it below, in which case the row is set to 0.
+    visibility can push it below, in which case the row is set to 0. ``fallback[v] = 1`` marks a
+    diverged exponential replaced by :func:`guard_visibility`.
     """
     v = wp.tid()
     c = cluster[v]
@@ -389,7 +459,8 @@ def shade_sphere_shadows(
         logsum[v, i] = 0.0
     used[v] = accumulate_blockers(points[v], normals[v], cut_start[c], cut_start[c + 1], cut_sphere, cut_ratio,
                                   centers, radii, log_table, theta_step, band_scale, order, k, ybuf, logsum, v)
-    sh_exp_rows(logsum, v, mode, tau, order, exp_a, exp_b, m_max, gi, gj, gk, gv, visibility, tmp, tmp2)
+    sh_exp_rows(logsum, v, mode, tau, order, exp_a, exp_b, m_max, gi, gj, gk, gv, visibility, alt, tmp, tmp2)
+    fallback[v] = guard_visibility(logsum, v, order, visibility)
     cosine_row(normals[v], cosine, order, k, ybuf, v)
     sh_product_rows(visibility, ybuf, v, gi, gj, gk, gv, n2, transfer)
     if transfer[v, 0] < 0.0:

@@ -99,7 +99,9 @@ class SpheresTransfer(TransferMethod):
         V, n2 = mesh.num_vertices, self.order * self.order
         self.visibility = wp.zeros((V, n2), dtype=float, device=device)
         """Sphere-set visibility, shape (V, N*N), dtype float32, world space (eq. 4.7)."""
-        self._scratch = [wp.zeros((V, n2), dtype=float, device=device) for _ in range(4)]
+        self._scratch = [wp.zeros((V, n2), dtype=float, device=device) for _ in range(5)]
+        self.fallback = wp.zeros(V, dtype=wp.int32, device=device)
+        """1 where the exponential diverged and the geometric-mean visibility was used (last update)."""
         self.used = wp.zeros(V, dtype=wp.int32, device=device)
         """Spheres that contributed at each vertex in the last update, shape (V,), int32."""
         self._blocker_points = [None] * len(trees)
@@ -195,17 +197,17 @@ class SpheresTransfer(TransferMethod):
                               wp.array(sc.leaf_index, dtype=wp.int32, device=d), self._log,
                               self.tables.theta_step, self._band, self._ones, self.order, self._k, *scratch],
                       outputs=[self._cut_ratio], device=d)
-        logsum, ybuf, tmp, tmp2 = self._scratch
+        logsum, ybuf, alt, tmp, tmp2 = self._scratch
         t = self.tables
         wp.launch(shade_sphere_shadows, dim=self.mesh.num_vertices,
                   inputs=[self.points, self.normals, self.cluster, sc.centers, sc.radii, self._cut_start,
                           self._cut_sphere, self._cut_ratio, self._log, t.theta_step, self._band, self._cos, self._k,
                           self._exp_a, self._exp_b, t.exp.m_max, EXP_MODES[self.exp], self.tau, *self._gaunt,
-                          self.order, logsum, ybuf, tmp, tmp2],
-                  outputs=[self.used, self.visibility, self.transfer], device=d)
+                          self.order, logsum, ybuf, alt, tmp, tmp2],
+                  outputs=[self.used, self.fallback, self.visibility, self.transfer], device=d)
         self._stats = {"cut_spheres_per_cluster": float(len(sph)) / self.clusters,
                        "leaf_spheres": int((sc.level == 0).sum()), "total_spheres": sc.num_spheres,
-                       "clusters": self.clusters}
+                       "clusters": self.clusters, "exp_fallbacks": int(self.fallback.numpy().sum())}
 
     def spheres_used(self) -> np.ndarray:
         """Spheres that contributed at each vertex in the last update, shape (V,), int."""

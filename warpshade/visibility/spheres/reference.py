@@ -101,6 +101,10 @@ def shade_np(p, n, centers, radii, order, mode="hyb", tau=1.0, ratios=None):
             g = g * ratios[s]
         logsum += zh_rotate_np(g, d, order)
     vis = sh_exp_np(logsum, order, mode, tau)
+    bound = 1.1 * SQRT_4PI  # kernel guard_visibility
+    if not (0 <= vis[0] <= bound and vis @ vis <= bound * bound):
+        vis = np.zeros_like(vis)
+        vis[0] = SQRT_4PI * math.exp(min(logsum[0] / SQRT_4PI, 0.0))
     tr = sh_product_np(vis, cosine_np(n, order), order)
     if tr[0] < 0:
         tr = np.zeros_like(tr)

@@ -228,23 +228,11 @@ def per_coeff(zh: np.ndarray) -> np.ndarray:
     return np.concatenate([[zh[l]] * (2 * l + 1) for l in range(len(zh))])
 
 
-def sh_exp_generic(f: np.ndarray, mode: str, tau: float, table: ExpTable, product) -> np.ndarray:
-    """SH exponential, the same algorithm as the kernel ``sh_exp_rows`` (see there), for any product.
+EXP_BLEND = 0.25
+"""Octaves of ``||f̂||`` over which results of ``p`` and ``p+1`` squarings are blended (see kernels)."""
 
-    Args:
-        f: SH (or ZH) vector.
-        mode: ``"ol"``, ``"hyb"`` or ``"series"``.
-        tau: Hybrid: largest ``||f̂||`` given to the optimal-linear step.
-        table: Optimal-linear coefficients.
-        product: ``product(a, b)``: SH product (full) or zonal product.
-    """
-    f = np.asarray(f, dtype=np.float64)
-    m = float(np.linalg.norm(f[1:]))
-    p = 0
-    lim = 0.25 if mode == "series" else tau
-    if mode != "ol":
-        while m * 0.5 ** p > lim and p < 16:
-            p += 1
+
+def _exp_scaled(f, mode, p, m, table, product):
     s = 0.5 ** p
     dc = math.exp(f[0] * s / math.sqrt(4 * math.pi))
     fh = f.copy()
@@ -263,6 +251,30 @@ def sh_exp_generic(f: np.ndarray, mode: str, tau: float, table: ExpTable, produc
         out[0] = dc * a * math.sqrt(4 * math.pi)
     for _ in range(p):
         out = product(out, out)
+    return out
+
+
+def sh_exp_generic(f: np.ndarray, mode: str, tau: float, table: ExpTable, product) -> np.ndarray:
+    """SH exponential, the same algorithm as the kernel ``sh_exp_rows`` (see there), for any product.
+
+    Args:
+        f: SH (or ZH) vector.
+        mode: ``"ol"``, ``"hyb"`` or ``"series"``.
+        tau: Hybrid: largest ``||f̂||`` given to the optimal-linear step.
+        table: Optimal-linear coefficients.
+        product: ``product(a, b)``: SH product (full) or zonal product.
+    """
+    f = np.asarray(f, dtype=np.float64)
+    m = float(np.linalg.norm(f[1:]))
+    lim = 0.25 if mode == "series" else tau
+    p, w = 0, 0.0
+    if mode != "ol" and m > 0:
+        q = math.log2(m / lim)
+        p = min(max(math.ceil(q), 0), 16)
+        w = min(max((q - (p - EXP_BLEND)) / EXP_BLEND, 0.0), 1.0)
+    out = _exp_scaled(f, mode, p, m, table, product)
+    if w > 0:
+        out = (1 - w) * out + w * _exp_scaled(f, mode, p + 1, m, table, product)
     return out
 
 
