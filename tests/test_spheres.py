@@ -16,8 +16,10 @@ from warpshade.geometry import TriMesh, load_mesh
 from warpshade.visibility import get_method
 from warpshade.visibility.spheres import SpheresTransfer, build_sphere_tree, refit_np
 from warpshade.visibility.spheres.fitting import tree_from_spheres
-from warpshade.visibility.spheres.reference import adjust_sphere_np, cosine_np, shade_np, sh_product_np, zh_rotate_np
-from warpshade.visibility.spheres.tables import cap_blocker_zh, zh_project_pieces
+from warpshade.sh.products import sh_product
+from warpshade.sh.zonal import sphere_visibility_zh as cap_blocker_zh
+from warpshade.sh.zonal import zh_rotate
+from warpshade.visibility.spheres.reference import adjust_sphere_np, cosine_np, shade_np
 
 SQRT_4PI = math.sqrt(4 * math.pi)
 
@@ -48,14 +50,6 @@ def grid(n, size):
     return TriMesh(pts, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]))
 
 
-# -- tables --------------------------------------------------------------------------------------
-@pytest.mark.parametrize("theta", [1e-4, 0.3, 1.0, math.pi / 2])
-def test_cap_zh_matches_quadrature(theta):
-    # analytic Legendre integral vs independent Gauss-Legendre quadrature of the step function
-    num = zh_project_pieces(lambda z: np.where(z > math.cos(theta), 0.0, 1.0), 6, [-1, math.cos(theta), 1], 64)
-    np.testing.assert_allclose(cap_blocker_zh(theta, 6), num, atol=1e-12)
-
-
 # -- kernels vs reference ------------------------------------------------------------------------
 @pytest.mark.parametrize("mode", ["ol", "hyb", "series"])
 def test_kernel_matches_numpy_reference(mode, rng):
@@ -71,10 +65,10 @@ def test_kernel_matches_numpy_reference(mode, rng):
         np.testing.assert_allclose(m.transfer.numpy()[0], tr, atol=2e-5, err_msg=f"{mode} n={normal}")
 
 
-# Single-sphere error bounds measured over θ in [0, 1.56] (order 5): they come from the SH logarithm
-# (Ren's eigen-log with clipped eigenvalues) and the exponential's approximation; below θ = 0.6 all
-# modes reproduce the cap to < 1e-3.
-SINGLE_TOL = {"ol": 0.17, "hyb": 0.10, "series": 0.08}
+# Single-sphere error bounds measured over θ in [0, 1.56] (order 5, 40 radii): max 0.067 (ol), 0.077
+# (hyb), 0.076 (series), all near θ -> π/2 where the cap's product matrix is indefinite and no log
+# reproduces it; below θ = 0.6 every mode reproduces the cap to <= 2e-3.
+SINGLE_TOL = {"ol": 0.085, "hyb": 0.095, "series": 0.095}
 
 
 @pytest.mark.parametrize("mode", ["ol", "hyb", "series"])
@@ -85,9 +79,9 @@ def test_single_sphere_matches_analytic_cap(mode):
     for theta in (1e-4, 0.1, 0.3, 0.6, 1.0, 1.3, 1.5, 1.56):
         dist = 2.0
         m = spheres_on(recv, [w * dist], [dist * math.sin(theta)], exp=mode)
-        cap = zh_rotate_np(cap_blocker_zh(theta, 5), w, 5)
+        cap = zh_rotate(cap_blocker_zh(theta, 5), w)
         err = np.abs(m.visibility.numpy()[0] - cap).max()
-        tol = 1e-3 if theta <= 0.6 else SINGLE_TOL[mode]
+        tol = 3e-3 if theta <= 0.6 else SINGLE_TOL[mode]
         assert err < tol, (mode, theta, err)
 
 
@@ -102,7 +96,7 @@ def test_exp_of_log_sum_vs_sh_products(nb):
     prod = np.zeros(25)
     prod[0] = SQRT_4PI
     for i in range(nb):
-        prod = sh_product_np(prod, zh_rotate_np(cap_blocker_zh(th[i], 5), w[i], 5), 5)
+        prod = sh_product(prod, zh_rotate(cap_blocker_zh(th[i], 5), w[i]), 5)
     # relative L2 distance to the product of projected caps; measured (3 seeds, 50 blockers): series
     # 0.0055, hybrid (tau 0.5) 0.032, optimal linear 0.092; it grows about linearly with blockers.
     tol = {"series": 0.0002 * nb + 0.001, "hyb": 0.001 * nb + 0.003, "ol": 0.0022 * nb + 0.003}

@@ -16,9 +16,9 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ...sh.kernels import sh_accumulate
+from ...sh.kernels import (SQRT_4PI, OLTableArrays, SHProductTable, sh_accumulate, sh_dc_free_norm, sh_exp_hybrid,
+                           sh_exp_ol, sh_product_rows, zh_rotate_accumulate)
 
-SQRT_4PI = 3.5449077018110318
 EXP_OL = 0
 EXP_HYBRID = 1
 EXP_SERIES = 2
@@ -169,120 +169,62 @@ def adjust_sphere(p: wp.vec3, n: wp.vec3, c: wp.vec3, r: float) -> wp.vec4:
 
 
 @wp.func
-def lookup_zh(table: wp.array2d[float], theta: float, step: float, l: int) -> float:
-    """Linear interpolation of a ZH table row by angular radius ``theta`` (clamped to the table)."""
-    t = wp.clamp(theta / step, 0.0, float(table.shape[0] - 1))
-    i0 = wp.min(int(t), table.shape[0] - 2)
-    f = t - float(i0)
-    return table[i0, l] * (1.0 - f) + table[i0 + 1, l] * f
-
-
-@wp.func
-def zh_rotate_add(
-    d: wp.vec3,
+def lerp_zh_row(
     table: wp.array2d[float],
     theta: float,
     step: float,
     weight: wp.array2d[float],
     wrow: int,
-    band_scale: wp.array[float],
     order: int,
-    k: wp.array[float],
-    ybuf: wp.array2d[float],
     out: wp.array2d[float],
     row: int,
 ):
-    """``out[row] += w_l sqrt(4π/(2l+1)) g_l(θ) y_lm(d)`` (eq. 3.17; ``w`` = ratio row, eq. 4.9)."""
-    n2 = order * order
-    for i in range(n2):
-        ybuf[row, i] = 0.0
-    sh_accumulate(d, 1.0, order, k, ybuf, row)
-    for l in range(order):
-        g = lookup_zh(table, theta, step, l) * weight[wrow, l]
-        for i in range(l * l, (l + 1) * (l + 1)):
-            out[row, i] = out[row, i] + g * band_scale[i] * ybuf[row, i]
-
-
-@wp.func
-def sh_product_rows(
-    a: wp.array2d[float],
-    b: wp.array2d[float],
-    row: int,
-    gi: wp.array[wp.int32],
-    gj: wp.array[wp.int32],
-    gk: wp.array[wp.int32],
-    gv: wp.array[float],
-    n2: int,
-    out: wp.array2d[float],
-):
-    """``out[row] = a[row] * b[row]`` (SH product, eq. 3.19, sparse Gaunt list of the order in use)."""
-    for i in range(n2):
-        out[row, i] = 0.0
-    for e in range(gv.shape[0]):
-        out[row, gi[e]] = out[row, gi[e]] + gv[e] * a[row, gj[e]] * b[row, gk[e]]
-
-
-@wp.func
-def exp_ab(exp_a: wp.array[float], exp_b: wp.array[float], m_max: float, m: float) -> wp.vec2:
-    t = wp.clamp(m / m_max * float(exp_a.shape[0] - 1), 0.0, float(exp_a.shape[0] - 1))
-    i0 = wp.min(int(t), exp_a.shape[0] - 2)
+    """``out[row, l] = w_l g_l(θ)``: table row interpolated by angular radius, times a ratio row (eq. 4.9)."""
+    t = wp.clamp(theta / step, 0.0, float(table.shape[0] - 1))
+    i0 = wp.min(int(t), table.shape[0] - 2)
     f = t - float(i0)
-    return wp.vec2(exp_a[i0] * (1.0 - f) + exp_a[i0 + 1] * f, exp_b[i0] * (1.0 - f) + exp_b[i0 + 1] * f)
+    for l in range(order):
+        out[row, l] = (table[i0, l] * (1.0 - f) + table[i0 + 1, l] * f) * weight[wrow, l]
 
 
 EXP_BLEND = 0.25
-"""Width (in octaves of ``||f̂||``) over which the scaled exponentials of ``p`` and ``p+1`` squarings are
-blended, so the result is continuous where the squaring count changes (a jump of up to 0.1 in a
-coefficient otherwise, i.e. visible flicker as receivers move)."""
+"""Width (in octaves of ``||f̂||``) over which the exponentials with ``p`` and ``p+1`` squarings are
+blended, so the result is continuous where the squaring count changes (the SH core's hybrid jumps
+there by up to 0.1 in a coefficient: visible flicker as receivers move)."""
 
 
 @wp.func
-def exp_scaled(
+def exp_series_scaled(
     f: wp.array2d[float],
     row: int,
-    mode: int,
     p: int,
-    m: float,
-    order: int,
-    exp_a: wp.array[float],
-    exp_b: wp.array[float],
-    m_max: float,
-    gi: wp.array[wp.int32],
-    gj: wp.array[wp.int32],
-    gk: wp.array[wp.int32],
-    gv: wp.array[float],
+    n2: int,
+    products: SHProductTable,
     out: wp.array2d[float],
     tmp: wp.array2d[float],
     tmp2: wp.array2d[float],
 ):
-    """``out[row] = (exp(2^-p f))^(2^p)``: optimal linear or Taylor at the small scale, then p squarings."""
-    n2 = order * order
+    """``out[row] = (exp_*(2^-p f))^(2^p)`` with 8 Taylor terms of SH products (eq. 3.25) at the small
+    scale and p squarings (eq. 3.32). ``f``'s DC is isolated (eq. 3.27): zeroed while multiplying by
+    ``f̂`` and restored."""
     s = wp.pow(0.5, float(p))
-    dc = wp.exp(f[row, 0] * s / SQRT_4PI)
-    if mode == EXP_SERIES:
-        # out = 1 + x + x^2/2! + ... with x = s f̂; tmp holds the running term. f's DC is zeroed while
-        # multiplying by f̂ and restored afterwards.
-        f0 = f[row, 0]
-        f[row, 0] = 0.0
+    f0 = f[row, 0]
+    f[row, 0] = 0.0
+    for i in range(n2):
+        tmp[row, i] = s * f[row, i]
+        out[row, i] = s * f[row, i]
+    out[row, 0] = SQRT_4PI
+    for kk in range(2, 9):
+        sh_product_rows(tmp, row, f, row, n2, products, tmp2, row)
         for i in range(n2):
-            tmp[row, i] = s * f[row, i]
-            out[row, i] = s * f[row, i]
-        out[row, 0] = SQRT_4PI
-        for kk in range(2, 9):
-            sh_product_rows(tmp, f, row, gi, gj, gk, gv, n2, tmp2)
-            for i in range(n2):
-                tmp[row, i] = tmp2[row, i] * s / float(kk)
-                out[row, i] = out[row, i] + tmp[row, i]
-        f[row, 0] = f0
-        for i in range(n2):
-            out[row, i] = out[row, i] * dc
-    else:
-        ab = exp_ab(exp_a, exp_b, m_max, m * s)
-        out[row, 0] = dc * ab[0] * SQRT_4PI
-        for i in range(1, n2):
-            out[row, i] = dc * ab[1] * s * f[row, i]
+            tmp[row, i] = tmp2[row, i] * s / float(kk)
+            out[row, i] = out[row, i] + tmp[row, i]
+    f[row, 0] = f0
+    dc = wp.exp(f0 * s / SQRT_4PI)
+    for i in range(n2):
+        out[row, i] = out[row, i] * dc
     for _q in range(p):
-        sh_product_rows(out, out, row, gi, gj, gk, gv, n2, tmp)
+        sh_product_rows(out, row, out, row, n2, products, tmp, row)
         for i in range(n2):
             out[row, i] = tmp[row, i]
 
@@ -293,45 +235,45 @@ def sh_exp_rows(
     row: int,
     mode: int,
     tau: float,
-    order: int,
-    exp_a: wp.array[float],
-    exp_b: wp.array[float],
-    m_max: float,
-    gi: wp.array[wp.int32],
-    gj: wp.array[wp.int32],
-    gk: wp.array[wp.int32],
-    gv: wp.array[float],
+    n2: int,
+    ol: OLTableArrays,
+    products: SHProductTable,
     out: wp.array2d[float],
     alt: wp.array2d[float],
     tmp: wp.array2d[float],
     tmp2: wp.array2d[float],
 ):
-    """``out[row] = exp_*(f[row])``.
+    """``out[row] = exp_*(f[row])`` (thesis §3.1.4).
 
-    ``mode`` EXP_OL: optimal linear (eq. 3.30), DC isolated. EXP_HYBRID: scale the whole vector by
-    ``2^-p`` so ``||f̂|| 2^-p <= tau``, optimal linear, then ``p`` squarings (eqs. 3.31–3.32; scaling
-    the DC too keeps every intermediate a visibility-like vector, so nothing overflows). EXP_SERIES:
-    scaling to ``||f̂|| <= 1/4``, 8 Taylor terms with SH products (eq. 3.25), squarings: the accurate one.
-    Within :data:`EXP_BLEND` octaves below a change of ``p`` the results for ``p`` and ``p+1`` are
-    blended linearly in ``log2 ||f̂||`` (continuity).
+    EXP_OL: the SH core's optimal linear (eq. 3.30). EXP_HYBRID: the SH core's hybrid (OL on
+    ``f̂/2^p`` with ``||f̂||/2^p <= tau``, p squarings, eq. 3.32). EXP_SERIES: 8 Taylor terms after
+    scaling to ``||f̂|| <= 1/4``, then squarings (accurate, slow). For the two squaring modes the
+    results with ``p`` and ``p+1`` squarings are blended within :data:`EXP_BLEND` octaves below each
+    change of ``p``, linearly in ``log2 ||f̂||`` (continuity).
     """
-    n2 = order * order
-    m = float(0.0)
-    for i in range(1, n2):
-        m = m + f[row, i] * f[row, i]
-    m = wp.sqrt(m)
+    if mode == EXP_OL:
+        sh_exp_ol(f, row, n2, ol, out, row)
+        return
+    m = sh_dc_free_norm(f, row, n2)
     lim = tau
     if mode == EXP_SERIES:
         lim = 0.25
     p = int(0)
     w = float(0.0)
-    if mode != EXP_OL and m > 0.0:
+    if m > 0.0:
         q = wp.log2(m / lim)
-        p = wp.clamp(int(wp.ceil(q)), 0, 16)
+        p = wp.clamp(int(wp.ceil(q)), 0, 30)
         w = wp.clamp((q - (float(p) - EXP_BLEND)) / EXP_BLEND, 0.0, 1.0)
-    exp_scaled(f, row, mode, p, m, order, exp_a, exp_b, m_max, gi, gj, gk, gv, out, tmp, tmp2)
+    if mode == EXP_HYBRID:
+        sh_exp_hybrid(f, row, n2, lim, ol, products, tmp, row, out, row)
+        if w > 0.0:
+            # threshold/2 makes the core's hybrid take exactly one more squaring
+            sh_exp_hybrid(f, row, n2, 0.5 * lim, ol, products, tmp, row, alt, row)
+    else:
+        exp_series_scaled(f, row, p, n2, products, out, tmp, tmp2)
+        if w > 0.0:
+            exp_series_scaled(f, row, p + 1, n2, products, alt, tmp, tmp2)
     if w > 0.0:
-        exp_scaled(f, row, mode, p + 1, m, order, exp_a, exp_b, m_max, gi, gj, gk, gv, alt, tmp, tmp2)
         for i in range(n2):
             out[row, i] = (1.0 - w) * out[row, i] + w * alt[row, i]
 
@@ -365,13 +307,12 @@ def guard_visibility(f: wp.array2d[float], row: int, order: int, vis: wp.array2d
 
 
 @wp.func
-def cosine_row(n: wp.vec3, cosine: wp.array[float], order: int, k: wp.array[float], out: wp.array2d[float], row: int):
+def cosine_row(n: wp.vec3, cos_zh: wp.array2d[float], order: int, kz: wp.array[float], out: wp.array2d[float],
+               row: int):
     """``out[row]`` = clamped cosine about ``n`` (the unoccluded transfer, CONTRACTS.md §2)."""
     for i in range(order * order):
         out[row, i] = 0.0
-    sh_accumulate(n, 1.0, order, k, out, row)
-    for i in range(order * order):
-        out[row, i] = out[row, i] * cosine[i]
+    zh_rotate_accumulate(n, cos_zh, 0, 1.0, order, kz, out, row)
 
 
 @wp.func
@@ -386,10 +327,9 @@ def accumulate_blockers(
     radii: wp.array[float],
     log_table: wp.array2d[float],
     theta_step: float,
-    band_scale: wp.array[float],
     order: int,
-    k: wp.array[float],
-    ybuf: wp.array2d[float],
+    kz: wp.array[float],
+    zbuf: wp.array2d[float],
     logsum: wp.array2d[float],
     row: int,
 ) -> int:
@@ -405,8 +345,8 @@ def accumulate_blockers(
         dist = wp.length(d)
         if dist <= 0.0:
             continue
-        theta = wp.asin(wp.min(rho / dist, 1.0))
-        zh_rotate_add(d, log_table, theta, theta_step, cut_ratio, e, band_scale, order, k, ybuf, logsum, row)
+        lerp_zh_row(log_table, wp.asin(wp.min(rho / dist, 1.0)), theta_step, cut_ratio, e, order, zbuf, row)
+        zh_rotate_accumulate(d, zbuf, row, 1.0, order, kz, logsum, row)
         used = used + 1
     return used
 
@@ -423,20 +363,15 @@ def shade_sphere_shadows(
     cut_ratio: wp.array2d[float],
     log_table: wp.array2d[float],
     theta_step: float,
-    band_scale: wp.array[float],
-    cosine: wp.array[float],
-    k: wp.array[float],
-    exp_a: wp.array[float],
-    exp_b: wp.array[float],
-    m_max: float,
+    cos_zh: wp.array2d[float],
+    kz: wp.array[float],
+    ol: OLTableArrays,
+    products: SHProductTable,
     mode: int,
     tau: float,
-    gi: wp.array[wp.int32],
-    gj: wp.array[wp.int32],
-    gk: wp.array[wp.int32],
-    gv: wp.array[float],
     order: int,
     logsum: wp.array2d[float],
+    zbuf: wp.array2d[float],
     ybuf: wp.array2d[float],
     alt: wp.array2d[float],
     tmp: wp.array2d[float],
@@ -458,11 +393,11 @@ def shade_sphere_shadows(
     for i in range(n2):
         logsum[v, i] = 0.0
     used[v] = accumulate_blockers(points[v], normals[v], cut_start[c], cut_start[c + 1], cut_sphere, cut_ratio,
-                                  centers, radii, log_table, theta_step, band_scale, order, k, ybuf, logsum, v)
-    sh_exp_rows(logsum, v, mode, tau, order, exp_a, exp_b, m_max, gi, gj, gk, gv, visibility, alt, tmp, tmp2)
+                                  centers, radii, log_table, theta_step, order, kz, zbuf, logsum, v)
+    sh_exp_rows(logsum, v, mode, tau, n2, ol, products, visibility, alt, tmp, tmp2)
     fallback[v] = guard_visibility(logsum, v, order, visibility)
-    cosine_row(normals[v], cosine, order, k, ybuf, v)
-    sh_product_rows(visibility, ybuf, v, gi, gj, gk, gv, n2, transfer)
+    cosine_row(normals[v], cos_zh, order, kz, ybuf, v)
+    sh_product_rows(visibility, v, ybuf, v, n2, products, transfer, v)
     if transfer[v, 0] < 0.0:
         for i in range(n2):
             transfer[v, i] = 0.0
@@ -472,17 +407,14 @@ def shade_sphere_shadows(
 def multiply_transfer(
     transfer_in: wp.array2d[float],
     visibility: wp.array2d[float],
-    gi: wp.array[wp.int32],
-    gj: wp.array[wp.int32],
-    gk: wp.array[wp.int32],
-    gv: wp.array[float],
+    products: SHProductTable,
     order: int,
     transfer: wp.array2d[float],
 ):
     """``transfer = transfer_in * visibility`` (SH product): another method's self-shadowed transfer
     times the sphere visibility of other objects (visibilities multiply, §4.2 eq. 4.5)."""
     v = wp.tid()
-    sh_product_rows(transfer_in, visibility, v, gi, gj, gk, gv, order * order, transfer)
+    sh_product_rows(transfer_in, v, visibility, v, order * order, products, transfer, v)
     if transfer[v, 0] < 0.0:
         for i in range(order * order):
             transfer[v, i] = 0.0
@@ -499,11 +431,11 @@ def compute_cut_ratios(
     leaf_index: wp.array[wp.int32],
     log_table: wp.array2d[float],
     theta_step: float,
-    band_scale: wp.array[float],
     ones: wp.array2d[float],
     order: int,
-    k: wp.array[float],
-    ybuf: wp.array2d[float],
+    kz: wp.array[float],
+    zbuf: wp.array2d[float],
+    fb: wp.array2d[float],
     fd: wp.array2d[float],
     ratio: wp.array2d[float],
 ):
@@ -527,21 +459,22 @@ def compute_cut_ratios(
         return
     for i in range(order * order):
         fd[e, i] = 0.0
+        fb[e, i] = 0.0
     for q in range(a, b):
         j = leaf_index[q]
         dj = centers[j] - x
         lj = wp.length(dj)
         if lj <= radii[j]:
             return
-        zh_rotate_add(dj, log_table, wp.asin(radii[j] / lj), theta_step, ones, 0, band_scale, order, k, ybuf, fd, e)
-    theta = wp.asin(radii[s] / dist)
-    for i in range(order * order):
-        ybuf[e, i] = 0.0
-    sh_accumulate(d, 1.0, order, k, ybuf, e)
+        lerp_zh_row(log_table, wp.asin(radii[j] / lj), theta_step, ones, 0, order, zbuf, e)
+        zh_rotate_accumulate(dj, zbuf, e, 1.0, order, kz, fd, e)
+    lerp_zh_row(log_table, wp.asin(radii[s] / dist), theta_step, ones, 0, order, zbuf, e)
+    zh_rotate_accumulate(d, zbuf, e, 1.0, order, kz, fb, e)
     for l in range(order):
-        g = lookup_zh(log_table, theta, theta_step, l)
         num = float(0.0)
+        den = float(0.0)
         for i in range(l * l, (l + 1) * (l + 1)):
-            num = num + g * band_scale[i] * ybuf[e, i] * fd[e, i]
-        if g * g > 1.0e-12:
-            ratio[e, l] = wp.clamp(num / (g * g), -4.0, 4.0)
+            num = num + fb[e, i] * fd[e, i]
+            den = den + fb[e, i] * fb[e, i]
+        if den > 1.0e-12:
+            ratio[e, l] = wp.clamp(num / den, -4.0, 4.0)

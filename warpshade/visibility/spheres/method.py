@@ -17,13 +17,14 @@ import numpy as np
 import warp as wp
 
 from ...geometry.mesh import TriMesh
-from ...sh.kernels import normalization_array
+from ...sh.kernels import ol_table_arrays, product_table_arrays, zh_normalization_array
+from ...sh.zonal import clamped_cosine_zh
 from ..base import TransferMethod
 from .fitting import SphereTree, build_sphere_tree, cluster_receivers
 from .kernels import (EXP_HYBRID, EXP_OL, EXP_SERIES, compute_cut_ratios, fit_clusters, multiply_transfer,
                       shade_sphere_shadows)
 from .sets import SphereScene, _csr
-from .tables import gaunt_sparse, sphere_tables
+from .tables import sphere_tables
 
 EXP_MODES = {"ol": EXP_OL, "hyb": EXP_HYBRID, "series": EXP_SERIES}
 
@@ -99,7 +100,9 @@ class SpheresTransfer(TransferMethod):
         V, n2 = mesh.num_vertices, self.order * self.order
         self.visibility = wp.zeros((V, n2), dtype=float, device=device)
         """Sphere-set visibility, shape (V, N*N), dtype float32, world space (eq. 4.7)."""
-        self._scratch = [wp.zeros((V, n2), dtype=float, device=device) for _ in range(5)]
+        self._scratch = [wp.zeros((V, n2), dtype=float, device=device) for _ in range(6)]
+        self._leaf_start = wp.array(self.scene.leaf_start, dtype=wp.int32, device=device)
+        self._leaf_index = wp.array(self.scene.leaf_index, dtype=wp.int32, device=device)
         self.fallback = wp.zeros(V, dtype=wp.int32, device=device)
         """1 where the exponential diverged and the geometric-mean visibility was used (last update)."""
         self.used = wp.zeros(V, dtype=wp.int32, device=device)
@@ -111,15 +114,12 @@ class SpheresTransfer(TransferMethod):
         d = self.device
         t = sphere_tables(self.order, self.exp, self.tau)
         self.tables = t
-        self._k = normalization_array(self.order, d)
+        self._kz = zh_normalization_array(self.order, d)
         self._log = wp.array(t.log_blocker.astype(np.float32), dtype=float, device=d)
         self._ff = wp.array(t.form_factor.astype(np.float32), dtype=float, device=d)
-        self._band = wp.array(t.band_scale.astype(np.float32), dtype=float, device=d)
-        self._cos = wp.array(t.cosine.astype(np.float32), dtype=float, device=d)
-        self._exp_a = wp.array(t.exp.a.astype(np.float32), dtype=float, device=d)
-        self._exp_b = wp.array(t.exp.b.astype(np.float32), dtype=float, device=d)
-        self._gaunt = [wp.array(a, dtype=wp.int32 if a.dtype == np.int32 else float, device=d)
-                       for a in gaunt_sparse(self.order)]
+        self._cos_zh = wp.array(clamped_cosine_zh(self.order)[None].astype(np.float32), dtype=float, device=d)
+        self._ol = ol_table_arrays(self.order, d)
+        self._products = product_table_arrays(self.order, d)
         self._ones = wp.array(np.ones((1, self.order), np.float32), dtype=float, device=d)
 
     # -- command line ------------------------------------------------------------------------
@@ -188,22 +188,23 @@ class SpheresTransfer(TransferMethod):
         self._cut_sphere = wp.array(np.resize(sph, E) if len(sph) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
         cut_cluster = wp.array(np.resize(clu, E) if len(clu) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
         self._cut_ratio = wp.array(np.ones((E, self.order), np.float32), dtype=float, device=d)
-        scratch = [wp.zeros((E, self.order * self.order), dtype=float, device=d) for _ in range(2)]
+        n2 = self.order * self.order
+        scratch = [wp.zeros((E, self.order), dtype=float, device=d)] + \
+            [wp.zeros((E, n2), dtype=float, device=d) for _ in range(2)]
         sc = self.scene
         if len(sph) and self.ratios:
             wp.launch(compute_cut_ratios, dim=len(sph),
                       inputs=[cut_cluster, self._cut_sphere, self.cluster_centers, sc.centers, sc.radii,
-                              wp.array(sc.leaf_start, dtype=wp.int32, device=d),
-                              wp.array(sc.leaf_index, dtype=wp.int32, device=d), self._log,
-                              self.tables.theta_step, self._band, self._ones, self.order, self._k, *scratch],
+                              self._leaf_start, self._leaf_index, self._log, self.tables.theta_step, self._ones,
+                              self.order, self._kz, *scratch],
                       outputs=[self._cut_ratio], device=d)
-        logsum, ybuf, alt, tmp, tmp2 = self._scratch
+        logsum, zbuf, ybuf, alt, tmp, tmp2 = self._scratch
         t = self.tables
         wp.launch(shade_sphere_shadows, dim=self.mesh.num_vertices,
                   inputs=[self.points, self.normals, self.cluster, sc.centers, sc.radii, self._cut_start,
-                          self._cut_sphere, self._cut_ratio, self._log, t.theta_step, self._band, self._cos, self._k,
-                          self._exp_a, self._exp_b, t.exp.m_max, EXP_MODES[self.exp], self.tau, *self._gaunt,
-                          self.order, logsum, ybuf, alt, tmp, tmp2],
+                          self._cut_sphere, self._cut_ratio, self._log, t.theta_step, self._cos_zh, self._kz,
+                          self._ol, self._products, EXP_MODES[self.exp], self.tau, self.order,
+                          logsum, zbuf, ybuf, alt, tmp, tmp2],
                   outputs=[self.used, self.fallback, self.visibility, self.transfer], device=d)
         self._stats = {"cut_spheres_per_cluster": float(len(sph)) / self.clusters,
                        "leaf_spheres": int((sc.level == 0).sum()), "total_spheres": sc.num_spheres,
@@ -233,6 +234,6 @@ class SpheresTransfer(TransferMethod):
             raise ValueError(f"transfer_in must have shape ({V}, {n2}), got {tuple(transfer_in.shape)}")
         if out is None:
             out = wp.zeros((V, n2), dtype=float, device=self.device)
-        wp.launch(multiply_transfer, dim=V, inputs=[transfer_in, self.visibility, *self._gaunt, self.order],
+        wp.launch(multiply_transfer, dim=V, inputs=[transfer_in, self.visibility, self._products, self.order],
                   outputs=[out], device=self.device)
         return out
