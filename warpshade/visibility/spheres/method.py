@@ -181,34 +181,56 @@ class SpheresTransfer(TransferMethod):
         self.scene.refit(self._blocker_points)
         wp.launch(fit_clusters, dim=self.clusters, inputs=[*self._members, self.points],
                   outputs=[self.cluster_centers, self.cluster_radii], device=d)
-        start, sph, clu = self.scene.select_cuts(self.cluster_centers.numpy().astype(np.float64),
-                                                 self.cluster_radii.numpy().astype(np.float64), self.threshold)
-        E = max(len(sph), 1)
-        self._cut_start = wp.array(start, dtype=wp.int32, device=d)
-        self._cut_sphere = wp.array(np.resize(sph, E) if len(sph) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
-        cut_cluster = wp.array(np.resize(clu, E) if len(clu) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
-        self._cut_ratio = wp.array(np.ones((E, self.order), np.float32), dtype=float, device=d)
-        n2 = self.order * self.order
-        scratch = [wp.zeros((E, self.order), dtype=float, device=d)] + \
-            [wp.zeros((E, n2), dtype=float, device=d) for _ in range(2)]
+        ncut = self.shade_points(self.points, self.normals, self.cluster, self.cluster_centers, self.cluster_radii,
+                                 self._scratch, self.used, self.fallback, self.visibility, self.transfer)
         sc = self.scene
-        if len(sph) and self.ratios:
-            wp.launch(compute_cut_ratios, dim=len(sph),
-                      inputs=[cut_cluster, self._cut_sphere, self.cluster_centers, sc.centers, sc.radii,
-                              self._leaf_start, self._leaf_index, self._log, self.tables.theta_step, self._ones,
-                              self.order, self._kz, *scratch],
-                      outputs=[self._cut_ratio], device=d)
-        logsum, zbuf, ybuf, alt, tmp, tmp2 = self._scratch
-        t = self.tables
-        wp.launch(shade_sphere_shadows, dim=self.mesh.num_vertices,
-                  inputs=[self.points, self.normals, self.cluster, sc.centers, sc.radii, self._cut_start,
-                          self._cut_sphere, self._cut_ratio, self._log, t.theta_step, self._cos_zh, self._kz,
-                          self._ol, self._products, EXP_MODES[self.exp], self.tau, self.order,
-                          logsum, zbuf, ybuf, alt, tmp, tmp2],
-                  outputs=[self.used, self.fallback, self.visibility, self.transfer], device=d)
-        self._stats = {"cut_spheres_per_cluster": float(len(sph)) / self.clusters,
+        self._stats = {"cut_spheres_per_cluster": float(ncut) / self.clusters,
                        "leaf_spheres": int((sc.level == 0).sum()), "total_spheres": sc.num_spheres,
                        "clusters": self.clusters, "exp_fallbacks": int(self.fallback.numpy().sum())}
+
+    def shade_points(self, points, normals, cluster, cluster_centers, cluster_radii, scratch, used, fallback,
+                     visibility, transfer) -> int:
+        """Sphere-set visibility and transfer of any receiver points against the current (refitted) spheres.
+
+        Used for the mesh vertices and for the surface samples of the reflection pass.
+
+        Args:
+            points, normals: Receivers, shape (R,), vec3.
+            cluster: Cluster of each receiver, shape (R,), int32.
+            cluster_centers, cluster_radii: Cluster bounding spheres, shape (K,), vec3 / float32.
+            scratch: Six (R, N*N) float32 arrays.
+            used, fallback: Per-receiver counters, shape (R,), int32.
+            visibility, transfer: Outputs, shape (R, N*N), float32.
+
+        Returns:
+            Number of cut entries (spheres summed over clusters).
+        """
+        d = self.device
+        start, sph, clu = self.scene.select_cuts(cluster_centers.numpy().astype(np.float64),
+                                                 cluster_radii.numpy().astype(np.float64), self.threshold)
+        E = max(len(sph), 1)
+        cut_start = wp.array(start, dtype=wp.int32, device=d)
+        cut_sphere = wp.array(np.resize(sph, E) if len(sph) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
+        cut_cluster = wp.array(np.resize(clu, E) if len(clu) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
+        cut_ratio = wp.array(np.ones((E, self.order), np.float32), dtype=float, device=d)
+        n2 = self.order * self.order
+        sc = self.scene
+        if len(sph) and self.ratios:
+            buf = [wp.zeros((E, self.order), dtype=float, device=d)] + \
+                [wp.zeros((E, n2), dtype=float, device=d) for _ in range(2)]
+            wp.launch(compute_cut_ratios, dim=len(sph),
+                      inputs=[cut_cluster, cut_sphere, cluster_centers, sc.centers, sc.radii,
+                              self._leaf_start, self._leaf_index, self._log, self.tables.theta_step, self._ones,
+                              self.order, self._kz, *buf],
+                      outputs=[cut_ratio], device=d)
+        t = self.tables
+        wp.launch(shade_sphere_shadows, dim=points.shape[0],
+                  inputs=[points, normals, cluster, sc.centers, sc.radii, cut_start, cut_sphere, cut_ratio, self._log,
+                          t.theta_step, self._cos_zh, self._kz, self._ol, self._products, EXP_MODES[self.exp],
+                          self.tau, self.order, *scratch],
+                  outputs=[used, fallback, visibility, transfer], device=d)
+        self._cut = (cut_start, cut_sphere, cut_ratio)
+        return len(sph)
 
     def spheres_used(self) -> np.ndarray:
         """Spheres that contributed at each vertex in the last update, shape (V,), int."""
