@@ -409,3 +409,24 @@ def tree_from_spheres(centers, radii) -> tuple[SphereTree, np.ndarray]:
     tree = SphereTree(c.copy(), r.copy(), np.zeros(S, int), -np.ones(S, int),
                       np.arange(0, 4 * S + 1, 4, dtype=np.int64), np.arange(4 * S, dtype=np.int64), True, 0.0)
     return tree, pts
+
+
+def halfspace_blocker(point, normal, scale: float, ratio: float = 1000.0) -> tuple[SphereTree, np.ndarray]:
+    """A ground plane as a blocker: one sphere of radius ``ratio * scale`` tangent to the plane from below.
+
+    Seen from a receiver within ``scale`` of ``point`` it subtends ``π/2 - O(1/ratio)``: the half-space
+    behind the plane (a ground box casts no spheres in the thesis; this lets it shadow the objects on it).
+
+    Args:
+        point: A point on the plane [m], (3,).
+        normal: Plane normal pointing to the open side, (3,).
+        scale: Size of the region where receivers live [m] (e.g. the scene's bounding-box diagonal).
+        ratio: Sphere radius over ``scale`` (float32 positions keep ``1/ratio`` above their precision).
+
+    Returns:
+        ``(tree, rest_points)`` to pass in ``blockers``.
+    """
+    n = np.asarray(normal, dtype=np.float64)
+    n = n / np.linalg.norm(n)
+    r = ratio * float(scale)
+    return tree_from_spheres([np.asarray(point, dtype=np.float64) - n * r], [r])

@@ -55,13 +55,15 @@ class SpheresTransfer(TransferMethod):
             same knobs) or ``(SphereTree, rest_points)`` pairs.
         ratios: Apply the ratio vectors of eq. 4.9 to cut spheres above the leaves (off only to measure
             what they do).
+        self_tree: A sphere tree already fitted to ``mesh`` (rest pose), to skip the fit.
     """
 
     name = "spheres"
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", spheres: int = 30, levels: int = 3,
                  threshold: float = 0.35, exp: str = "hyb", clusters: int = 0, tau: float = 0.5, seed: int = 0,
-                 self_shadow: bool = True, blockers: list | None = None, ratios: bool = True):
+                 self_shadow: bool = True, blockers: list | None = None, ratios: bool = True,
+                 self_tree: SphereTree | None = None):
         super().__init__(mesh, order, device)
         if exp not in EXP_MODES:
             raise ValueError(f"exp must be one of {', '.join(EXP_MODES)}, got {exp!r}")
@@ -75,7 +77,8 @@ class SpheresTransfer(TransferMethod):
         self.clusters = int(clusters) if clusters else auto_clusters(mesh.num_vertices)
         trees, rests = [], []
         if self_shadow:
-            trees.append(build_sphere_tree(mesh.points, mesh.faces, spheres, levels, seed=seed, device=device))
+            trees.append(self_tree if self_tree is not None else
+                         build_sphere_tree(mesh.points, mesh.faces, spheres, levels, seed=seed, device=device))
             rests.append(mesh.points)
         for b in blockers or []:
             if isinstance(b, TriMesh):
