@@ -61,7 +61,7 @@ class SpheresTransfer(TransferMethod):
     name = "spheres"
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", spheres: int = 30, levels: int = 3,
-                 threshold: float = 0.35, exp: str = "hyb", clusters: int = 0, tau: float = 0.5, seed: int = 0,
+                 threshold: float = 0.5, exp: str = "hyb", clusters: int = 0, tau: float = 0.5, seed: int = 0,
                  self_shadow: bool = True, blockers: list | None = None, ratios: bool = True,
                  self_tree: SphereTree | None = None):
         super().__init__(mesh, order, device)
@@ -130,7 +130,7 @@ class SpheresTransfer(TransferMethod):
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
         parser.add_argument("--spheres", type=int, default=30, help="leaf spheres per object (default 30)")
         parser.add_argument("--levels", type=int, default=3, help="sphere hierarchy levels incl. leaves (default 3)")
-        parser.add_argument("--threshold", type=float, default=0.35,
+        parser.add_argument("--threshold", type=float, default=0.5,
                             help="cut threshold on a sphere's max angular radius over a cluster [rad] (eq. 4.8)")
         parser.add_argument("--exp", choices=sorted(EXP_MODES), default="hyb",
                             help="SH exponential: hyb (default), ol (optimal linear), series (accurate, slow)")
@@ -144,11 +144,11 @@ class SpheresTransfer(TransferMethod):
 
     @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
-        base = {"spheres": 30, "levels": 3, "threshold": 0.35, "exp": "hyb"}
+        base = {"spheres": 30, "levels": 3, "threshold": 0.5, "exp": "hyb"}
         if quick:
             return [base, {**base, "exp": "ol"}, {**base, "spheres": 60}]
         return [base, {**base, "exp": "ol"}, {**base, "exp": "series"}, {**base, "spheres": 15},
-                {**base, "spheres": 60}, {**base, "threshold": 0.2}, {**base, "threshold": 0.6}]
+                {**base, "spheres": 60}, {**base, "threshold": 0.3}, {**base, "threshold": 0.8}]
 
     def knobs(self) -> dict:
         return {"spheres": self.spheres, "levels": self.levels, "threshold": self.threshold, "exp": self.exp,
