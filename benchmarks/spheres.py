@@ -97,18 +97,8 @@ def sky(order: int) -> np.ndarray:
 
 
 def cpu_seconds(fn, repeat: int) -> float:
-    """Median CPU time of this process per call (after the wall-clock runs warmed everything up).
-
-    On a shared, oversubscribed machine wall time includes waiting for a core; CPU time is what one
-    idle core would need (the kernels are single-threaded), so both are reported.
-    """
-    times = []
-    for _ in range(max(1, repeat)):
-        t0 = time.process_time()
-        fn()
-        wp.synchronize()
-        times.append(time.process_time() - t0)
-    return float(np.median(times))
+    """Median CPU time of this process per call (wall time on a shared machine includes waiting for a core)."""
+    return median_seconds(fn, repeat=repeat, warmup=0, clock=time.process_time)
 
 
 def run_scene(objs: dict, order: int, exp: str, spheres_per_object: int, repeat: int, rays: int,
