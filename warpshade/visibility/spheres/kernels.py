@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ...sh.kernels import (SQRT_4PI, OLTableArrays, SHProductTable, sh_accumulate, sh_dc_free_norm, sh_exp_hybrid,
-                           sh_exp_ol, sh_product_rows, zh_rotate_accumulate)
+from ...sh.kernels import (SQRT_4PI, OLTableArrays, SHProductTable, sh_dc_free_norm, sh_exp_hybrid, sh_exp_ol,
+                           sh_product_rows, zh_lerp_rotate_accumulate, zh_rotate_accumulate)
 
 EXP_OL = 0
 EXP_HYBRID = 1
@@ -187,7 +187,7 @@ def lerp_zh_row(
         out[row, l] = (table[i0, l] * (1.0 - f) + table[i0 + 1, l] * f) * weight[wrow, l]
 
 
-EXP_BLEND = 0.25
+EXP_BLEND = 0.125
 """Width (in octaves of ``||f̂||``) over which the exponentials with ``p`` and ``p+1`` squarings are
 blended, so the result is continuous where the squaring count changes (the SH core's hybrid jumps
 there by up to 0.1 in a coefficient: visible flicker as receivers move)."""
@@ -345,8 +345,19 @@ def accumulate_blockers(
         dist = wp.length(d)
         if dist <= 0.0:
             continue
-        lerp_zh_row(log_table, wp.asin(wp.min(rho / dist, 1.0)), theta_step, cut_ratio, e, order, zbuf, row)
-        zh_rotate_accumulate(d, zbuf, row, 1.0, order, kz, logsum, row)
+        theta = wp.asin(wp.min(rho / dist, 1.0))
+        plain = int(1)
+        for l in range(order):
+            if cut_ratio[e, l] != 1.0:
+                plain = 0
+        if plain == 1:
+            # leaves (no ratio): interpolate inside the rotation, no scratch row
+            t = wp.clamp(theta / theta_step, 0.0, float(log_table.shape[0] - 1))
+            i0 = wp.min(int(t), log_table.shape[0] - 2)
+            zh_lerp_rotate_accumulate(d, log_table, i0, i0 + 1, t - float(i0), 1.0, order, kz, logsum, row)
+        else:
+            lerp_zh_row(log_table, theta, theta_step, cut_ratio, e, order, zbuf, row)
+            zh_rotate_accumulate(d, zbuf, row, 1.0, order, kz, logsum, row)
         used = used + 1
     return used
 

@@ -34,10 +34,10 @@ of a large cap indefinite, and a small clip turns those directions into huge log
 
 LOG_FIT_POINTS = 64
 LOG_FIT_REG = 1e-2
-TABLES_VERSION = 3
+TABLES_VERSION = 4
 """Bump when anything that feeds the cached tables changes."""
 
-EXP_BLEND = 0.25
+EXP_BLEND = 0.125
 """Octaves of ``||f̂||`` over which results with ``p`` and ``p+1`` squarings are blended (kernels.EXP_BLEND)."""
 
 
