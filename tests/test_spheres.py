@@ -382,3 +382,22 @@ def test_reflection_samples_follow_deformation():
     np.testing.assert_allclose(refl._spts.numpy()[ok], expect, atol=1e-5)
     # the squashed ball's bottom is farther away (z = 2.5 instead of 2): less reflected light
     assert e1 < e0
+
+
+def test_reflection_per_vertex_albedo():
+    # per-vertex albedo equal to a constant reproduces the constant case; black on the half facing the
+    # receiver (z < dist) removes almost all of the bounce, black on the far half almost none of it
+    m, refl, bm = _ball_scene(3.0)
+    const = refl.update(WHITE_SKY, [[0.5, 0.5, 0.5]]).numpy().copy()
+    per_vertex = refl.update(WHITE_SKY, [np.full((bm.num_vertices, 3), 0.5)]).numpy().copy()
+    np.testing.assert_allclose(per_vertex, const, rtol=1e-6)
+    lower = np.repeat((bm.points[:, 2] < 3.0)[:, None], 3, axis=1)
+    near = np.where(lower, 0.0, 0.5)  # black on the half facing the receiver
+    far = np.where(lower, 0.5, 0.0)
+    e_near_black = refl.update(WHITE_SKY, [near]).numpy()[0, 0]
+    e_far_black = refl.update(WHITE_SKY, [far]).numpy()[0, 0]
+    # measured 0 (-0.011 before the clamp at 0: SH ringing) and 1.011 of the constant case
+    assert 0 <= e_near_black < 0.05 * const[0, 0] and 0.95 * const[0, 0] < e_far_black < 1.05 * const[0, 0], \
+        (e_near_black, e_far_black)
+    with pytest.raises(ValueError, match="albedo"):
+        refl.update(WHITE_SKY, [np.ones((5, 3))])

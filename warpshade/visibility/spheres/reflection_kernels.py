@@ -67,24 +67,29 @@ def resample_surface(
     faces: wp.array2d[wp.int32],
     points: wp.array[wp.vec3],
     normals: wp.array[wp.vec3],
+    albedo: wp.array[wp.vec3],
     sample_points: wp.array2d[wp.vec3],
     sample_normals: wp.array2d[wp.vec3],
+    sample_albedo: wp.array2d[wp.vec3],
 ):
     """Re-read a surface sample from the current (deformed) mesh by its rest-pose triangle and barycentrics.
 
-    Invalid samples (face -1) get a zero normal, as in the thesis.
+    Invalid samples (face -1) get a zero normal, as in the thesis, and zero albedo (black). ``albedo``
+    is per vertex (the surface colour environment of §4.3.1, sampled where the sample sits).
     """
     s, j = wp.tid()
     f = sample_face[s, j]
     if f < 0:
         sample_points[s, j] = wp.vec3(0.0)
         sample_normals[s, j] = wp.vec3(0.0)
+        sample_albedo[s, j] = wp.vec3(0.0)
         return
     b = sample_bary[s, j]
     i0 = faces[f, 0]
     i1 = faces[f, 1]
     i2 = faces[f, 2]
     sample_points[s, j] = b[0] * points[i0] + b[1] * points[i1] + b[2] * points[i2]
+    sample_albedo[s, j] = b[0] * albedo[i0] + b[1] * albedo[i1] + b[2] * albedo[i2]
     n = b[0] * normals[i0] + b[1] * normals[i1] + b[2] * normals[i2]
     ln = wp.length(n)
     if ln > 0.0:
@@ -97,7 +102,7 @@ def project_sphere_radiance(
     transfer: wp.array2d[float],
     sample_face: wp.array2d[wp.int32],
     light: wp.array2d[float],
-    albedo: wp.array2d[float],
+    sample_albedo: wp.array2d[wp.vec3],
     voronoi_sh: wp.array2d[float],
     n2: int,
     radiance: wp.array3d[float],
@@ -106,9 +111,9 @@ def project_sphere_radiance(
 
     ``M_j = (1/π) Σ_i L_i,c T_j,i`` is the white-albedo shadowed exit radiance at sample ``j`` (rows of
     ``transfer``: sample ``s * m + j``); projecting the Voronoi-cell-constant function by the
-    precomputed cell sums ``voronoi_sh[j]`` (eq. 4.19) and multiplying by the sphere's albedo gives
-    ``r = Σ_j albedo_c M_j Y_j``: the product with the colour environment of eq. 4.20 done exactly
-    (the colour is constant per object; invalid directions are black).
+    precomputed cell sums ``voronoi_sh[j]`` (eq. 4.19), with the albedo sampled at the same point,
+    gives ``r = Σ_j albedo_j,c M_j Y_j``: the product with the colour environment of eq. 4.20 taken
+    on the same Voronoi cells (no SH-product truncation); invalid directions are black.
     """
     s, c = wp.tid()
     m = sample_face.shape[1]
@@ -121,7 +126,7 @@ def project_sphere_radiance(
         e = float(0.0)
         for i in range(n2):
             e = e + light[i, c] * transfer[row, i]
-        e = e * albedo[s, c] / wp.pi
+        e = e * sample_albedo[s, j][c] / wp.pi
         for i in range(n2):
             radiance[s, c, i] = radiance[s, c, i] + e * voronoi_sh[j, i]
 
@@ -222,4 +227,5 @@ def shade_sphere_reflections(
                 acc = acc + radiance[best, c, i] * tmp[v, i]
             col[c] = acc
         total = total + vis * col
-    irradiance[v] = total
+    # SH ringing of a sharply coloured radiance vector can dip below 0; irradiance cannot
+    irradiance[v] = wp.vec3(wp.max(total[0], 0.0), wp.max(total[1], 0.0), wp.max(total[2], 0.0))

@@ -102,6 +102,7 @@ class SphereReflections:
         self._bary = wp.array(bary.astype(np.float32), dtype=wp.vec3, device=d)
         R = max(L * m, 1)
         self._spts = wp.zeros((max(L, 1), m), dtype=wp.vec3, device=d)
+        self._salb = wp.zeros((max(L, 1), m), dtype=wp.vec3, device=d)
         self._snrm = wp.zeros((max(L, 1), m), dtype=wp.vec3, device=d)
         n2 = order * order
         self._s_scratch = [wp.zeros((R, n2), dtype=float, device=d) for _ in range(6)]
@@ -163,7 +164,8 @@ class SphereReflections:
 
         Args:
             light: Distant lighting, SH radiance per colour, shape (N*N, 3) (world space).
-            albedo: Per object of ``method.scene``, diffuse albedo RGB (objects without a mesh ignored).
+            albedo: Per object of ``method.scene``, diffuse albedo: RGB (3,) or per vertex (V_o, 3) (objects
+                without a mesh are ignored; give them any RGB).
 
         Returns:
             :attr:`irradiance`, shape (V,), vec3.
@@ -173,9 +175,8 @@ class SphereReflections:
         light = np.asarray(light, dtype=np.float32)
         if light.shape != (n2, 3):
             raise ValueError(f"light must have shape ({n2}, 3), got {light.shape}")
-        alb = np.asarray(albedo, dtype=np.float64)
-        if alb.shape != (len(meth.scene.trees), 3):
-            raise ValueError(f"albedo must have shape ({len(meth.scene.trees)}, 3), got {alb.shape}")
+        if len(albedo) != len(meth.scene.trees):
+            raise ValueError(f"need one albedo per sphere-set object ({len(meth.scene.trees)}), got {len(albedo)}")
         L = len(self.leaves)
         if L == 0:
             self.irradiance.zero_()
@@ -188,10 +189,17 @@ class SphereReflections:
             elif not isinstance(pts, wp.array):
                 pts = wp.array(np.asarray(pts, dtype=np.float32), dtype=wp.vec3, device=d)
             vertex_normals(pts, ob["faces"], out=ob["normals"])
+            nv = ob["mesh"].num_vertices
+            a = np.asarray(albedo[ob["obj"]], dtype=np.float32)
+            if a.shape == (3,):
+                a = np.broadcast_to(a, (nv, 3))
+            if a.shape != (nv, 3) or not np.isfinite(a).all():
+                raise ValueError(f"{ob['mesh'].name}: albedo must be finite RGB (3,) or ({nv}, 3), got {a.shape}")
             k0, k1 = ob["first"], ob["first"] + len(ob["leaf"])
-            wp.launch(resample_surface, dim=(k1 - k0, m), inputs=[self._face[k0:k1], self._bary[k0:k1], ob["faces"],
-                                                                  pts, ob["normals"]],
-                      outputs=[self._spts[k0:k1], self._snrm[k0:k1]], device=d)
+            wp.launch(resample_surface, dim=(k1 - k0, m),
+                      inputs=[self._face[k0:k1], self._bary[k0:k1], ob["faces"], pts, ob["normals"],
+                              wp.array(np.ascontiguousarray(a), dtype=wp.vec3, device=d)],
+                      outputs=[self._spts[k0:k1], self._snrm[k0:k1], self._salb[k0:k1]], device=d)
         # first pass: shadows at the samples, one cluster per sphere (bounded by the sphere itself)
         spts = self._spts.reshape((L * m,))
         snrm = self._snrm.reshape((L * m,))
@@ -199,9 +207,8 @@ class SphereReflections:
                   device=d)
         meth.shade_points(spts, snrm, self._s_cluster, self._s_centers, self._s_radii, self._s_scratch,
                           self._s_used, self._s_fallback, self._s_vis, self._s_transfer)
-        leaf_albedo = wp.array(alb[self.leaf_object].astype(np.float32), dtype=float, device=d)
         wp.launch(project_sphere_radiance, dim=(L, 3),
-                  inputs=[self._s_transfer, self._face, wp.array(light, dtype=float, device=d), leaf_albedo,
+                  inputs=[self._s_transfer, self._face, wp.array(light, dtype=float, device=d), self._salb,
                           self._voronoi, n2],
                   outputs=[self.radiance], device=d)
         # second pass at the receiver vertices
