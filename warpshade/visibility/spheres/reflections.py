@@ -223,9 +223,14 @@ class SphereReflections:
     def exit_radiance(self, light, albedo_receiver) -> np.ndarray:
         """``(ρ/π)(L · T + E_R)`` at the receiver vertices: shadowed direct plus one bounce, shape (V, 3).
 
+        The direct part is :func:`warpshade.radiance.exit_radiance` of the method's transfer.
+
         Args:
             light: SH radiance per colour, shape (N*N, 3).
-            albedo_receiver: Receiver albedo RGB, shape (3,) or (V, 3).
+            albedo_receiver: Receiver albedo: scalar, RGB (3,) or per vertex (V, 3).
         """
-        direct = self.method.transfer.numpy() @ np.asarray(light, dtype=np.float64)
-        return np.asarray(albedo_receiver) / math.pi * (direct + self.irradiance.numpy())
+        from ...radiance import exit_radiance
+
+        direct = exit_radiance(self.method.transfer, light, albedo_receiver, clamp=False, device=self.device).numpy()
+        rho = np.broadcast_to(np.asarray(albedo_receiver, dtype=np.float64), direct.shape)
+        return direct + rho / math.pi * self.irradiance.numpy()
