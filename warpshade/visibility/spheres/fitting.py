@@ -344,8 +344,7 @@ def _kmeans(x, k, rng, iterations: int = 30):
             break
         c = new
     # drop empty clusters, keep labels dense
-    used, lab = np.unique(lab, return_inverse=True)
-    return lab
+    return np.unique(lab, return_inverse=True)[1]
 
 
 def cluster_receivers(points, clusters: int, seed: int = 0) -> np.ndarray:

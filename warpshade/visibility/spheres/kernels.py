@@ -1,11 +1,12 @@
-"""Warp kernels of the sphere-set method (orchestration in :mod:`.method`, NumPy reference in :mod:`.reference`).
+"""Warp kernels of the sphere-set shadows (orchestration in :mod:`.method`, NumPy reference in :mod:`.reference`).
 
 Per frame: ``refit_spheres``/``bound_parents`` move the spheres with the mesh, ``fit_clusters`` bounds
 the receiver clusters, ``compute_cut_ratios`` evaluates eq. 4.9 at cluster centres, and
 ``shade_sphere_shadows`` does, per receiver: tangent-plane adjustment (§4.2), table lookup of the log
 blocker ZH vector, ZH rotation (eq. 3.17), log accumulation (eq. 4.7), SH exponential (eq. 3.30 /
-3.32) and the product with the clamped cosine (CONTRACTS.md §2). ``shade_sphere_reflections`` adds the
-one-bounce reflections (§4.3.3, eqs. 4.22, 4.25, 4.32).
+3.32) and the product with the clamped cosine (CONTRACTS.md §2). The one-bounce reflections are in
+:mod:`.reflection_kernels`. SH products, the optimal-linear/hybrid exponentials and ZH rotation are
+the SH core's (:mod:`warpshade.sh.kernels`).
 
 SH vectors live in rows of 2D scratch arrays (one row per thread), so one compiled kernel serves every
 order; SH convention: :mod:`warpshade.sh.basis`.
