@@ -185,7 +185,13 @@ def log_blocker_table(order: int, mode: str = "hyb", tau: float = 0.5) -> np.nda
 
     from scipy.optimize import least_squares
 
-    path = _cache_path(f"spheres_log_o{order}_{mode}_t{tau:g}")
+    import hashlib
+
+    # key on everything the fit reads, so a change in the SH core's optimal-linear table invalidates it
+    ol = ol_table(order)
+    key = hashlib.sha1(ol.log_a.tobytes() + ol.c.tobytes() + repr((TABLE_SIZE, LOG_EPS, LOG_FIT_POINTS,
+                                                                   LOG_FIT_REG, EXP_BLEND)).encode()).hexdigest()[:10]
+    path = _cache_path(f"spheres_log_o{order}_{mode}_t{tau:g}_{key}")
     if os.path.isfile(path):
         table = np.load(path)
         if table.shape == (TABLE_SIZE, order):
