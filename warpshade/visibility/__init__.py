@@ -10,6 +10,7 @@ from .base import TransferMethod
 METHODS = {
     "reference": "warpshade.visibility.reference:ReferenceTransfer",
     "disks": "warpshade.visibility.disks:DiskTransfer",
+    "spheres": "warpshade.visibility.spheres:SpheresTransfer",
 }
 
 
