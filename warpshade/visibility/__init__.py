@@ -10,6 +10,8 @@ from .base import TransferMethod
 METHODS = {
     "reference": "warpshade.visibility.reference:ReferenceTransfer",
     "hemiraster": "warpshade.visibility.hemiraster:HemirasterTransfer",
+    "disks": "warpshade.visibility.disks:DiskTransfer",
+    "spheres": "warpshade.visibility.spheres:SpheresTransfer",
 }
 
 
