@@ -13,18 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...sh.rotation import rotation_matrix
+from ..disks.reference_np import frame_np as tangent_frame_np  # the kernels' frame (Duff et al. 2017)
 from . import tables
-
-
-def tangent_frame_np(n: np.ndarray) -> np.ndarray:
-    """Columns (t, b, n) of the frame the kernels use (Duff et al. 2017), shape (3, 3) float64."""
-    n = np.asarray(n, dtype=np.float64)
-    sign = 1.0 if n[2] >= 0.0 else -1.0
-    a = -1.0 / (sign + n[2])
-    b = n[0] * n[1] * a
-    t = np.array([1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]])
-    bb = np.array([b, sign + n[1] * n[1] * a, -n[1]])
-    return np.stack([t, bb, n], axis=1)
 
 
 def rasterize_np(local_tris: np.ndarray, mask: int, lut: np.ndarray | None = None, lut_res: int = 0) -> np.ndarray:
@@ -81,7 +71,7 @@ def transfer_np(points: np.ndarray, faces: np.ndarray, normals: np.ndarray, orde
     bb = downsample * downsample
     out = np.zeros((len(vertices), order * order))
     for row, v in enumerate(vertices):
-        frame = tangent_frame_np(normals[v])
+        frame = tangent_frame_np(np.asarray(normals[v], dtype=np.float64))
         keep = (faces != v).all(axis=1)
         local = (points[faces[keep]] - points[v]) @ frame
         blocked = rasterize_np(local, mask, lut, lut_res)
