@@ -92,7 +92,7 @@ class HemirasterTransfer(TransferMethod):
         faces = mesh.faces.astype(np.int64)
 
         # plane LUT and integration tables (cached per (mask, R) / built per setting)
-        lut_np, self._lut_seconds, self._lut_source = tables.build_lut(self.mask_res, self.lut_res, lut_dir)
+        lut_np, self._lut_seconds, self._lut_source = tables.build_lut(self.mask_res, self.lut_res, lut_dir, d)
         self._words = tables.words_per_mask(self.mask_res)
         self._lut = PlaneLut()
         self._lut.rows = wp.array(np.ascontiguousarray(lut_np[:, :self._words]), dtype=wp.uint64, device=d)

@@ -204,13 +204,14 @@ _LUT_CACHE: dict[tuple[int, int], np.ndarray] = {}
 _LUT_BUILD_SECONDS: dict[tuple[int, int], float] = {}
 
 
-def build_lut(mask: int, lut: int, cache_dir: str | None = None) -> tuple[np.ndarray, float, str]:
+def build_lut(mask: int, lut: int, cache_dir: str | None = None, device: str = "cpu") -> tuple[np.ndarray, float, str]:
     """The plane LUT for ``(mask, lut)``: from memory, else from ``cache_dir``, else built with Warp.
 
     Args:
         mask: Mask resolution M.
         lut: Cube-map resolution R (>= 2).
-        cache_dir: Optional directory for ``hemiraster_lut_M{M}_R{R}.npy`` files.
+        cache_dir: Optional directory for ``hemiraster_lut_v2_M{M}_R{R}.npy`` files.
+        device: Warp device that builds it (the table is returned on the host either way).
 
     Returns:
         ``(table, seconds, source)``: table shape (6R², W) uint64; build (or load) seconds of the
@@ -230,10 +231,11 @@ def build_lut(mask: int, lut: int, cache_dir: str | None = None) -> tuple[np.nda
             table, source = loaded, "disk"
     if table is None:
         dirs, _ = pixel_directions(mask)
-        normals = wp.array(cube_cell_normals(lut).astype(np.float32), dtype=wp.vec3, device="cpu")
-        out = wp.zeros((6 * lut * lut, words_per_mask(mask) + 1), dtype=wp.uint64, device="cpu")
-        wp.launch(fill_plane_lut, dim=out.shape[0], inputs=[normals, wp.array(dirs.astype(np.float32), dtype=wp.vec3)],
-                  outputs=[out], device="cpu")
+        normals = wp.array(cube_cell_normals(lut).astype(np.float32), dtype=wp.vec3, device=device)
+        out = wp.zeros((6 * lut * lut, words_per_mask(mask) + 1), dtype=wp.uint64, device=device)
+        wp.launch(fill_plane_lut, dim=out.shape[0],
+                  inputs=[normals, wp.array(dirs.astype(np.float32), dtype=wp.vec3, device=device)],
+                  outputs=[out], device=device)
         table = out.numpy()
         if path:
             os.makedirs(cache_dir, exist_ok=True)
