@@ -7,8 +7,8 @@ order-6 reference transfer is exact (up to the reference's Monte-Carlo error), w
 transfers lose the bands they lack — so radiance error shows SH truncation, transfer error shows the
 visibility method.
 
-* ``sky``: overcast-sky gradient (bright blue-white zenith, dark ground) plus a broad warm sun lobe
-  ``exp(8 (ω·s - 1))`` at 35° elevation.
+* ``sky``: warpshade's default daylight (:func:`warpshade.lighting.default_environment`: Preetham sky,
+  sun 45° up, Lambertian ground) projected onto order 6 by :mod:`warpshade.lighting`.
 * ``studio``: two coloured lobes (warm key from the front-left, cool rim from behind-right,
   ``exp(6 (ω·d - 1))``) over a dim uniform fill.
 
@@ -46,16 +46,6 @@ def project(fn, order: int = ENV_ORDER, samples: int = 20000) -> np.ndarray:
     return (4 * np.pi / samples) * y.T @ fn(d)
 
 
-def _sky(d: np.ndarray) -> np.ndarray:
-    z = d[:, 2:3]
-    zenith = np.array([0.55, 0.7, 1.0])
-    ground = np.array([0.12, 0.1, 0.08])
-    t = 0.5 * (1 + z)
-    sun_dir = np.array([np.cos(np.radians(35)) * 0.8, np.cos(np.radians(35)) * 0.6, np.sin(np.radians(35))])
-    sun = np.exp(8 * (d @ sun_dir - 1))[:, None] * np.array([4.0, 3.4, 2.6])
-    return t * zenith + (1 - t) * ground + sun
-
-
 def _studio(d: np.ndarray) -> np.ndarray:
     key = np.array([-0.6, 0.7, 0.4])
     rim = np.array([0.7, -0.6, 0.3])
@@ -72,8 +62,10 @@ def environments(order: int = ENV_ORDER, up: str = "Z") -> dict[str, np.ndarray]
         order: SH order of the projection.
         up: ``"Z"`` or ``"Y"``: which world axis the maps' zenith points along.
     """
+    from ..lighting import default_environment
+
     perm = {"Z": lambda f: f, "Y": lambda f: (lambda d: f(d[:, [2, 0, 1]]))}[up]
-    return {"sky": project(perm(_sky), order), "studio": project(perm(_studio), order)}
+    return {"sky": default_environment(up=up).sh(order), "studio": project(perm(_studio), order)}
 
 
 def radiance(transfer: np.ndarray, light: np.ndarray) -> np.ndarray:

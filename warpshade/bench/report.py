@@ -86,9 +86,12 @@ def markdown_table(records: list[dict]) -> str:
 
 
 def plot_pareto(path: str, records: list[dict], title: str = "") -> None:
-    """``pareto.png``: per mesh, time per frame against mean transfer error (log–log), one curve per
-    method (its own frontier as a line, dominated configurations as faint points), the frontier over all
-    methods as a black dashed step line."""
+    """``pareto.png``: per mesh, time per frame against mean transfer error (log–log) at the default SH
+    order 5: one curve per method (its own frontier as a line, dominated configurations as faint points),
+    the frontier over all methods as a black dashed step line. Other orders are not on the same error
+    scale (fewer coefficients) and are left to the table."""
+    import textwrap
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -96,7 +99,9 @@ def plot_pareto(path: str, records: list[dict], title: str = "") -> None:
 
     from .runner import pareto_mask
 
-    ok = [r for r in records if "failed" not in r]
+    from .runner import DEFAULT_ORDER
+
+    ok = [r for r in records if "failed" not in r and r["order"] == DEFAULT_ORDER]
     meshes = list(dict.fromkeys(r["mesh"] for r in ok))
     methods = list(dict.fromkeys(r["method"] for r in ok))
     cols = min(3, max(1, len(meshes)))
@@ -132,7 +137,7 @@ def plot_pareto(path: str, records: list[dict], title: str = "") -> None:
     for ax in axes.ravel()[len(meshes):]:
         ax.axis("off")
     if title:
-        fig.suptitle(title, fontsize=9)
+        fig.suptitle("\n".join(textwrap.wrap(title, 40 * cols)), fontsize=8)
     fig.tight_layout()
     tmp = f"{path}.partial{os.getpid()}.png"
     fig.savefig(tmp, dpi=110)

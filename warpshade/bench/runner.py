@@ -244,11 +244,12 @@ def run_bench(settings: BenchSettings) -> list[dict]:
 
 
 def mark_pareto(records: list[dict]) -> None:
-    """Set ``pareto`` on every measured record: on its mesh's time/``error_mean`` frontier (all methods)."""
-    by_mesh: dict[str, list[dict]] = {}
+    """Set ``pareto`` on every measured record: on the time/``error_mean`` frontier of all methods' records
+    with the same mesh and SH order (errors of different orders compare different coefficient sets)."""
+    by_mesh: dict[tuple, list[dict]] = {}
     for r in records:
         if "failed" not in r:
-            by_mesh.setdefault(r["mesh"], []).append(r)
+            by_mesh.setdefault((r["mesh"], r["order"]), []).append(r)
     for recs in by_mesh.values():
         mask = pareto_mask([r["seconds"] for r in recs], [r["error_mean"] for r in recs])
         for r, m in zip(recs, mask):
