@@ -13,13 +13,13 @@ HELP = "measure time, memory and error of every visibility method's knob setting
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true",
-                        help="few configurations on small meshes, 4096-ray ground truth (< 2 minutes)")
+                        help="few configurations on two small meshes, orders 3 and 5, 4096-ray ground truth (< 2 minutes)")
     parser.add_argument("--out", required=True, metavar="DIR", help="writes DIR/results.json, results.csv, pareto.png")
     parser.add_argument("--methods", default=None, help="comma-separated method names (default: all registered)")
     parser.add_argument("--meshes", default=None,
                         help="comma-separated mesh names (cloth, bunny, bear, character, two-objects)")
     parser.add_argument("--orders", default=None, help="comma-separated SH orders swept at default knobs "
-                        "(default 2,3,4,5,6; quick 2,4,6)")
+                        "(default 2,3,4,5,6; quick 3)")
     parser.add_argument("--repeat", type=int, default=None, help="timed runs per configuration (default 5; quick 3)")
     parser.add_argument("--ground-truth-rays", type=int, default=None,
                         help="rays per vertex of the ground truth (default 16384; quick 4096)")
