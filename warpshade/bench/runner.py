@@ -39,6 +39,10 @@ from .environments import ENV_ORDER, environments, radiance
 from .meshes import BenchMesh, standard_meshes
 from .reference_cache import DEFAULT_CACHE_DIR, GROUND_TRUTH_SEED, ground_truth
 
+QUICK_BUILD_LIMIT = 5.0
+"""In quick mode, a method whose construction took longer than this [s] is measured with its first
+configuration only on that mesh (keeps ``--quick`` under two minutes with slow-to-build methods)."""
+
 DEFAULT_ORDER = 5
 """Order at which each method's knob sweep runs (the methods' constructor default)."""
 
@@ -234,7 +238,11 @@ def run_bench(settings: BenchSettings) -> list[dict]:
                              settings.device, log=log)
         lights = environments(ENV_ORDER, up=bm.up)
         for cls in classes:
-            for config in configs[cls.name]:
+            for i, config in enumerate(configs[cls.name]):
+                if settings.quick and i > 0 and records and records[-1].get("build_seconds", 0) > QUICK_BUILD_LIMIT:
+                    log(f"  {cls.name}: build took {records[-1]['build_seconds']:.1f} s > {QUICK_BUILD_LIMIT} s; quick mode "
+                        f"measures only its first configuration on {bm.name} ({len(configs[cls.name]) - 1} skipped)")
+                    break
                 try:
                     rec = measure(cls, config, bm, truth, lights, settings)
                 except Exception as exc:  # one broken configuration must not sink the sweep
