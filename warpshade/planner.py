@@ -168,6 +168,18 @@ def _is_rect(light) -> bool:
     return type(light).__name__ == "RectLight"
 
 
+def default_knobs(method: str) -> dict:
+    """A method's default knobs, from its own command-line defaults (``add_arguments``)."""
+    import argparse
+
+    from .visibility import get_method
+
+    cls = get_method(method)
+    p = argparse.ArgumentParser(add_help=False)
+    cls.add_arguments(p)
+    return cls.knobs_from_args(p.parse_args([]))
+
+
 def _choose(obj: SceneObject, order: int, max_error: float | None, frontier: dict) -> tuple:
     """(method, knobs, config or None, reason) for one object."""
     v = obj.mesh.num_vertices
@@ -181,8 +193,11 @@ def _choose(obj: SceneObject, order: int, max_error: float | None, frontier: dic
         return best["method"], knobs, best, f"fastest measured within error {max_error}"
     if obj.method is None:
         return None, {}, None, ""
+    # the scene's knobs must match; among those, the configuration agreeing with most CLI defaults
+    # (defaults may be sentinels such as "auto" that knobs() reports resolved, so agreement is scored)
+    defaults = default_knobs(obj.method)
     match = [c for c in frontier["configs"] if _matches(c, obj.method, order, obj.knobs)]
-    cfg = match[0] if match else None  # first match: the sweep lists the defaults first
+    cfg = max(match, key=lambda c: sum(c["knobs"].get(k) == v for k, v in defaults.items()), default=None)
     return obj.method, dict(obj.knobs), cfg, "as the scene asks"
 
 

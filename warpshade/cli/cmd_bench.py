@@ -59,6 +59,7 @@ def run(args) -> int:
     if args.frontier:
         from .cmd_transfer import write_json as write_plain_json
 
+        os.makedirs(os.path.dirname(os.path.abspath(args.frontier)), exist_ok=True)
         write_plain_json(args.frontier, {**frontier_from_results(records), "machine": note})
     print(format_table(records))
     print(f"\n{note}\n{len(records)} configurations in {wall:.1f} s -> {args.out}/results.json, results.csv, pareto.png"
