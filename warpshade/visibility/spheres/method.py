@@ -21,6 +21,7 @@ from ...sh.kernels import ol_table_arrays, product_table_arrays, zh_normalizatio
 from ...sh.zonal import clamped_cosine_zh
 from ..base import TransferMethod
 from .fitting import SphereTree, build_sphere_tree, cluster_receivers
+from .fixed_kernels import shade_kernel_fixed
 from .kernels import (EXP_HYBRID, EXP_OL, EXP_SERIES, compute_cut_ratios, fit_clusters, multiply_transfer,
                       shade_sphere_shadows)
 from .sets import SphereScene, _csr
@@ -124,6 +125,11 @@ class SpheresTransfer(TransferMethod):
         self._ol = ol_table_arrays(self.order, d)
         self._products = product_table_arrays(self.order, d)
         self._ones = wp.array(np.ones((1, self.order), np.float32), dtype=float, device=d)
+        # OL and hybrid run the fixed-order register kernel (same result, faster); series the row kernel.
+        self._fixed = shade_kernel_fixed(self.order) if self.exp != "series" else None
+        if self._fixed is not None:
+            self._log_vec = wp.array(t.log_blocker.astype(np.float32), dtype=self._fixed.vec_zh, device=d)
+            self._cos_vec = self._fixed.vec_zh(*clamped_cosine_zh(self.order).astype(np.float32).tolist())
 
     # -- command line ------------------------------------------------------------------------
     @classmethod
@@ -227,6 +233,14 @@ class SpheresTransfer(TransferMethod):
                               self.order, self._kz, *buf],
                       outputs=[cut_ratio], device=d)
         t = self.tables
+        if self._fixed is not None:
+            wp.launch(self._fixed.shade, dim=points.shape[0],
+                      inputs=[points, normals, cluster, sc.centers, sc.radii, cut_start, cut_sphere, cut_ratio,
+                              self._log_vec, t.theta_step, self._cos_vec, self._fixed.kz, self._ol, self._products,
+                              EXP_MODES[self.exp], self.tau],
+                      outputs=[used, fallback, visibility, transfer], device=d)
+            self._cut = (cut_start, cut_sphere, cut_ratio)
+            return len(sph)
         wp.launch(shade_sphere_shadows, dim=points.shape[0],
                   inputs=[points, normals, cluster, sc.centers, sc.radii, cut_start, cut_sphere, cut_ratio, self._log,
                           t.theta_step, self._cos_zh, self._kz, self._ol, self._products, EXP_MODES[self.exp],

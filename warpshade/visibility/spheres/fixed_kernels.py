@@ -1,0 +1,194 @@
+"""Fixed-order, register-resident variant of the per-receiver shadow kernel (orchestration in :mod:`.method`).
+
+:func:`shade_kernel_fixed` builds, once per SH order, a kernel that computes exactly what
+:func:`.kernels.shade_sphere_shadows` computes for the optimal-linear and hybrid exponentials (same
+tangent-plane rules, table lookup, ratio vectors, blend of ``p``/``p+1`` squarings, divergence guard,
+product with the clamped cosine; NumPy reference :mod:`.reference`), but keeps every SH vector in a
+fixed-length Warp vector (``vec_sh`` of the SH core's :func:`~warpshade.sh.kernels.zh_vector_funcs`)
+instead of rows of 2D scratch arrays, and squares with the symmetric half of the Gaunt table
+(``a*a``: ``c_i += 2 v a_j a_k``). The series exponential stays on the runtime-order kernel.
+
+Measured on the benchmark scene (benchmarks/spheres.py, order 4, hybrid): see the README section
+"Sphere-set soft shadows and reflections".
+
+This module deliberately does not use postponed annotations: Warp reads the (closure-local) vector
+types from the annotations of the generated functions.
+"""
+
+import functools
+from types import SimpleNamespace
+
+import warp as wp
+
+from ...sh.kernels import SQRT_4PI, OLTableArrays, SHProductTable, ol_lookup, zh_vector_funcs
+from .kernels import EXP_BLEND, EXP_HYBRID, VIS_NORM_SLACK, adjust_sphere
+
+wp.set_module_options({"enable_backward": False})
+
+
+@functools.lru_cache(maxsize=None)
+def shade_kernel_fixed(order: int) -> SimpleNamespace:
+    """Kernel ``shade`` (and its vector types) for one SH order; built and cached on first use.
+
+    Returns a namespace with ``vec_sh``, ``vec_zh``, ``kz`` (ZH-rotation constants as a ``vec_sh``),
+    and ``shade``: the kernel with the arguments of :func:`.kernels.shade_sphere_shadows` minus the
+    scratch rows and ``order``, with ``log_table`` as ``wp.array[vec_zh]`` and ``cos_zh`` a ``vec_zh``.
+    """
+    zf = zh_vector_funcs(order)
+    vec_sh, vec_zh, zh_rotate = zf.vec_sh, zf.vec_zh, zf.zh_rotate
+    n2 = wp.constant(order * order)
+    nb = wp.constant(order)
+    sqrt_4pi = wp.constant(SQRT_4PI)
+    blend = wp.constant(EXP_BLEND)
+    slack = wp.constant(VIS_NORM_SLACK)
+    hybrid = wp.constant(EXP_HYBRID)
+
+    def product(a: vec_sh, b: vec_sh, table: SHProductTable) -> vec_sh:
+        # Truncated SH product (thesis eq. 3.19) with the symmetric table: c_i += v (a_j b_k + a_k b_j).
+        out = vec_sh()
+        for e in range(table.v.shape[0]):
+            j = table.j[e]
+            k = table.k[e]
+            i = table.i[e]
+            out[i] = out[i] + table.v[e] * (a[j] * b[k] + a[k] * b[j])
+        return out
+
+    def square(a: vec_sh, table: SHProductTable) -> vec_sh:
+        # a*a: the two symmetric terms are equal, so one multiply per entry (diagonal v holds Γ_ijj/2).
+        out = vec_sh()
+        for e in range(table.v.shape[0]):
+            j = table.j[e]
+            k = table.k[e]
+            i = table.i[e]
+            out[i] = out[i] + 2.0 * table.v[e] * (a[j] * a[k])
+        return out
+
+    def dc_free_norm(f: vec_sh) -> float:
+        s = float(0.0)
+        for i in range(1, n2):
+            s = s + f[i] * f[i]
+        return wp.sqrt(s)
+
+    def exp_ol(f: vec_sh, ol: OLTableArrays) -> vec_sh:
+        # Optimal linear (eq. 3.30), as the SH core's sh_exp_ol: e^{f0/sqrt(4π)} (a 1 + b f̂).
+        ac = ol_lookup(ol, dc_free_norm(f))
+        s = wp.exp(f[0] / sqrt_4pi + ac[0])
+        out = f * (s * ac[1])
+        out[0] = s * sqrt_4pi
+        return out
+
+    def exp_hybrid(f: vec_sh, m: float, threshold: float, ol: OLTableArrays, products: SHProductTable) -> vec_sh:
+        # The SH core's sh_exp_hybrid (eq. 3.32) on a register vector: OL on f̂/2^p, p renormalised squarings.
+        f0 = f[0]
+        out = vec_sh()
+        if not wp.isfinite(m) or not wp.isfinite(f0):
+            for i in range(n2):
+                out[i] = wp.nan
+            return out
+        p = int(0)
+        if m > threshold:
+            p = int(wp.ceil(wp.log2(m / threshold)))
+        scale = wp.pow(2.0, -float(p))
+        ac = ol_lookup(ol, m * scale)
+        t = f * (ac[1] * scale)
+        t[0] = sqrt_4pi
+        nrm = wp.length(t)
+        t = t / nrm
+        log_s = ac[0] + wp.log(nrm)
+        for _k in range(p):
+            t = square(t, products)
+            nrm = wp.length(t)
+            if nrm == 0.0:
+                log_s = 2.0 * log_s - 1.0e30
+            else:
+                t = t / nrm
+                log_s = 2.0 * log_s + wp.log(nrm)
+        return t * wp.exp(wp.max(log_s + f0 / sqrt_4pi, -1.0e30))
+
+    def shade(
+        points: wp.array(dtype=wp.vec3),
+        normals: wp.array(dtype=wp.vec3),
+        cluster: wp.array(dtype=wp.int32),
+        centers: wp.array(dtype=wp.vec3),
+        radii: wp.array(dtype=float),
+        cut_start: wp.array(dtype=wp.int32),
+        cut_sphere: wp.array(dtype=wp.int32),
+        cut_ratio: wp.array2d(dtype=float),
+        log_table: wp.array(dtype=vec_zh),
+        theta_step: float,
+        cos_zh: vec_zh,
+        kz: vec_sh,
+        ol: OLTableArrays,
+        products: SHProductTable,
+        mode: int,
+        tau: float,
+        used: wp.array(dtype=wp.int32),
+        fallback: wp.array(dtype=wp.int32),
+        visibility: wp.array2d(dtype=float),
+        transfer: wp.array2d(dtype=float),
+    ):
+        v = wp.tid()
+        p = points[v]
+        n = normals[v]
+        c = cluster[v]
+        # Log accumulation (eq. 4.7) of the cluster's cut (eq. 4.8) with ratio vectors (eq. 4.9).
+        logsum = vec_sh()
+        count = int(0)
+        last = log_table.shape[0] - 1
+        for e in range(cut_start[c], cut_start[c + 1]):
+            s = cut_sphere[e]
+            a = adjust_sphere(p, n, centers[s], radii[s])
+            rho = a[3]
+            if rho <= 0.0:
+                continue
+            d = wp.vec3(a[0], a[1], a[2]) - p
+            dist = wp.length(d)
+            if dist <= 0.0:
+                continue
+            theta = wp.asin(wp.min(rho / dist, 1.0))
+            x = wp.clamp(theta / theta_step, 0.0, float(last))
+            i0 = wp.min(int(x), last - 1)
+            f = x - float(i0)
+            g = log_table[i0] * (1.0 - f) + log_table[i0 + 1] * f
+            for l in range(nb):
+                g[l] = g[l] * cut_ratio[e, l]
+            logsum = logsum + zh_rotate(d, g, kz)
+            count = count + 1
+        used[v] = count
+        # SH exponential (thesis §3.1.4), blended between p and p+1 squarings (see kernels.sh_exp_rows).
+        vis = vec_sh()
+        if mode == hybrid:
+            m = dc_free_norm(logsum)
+            vis = exp_hybrid(logsum, m, tau, ol, products)
+            if m > 0.0:
+                q = wp.log2(m / tau)
+                pp = wp.clamp(int(wp.ceil(q)), 0, 30)
+                w = wp.clamp((q - (float(pp) - blend)) / blend, 0.0, 1.0)
+                if w > 0.0:
+                    alt = exp_hybrid(logsum, m, 0.5 * tau, ol, products)
+                    vis = vis * (1.0 - w) + alt * w
+        else:
+            vis = exp_ol(logsum, ol)
+        # Divergence guard (kernels.guard_visibility).
+        bound = slack * sqrt_4pi
+        fb = int(0)
+        if not (vis[0] >= 0.0 and vis[0] <= bound and wp.dot(vis, vis) <= bound * bound):
+            vis = vec_sh()
+            vis[0] = sqrt_4pi * wp.exp(wp.min(logsum[0] / sqrt_4pi, 0.0))
+            fb = 1
+        fallback[v] = fb
+        # Transfer = V * clamped cosine (CONTRACTS.md §2); negative irradiance (ringing) -> 0.
+        t = product(vis, zh_rotate(n, cos_zh, kz), products)
+        if t[0] < 0.0:
+            t = vec_sh()
+        for i in range(n2):
+            visibility[v, i] = vis[i]
+            transfer[v, i] = t[i]
+
+    for fn in (product, square, dc_free_norm, exp_ol, exp_hybrid, shade):
+        fn.__name__ = f"{fn.__name__}_order{order}"
+        fn.__qualname__ = fn.__name__
+    product, square, dc_free_norm = wp.func(product), wp.func(square), wp.func(dc_free_norm)
+    exp_ol, exp_hybrid = wp.func(exp_ol), wp.func(exp_hybrid)
+    kernel = wp.kernel(shade, enable_backward=False)
+    return SimpleNamespace(order=order, vec_sh=vec_sh, vec_zh=vec_zh, kz=zf.zh_constants(), shade=kernel)
