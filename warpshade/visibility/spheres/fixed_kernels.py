@@ -5,8 +5,8 @@
 tangent-plane rules, table lookup, ratio vectors, blend of ``p``/``p+1`` squarings, divergence guard,
 product with the clamped cosine; NumPy reference :mod:`.reference`), but keeps every SH vector in a
 fixed-length Warp vector (``vec_sh`` of the SH core's :func:`~warpshade.sh.kernels.zh_vector_funcs`)
-instead of rows of 2D scratch arrays, and squares with the symmetric half of the Gaunt table
-(``a*a``: ``c_i += 2 v a_j a_k``). The series exponential stays on the runtime-order kernel.
+instead of rows of 2D scratch arrays, and multiplies with the SH core's unrolled products
+(:func:`~warpshade.sh.kernels.sh_product_vector_funcs`; squarings use the table's symmetry). The series exponential stays on the runtime-order kernel.
 
 Measured on the benchmark scene (benchmarks/spheres.py, order 4, hybrid): see the README section
 "Sphere-set soft shadows and reflections".
@@ -20,7 +20,7 @@ from types import SimpleNamespace
 
 import warp as wp
 
-from ...sh.kernels import SQRT_4PI, OLTableArrays, SHProductTable, ol_lookup, zh_vector_funcs
+from ...sh.kernels import SQRT_4PI, OLTableArrays, ol_lookup, sh_product_vector_funcs, zh_vector_funcs
 from .kernels import EXP_BLEND, EXP_HYBRID, VIS_NORM_SLACK, adjust_sphere
 
 wp.set_module_options({"enable_backward": False})
@@ -32,36 +32,18 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
 
     Returns a namespace with ``vec_sh``, ``vec_zh``, ``kz`` (ZH-rotation constants as a ``vec_sh``),
     and ``shade``: the kernel with the arguments of :func:`.kernels.shade_sphere_shadows` minus the
-    scratch rows and ``order``, with ``log_table`` as ``wp.array[vec_zh]`` and ``cos_zh`` a ``vec_zh``.
+    scratch rows, ``products`` and ``order``, with ``log_table`` as ``wp.array[vec_zh]`` and ``cos_zh`` a ``vec_zh``.
     """
     zf = zh_vector_funcs(order)
     vec_sh, vec_zh, zh_rotate = zf.vec_sh, zf.vec_zh, zf.zh_rotate
+    pf = sh_product_vector_funcs(order)
+    product, square = pf.product, pf.square
     n2 = wp.constant(order * order)
     nb = wp.constant(order)
     sqrt_4pi = wp.constant(SQRT_4PI)
     blend = wp.constant(EXP_BLEND)
     slack = wp.constant(VIS_NORM_SLACK)
     hybrid = wp.constant(EXP_HYBRID)
-
-    def product(a: vec_sh, b: vec_sh, table: SHProductTable) -> vec_sh:
-        # Truncated SH product (thesis eq. 3.19) with the symmetric table: c_i += v (a_j b_k + a_k b_j).
-        out = vec_sh()
-        for e in range(table.v.shape[0]):
-            j = table.j[e]
-            k = table.k[e]
-            i = table.i[e]
-            out[i] = out[i] + table.v[e] * (a[j] * b[k] + a[k] * b[j])
-        return out
-
-    def square(a: vec_sh, table: SHProductTable) -> vec_sh:
-        # a*a: the two symmetric terms are equal, so one multiply per entry (diagonal v holds Γ_ijj/2).
-        out = vec_sh()
-        for e in range(table.v.shape[0]):
-            j = table.j[e]
-            k = table.k[e]
-            i = table.i[e]
-            out[i] = out[i] + 2.0 * table.v[e] * (a[j] * a[k])
-        return out
 
     def dc_free_norm(f: vec_sh) -> float:
         s = float(0.0)
@@ -77,7 +59,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         out[0] = s * sqrt_4pi
         return out
 
-    def exp_hybrid(f: vec_sh, m: float, threshold: float, ol: OLTableArrays, products: SHProductTable) -> vec_sh:
+    def exp_hybrid(f: vec_sh, m: float, threshold: float, ol: OLTableArrays) -> vec_sh:
         # The SH core's sh_exp_hybrid (eq. 3.32) on a register vector: OL on f̂/2^p, p renormalised squarings.
         f0 = f[0]
         out = vec_sh()
@@ -96,7 +78,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         t = t / nrm
         log_s = ac[0] + wp.log(nrm)
         for _k in range(p):
-            t = square(t, products)
+            t = square(t)
             nrm = wp.length(t)
             if nrm == 0.0:
                 log_s = 2.0 * log_s - 1.0e30
@@ -119,7 +101,6 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         cos_zh: vec_zh,
         kz: vec_sh,
         ol: OLTableArrays,
-        products: SHProductTable,
         mode: int,
         tau: float,
         used: wp.array(dtype=wp.int32),
@@ -159,13 +140,13 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         vis = vec_sh()
         if mode == hybrid:
             m = dc_free_norm(logsum)
-            vis = exp_hybrid(logsum, m, tau, ol, products)
+            vis = exp_hybrid(logsum, m, tau, ol)
             if m > 0.0:
                 q = wp.log2(m / tau)
                 pp = wp.clamp(int(wp.ceil(q)), 0, 30)
                 w = wp.clamp((q - (float(pp) - blend)) / blend, 0.0, 1.0)
                 if w > 0.0:
-                    alt = exp_hybrid(logsum, m, 0.5 * tau, ol, products)
+                    alt = exp_hybrid(logsum, m, 0.5 * tau, ol)
                     vis = vis * (1.0 - w) + alt * w
         else:
             vis = exp_ol(logsum, ol)
@@ -178,17 +159,17 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             fb = 1
         fallback[v] = fb
         # Transfer = V * clamped cosine (CONTRACTS.md §2); negative irradiance (ringing) -> 0.
-        t = product(vis, zh_rotate(n, cos_zh, kz), products)
+        t = product(vis, zh_rotate(n, cos_zh, kz))
         if t[0] < 0.0:
             t = vec_sh()
         for i in range(n2):
             visibility[v, i] = vis[i]
             transfer[v, i] = t[i]
 
-    for fn in (product, square, dc_free_norm, exp_ol, exp_hybrid, shade):
+    for fn in (dc_free_norm, exp_ol, exp_hybrid, shade):
         fn.__name__ = f"{fn.__name__}_order{order}"
         fn.__qualname__ = fn.__name__
-    product, square, dc_free_norm = wp.func(product), wp.func(square), wp.func(dc_free_norm)
+    dc_free_norm = wp.func(dc_free_norm)
     exp_ol, exp_hybrid = wp.func(exp_ol), wp.func(exp_hybrid)
     kernel = wp.kernel(shade, enable_backward=False)
     return SimpleNamespace(order=order, vec_sh=vec_sh, vec_zh=vec_zh, kz=zf.zh_constants(), shade=kernel)
