@@ -1,4 +1,6 @@
-"""Fixed-order, register-resident variant of the per-receiver shadow kernel (orchestration in :mod:`.method`).
+"""Fixed-order, register-resident variants of the per-receiver shadow and reflection kernels.
+
+Orchestration in :mod:`.method` and :mod:`.reflections`.
 
 :func:`shade_kernel_fixed` builds, once per SH order, a kernel that computes exactly what
 :func:`.kernels.shade_sphere_shadows` computes for the optimal-linear and hybrid exponentials (same
@@ -6,7 +8,9 @@ tangent-plane rules, table lookup, ratio vectors, blend of ``p``/``p+1`` squarin
 product with the clamped cosine; NumPy reference :mod:`.reference`), but keeps every SH vector in a
 fixed-length Warp vector (``vec_sh`` of the SH core's :func:`~warpshade.sh.kernels.zh_vector_funcs`)
 instead of rows of 2D scratch arrays, and multiplies with the SH core's unrolled products
-(:func:`~warpshade.sh.kernels.sh_product_vector_funcs`; squarings use the table's symmetry). The series exponential stays on the runtime-order kernel.
+(:func:`~warpshade.sh.kernels.sh_product_vector_funcs`; squarings use the table's symmetry). Likewise
+``reflect`` computes what :func:`.reflection_kernels.shade_sphere_reflections` computes. The series
+exponential stays on the runtime-order kernels.
 
 Measured on the benchmark scene (benchmarks/spheres.py, order 4, hybrid): see the README section
 "Sphere-set soft shadows and reflections".
@@ -28,11 +32,13 @@ wp.set_module_options({"enable_backward": False})
 
 @functools.lru_cache(maxsize=None)
 def shade_kernel_fixed(order: int) -> SimpleNamespace:
-    """Kernel ``shade`` (and its vector types) for one SH order; built and cached on first use.
+    """Kernels ``shade`` and ``reflect`` (and their vector types) for one SH order; built and cached on first use.
 
     Returns a namespace with ``vec_sh``, ``vec_zh``, ``kz`` (ZH-rotation constants as a ``vec_sh``),
     and ``shade``: the kernel with the arguments of :func:`.kernels.shade_sphere_shadows` minus the
-    scratch rows, ``products`` and ``order``, with ``log_table`` as ``wp.array[vec_zh]`` and ``cos_zh`` a ``vec_zh``.
+    scratch rows, ``products`` and ``order``, with ``log_table`` as ``wp.array[vec_zh]`` and ``cos_zh`` a ``vec_zh``;
+    ``reflect``: the arguments of :func:`.reflection_kernels.shade_sphere_reflections` minus ``ones``,
+    ``products``, ``order`` and the scratch rows other than ``key``, with the tables as ``wp.array[vec_zh]``.
     """
     zf = zh_vector_funcs(order)
     vec_sh, vec_zh, zh_rotate = zf.vec_sh, zf.vec_zh, zf.zh_rotate
@@ -87,6 +93,28 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
                 log_s = 2.0 * log_s + wp.log(nrm)
         return t * wp.exp(wp.max(log_s + f0 / sqrt_4pi, -1.0e30))
 
+    def lerp_table(table: wp.array(dtype=vec_zh), theta: float, step: float) -> vec_zh:
+        # Log / form-factor ZH table row at angular radius θ, linearly interpolated (kernels.lerp_zh_row).
+        last = table.shape[0] - 1
+        x = wp.clamp(theta / step, 0.0, float(last))
+        i0 = wp.min(int(x), last - 1)
+        f = x - float(i0)
+        return table[i0] * (1.0 - f) + table[i0 + 1] * f
+
+    def exp_blended(f: vec_sh, mode: int, tau: float, ol: OLTableArrays) -> vec_sh:
+        # SH exponential (thesis §3.1.4); hybrid blended between p and p+1 squarings (kernels.sh_exp_rows).
+        if mode != hybrid:
+            return exp_ol(f, ol)
+        m = dc_free_norm(f)
+        out = exp_hybrid(f, m, tau, ol)
+        if m > 0.0:
+            q = wp.log2(m / tau)
+            pp = wp.clamp(int(wp.ceil(q)), 0, 30)
+            w = wp.clamp((q - (float(pp) - blend)) / blend, 0.0, 1.0)
+            if w > 0.0:
+                out = out * (1.0 - w) + exp_hybrid(f, m, 0.5 * tau, ol) * w
+        return out
+
     def shade(
         points: wp.array(dtype=wp.vec3),
         normals: wp.array(dtype=wp.vec3),
@@ -115,7 +143,6 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         # Log accumulation (eq. 4.7) of the cluster's cut (eq. 4.8) with ratio vectors (eq. 4.9).
         logsum = vec_sh()
         count = int(0)
-        last = log_table.shape[0] - 1
         for e in range(cut_start[c], cut_start[c + 1]):
             s = cut_sphere[e]
             a = adjust_sphere(p, n, centers[s], radii[s])
@@ -126,11 +153,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             dist = wp.length(d)
             if dist <= 0.0:
                 continue
-            theta = wp.asin(wp.min(rho / dist, 1.0))
-            x = wp.clamp(theta / theta_step, 0.0, float(last))
-            i0 = wp.min(int(x), last - 1)
-            f = x - float(i0)
-            g = log_table[i0] * (1.0 - f) + log_table[i0 + 1] * f
+            g = lerp_table(log_table, wp.asin(wp.min(rho / dist, 1.0)), theta_step)
             for l in range(nb):
                 g[l] = g[l] * cut_ratio[e, l]
             logsum = logsum + zh_rotate(d, g, kz)
@@ -166,10 +189,84 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             visibility[v, i] = vis[i]
             transfer[v, i] = t[i]
 
-    for fn in (dc_free_norm, exp_ol, exp_hybrid, shade):
+    def reflect(
+        points: wp.array(dtype=wp.vec3),
+        normals: wp.array(dtype=wp.vec3),
+        spheres: wp.array(dtype=wp.int32),
+        centers: wp.array(dtype=wp.vec3),
+        radii: wp.array(dtype=float),
+        rotations: wp.array(dtype=wp.mat33),
+        radiance: wp.array3d(dtype=float),
+        log_table: wp.array(dtype=vec_zh),
+        ff_table: wp.array(dtype=vec_zh),
+        theta_step: float,
+        cos_zh: vec_zh,
+        kz: vec_sh,
+        ol: OLTableArrays,
+        mode: int,
+        tau: float,
+        key: wp.array2d(dtype=float),
+        irradiance: wp.array(dtype=wp.vec3),
+    ):
+        # reflection_kernels.shade_sphere_reflections on register vectors (eqs. 4.22, 4.25, 4.32, 4.33).
+        v = wp.tid()
+        p = points[v]
+        n = normals[v]
+        ns = spheres.shape[0]
+        # keys: distance of the adjusted centre, or -1 when the tangent-plane rules removed the sphere
+        for q in range(ns):
+            sid = spheres[q]
+            a = adjust_sphere(p, n, centers[sid], radii[sid])
+            key[v, q] = -1.0
+            if a[3] > 0.0:
+                key[v, q] = wp.length(wp.vec3(a[0], a[1], a[2]) - p)
+        logsum = vec_sh()
+        e_prev = vec_sh()
+        e_prev[0] = sqrt_4pi
+        cosine = zh_rotate(n, cos_zh, kz)
+        total = wp.vec3(0.0)
+        for _step in range(ns):
+            # nearest remaining sphere (selection: ns is a few dozen)
+            best = int(-1)
+            bd = float(0.0)
+            for q in range(ns):
+                kq = key[v, q]
+                if kq >= 0.0 and (best < 0 or kq < bd):
+                    best = q
+                    bd = kq
+            if best < 0:
+                break
+            key[v, best] = -1.0
+            sid = spheres[best]
+            a = adjust_sphere(p, n, centers[sid], radii[sid])
+            d = wp.vec3(a[0], a[1], a[2]) - p
+            theta = wp.asin(wp.min(a[3] / wp.max(bd, 1.0e-30), 1.0))
+            logsum = logsum + zh_rotate(d, lerp_table(log_table, theta, theta_step), kz)
+            e_new = exp_blended(logsum, mode, tau, ol)
+            # sphere visibility as a difference of two exponentials (eq. 4.32) dotted with the cosine (4.33)
+            vis = wp.dot(e_prev - e_new, cosine)
+            e_prev = e_new
+            if vis <= 0.0:
+                continue
+            # form-factor lobe toward the receiver, in the sphere's rest frame (Fig. 4.17)
+            u = wp.transpose(rotations[sid]) * (p - centers[sid])
+            ff = zh_rotate(u, lerp_table(ff_table, theta, theta_step), kz)
+            col = wp.vec3(0.0)
+            for c in range(3):
+                acc = float(0.0)
+                for i in range(n2):
+                    acc = acc + radiance[best, c, i] * ff[i]
+                col[c] = acc
+            total = total + vis * col
+        # SH ringing of a sharply coloured radiance vector can dip below 0; irradiance cannot
+        irradiance[v] = wp.vec3(wp.max(total[0], 0.0), wp.max(total[1], 0.0), wp.max(total[2], 0.0))
+
+    for fn in (dc_free_norm, exp_ol, exp_hybrid, lerp_table, exp_blended, shade, reflect):
         fn.__name__ = f"{fn.__name__}_order{order}"
         fn.__qualname__ = fn.__name__
     dc_free_norm = wp.func(dc_free_norm)
     exp_ol, exp_hybrid = wp.func(exp_ol), wp.func(exp_hybrid)
-    kernel = wp.kernel(shade, enable_backward=False)
-    return SimpleNamespace(order=order, vec_sh=vec_sh, vec_zh=vec_zh, kz=zf.zh_constants(), shade=kernel)
+    lerp_table, exp_blended = wp.func(lerp_table), wp.func(exp_blended)
+    return SimpleNamespace(order=order, vec_sh=vec_sh, vec_zh=vec_zh, kz=zf.zh_constants(),
+                           shade=wp.kernel(shade, enable_backward=False),
+                           reflect=wp.kernel(reflect, enable_backward=False))

@@ -213,6 +213,13 @@ class SphereReflections:
                   outputs=[self.radiance], device=d)
         # second pass at the receiver vertices
         t, sc = meth.tables, meth.scene
+        if self.exp != "series":  # fixed-order register kernel, same result
+            wp.launch(meth._fixed.reflect, dim=meth.mesh.num_vertices,
+                      inputs=[meth.points, meth.normals, self._spheres, sc.centers, sc.radii, sc.rotations,
+                              self.radiance, meth._log_vec, meth._ff_vec, t.theta_step, meth._cos_vec, meth._fixed.kz,
+                              meth._ol, EXP_MODES[self.exp], meth.tau, self._key],
+                      outputs=[self.irradiance], device=d)
+            return self.irradiance
         wp.launch(shade_sphere_reflections, dim=meth.mesh.num_vertices,
                   inputs=[meth.points, meth.normals, self._spheres, sc.centers, sc.radii, sc.rotations, self.radiance,
                           meth._log, meth._ff, t.theta_step, meth._ones, meth._cos_zh, meth._kz, meth._ol,
