@@ -1,19 +1,14 @@
-"""Fixed-order, register-resident variants of the per-receiver shadow and reflection kernels.
+"""Per-receiver kernels of the sphere-set shadows and reflections, compiled per SH order.
 
-Orchestration in :mod:`.method` and :mod:`.reflections`.
-
-:func:`shade_kernel_fixed` builds, once per SH order, a kernel that computes exactly what
-:func:`.kernels.shade_sphere_shadows` computes for the optimal-linear and hybrid exponentials (same
-tangent-plane rules, table lookup, ratio vectors, blend of ``p``/``p+1`` squarings, divergence guard,
-product with the clamped cosine; NumPy reference :mod:`.reference`), but keeps every SH vector in a
-fixed-length Warp vector (``vec_sh`` of the SH core's :func:`~warpshade.sh.kernels.zh_vector_funcs`)
-instead of rows of 2D scratch arrays, and multiplies with the SH core's unrolled products
-(:func:`~warpshade.sh.kernels.sh_product_vector_funcs`; squarings use the table's symmetry). Likewise
-``reflect`` computes what :func:`.reflection_kernels.shade_sphere_reflections` computes. The series
-exponential stays on the runtime-order kernels.
-
-Measured on the benchmark scene (benchmarks/spheres.py, order 4, hybrid): see the README section
-"Sphere-set soft shadows and reflections".
+Orchestration in :mod:`.method` and :mod:`.reflections`; NumPy reference :mod:`.reference` (shadows).
+:func:`shade_kernel_fixed` builds, once per order, the kernels ``shade`` (shadows: tangent-plane rules,
+log table lookup, ratio vectors, log accumulation, SH exponential, divergence guard, product with the
+clamped cosine) and ``reflect`` (one-bounce reflections). Every SH vector is a fixed-length Warp vector
+(``vec_sh`` of the SH core's :func:`~warpshade.sh.kernels.zh_vector_funcs`) held in registers, and
+products are the SH core's unrolled :func:`~warpshade.sh.kernels.sh_product_vector_funcs` (squarings
+use the Gaunt table's symmetry). Against the earlier runtime-order kernels with SH vectors in rows of
+2D scratch arrays and a table-driven product loop this gives the same transfer (max difference 3e-6)
+2.8x faster at order 4 (README, "Sphere-set soft shadows and reflections").
 
 This module deliberately does not use postponed annotations: Warp reads the (closure-local) vector
 types from the annotations of the generated functions.
@@ -25,7 +20,7 @@ from types import SimpleNamespace
 import warp as wp
 
 from ...sh.kernels import SQRT_4PI, OLTableArrays, ol_lookup, sh_product_vector_funcs, zh_vector_funcs
-from .kernels import EXP_BLEND, EXP_HYBRID, VIS_NORM_SLACK, adjust_sphere
+from .kernels import EXP_BLEND, EXP_HYBRID, EXP_OL, VIS_NORM_SLACK, adjust_sphere
 
 wp.set_module_options({"enable_backward": False})
 
@@ -35,10 +30,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
     """Kernels ``shade`` and ``reflect`` (and their vector types) for one SH order; built and cached on first use.
 
     Returns a namespace with ``vec_sh``, ``vec_zh``, ``kz`` (ZH-rotation constants as a ``vec_sh``),
-    and ``shade``: the kernel with the arguments of :func:`.kernels.shade_sphere_shadows` minus the
-    scratch rows, ``products`` and ``order``, with ``log_table`` as ``wp.array[vec_zh]`` and ``cos_zh`` a ``vec_zh``;
-    ``reflect``: the arguments of :func:`.reflection_kernels.shade_sphere_reflections` minus ``ones``,
-    ``products``, ``order`` and the scratch rows other than ``key``, with the tables as ``wp.array[vec_zh]``.
+    ``shade`` and ``reflect`` (arguments and shapes in their docstrings).
     """
     zf = zh_vector_funcs(order)
     vec_sh, vec_zh, zh_rotate = zf.vec_sh, zf.vec_zh, zf.zh_rotate
@@ -50,6 +42,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
     blend = wp.constant(EXP_BLEND)
     slack = wp.constant(VIS_NORM_SLACK)
     hybrid = wp.constant(EXP_HYBRID)
+    exp_ol_mode = wp.constant(EXP_OL)
 
     def dc_free_norm(f: vec_sh) -> float:
         s = float(0.0)
@@ -101,18 +94,54 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         f = x - float(i0)
         return table[i0] * (1.0 - f) + table[i0 + 1] * f
 
+    def exp_series(f: vec_sh, p: int) -> vec_sh:
+        # (exp_*(2^-p f))^(2^p): 8 Taylor terms of SH products (eq. 3.25) at the small scale, p squarings
+        # (eq. 3.32); the DC is isolated (eq. 3.27) and restored as a factor.
+        # (Fresh vectors, not `fh = f; fh[0] = 0`: a component store may alias the assigned-from local.)
+        s = wp.pow(0.5, float(p))
+        fh = vec_sh()
+        for i in range(1, n2):
+            fh[i] = f[i]
+        term = fh * s
+        one = vec_sh()
+        one[0] = sqrt_4pi
+        out = term + one
+        for kk in range(2, 9):
+            term = product(term, fh) * (s / float(kk))
+            out = out + term
+        out = out * wp.exp(f[0] * s / sqrt_4pi)
+        for _q in range(p):
+            out = square(out)
+        return out
+
     def exp_blended(f: vec_sh, mode: int, tau: float, ol: OLTableArrays) -> vec_sh:
-        # SH exponential (thesis §3.1.4); hybrid blended between p and p+1 squarings (kernels.sh_exp_rows).
-        if mode != hybrid:
+        """SH exponential (thesis §3.1.4): EXP_OL the SH core's optimal linear (eq. 3.30); EXP_HYBRID the
+        core's hybrid (OL on f̂/2^p with ||f̂||/2^p <= tau, p squarings, eq. 3.32); EXP_SERIES 8 Taylor terms
+        after scaling to ||f̂|| <= 1/4, then squarings (accurate, slow). For the two squaring modes the
+        results with p and p+1 squarings are blended within EXP_BLEND octaves below each change of p,
+        linearly in log2 ||f̂|| (continuity: the core's hybrid jumps by up to 0.1 there)."""
+        if mode == exp_ol_mode:
             return exp_ol(f, ol)
         m = dc_free_norm(f)
-        out = exp_hybrid(f, m, tau, ol)
+        lim = tau
+        if mode != hybrid:
+            lim = 0.25
+        p = int(0)
+        w = float(0.0)
         if m > 0.0:
-            q = wp.log2(m / tau)
-            pp = wp.clamp(int(wp.ceil(q)), 0, 30)
-            w = wp.clamp((q - (float(pp) - blend)) / blend, 0.0, 1.0)
+            q = wp.log2(m / lim)
+            p = wp.clamp(int(wp.ceil(q)), 0, 30)
+            w = wp.clamp((q - (float(p) - blend)) / blend, 0.0, 1.0)
+        out = vec_sh()
+        if mode == hybrid:
+            out = exp_hybrid(f, m, lim, ol)
             if w > 0.0:
-                out = out * (1.0 - w) + exp_hybrid(f, m, 0.5 * tau, ol) * w
+                # threshold/2 makes the core's hybrid take exactly one more squaring
+                out = out * (1.0 - w) + exp_hybrid(f, m, 0.5 * lim, ol) * w
+        else:
+            out = exp_series(f, p)
+            if w > 0.0:
+                out = out * (1.0 - w) + exp_series(f, p + 1) * w
         return out
 
     def shade(
@@ -136,6 +165,16 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         visibility: wp.array2d(dtype=float),
         transfer: wp.array2d(dtype=float),
     ):
+        """Sphere-set visibility (eq. 4.7) and diffuse transfer ``V * cos`` (CONTRACTS.md §2) of receiver ``v``.
+
+        Receivers ``points``/``normals`` (R,) vec3 in cluster ``cluster[v]``, whose cut entries are
+        ``cut_start[c]..cut_start[c+1]-1`` (sphere ``cut_sphere[e]``, ratio row ``cut_ratio[e]`` of eq. 4.9,
+        shape (E, order)); ``log_table`` (T,) vec_zh by angular radius in steps of ``theta_step`` [rad].
+        Outputs: ``used``/``fallback`` (R,) int32 (``fallback = 1``: diverged exponential replaced by the
+        geometric mean, see kernels.VIS_NORM_SLACK), ``visibility``/``transfer`` (R, N*N) float32.
+        ``transfer_0`` (irradiance under a uniform sky) is physically >= 0; SH ringing of a nearly
+        closed visibility can push it below, in which case the row is set to 0.
+        """
         v = wp.tid()
         p = points[v]
         n = normals[v]
@@ -159,21 +198,9 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             logsum = logsum + zh_rotate(d, g, kz)
             count = count + 1
         used[v] = count
-        # SH exponential (thesis §3.1.4), blended between p and p+1 squarings (see kernels.sh_exp_rows).
-        vis = vec_sh()
-        if mode == hybrid:
-            m = dc_free_norm(logsum)
-            vis = exp_hybrid(logsum, m, tau, ol)
-            if m > 0.0:
-                q = wp.log2(m / tau)
-                pp = wp.clamp(int(wp.ceil(q)), 0, 30)
-                w = wp.clamp((q - (float(pp) - blend)) / blend, 0.0, 1.0)
-                if w > 0.0:
-                    alt = exp_hybrid(logsum, m, 0.5 * tau, ol)
-                    vis = vis * (1.0 - w) + alt * w
-        else:
-            vis = exp_ol(logsum, ol)
-        # Divergence guard (kernels.guard_visibility).
+        # SH exponential (thesis §3.1.4), blended between p and p+1 squarings (exp_blended).
+        vis = exp_blended(logsum, mode, tau, ol)
+        # Divergence guard: geometric-mean visibility when the exponential exploded (kernels.VIS_NORM_SLACK).
         bound = slack * sqrt_4pi
         fb = int(0)
         if not (vis[0] >= 0.0 and vis[0] <= bound and wp.dot(vis, vis) <= bound * bound):
@@ -208,7 +235,15 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         key: wp.array2d(dtype=float),
         irradiance: wp.array(dtype=wp.vec3),
     ):
-        # reflection_kernels.shade_sphere_reflections on register vectors (eqs. 4.22, 4.25, 4.32, 4.33).
+        """Reflected irradiance at receiver ``v`` from every reflecting sphere (eqs. 4.22, 4.25, 4.32, 4.33).
+
+        Spheres (after the tangent-plane rules of §4.2) are taken nearest first; with ``P`` the running
+        sum of the closer spheres' log blocker vectors, a sphere's visibility is ``exp(P) - exp(P + G_i)``
+        (eq. 4.32), dotted with the clamped cosine (eq. 4.33), times the form-factor average of its
+        radiance vector (eq. 4.25; direction taken into the sphere's rest frame, Fig. 4.17).
+        ``spheres`` (S,) int32: reflecting sphere ids; ``radiance`` (S, 3, N*N) float32 per colour in each
+        sphere's rest frame; ``key`` (V, >=S) float32 scratch; output ``irradiance`` (V,) vec3.
+        """
         v = wp.tid()
         p = points[v]
         n = normals[v]
@@ -261,11 +296,11 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         # SH ringing of a sharply coloured radiance vector can dip below 0; irradiance cannot
         irradiance[v] = wp.vec3(wp.max(total[0], 0.0), wp.max(total[1], 0.0), wp.max(total[2], 0.0))
 
-    for fn in (dc_free_norm, exp_ol, exp_hybrid, lerp_table, exp_blended, shade, reflect):
+    for fn in (dc_free_norm, exp_ol, exp_hybrid, exp_series, lerp_table, exp_blended, shade, reflect):
         fn.__name__ = f"{fn.__name__}_order{order}"
         fn.__qualname__ = fn.__name__
     dc_free_norm = wp.func(dc_free_norm)
-    exp_ol, exp_hybrid = wp.func(exp_ol), wp.func(exp_hybrid)
+    exp_ol, exp_hybrid, exp_series = wp.func(exp_ol), wp.func(exp_hybrid), wp.func(exp_series)
     lerp_table, exp_blended = wp.func(lerp_table), wp.func(exp_blended)
     return SimpleNamespace(order=order, vec_sh=vec_sh, vec_zh=vec_zh, kz=zf.zh_constants(),
                            shade=wp.kernel(shade, enable_backward=False),
