@@ -30,6 +30,9 @@ import time
 import numpy as np
 import warp as wp
 
+# Measure the checkout this script belongs to (a plain `python benchmarks/spheres.py` would otherwise
+# import whichever warpshade is installed).
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 wp.config.quiet = True
 
 from warpshade.geometry import TriMesh, load_mesh  # noqa: E402
