@@ -14,6 +14,14 @@ import numpy as np
 
 from .geometry.mesh import TriMesh
 
+class SceneError(ValueError):
+    """Invalid scene input. The message names the file and the prim at fault."""
+
+
+class SceneWarning(UserWarning):
+    """Something in a scene file that warpshade ignores (an unsupported prim or input)."""
+
+
 OBJECT_KINDS = ("static", "cloth", "skinned", "animated")
 """``static``: never moves; ``cloth``: simulated; ``skinned``: linear-blend skinned; ``animated``:
 time-sampled points read from the file."""

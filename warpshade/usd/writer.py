@@ -79,7 +79,7 @@ class AnimationWriter:
     """
 
     def __init__(self, path: str, fps: float = 60.0, up_axis: str = "Y", meters_per_unit: float = 1.0,
-                 chunk: int = 32, metadata: dict | None = None):
+                 chunk: int = 64, metadata: dict | None = None):
         if chunk < 1:
             raise ValueError(f"{path}: chunk must be >= 1 frame, got {chunk}")
         self.path = os.path.abspath(os.fspath(path))

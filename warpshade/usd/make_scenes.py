@@ -1,0 +1,301 @@
+"""Generate the shipped scenes in ``usd_scenes/`` (reproducible: ``python -m warpshade.usd.make_scenes``).
+
+Each scene is plain ``.usda`` that a user can read and edit; this script only saves typing the
+grids. The ``warpshade:`` attributes used are documented in the README ("Running scenes (USD)").
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+import numpy as np
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel, Vt
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SCENES_DIR = os.path.normpath(os.path.join(HERE, "..", "..", "usd_scenes"))
+
+CLOTH = {"density": 0.2, "stretchStiffness": 1.0e4, "bendStiffness": 1.0e-3, "damping": 0.1,
+         "thickness": 0.01, "friction": 0.5, "selfCollision": True}
+"""Default cloth material: area density [kg/m²], stretch stiffness [N/m], bending stiffness [N·m],
+damping [1/s], collision thickness [m], Coulomb friction, self-collision."""
+
+
+def grid(nx: int, ny: int, sx: float, sy: float):
+    """Quad grid in the XY plane centred at 0: points (nx*ny, 3), counts, indices (quads)."""
+    x, y = np.meshgrid(np.linspace(-sx / 2, sx / 2, nx), np.linspace(-sy / 2, sy / 2, ny))
+    pts = np.stack([x.ravel(), y.ravel(), np.zeros(nx * ny)], axis=1)
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1))
+    v0 = (j * nx + i).ravel()
+    quads = np.stack([v0, v0 + 1, v0 + nx + 1, v0 + nx], axis=1)
+    return pts, np.full(len(quads), 4), quads.ravel()
+
+
+def new_stage(path: str, frames: int, fps: float = 60.0, doc: str = "") -> Usd.Stage:
+    if os.path.exists(path):
+        os.remove(path)
+    stage = Usd.Stage.CreateNew(path)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetTimeCodesPerSecond(fps)
+    stage.SetFramesPerSecond(fps)
+    stage.SetStartTimeCode(0)
+    stage.SetEndTimeCode(frames - 1)
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    world.GetPrim().CreateAttribute("warpshade:frames", Sdf.ValueTypeNames.Int, custom=True).Set(frames)
+    if doc:
+        stage.GetRootLayer().documentation = doc
+    return stage
+
+
+def set_attr(prim, name: str, value) -> None:
+    if isinstance(value, bool):
+        t = Sdf.ValueTypeNames.Bool
+    elif isinstance(value, int):
+        t = Sdf.ValueTypeNames.Int
+    elif isinstance(value, float):
+        t = Sdf.ValueTypeNames.Float
+    elif isinstance(value, str):
+        t = Sdf.ValueTypeNames.Token
+    elif isinstance(value, tuple):
+        t, value = Sdf.ValueTypeNames.Float3, Gf.Vec3f(*value)
+    else:
+        t, value = Sdf.ValueTypeNames.IntArray, Vt.IntArray([int(v) for v in value])
+    prim.CreateAttribute(f"warpshade:{name}", t, custom=True).Set(value)
+
+
+def material(stage, name: str, albedo, roughness: float = 1.0) -> UsdShade.Material:
+    UsdGeom.Scope.Define(stage, "/World/Looks")
+    mat = UsdShade.Material.Define(stage, f"/World/Looks/{name}")
+    sh = UsdShade.Shader.Define(stage, f"/World/Looks/{name}/PreviewSurface")
+    sh.CreateIdAttr("UsdPreviewSurface")
+    sh.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*albedo))
+    sh.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(roughness))
+    mat.CreateSurfaceOutput().ConnectToSource(sh.ConnectableAPI(), "surface")
+    return mat
+
+
+def bind(prim, mat) -> None:
+    UsdShade.MaterialBindingAPI.Apply(prim).Bind(mat)
+
+
+def mesh(stage, path, pts, counts, idx, translate=None, rotate_x=None) -> UsdGeom.Mesh:
+    m = UsdGeom.Mesh.Define(stage, path)
+    m.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(np.asarray(pts, dtype=np.float32)))
+    m.CreateFaceVertexCountsAttr(Vt.IntArray([int(c) for c in counts]))
+    m.CreateFaceVertexIndicesAttr(Vt.IntArray([int(i) for i in idx]))
+    m.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    m.CreateExtentAttr(UsdGeom.PointBased.ComputeExtent(m.GetPointsAttr().Get()))
+    if translate is not None:
+        m.AddTranslateOp().Set(Gf.Vec3d(*translate))
+    if rotate_x is not None:
+        m.AddRotateXOp().Set(rotate_x)
+    return m
+
+
+def ground(stage, size: float = 4.0, n: int = 33, albedo=(0.6, 0.6, 0.58)) -> UsdGeom.Mesh:
+    pts, c, i = grid(n, n, size, size)
+    # XY grid -> XZ floor facing +Y (rotate by -90° about X keeps the quads counter-clockwise from above)
+    g = mesh(stage, "/World/Ground", pts, c, i, rotate_x=-90.0)
+    set_attr(g.GetPrim(), "collider", "ground")
+    bind(g.GetPrim(), material(stage, "GroundMat", albedo))
+    return g
+
+
+def cloth(stage, path="/World/Cloth", n=25, size=1.6, height=1.3, pinned=None, albedo=(0.75, 0.2, 0.15),
+          translate=None, rotate_x=-90.0) -> UsdGeom.Mesh:
+    pts, c, i = grid(n, n, size, size)
+    m = mesh(stage, path, pts, c, i, translate=translate or (0.0, height, 0.0), rotate_x=rotate_x)
+    p = m.GetPrim()
+    set_attr(p, "kind", "cloth")
+    for k, v in CLOTH.items():
+        set_attr(p, f"cloth:{k}", v)
+    if pinned is not None:
+        set_attr(p, "pinned", pinned)
+    bind(p, material(stage, "ClothMat", albedo, roughness=0.9))
+    return m
+
+
+def sphere(stage, center=(0.0, 0.5, 0.0), radius=0.5, albedo=(0.7, 0.7, 0.75)) -> UsdGeom.Sphere:
+    s = UsdGeom.Sphere.Define(stage, "/World/Ball")
+    s.CreateRadiusAttr(radius)
+    s.CreateExtentAttr([(-radius,) * 3, (radius,) * 3])
+    s.AddTranslateOp().Set(Gf.Vec3d(*center))
+    set_attr(s.GetPrim(), "collider", "sphere")
+    bind(s.GetPrim(), material(stage, "BallMat", albedo))
+    return s
+
+
+def box(stage, path, center, size, albedo=(0.5, 0.35, 0.2)) -> UsdGeom.Mesh:
+    c = np.array([[x, y, z] for x in (-.5, .5) for y in (-.5, .5) for z in (-.5, .5)]) * np.asarray(size)
+    quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    m = mesh(stage, path, c, [4] * 6, np.ravel(quads), translate=center)
+    set_attr(m.GetPrim(), "collider", "mesh")
+    bind(m.GetPrim(), material(stage, path.split("/")[-1] + "Mat", albedo))
+    return m
+
+
+def sun(stage, elevation_deg=55.0, azimuth_deg=30.0, intensity=3.0):
+    sun = UsdLux.DistantLight.Define(stage, "/World/Lights/Sun")
+    sun.CreateIntensityAttr(intensity)
+    sun.CreateColorAttr(Gf.Vec3f(1.0, 0.95, 0.85))
+    sun.CreateAngleAttr(0.53)
+    # the light shines along its -Z: tilt down by the elevation, turn by the azimuth
+    sun.AddRotateYOp().Set(azimuth_deg)
+    sun.AddRotateXOp().Set(-elevation_deg)
+    return sun
+
+
+def dome(stage, texture: str | None = None, intensity=1.0, color=(0.5, 0.6, 0.8)):
+    d = UsdLux.DomeLight.Define(stage, "/World/Lights/Sky")
+    d.CreateIntensityAttr(intensity)
+    if texture:
+        d.CreateTextureFileAttr(Sdf.AssetPath(texture))
+        d.CreateTextureFormatAttr(UsdLux.Tokens.latlong)
+    else:
+        d.CreateColorAttr(Gf.Vec3f(*color))
+    return d
+
+
+def write_sky_exr(path: str, width: int = 64, height: int = 32) -> None:
+    """A small lat-long sky (+Y up in the top row): blue gradient, bright ground bounce, a sun disc."""
+    import OpenEXR
+
+    v, u = np.meshgrid((np.arange(height) + 0.5) / height, (np.arange(width) + 0.5) / width, indexing="ij")
+    theta, phi = v * np.pi, u * 2 * np.pi
+    up = np.cos(theta)
+    sky = np.where(up[..., None] > 0, np.stack([0.35 + 0.3 * (1 - up), 0.55 + 0.2 * (1 - up), 1.0 + 0 * up], -1),
+                   np.stack([0.25, 0.22, 0.2])[None, None, :] * np.ones_like(up)[..., None])
+    sun_dir = np.array([np.sin(0.6) * np.cos(1.0), np.cos(0.6), np.sin(0.6) * np.sin(1.0)])
+    d = np.stack([np.sin(theta) * np.cos(phi), np.cos(theta), np.sin(theta) * np.sin(phi)], -1)
+    sky = sky + 40.0 * (d @ sun_dir > np.cos(0.12))[..., None]
+    OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
+                 {"RGB": sky.astype(np.float32)}).write(path)
+
+
+def skinned_tube(stage, frames: int):
+    """A UsdSkel character limb: a tube bound to two joints, the upper one bending over time."""
+    root = UsdSkel.Root.Define(stage, "/World/Arm")
+    skel = UsdSkel.Skeleton.Define(stage, "/World/Arm/Skel")
+    joints = ["shoulder", "shoulder/elbow"]
+    skel.CreateJointsAttr(joints)
+    rest = [Gf.Matrix4d(1).SetTranslate(Gf.Vec3d(0, 0.2, 0)), Gf.Matrix4d(1).SetTranslate(Gf.Vec3d(0, 0.5, 0))]
+    world_bind = [rest[0], rest[1] * rest[0]]
+    skel.CreateBindTransformsAttr(world_bind)
+    skel.CreateRestTransformsAttr(rest)
+    anim = UsdSkel.Animation.Define(stage, "/World/Arm/Skel/Walk")
+    anim.CreateJointsAttr(joints)
+    anim.CreateTranslationsAttr(Vt.Vec3fArray([(0, 0.2, 0), (0, 0.5, 0)]))
+    anim.CreateScalesAttr(Vt.Vec3hArray([(1, 1, 1), (1, 1, 1)]))
+    rot = anim.CreateRotationsAttr()
+    for f in range(frames):
+        a = np.radians(70.0 * np.sin(2 * np.pi * f / max(frames, 2)))
+        q = Gf.Quatf(float(np.cos(a / 2)), 0.0, 0.0, float(np.sin(a / 2)))
+        rot.Set(Vt.QuatfArray([Gf.Quatf(1, 0, 0, 0), q]), f)
+    UsdSkel.BindingAPI.Apply(skel.GetPrim()).CreateAnimationSourceRel().SetTargets([anim.GetPath()])
+    # tube: rings of 12 along y in [0.2, 1.2]
+    rings, seg = 11, 12
+    ang = np.linspace(0, 2 * np.pi, seg, endpoint=False)
+    ys = np.linspace(0.2, 1.2, rings)
+    pts = np.array([[0.12 * np.cos(a), y, 0.12 * np.sin(a)] for y in ys for a in ang])
+    quads = [[r * seg + s, r * seg + (s + 1) % seg, (r + 1) * seg + (s + 1) % seg, (r + 1) * seg + s][::-1]
+             for r in range(rings - 1) for s in range(seg)]
+    m = mesh(stage, "/World/Arm/Tube", pts, [4] * len(quads), np.ravel(quads))
+    b = UsdSkel.BindingAPI.Apply(m.GetPrim())
+    b.CreateSkeletonRel().SetTargets([skel.GetPath()])
+    w_elbow = np.clip((pts[:, 1] - 0.55) / 0.3 + 0.5, 0, 1)
+    idx = np.stack([np.zeros(len(pts)), np.ones(len(pts))], 1).astype(int)
+    wts = np.stack([1 - w_elbow, w_elbow], 1)
+    b.CreateJointIndicesPrimvar(False, 2).Set(Vt.IntArray([int(i) for i in idx.ravel()]))
+    b.CreateJointWeightsPrimvar(False, 2).Set(Vt.FloatArray([float(w) for w in wts.ravel()]))
+    b.CreateGeomBindTransformAttr(Gf.Matrix4d(1))
+    bind(m.GetPrim(), material(stage, "SkinMat", (0.8, 0.6, 0.5)))
+    return root
+
+
+def make_all(out_dir: str = SCENES_DIR) -> list[str]:
+    os.makedirs(out_dir, exist_ok=True)
+    made = []
+
+    def save(stage, name):
+        stage.GetRootLayer().Save()
+        made.append(os.path.join(out_dir, name))
+
+    # default: cloth draping over a ball onto the ground under the default sky (no lights authored)
+    st = new_stage(os.path.join(out_dir, "default.usda"), 120,
+                   doc="Default scene: a cloth drapes over a ball onto the ground under warpshade's default sky.")
+    ground(st), sphere(st), cloth(st)
+    save(st, "default.usda")
+
+    # sims/cloth_over_sphere: the same under an explicit sun and sky
+    st = new_stage(os.path.join(out_dir, "cloth_sphere.usda"), 120, doc="Cloth over a ball, sun and blue sky.")
+    ground(st), sphere(st), cloth(st), sun(st), dome(st, intensity=0.6)
+    save(st, "cloth_sphere.usda")
+
+    # sims/flag_wind: a flag pinned to a pole in wind
+    st = new_stage(os.path.join(out_dir, "flag_wind.usda"), 180, doc="A flag pinned to a pole, in wind.")
+    ground(st)
+    box(st, "/World/Pole", (-0.85, 1.0, 0.0), (0.05, 2.0, 0.05), albedo=(0.4, 0.4, 0.4))
+    n = 25
+    flag = cloth(st, "/World/Flag", n=n, size=1.6, rotate_x=0.0, translate=(0.0, 1.4, 0.0), albedo=(0.1, 0.3, 0.8),
+                 pinned=[j * n for j in range(n // 2, n)])
+    flag.GetPrim()  # pinned: left edge (x = -0.8), upper half
+    set_attr(st.GetPrimAtPath("/World"), "wind", (6.0, 0.0, 1.5))
+    sun(st), dome(st, intensity=0.6)
+    save(st, "flag_wind.usda")
+
+    # sims/cloth_table: a cloth falls on a table and folds onto itself
+    st = new_stage(os.path.join(out_dir, "cloth_table.usda"), 150, doc="A cloth falls on a table and folds.")
+    ground(st)
+    box(st, "/World/Table", (0.0, 0.4, 0.0), (1.0, 0.8, 0.7))
+    cloth(st, n=31, size=1.4, height=1.4, translate=(0.35, 1.3, 0.0), albedo=(0.85, 0.8, 0.3))
+    sun(st), dome(st, intensity=0.6)
+    save(st, "cloth_table.usda")
+
+    # RectLight: cloth over a ball lit by an area light
+    st = new_stage(os.path.join(out_dir, "rect_light.usda"), 120, doc="Cloth over a ball under a rectangular area light.")
+    ground(st), sphere(st), cloth(st)
+    rect = UsdLux.RectLight.Define(st, "/World/Lights/Panel")
+    rect.CreateWidthAttr(1.5), rect.CreateHeightAttr(1.0), rect.CreateIntensityAttr(8.0)
+    rect.AddTranslateOp().Set(Gf.Vec3d(0.5, 2.5, 0.5))
+    rect.AddRotateXOp().Set(-90.0)  # emit downwards (-Z of the light -> -Y of the world)
+    dome(st, intensity=0.3)
+    save(st, "rect_light.usda")
+
+    # DomeLight texture: a time-sampled waving sheet over a ball (no simulation needed)
+    write_sky_exr(os.path.join(out_dir, "sky_small.exr"))
+    frames = 48
+    st = new_stage(os.path.join(out_dir, "dome_texture.usda"), frames,
+                   doc="A waving sheet (time-sampled points) and a ball under an HDR sky from sky_small.exr.")
+    ground(st), sphere(st)
+    pts, c, i = grid(17, 17, 1.6, 1.6)
+    m = mesh(st, "/World/Sheet", pts, c, i, translate=(0.0, 1.2, 0.0), rotate_x=-90.0)
+    pa = m.GetPointsAttr()
+    pa.Clear()
+    for f in range(frames):
+        p = pts.copy()
+        p[:, 2] = 0.15 * np.sin(3.0 * p[:, 0] + 2 * np.pi * f / frames)
+        pa.Set(Vt.Vec3fArray.FromNumpy(p.astype(np.float32)), f)
+    bind(m.GetPrim(), material(st, "SheetMat", (0.3, 0.7, 0.35)))
+    dome(st, texture="./sky_small.exr", intensity=1.0)
+    save(st, "dome_texture.usda")
+
+    # UsdSkel: a skinned limb bending over time, on the ground, under the sun
+    st = new_stage(os.path.join(out_dir, "skinned_arm.usda"), 48, doc="A UsdSkel-skinned limb bending.")
+    ground(st), skinned_tube(st, 48), sun(st), dome(st, intensity=0.6)
+    save(st, "skinned_arm.usda")
+    return made
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("out_dir", nargs="?", default=SCENES_DIR)
+    args = p.parse_args(argv)
+    for path in make_all(args.out_dir):
+        print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
