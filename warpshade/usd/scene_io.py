@@ -89,6 +89,10 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         if skel_root.IsA(UsdSkel.Root):
             cache.Populate(UsdSkel.Root(skel_root), Usd.PrimDefaultPredicate)
     default_method = scene.settings.get("method")
+    if default_method is None:
+        from ..pipeline import default_method as fastest
+
+        default_method = fastest()
     it = iter(Usd.PrimRange(stage.GetPseudoRoot()))
     for prim in it:
         if prim.IsPseudoRoot():

@@ -122,14 +122,16 @@ class AnimationWriter:
 
     # -- declarations -----------------------------------------------------------------------
     def add_mesh(self, name: str, faces: np.ndarray, points: np.ndarray | None = None, *,
-                 albedo=None, roughness: float = 1.0, transfer_order: int | None = None) -> str:
+                 normals: np.ndarray | None = None, albedo=None, roughness: float = 1.0, transfer_order: int | None = None) -> str:
         """Declare a mesh; its topology (and ``points`` if given) is written at the default time.
 
         Args:
             name: Prim name under ``/World`` (sanitised to a valid identifier).
             faces: Triangle indices, shape (F, 3), int.
             points: Rest positions, shape (V, 3). Give them for meshes that never move (they are
-                then written at the default time); animated meshes get their points per frame.
+                then written at the default time and :meth:`write_frame` may pass ``points=None``);
+                animated meshes get their points per frame.
+            normals: Unit vertex normals of a static mesh, shape (V, 3), written at the default time.
             albedo: Diffuse reflectance, linear RGB, shape (3,), recorded as ``warpshade:albedo``.
             roughness: UsdPreviewSurface roughness of the output material.
             transfer_order: SH order N if :meth:`write_frame` will get ``transfer`` (V, N*N).
@@ -158,6 +160,8 @@ class AnimationWriter:
             nverts = len(pts)
             mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pts))
             mesh.CreateExtentAttr(Vt.Vec3fArray.FromNumpy(_extent(pts)))
+            if normals is not None:
+                mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(_check(normals, pts.shape, pname, "default", "normals")))
         pv = UsdGeom.PrimvarsAPI(mesh)
         pv.CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
         if transfer_order is not None:
@@ -169,7 +173,7 @@ class AnimationWriter:
             mesh.GetPrim().CreateAttribute("warpshade:albedo", Sdf.ValueTypeNames.Color3f, custom=True).Set(
                 Gf.Vec3f(*[float(a) for a in np.asarray(albedo).reshape(3)]))
         self._bind_material(mesh, pname, roughness)
-        self._meshes[pname] = {"path": path, "vertices": nverts,
+        self._meshes[pname] = {"path": path, "vertices": nverts, "static": points is not None,
                                "transfer": None if transfer_order is None else int(transfer_order) ** 2}
         return pname
 
@@ -237,7 +241,7 @@ class AnimationWriter:
         Args:
             frame: Frame number (time code); non-decreasing across calls.
             name: A name returned by :meth:`add_mesh`.
-            points: Positions, shape (V, 3).
+            points: Positions, shape (V, 3), or None for a mesh declared with rest points (static).
             normals: Unit vertex normals, shape (V, 3), or None.
             colors: Linear RGB exit radiance per vertex, shape (V, 3), or None.
             transfer: SH transfer per vertex, shape (V, N*N) (N from ``transfer_order``), or None.
@@ -250,18 +254,24 @@ class AnimationWriter:
         if self._frame is not None and frame < self._frame:
             raise ValueError(f"{self.path}: frame {frame} written after frame {self._frame}; frames must not go back")
         info = self._meshes[name]
-        pts = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
-        v = len(pts)
-        if info["vertices"] and v != info["vertices"]:
-            raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: {v} points, topology has {info['vertices']}")
-        info["vertices"] = v
-        if not np.isfinite(pts).all():
-            bad = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
-            raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: vertex {bad} is not finite {pts[bad].tolist()}")
+        values = {}
+        if points is None:
+            if not info["static"]:
+                raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: points=None needs rest points in add_mesh")
+            v = info["vertices"]
+        else:
+            pts = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
+            v = len(pts)
+            if info["vertices"] and v != info["vertices"]:
+                raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: {v} points, topology has {info['vertices']}")
+            info["vertices"] = v
+            if not np.isfinite(pts).all():
+                bad = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
+                raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: vertex {bad} is not finite {pts[bad].tolist()}")
+            values = {"points": Vt.Vec3fArray.FromNumpy(pts), "extent": Vt.Vec3fArray.FromNumpy(_extent(pts))}
         if self._frame is None or frame > self._frame:
             self._start_frame(frame)
         self._frame_meshes.add(name)
-        values = {"points": Vt.Vec3fArray.FromNumpy(pts), "extent": Vt.Vec3fArray.FromNumpy(_extent(pts))}
         if normals is not None:
             values["normals"] = Vt.Vec3fArray.FromNumpy(_check(normals, (v, 3), name, frame, "normals"))
         if colors is not None:
