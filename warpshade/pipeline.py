@@ -22,7 +22,7 @@ import warp as wp
 
 from .geometry.mesh import TriMesh
 from .geometry.normals import vertex_normals
-from .scene import Scene, SceneError, SceneObject
+from .scene import LightSpec, Scene, SceneError, SceneObject
 from .sh.basis import check_order, sh_eval
 
 METHOD_PREFERENCE = ("hemiraster", "spheres", "disks", "reference")
@@ -147,8 +147,41 @@ def lights_for(scene: Scene) -> list:
     except ImportError as exc:
         raise SceneError(f"{scene.source}: shading needs warpshade.lighting, which is not installed yet ({exc})") from None
     if not scene.lights:
-        return list(lighting.default_lights(up=scene.up_axis))
-    return [lighting.from_spec(spec, up=scene.up_axis) for spec in scene.lights]
+        return [lighting.default_environment(up=scene.up_axis)]
+    return [light_from_spec(spec, scene.up_axis) for spec in scene.lights]
+
+
+def light_from_spec(spec: LightSpec, up: str = "Y"):
+    """A :mod:`warpshade.lighting` light from a UsdLux description (mapping documented in
+    :mod:`warpshade.lighting.lights`: ``L = color · intensity · 2^exposure``; with ``normalize`` the
+    power is independent of size, so radiance is divided by the emitting area, and a distant light
+    gives irradiance)."""
+    from . import lighting
+
+    L = spec.radiance
+    xf = spec.transform
+    rot = xf[:3, :3] / np.maximum(np.linalg.norm(xf[:3, :3], axis=0), 1e-300)
+    name = spec.name
+    if spec.kind == "dome":
+        if spec.texture:
+            return lighting.EnvironmentMap.from_file(spec.texture, intensity=L, up=up, rotation=rot, name=name)
+        return lighting.ConstantEnvironment(radiance=L, name=name)
+    if spec.kind == "distant":
+        towards = xf[:3, 2]  # UsdLux: the light shines along its -Z
+        if spec.normalize or spec.angle <= 0:
+            return lighting.DirectionalLight(direction=towards, irradiance=L, angle=max(spec.angle, 0.0), name=name)
+        return lighting.DirectionalLight.from_radiance(towards, L, angle=spec.angle, name=name)
+    if spec.kind == "sphere":
+        scale = float(np.cbrt(abs(np.linalg.det(xf[:3, :3]))))
+        r = spec.radius * scale
+        light = lighting.SphereLight(position=spec.position, radius=r,
+                                     radiance=L / (4 * math.pi * r * r) if spec.normalize else L, name=name)
+        return light.as_point() if spec.treat_as_point else light
+    if spec.kind == "rect":
+        u, v = xf[:3, 0] * spec.width / 2, xf[:3, 1] * spec.height / 2
+        area = 4 * float(np.linalg.norm(np.cross(u, v)))
+        return lighting.RectLight(center=spec.position, u=u, v=v, radiance=L / area if spec.normalize else L, name=name)
+    raise SceneError(f"{spec.name}: light kind '{spec.kind}' is not supported")
 
 
 class Pipeline:

@@ -71,6 +71,9 @@ class LightSpec:
         height: Rect light: size along the frame's Y [scene units].
         texture: Dome light: absolute path of the lat-long environment image, or None for a
             uniform dome of ``color``.
+        normalize: UsdLux ``inputs:normalize``: the power does not depend on the light's size
+            (radiance is divided by the emitting area; a distant light then gives irradiance).
+        treat_as_point: Sphere light: UsdLux ``treatAsPoint``.
     """
 
     kind: str
@@ -84,6 +87,8 @@ class LightSpec:
     width: float = 1.0
     height: float = 1.0
     texture: str | None = None
+    normalize: bool = False
+    treat_as_point: bool = False
 
     def __post_init__(self):
         if self.kind not in LIGHT_KINDS:

@@ -1,6 +1,8 @@
 """USD boundary: the only package in warpshade that imports ``pxr``."""
 
+from .frames import ShadedStage
 from .mesh_io import read_usd_mesh, triangulate
+from .scene_io import read_scene, scene_from_stage
 from .writer import AnimationWriter
 
-__all__ = ["AnimationWriter", "read_usd_mesh", "triangulate"]
+__all__ = ["AnimationWriter", "ShadedStage", "read_scene", "read_usd_mesh", "scene_from_stage", "triangulate"]

@@ -314,11 +314,13 @@ def _read_light(prim, kind: str, source: str) -> LightSpec:
                      color=np.asarray(get(lux.GetColorAttr(), (1.0, 1.0, 1.0)), dtype=np.float64),
                      intensity=float(get(lux.GetIntensityAttr(), 1.0)),
                      exposure=float(get(lux.GetExposureAttr(), 0.0)),
-                     transform=_world(prim))
+                     transform=_world(prim),
+                     normalize=bool(get(lux.GetNormalizeAttr(), False)))
     if kind == "distant":
         spec.angle = float(get(UsdLux.DistantLight(prim).GetAngleAttr(), 0.53))
     elif kind == "sphere":
         spec.radius = float(get(UsdLux.SphereLight(prim).GetRadiusAttr(), 0.5))
+        spec.treat_as_point = bool(get(UsdLux.SphereLight(prim).GetTreatAsPointAttr(), False))
     elif kind == "rect":
         spec.width = float(get(UsdLux.RectLight(prim).GetWidthAttr(), 1.0))
         spec.height = float(get(UsdLux.RectLight(prim).GetHeightAttr(), 1.0))

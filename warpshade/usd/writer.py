@@ -212,10 +212,14 @@ class AnimationWriter:
         lux.CreateColorAttr(Gf.Vec3f(*[float(c) for c in light.color]))
         lux.CreateIntensityAttr(float(light.intensity))
         lux.CreateExposureAttr(float(light.exposure))
+        if light.normalize:
+            lux.CreateNormalizeAttr(True)
         if light.kind == "distant":
             lux.CreateAngleAttr(float(light.angle))
         elif light.kind == "sphere":
             lux.CreateRadiusAttr(float(light.radius))
+            if light.treat_as_point:
+                lux.CreateTreatAsPointAttr(True)
         elif light.kind == "rect":
             lux.CreateWidthAttr(float(light.width))
             lux.CreateHeightAttr(float(light.height))
