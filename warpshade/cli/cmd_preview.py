@@ -45,6 +45,9 @@ def _frames(spec: str | None, single, start: float, end: float) -> list[float]:
 def run(args) -> int:
     import imageio.v3 as iio
     import numpy as np
+    import warp as wp
+
+    wp.config.log_level = wp.LOG_WARNING
 
     from ..preview import contact_sheet, frame_camera, render, tonemap
     from ..usd.frames import ShadedStage
@@ -57,7 +60,9 @@ def run(args) -> int:
     frames = _frames(args.contact_sheet, args.frame, stage.start, stage.end)
     shots = [stage.frame(f) for f in frames]
     # one camera and one exposure for all tiles, so motion and lighting changes are comparable
-    allpts = np.concatenate([m[1] for shot in shots for m in shot])
+    # frame what moves (a ground grid would otherwise set the scale), else everything
+    moving = stage.moving()
+    allpts = np.concatenate([m[1] for shot in shots for m in shot if not moving or m[0] in moving])
     cam = frame_camera(allpts, stage.up_axis, args.azimuth, args.elevation, aspect=w / h)
     images = [render([(p, f, c) for _, p, f, c in shot], cam, w, h) for shot in shots]
     exposure = args.exposure

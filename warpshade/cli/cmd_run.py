@@ -39,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args) -> int:
     import warp as wp
 
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines between progress updates
     from ..pipeline import Pipeline
     from ..usd import AnimationWriter, read_scene
     from .cmd_transfer import parse_knobs

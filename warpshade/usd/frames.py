@@ -42,6 +42,10 @@ class ShadedStage:
         if not self._meshes:
             raise SceneError(f"{path}: no Mesh prim")
 
+    def moving(self) -> set[str]:
+        """Paths of the meshes whose points are time-sampled."""
+        return {str(prim.GetPath()) for prim, m, _ in self._meshes if m.GetPointsAttr().ValueMightBeTimeVarying()}
+
     def frame(self, frame: float) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
         """Every mesh at ``frame``: ``(prim path, points (V, 3) world, faces (F, 3), colors (V, 3))``.
 

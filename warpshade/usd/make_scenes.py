@@ -141,6 +141,7 @@ def sun(stage, elevation_deg=55.0, azimuth_deg=30.0, intensity=3.0):
     sun.CreateIntensityAttr(intensity)
     sun.CreateColorAttr(Gf.Vec3f(1.0, 0.95, 0.85))
     sun.CreateAngleAttr(0.53)
+    sun.CreateNormalizeAttr(True)  # intensity is the irradiance, independent of the disc's size
     # the light shines along its -Z: tilt down by the elevation, turn by the azimuth
     sun.AddRotateYOp().Set(azimuth_deg)
     sun.AddRotateXOp().Set(-elevation_deg)
