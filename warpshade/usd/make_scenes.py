@@ -15,10 +15,10 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel, Vt
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCENES_DIR = os.path.normpath(os.path.join(HERE, "..", "..", "usd_scenes"))
 
-CLOTH = {"density": 0.2, "stretchStiffness": 1.0e4, "bendStiffness": 1.0e-3, "damping": 0.1,
+CLOTH = {"density": 0.2, "stretchStiffness": 5.0e4, "bendStiffness": 5.0e-5, "damping": 1.0e-3,
          "thickness": 0.01, "friction": 0.5, "selfCollision": True}
 """Default cloth material: area density [kg/m²], stretch stiffness [N/m], bending stiffness [N·m],
-damping [1/s], collision thickness [m], Coulomb friction, self-collision."""
+Rayleigh damping time [s], collision thickness [m], Coulomb friction, self-collision."""
 
 
 def grid(nx: int, ny: int, sx: float, sy: float):
