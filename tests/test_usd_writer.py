@@ -75,6 +75,9 @@ def test_round_trip_per_frame(tmp_path, rng):
     assert col.GetInterpolation() == "vertex" and tr.GetInterpolation() == "vertex" and tr.GetElementSize() == 4
     assert mesh.GetNormalsInterpolation() == "vertex"
     assert mesh.GetPointsAttr().GetTimeSamples() == list(map(float, range(10)))
+    # what usdview's and Blender's importers look at to decide a mesh (and its colours) animate
+    assert mesh.GetPointsAttr().ValueMightBeTimeVarying() and col.ValueMightBeTimeVarying()
+    assert stage.GetTimeCodesPerSecond() == 60 and stage.GetFramesPerSecond() == 60
     for f, d in enumerate(data):  # float32 in, float32 out: exact
         assert np.array_equal(np.asarray(mesh.GetPointsAttr().Get(f)), d["points"]), f"points, frame {f}"
         assert np.array_equal(np.asarray(mesh.GetNormalsAttr().Get(f)), d["normals"]), f"normals, frame {f}"

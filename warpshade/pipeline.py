@@ -151,6 +151,36 @@ def lights_for(scene: Scene) -> list:
     return [light_from_spec(spec, scene.up_axis) for spec in scene.lights]
 
 
+def sky_light_specs(sky, image_path: str, up: str = "Y", height: int = 128) -> list[LightSpec]:
+    """UsdLux descriptions of an analytic :class:`warpshade.lighting.Sky` for the output file: a
+    DomeLight with the sky rendered to a lat-long image (written to ``image_path``) and a normalized
+    DistantLight for the sun (the 0.53° disc is far smaller than a texel, so it is not in the image).
+    """
+    from .lighting import up_frame, write_image
+    from .sh.projection import latlong_directions
+
+    frame = up_frame(up)
+    dirs = latlong_directions(height, 2 * height).reshape(-1, 3) @ frame.T  # map frame -> world
+    sun = np.asarray(sky.sun_direction, dtype=np.float64)
+    half = math.radians(0.53) / 2
+    in_sun = dirs @ sun >= math.cos(half)
+    if in_sun.any():  # a texel centre inside the disc: sample the sky just beside it instead
+        perp = np.cross(sun, frame[:, 0] if abs(sun @ frame[:, 0]) < 0.9 else frame[:, 2])
+        nudged = dirs[in_sun] + 0.03 * perp / np.linalg.norm(perp)
+        dirs[in_sun] = nudged / np.linalg.norm(nudged, axis=1, keepdims=True)
+    image = sky.radiance(dirs).reshape(height, 2 * height, 3)
+    write_image(image_path, image)
+    # the sun's frame: +Z towards the sun (a DistantLight shines along its -Z)
+    x = np.cross(frame[:, 1], sun)
+    x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-9 else frame[:, 0]
+    xf = np.eye(4)
+    xf[:3, 0], xf[:3, 1], xf[:3, 2] = x, np.cross(sun, x), sun
+    irradiance = np.asarray(sky.sun_radiance) * math.pi * math.sin(half) ** 2
+    return [LightSpec("dome", "DefaultSky", texture=image_path, transform=np.eye(4) if up.upper() == "Y" else
+                      np.block([[frame, np.zeros((3, 1))], [np.zeros((1, 3)), np.ones((1, 1))]])),
+            LightSpec("distant", "DefaultSun", color=irradiance, normalize=True, angle=0.53, transform=xf)]
+
+
 def light_from_spec(spec: LightSpec, up: str = "Y"):
     """A :mod:`warpshade.lighting` light from a UsdLux description (mapping documented in
     :mod:`warpshade.lighting.lights`: ``L = color · intensity · 2^exposure``; with ``normalize`` the
@@ -164,7 +194,9 @@ def light_from_spec(spec: LightSpec, up: str = "Y"):
     name = spec.name
     if spec.kind == "dome":
         if spec.texture:
-            return lighting.EnvironmentMap.from_file(spec.texture, intensity=L, up=up, rotation=rot, name=name)
+            # UsdLux DomeLight (schema version 0, no poleAxis): the map's +Y pole is the dome prim's
+            # +Y, so the prim's rotation alone orients it, whatever the stage's up axis.
+            return lighting.EnvironmentMap.from_file(spec.texture, intensity=L, up="Y", rotation=rot, name=name)
         return lighting.ConstantEnvironment(radiance=L, name=name)
     if spec.kind == "distant":
         towards = xf[:3, 2]  # UsdLux: the light shines along its -Z
@@ -328,7 +360,13 @@ class Pipeline:
                         normals=o.mesh.normals if static else None,
                         albedo=o.material.albedo, roughness=o.material.roughness,
                         transfer_order=self.order if self.write_transfer else None)
-            for spec in self.scene.lights:
+            specs = self.scene.lights
+            if not specs and self._lights is None:
+                import os
+
+                specs = sky_light_specs(lights[0], os.path.join(writer.asset_dir(), "default_sky.exr"),
+                                        self.scene.up_axis)
+            for spec in specs:
                 writer.add_light(spec)
             wp.synchronize()
             secs["setup"] = time.perf_counter() - t0

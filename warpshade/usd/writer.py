@@ -233,6 +233,12 @@ class AnimationWriter:
         self._lights.append(path)
         return path
 
+    def asset_dir(self) -> str:
+        """A directory for files the output refers to (e.g. an environment image), kept with this
+        run's clip files (and removed with them if the run commits nothing)."""
+        os.makedirs(self._run_dir, exist_ok=True)
+        return self._run_dir
+
     def _asset_path(self, file: str) -> str:
         rel = os.path.relpath(os.path.abspath(file), os.path.dirname(self.path))
         return rel if rel.startswith("..") else f"./{rel}"
