@@ -127,10 +127,25 @@ def sphere(stage, center=(0.0, 0.5, 0.0), radius=0.5, albedo=(0.7, 0.7, 0.75)) -
     return s
 
 
-def box(stage, path, center, size, albedo=(0.5, 0.35, 0.2)) -> UsdGeom.Mesh:
-    c = np.array([[x, y, z] for x in (-.5, .5) for y in (-.5, .5) for z in (-.5, .5)]) * np.asarray(size)
-    quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
-    m = mesh(stage, path, c, [4] * 6, np.ravel(quads), translate=center)
+def box(stage, path, center, size, albedo=(0.5, 0.35, 0.2), n: int = 6) -> UsdGeom.Mesh:
+    """A box of ``size`` (3,) at ``center``: each face an n×n grid with its own vertices, so the
+    per-vertex shading has crisp edges and enough vertices to carry shadows."""
+    pts, idx = [], []
+    u = np.linspace(-0.5, 0.5, n)
+    a, b = np.meshgrid(u, u)
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            p = np.zeros((n * n, 3))
+            i1, i2 = (axis + 1) % 3, (axis + 2) % 3
+            p[:, axis], p[:, i1], p[:, i2] = 0.5 * sign, a.ravel(), b.ravel()
+            i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1))
+            v0 = (j * n + i).ravel() + len(pts) * n * n
+            q = np.stack([v0, v0 + 1, v0 + n + 1, v0 + n], 1)
+            idx.append(q if sign > 0 else q[:, ::-1])  # outward: (i1 x i2) = +axis
+            pts.append(p)
+    pts = np.concatenate(pts) * np.asarray(size)
+    idx = np.concatenate(idx)
+    m = mesh(stage, path, pts, [4] * len(idx), idx.ravel(), translate=center)
     set_attr(m.GetPrim(), "collider", "mesh")
     bind(m.GetPrim(), material(stage, path.split("/")[-1] + "Mat", albedo))
     return m
