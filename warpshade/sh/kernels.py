@@ -63,3 +63,362 @@ def sh_accumulate(
             else:
                 out[row, base + m] = out[row, base + m] + weight * k[base + m] * q * c
                 out[row, base - m] = out[row, base - m] + weight * k[base - m] * q * s
+
+
+def zh_normalization_array(order: int, device: str = "cpu") -> wp.array:
+    """``K_lm * sqrt(4 pi / (2l+1))`` per SH index for :func:`zh_rotate_accumulate`, shape (order*order,), float32.
+
+    Folding the eq. 3.17 band factor into the basis constants makes ZH rotation cost the same as
+    one basis evaluation.
+    """
+    from .zonal import zh_band_factors, zh_expand_index
+
+    k = normalization(order) * zh_band_factors(order)[zh_expand_index(order)]
+    return wp.array(k.astype(np.float32), dtype=float, device=device)
+
+
+@wp.func
+def zh_lerp_rotate_accumulate(
+    d: wp.vec3,
+    zh: wp.array2d[float],
+    zh_row_a: int,
+    zh_row_b: int,
+    t: float,
+    weight: float,
+    order: int,
+    kz: wp.array[float],
+    out: wp.array2d[float],
+    row: int,
+):
+    """Add ``weight * zh_rotate(lerp(zh[a], zh[b], t), d)`` to ``out[row, :order*order]`` (thesis eq. 3.17).
+
+    Interpolating two rows of a ZH table (e.g. a table by blocker angular radius) inside the
+    rotation costs no more than rotating one row. ``kz`` comes from :func:`zh_normalization_array`.
+    ``d`` is normalised here; a zero axis contributes nothing. Same recurrences as
+    :func:`sh_accumulate` (exact at the poles).
+    """
+    len_d = wp.length(d)
+    if len_d == 0.0:
+        return
+    n = d / len_d
+    x = n[0]
+    y = n[1]
+    z = n[2]
+    c = float(1.0)
+    s = float(0.0)
+    pmm = float(1.0)
+    for m in range(order):
+        if m > 0:
+            c_new = c * x - s * y
+            s = c * y + s * x
+            c = c_new
+            pmm = pmm * (-float(2 * m - 1))
+        q2 = float(0.0)
+        q1 = float(0.0)
+        for l in range(m, order):
+            q = pmm
+            if l == m + 1:
+                q = z * float(2 * m + 1) * pmm
+            elif l > m + 1:
+                q = (float(2 * l - 1) * z * q1 - float(l + m - 1) * q2) / float(l - m)
+            q2 = q1
+            q1 = q
+            g = weight * ((1.0 - t) * zh[zh_row_a, l] + t * zh[zh_row_b, l])
+            base = l * (l + 1)
+            if m == 0:
+                out[row, base] = out[row, base] + g * kz[base] * q
+            else:
+                out[row, base + m] = out[row, base + m] + g * kz[base + m] * q * c
+                out[row, base - m] = out[row, base - m] + g * kz[base - m] * q * s
+
+
+@wp.func
+def zh_rotate_accumulate(
+    d: wp.vec3,
+    zh: wp.array2d[float],
+    zh_row: int,
+    weight: float,
+    order: int,
+    kz: wp.array[float],
+    out: wp.array2d[float],
+    row: int,
+):
+    """Add ``weight * zh_rotate(zh[zh_row], d)`` to ``out[row, :order*order]`` (thesis eq. 3.17).
+
+    ``zh`` has shape (rows, >= order); ``kz`` comes from :func:`zh_normalization_array`.
+    """
+    zh_lerp_rotate_accumulate(d, zh, zh_row, zh_row, 0.0, weight, order, kz, out, row)
+
+
+@wp.struct
+class SHProductTable:
+    """Sparse symmetric Gaunt table on the device (:class:`~warpshade.sh.products.SymmetricProductTable`).
+
+    ``c_i += v (a_j b_k + a_k b_j)`` over all entries computes the truncated product ``a * b``
+    (thesis eq. 3.19); diagonal entries hold ``Gamma_ijj / 2``. Sorted by ``i``.
+    """
+
+    i: wp.array[wp.int32]
+    """Output index per entry, shape (nnz,), dtype int32."""
+    j: wp.array[wp.int32]
+    """First factor index (j <= k), shape (nnz,), dtype int32."""
+    k: wp.array[wp.int32]
+    """Second factor index, shape (nnz,), dtype int32."""
+    v: wp.array[float]
+    """Weight, shape (nnz,), dtype float32."""
+
+
+def product_table_arrays(order: int, device: str = "cpu") -> SHProductTable:
+    """Upload :func:`~warpshade.sh.products.symmetric_product_table` for ``order`` to ``device``."""
+    from .products import symmetric_product_table
+
+    t = symmetric_product_table(order)
+    s = SHProductTable()
+    s.i = wp.array(t.i, dtype=wp.int32, device=device)
+    s.j = wp.array(t.j, dtype=wp.int32, device=device)
+    s.k = wp.array(t.k, dtype=wp.int32, device=device)
+    s.v = wp.array(t.value.astype(np.float32), dtype=float, device=device)
+    return s
+
+
+@wp.func
+def sh_product_rows(
+    a: wp.array2d[float],
+    a_row: int,
+    b: wp.array2d[float],
+    b_row: int,
+    n: int,
+    table: SHProductTable,
+    out: wp.array2d[float],
+    out_row: int,
+):
+    """``out[out_row, :n] = a[a_row] * b[b_row]``, the truncated SH product (thesis eq. 3.19).
+
+    ``n`` is ``order*order`` of the table. ``out`` must not alias either input row. Entries are
+    sorted by output index, so each output is summed in a register and written once.
+    """
+    for i in range(n):
+        out[out_row, i] = 0.0
+    nnz = table.v.shape[0]
+    if nnz == 0:
+        return
+    cur = table.i[0]
+    acc = float(0.0)
+    for e in range(nnz):
+        i = table.i[e]
+        if i != cur:
+            out[out_row, cur] = acc
+            acc = 0.0
+            cur = i
+        j = table.j[e]
+        k = table.k[e]
+        acc = acc + table.v[e] * (a[a_row, j] * b[b_row, k] + a[a_row, k] * b[b_row, j])
+    out[out_row, cur] = acc
+
+
+@wp.kernel
+def multiply_sh(
+    a: wp.array2d[float],
+    b: wp.array2d[float],
+    n: int,
+    table: SHProductTable,
+    out: wp.array2d[float],
+):
+    """Row-wise truncated SH products ``out[v] = a[v] * b[v]``, shapes (V, n), float32."""
+    v = wp.tid()
+    sh_product_rows(a, v, b, v, n, table, out, v)
+
+
+SQRT_4PI = 3.5449077018110318
+"""``sqrt(4 pi)``: the DC coefficient of the constant function 1."""
+
+
+@wp.struct
+class OLTableArrays:
+    """Optimal-linear table on the device (:class:`~warpshade.sh.exp.OLTable`), nodes at ``m = t / inv_step``."""
+
+    log_a: wp.array[float]
+    """``log a(m)`` per node, shape (K,), dtype float32."""
+    c: wp.array[float]
+    """``b(m) / a(m)`` per node, shape (K,), dtype float32."""
+    inv_step: float
+    """Nodes per unit magnitude."""
+
+
+def ol_table_arrays(order: int, device: str = "cpu", table=None) -> OLTableArrays:
+    """Upload the optimal-linear table for ``order`` (default :func:`~warpshade.sh.exp.ol_table`)."""
+    from .exp import ol_table
+
+    t = ol_table(order) if table is None else table
+    s = OLTableArrays()
+    s.log_a = wp.array(t.log_a.astype(np.float32), dtype=float, device=device)
+    s.c = wp.array(t.c.astype(np.float32), dtype=float, device=device)
+    s.inv_step = float(1.0 / t.step)
+    return s
+
+
+@wp.func
+def ol_lookup(table: OLTableArrays, m: float) -> wp.vec2:
+    """``(log a(m), c(m))`` linearly interpolated, clamped to the table's range."""
+    count = table.log_a.shape[0]
+    x = wp.clamp(m * table.inv_step, 0.0, float(count - 1))
+    i = wp.min(int(x), count - 2)
+    if i < 0:
+        return wp.vec2(table.log_a[0], table.c[0])
+    t = x - float(i)
+    return wp.vec2((1.0 - t) * table.log_a[i] + t * table.log_a[i + 1], (1.0 - t) * table.c[i] + t * table.c[i + 1])
+
+
+@wp.func
+def sh_dc_free_norm(f: wp.array2d[float], row: int, n: int) -> float:
+    """``||f^||``: the norm of ``f[row, 1:n]`` (DC isolated, thesis eq. 3.26)."""
+    s = float(0.0)
+    for i in range(1, n):
+        s = s + f[row, i] * f[row, i]
+    return wp.sqrt(s)
+
+
+@wp.func
+def sh_exp_ol(
+    f: wp.array2d[float],
+    f_row: int,
+    n: int,
+    table: OLTableArrays,
+    out: wp.array2d[float],
+    out_row: int,
+):
+    """Optimal-linear SH exponential (thesis eq. 3.30): ``out = e^{f_0/sqrt(4pi)} (a 1 + b f^)``.
+
+    ``log a`` and the DC term share one exponent, so huge ``a`` with a very negative DC stays
+    finite. ``out`` may be the same row as ``f``.
+    """
+    f0 = f[f_row, 0]
+    ac = ol_lookup(table, sh_dc_free_norm(f, f_row, n))
+    s = wp.exp(f0 / SQRT_4PI + ac[0])
+    out[out_row, 0] = s * SQRT_4PI
+    for i in range(1, n):
+        out[out_row, i] = s * ac[1] * f[f_row, i]
+
+
+@wp.func
+def sh_scale_row_to_unit(v: wp.array2d[float], row: int, n: int) -> float:
+    """Divide ``v[row, :n]`` by its norm and return the log of that norm (-inf-safe: -1e30 for 0)."""
+    s = float(0.0)
+    for i in range(n):
+        s = s + v[row, i] * v[row, i]
+    nrm = wp.sqrt(s)
+    if nrm == 0.0:
+        return -1.0e30
+    inv = 1.0 / nrm
+    for i in range(n):
+        v[row, i] = v[row, i] * inv
+    return wp.log(nrm)
+
+
+@wp.func
+def sh_exp_hybrid(
+    f: wp.array2d[float],
+    f_row: int,
+    n: int,
+    threshold: float,
+    table: OLTableArrays,
+    products: SHProductTable,
+    tmp: wp.array2d[float],
+    tmp_row: int,
+    out: wp.array2d[float],
+    out_row: int,
+):
+    """Hybrid SH exponential (thesis eq. 3.32): OL on ``f^/2^p`` then ``p`` squarings, ``||f^||/2^p <= threshold``.
+
+    Every squaring renormalises to unit length and doubles a log-scale, and the DC factor joins that
+    exponent at the end, so float32 stays finite for any input whose exponential is representable.
+    ``tmp`` is scratch (a row distinct from ``out``); ``out`` may be the same row as ``f``.
+    """
+    f0 = f[f_row, 0]
+    m = sh_dc_free_norm(f, f_row, n)
+    p = int(0)
+    if m > threshold:
+        p = int(wp.ceil(wp.log2(m / threshold)))
+    scale = wp.pow(2.0, -float(p))
+    ac = ol_lookup(table, m * scale)
+    tmp[tmp_row, 0] = SQRT_4PI
+    for i in range(1, n):
+        tmp[tmp_row, i] = ac[1] * scale * f[f_row, i]
+    log_s = ac[0] + sh_scale_row_to_unit(tmp, tmp_row, n)
+    for k in range(p):
+        # Ping-pong between tmp and out; the squared vector's log-norm doubles the carried scale.
+        if k % 2 == 0:
+            sh_product_rows(tmp, tmp_row, tmp, tmp_row, n, products, out, out_row)
+            log_s = 2.0 * log_s + sh_scale_row_to_unit(out, out_row, n)
+        else:
+            sh_product_rows(out, out_row, out, out_row, n, products, tmp, tmp_row)
+            log_s = 2.0 * log_s + sh_scale_row_to_unit(tmp, tmp_row, n)
+    s = wp.exp(wp.max(log_s + f0 / SQRT_4PI, -1.0e30))
+    if p % 2 == 1:
+        for i in range(n):
+            out[out_row, i] = s * out[out_row, i]
+    else:
+        for i in range(n):
+            out[out_row, i] = s * tmp[tmp_row, i]
+
+
+@wp.kernel
+def exponentiate_sh_ol(
+    f: wp.array2d[float],
+    n: int,
+    table: OLTableArrays,
+    out: wp.array2d[float],
+):
+    """Row-wise optimal-linear SH exponential, shapes (V, n), float32."""
+    v = wp.tid()
+    sh_exp_ol(f, v, n, table, out, v)
+
+
+@wp.kernel
+def exponentiate_sh_hybrid(
+    f: wp.array2d[float],
+    n: int,
+    threshold: float,
+    table: OLTableArrays,
+    products: SHProductTable,
+    tmp: wp.array2d[float],
+    out: wp.array2d[float],
+):
+    """Row-wise hybrid SH exponential, shapes (V, n), float32; ``tmp`` is (V, n) scratch."""
+    v = wp.tid()
+    sh_exp_hybrid(f, v, n, threshold, table, products, tmp, v, out, v)
+
+
+def sh_exp_warp(f, method: str = "hybrid", threshold: float | None = None, device: str = "cpu") -> np.ndarray:
+    """Run the Warp float32 exponential on a batch of SH vectors (testing and benchmarking helper).
+
+    Args:
+        f: SH vectors, shape (V, n*n).
+        method: ``"hybrid"`` or ``"ol"``.
+        threshold: hybrid threshold (default :data:`~warpshade.sh.exp.DEFAULT_HYBRID_THRESHOLD`).
+        device: Warp device.
+
+    Returns:
+        Shape (V, n*n), dtype float32.
+    """
+    from .exp import DEFAULT_HYBRID_THRESHOLD
+    from .products import _order_of
+
+    f = np.asarray(f, dtype=np.float32)
+    if f.ndim != 2:
+        raise ValueError(f"sh_exp_warp: f must have shape (V, n*n), got {f.shape}")
+    order = _order_of(f.shape[1], "f")
+    fa = wp.array(f, dtype=float, device=device)
+    out = wp.zeros_like(fa)
+    table = ol_table_arrays(order, device)
+    if method == "ol":
+        wp.launch(exponentiate_sh_ol, dim=f.shape[0], inputs=[fa, order * order, table], outputs=[out], device=device)
+    elif method == "hybrid":
+        thr = DEFAULT_HYBRID_THRESHOLD if threshold is None else float(threshold)
+        tmp = wp.zeros_like(fa)
+        wp.launch(exponentiate_sh_hybrid, dim=f.shape[0],
+                  inputs=[fa, order * order, thr, table, product_table_arrays(order, device)],
+                  outputs=[tmp, out], device=device)
+    else:
+        raise ValueError(f"sh_exp_warp: method must be 'hybrid' or 'ol', got {method!r}")
+    return out.numpy()
