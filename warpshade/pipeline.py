@@ -23,7 +23,8 @@ import warp as wp
 from .geometry.mesh import TriMesh
 from .geometry.normals import vertex_normals
 from .scene import LightSpec, Scene, SceneError, SceneObject
-from .sh.basis import check_order, sh_eval
+from .sh.basis import check_order
+from .sh.zonal import clamped_cosine_zh, zh_rotate
 
 METHOD_PREFERENCE = ("hemiraster", "spheres", "disks", "reference")
 """Default visibility method: the first of these that is registered (fastest accurate first)."""
@@ -100,25 +101,13 @@ class _Group:
 
 
 def unoccluded_transfer(normals: np.ndarray, order: int) -> np.ndarray:
-    """Transfer of an unshadowed vertex (CONTRACTS.md §2): ``sqrt(4π/(2l+1)) A_l y_lm(n)``.
-
-    ``A_l`` are the clamped-cosine zonal coefficients: ``A_0 = √π/2``, ``A_1 = √(π/3)``, odd ``l > 1``
-    vanish, even ``l``: ``2π √((2l+1)/4π) (-1)^(l/2-1) / ((l+2)(l-1)) · l! / (2^l ((l/2)!)²)``.
+    """Transfer of an unshadowed vertex (CONTRACTS.md §2): the clamped-cosine lobe rotated to the
+    normal, ``sqrt(4π/(2l+1)) A_l y_lm(n)``.
 
     Returns:
         Shape (V, N*N), float32.
     """
-    a = np.zeros(order)
-    for l in range(order):
-        if l == 0:
-            a[l] = math.sqrt(math.pi) / 2
-        elif l == 1:
-            a[l] = math.sqrt(math.pi / 3)
-        elif l % 2 == 0:
-            a[l] = (2 * math.pi * math.sqrt((2 * l + 1) / (4 * math.pi)) * (-1) ** (l // 2 - 1)
-                    / ((l + 2) * (l - 1)) * math.factorial(l) / (2 ** l * math.factorial(l // 2) ** 2))
-    scale = np.concatenate([[math.sqrt(4 * math.pi / (2 * l + 1)) * a[l]] * (2 * l + 1) for l in range(order)])
-    return (sh_eval(normals, order) * scale).astype(np.float32)
+    return zh_rotate(clamped_cosine_zh(order), normals).astype(np.float32)
 
 
 def exit_radiance(transfer: np.ndarray, albedo: np.ndarray, distant: np.ndarray,
