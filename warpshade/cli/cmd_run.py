@@ -36,6 +36,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.epilog = "Method knobs (e.g. --rays for reference) follow --method; see README."
 
 
+def _reclaim_knob_value(args, method_cls) -> None:
+    """Undo argparse giving a knob's value to the optional SCENE positional.
+
+    Knobs are unknown to the main parser, so in ``warpshade run --method reference --rays 64`` the
+    ``64`` looks like SCENE. The first knob flag in ``args.extra`` that lacks its value gets it back.
+    """
+    if args.scene is None or not args.extra:
+        return
+    p = argparse.ArgumentParser(add_help=False)
+    method_cls.add_arguments(p)
+    takes_value = {opt for a in p._actions if a.nargs != 0 for opt in a.option_strings}
+    for k, tok in enumerate(args.extra):
+        flag = tok.split("=", 1)[0]
+        if flag in takes_value and "=" not in tok and (k + 1 == len(args.extra) or args.extra[k + 1].startswith("-")):
+            args.extra.insert(k + 1, args.scene)
+            args.scene = None
+            return
+
+
 def run(args) -> int:
     import warp as wp
 
@@ -44,21 +63,23 @@ def run(args) -> int:
     from ..usd import AnimationWriter, read_scene
     from .cmd_transfer import parse_knobs
 
+    knobs = {}
+    method = args.method
+    if method not in (None, "none"):
+        from ..visibility import get_method
+
+        cls = get_method(method)
+        _reclaim_knob_value(args, cls)
+        knobs = parse_knobs(cls, args.extra)
+    elif args.extra:
+        raise ValueError(f"unknown option(s) {' '.join(args.extra)} (method knobs need --method)")
     t0 = time.perf_counter()
     scene_path = args.scene or shipped_scene()
     scene = read_scene(scene_path)
-    knobs = {}
-    method = args.method
     if method == "none":
         method = None
         for o in scene.objects:  # unoccluded transfer for every object
             o.method = None
-    elif method is not None:
-        from ..visibility import get_method
-
-        knobs = parse_knobs(get_method(method), args.extra)
-    elif args.extra:
-        raise ValueError(f"method knobs {' '.join(args.extra)} need --method")
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
     load = time.perf_counter() - t0
     pipe = Pipeline(scene, frames=args.frames, method=method, knobs=knobs, order=args.order,
