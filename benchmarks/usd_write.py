@@ -9,7 +9,7 @@ clips, commits every chunk). Each mode runs in its own process so peak RSS is it
 Success criteria: ``clips`` keeps per-frame time flat (last 1000 frames ≈ first 1000) and peak
 memory independent of the frame count.
 
-Run:  python benchmarks/usd_write.py [--frames 10000] [--vertices 1024] [--json out.json]
+Run:  python benchmarks/usd_write.py [--frames 10000] [--vertices 1024] [--repeat 3] [--json out.json]
 
 Numbers are wall times on a shared, loaded 2-core machine; per-frame time excludes nothing but
 the (trivial) generation of the synthetic frame arrays, which is done before the timer starts.
@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -98,6 +99,7 @@ def main(argv=None) -> int:
     p.add_argument("--frames", type=int, default=10000)
     p.add_argument("--vertices", type=int, default=1024)
     p.add_argument("--modes", default="single,clips:32,clips:256")
+    p.add_argument("--repeat", type=int, default=3, help="runs per mode; the table shows medians")
     p.add_argument("--json", default=None)
     args = p.parse_args(argv)
     if args.frames < 1000:
@@ -107,13 +109,19 @@ def main(argv=None) -> int:
         for mode in args.modes.split(","):
             out = os.path.join(tmp, f"{mode.replace(':', '_')}.usdc" if mode == "single" else f"{mode.replace(':', '_')}.usda")
             env = dict(os.environ, PYTHONPATH=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-            r = subprocess.run([sys.executable, "-c", CHILD, mode, str(args.frames), str(args.vertices), out],
-                               capture_output=True, text=True, env=env)
-            if r.returncode:
-                print(r.stderr, file=sys.stderr)
-                return 1
-            rows.append(json.loads(r.stdout.strip().splitlines()[-1]))
+            runs = []
+            for _ in range(max(1, args.repeat)):
+                r = subprocess.run([sys.executable, "-c", CHILD, mode, str(args.frames), str(args.vertices), out],
+                                   capture_output=True, text=True, env=env)
+                if r.returncode:
+                    print(r.stderr, file=sys.stderr)
+                    return 1
+                runs.append(json.loads(r.stdout.strip().splitlines()[-1]))
+            row = {k: (statistics.median(x[k] for x in runs) if isinstance(v, float) else v) for k, v in runs[0].items()}
+            row["repeat"] = len(runs)
+            rows.append(row)
     print(f"USD export, {args.frames} frames x {args.vertices} vertices (points, normals, extent, displayColor); "
+          f"medians of {args.repeat} runs (each in a fresh process, imports excluded); "
           "wall times on a shared, loaded 2-core machine")
     hdr = f"{'mode':<11}{'total s':>9}{'ms/frame first 1k':>19}{'ms/frame last 1k':>18}{'save s':>8}{'peak RSS MB':>13}{'open+read s':>13}{'MB on disk':>12}"
     print(hdr)
