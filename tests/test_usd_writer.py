@@ -9,10 +9,11 @@ import textwrap
 
 import numpy as np
 import pytest
-from pxr import Usd, UsdGeom, UsdLux, UsdShade, UsdValidation
+from pxr import Usd, UsdGeom, UsdLux, UsdShade
 
 from warpshade.scene import LightSpec
 from warpshade.usd import AnimationWriter
+from warpshade.usd.validate import validation_errors
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -21,14 +22,6 @@ def open_stage(path) -> Usd.Stage:
     """Open ``path``. USD's layer registry serves a layer from memory while any stage holds it, so
     tests drop their stages before a file is rewritten."""
     return Usd.Stage.Open(str(path))
-
-
-def validation_errors(path: str) -> list[str]:
-    """Messages of every error (not warning) the registered UsdValidation validators report."""
-    stage = open_stage(path)
-    ctx = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
-    return [f"{e.GetName()}: {e.GetMessage()}" for e in ctx.Validate(stage)
-            if e.GetType() == UsdValidation.ValidationErrorType.Error]
 
 
 def grid(n: int):
@@ -156,6 +149,7 @@ KILLED = textwrap.dedent("""
     import os, sys
     import numpy as np
     from warpshade.usd import AnimationWriter
+from warpshade.usd.validate import validation_errors
     path, frames, value = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
     w = AnimationWriter(path, chunk=4)
     faces = np.array([[0, 1, 2]])
