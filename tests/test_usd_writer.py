@@ -149,7 +149,6 @@ KILLED = textwrap.dedent("""
     import os, sys
     import numpy as np
     from warpshade.usd import AnimationWriter
-from warpshade.usd.validate import validation_errors
     path, frames, value = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
     w = AnimationWriter(path, chunk=4)
     faces = np.array([[0, 1, 2]])
