@@ -1,0 +1,281 @@
+"""Shading frames on every core and on a Dask cluster, in order, with bounded memory and retries.
+
+The simulation is sequential, but once it has produced a frame's geometry, shading that frame is
+independent of every other frame. :func:`shade_frames` takes an iterator of ``(frame, geometry)``
+pairs (the simulation, running in the calling process) and yields ``(frame, result)`` pairs in the
+same order while worker processes shade ahead:
+
+* **Back-pressure**: at most ``max_in_flight`` frames are submitted and not yet yielded, so memory
+  stays bounded when shading falls behind, and the simulation pauses instead of racing ahead.
+* **Static structures once per worker**: workers receive a picklable *spec* once and call its
+  ``build()`` (LUTs, hierarchies, BVHs...) when they start; per frame they receive only geometry
+  (NumPy arrays), never pickled Warp state.
+* **Faults**: a worker that dies mid-frame costs only a retry of the frames it had not returned;
+  a frame that fails ``retries + 1`` times raises an error naming the frame.
+
+Backends: ``workers=0`` shades inline (no processes); ``workers>=1`` uses a pool of spawned worker
+processes; ``scheduler="local"`` starts a local ``dask.distributed`` cluster with ``workers``
+single-threaded worker processes, and ``scheduler="tcp://HOST:PORT"`` uses a running cluster.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import uuid
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any, Protocol
+
+FrameGeometry = dict  # object name -> positions (V, 3) float32, plus optional extra arrays
+ShadeFn = Callable[[int, FrameGeometry], Any]
+
+
+class FrameShaderSpec(Protocol):
+    """What a worker needs to shade frames: picklable, and ``build()`` returns the per-frame function.
+
+    ``build()`` runs once per worker and constructs every static structure; the returned callable
+    ``shade(frame, geometry) -> result`` is called for each frame. Results must be picklable.
+    """
+
+    def build(self) -> ShadeFn: ...
+
+
+class FrameShadingError(RuntimeError):
+    """Shading a frame failed (the message names the frame)."""
+
+
+def default_workers() -> int:
+    """All cores available to this process."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+# -- worker side -------------------------------------------------------------------------------
+_WORKER_SHADERS: dict[str, ShadeFn] = {}
+
+
+def _init_worker(token: str, spec: FrameShaderSpec) -> None:
+    import warp as wp
+
+    wp.config.quiet = True
+    _WORKER_SHADERS[token] = spec.build()
+
+
+def _shade_in_worker(token: str, frame: int, geometry: FrameGeometry):
+    return _WORKER_SHADERS[token](frame, geometry)
+
+
+# -- backends ----------------------------------------------------------------------------------
+class _InlineBackend:
+    worker_errors: tuple = ()
+
+    def __init__(self, spec: FrameShaderSpec, token: str):
+        self._shade = spec.build()
+
+    def submit(self, frame, geometry):
+        from concurrent.futures import Future
+
+        fut = Future()
+        try:
+            fut.set_result(self._shade(frame, geometry))
+        except Exception as exc:  # surfaced by .result() like the other backends
+            fut.set_exception(exc)
+        return fut
+
+    def recover(self) -> bool:
+        return False
+
+    def close(self):
+        pass
+
+
+class _ProcessBackend:
+    worker_errors = (BrokenProcessPool,)
+
+    def __init__(self, spec: FrameShaderSpec, token: str, workers: int):
+        self.spec, self.token, self.workers = spec, token, workers
+        self.pool = self._new_pool()
+
+    def _new_pool(self):
+        return ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=_init_worker,
+                                   initargs=(self.token, self.spec))
+
+    def submit(self, frame, geometry):
+        return self.pool.submit(_shade_in_worker, self.token, frame, geometry)
+
+    def worker_pids(self) -> list[int]:
+        """PIDs of the live worker processes (for tests and monitoring)."""
+        return [p.pid for p in (self.pool._processes or {}).values()]
+
+    def recover(self) -> bool:
+        """A worker died and broke the pool: start a fresh one. Unfinished frames are lost (True)."""
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        self.pool = self._new_pool()
+        return True
+
+    def close(self):
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class _DaskBackend:
+    def __init__(self, spec: FrameShaderSpec, token: str, workers: int, scheduler: str, retries: int):
+        from distributed import Client, LocalCluster
+        from distributed.client import FutureCancelledError
+        from distributed.scheduler import KilledWorker
+
+        self.worker_errors = (KilledWorker, FutureCancelledError)
+        self.cluster = None
+        if scheduler == "local":
+            self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                        dashboard_address=None)
+            self.client = Client(self.cluster)
+        else:
+            self.client = Client(scheduler)
+        self.token = token
+        self.retries = retries
+        from ._dask_plugin import ShaderPlugin
+
+        self.client.register_plugin(ShaderPlugin(token, spec), name=f"warpshade-{token}")
+
+    def submit(self, frame, geometry):
+        # Dask reschedules a task whose worker died by itself; retries covers exceptions on top.
+        return self.client.submit(_shade_in_worker, self.token, frame, geometry, pure=False,
+                                  key=f"warpshade-{self.token}-{frame}-{uuid.uuid4().hex[:8]}")
+
+    def recover(self) -> bool:
+        return False  # the scheduler keeps running tasks; only failed futures need resubmitting
+
+    def close(self):
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+def _make_backend(spec, token, workers, scheduler, retries):
+    if scheduler:
+        return _DaskBackend(spec, token, workers, scheduler, retries)
+    if workers == 0:
+        return _InlineBackend(spec, token)
+    return _ProcessBackend(spec, token, workers)
+
+
+# -- the ordered, bounded loop -----------------------------------------------------------------
+def shade_frames(
+    spec: FrameShaderSpec,
+    frames: Iterable[tuple[int, FrameGeometry]],
+    workers: int | None = None,
+    scheduler: str | None = None,
+    max_in_flight: int | None = None,
+    retries: int = 2,
+    on_backend: Callable[[Any], None] | None = None,
+) -> Iterator[tuple[int, Any]]:
+    """Shade frames in parallel and yield ``(frame, result)`` in input order.
+
+    Args:
+        spec: Picklable :class:`FrameShaderSpec`; ``build()`` runs once per worker.
+        frames: ``(frame, geometry)`` pairs, consumed lazily (at most ``max_in_flight`` ahead).
+        workers: Worker processes; None means all cores; 0 shades inline in this process.
+        scheduler: None for local processes, ``"local"`` for a local Dask cluster, or a Dask
+            scheduler address ``tcp://HOST:PORT``.
+        max_in_flight: Frames submitted but not yet yielded (default ``2 * workers``, at least 2).
+        retries: How often a frame is resubmitted after its worker died.
+        on_backend: Called with the backend once it is up (tests use it to kill a worker).
+
+    Raises:
+        FrameShadingError: naming the frame, when shading raised or workers died too often.
+    """
+    workers = default_workers() if workers is None else int(workers)
+    if workers < 0:
+        raise ValueError(f"workers must be >= 0, got {workers}")
+    if scheduler and workers == 0:
+        workers = default_workers()
+    max_in_flight = max(2, 2 * max(workers, 1)) if max_in_flight is None else int(max_in_flight)
+    token = uuid.uuid4().hex[:12]
+    backend = _make_backend(spec, token, workers, scheduler, retries)
+    if on_backend is not None:
+        on_backend(backend)
+    it = iter(frames)
+    order: deque[int] = deque()
+    pending: dict[int, list] = {}  # frame -> [geometry, future, failures]
+    try:
+        while True:
+            while len(order) < max_in_flight:
+                nxt = next(it, None)
+                if nxt is None:
+                    break
+                frame, geometry = nxt
+                if frame in pending:
+                    raise ValueError(f"frame {frame} submitted twice")
+                pending[frame] = [geometry, backend.submit(frame, geometry), 0]
+                order.append(frame)
+            if not order:
+                return
+            frame = order[0]
+            entry = pending[frame]
+            try:
+                result = entry[1].result()
+            except backend.worker_errors as exc:
+                _resubmit_failed(backend, order, pending, retries, exc)
+                continue
+            except Exception as exc:
+                raise FrameShadingError(f"frame {frame}: shading failed: {type(exc).__name__}: {exc}") from exc
+            order.popleft()
+            del pending[frame]
+            yield frame, result
+    finally:
+        backend.close()
+
+
+def _resubmit_failed(backend, order, pending, retries, exc):
+    """After a worker death, resubmit every pending frame whose result is lost."""
+    unfinished_lost = backend.recover()
+    for f in order:
+        entry = pending[f]
+        fut = entry[1]
+        if fut.done():
+            lost = fut.cancelled() or fut.exception() is not None
+        else:
+            lost = unfinished_lost
+        if not lost:
+            continue
+        entry[2] += 1
+        if entry[2] > retries:
+            raise FrameShadingError(f"frame {f}: worker died {entry[2]} times while shading it "
+                                    f"(last: {type(exc).__name__}: {exc})") from exc
+        entry[1] = backend.submit(f, entry[0])
+
+
+class TransferSpec:
+    """Spec that computes SH transfer of deforming meshes with one visibility method per mesh.
+
+    Args:
+        meshes: Object name -> :class:`~warpshade.geometry.TriMesh` (topology and rest pose).
+        method: Method name (``warpshade.visibility.METHODS``).
+        order: SH order.
+        knobs: Method keyword arguments.
+
+    The built shader maps ``(frame, {name: points (V, 3)})`` to ``{name: transfer (V, N*N) float32}``.
+    """
+
+    def __init__(self, meshes: dict, method: str = "reference", order: int = 5, knobs: dict | None = None):
+        self.meshes = dict(meshes)
+        self.method = method
+        self.order = order
+        self.knobs = dict(knobs or {})
+
+    def build(self) -> ShadeFn:
+        from .visibility import get_method
+
+        cls = get_method(self.method)
+        methods = {name: cls(mesh, order=self.order, **self.knobs) for name, mesh in self.meshes.items()}
+
+        def shade(frame: int, geometry: FrameGeometry):
+            # .numpy() of a CPU array is a view of memory the next frame overwrites: copy
+            return {name: m.update(geometry[name]).numpy().copy() for name, m in methods.items()}
+
+        return shade
