@@ -31,6 +31,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--write-transfer", action="store_true",
                         help="also write primvars:warpshade:transfer (N*N floats per vertex per frame) for relighting")
     parser.add_argument("--chunk", type=int, default=64, help="frames per clip file (also the commit interval)")
+    parser.add_argument("--workers", type=int, default=0,
+                        help="shading worker processes while this one simulates (default 0: shade inline)")
+    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                        help="shade on a Dask cluster ('local' starts one) instead of local processes")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
     parser.epilog = "Method knobs (e.g. --rays for reference) follow --method; see README."
@@ -83,7 +87,8 @@ def run(args) -> int:
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
     load = time.perf_counter() - t0
     pipe = Pipeline(scene, frames=args.frames, method=method, knobs=knobs, order=args.order,
-                    write_transfer=True if args.write_transfer else None, device=args.device)
+                    write_transfer=True if args.write_transfer else None, workers=args.workers,
+                    scheduler=args.scheduler, device=args.device)
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, metadata={"scene": os.path.abspath(scene_path),
                                                          "order": pipe.order})
