@@ -145,3 +145,14 @@ def test_bad_values_and_empty_scene(tmp_path):
     neg = TRI % "" + 'def SphereLight "Bulb" {\n float inputs:radius = -1\n}\n'
     with pytest.raises(SceneError, match="/Bulb: radius must be finite and >= 0"):
         read_scene(_write(tmp_path, neg, "neg.usda"))
+
+
+def test_cape_walker_skinned_body_and_attachments():
+    s = scene("cape_walker.usda")
+    body, cape = s.object("/World/Walker/Body"), s.object("/World/Cape")
+    assert body.kind == "skinned" and body.params["collider"] == "mesh"
+    assert cape.kind == "cloth" and cape.params["attachTarget"] == "/World/Walker/Body"
+    assert len(cape.params["attached"]) == 13 and np.allclose(cape.mesh.points[cape.params["attached"], 1], 1.43)
+    # the body walks along +z (0.8 m/s at 60 fps): after 60 frames its centre moved ~0.8 m
+    z0, z60 = body.params["points_at"](0)[:, 2].mean(), body.params["points_at"](60)[:, 2].mean()
+    assert z60 - z0 == pytest.approx(0.8, abs=0.05)

@@ -104,18 +104,16 @@ class Pipeline:
 
     def _geometry(self, sims, secs):
         """Yield ``(frame, {name: points})`` for every moving object, timing the simulation."""
-        moving = [o for o in self.scene.objects if o.kind != "static"]
+        driven = [o for o in self.scene.objects if o.kind in ("animated", "skinned")]
         for f in range(self.frames):
             t = time.perf_counter()
-            geo = {}
-            for o in moving:
-                if o.kind == "cloth":
-                    geo[o.name] = sims.points(f, o.name)
-                else:
-                    geo[o.name] = np.asarray(o.params["points_at"](f), dtype=np.float32)
-                if not np.isfinite(geo[o.name]).all():
-                    v = int(np.flatnonzero(~np.isfinite(geo[o.name]).all(axis=1))[0])
-                    raise SceneError(f"{o.name}: frame {f}: vertex {v} is not finite")
+            geo = {o.name: np.asarray(o.params["points_at"](f), dtype=np.float32) for o in driven}
+            if sims is not None:  # cloth after the bodies it collides with and hangs from
+                geo.update(sims.advance(f, geo))
+            for name, pts in geo.items():
+                if not np.isfinite(pts).all():
+                    v = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
+                    raise SceneError(f"{name}: frame {f}: vertex {v} is not finite")
             secs["simulate"] += time.perf_counter() - t
             yield f, geo
 

@@ -17,9 +17,12 @@ class ClothSimulation:
     """Every cloth object of a scene in one :mod:`warpshade.sim` model, with the scene's colliders.
 
     Colliders (``warpshade:collider``): ``ground`` -> a plane at the mesh's mean height facing up;
-    ``sphere`` -> the analytic sphere of a Sphere prim; ``mesh`` -> the triangle mesh. Pins
-    (``warpshade:pinned``) are fixed; ``warpshade:wind`` on the default prim blows on all cloth.
-    Frame 0 is the rest pose; each later frame advances one step of ``1/fps`` seconds.
+    ``sphere`` -> the analytic sphere of a Sphere prim; ``mesh`` -> the triangle mesh, which may
+    move (a skinned or animated body: its pose is passed every frame). Pins (``warpshade:pinned``)
+    are fixed; attachments (``warpshade:attached`` vertices, ``warpshade:attachTarget`` a moving
+    object) follow the target's nearest rest vertex with their rest offset (a cape on shoulders);
+    ``warpshade:wind`` on the default prim blows on all cloth. Frame 0 is the rest pose; each later
+    frame advances one step of ``1/fps`` seconds.
     """
 
     def __init__(self, scene: Scene, device: str = "cpu"):
@@ -31,6 +34,8 @@ class ClothSimulation:
                              f"installed yet ({exc})") from None
         cloth = [o for o in scene.objects if o.kind == "cloth"]
         first = cloth[0].params.get("cloth", {})
+        self.attachments = []  # (target name, target vertex per slot (A,), rest offset (A, 3))
+        self.moving_colliders = []  # (object name, MeshCollider)
         builder = ClothBuilder(**{k2: float(first[k]) for k, k2 in CLOTH_GLOBAL.items() if k in first})
         self.ranges = {}
         friction = float(first.get("friction", 0.5))
@@ -40,6 +45,8 @@ class ClothSimulation:
                                    **{k2: float(p[k]) for k, k2 in CLOTH_PARAMS.items() if k in p})
             if "pinned" in o.params and len(o.params["pinned"]):
                 builder.pin(ids[o.params["pinned"]])
+            if "attached" in o.params:
+                self._attach(builder, scene, o, ids)
             self.ranges[o.name] = (int(ids[0]), int(ids[-1]) + 1)
         self.model = builder.finalize(device=device)
         up = np.array([0.0, 1.0, 0.0]) if scene.up_axis.upper() == "Y" else np.array([0.0, 0.0, 1.0])
@@ -53,9 +60,9 @@ class ClothSimulation:
             elif kind == "sphere" and "sphere" in o.params:
                 colliders.add_sphere(o.params["sphere"]["center"], o.params["sphere"]["radius"], friction=friction)
             elif kind in ("mesh", "sphere"):
+                mc = colliders.add_mesh(o.mesh.points, o.mesh.faces, friction=friction)
                 if o.kind != "static":
-                    raise SceneError(f"{o.name}: moving mesh colliders are not wired into the pipeline yet")
-                colliders.add_mesh(o.mesh.points, o.mesh.faces, friction=friction)
+                    self.moving_colliders.append((o.name, mc))
             else:
                 raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, mesh")
         gravity = tuple(-9.81 * up)
@@ -69,11 +76,38 @@ class ClothSimulation:
         self._frame = 0
         self._points = self.state.points.numpy()
 
-    def points(self, frame: int, name: str) -> np.ndarray:
-        """Positions of cloth object ``name`` at ``frame`` (frames are produced in order), (V, 3)."""
+    def _attach(self, builder, scene: Scene, obj, ids) -> None:
+        target_name = obj.params.get("attachTarget")
+        if target_name is None:
+            raise SceneError(f"{obj.name}: warpshade:attached needs warpshade:attachTarget (a moving object)")
+        try:
+            target = scene.object(str(target_name))
+        except KeyError:
+            raise SceneError(f"{obj.name}: warpshade:attachTarget '{target_name}' is not a mesh of the scene") from None
+        verts = np.asarray(obj.params["attached"], dtype=np.int64).reshape(-1)
+        if len(verts) and (verts.min() < 0 or verts.max() >= obj.mesh.num_vertices):
+            raise SceneError(f"{obj.name}: warpshade:attached vertex out of range 0..{obj.mesh.num_vertices - 1}")
+        builder.attach(ids[verts])
+        rest = obj.mesh.points[verts].astype(np.float64)
+        tp = target.mesh.points.astype(np.float64)
+        nearest = np.argmin(((rest[:, None, :] - tp[None, :, :]) ** 2).sum(-1), axis=1)
+        self.attachments.append((target.name, nearest, rest - tp[nearest]))
+
+    def advance(self, frame: int, geometry: dict) -> dict:
+        """Step to ``frame`` (frames come in order) and return ``{cloth name: positions (V, 3)}``.
+
+        Args:
+            frame: Frame number.
+            geometry: This frame's positions of the other moving objects (colliders and attachment
+                targets), ``{name: (V, 3)}``.
+        """
         while self._frame < frame:
+            for name, mc in self.moving_colliders:
+                mc.set_points(geometry[name])  # pose at the end of this step
+            if self.attachments:
+                self.control.set_targets(np.concatenate(
+                    [geometry[name][idx] + off for name, idx, off in self.attachments]))
             self.solver.step(self.state, self.state, self.dt, self.control)
             self._frame += 1
             self._points = self.state.points.numpy()
-        a, b = self.ranges[name]
-        return self._points[a:b]
+        return {name: self._points[a:b].copy() for name, (a, b) in self.ranges.items()}

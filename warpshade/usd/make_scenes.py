@@ -230,6 +230,66 @@ def skinned_tube(stage, frames: int):
     return root
 
 
+def walker(stage, frames: int, fps: float, path: str = "/World/Walker"):
+    """:class:`warpshade.sim.figure.WalkingFigure` baked to UsdSkel: joints, bind pose, joint
+    influences and one animation sample per frame (its skinning transforms, made local)."""
+    from ..sim.figure import WalkingFigure
+
+    fig = WalkingFigure()
+    parents = fig.parents
+    paths = []
+    for j, name in enumerate(fig.joint_names):
+        paths.append(name if parents[j] < 0 else f"{paths[parents[j]]}/{name}")
+    root = UsdSkel.Root.Define(stage, path)
+    skel = UsdSkel.Skeleton.Define(stage, f"{path}/Skel")
+    skel.CreateJointsAttr(paths)
+    ident = [Gf.Matrix4d(1)] * len(paths)
+    # bind = identity: a joint's skinning transform is then its world transform, which is what
+    # WalkingFigure.transforms() returns (rest -> posed, column vectors; USD wants rows: transpose)
+    skel.CreateBindTransformsAttr(Vt.Matrix4dArray(ident))
+    skel.CreateRestTransformsAttr(Vt.Matrix4dArray(ident))
+    anim = UsdSkel.Animation.Define(stage, f"{path}/Skel/Walk")
+    anim.CreateJointsAttr(paths)
+    for f in range(frames):
+        world = [np.asarray(m).T for m in fig.transforms(f / fps)]  # row convention
+        local = [w if parents[j] < 0 else w @ np.linalg.inv(world[parents[j]]) for j, w in enumerate(world)]
+        anim.SetTransforms(Vt.Matrix4dArray([Gf.Matrix4d(*m.reshape(-1).tolist()) for m in local]), f)
+    UsdSkel.BindingAPI.Apply(skel.GetPrim()).CreateAnimationSourceRel().SetTargets([anim.GetPath()])
+    pts, faces = fig.rest_points, fig.faces
+    body = mesh(stage, f"{path}/Body", pts, [3] * len(faces), faces.ravel())
+    b = UsdSkel.BindingAPI.Apply(body.GetPrim())
+    b.CreateSkeletonRel().SetTargets([skel.GetPath()])
+    k = fig.joint_indices.shape[1]
+    b.CreateJointIndicesPrimvar(False, k).Set(Vt.IntArray([int(i) for i in fig.joint_indices.ravel()]))
+    b.CreateJointWeightsPrimvar(False, k).Set(Vt.FloatArray([float(w) for w in fig.joint_weights.ravel()]))
+    b.CreateGeomBindTransformAttr(Gf.Matrix4d(1))
+    set_attr(body.GetPrim(), "collider", "mesh")
+    bind(body.GetPrim(), material(stage, "BodyMat", (0.55, 0.55, 0.6)))
+    return root, body, np.asarray(pts)
+
+
+def cape_walker(out_dir: str, save) -> None:
+    """A cape attached to the shoulders of the walking figure (needs :mod:`warpshade.sim`)."""
+    frames = 120
+    st = new_stage(os.path.join(out_dir, "cape_walker.usda"), frames,
+                   doc="A cape attached to the shoulders of a walking, UsdSkel-skinned figure.")
+    ground(st, size=5.0, n=41)
+    _, body, pts = walker(st, frames, 60.0)
+    back = pts[(pts[:, 1] > 1.2) & (pts[:, 1] < 1.45) & (np.abs(pts[:, 0]) < 0.12)][:, 2].min()
+    nx, ny = 13, 21
+    cp, cc, ci = grid(nx, ny, 0.5, 0.8)
+    cape = mesh(st, "/World/Cape", cp, cc, ci, translate=(0.0, 1.43 - 0.4, float(back) - 0.04))
+    c = cape.GetPrim()
+    set_attr(c, "kind", "cloth")
+    for k, v in CLOTH.items():
+        set_attr(c, f"cloth:{k}", v)
+    set_attr(c, "attached", [(ny - 1) * nx + i for i in range(nx)])  # the top row
+    c.CreateRelationship("warpshade:attachTarget", custom=True).SetTargets([body.GetPath()])
+    bind(c, material(st, "CapeMat", (0.6, 0.1, 0.12), roughness=0.9))
+    sun(st), dome(st, intensity=0.6)
+    save(st, "cape_walker.usda")
+
+
 def make_all(out_dir: str = SCENES_DIR) -> list[str]:
     os.makedirs(out_dir, exist_ok=True)
     made = []
@@ -296,6 +356,14 @@ def make_all(out_dir: str = SCENES_DIR) -> list[str]:
     bind(m.GetPrim(), material(st, "SheetMat", (0.3, 0.7, 0.35)))
     dome(st, texture="./sky_small.exr", intensity=1.0)
     save(st, "dome_texture.usda")
+
+    # sims/cape_walker: a cape hanging from the shoulders of the walking figure (UsdSkel body)
+    try:
+        import warpshade.sim.figure  # noqa: F401
+    except ImportError:
+        print("cape_walker.usda not regenerated: warpshade.sim.figure is not installed")
+    else:
+        cape_walker(out_dir, save)
 
     # UsdSkel: a skinned limb bending over time, on the ground, under the sun
     st = new_stage(os.path.join(out_dir, "skinned_arm.usda"), 48, doc="A UsdSkel-skinned limb bending.")

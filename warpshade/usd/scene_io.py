@@ -170,12 +170,13 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> Scene
         params["cloth"] = {k[len("cloth:"):]: v for k, v in settings.items() if k.startswith("cloth:")}
     for k in [k for k in settings if k.startswith("cloth:")]:
         settings.pop(k)
-    if "pinned" in settings:
-        pins = np.asarray(settings.pop("pinned"), dtype=np.int64).reshape(-1)
-        bad = pins[(pins < 0) | (pins >= tri.num_vertices)]
-        if len(bad):
-            raise SceneError(f"{where}: warpshade:pinned vertex {int(bad[0])} out of range 0..{tri.num_vertices - 1}")
-        params["pinned"] = pins.astype(np.int32)
+    for key in ("pinned", "attached"):
+        if key in settings:
+            vs = np.asarray(settings.pop(key), dtype=np.int64).reshape(-1)
+            bad = vs[(vs < 0) | (vs >= tri.num_vertices)]
+            if len(bad):
+                raise SceneError(f"{where}: warpshade:{key} vertex {int(bad[0])} out of range 0..{tri.num_vertices - 1}")
+            params[key] = vs.astype(np.int32)
     return _object(prim, where, tri, kind, settings, params, default_method, _material(prim, where))
 
 
@@ -366,6 +367,13 @@ def _namespace(prim, source: str, skip=()) -> dict:
         elif isinstance(value, Sdf.AssetPath):
             value = value.resolvedPath or value.path
         out[name[len("warpshade:"):]] = value
+    for rel in prim.GetAuthoredRelationships():  # e.g. rel warpshade:attachTarget = </World/Walker/Body>
+        name = rel.GetName()
+        if name.startswith("warpshade:"):
+            targets = rel.GetTargets()
+            if len(targets) != 1:
+                raise SceneError(f"{source}:{prim.GetPath()}: {name} must have exactly one target, has {len(targets)}")
+            out[name[len("warpshade:"):]] = str(targets[0])
     return out
 
 
