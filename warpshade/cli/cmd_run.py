@@ -92,7 +92,13 @@ def run(args) -> int:
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, metadata={"scene": os.path.abspath(scene_path),
                                                          "order": pipe.order})
-    report = pipe.run(writer, progress=not args.no_progress)
+    try:
+        report = pipe.run(writer, progress=not args.no_progress)
+    except KeyboardInterrupt:
+        kept = writer.frames_committed
+        where = f"{kept} complete frames kept in {writer.path}" if kept else "previous output (if any) left untouched"
+        print(f"warpshade run: interrupted; {where}", file=sys.stderr)
+        return 130
     report.seconds["load"] = load
     s = report.seconds
     print(f"warpshade run: {scene_path}: {report.frames} frames, {report.vertices} shaded vertices, SH order {pipe.order}",
