@@ -102,8 +102,18 @@ class Pipeline:
                                   self.write_transfer, device)
         self.report = None
 
-    def _geometry(self, sims, secs):
-        """Yield ``(frame, {name: points})`` for every moving object, timing the simulation."""
+    def _geometry(self, sims, secs, failure: list):
+        """Yield ``(frame, {name: points})`` for every moving object, timing the simulation.
+
+        An error ends the iteration and is put in ``failure`` instead of being raised here, so the
+        frames already in flight are still shaded and written before the run stops with it.
+        """
+        try:
+            yield from self._geometry_frames(sims, secs)
+        except Exception as exc:  # noqa: BLE001 - re-raised by run() after the in-flight frames
+            failure.append(exc)
+
+    def _geometry_frames(self, sims, secs):
         driven = [o for o in self.scene.objects if o.kind in ("animated", "skinned")]
         for f in range(self.frames):
             t = time.perf_counter()
@@ -149,7 +159,8 @@ class Pipeline:
                 from tqdm import tqdm
 
                 bar = tqdm(total=self.frames, desc="warpshade run", unit="frame")
-            results = shade_frames(self.shader, self._geometry(sims, secs), workers=self.workers,
+            failure: list = []
+            results = shade_frames(self.shader, self._geometry(sims, secs, failure), workers=self.workers,
                                    scheduler=self.scheduler)
             for f, res in results:
                 t = time.perf_counter()
@@ -161,6 +172,8 @@ class Pipeline:
                 secs["write"] += time.perf_counter() - t
                 if bar is not None:
                     bar.update(1)
+            if failure:
+                raise failure[0]
             if bar is not None:
                 bar.close()
             t = time.perf_counter()
