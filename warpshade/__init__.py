@@ -3,11 +3,16 @@
 __version__ = "0.1.0"
 
 from .geometry import MeshError, TriMesh, load_mesh
+from .lighting import (ConstantEnvironment, DirectionalLight, EnvironmentMap, PointLight, RectLight, Sky, SphereLight,
+                       default_environment)
+from .radiance import exit_radiance, shade
 from .sh import n_coeffs, sh_eval
 from .visibility import METHODS, TransferMethod, get_method
 from .pipeline import Pipeline, RunReport
 from .scene import LightSpec, Material, Scene, SceneError, SceneObject
 
-__all__ = ["METHODS", "MeshError", "TransferMethod", "TriMesh", "__version__", "get_method", "load_mesh",
+__all__ = ["ConstantEnvironment", "DirectionalLight", "EnvironmentMap", "PointLight", "RectLight", "Sky",
+           "SphereLight", "default_environment", "exit_radiance", "shade"]
+__all__ += ["METHODS", "MeshError", "TransferMethod", "TriMesh", "__version__", "get_method", "load_mesh",
            "n_coeffs", "sh_eval"]
 __all__ += ["LightSpec", "Material", "Pipeline", "RunReport", "Scene", "SceneError", "SceneObject"]

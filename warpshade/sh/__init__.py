@@ -2,6 +2,7 @@
 
 from .basis import MAX_ORDER, check_order, n_coeffs, normalization, sh_eval, sh_index
 from .exp import OLTable, fit_ol_table, hybrid_exp_parts, ol_table, sh_exp, sh_log, unit_vector, zh_log
+from .projection import project_function, project_latlong, sphere_quadrature
 from .products import GauntTensor, gaunt_tensor, product_matrix, sh_product, sh_square, symmetric_product_table
 from .rotation import rotate, rotation_blocks, rotation_from_axis_angle, rotation_matrix
 from .zonal import (cap_zh, clamped_cosine_zh, phong_zh, sh_to_zh, sphere_visibility_zh, zh_band_factors,
@@ -12,3 +13,4 @@ __all__ = ["GauntTensor", "MAX_ORDER", "OLTable", "fit_ol_table", "hybrid_exp_pa
            "sh_product", "sh_square",
            "symmetric_product_table", "cap_zh", "check_order", "clamped_cosine_zh", "n_coeffs", "normalization", "phong_zh",
            "sh_eval", "sh_index", "sh_to_zh", "sphere_visibility_zh", "zh_band_factors", "zh_rotate", "zh_to_sh"]
+__all__ += ["project_function", "project_latlong", "sphere_quadrature"]
