@@ -27,7 +27,7 @@ from ..scene import Scene, SceneError
 from ..sh.basis import check_order
 from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
-from .shading import GroupSpec, SceneShader, exit_radiance, group_objects, unoccluded_transfer
+from .shading import GroupSpec, SceneShader, group_objects, unoccluded_transfer
 
 METHOD_PREFERENCE = ("hemiraster", "spheres", "disks", "reference")
 """Default visibility method: the first of these that is registered (fastest accurate first)."""
@@ -193,5 +193,5 @@ class Pipeline:
 
 
 __all__ = ["DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
-           "RunReport", "SceneShader", "default_method", "exit_radiance", "light_from_spec", "sky_light_specs",
+           "RunReport", "SceneShader", "default_method", "light_from_spec", "sky_light_specs",
            "unoccluded_transfer"]

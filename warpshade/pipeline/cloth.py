@@ -27,7 +27,7 @@ class ClothSimulation:
 
     def __init__(self, scene: Scene, device: str = "cpu"):
         try:
-            from ..sim import ClothBuilder, ClothControl, ColliderSet, XPBDSolver  # noqa: F401
+            from ..sim import ClothBuilder, ColliderSet, XPBDSolver
         except ImportError as exc:
             name = next(o.name for o in scene.objects if o.kind == "cloth")
             raise SceneError(f"{scene.source}: {name} is cloth, and cloth needs warpshade.sim, which is not "

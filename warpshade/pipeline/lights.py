@@ -18,33 +18,16 @@ def default_lights(up: str = "Y") -> list:
 
 
 def sky_light_specs(sky, image_path: str, up: str = "Y", height: int = 128) -> list[LightSpec]:
-    """UsdLux descriptions of an analytic :class:`warpshade.lighting.Sky` for the output file: a
-    DomeLight with the sky rendered to a lat-long image (written to ``image_path``) and a normalized
-    DistantLight for the sun (the 0.53° disc is far smaller than a texel, so it is not in the image).
-    """
+    """UsdLux description of an analytic :class:`warpshade.lighting.Sky` for the output file: a
+    DomeLight whose lat-long texture (written to ``image_path``) is :meth:`Sky.to_image` (the sun's
+    energy splatted into its texel), oriented so its pole is the stage's up axis."""
     from ..lighting import up_frame, write_image
-    from ..sh.projection import latlong_directions
 
-    frame = up_frame(up)
-    dirs = latlong_directions(height, 2 * height).reshape(-1, 3) @ frame.T  # map frame -> world
-    sun = np.asarray(sky.sun_direction, dtype=np.float64)
-    half = math.radians(0.53) / 2
-    in_sun = dirs @ sun >= math.cos(half)
-    if in_sun.any():  # a texel centre inside the disc: sample the sky just beside it instead
-        perp = np.cross(sun, frame[:, 0] if abs(sun @ frame[:, 0]) < 0.9 else frame[:, 2])
-        nudged = dirs[in_sun] + 0.03 * perp / np.linalg.norm(perp)
-        dirs[in_sun] = nudged / np.linalg.norm(nudged, axis=1, keepdims=True)
-    image = sky.radiance(dirs).reshape(height, 2 * height, 3)
-    write_image(image_path, image)
-    # the sun's frame: +Z towards the sun (a DistantLight shines along its -Z)
-    x = np.cross(frame[:, 1], sun)
-    x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-9 else frame[:, 0]
+    write_image(image_path, sky.to_image(height, up=up))
+    frame = up_frame(up)  # map frame -> world; a DomeLight's map pole is its prim's +Y
     xf = np.eye(4)
-    xf[:3, 0], xf[:3, 1], xf[:3, 2] = x, np.cross(sun, x), sun
-    irradiance = np.asarray(sky.sun_radiance) * math.pi * math.sin(half) ** 2
-    return [LightSpec("dome", "DefaultSky", texture=image_path, transform=np.eye(4) if up.upper() == "Y" else
-                      np.block([[frame, np.zeros((3, 1))], [np.zeros((1, 3)), np.ones((1, 1))]])),
-            LightSpec("distant", "DefaultSun", color=irradiance, normalize=True, angle=0.53, transform=xf)]
+    xf[:3, :3] = frame
+    return [LightSpec("dome", "DefaultSky", texture=image_path, transform=xf)]
 
 
 def light_from_spec(spec: LightSpec, up: str = "Y"):

@@ -7,7 +7,6 @@ inline) constructs the visibility methods and lights, and returns ``shade(frame,
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
@@ -27,26 +26,6 @@ def unoccluded_transfer(normals: np.ndarray, order: int) -> np.ndarray:
         Shape (V, N*N), float32.
     """
     return zh_rotate(clamped_cosine_zh(order), normals).astype(np.float32)
-
-
-def exit_radiance(transfer: np.ndarray, albedo: np.ndarray, distant: np.ndarray,
-                  local: np.ndarray | None = None) -> np.ndarray:
-    """Lambertian exit radiance ``(ρ/π) Σ_i L_i T_i`` (CONTRACTS.md §2), clamped at 0.
-
-    Args:
-        transfer: Shape (V, N*N).
-        albedo: Linear RGB, shape (3,) or (V, 3).
-        distant: Distant lights' SH, shape (N*N, 3).
-        local: Per-vertex SH of local lights, shape (V, N*N, 3), or None.
-
-    Returns:
-        Linear RGB radiance, shape (V, 3), float32. Negative values (SH ringing of a truncated
-        light) are clamped to 0: displayColor is a radiance.
-    """
-    lit = transfer @ distant
-    if local is not None:
-        lit = lit + np.einsum("vi,vic->vc", transfer, local)
-    return np.maximum(np.asarray(albedo) / math.pi * lit, 0.0).astype(np.float32)
 
 
 @dataclass
@@ -148,6 +127,7 @@ class SceneShader:
         """Build methods and lights; returns ``shade(frame, geometry) -> {name: (points, normals,
         colors, transfer or None)}`` plus the key ``"_seconds"`` (time spent shading the frame)."""
         from ..lighting import lights_sh
+        from ..radiance import exit_radiance
 
         groups = [_Group(g, self.order, self.device) for g in self.groups]
         lights = self.build_lights()
@@ -162,7 +142,9 @@ class SceneShader:
                 distant, local = lights_sh(frame_lights, self.order, pts)
                 for k, (name, albedo) in enumerate(zip(g.spec.names, g.spec.albedos)):
                     a, b = g.offsets[k], g.offsets[k + 1]
-                    rad = exit_radiance(transfer[a:b], albedo, distant, None if local is None else local[a:b])
+                    # clamped at 0: SH ringing behind bright lights must not make displayColor negative
+                    rad = exit_radiance(transfer[a:b], distant, albedo, None if local is None else local[a:b],
+                                        device=self.device).numpy().copy()
                     out[name] = (pts[a:b], normals[a:b], rad, transfer[a:b] if self.write_transfer else None)
             wp.synchronize()
             out["_seconds"] = time.perf_counter() - t0
@@ -200,4 +182,4 @@ def group_objects(objects, method: str | None = None, knobs: dict | None = None,
     return list(by_key.values())
 
 
-__all__ = ["GroupSpec", "SceneShader", "exit_radiance", "group_objects", "unoccluded_transfer"]
+__all__ = ["GroupSpec", "SceneShader", "group_objects", "unoccluded_transfer"]
