@@ -9,6 +9,8 @@ from warpshade.cli import main
 from warpshade.preview import Camera, contact_sheet, render, tonemap
 from warpshade.usd import AnimationWriter
 
+from test_usd_writer import grid  # the same tiny fixture
+
 
 def test_barycentric_colors_and_background():
     # a triangle in the plane z = 0 seen head-on from +z; vertex colours red, green, blue
@@ -55,11 +57,8 @@ def test_tonemap_and_sheet_shapes():
 def test_preview_cli_writes_png(tmp_path):
     import imageio.v3 as iio
 
-    x, z = np.meshgrid(np.linspace(-1, 1, 6), np.linspace(-1, 1, 6))
-    pts = np.stack([x.ravel(), np.zeros(36), z.ravel()], 1)
-    i, j = np.meshgrid(np.arange(5), np.arange(5))
-    v = (j * 6 + i).ravel()
-    faces = np.concatenate([np.stack([v, v + 6, v + 1], 1), np.stack([v + 1, v + 6, v + 7], 1)])
+    pts, faces = grid(6)
+    pts = (pts - (0.5, 0, 0.5)) * 2
     w = AnimationWriter(str(tmp_path / "anim.usda"), chunk=3)
     name = w.add_mesh("sheet", faces)
     for f in range(8):

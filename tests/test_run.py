@@ -17,6 +17,8 @@ from warpshade.geometry import TriMesh
 from warpshade.usd import AnimationWriter, read_scene
 from warpshade.usd.validate import validation_errors
 
+from test_usd_writer import grid  # the same tiny fixture
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = os.path.join(REPO, "usd_scenes")
 
@@ -41,11 +43,8 @@ def test_unshadowed_plane_under_uniform_sky_has_albedo_radiance():
 
 
 def _plane_scene(method):
-    x, z = np.meshgrid(np.linspace(-1, 1, 9), np.linspace(-1, 1, 9))
-    pts = np.stack([x.ravel(), np.zeros(81), z.ravel()], 1)
-    i, j = np.meshgrid(np.arange(8), np.arange(8))
-    v = (j * 9 + i).ravel()
-    faces = np.concatenate([np.stack([v, v + 9, v + 1], 1), np.stack([v + 1, v + 9, v + 10], 1)])
+    pts, faces = grid(9)  # 9x9 vertices on [-1, 1]² at y = 0; vertex 40 is the centre
+    pts = (pts - (0.5, 0, 0.5)) * 2
     ground = SceneObject("ground", TriMesh(pts, faces), method=method)
     blocker = SceneObject("lid", TriMesh(pts * 0.3 + (0, 0.2, 0), faces), method=method, kind="animated",
                           params={"points_at": lambda f: (pts * 0.3 + (0, 0.2 + 0.1 * f, 0)).astype(np.float32)})
