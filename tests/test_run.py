@@ -56,6 +56,10 @@ def test_objects_in_one_group_shadow_each_other(tmp_path):
     report = Pipeline(scene, order=3, knobs=None).run(AnimationWriter(str(tmp_path / "o.usda")), progress=False)
     assert report.frames == 3 and len(report.groups) == 1
     stage = Usd.Stage.Open(str(tmp_path / "o.usda"))
+    for prim in ("/World/ground", "/World/lid"):  # CONTRACTS.md §6: every shaded mesh, static or not
+        m = UsdGeom.Mesh(stage.GetPrimAtPath(prim))
+        for attr in (m.GetPointsAttr(), m.GetNormalsAttr(), m.GetExtentAttr()):
+            assert attr.GetTimeSamples() == [0.0, 1.0, 2.0], (prim, attr.GetName())
     col = np.asarray(UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/World/ground")).GetPrimvar("displayColor").Get(0))
     centre, corner = col[40, 0], col[0, 0]
     # under a white dome of radiance 1 an open vertex gets ρ·1 = 0.8

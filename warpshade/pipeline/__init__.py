@@ -166,9 +166,9 @@ class Pipeline:
                 t = time.perf_counter()
                 secs["shade"] += res.pop("_seconds")
                 for name, (points, normals, colors, transfer) in res.items():
-                    moving = name not in static
-                    writer.write_frame(f, names[name], points if moving else None, normals if moving else None,
-                                       colors, transfer)
+                    # CONTRACTS.md §6: every shaded mesh has points, normals and extent time-sampled
+                    # per frame, static ones included
+                    writer.write_frame(f, names[name], points, normals, colors, transfer)
                 secs["write"] += time.perf_counter() - t
                 if bar is not None:
                     bar.update(1)
