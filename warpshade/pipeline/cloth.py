@@ -65,7 +65,7 @@ class ClothSimulation:
                     self.moving_colliders.append((o.name, mc))
             else:
                 raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, mesh")
-        gravity = tuple(-9.81 * up)
+        gravity = tuple(-9.81 / scene.meters_per_unit * up)  # [scene units/s²]
         self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
                                  gravity=gravity, self_collision=bool(first.get("selfCollision", True)))
         self.control = self.model.control()
