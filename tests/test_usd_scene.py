@@ -26,15 +26,17 @@ def test_default_scene_contents():
     assert kinds == {"/World/Ground": "static", "/World/Ball": "static", "/World/Cloth": "cloth"}
     cloth = s.object("/World/Cloth")
     assert cloth.params["cloth"]["density"] == pytest.approx(0.2)
+    assert cloth.params["cloth"]["bendStiffness"] == pytest.approx(2e-5)
     assert cloth.params["cloth"]["selfCollision"] is True
-    # 25x25 quad grid -> 24*24 quads -> 2 triangles each; rotated -90° about X and lifted to y = 1.3
-    assert cloth.mesh.num_vertices == 625 and cloth.mesh.num_faces == 2 * 24 * 24
-    assert np.allclose(cloth.mesh.points[:, 1], 1.3, atol=1e-6)
+    # 33x33 quad grid -> 32*32 quads -> 2 triangles each; rotated -90° about X and lifted to y = 1
+    assert cloth.mesh.num_vertices == 33 * 33 and cloth.mesh.num_faces == 2 * 32 * 32
+    assert np.allclose(cloth.mesh.points[:, 1], 1.0, atol=1e-6)
     assert np.allclose(cloth.material.albedo, (0.75, 0.2, 0.15)) and cloth.material.roughness == pytest.approx(0.9)
     assert np.all(cloth.mesh.normals[:, 1] > 0.99), "cloth quads must face up after the transform"
     ball = s.object("/World/Ball")
-    assert np.allclose(ball.params["sphere"]["center"], (0, 0.5, 0)) and ball.params["sphere"]["radius"] == 0.5
-    assert np.allclose(np.linalg.norm(ball.mesh.points - (0, 0.5, 0), axis=1), 0.5, atol=1e-6)
+    assert np.allclose(ball.params["sphere"]["center"], (0, 0.35, 0))
+    assert ball.params["sphere"]["radius"] == pytest.approx(0.35)
+    assert np.allclose(np.linalg.norm(ball.mesh.points - (0, 0.35, 0), axis=1), 0.35, atol=1e-6)
     assert s.object("/World/Ground").params["collider"] == "ground"
 
 

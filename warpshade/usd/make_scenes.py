@@ -103,13 +103,14 @@ def ground(stage, size: float = 4.0, n: int = 33, albedo=(0.6, 0.6, 0.58)) -> Us
     return g
 
 
-def cloth(stage, path="/World/Cloth", n=25, size=1.6, height=1.3, pinned=None, albedo=(0.75, 0.2, 0.15),
-          translate=None, rotate_x=-90.0) -> UsdGeom.Mesh:
+def cloth(stage, path="/World/Cloth", n=33, size=1.6, height=1.0, pinned=None, albedo=(0.75, 0.2, 0.15),
+          translate=None, rotate_x=-90.0, **overrides) -> UsdGeom.Mesh:
+    """A square cloth grid, horizontal by default; ``overrides`` replace :data:`CLOTH` entries."""
     pts, c, i = grid(n, n, size, size)
     m = mesh(stage, path, pts, c, i, translate=translate or (0.0, height, 0.0), rotate_x=rotate_x)
     p = m.GetPrim()
     set_attr(p, "kind", "cloth")
-    for k, v in CLOTH.items():
+    for k, v in {**CLOTH, **overrides}.items():
         set_attr(p, f"cloth:{k}", v)
     if pinned is not None:
         set_attr(p, "pinned", pinned)
@@ -117,7 +118,7 @@ def cloth(stage, path="/World/Cloth", n=25, size=1.6, height=1.3, pinned=None, a
     return m
 
 
-def sphere(stage, center=(0.0, 0.5, 0.0), radius=0.5, albedo=(0.7, 0.7, 0.75)) -> UsdGeom.Sphere:
+def sphere(stage, center=(0.0, 0.35, 0.0), radius=0.35, albedo=(0.7, 0.7, 0.75)) -> UsdGeom.Sphere:
     s = UsdGeom.Sphere.Define(stage, "/World/Ball")
     s.CreateRadiusAttr(radius)
     s.CreateExtentAttr([(-radius,) * 3, (radius,) * 3])
@@ -301,12 +302,12 @@ def make_all(out_dir: str = SCENES_DIR) -> list[str]:
     # default: cloth draping over a ball onto the ground under the default sky (no lights authored)
     st = new_stage(os.path.join(out_dir, "default.usda"), 120,
                    doc="Default scene: a cloth drapes over a ball onto the ground under warpshade's default sky.")
-    ground(st), sphere(st), cloth(st)
+    ground(st), sphere(st), cloth(st, bendStiffness=2e-5)  # as sims/drape_sphere.py, coarser
     save(st, "default.usda")
 
     # sims/cloth_over_sphere: the same under an explicit sun and sky
     st = new_stage(os.path.join(out_dir, "cloth_sphere.usda"), 120, doc="Cloth over a ball, sun and blue sky.")
-    ground(st), sphere(st), cloth(st), sun(st), dome(st, intensity=0.6)
+    ground(st), sphere(st), cloth(st, bendStiffness=2e-5), sun(st), dome(st, intensity=0.6)
     save(st, "cloth_sphere.usda")
 
     # sims/flag_wind: a flag pinned to a pole in wind
@@ -331,7 +332,7 @@ def make_all(out_dir: str = SCENES_DIR) -> list[str]:
 
     # RectLight: cloth over a ball lit by an area light
     st = new_stage(os.path.join(out_dir, "rect_light.usda"), 120, doc="Cloth over a ball under a rectangular area light.")
-    ground(st), sphere(st), cloth(st)
+    ground(st), sphere(st), cloth(st, bendStiffness=2e-5)
     rect = UsdLux.RectLight.Define(st, "/World/Lights/Panel")
     rect.CreateWidthAttr(1.5), rect.CreateHeightAttr(1.0), rect.CreateIntensityAttr(8.0)
     rect.AddTranslateOp().Set(Gf.Vec3d(0.5, 2.5, 0.5))
