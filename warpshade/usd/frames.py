@@ -43,8 +43,18 @@ class ShadedStage:
             raise SceneError(f"{path}: no Mesh prim")
 
     def moving(self) -> set[str]:
-        """Paths of the meshes whose points are time-sampled."""
-        return {str(prim.GetPath()) for prim, m, _ in self._meshes if m.GetPointsAttr().ValueMightBeTimeVarying()}
+        """Paths of the meshes whose points differ between the first, middle and last frames
+        (static meshes are time-sampled too, CONTRACTS.md §6, so sampling alone says nothing)."""
+        out = set()
+        times = [Usd.TimeCode(t) for t in (self.start, 0.5 * (self.start + self.end), self.end)]
+        for prim, m, _ in self._meshes:
+            attr = m.GetPointsAttr()
+            if not attr.ValueMightBeTimeVarying():
+                continue
+            first = np.asarray(attr.Get(times[0]))
+            if any(not np.array_equal(first, np.asarray(attr.Get(t))) for t in times[1:]):
+                out.add(str(prim.GetPath()))
+        return out
 
     def frame(self, frame: float) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
         """Every mesh at ``frame``: ``(prim path, points (V, 3) world, faces (F, 3), colors (V, 3))``.
