@@ -123,11 +123,13 @@ def main(argv=None) -> int:
     print(f"USD export, {args.frames} frames x {args.vertices} vertices (points, normals, extent, displayColor); "
           f"medians of {args.repeat} runs (each in a fresh process, imports excluded); "
           "wall times on a shared, loaded 2-core machine")
-    hdr = f"{'mode':<11}{'total s':>9}{'ms/frame first 1k':>19}{'ms/frame last 1k':>18}{'save s':>8}{'peak RSS MB':>13}{'open+read s':>13}{'MB on disk':>12}"
+    hdr = (f"{'mode':<11}{'total s':>9}{'ms/frame first 1k':>19}{'ms/frame last 1k':>18}{'save s':>8}"
+           f"{'peak RSS MB':>13}{'growth MB':>11}{'open+read s':>13}{'MB on disk':>12}")
     print(hdr)
     for r in rows:
         print(f"{r['mode']:<11}{r['total_s']:>9.2f}{r['ms_per_frame_first1000']:>19.3f}{r['ms_per_frame_last1000']:>18.3f}"
-              f"{r['save_s']:>8.2f}{r['peak_rss_mb']:>13.0f}{r['open_and_read_last_s']:>13.3f}{r['bytes_on_disk'] / 1e6:>12.1f}")
+              f"{r['save_s']:>8.2f}{r['peak_rss_mb']:>13.0f}{r['peak_rss_mb'] - r['rss_before_mb']:>11.0f}"
+              f"{r['open_and_read_last_s']:>13.3f}{r['bytes_on_disk'] / 1e6:>12.1f}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"note": "shared, loaded 2-core machine", "results": rows}, f, indent=2)
