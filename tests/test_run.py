@@ -123,3 +123,14 @@ def test_scene_without_lights_gets_the_default_sky(tmp_path):
     lum = col @ np.array([0.2126, 0.7152, 0.0722])
     assert np.allclose(lum, 0.8, rtol=0.05), lum[:5]
     assert validation_errors(out) == []
+
+
+def test_cli_errors_are_one_line(tmp_path, capsys):
+    assert main(["run", str(tmp_path / "nope.usda"), "--no-progress"]) == 1
+    assert "nope.usda: no such scene file" in capsys.readouterr().err
+    assert main(["run", os.path.join(SCENES, "skinned_arm.usda"), "--rays", "4", "--no-progress"]) == 1
+    assert "need --method" in capsys.readouterr().err
+    assert main(["run", os.path.join(SCENES, "skinned_arm.usda"), "--method", "reference", "--bogus", "1"]) == 1
+    assert "unknown option(s) for method 'reference': --bogus" in capsys.readouterr().err
+    assert main(["preview", str(tmp_path / "nope.usda"), "-o", str(tmp_path / "x.png")]) == 1
+    assert "nope.usda: cannot open USD stage" in capsys.readouterr().err
