@@ -238,3 +238,14 @@ def test_warp_hybrid_huge_magnitudes_float32(magnitude):
     # The scale is exp(DC + log-scale) with both ~m in float32: their ulp (6e-8 m) times the ~2p
     # operations bounds |log |got|| by ~1e-6 m: measured 0.36 at m = 1e6 and 8e-4 at 1e3.
     assert np.abs(np.log(nrm)).max() < 2e-6 * magnitude + 1e-3, nrm
+
+
+def test_warp_hybrid_non_finite_input_gives_nan():
+    f = np.zeros((3, 16))
+    f[0, 3] = np.inf
+    f[1, 0] = np.nan
+    f[2, 5] = 1e20  # squared norm overflows float32
+    got = sh_exp_warp(f, "hybrid")
+    assert np.isnan(got).all(), got
+    with pytest.raises(ValueError, match="NaN or inf"):
+        sh_exp(f[:2], "hybrid")

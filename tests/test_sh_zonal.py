@@ -144,3 +144,23 @@ def test_warp_zh_rotate_float32(order, rng):
     # float32 basis error (<2e-5, test_sh_basis) times coefficients of size ~3 and the factor
     # sqrt(4pi) ~ 3.5: 3e-4 absolute leaves margin while catching any wrong index or sign.
     np.testing.assert_allclose(out.numpy(), want, atol=3e-4, err_msg=f"order {order}")
+
+
+@pytest.mark.parametrize("order", [1, 4, 8])
+def test_warp_zh_rotate_vector_types(order, rng):
+    from warpshade.sh.kernels import zh_vector_funcs
+
+    fn = zh_vector_funcs(order)
+
+    d = rng.normal(size=(20, 6, 3))
+    d[0, 0] = 0.0  # a zero axis contributes nothing
+    d[1, 0] = [0, 0, -2.0]
+    zh = rng.normal(size=(6, order))
+    out = wp.zeros(20, dtype=fn.vec_sh)
+    wp.launch(fn.accumulate_lobes, dim=20, inputs=[wp.array(d.astype(np.float32), dtype=wp.vec3),
+                                         wp.array(zh.astype(np.float32), dtype=fn.vec_zh), fn.zh_constants()],
+              outputs=[out])
+    lobes = zh_rotate(zh[None], d)
+    lobes[0, 0] = 0.0
+    # Six lobes of float32 error <= 3e-4 each (see test_warp_zh_rotate_float32).
+    np.testing.assert_allclose(out.numpy().reshape(20, -1), lobes.sum(1), atol=1e-3)

@@ -24,6 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .basis import sh_eval
+from .projection import sphere_quadrature
 
 _DROP = 1e-13
 
@@ -81,19 +82,6 @@ def _csr(t: GauntTensor) -> sp.csr_matrix:
                          shape=(t.order_out**2, t.order_f**2 * ng))
 
 
-def _sphere_quadrature(degree: int):
-    """Nodes (Q, 3) and weights (Q,) integrating polynomials of total degree <= ``degree`` exactly."""
-    nt = degree // 2 + 1
-    nphi = degree + 1
-    x, w = np.polynomial.legendre.leggauss(nt)
-    phi = (np.arange(nphi) + 0.5) * (2.0 * np.pi / nphi)
-    st = np.sqrt(1.0 - x**2)
-    dirs = np.stack([st[:, None] * np.cos(phi)[None, :], st[:, None] * np.sin(phi)[None, :],
-                     np.broadcast_to(x[:, None], (nt, nphi))], -1).reshape(-1, 3)
-    weights = np.repeat(w * (2.0 * np.pi / nphi), nphi)
-    return dirs, weights
-
-
 @lru_cache(maxsize=None)
 def gaunt_tensor(order: int, order_f: int | None = None, order_g: int | None = None) -> GauntTensor:
     """The sparse Gaunt tensor for products of an order-``order_f`` and an order-``order_g`` vector truncated to ``order``.
@@ -110,7 +98,8 @@ def gaunt_tensor(order: int, order_f: int | None = None, order_g: int | None = N
     for name, o in (("order", order), ("order_f", order_f), ("order_g", order_g)):
         if int(o) != o or o < 1:
             raise ValueError(f"gaunt_tensor: {name} must be a positive integer, got {o!r}")
-    dirs, w = _sphere_quadrature((order - 1) + (order_f - 1) + (order_g - 1))
+    degree = (order - 1) + (order_f - 1) + (order_g - 1)
+    dirs, w = sphere_quadrature(degree // 2 + 1, degree + 1)
     yo = sh_eval(dirs, order) * w[:, None]
     yf = sh_eval(dirs, order_f)
     yg = sh_eval(dirs, order_g)
