@@ -322,10 +322,15 @@ def make_all(out_dir: str = SCENES_DIR) -> list[str]:
     sun(st), dome(st, intensity=0.6)
     save(st, "flag_wind.usda")
 
-    # sims/cloth_table: a cloth falls on a table and folds onto itself
-    st = new_stage(os.path.join(out_dir, "cloth_table.usda"), 150, doc="A cloth falls on a table and folds.")
+    # sims/table_fold: a cloth falls on a table; the table slides away and the cloth folds on the floor
+    st = new_stage(os.path.join(out_dir, "cloth_table.usda"), 180,
+                   doc="A cloth falls on a table; after 1.2 s the table slides away and the cloth folds on the floor.")
     ground(st)
-    box(st, "/World/Table", (0.0, 0.4, 0.0), (1.0, 0.8, 0.7))
+    table = box(st, "/World/Table", (0.0, 0.4, 0.0), (1.0, 0.8, 0.7))
+    move = table.GetOrderedXformOps()[0]  # the translate: time samples make the table an animated collider
+    move.Set(Gf.Vec3d(0.0, 0.4, 0.0), 0)
+    move.Set(Gf.Vec3d(0.0, 0.4, 0.0), 72)
+    move.Set(Gf.Vec3d(2.2, 0.4, 0.0), 108)
     cloth(st, n=31, size=1.4, height=1.4, translate=(0.35, 1.3, 0.0), albedo=(0.85, 0.8, 0.3))
     sun(st), dome(st, intensity=0.6)
     save(st, "cloth_table.usda")

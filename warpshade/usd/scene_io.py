@@ -151,7 +151,8 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> Scene
     skinning = UsdSkel.BindingAPI(prim) if prim.HasAPI(UsdSkel.BindingAPI) else None
     kind = settings.pop("kind", None)
     if kind is None:
-        kind = "skinned" if skinning is not None else ("animated" if len(samples) > 1 else "static")
+        kind = "skinned" if skinning is not None else (
+            "animated" if len(samples) > 1 or _xform_varies(prim) else "static")
     if kind not in OBJECT_KINDS:
         raise SceneError(f"{where}: warpshade:kind '{kind}' is not one of {', '.join(OBJECT_KINDS)}")
     params: dict = {}
@@ -216,6 +217,15 @@ def _object(prim, where, tri, kind, settings, params, default_method, material) 
                            shaded=bool(settings.get("shaded", True)), params=params)
     except ValueError as exc:
         raise SceneError(f"{where}: {exc}") from None
+
+
+def _xform_varies(prim) -> bool:
+    """Whether the prim's or an ancestor's transform is time-sampled."""
+    while prim and not prim.IsPseudoRoot():
+        if prim.IsA(UsdGeom.Xformable) and UsdGeom.Xformable(prim).TransformMightBeTimeVarying():
+            return True
+        prim = prim.GetParent()
+    return False
 
 
 def _animated_points(prim, where):
