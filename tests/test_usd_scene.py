@@ -158,3 +158,12 @@ def test_cape_walker_skinned_body_and_attachments():
     # the body walks along +z (0.8 m/s at 60 fps): after 60 frames its centre moved ~0.8 m
     z0, z60 = body.params["points_at"](0)[:, 2].mean(), body.params["points_at"](60)[:, 2].mean()
     assert z60 - z0 == pytest.approx(0.8, abs=0.05)
+
+
+def test_animated_transform_makes_an_animated_object(tmp_path):
+    xf = ('double3 xformOp:translate.timeSamples = {0: (0, 0, 0), 10: (1, 0, 0)}\n'
+          ' uniform token[] xformOpOrder = ["xformOp:translate"]\n')
+    s = read_scene(_write(tmp_path, TRI % xf))
+    tri = s.objects[0]
+    assert tri.kind == "animated"
+    assert np.allclose(tri.params["points_at"](5) - tri.mesh.points, (0.5, 0, 0))
