@@ -134,3 +134,18 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     assert "unknown option(s) for method 'reference': --bogus" in capsys.readouterr().err
     assert main(["preview", str(tmp_path / "nope.usda"), "-o", str(tmp_path / "x.png")]) == 1
     assert "nope.usda: cannot open USD stage" in capsys.readouterr().err
+
+
+def test_scene_shader_pickles_for_worker_processes():
+    """--workers ships the SceneShader to worker processes: it must pickle (no pxr objects, no closures)."""
+    import pickle
+
+    scene = read_scene(os.path.join(SCENES, "skinned_arm.usda"))
+    shader = Pipeline(scene, method="reference", knobs={"rays": 4}, order=2).shader
+    clone = pickle.loads(pickle.dumps(shader))
+    assert [g.names for g in clone.groups] == [g.names for g in shader.groups]
+    shade = clone.build()
+    tube = scene.object("/World/Arm/Tube")
+    out = shade(3, {tube.name: tube.params["points_at"](3)})
+    assert set(out) == {"/World/Ground", "/World/Arm/Tube", "_seconds"}
+    assert np.allclose(out[tube.name][0], tube.params["points_at"](3))
