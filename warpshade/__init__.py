@@ -7,6 +7,8 @@ from .lighting import (ConstantEnvironment, DirectionalLight, EnvironmentMap, Po
                        default_environment)
 from .radiance import exit_radiance, shade
 from .sh import n_coeffs, sh_eval
+from .sim import (ClothBuilder, ClothControl, ClothModel, ClothState, ColliderSet, LBSSkinner, MeshCollider,
+                  SimulationError, WalkingFigure, XPBDSolver)
 from .visibility import METHODS, TransferMethod, get_method
 from .pipeline import Pipeline, RunReport
 from .scene import LightSpec, Material, Scene, SceneError, SceneObject
@@ -15,4 +17,9 @@ __all__ = ["ConstantEnvironment", "DirectionalLight", "EnvironmentMap", "PointLi
            "SphereLight", "default_environment", "exit_radiance", "shade"]
 __all__ += ["METHODS", "MeshError", "TransferMethod", "TriMesh", "__version__", "get_method", "load_mesh",
            "n_coeffs", "sh_eval"]
+<<<<<<< HEAD
 __all__ += ["LightSpec", "Material", "Pipeline", "RunReport", "Scene", "SceneError", "SceneObject"]
+=======
+__all__ += ["ClothBuilder", "ClothControl", "ClothModel", "ClothState", "ColliderSet", "LBSSkinner", "MeshCollider",
+            "SimulationError", "WalkingFigure", "XPBDSolver"]
+>>>>>>> main

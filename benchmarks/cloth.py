@@ -1,0 +1,207 @@
+"""Cloth benchmark (CONTRACTS.md §7): an N x N cloth hanging from two corners onto the ground.
+
+What it measures: frames per second of ``warpshade.sim.XPBDSolver`` on the CPU (1/60 s frames,
+default substeps, self-collision on, aerodynamics on, ground plane), after a warm-up that includes
+kernel compilation (excluded from timing). Reported next to it, on the same grid:
+
+* Warp's own ``warp/examples/benchmarks/benchmark_cloth_warp.py`` (explicit springs, 16 substeps,
+  no contact, no self-collision), when the installed warp ships that file;
+* Newton's ``SolverXPBD`` when newton is installed (it is not a warpshade dependency).
+
+The cloth's maximum edge strain at the end of the run is printed as a quality check.
+Numbers from a shared, loaded machine (2 cores, several concurrent jobs) are noisy: each figure is
+the median of ``--repeats`` runs of ``--frames`` frames; ``frames/cpu-s`` divides by the process's
+CPU time instead of wall time, which is what one unshared core would give (Warp's CPU backend runs
+on one thread).
+
+Run:  python benchmarks/cloth.py --grid 64 --frames 120 --json cloth.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import statistics
+import sys
+import time
+
+import numpy as np
+import warp as wp
+
+sys.path.insert(0, os.path.abspath(os.path.join(os.path.dirname(__file__), "..")))
+
+from warpshade.sim import ClothBuilder, ColliderSet, XPBDSolver  # noqa: E402
+
+FPS = 60.0
+
+
+def hanging_cloth(n: int, self_collision: bool = True, substeps: int | None = None, device: str = "cpu"):
+    """The benchmark scene: 1 m x 1 m cloth, horizontal at 0.8 m, pinned at two corners, ground at 0
+    (the cloth swings down and its lower part piles up on the ground)."""
+    b = ClothBuilder()
+    ids = b.add_grid(n, n, 1.0, 1.0, origin=(-0.5, 0.8, -0.5))
+    b.pin([ids[0, 0], ids[0, -1]])
+    model = b.finalize(device)
+    col = ColliderSet(device)
+    col.add_plane((0.0, 1.0, 0.0), 0.0)
+    kw = {} if substeps is None else {"substeps": substeps}
+    solver = XPBDSolver(model, col, self_collision=self_collision, **kw)
+    return model, solver
+
+
+def run_warpshade(n: int, frames: int, repeats: int, self_collision: bool):
+    model, solver = hanging_cloth(n, self_collision)
+    s0, s1 = model.state(), model.state()
+    solver.step(s0, s1, 1.0 / FPS)  # warm-up: compiles and loads the kernels
+    times, cpu = [], []
+    for _ in range(repeats):
+        s0, s1 = model.state(), model.state()
+        t, c = time.perf_counter(), time.process_time()
+        for _f in range(frames):
+            solver.step(s0, s1, 1.0 / FPS)
+            s0, s1 = s1, s0
+        times.append(time.perf_counter() - t)
+        cpu.append(time.process_time() - c)
+    x = s0.points.numpy()
+    e = model.edges_np
+    rest = model.edge_rest_length.numpy()
+    strain = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) / rest - 1.0
+    med = statistics.median(times)
+    return {"frames_per_second": frames / med, "seconds_per_frame": med / frames,
+            "frames_per_cpu_second": frames / statistics.median(cpu), "vertices": model.particle_count,
+            "triangles": model.tri_count, "substeps": solver.substeps, "iterations": solver.iterations,
+            "self_collision": self_collision, "max_edge_strain": float(strain.max()),
+            "min_height": float(x[:, 1].min()), "stats": solver.stats()}
+
+
+def _warp_cloth_class(path: str):
+    """Warp's ``Cloth`` builder class, taken from benchmark_cloth.py without running that script
+    (importing it would start its own benchmark)."""
+    import ast
+
+    with open(path) as f:
+        tree = ast.parse(f.read())
+    cls = next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "Cloth")
+    ns = {"np": np}
+    exec(compile(ast.Module(body=[cls], type_ignores=[]), path, "exec"), ns)
+    return ns["Cloth"]
+
+
+def run_warp_example(n: int, frames: int, repeats: int):
+    """Warp's benchmark_cloth_warp integrator on the same grid (its own cloth builder and settings)."""
+    folder = os.path.join(os.path.dirname(wp.__file__), "examples", "benchmarks")
+    path = os.path.join(folder, "benchmark_cloth_warp.py")
+    if not os.path.isfile(path):
+        return {"available": False, "reason": f"{path} not found in the installed warp"}
+    # The module calls wp.clear_kernel_cache() at import, which would wipe the cache shared by every
+    # process on this machine: neutralise that one call while importing it.
+    saved = wp.clear_kernel_cache
+    wp.clear_kernel_cache = lambda: None
+    try:
+        sys.path.insert(0, folder)
+        spec = importlib.util.spec_from_file_location("benchmark_cloth_warp", path)
+        bcw = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(bcw)
+        Cloth = _warp_cloth_class(os.path.join(folder, "benchmark_cloth.py"))
+    finally:
+        wp.clear_kernel_cache = saved
+        sys.path.remove(folder)
+    substeps = 16  # benchmark_cloth.run_benchmark's setting
+    cloth = Cloth(lower=(0.0, 0.0, 0.0), dx=n, dy=n, radius=0.1, stretch_stiffness=1000.0, bend_stiffness=1000.0,
+                  shear_stiffness=1000.0, mass=0.1, fix_corners=True)
+    integ = bcw.WpIntegrator(cloth, "cpu")
+    integ.simulate(1.0 / FPS, substeps)  # warm-up
+    times, cpu = [], []
+    for _ in range(repeats):
+        t, c = time.perf_counter(), time.process_time()
+        for _f in range(frames):
+            integ.simulate(1.0 / FPS, substeps)
+        times.append(time.perf_counter() - t)
+        cpu.append(time.process_time() - c)
+    med = statistics.median(times)
+    return {"available": True, "frames_per_second": frames / med, "frames_per_cpu_second": frames / statistics.median(cpu), "vertices": cloth.num_particles,
+            "springs": cloth.num_springs, "substeps": substeps, "self_collision": False, "contact": False}
+
+
+def run_newton(n: int, frames: int, repeats: int):
+    if importlib.util.find_spec("newton") is None:
+        return {"available": False, "reason": "newton is not installed"}
+    import newton  # noqa: PLC0415
+
+    builder = newton.ModelBuilder()
+    builder.add_cloth_grid(pos=wp.vec3(-0.5, 1.2, -0.5), rot=wp.quat_identity(), vel=wp.vec3(0.0), dim_x=n - 1,
+                           dim_y=n - 1, cell_x=1.0 / (n - 1), cell_y=1.0 / (n - 1), mass=0.2 / (n * n),
+                           fix_left=False)
+    builder.add_ground_plane()
+    model = builder.finalize("cpu")
+    solver = newton.solvers.SolverXPBD(model, iterations=1)
+    s0, s1 = model.state(), model.state()
+    control = model.control()
+    contacts = model.collide(s0)
+    substeps = 10
+    dt = 1.0 / FPS / substeps
+
+    def frame():
+        nonlocal s0, s1
+        for _ in range(substeps):
+            s0.clear_forces()
+            solver.step(s0, s1, control, contacts, dt)
+            s0, s1 = s1, s0
+
+    frame()
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        for _f in range(frames):
+            frame()
+        times.append(time.perf_counter() - t)
+    med = statistics.median(times)
+    return {"available": True, "frames_per_second": frames / med, "vertices": model.particle_count,
+            "substeps": substeps, "self_collision": False}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--grid", type=int, default=64, help="vertices per side (N x N cloth)")
+    ap.add_argument("--frames", type=int, default=120, help="frames per timed run")
+    ap.add_argument("--repeats", type=int, default=3, help="timed runs (the median is reported)")
+    ap.add_argument("--no-self-collision", action="store_true")
+    ap.add_argument("--skip-baselines", action="store_true", help="only time warpshade")
+    ap.add_argument("--json", help="write the numbers to this file")
+    args = ap.parse_args(argv)
+    wp.config.quiet = True
+    wp.init()
+
+    res = run_warpshade(args.grid, args.frames, args.repeats, not args.no_self_collision)
+    res.update({"grid": args.grid, "frames": args.frames, "repeats": args.repeats, "frame_dt": 1.0 / FPS,
+                "device": "cpu", "warp": wp.__version__,
+                "note": "median of repeats after a warm-up step (kernel compilation excluded); shared, loaded machine"})
+    if not args.skip_baselines:
+        res["warp_example_cloth"] = run_warp_example(args.grid, args.frames, args.repeats)
+        res["newton_xpbd"] = run_newton(args.grid, args.frames, args.repeats)
+
+    print(f"cloth benchmark: {args.grid}x{args.grid} hanging from two corners onto the ground, 1/60 s frames, CPU")
+    print("(median of repeats after warm-up, compilation excluded; shared, loaded machine)")
+    print(f"{'solver':<34}{'frames/s':>10}{'frames/cpu-s':>13}{'vertices':>10}{'substeps':>10}  contact")
+    print(f"{'warpshade XPBDSolver':<34}{res['frames_per_second']:>10.1f}{res['frames_per_cpu_second']:>13.1f}"
+          f"{res['vertices']:>10}{res['substeps']:>10}  "
+          f"ground + self-collision={res['self_collision']} (max edge strain {res['max_edge_strain']:.2%})")
+    for key, label in (("warp_example_cloth", "warp benchmark_cloth_warp (springs)"), ("newton_xpbd", "newton SolverXPBD")):
+        r = res.get(key)
+        if r is None:
+            continue
+        if r["available"]:
+            print(f"{label:<34}{r['frames_per_second']:>10.1f}{r.get('frames_per_cpu_second', float('nan')):>13.1f}"
+                  f"{r['vertices']:>10}{r['substeps']:>10}  none")
+        else:
+            print(f"{label:<34}{'n/a':>10}  ({r['reason']})")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(res, f, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,217 @@
+"""Warp kernels: cloth vertices against kinematic colliders (analytic shapes and triangle meshes).
+
+Each collider is given at the start and at the end of a step; a substep sees the linear
+interpolation of the two, so fast colliders sweep through the substeps instead of teleporting.
+Contacts push the vertex out to ``thickness`` from the surface along the surface normal, then
+apply position-based Coulomb friction (Macklin et al. 2014, eq. 24-25) on the displacement of the
+vertex relative to the collider's surface point over the substep.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+SHAPE_PLANE = wp.constant(0)
+SHAPE_SPHERE = wp.constant(1)
+SHAPE_CAPSULE = wp.constant(2)
+SHAPE_BOX = wp.constant(3)
+
+
+@wp.func
+def segment_parameter(p: wp.vec3, a: wp.vec3, b: wp.vec3) -> float:
+    """Parameter in [0, 1] of the point of segment a-b closest to p (0 for a degenerate segment)."""
+    ab = b - a
+    l2 = wp.length_sq(ab)
+    if l2 == 0.0:
+        return 0.0
+    return wp.clamp(wp.dot(p - a, ab) / l2, 0.0, 1.0)
+
+
+@wp.func
+def shape_distance(kind: int, p: wp.vec3, a: wp.vec3, b: wp.vec3, rot: wp.quat, size: wp.vec3) -> wp.vec4:
+    """Signed distance [m] of p to a shape and the outward unit normal: vec4(nx, ny, nz, d).
+
+    plane: a point on it, b its normal; sphere: a centre, size[0] radius; capsule: segment a-b,
+    size[0] radius; box: a centre, rot orientation, size half extents.
+    """
+    if kind == SHAPE_PLANE:
+        n = wp.normalize(b)
+        return wp.vec4(n[0], n[1], n[2], wp.dot(p - a, n))
+    if kind == SHAPE_SPHERE:
+        d = p - a
+        ld = wp.length(d)
+        n = wp.vec3(0.0, 1.0, 0.0)
+        if ld > 0.0:
+            n = d / ld
+        return wp.vec4(n[0], n[1], n[2], ld - size[0])
+    if kind == SHAPE_CAPSULE:
+        d = p - wp.lerp(a, b, segment_parameter(p, a, b))
+        ld = wp.length(d)
+        n = wp.vec3(0.0, 1.0, 0.0)
+        if ld > 0.0:
+            n = d / ld
+        return wp.vec4(n[0], n[1], n[2], ld - size[0])
+    # box: distance in the box frame (Quilez' exact box SDF), normal from the closest feature
+    lp = wp.quat_rotate_inv(rot, p - a)
+    q = wp.vec3(wp.abs(lp[0]) - size[0], wp.abs(lp[1]) - size[1], wp.abs(lp[2]) - size[2])
+    outside = wp.max(q, wp.vec3(0.0))
+    lo = wp.length(outside)
+    ln = wp.vec3(0.0)
+    bd = float(0.0)
+    if lo > 0.0:
+        ln = wp.vec3(wp.sign(lp[0]) * outside[0], wp.sign(lp[1]) * outside[1], wp.sign(lp[2]) * outside[2]) / lo
+        bd = lo
+    else:
+        # inside: leave through the nearest face
+        if q[0] >= q[1] and q[0] >= q[2]:
+            ln = wp.vec3(wp.sign(lp[0]), 0.0, 0.0)
+            bd = q[0]
+        elif q[1] >= q[2]:
+            ln = wp.vec3(0.0, wp.sign(lp[1]), 0.0)
+            bd = q[1]
+        else:
+            ln = wp.vec3(0.0, 0.0, wp.sign(lp[2]))
+            bd = q[2]
+    n = wp.quat_rotate(rot, ln)
+    return wp.vec4(n[0], n[1], n[2], bd)
+
+
+@wp.func
+def shape_point_motion(kind: int, p: wp.vec3, a0: wp.vec3, a1: wp.vec3, b0: wp.vec3, b1: wp.vec3,
+                       r0: wp.quat, r1: wp.quat) -> wp.vec3:
+    """Displacement over the substep of the surface point attached to p (pose 0 -> pose 1)."""
+    if kind == SHAPE_CAPSULE:
+        t = segment_parameter(p, a1, b1)
+        return wp.lerp(a1, b1, t) - wp.lerp(a0, b0, t)
+    if kind == SHAPE_BOX:
+        local = wp.quat_rotate_inv(r1, p - a1)
+        return p - (a0 + wp.quat_rotate(r0, local))
+    return a1 - a0
+
+
+@wp.func
+def apply_friction(dx: wp.vec3, n: wp.vec3, depth: float, mu: float) -> wp.vec3:
+    """Tangential correction for a relative displacement dx after a push of `depth` (eq. 24-25)."""
+    dt_ = dx - n * wp.dot(dx, n)
+    lt = wp.length(dt_)
+    if lt <= mu * depth:
+        return -dt_
+    return -dt_ * (mu * depth / lt)
+
+
+@wp.kernel
+def pose_shapes(
+    a_start: wp.array[wp.vec3],
+    a_end: wp.array[wp.vec3],
+    b_start: wp.array[wp.vec3],
+    b_end: wp.array[wp.vec3],
+    rot_start: wp.array[wp.quat],
+    rot_end: wp.array[wp.quat],
+    alpha0: float,
+    alpha1: float,
+    a0: wp.array[wp.vec3],
+    a1: wp.array[wp.vec3],
+    b0: wp.array[wp.vec3],
+    b1: wp.array[wp.vec3],
+    r0: wp.array[wp.quat],
+    r1: wp.array[wp.quat],
+):
+    """Shape poses at the start (alpha0) and end (alpha1) of a substep, once per substep."""
+    s = wp.tid()
+    a0[s] = wp.lerp(a_start[s], a_end[s], alpha0)
+    a1[s] = wp.lerp(a_start[s], a_end[s], alpha1)
+    b0[s] = wp.lerp(b_start[s], b_end[s], alpha0)
+    b1[s] = wp.lerp(b_start[s], b_end[s], alpha1)
+    r0[s] = wp.normalize(wp.quat_slerp(rot_start[s], rot_end[s], alpha0))
+    r1[s] = wp.normalize(wp.quat_slerp(rot_start[s], rot_end[s], alpha1))
+
+
+@wp.kernel
+def collide_shapes(
+    kind: wp.array[int],
+    a0: wp.array[wp.vec3],
+    a1: wp.array[wp.vec3],
+    b0: wp.array[wp.vec3],
+    b1: wp.array[wp.vec3],
+    r0: wp.array[wp.quat],
+    r1: wp.array[wp.quat],
+    size: wp.array[wp.vec3],
+    friction: wp.array[float],
+    thickness: float,
+    inv_mass: wp.array[float],
+    x_prev: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+):
+    """Push each free vertex out of every analytic shape posed (a1, b1, r1) at the substep's end;
+    (a0, b0, r0), the pose at its start, gives the surface motion for friction."""
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    p = x[i]
+    for s in range(kind.shape[0]):
+        k = kind[s]
+        sd = shape_distance(k, p, a1[s], b1[s], r1[s], size[s])
+        depth = thickness - sd[3]
+        if depth > 0.0:
+            n = wp.vec3(sd[0], sd[1], sd[2])
+            p = p + n * depth
+            motion = shape_point_motion(k, p, a0[s], a1[s], b0[s], b1[s], r0[s], r1[s])
+            p = p + apply_friction((p - x_prev[i]) - motion, n, depth, friction[s])
+    x[i] = p
+
+
+@wp.kernel
+def interpolate_points(
+    start: wp.array[wp.vec3],
+    end: wp.array[wp.vec3],
+    alpha: float,
+    out: wp.array[wp.vec3],
+):
+    """out = lerp(start, end, alpha)."""
+    i = wp.tid()
+    out[i] = wp.lerp(start[i], end[i], alpha)
+
+
+@wp.kernel
+def collide_mesh(
+    mesh: wp.uint64,
+    points_prev: wp.array[wp.vec3],
+    tris: wp.array[int],
+    max_distance: float,
+    thickness: float,
+    friction: float,
+    inv_mass: wp.array[float],
+    x_prev: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+):
+    """Push each free vertex out of a (closed or overlapping-closed) triangle mesh.
+
+    Inside/outside comes from the generalised winding number (Barill et al. 2018), which stays
+    right for unions of overlapping closed parts such as a character built from limbs, where the
+    normal-based sign is wrong near the overlaps. `points_prev` is the mesh at the previous
+    substep, to move the contact point with the surface for friction.
+    """
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    p = x[i]
+    q = wp.mesh_query_point_sign_winding_number(mesh, p, max_distance, 2.0, 0.5)
+    if not q.result:
+        return
+    cp = wp.mesh_eval_position(mesh, q.face, q.u, q.v)
+    d = p - cp
+    ld = wp.length(d)
+    n = wp.vec3(0.0)
+    if ld > 1.0e-9:
+        n = d * (q.sign / ld)
+    else:
+        n = wp.normalize(wp.mesh_eval_face_normal(mesh, q.face))
+    sd = q.sign * ld
+    depth = thickness - sd
+    if depth <= 0.0:
+        return
+    p = cp + n * thickness
+    f = q.face
+    w = 1.0 - q.u - q.v
+    cp0 = points_prev[tris[3 * f]] * q.u + points_prev[tris[3 * f + 1]] * q.v + points_prev[tris[3 * f + 2]] * w
+    x[i] = p + apply_friction((p - x_prev[i]) - (cp - cp0), n, depth, friction)

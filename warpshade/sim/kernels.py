@@ -1,0 +1,661 @@
+"""Warp kernels of the XPBD cloth solver (orchestrated by :mod:`warpshade.sim.solver_xpbd`).
+
+Method: extended position-based dynamics (XPBD, Macklin, Müller & Chentanez 2016) in the
+small-steps regime (Macklin et al. 2019): many substeps with one Gauss-Seidel sweep each. Stretch
+and bending constraints are graph-coloured so that each launch updates disjoint vertices in place
+(Gauss-Seidel on every device, no atomics); contacts are solved Jacobi-style with averaged
+corrections (Macklin et al. 2014, "Unified particle physics", §4.2).
+
+Conventions: positions in metres, velocities in m/s, ``inv_mass`` in 1/kg (0 = kinematic).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+# ---------------------------------------------------------------------------------------------
+# Small geometric helpers
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.func
+def edge_axis(xi: wp.vec3, xj: wp.vec3) -> wp.vec4:
+    """Unit direction from xj to xi and the edge length: vec4(nx, ny, nz, length); zero when degenerate."""
+    d = xi - xj
+    length = wp.length(d)
+    if length < 1.0e-12:
+        return wp.vec4(0.0)
+    n = d / length
+    return wp.vec4(n[0], n[1], n[2], length)
+
+
+@wp.func
+def dihedral_angle(x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, x4: wp.vec3) -> float:
+    """Signed dihedral angle [rad] of the hinge with shared edge x3-x4 and wings x1, x2.
+
+    Zero for a flat hinge; atan2 keeps it accurate near 0 and +-pi, where acos loses precision.
+    """
+    e = x4 - x3
+    n1 = wp.cross(x1 - x3, x1 - x4)
+    n2 = wp.cross(x2 - x4, x2 - x3)
+    le = wp.length(e)
+    if le == 0.0:
+        return 0.0
+    s = wp.dot(wp.cross(n1, n2), e) / le
+    c = wp.dot(n1, n2)
+    return wp.atan2(s, c)
+
+
+# ---------------------------------------------------------------------------------------------
+# Integration
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def predict_positions(
+    x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    inv_mass: wp.array[float],
+    lift: wp.array[wp.vec3],
+    air_drag: wp.array[float],
+    wind: wp.vec3,
+    gravity: wp.vec3,
+    drag: float,
+    dt: float,
+    x_prev: wp.array[wp.vec3],
+    x_out: wp.array[wp.vec3],
+    v_out: wp.array[wp.vec3],
+):
+    """Symplectic Euler prediction (XPBD Alg. 1, line 3); kinematic vertices keep their velocity.
+
+    Aerodynamic drag -D (v - wind) is integrated implicitly (stable for any D dt / m); the lift
+    impulse is capped at the vertex's speed relative to the air, which it could at most redirect.
+    """
+    i = wp.tid()
+    x0 = x[i]
+    x_prev[i] = x0
+    w = inv_mass[i]
+    v1 = v[i]
+    if w > 0.0:
+        u = v1 - wind
+        dv = lift[i] * (w * dt)
+        ldv = wp.length(dv)
+        lu = wp.length(u)
+        if ldv > lu:
+            dv = dv * (lu / ldv)
+        a = air_drag[i] * w * dt
+        v1 = (v1 + gravity * dt + dv + wind * a) / (1.0 + a)
+        # exact exponential decay of a linear drag, unconditionally stable for any drag * dt
+        v1 = v1 * wp.exp(-drag * dt)
+    v_out[i] = v1
+    x_out[i] = x0 + v1 * dt
+
+
+@wp.kernel
+def drive_attachments(
+    indices: wp.array[int],
+    start: wp.array[wp.vec3],
+    target: wp.array[wp.vec3],
+    alpha: float,
+    x: wp.array[wp.vec3],
+):
+    """Kinematic attachments follow their target: linear interpolation over the step's substeps."""
+    k = wp.tid()
+    x[indices[k]] = wp.lerp(start[k], target[k], alpha)
+
+
+@wp.kernel
+def gather_points(
+    indices: wp.array[int],
+    x: wp.array[wp.vec3],
+    out: wp.array[wp.vec3],
+):
+    """out[k] = x[indices[k]]."""
+    k = wp.tid()
+    out[k] = x[indices[k]]
+
+
+@wp.kernel
+def update_velocities(
+    x: wp.array[wp.vec3],
+    x_prev: wp.array[wp.vec3],
+    dt: float,
+    v: wp.array[wp.vec3],
+):
+    """XPBD Alg. 1, line 11: velocities from the position change of the substep."""
+    i = wp.tid()
+    v[i] = (x[i] - x_prev[i]) / dt
+
+
+# ---------------------------------------------------------------------------------------------
+# Elastic constraints (graph-coloured Gauss-Seidel)
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def solve_stretch(
+    edges: wp.array2d[int],
+    rest_length: wp.array[float],
+    compliance: wp.array[float],
+    inv_mass: wp.array[float],
+    offset: int,
+    dt: float,
+    relaxation: float,
+    lam: wp.array[float],
+    x: wp.array[wp.vec3],
+):
+    """Distance constraints C = |xi - xj| - L (XPBD eq. 18), over-relaxed by `relaxation`.
+
+    Damping is not folded in here (XPBD eq. 26): with one sweep per substep its (1 + gamma)
+    factor only slows convergence; :func:`damp_stretch` damps velocities instead.
+    """
+    e = wp.tid() + offset
+    i = edges[e, 0]
+    j = edges[e, 1]
+    wi = inv_mass[i]
+    wj = inv_mass[j]
+    wsum = wi + wj
+    axis = edge_axis(x[i], x[j])
+    if wsum == 0.0 or axis[3] < 1.0e-12:
+        return
+    n = wp.vec3(axis[0], axis[1], axis[2])
+    c = axis[3] - rest_length[e]
+    alpha = compliance[e] / (dt * dt)
+    dlam = -relaxation * (c + alpha * lam[e]) / (wsum + alpha)
+    lam[e] = lam[e] + dlam
+    x[i] = x[i] + n * (wi * dlam)
+    x[j] = x[j] - n * (wj * dlam)
+
+
+@wp.func
+def dihedral_gradients(x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, x4: wp.vec3) -> wp.mat33:
+    """Rows: d theta / d x1, x2, x3 of :func:`dihedral_angle` (d/dx4 is minus their sum).
+
+    The exact gradients of Bridson, Marino & Fedkiw 2003 (eq. 8, the "bending modes"); zero for a
+    degenerate hinge (zero-length edge or zero-area wing).
+    """
+    e = x4 - x3
+    le = wp.length(e)
+    n1 = wp.cross(x1 - x3, x1 - x4)
+    n2 = wp.cross(x2 - x4, x2 - x3)
+    a1 = wp.length_sq(n1)
+    a2 = wp.length_sq(n2)
+    if le < 1.0e-12 or a1 < 1.0e-24 or a2 < 1.0e-24:
+        return wp.mat33(0.0)
+    # with these normals the bending modes point down the gradient of atan2(sin, cos)
+    u1 = -n1 * (le / a1)
+    u2 = -n2 * (le / a2)
+    u3 = -(n1 * (wp.dot(x1 - x4, e) / (le * a1)) + n2 * (wp.dot(x2 - x4, e) / (le * a2)))
+    return wp.matrix_from_rows(u1, u2, u3)
+
+
+@wp.kernel
+def solve_bending(
+    hinges: wp.array2d[int],
+    rest_angle: wp.array[float],
+    compliance: wp.array[float],
+    inv_mass: wp.array[float],
+    offset: int,
+    dt: float,
+    lam: wp.array[float],
+    x: wp.array[wp.vec3],
+):
+    """Dihedral-angle bending constraints C = theta - theta0.
+
+    Hinge (x1, x2, x3, x4): wings x1, x2, shared edge x3-x4. The angle gradients are the exact
+    ones of Bridson, Marino & Fedkiw 2003 (eq. 8, the "bending modes" u1..u4), not Müller 2007's
+    approximation; they sum to zero, so the correction conserves linear momentum.
+    """
+    h = wp.tid() + offset
+    i1 = hinges[h, 0]
+    i2 = hinges[h, 1]
+    i3 = hinges[h, 2]
+    i4 = hinges[h, 3]
+    w1 = inv_mass[i1]
+    w2 = inv_mass[i2]
+    w3 = inv_mass[i3]
+    w4 = inv_mass[i4]
+    if w1 + w2 + w3 + w4 == 0.0:
+        return
+    x1 = x[i1]
+    x2 = x[i2]
+    x3 = x[i3]
+    x4 = x[i4]
+    g = dihedral_gradients(x1, x2, x3, x4)
+    u1 = g[0]
+    u2 = g[1]
+    u3 = g[2]
+    u4 = -(u1 + u2 + u3)  # the gradients of an angle sum to zero (translation invariance)
+    theta = dihedral_angle(x1, x2, x3, x4)
+    c = theta - rest_angle[h]
+    # keep the error in (-pi, pi] so a hinge passing through +-pi does not flip its correction
+    if c > wp.pi:
+        c = c - 2.0 * wp.pi
+    if c < -wp.pi:
+        c = c + 2.0 * wp.pi
+    denom = w1 * wp.length_sq(u1) + w2 * wp.length_sq(u2) + w3 * wp.length_sq(u3) + w4 * wp.length_sq(u4)
+    if denom < 1.0e-20:
+        return
+    alpha = compliance[h] / (dt * dt)
+    dlam = -(c + alpha * lam[h]) / (denom + alpha)
+    lam[h] = lam[h] + dlam
+    x[i1] = x1 + u1 * (w1 * dlam)
+    x[i2] = x2 + u2 * (w2 * dlam)
+    x[i3] = x3 + u3 * (w3 * dlam)
+    x[i4] = x4 + u4 * (w4 * dlam)
+
+
+@wp.kernel
+def damp_stretch(
+    edges: wp.array2d[int],
+    compliance: wp.array[float],
+    inv_mass: wp.array[float],
+    x: wp.array[wp.vec3],
+    offset: int,
+    dt: float,
+    damping: float,
+    v: wp.array[wp.vec3],
+):
+    """Stiffness-proportional damper along each edge, k_d = damping * k, integrated implicitly.
+
+    The relative normal velocity u of the edge decays as u' = u / (1 + h k_d (wi + wj)) (implicit
+    Euler of the 1-D damper), stable for any k_d; an inextensible edge (k = inf) loses all of it.
+    """
+    e = wp.tid() + offset
+    i = edges[e, 0]
+    j = edges[e, 1]
+    wi = inv_mass[i]
+    wj = inv_mass[j]
+    wsum = wi + wj
+    axis = edge_axis(x[i], x[j])
+    if wsum == 0.0 or axis[3] < 1.0e-12:
+        return
+    n = wp.vec3(axis[0], axis[1], axis[2])
+    u = wp.dot(v[i] - v[j], n)
+    c = compliance[e]
+    # fraction of u removed: h kd wsum / (1 + h kd wsum), written with kd = damping / c
+    frac = float(1.0)
+    if c > 0.0:
+        a = dt * damping * wsum
+        frac = a / (c + a)
+    p = -u * frac / wsum
+    v[i] = v[i] + n * (wi * p)
+    v[j] = v[j] - n * (wj * p)
+
+
+@wp.kernel
+def damp_bending(
+    hinges: wp.array2d[int],
+    compliance: wp.array[float],
+    inv_mass: wp.array[float],
+    x: wp.array[wp.vec3],
+    offset: int,
+    dt: float,
+    damping: float,
+    v: wp.array[wp.vec3],
+):
+    """Stiffness-proportional damper on each hinge's angular velocity, integrated implicitly.
+
+    With theta_dot = sum_k u_k . v_k and D = sum_k w_k |u_k|^2, the angular velocity decays as
+    theta_dot' = theta_dot / (1 + h k_d D), k_d = damping * k (as :func:`damp_stretch`).
+    """
+    h = wp.tid() + offset
+    c = compliance[h]
+    i1 = hinges[h, 0]
+    i2 = hinges[h, 1]
+    i3 = hinges[h, 2]
+    i4 = hinges[h, 3]
+    g = dihedral_gradients(x[i1], x[i2], x[i3], x[i4])
+    u1 = g[0]
+    u2 = g[1]
+    u3 = g[2]
+    u4 = -(u1 + u2 + u3)
+    w1 = inv_mass[i1]
+    w2 = inv_mass[i2]
+    w3 = inv_mass[i3]
+    w4 = inv_mass[i4]
+    denom = w1 * wp.length_sq(u1) + w2 * wp.length_sq(u2) + w3 * wp.length_sq(u3) + w4 * wp.length_sq(u4)
+    if denom < 1.0e-20:
+        return
+    rate = wp.dot(u1, v[i1]) + wp.dot(u2, v[i2]) + wp.dot(u3, v[i3]) + wp.dot(u4, v[i4])
+    frac = float(1.0)
+    if c > 0.0:
+        a = dt * damping * denom
+        frac = a / (c + a)
+    p = -rate * frac / denom
+    v[i1] = v[i1] + u1 * (w1 * p)
+    v[i2] = v[i2] + u2 * (w2 * p)
+    v[i3] = v[i3] + u3 * (w3 * p)
+    v[i4] = v[i4] + u4 * (w4 * p)
+
+
+@wp.kernel
+def solve_tethers(
+    anchor: wp.array2d[int],
+    max_length: wp.array2d[float],
+    inv_mass: wp.array[float],
+    x: wp.array[wp.vec3],
+):
+    """Long-range attachments (Kim, Chentanez & Müller 2012, eq. 3): |x - x_anchor| <= L.
+
+    L bounds the rest geodesic distance to a kinematic vertex, so a tether only acts on stretch:
+    it removes in one projection the sag that Gauss-Seidel sweeps leave in long hanging cloth
+    (their error grows with the square of the number of vertices along the hang).
+    """
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    for c in range(anchor.shape[1]):
+        a = anchor[i, c]
+        if a >= 0:
+            d = x[i] - x[a]
+            length = wp.length(d)
+            lmax = max_length[i, c]
+            if length > lmax and length > 0.0:
+                x[i] = x[i] - d * ((length - lmax) / length)
+
+
+# ---------------------------------------------------------------------------------------------
+# Aerodynamics
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def accumulate_aero_forces(
+    x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    wind: wp.vec3,
+    air_density: float,
+    drag_coefficient: float,
+    lift_coefficient: float,
+    lift: wp.array[wp.vec3],
+    drag: wp.array[float],
+):
+    """Per-triangle aerodynamic drag and lift, a third to each corner.
+
+    With relative air velocity u = v_tri - wind, unit normal n and cos(t) = u.n / |u| (flat-plate
+    model): drag = -D u with D = 1/2 rho Cd A |cos t| |u| (projected area), lift = -1/2 rho Cl A
+    |u|^2 cos t (n - cos t u_hat), perpendicular to the flow with magnitude ~ sin 2t as for a flat
+    plate. Drag is returned as the coefficient D [kg/s] so that :func:`predict_positions` can
+    integrate it implicitly (explicit drag on light cloth overshoots and blows up).
+    """
+    t = wp.tid()
+    i = tris[t, 0]
+    j = tris[t, 1]
+    k = tris[t, 2]
+    nn = wp.cross(x[j] - x[i], x[k] - x[i])
+    ln = wp.length(nn)
+    if ln == 0.0:
+        return
+    area = 0.5 * ln
+    n = nn / ln
+    u = (v[i] + v[j] + v[k]) / 3.0 - wind
+    speed = wp.length(u)
+    if speed == 0.0:
+        return
+    uh = u / speed
+    cs = wp.dot(uh, n)
+    q = 0.5 * air_density * area * speed
+    d = q * drag_coefficient * wp.abs(cs) / 3.0
+    fl = -(n - uh * cs) * (q * speed * lift_coefficient * cs / 3.0)
+    wp.atomic_add(drag, i, d)
+    wp.atomic_add(drag, j, d)
+    wp.atomic_add(drag, k, d)
+    wp.atomic_add(lift, i, fl)
+    wp.atomic_add(lift, j, fl)
+    wp.atomic_add(lift, k, fl)
+
+
+# ---------------------------------------------------------------------------------------------
+# Self-collision: vertex-triangle, swept-box broad phase once per detection, Jacobi solve
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def compute_triangle_bounds(
+    x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    horizon: float,
+    pad: float,
+    lower: wp.array[wp.vec3],
+    upper: wp.array[wp.vec3],
+):
+    """Box around a triangle now and after `horizon` seconds of its current velocity, padded."""
+    t = wp.tid()
+    lo = wp.vec3(1.0e30)
+    hi = wp.vec3(-1.0e30)
+    for c in range(3):
+        p = x[tris[t, c]]
+        q = p + v[tris[t, c]] * horizon
+        lo = wp.min(lo, wp.min(p, q))
+        hi = wp.max(hi, wp.max(p, q))
+    lower[t] = lo - wp.vec3(pad)
+    upper[t] = hi + wp.vec3(pad)
+
+
+@wp.func
+def in_one_ring(i: int, j: int, ring_offsets: wp.array[int], ring: wp.array[int]) -> bool:
+    """Whether vertex j is vertex i or one of its edge neighbours (CSR adjacency)."""
+    if i == j:
+        return True
+    for k in range(ring_offsets[i], ring_offsets[i + 1]):
+        if ring[k] == j:
+            return True
+    return False
+
+
+@wp.kernel
+def find_self_contacts(
+    bvh: wp.uint64,
+    x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    ring_offsets: wp.array[int],
+    ring: wp.array[int],
+    horizon: float,
+    pad: float,
+    thickness: float,
+    max_contacts: int,
+    prev_tri: wp.array2d[int],
+    prev_side: wp.array2d[float],
+    prev_count: wp.array[int],
+    contact_tri: wp.array2d[int],
+    contact_side: wp.array2d[float],
+    contact_count: wp.array[int],
+    overflow: wp.array[int],
+):
+    """Vertex-triangle candidate pairs whose swept boxes overlap.
+
+    Triangles touching the vertex or its one-ring are skipped: they are neighbours in the cloth,
+    kept apart by stretch and bending, not by contact (a topological test, so it also holds for
+    garments whose rest shape is folded). The side of
+    the triangle the vertex is on now is stored; the solve keeps it there, which is what stops
+    folds from passing through (the cloth is assumed free of intersections at detection time).
+    """
+    i = wp.tid()
+    p = x[i]
+    q = p + v[i] * horizon
+    lo = wp.min(p, q) - wp.vec3(pad)
+    hi = wp.max(p, q) + wp.vec3(pad)
+    count = int(0)
+    query = wp.bvh_query_aabb(bvh, lo, hi)
+    t = int(0)
+    while wp.bvh_query_next(query, t):
+        a = tris[t, 0]
+        b = tris[t, 1]
+        c = tris[t, 2]
+        if in_one_ring(i, a, ring_offsets, ring) or in_one_ring(i, b, ring_offsets, ring) or in_one_ring(
+                i, c, ring_offsets, ring):
+            continue
+        if count < max_contacts:
+            xa = x[a]
+            nn = wp.cross(x[b] - xa, x[c] - xa)
+            d = wp.dot(p - xa, nn)
+            side = float(0.0)
+            # an in-plane vertex has no side yet: the solve decides at first contact
+            if d > 1.0e-9 * wp.length_sq(nn):
+                side = 1.0
+            elif d < -1.0e-9 * wp.length_sq(nn):
+                side = -1.0
+            # a pair already in contact keeps the side it had: inside the contact layer the
+            # current side may be the wrong one (a correction left unfinished), and re-reading it
+            # would lock a crossing in
+            if wp.abs(d) < thickness * wp.sqrt(wp.length_sq(nn)):
+                for r in range(prev_count[i]):
+                    if prev_tri[i, r] == t and prev_side[i, r] != 0.0:
+                        side = prev_side[i, r]
+            contact_tri[i, count] = t
+            contact_side[i, count] = side
+            count += 1
+        else:
+            wp.atomic_add(overflow, 0, 1)
+    contact_count[i] = count
+
+
+@wp.kernel
+def solve_self_contacts(
+    x: wp.array[wp.vec3],
+    inv_mass: wp.array[float],
+    tris: wp.array2d[int],
+    contact_tri: wp.array2d[int],
+    contact_side: wp.array2d[float],
+    contact_count: wp.array[int],
+    thickness: float,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Vertex-triangle separation C = s n.(p - q) - thickness >= 0 (q: projection of p).
+
+    Only projections inside the triangle respond (near edges a neighbouring triangle holds the
+    projection); corrections are accumulated for averaging (Macklin et al. 2014, eq. 11).
+    """
+    i = wp.tid()
+    wp_ = inv_mass[i]
+    p = x[i]
+    for k in range(contact_count[i]):
+        t = contact_tri[i, k]
+        a = tris[t, 0]
+        b = tris[t, 1]
+        c = tris[t, 2]
+        xa = x[a]
+        xb = x[b]
+        xc = x[c]
+        nn = wp.cross(xb - xa, xc - xa)
+        ln2 = wp.length_sq(nn)
+        if ln2 < 1.0e-24:
+            continue
+        n = nn / wp.sqrt(ln2)
+        s = contact_side[i, k]
+        dn = wp.dot(p - xa, n)
+        if s == 0.0:
+            s = wp.sign(dn)
+            if dn == 0.0:
+                s = 1.0
+            contact_side[i, k] = s
+        d = s * dn
+        # respond within the contact layer and a few thicknesses past it (fast layers overshoot
+        # within one substep); deeper "penetrations" are tangles or stale pairs whose huge
+        # corrections would only inject energy
+        if d >= thickness or d < -4.0 * thickness:
+            continue
+        # barycentric coordinates of the projection of p onto the triangle's plane
+        pp = p - n * dn
+        bw = wp.dot(wp.cross(xb - xa, pp - xa), n) / wp.sqrt(ln2)
+        bv = wp.dot(wp.cross(pp - xa, xc - xa), n) / wp.sqrt(ln2)
+        bu = 1.0 - bv - bw
+        # a small tolerance: a vertex right above a shared edge or corner (aligned layers) would
+        # otherwise fall between its triangles through round-off
+        if bu < -0.01 or bv < -0.01 or bw < -0.01:
+            continue
+        bu = wp.max(bu, 0.0)
+        bv = wp.max(bv, 0.0)
+        bw = wp.max(bw, 0.0)
+        bs = bu + bv + bw
+        bu = bu / bs
+        bv = bv / bs
+        bw = bw / bs
+        wa = inv_mass[a]
+        wb = inv_mass[b]
+        wc = inv_mass[c]
+        denom = wp_ + bu * bu * wa + bv * bv * wb + bw * bw * wc
+        if denom == 0.0:
+            continue
+        lam = (thickness - d) / denom
+        g = n * (s * lam)
+        wp.atomic_add(delta, i, g * wp_)
+        wp.atomic_add(delta_count, i, 1.0)
+        wp.atomic_add(delta, a, -g * (bu * wa))
+        wp.atomic_add(delta_count, a, 1.0)
+        wp.atomic_add(delta, b, -g * (bv * wb))
+        wp.atomic_add(delta_count, b, 1.0)
+        wp.atomic_add(delta, c, -g * (bw * wc))
+        wp.atomic_add(delta_count, c, 1.0)
+
+
+@wp.kernel
+def apply_averaged_deltas(
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+    x: wp.array[wp.vec3],
+):
+    """x += delta / count, then clear the accumulators for the next use."""
+    i = wp.tid()
+    n = delta_count[i]
+    if n > 0.0:
+        x[i] = x[i] + delta[i] / n
+        delta[i] = wp.vec3(0.0)
+        delta_count[i] = 0.0
+
+
+# ---------------------------------------------------------------------------------------------
+# Health check
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def find_nonfinite(
+    x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    first: wp.array[int],
+):
+    """first[0] = smallest index of a vertex whose position or velocity is not finite."""
+    i = wp.tid()
+    p = x[i]
+    u = v[i]
+    ok = wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2])
+    ok = ok and wp.isfinite(u[0]) and wp.isfinite(u[1]) and wp.isfinite(u[2])
+    if not ok:
+        wp.atomic_min(first, 0, i)
+
+
+# ---------------------------------------------------------------------------------------------
+# Linear blend skinning
+# ---------------------------------------------------------------------------------------------
+
+
+@wp.kernel
+def skin_points(
+    rest: wp.array[wp.vec3],
+    joint_index: wp.array2d[int],
+    joint_weight: wp.array2d[float],
+    transforms: wp.array[wp.mat44],
+    out: wp.array[wp.vec3],
+):
+    """Linear blend skinning x = sum_k w_k (M_{j_k} [rest, 1])[:3] (column-vector matrices).
+
+    Evaluated as x = rest + sum_k w_k ((M_k - I) [rest, 1])[:3], the same sum when the weights add
+    up to 1, but exact for vertices whose joints do not move: their float32 weights need not sum
+    to exactly 1 for the rest pose to come back bit for bit.
+    """
+    i = wp.tid()
+    m = wp.mat44(0.0)
+    for k in range(joint_index.shape[1]):
+        w = joint_weight[i, k]
+        if w != 0.0:
+            m = m + (transforms[joint_index[i, k]] - wp.identity(n=4, dtype=float)) * w
+    p = rest[i]
+    out[i] = p + wp.vec3(m[0, 0] * p[0] + m[0, 1] * p[1] + m[0, 2] * p[2] + m[0, 3],
+                         m[1, 0] * p[0] + m[1, 1] * p[1] + m[1, 2] * p[2] + m[1, 3],
+                         m[2, 0] * p[0] + m[2, 1] * p[1] + m[2, 2] * p[2] + m[2, 3])

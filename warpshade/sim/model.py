@@ -1,0 +1,501 @@
+"""Cloth model: a host-side :class:`ClothBuilder` that ``finalize()``s into an immutable
+:class:`ClothModel` on the device (Newton's builder/model split).
+
+Material parameters and their units:
+
+* ``density`` [kg/m^2]: area density; vertex mass = density x (sum of incident triangle areas) / 3.
+* ``stretch_stiffness`` [N/m]: spring constant of every mesh edge (stretch and shear). In a 2-D
+  spring network the membrane stiffness equals the spring constant whatever the resolution, so the
+  value does not need rescaling when the mesh is refined. ``inf`` makes the edges inextensible.
+* ``bend_stiffness`` [N m]: bending modulus B. Each interior edge gets the discrete-shell weight
+  k = 3 B |e|^2 / (A1 + A2) (Grinspun et al. 2003, eq. 4), again independent of resolution.
+* ``damping``, ``bend_damping`` [s]: stiffness-proportional (Rayleigh) damping of stretch and of
+  bending, k_d = damping x k, integrated implicitly on velocities.
+* ``thickness`` [m]: distance kept from colliders and between cloth layers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ..geometry.mesh import MeshError, TriMesh, validate_mesh
+from .reference import dihedral_angle_np
+
+
+class SimulationError(RuntimeError):
+    """The simulation failed (non-finite state, bad step). The message names the step and vertex."""
+
+
+def _check_param(name: str, value: float, low: float = 0.0, low_inclusive: bool = True,
+                 allow_inf: bool = False) -> float:
+    v = float(value)
+    if np.isnan(v) or (np.isinf(v) and not allow_inf):
+        raise ValueError(f"{name} must be finite, got {value}")
+    if v < low or (v == low and not low_inclusive):
+        op = ">=" if low_inclusive else ">"
+        raise ValueError(f"{name} must be {op} {low}, got {value}")
+    return v
+
+
+def check_cloth_mesh(points: np.ndarray, faces: np.ndarray, name: str) -> None:
+    """Validate a cloth mesh: shapes, finiteness, indices, degenerate and inverted triangles.
+
+    Raises:
+        MeshError: naming ``name`` and the offending vertex, triangle or edge.
+    """
+    validate_mesh(points, faces, name)
+    f = faces.astype(np.int64)
+    rep = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+    if rep.any():
+        t = int(np.flatnonzero(rep)[0])
+        raise MeshError(f"{name}: triangle {t} repeats a vertex {f[t].tolist()} (degenerate)")
+    p = points.astype(np.float64)
+    a, b, c = p[f[:, 0]], p[f[:, 1]], p[f[:, 2]]
+    area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    longest = np.max(np.stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
+                               np.linalg.norm(a - c, axis=1)]), axis=0)
+    # relative area test: a sliver whose height is below 1e-6 of its longest edge has no usable normal
+    degen = area2 <= 1e-6 * longest * longest
+    if degen.any():
+        t = int(np.flatnonzero(degen)[0])
+        raise MeshError(f"{name}: triangle {t} {f[t].tolist()} is degenerate (area {0.5 * area2[t]:.3g} m^2, "
+                        f"{int(degen.sum())} such triangles)")
+    used = np.zeros(len(p), dtype=bool)
+    used[f.ravel()] = True
+    if not used.all():
+        v = int(np.flatnonzero(~used)[0])
+        raise MeshError(f"{name}: vertex {v} is not used by any triangle (it would have no mass)")
+    # orientation: in a consistently oriented manifold each directed edge occurs once
+    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    tri_of = np.tile(np.arange(len(f)), 3)
+    key = directed[:, 0] * len(p) + directed[:, 1]
+    order = np.argsort(key, kind="stable")
+    dup = np.flatnonzero(key[order][1:] == key[order][:-1])
+    if len(dup):
+        t0, t1 = tri_of[order[dup[0]]], tri_of[order[dup[0] + 1]]
+        e = directed[order[dup[0]]].tolist()
+        raise MeshError(f"{name}: triangle {t1} is inverted relative to its neighbour {t0} "
+                        f"(both traverse edge {e} in the same direction)")
+    und = np.sort(directed, axis=1)
+    ukey, counts = np.unique(und[:, 0] * len(p) + und[:, 1], return_counts=True)
+    if (counts > 2).any():
+        k = ukey[np.flatnonzero(counts > 2)[0]]
+        raise MeshError(f"{name}: edge ({k // len(p)}, {k % len(p)}) is shared by more than two triangles "
+                        f"(non-manifold)")
+
+
+def mesh_edges_and_hinges(faces: np.ndarray):
+    """Unique edges (E, 2) and bending hinges (H, 4) = (wing1, wing2, edge0, edge1) of a manifold mesh.
+
+    The hinge's shared edge runs (edge0 -> edge1) in wing1's triangle, so the dihedral angle is 0
+    for a flat rest shape and its sign is consistent across the mesh.
+    """
+    f = faces.astype(np.int64)
+    nv = int(f.max()) + 1
+    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    opposite = np.concatenate([f[:, 2], f[:, 0], f[:, 1]])
+    und = np.sort(directed, axis=1)
+    key = und[:, 0] * nv + und[:, 1]
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    first = np.ones(len(ks), dtype=bool)
+    first[1:] = ks[1:] != ks[:-1]
+    edges = und[order][first]
+    # pairs: consecutive equal keys (manifold: at most two)
+    pair = np.flatnonzero(~first)
+    i0 = order[pair - 1]
+    i1 = order[pair]
+    hinges = np.stack([opposite[i0], opposite[i1], directed[i0, 1], directed[i0, 0]], axis=1)
+    return edges.astype(np.int32), hinges.astype(np.int32)
+
+
+def color_constraints(elements: np.ndarray, num_vertices: int) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Greedy graph colouring: constraints of one colour share no vertex.
+
+    Returns:
+        (order, ranges): a permutation sorting the constraints by colour and (offset, count) per colour.
+    """
+    used = [0] * num_vertices  # bitmask of colours touching each vertex
+    colors = np.empty(len(elements), dtype=np.int64)
+    for k, el in enumerate(elements.tolist()):
+        mask = 0
+        for v in el:
+            mask |= used[v]
+        c = (~mask & (mask + 1)).bit_length() - 1  # lowest free colour
+        colors[k] = c
+        bit = 1 << c
+        for v in el:
+            used[v] |= bit
+    order = np.argsort(colors, kind="stable")
+    counts = np.bincount(colors) if len(colors) else np.zeros(0, dtype=np.int64)
+    offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]) if len(counts) else []
+    return order, [(int(o), int(c)) for o, c in zip(offsets, counts) if c > 0]
+
+
+def tether_anchors(points: np.ndarray, edges: np.ndarray, kinematic: np.ndarray, piece: np.ndarray,
+                   convex_flat: np.ndarray, count: int = 2):
+    """Nearest kinematic vertices of each vertex and an upper bound of the rest geodesic distance.
+
+    On a flat, convex piece the geodesic distance is the Euclidean rest distance (exact, so a
+    tether is taut exactly when the cloth between vertex and anchor is unstretched): the ``count``
+    nearest anchors of the same piece by a k-d tree. Elsewhere the shortest edge path, which
+    over-estimates the geodesic (a looser but never over-constraining bound), to the single
+    nearest anchor (multi-source Dijkstra). Memory stays O(V) for any number of anchors.
+
+    Args:
+        points: Rest positions, shape (V, 3).
+        edges: Mesh edges, shape (E, 2).
+        kinematic: Pinned or attached vertices, shape (V,), bool.
+        piece: Piece index of each vertex, shape (V,), int.
+        convex_flat: Per piece, whether it is flat and convex, shape (P,), bool.
+        count: Anchors per vertex on flat convex pieces.
+
+    Returns:
+        (anchor (V, T) int32, -1 for none; length (V, T) float32 [m]), T = min(count, #anchors).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+    from scipy.spatial import cKDTree
+
+    v = len(points)
+    k = max(1, min(count, int(kinematic.sum())))
+    anchor = np.full((v, k), -1, dtype=np.int32)
+    length = np.zeros((v, k), dtype=np.float32)
+    if not kinematic.any():
+        return anchor, length
+    curved = np.zeros(v, dtype=bool)
+    for pc in range(len(convex_flat)):
+        mine = piece == pc
+        kin = np.flatnonzero(mine & kinematic)
+        free = np.flatnonzero(mine & ~kinematic)
+        if len(kin) == 0 or len(free) == 0:
+            continue
+        if not convex_flat[pc]:
+            curved[free] = True
+            continue
+        kk = min(k, len(kin))
+        dist, near = cKDTree(points[kin]).query(points[free], k=kk)
+        anchor[free, :kk] = kin[near.reshape(len(free), kk)]
+        length[free, :kk] = dist.reshape(len(free), kk)
+    if curved.any():
+        w = np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)
+        g = coo_matrix((np.concatenate([w, w]), (np.concatenate([edges[:, 0], edges[:, 1]]),
+                                                 np.concatenate([edges[:, 1], edges[:, 0]]))), shape=(v, v)).tocsr()
+        dist, _, src = dijkstra(g, directed=False, indices=np.flatnonzero(kinematic), min_only=True,
+                                return_predecessors=True)
+        ok = np.flatnonzero(curved & np.isfinite(dist))
+        anchor[ok, 0] = src[ok]
+        length[ok, 0] = dist[ok]
+    return anchor, length
+
+
+def convex_and_flat(points: np.ndarray, faces: np.ndarray) -> bool:
+    """Whether a piece is planar (thinnest principal extent < 1e-6 of the widest) and convex
+    (its area equals the area of its 2-D convex hull to 1e-6)."""
+    from scipy.spatial import ConvexHull
+
+    c = points - points.mean(axis=0)
+    _, sv, vt = np.linalg.svd(c, full_matrices=False)
+    if sv[-1] > 1e-6 * max(sv[0], 1e-30):
+        return False
+    uv = c @ vt[:2].T
+    a, b, cc = points[faces[:, 0]], points[faces[:, 1]], points[faces[:, 2]]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, cc - a), axis=1).sum()
+    try:
+        hull = ConvexHull(uv).volume  # the "volume" of a 2-D hull is its area
+    except Exception:  # degenerate hull (collinear): not a usable flat piece
+        return False
+    return bool(abs(hull - area) <= 1e-6 * hull)
+
+
+@dataclass
+class _Piece:
+    points: np.ndarray
+    faces: np.ndarray
+    density: float
+    stretch_stiffness: float
+    bend_stiffness: float
+    name: str
+
+
+class ClothBuilder:
+    """Collects cloth pieces, pins and attachments on the host; :meth:`finalize` makes the model.
+
+    Args:
+        density: Default area density [kg/m^2] (> 0).
+        stretch_stiffness: Default edge spring constant [N/m] (> 0, ``inf`` = inextensible).
+        bend_stiffness: Default bending modulus [N m] (>= 0; 0 disables bending).
+        damping: Stiffness-proportional damping time [s] of stretch (>= 0).
+        bend_damping: The same for bending [s] (>= 0; 0, the default, skips the pass).
+        thickness: Contact distance [m] to colliders and between layers (>= 0).
+
+    Raises:
+        ValueError: for an out-of-range parameter, naming it.
+    """
+
+    def __init__(self, density: float = 0.2, stretch_stiffness: float = 5.0e4, bend_stiffness: float = 5.0e-5,
+                 damping: float = 1.0e-3, thickness: float = 0.005, bend_damping: float = 0.0):
+        self.density = _check_param("density", density, 0.0, low_inclusive=False)
+        self.stretch_stiffness = _check_param("stretch_stiffness", stretch_stiffness, 0.0, False, allow_inf=True)
+        self.bend_stiffness = _check_param("bend_stiffness", bend_stiffness, 0.0, allow_inf=True)
+        self.damping = _check_param("damping", damping)
+        self.bend_damping = _check_param("bend_damping", bend_damping)
+        self.thickness = _check_param("thickness", thickness)
+        self._pieces: list[_Piece] = []
+        self._count = 0
+        self._pinned: set[int] = set()
+        self._attached: list[int] = []
+
+    @property
+    def vertex_count(self) -> int:
+        return self._count
+
+    def add_mesh(self, points: np.ndarray, faces: np.ndarray, name: str = "cloth", density: float | None = None,
+                 stretch_stiffness: float | None = None, bend_stiffness: float | None = None) -> np.ndarray:
+        """Add a cloth piece from a triangle mesh (e.g. ``warpshade.load_mesh(path)``'s arrays).
+
+        Args:
+            points: Rest positions [m], shape (V, 3).
+            faces: Consistently oriented triangles, shape (F, 3), int.
+            name: For error messages.
+            density, stretch_stiffness, bend_stiffness: Overrides of the builder defaults.
+
+        Returns:
+            The model's vertex indices of this piece, shape (V,), int.
+
+        Raises:
+            MeshError: non-finite points, bad indices, degenerate or inverted triangles, unused
+                vertices, non-manifold edges (naming the triangle, vertex or edge).
+        """
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        faces = np.ascontiguousarray(faces, dtype=np.int64)
+        check_cloth_mesh(points, faces, name)
+        piece = _Piece(points, faces,
+                       _check_param(f"{name}: density", self.density if density is None else density, 0.0, False),
+                       _check_param(f"{name}: stretch_stiffness",
+                                    self.stretch_stiffness if stretch_stiffness is None else stretch_stiffness,
+                                    0.0, False, allow_inf=True),
+                       _check_param(f"{name}: bend_stiffness",
+                                    self.bend_stiffness if bend_stiffness is None else bend_stiffness,
+                                    0.0, allow_inf=True), name)
+        self._pieces.append(piece)
+        ids = np.arange(self._count, self._count + len(points))
+        self._count += len(points)
+        return ids
+
+    def add_trimesh(self, mesh: TriMesh, **kwargs) -> np.ndarray:
+        """Add a :class:`~warpshade.geometry.TriMesh` (from ``warpshade.load_mesh``) as cloth."""
+        kwargs.setdefault("name", mesh.name)
+        return self.add_mesh(mesh.points, mesh.faces, **kwargs)
+
+    def add_grid(self, nu: int, nv: int, width: float, height: float, origin=(0.0, 0.0, 0.0),
+                 u_axis=(1.0, 0.0, 0.0), v_axis=(0.0, 0.0, 1.0), **kwargs) -> np.ndarray:
+        """Add a rectangular cloth of nu x nv vertices spanning width x height [m].
+
+        Vertex (i, j) sits at origin + u_axis * width * i / (nu - 1) + v_axis * height * j / (nv - 1);
+        cells are split along alternating diagonals so the cloth has no preferred shear direction.
+        Triangles face u_axis x v_axis.
+
+        Returns:
+            Vertex indices, shape (nv, nu): ``ids[j, i]`` is vertex (i, j).
+        """
+        if int(nu) < 2 or int(nv) < 2:
+            raise ValueError(f"grid needs at least 2 x 2 vertices, got {nu} x {nv}")
+        if not (np.isfinite(width) and np.isfinite(height) and width > 0 and height > 0):
+            raise ValueError(f"grid size must be finite and > 0, got {width} x {height}")
+        nu, nv = int(nu), int(nv)
+        u = np.asarray(u_axis, dtype=np.float64)
+        v = np.asarray(v_axis, dtype=np.float64)
+        ii, jj = np.meshgrid(np.arange(nu), np.arange(nv))
+        pts = (np.asarray(origin, dtype=np.float64) + (ii * (width / (nu - 1)))[..., None] * u
+               + (jj * (height / (nv - 1)))[..., None] * v).reshape(-1, 3)
+        i0, j0 = np.meshgrid(np.arange(nu - 1), np.arange(nv - 1))
+        i0, j0 = i0.ravel(), j0.ravel()
+        a = j0 * nu + i0
+        b, c, d = a + 1, a + nu + 1, a + nu
+        flip = (i0 + j0) % 2 == 1
+        t1 = np.where(flip[:, None], np.stack([a, b, d], 1), np.stack([a, b, c], 1))
+        t2 = np.where(flip[:, None], np.stack([b, c, d], 1), np.stack([a, c, d], 1))
+        faces = np.concatenate([t1, t2])
+        kwargs.setdefault("name", f"grid{len(self._pieces)}")
+        return self.add_mesh(pts, faces, **kwargs).reshape(nv, nu)
+
+    def pin(self, indices) -> None:
+        """Fix vertices in place (infinite mass)."""
+        idx = self._check_indices(indices, "pin")
+        self._pinned.update(idx.tolist())
+
+    def attach(self, indices) -> np.ndarray:
+        """Make vertices kinematic attachments that follow ``ClothControl.attachment_targets``.
+
+        Returns:
+            The attachment slots, shape (len(indices),): target k of the control drives the vertex
+            ``indices[k]``.
+        """
+        idx = self._check_indices(indices, "attach")
+        dup = set(idx.tolist()) & set(self._attached)
+        if dup or len(set(idx.tolist())) != len(idx):
+            raise ValueError(f"attach: vertex {sorted(dup)[0] if dup else idx.tolist()} attached twice")
+        slots = np.arange(len(self._attached), len(self._attached) + len(idx))
+        self._attached.extend(idx.tolist())
+        return slots
+
+    def _check_indices(self, indices, what: str) -> np.ndarray:
+        idx = np.atleast_1d(np.asarray(indices)).ravel()
+        if idx.size and not np.issubdtype(idx.dtype, np.integer):
+            raise ValueError(f"{what}: vertex indices must be integers, got {idx.dtype}")
+        idx = idx.astype(np.int64)
+        bad = (idx < 0) | (idx >= self._count)
+        if bad.any():
+            raise ValueError(f"{what}: vertex {int(idx[bad][0])} out of range 0..{self._count - 1}")
+        return idx
+
+    def finalize(self, device: str = "cpu") -> "ClothModel":
+        """Build the immutable device model.
+
+        Raises:
+            ValueError: when no cloth was added.
+        """
+        if not self._pieces:
+            raise ValueError("ClothBuilder.finalize: no cloth added (use add_grid / add_mesh)")
+        pts, faces, edges, hinges = [], [], [], []
+        mass = np.zeros(self._count)
+        e_k, h_k, h_rest = [], [], []
+        base = 0
+        for pc in self._pieces:
+            f = pc.faces + base
+            p = pc.points
+            a, b, c = p[pc.faces[:, 0]], p[pc.faces[:, 1]], p[pc.faces[:, 2]]
+            area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+            np.add.at(mass, f.ravel(), np.repeat(area * pc.density / 3.0, 3))
+            e, h = mesh_edges_and_hinges(pc.faces)
+            edges.append(e + base)
+            e_k.append(np.full(len(e), pc.stretch_stiffness))
+            if pc.bend_stiffness > 0 and len(h):
+                x1, x2, x3, x4 = (p[h[:, k]] for k in range(4))
+                el2 = np.sum((x4 - x3) ** 2, axis=1)
+                a1 = 0.5 * np.linalg.norm(np.cross(x1 - x3, x1 - x4), axis=1)
+                a2 = 0.5 * np.linalg.norm(np.cross(x2 - x4, x2 - x3), axis=1)
+                hinges.append(h + base)
+                h_k.append(3.0 * pc.bend_stiffness * el2 / (a1 + a2))
+                h_rest.append(dihedral_angle_np(x1, x2, x3, x4))
+            pts.append(p)
+            faces.append(f)
+            base += len(p)
+        return ClothModel(self, np.concatenate(pts), np.concatenate(faces), mass, np.concatenate(edges),
+                          np.concatenate(e_k),
+                          np.concatenate(hinges) if hinges else np.zeros((0, 4), np.int32),
+                          np.concatenate(h_k) if h_k else np.zeros(0), np.concatenate(h_rest) if h_rest else np.zeros(0),
+                          device)
+
+
+def _compliance(k: np.ndarray) -> np.ndarray:
+    with np.errstate(divide="ignore"):
+        return np.where(np.isinf(k), 0.0, 1.0 / k).astype(np.float32)
+
+
+class ClothModel:
+    """Immutable cloth description on the device. Build with :class:`ClothBuilder`.
+
+    Attributes:
+        particle_count: Number of vertices V.
+        rest_points: Rest positions [m], shape (V,), dtype vec3.
+        tris: Triangles, shape (F, 3), dtype int32.
+        faces: Triangles on the host, shape (F, 3), int32 (for writers and shading).
+        mass: Vertex masses [kg] on the host, shape (V,), float64 (before pinning).
+        inv_mass: Inverse masses [1/kg], shape (V,), dtype float32; 0 for pinned and attached vertices.
+        edges: Stretch/shear edges sorted by colour, shape (E, 2), dtype int32.
+        edge_rest_length: Rest lengths [m], shape (E,), dtype float32.
+        edge_compliance: 1 / stiffness [m/N], shape (E,), dtype float32.
+        edge_colors: (offset, count) of each colour's edges.
+        hinges: Bending hinges (wing1, wing2, edge0, edge1) sorted by colour, shape (H, 4), dtype int32.
+        hinge_rest_angle: Rest dihedral angles [rad], shape (H,), dtype float32.
+        hinge_compliance: 1 / hinge stiffness [1/(N m)], shape (H,), dtype float32.
+        hinge_colors: (offset, count) of each colour's hinges.
+        tether_anchor: Nearest kinematic vertices per vertex, shape (V, T), dtype int32 (-1: none).
+        tether_length: Upper bound of the rest geodesic distance to them [m], shape (V, T), dtype float32.
+        ring_offsets, ring: One-ring adjacency (CSR): the edge neighbours of vertex i are
+            ``ring[ring_offsets[i]:ring_offsets[i + 1]]``, shapes (V + 1,) and (2E,), dtype int32.
+        attachment_indices: Attached vertices, shape (A,), dtype int32 (slot k drives vertex [k]).
+        pinned: Pinned vertex indices on the host, shape (P,), int64.
+        thickness, damping, bend_damping: As given to the builder.
+    """
+
+    def __init__(self, builder: ClothBuilder, points, faces, mass, edges, edge_k, hinges, hinge_k, hinge_rest,
+                 device):
+        self.device = wp.get_device(device)
+        v = len(points)
+        self.particle_count = v
+        self.tri_count = len(faces)
+        self.thickness = builder.thickness
+        self.damping = builder.damping
+        self.bend_damping = builder.bend_damping
+        self.faces = faces.astype(np.int32)
+        self.rest_points_np = points.astype(np.float32)
+        self.mass = mass
+        self.pinned = np.array(sorted(builder._pinned), dtype=np.int64)
+        attached = np.array(builder._attached, dtype=np.int64)
+        kinematic = np.zeros(v, dtype=bool)
+        kinematic[self.pinned] = True
+        kinematic[attached] = True
+        inv = np.where(kinematic, 0.0, 1.0 / mass).astype(np.float32)
+        self.inv_mass_np = inv
+
+        order, self.edge_colors = color_constraints(edges, v)
+        edges = edges[order]
+        rest = np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)
+        horder, self.hinge_colors = color_constraints(hinges, v) if len(hinges) else (np.zeros(0, int), [])
+        hinges, hinge_k, hinge_rest = hinges[horder], hinge_k[horder], hinge_rest[horder]
+        self.edges_np = edges
+        self.hinges_np = hinges
+        piece = np.zeros(v, dtype=np.int64)
+        convex_flat = np.zeros(len(builder._pieces), dtype=bool)
+        start = 0
+        for pi, pc in enumerate(builder._pieces):
+            piece[start:start + len(pc.points)] = pi
+            convex_flat[pi] = convex_and_flat(pc.points, pc.faces)
+            start += len(pc.points)
+        anchor, tlen = tether_anchors(points, edges, kinematic, piece, convex_flat)
+
+        d = self.device
+        self.rest_points = wp.array(self.rest_points_np, dtype=wp.vec3, device=d)
+        self.tris = wp.array(self.faces, dtype=wp.int32, device=d)
+        self.inv_mass = wp.array(inv, dtype=wp.float32, device=d)
+        self.edges = wp.array(edges.astype(np.int32), dtype=wp.int32, device=d)
+        self.edge_rest_length = wp.array(rest.astype(np.float32), dtype=wp.float32, device=d)
+        self.edge_compliance = wp.array(_compliance(edge_k[order]), dtype=wp.float32, device=d)
+        self.hinges = wp.array(hinges.astype(np.int32).reshape(-1, 4), dtype=wp.int32, device=d)
+        self.hinge_rest_angle = wp.array(hinge_rest.astype(np.float32), dtype=wp.float32, device=d)
+        self.hinge_compliance = wp.array(_compliance(hinge_k), dtype=wp.float32, device=d)
+        both = np.concatenate([edges, edges[:, ::-1]]).astype(np.int64)
+        both = both[np.lexsort((both[:, 1], both[:, 0]))]
+        offsets = np.concatenate([[0], np.cumsum(np.bincount(both[:, 0], minlength=v))])
+        self.ring_offsets = wp.array(offsets.astype(np.int32), dtype=wp.int32, device=d)
+        self.ring = wp.array(both[:, 1].astype(np.int32), dtype=wp.int32, device=d)
+        self.tether_anchor = wp.array(anchor, dtype=wp.int32, device=d)
+        self.tether_length = wp.array(tlen, dtype=wp.float32, device=d)
+        self.attachment_indices = wp.array(attached.astype(np.int32), dtype=wp.int32, device=d)
+        self.attachment_count = len(attached)
+
+    @property
+    def edge_count(self) -> int:
+        return len(self.edges_np)
+
+    @property
+    def hinge_count(self) -> int:
+        return len(self.hinges_np)
+
+    def state(self) -> "ClothState":
+        """A new state at the rest pose with zero velocity."""
+        from .state import ClothState
+
+        return ClothState(self)
+
+    def control(self) -> "ClothControl":
+        """A new control: attachment targets at their rest positions, no wind."""
+        from .state import ClothControl
+
+        return ClothControl(self)

@@ -1,0 +1,70 @@
+"""Small, obviously-correct NumPy references for the simulation kernels (tests compare against them)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def dihedral_angle_np(x1, x2, x3, x4) -> np.ndarray:
+    """Signed dihedral angle [rad] of hinges with wings x1, x2 and shared edge x3-x4, shape (H,).
+
+    Zero when flat. With triangle normals n1 = (x1 - x3) x (x1 - x4) and n2 = (x2 - x4) x (x2 - x3),
+    the angle is atan2((n1 x n2) . e_hat, n1 . n2), e = x4 - x3, as in the Warp ``dihedral_angle``.
+    """
+    x1, x2, x3, x4 = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in (x1, x2, x3, x4))
+    e = x4 - x3
+    n1 = np.cross(x1 - x3, x1 - x4)
+    n2 = np.cross(x2 - x4, x2 - x3)
+    le = np.linalg.norm(e, axis=1)
+    s = np.einsum("ij,ij->i", np.cross(n1, n2), e) / np.where(le > 0, le, 1.0)
+    c = np.einsum("ij,ij->i", n1, n2)
+    return np.where(le > 0, np.arctan2(s, c), 0.0)
+
+
+def point_triangle_distance_np(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Unsigned distance of every point to every triangle, shape (N, M).
+
+    Args:
+        p: Points, shape (N, 3). a, b, c: Triangle corners, shape (M, 3).
+
+    The closest point is the projection onto the plane when it falls inside the triangle, else the
+    closest point of the three edges (a segment clamp): the textbook case split, vectorised.
+    """
+    p = np.asarray(p, dtype=np.float64)[:, None, :]
+    a, b, c = (np.asarray(v, dtype=np.float64)[None] for v in (a, b, c))
+    n = np.cross(b - a, c - a)
+    nn = np.einsum("...i,...i", n, n)
+    safe = np.where(nn > 0, nn, 1.0)
+    dpl = np.einsum("...i,...i", p - a, n) / safe
+    q = p - dpl[..., None] * n
+    # inside test with signed sub-areas
+    inside = ((np.einsum("...i,...i", np.cross(b - a, q - a), n) >= 0)
+              & (np.einsum("...i,...i", np.cross(c - b, q - b), n) >= 0)
+              & (np.einsum("...i,...i", np.cross(a - c, q - c), n) >= 0) & (nn > 0))
+    best = np.where(inside, np.linalg.norm(p - q, axis=-1), np.inf)
+    for u, w in ((a, b), (b, c), (c, a)):
+        d = w - u
+        t = np.clip(np.einsum("...i,...i", p - u, d) / np.maximum(np.einsum("...i,...i", d, d), 1e-300), 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(p - (u + t[..., None] * d), axis=-1))
+    return best
+
+
+def skin_points_np(rest: np.ndarray, indices: np.ndarray, weights: np.ndarray,
+                   transforms: np.ndarray) -> np.ndarray:
+    """Linear blend skinning: x_v = sum_k w_vk (M_{j_vk} [rest_v, 1])[:3].
+
+    Args:
+        rest: Rest positions, shape (V, 3).
+        indices: Joint index per influence, shape (V, K), int.
+        weights: Influence weights, shape (V, K) (not renormalised here).
+        transforms: Skinning matrices (joint world x inverse bind), shape (J, 4, 4), column-vector
+            convention (translation in the last column).
+
+    Returns:
+        Skinned positions, shape (V, 3), float64.
+    """
+    rest = np.asarray(rest, dtype=np.float64)
+    h = np.concatenate([rest, np.ones((len(rest), 1))], axis=1)
+    m = np.asarray(transforms, dtype=np.float64)[np.asarray(indices)]  # (V, K, 4, 4)
+    moved = np.einsum("vkij,vj->vki", m, h)[..., :3]
+    return np.einsum("vk,vki->vi", np.asarray(weights, dtype=np.float64), moved)
