@@ -17,9 +17,6 @@ __all__ = ["ConstantEnvironment", "DirectionalLight", "EnvironmentMap", "PointLi
            "SphereLight", "default_environment", "exit_radiance", "shade"]
 __all__ += ["METHODS", "MeshError", "TransferMethod", "TriMesh", "__version__", "get_method", "load_mesh",
            "n_coeffs", "sh_eval"]
-<<<<<<< HEAD
 __all__ += ["LightSpec", "Material", "Pipeline", "RunReport", "Scene", "SceneError", "SceneObject"]
-=======
 __all__ += ["ClothBuilder", "ClothControl", "ClothModel", "ClothState", "ColliderSet", "LBSSkinner", "MeshCollider",
             "SimulationError", "WalkingFigure", "XPBDSolver"]
->>>>>>> main
