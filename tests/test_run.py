@@ -149,3 +149,34 @@ def test_scene_shader_pickles_for_worker_processes():
     out = shade(3, {tube.name: tube.params["points_at"](3)})
     assert set(out) == {"/World/Ground", "/World/Arm/Tube", "_seconds"}
     assert np.allclose(out[tube.name][0], tube.params["points_at"](3))
+
+
+@pytest.mark.parametrize("scene", ["rect_light.usda", "cloth_sphere.usda", "flag_wind.usda", "cloth_table.usda",
+                                   "cape_walker.usda"])
+def test_run_cloth_scenes(tmp_path, scene):
+    out = tmp_path / "out.usda"
+    assert main(["run", os.path.join(SCENES, scene), "--frames", "3", "--out", str(out), "--no-progress",
+                 "--method", "reference", "--rays", "4", "--order", "3"]) == 0
+    stage = Usd.Stage.Open(str(out))
+    cloth = [o.name for o in read_scene(os.path.join(SCENES, scene)).objects if o.kind == "cloth"]
+    for name in cloth:
+        pts = UsdGeom.Mesh(stage.GetPrimAtPath("/World/" + name.split("/")[-1])).GetPointsAttr()
+        assert not np.array_equal(np.asarray(pts.Get(0)), np.asarray(pts.Get(2))), f"{name} must move"
+    assert validation_errors(out) == []
+def test_run_default_scene_few_frames(tmp_path, capsys):
+    out = tmp_path / "default_out.usda"
+    assert main(["run", "--frames", "3", "--out", str(out), "--no-progress", "--method", "reference",
+                 "--rays", "16"]) == 0
+    printed = capsys.readouterr()
+    assert printed.out.strip() == str(out.resolve())
+    assert "simulate" in printed.err and "shade" in printed.err and "write" in printed.err
+    stage = Usd.Stage.Open(str(out))
+    assert stage.GetEndTimeCode() == 2
+    cloth = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth"))
+    p0, p2 = (np.asarray(cloth.GetPointsAttr().Get(f)) for f in (0, 2))
+    assert p2[:, 1].mean() < p0[:, 1].mean(), "the cloth must fall"
+    col = np.asarray(UsdGeom.PrimvarsAPI(cloth).GetPrimvar("displayColor").Get(1))
+    assert col.shape == (33 * 33, 3) and np.isfinite(col).all() and col.max() > 0
+    assert validation_errors(out) == []
+
+
