@@ -54,7 +54,8 @@ class RunReport:
     Attributes:
         path: Output file.
         frames: Frames written.
-        seconds: Wall time per stage [s]: ``setup`` (simulation model, method structures, lights),
+        seconds: Wall time per stage [s]: ``setup`` (simulation model, method structures and
+            lights, built once per worker: summed),
             ``simulate``, ``shade`` (summed over frames; with workers it overlaps the others),
             ``write``, ``total`` (wall).
         vertices: Shaded vertices per frame.
@@ -165,6 +166,7 @@ class Pipeline:
             for f, res in results:
                 t = time.perf_counter()
                 secs["shade"] += res.pop("_seconds")
+                secs["setup"] += res.pop("_build_seconds", 0.0)
                 for name, (points, normals, colors, transfer) in res.items():
                     # CONTRACTS.md §6: every shaded mesh has points, normals and extent time-sampled
                     # per frame, static ones included

@@ -125,16 +125,19 @@ class SceneShader:
 
     def build(self):
         """Build methods and lights; returns ``shade(frame, geometry) -> {name: (points, normals,
-        colors, transfer or None)}`` plus the key ``"_seconds"`` (time spent shading the frame)."""
+        colors, transfer or None)}`` plus the keys ``"_seconds"`` (time spent shading the frame) and,
+        in the first result of this build, ``"_build_seconds"`` (method structures and lights)."""
         from ..lighting import lights_sh
         from ..radiance import exit_radiance
 
+        t_build = time.perf_counter()
         groups = [_Group(g, self.order, self.device) for g in self.groups]
         lights = self.build_lights()
+        pending_build = [time.perf_counter() - t_build]  # reported once, with the first frame
 
         def shade(frame: int, geometry: dict) -> dict:
             t0 = time.perf_counter()
-            out = {}
+            out = {"_build_seconds": pending_build.pop()} if pending_build else {}
             t = frame / self.fps
             frame_lights = [light.at_time(t) for light in lights]
             for g in groups:
