@@ -319,6 +319,7 @@ def make_all(out_dir: str = SCENES_DIR) -> list[str]:
                  pinned=[j * n for j in range(n // 2, n)])
     flag.GetPrim()  # pinned: left edge (x = -0.8), upper half
     set_attr(st.GetPrimAtPath("/World"), "wind", (6.0, 0.0, 1.5))
+    set_attr(st.GetPrimAtPath("/World"), "substeps", 12)  # the wind load needs them (sims/flag.py)
     sun(st), dome(st, intensity=0.6)
     save(st, "flag_wind.usda")
 
