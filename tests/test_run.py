@@ -77,7 +77,7 @@ def test_objects_in_one_group_shadow_each_other(tmp_path):
 def test_run_shipped_scenes_write_their_lights(tmp_path, scene):
     out = tmp_path / "out.usda"
     assert main(["run", os.path.join(SCENES, scene), "--frames", "2", "--out", str(out), "--no-progress",
-                 "--method", "reference", "--rays", "4", "--write-transfer", "--order", "3"]) == 0
+                 "--workers", "0", "--method", "reference", "--rays", "4", "--write-transfer", "--order", "3"]) == 0
     stage = Usd.Stage.Open(str(out))
     lights = [p for p in stage.Traverse() if p.HasAPI(UsdLux.LightAPI)]
     assert {p.GetName() for p in lights} == {l.name.split("/")[-1] for l in read_scene(os.path.join(SCENES, scene)).lights}
@@ -156,7 +156,7 @@ def test_scene_shader_pickles_for_worker_processes():
 def test_run_cloth_scenes(tmp_path, scene):
     out = tmp_path / "out.usda"
     assert main(["run", os.path.join(SCENES, scene), "--frames", "3", "--out", str(out), "--no-progress",
-                 "--method", "reference", "--rays", "4", "--order", "3"]) == 0
+                 "--workers", "0", "--method", "reference", "--rays", "4", "--order", "3"]) == 0
     stage = Usd.Stage.Open(str(out))
     cloth = [o.name for o in read_scene(os.path.join(SCENES, scene)).objects if o.kind == "cloth"]
     for name in cloth:

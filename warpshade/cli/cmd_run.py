@@ -31,10 +31,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--write-transfer", action="store_true",
                         help="also write primvars:warpshade:transfer (N*N floats per vertex per frame) for relighting")
     parser.add_argument("--chunk", type=int, default=64, help="frames per clip file (also the commit interval)")
-    parser.add_argument("--workers", type=int, default=0,
-                        help="shading worker processes while this one simulates (default 0: shade inline)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="shading worker processes while this one simulates (default: all cores; 0 shades inline)")
     parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                         help="shade on a Dask cluster ('local' starts one) instead of local processes")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
     parser.epilog = "Method knobs (e.g. --rays for reference) follow --method; see README."
@@ -86,12 +88,18 @@ def run(args) -> int:
             o.method = None
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
     load = time.perf_counter() - t0
+    from ..parallel import default_workers
+
+    workers = default_workers() if args.workers is None else args.workers
     pipe = Pipeline(scene, frames=args.frames, method=method, knobs=knobs, order=args.order,
-                    write_transfer=True if args.write_transfer else None, workers=args.workers,
+                    write_transfer=True if args.write_transfer else None, workers=workers,
                     scheduler=args.scheduler, device=args.device)
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
-                             chunk=args.chunk, metadata={"scene": os.path.abspath(scene_path),
-                                                         "order": pipe.order})
+                             chunk=args.chunk, resume=args.resume,
+                             metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,
+                                       "groups": "; ".join(f"{g.method} {g.knobs}" for g in pipe.groups)})
+    if writer.resume_frame:
+        print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
     try:
         report = pipe.run(writer, progress=not args.no_progress)
     except KeyboardInterrupt:
@@ -101,7 +109,8 @@ def run(args) -> int:
         return 130
     report.seconds["load"] = load
     s = report.seconds
-    print(f"warpshade run: {scene_path}: {report.frames} frames, {report.vertices} shaded vertices, SH order {pipe.order}",
+    resumed = f" (resumed at frame {report.resumed_from})" if report.resumed_from else ""
+    print(f"warpshade run: {scene_path}: {report.frames} frames{resumed}, {report.vertices} shaded vertices, SH order {pipe.order}",
           file=sys.stderr)
     for g in report.groups:
         print(f"  shading group: {g}", file=sys.stderr)

@@ -66,6 +66,7 @@ class RunReport:
             ``write``, ``total`` (wall).
         vertices: Shaded vertices per frame.
         groups: One line per shading group (method, knobs, objects).
+        resumed_from: First frame produced by this run (> 0 after ``--resume``).
     """
 
     path: str
@@ -73,6 +74,7 @@ class RunReport:
     seconds: dict = field(default_factory=dict)
     vertices: int = 0
     groups: list = field(default_factory=list)
+    resumed_from: int = 0
 
 
 class Pipeline:
@@ -109,14 +111,19 @@ class Pipeline:
                                   self.write_transfer, device)
         self.report = None
 
-    def _geometry(self, sims, secs, failure: list):
-        """Yield ``(frame, {name: points})`` for every moving object, timing the simulation.
+    def _geometry(self, sims, secs, failure: list, start: int = 0):
+        """Yield ``(frame, {name: points})`` for every moving object from ``start`` on, timing the simulation.
+
+        Frames before ``start`` (already written by an interrupted run) are simulated, since the
+        simulation is sequential and deterministic, but not shaded.
 
         An error ends the iteration and is put in ``failure`` instead of being raised here, so the
         frames already in flight are still shaded and written before the run stops with it.
         """
         try:
-            yield from self._geometry_frames(sims, secs)
+            for f, geo in self._geometry_frames(sims, secs):
+                if f >= start:
+                    yield f, geo
         except Exception as exc:  # noqa: BLE001 - re-raised by run() after the in-flight frames
             failure.append(exc)
 
@@ -137,11 +144,14 @@ class Pipeline:
     def run(self, writer, progress: bool = True) -> RunReport:
         """Produce every frame into ``writer`` (an :class:`warpshade.usd.AnimationWriter`-like object).
 
-        The writer is closed on success and aborted (keeping complete frames) on error.
+        The writer is closed on success and aborted (keeping complete frames) on error. A writer
+        opened with ``resume=True`` on an interrupted output has ``resume_frame > 0``: the run then
+        produces only the frames from there on (``--resume``).
         """
         from ..parallel import shade_frames
 
         secs = dict.fromkeys(("setup", "simulate", "shade", "write"), 0.0)
+        start = int(getattr(writer, "resume_frame", 0))
         t0 = time.perf_counter()
         bar = None
         try:
@@ -165,9 +175,9 @@ class Pipeline:
             if progress:
                 from tqdm import tqdm
 
-                bar = tqdm(total=self.frames, desc="warpshade run", unit="frame")
+                bar = tqdm(total=self.frames, initial=min(start, self.frames), desc="warpshade run", unit="frame")
             failure: list = []
-            results = shade_frames(self.shader, self._geometry(sims, secs, failure), workers=self.workers,
+            results = shade_frames(self.shader, self._geometry(sims, secs, failure, start), workers=self.workers,
                                    scheduler=self.scheduler)
             for f, res in results:
                 t = time.perf_counter()
@@ -193,7 +203,7 @@ class Pipeline:
             writer.abort()
             raise
         secs["total"] = time.perf_counter() - t0
-        self.report = RunReport(path=path, frames=self.frames, seconds=secs,
+        self.report = RunReport(path=path, frames=max(0, self.frames - start), seconds=secs, resumed_from=start,
                                 vertices=sum(m.num_vertices for g in self.groups for m in g.meshes),
                                 groups=[f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
                                         for g in self.groups])

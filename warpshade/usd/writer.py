@@ -76,10 +76,14 @@ class AnimationWriter:
         chunk: Frames per clip file (also the commit interval: a hard kill loses at most this many
             frames).
         metadata: Extra strings recorded in the root layer's ``customLayerData`` (scene, method...).
+        resume: Continue an output that an interrupted run left at ``path``: its committed frames are
+            kept, new chunks are added to the same run directory, and :attr:`resume_frame` says
+            which frame to produce next. The same meshes must be declared again (checked against
+            the existing manifest). Without an existing output this is an ordinary new run.
     """
 
     def __init__(self, path: str, fps: float = 60.0, up_axis: str = "Y", meters_per_unit: float = 1.0,
-                 chunk: int = 64, metadata: dict | None = None):
+                 chunk: int = 64, metadata: dict | None = None, resume: bool = False):
         if chunk < 1:
             raise ValueError(f"{path}: chunk must be >= 1 frame, got {chunk}")
         self.path = os.path.abspath(os.fspath(path))
@@ -119,6 +123,52 @@ class AnimationWriter:
         self._animated_meshes: set[str] = set()  # meshes written in some earlier frame
         self._attrs: set[tuple[str, str]] = set()  # (mesh, attribute) pairs that were written
         self._closed = False
+        self._resumed_attrs: dict[str, set[str]] = {}  # prim path -> attributes of the manifest resumed
+        self.resume_frame = 0
+        """First frame this writer still needs (> 0 when resuming an interrupted output)."""
+        if resume and os.path.isfile(self.path):
+            self._load_existing(metadata or {})
+
+    def _load_existing(self, metadata: dict) -> None:
+        """Pick up the committed clips of an interrupted output (see ``resume``)."""
+        try:
+            layer = Sdf.Layer.FindOrOpen(self.path)
+        except Exception as exc:  # pxr raises Tf.ErrorException
+            raise ValueError(f"{self.path}: cannot resume: not a readable USD layer ({exc})") from exc
+        world = layer.GetPrimAtPath("/World") if layer else None
+        clips = world.GetInfo("clips").get("default") if world and world.HasInfo("clips") else None
+        if not clips:
+            return  # a static output or one with no committed frame: start over
+        old = layer.customLayerData or {}
+        for k, v in metadata.items():
+            key = f"warpshade:{k}"
+            if key in old and old[key] != str(v):
+                raise ValueError(f"{self.path}: cannot resume: it was written with {k} = {old[key]}, "
+                                 f"this run has {k} = {v}")
+        manifest = clips["manifestAssetPath"].path
+        rel_run = os.path.dirname(manifest)
+        run_dir = os.path.normpath(os.path.join(os.path.dirname(self.path), rel_run))
+        assets = [a.path for a in clips["assetPaths"]]
+        starts = [int(t[0]) for t in clips["active"]]
+        missing = [a for a in assets if not os.path.isfile(os.path.join(os.path.dirname(self.path), a))]
+        if missing:
+            raise ValueError(f"{self.path}: cannot resume: clip file {missing[0]} is missing")
+        self._run = os.path.basename(run_dir)
+        self._run_dir = run_dir
+        self._rel_run = rel_run
+        self._clips = list(zip(starts, assets))
+        times = clips["times"]
+        self._first = int(times[0][0])
+        self._last_committed = int(times[-1][0])
+        self.resume_frame = self._last_committed + 1
+        man = Sdf.Layer.FindOrOpen(os.path.join(run_dir, "manifest.usda"))
+        for prim in man.rootPrims:
+            for child in [prim] + list(prim.nameChildren):
+                if child.attributes:
+                    self._resumed_attrs[str(child.path)] = {a.name for a in child.attributes}
+        for entry in os.listdir(run_dir):  # a chunk that was being written when the run died
+            if entry.endswith(".partial.usdc"):
+                os.remove(os.path.join(run_dir, entry))
 
     # -- declarations -----------------------------------------------------------------------
     def add_mesh(self, name: str, faces: np.ndarray, points: np.ndarray | None = None, *,
@@ -175,6 +225,11 @@ class AnimationWriter:
         self._bind_material(mesh, pname, roughness)
         self._meshes[pname] = {"path": path, "vertices": nverts, "static": points is not None,
                                "transfer": None if transfer_order is None else int(transfer_order) ** 2}
+        if self._resumed_attrs:
+            if path not in self._resumed_attrs:
+                raise ValueError(f"{self.path}: cannot resume: mesh {path} is not in the interrupted output "
+                                 f"(it has {', '.join(sorted(self._resumed_attrs))})")
+            self._attrs |= {(pname, a) for a in self._resumed_attrs[path]}
         return pname
 
     def _bind_material(self, mesh: UsdGeom.Mesh, pname: str, roughness: float) -> None:
