@@ -30,7 +30,7 @@ import time
 import numpy as np
 import warp as wp
 
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
 
 from warpshade.geometry import TriMesh, load_mesh  # noqa: E402
 from warpshade.metrics import error_summary  # noqa: E402
