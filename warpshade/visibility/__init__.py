@@ -9,6 +9,8 @@ from .base import TransferMethod
 # name -> "module:Class"; modules import lazily so one method's import cost is paid only when used.
 METHODS = {
     "reference": "warpshade.visibility.reference:ReferenceTransfer",
+    "hemiraster": "warpshade.visibility.hemiraster:HemirasterTransfer",
+    "disks": "warpshade.visibility.disks:DiskTransfer",
     "spheres": "warpshade.visibility.spheres:SpheresTransfer",
 }
 

@@ -1,0 +1,221 @@
+"""Rectangular area lights and the interface area-light visibility methods share.
+
+Mirrors :class:`~warpshade.visibility.base.TransferMethod`: build once in ``__init__(mesh, light,
+k, device, **knobs)``, ``update(points, normals=None)`` per frame, then read :attr:`visibility`
+(fraction of the light's area visible, CONTRACTS.md §4) and :attr:`form_factor` (the same with
+the light's cosine terms, for radiance).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import warp as wp
+
+from ...geometry.mesh import TriMesh
+from ..base import TransferMethod
+
+
+@dataclass(frozen=True)
+class LightRect:
+    """A two-sided rectangular area light (UsdLux LightRect) with corners ``center ± u ± v``.
+
+    Attributes:
+        center: Centre [m], shape (3,).
+        u: First half-axis [m], shape (3,) (half the width, along the width).
+        v: Second half-axis [m], shape (3,), orthogonal to ``u``.
+    """
+
+    center: tuple
+    u: tuple
+    v: tuple
+
+    def __post_init__(self):
+        c, u, v = (np.asarray(x, dtype=np.float64) for x in (self.center, self.u, self.v))
+        for name, x in (("center", c), ("u", u), ("v", v)):
+            if x.shape != (3,) or not np.isfinite(x).all():
+                raise ValueError(f"rect light {name} must be 3 finite numbers, got {x.tolist()}")
+        lu, lv = np.linalg.norm(u), np.linalg.norm(v)
+        if lu == 0.0 or lv == 0.0:
+            raise ValueError(f"rect light half-axes must be non-zero, got u={u.tolist()} v={v.tolist()}")
+        if abs(np.dot(u, v)) > 1e-4 * lu * lv:
+            raise ValueError(f"rect light half-axes must be orthogonal, got u={u.tolist()} v={v.tolist()} "
+                             f"(cos = {np.dot(u, v) / (lu * lv):.3g})")
+        object.__setattr__(self, "center", tuple(c.tolist()))
+        object.__setattr__(self, "u", tuple(u.tolist()))
+        object.__setattr__(self, "v", tuple(v.tolist()))
+
+    @classmethod
+    def parse(cls, text: str) -> LightRect:
+        """From ``"cx,cy,cz,ux,uy,uz,vx,vy,vz"`` (the ``--rect-light`` syntax)."""
+        try:
+            vals = [float(x) for x in text.split(",")]
+        except ValueError:
+            raise ValueError(f"--rect-light expects 9 comma-separated numbers, got '{text}'") from None
+        if len(vals) != 9:
+            raise ValueError(f"--rect-light expects 9 comma-separated numbers (c, u, v), got {len(vals)}: '{text}'")
+        return cls(tuple(vals[0:3]), tuple(vals[3:6]), tuple(vals[6:9]))
+
+    @classmethod
+    def over_points(cls, points, size: float = 0.3, height: float = 1.5, tilt: float = 0.0) -> LightRect:
+        """A light over a point set's bounding box (y up), for tests, benchmarks and quick looks.
+
+        Args:
+            points: Positions [m], shape (V, 3).
+            size: Half-axes as fractions of the box's x and z extents.
+            height: Centre height as a fraction of the y extent above the box's bottom (1 = top).
+            tilt: Rotation of the v axis about x [rad] (0: horizontal light facing down and up).
+        """
+        p = np.asarray(points, dtype=np.float64)
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        d = hi - lo
+        c = lo + d * np.array([0.5, height, 0.5])
+        u = np.array([d[0] * size, 0.0, 0.0])
+        v = np.array([0.0, -np.sin(tilt), np.cos(tilt)]) * d[2] * size
+        return cls(tuple(c), tuple(u), tuple(v))
+
+    @property
+    def normal(self) -> np.ndarray:
+        """Unit normal ``u × v / |u × v|``, shape (3,)."""
+        n = np.cross(self.u, self.v)
+        return n / np.linalg.norm(n)
+
+    @property
+    def area(self) -> float:
+        """Area [m²] (``4 |u × v|``)."""
+        return 4.0 * float(np.linalg.norm(np.cross(self.u, self.v)))
+
+    @property
+    def diagonal(self) -> float:
+        """Diagonal length [m]."""
+        return 2.0 * math.hypot(np.linalg.norm(self.u), np.linalg.norm(self.v))
+
+    def point(self, s, t) -> np.ndarray:
+        """Light point(s) ``c + s u + t v`` for light coordinates ``s, t ∈ [-1, 1]``, shape (..., 3)."""
+        s = np.asarray(s, dtype=np.float64)[..., None]
+        t = np.asarray(t, dtype=np.float64)[..., None]
+        return np.asarray(self.center) + s * np.asarray(self.u) + t * np.asarray(self.v)
+
+
+class AreaVisibilityMethod(ABC):
+    """Base class of per-vertex area-light visibility methods.
+
+    Args:
+        mesh: Receiver mesh; it also blocks the light (self-shadowing). Topology fixed.
+        light: The area light (changeable per frame with :meth:`set_light`).
+        k: Light sampling resolution: k×k samples (4..32).
+        device: Warp device.
+        offset: Receiver offset along its normal, as a fraction of the mesh's bounding-box diagonal
+            at construction (keeps a vertex's own triangles from shadowing it, like the ray
+            reference's origin offset).
+    """
+
+    name: ClassVar[str] = ""
+
+    def __init__(self, mesh: TriMesh, light: LightRect, k: int = 16, device: str = "cpu", offset: float = 1e-5):
+        if int(k) != k or not 1 <= k <= 32:
+            raise ValueError(f"k (light samples per side) must be an integer in 1..32, got {k!r}")
+        if not offset >= 0.0:
+            raise ValueError(f"offset must be >= 0, got {offset}")
+        self.k = int(k)
+        self.device = device
+        self.mesh = mesh
+        self.offset_rel = float(offset)
+        self.faces = wp.array(mesh.faces, dtype=wp.int32, device=device)
+        self.points = wp.array(mesh.points, dtype=wp.vec3, device=device)
+        """Current vertex positions [m], shape (V,), dtype vec3."""
+        self.normals = wp.array(mesh.normals, dtype=wp.vec3, device=device)
+        """Current unit vertex normals, shape (V,), dtype vec3."""
+        n = mesh.num_vertices
+        self.masks = wp.zeros((n, self.k), dtype=wp.uint32, device=device)
+        """Blocked-sample bitmasks, shape (V, k), dtype uint32: bit i of row j = sample (s_i, t_j) blocked."""
+        self.visibility = wp.zeros(n, dtype=float, device=device)
+        """Fraction of the light's area visible from each vertex, shape (V,), dtype float32."""
+        self.form_factor = wp.zeros(n, dtype=float, device=device)
+        """Unoccluded-part form factor ``(1/π) ∫ V max(0, n·ω) |n_L·ω| / r² dA``, shape (V,), dtype float32.
+
+        A Lambertian vertex of albedo ρ under a light of radiance L_e has exit radiance ``ρ L_e F``.
+        """
+        self.set_light(light)
+
+    def set_light(self, light) -> None:
+        """Use another light from the next :meth:`update` on.
+
+        Args:
+            light: A :class:`LightRect`, or anything with ``center``, ``u``, ``v`` (e.g.
+                :class:`warpshade.lighting.RectLight`); visibility is geometric, so emission
+                (radiance, sidedness) is ignored and :attr:`form_factor` treats the light as two-sided.
+        """
+        if not isinstance(light, LightRect):
+            if not all(hasattr(light, a) for a in ("center", "u", "v")):
+                raise TypeError(f"expected a LightRect or a light with center, u, v; got {type(light).__name__}")
+            light = LightRect(tuple(np.asarray(light.center, float).reshape(3)),
+                              tuple(np.asarray(light.u, float).reshape(3)), tuple(np.asarray(light.v, float).reshape(3)))
+        self.light = light
+
+    # -- command line ------------------------------------------------------------------------
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        """Add this method's knobs (``--k`` and ``--offset`` are common to all)."""
+
+    @classmethod
+    def knobs_from_args(cls, args: argparse.Namespace) -> dict:
+        return {}
+
+    # -- per frame ---------------------------------------------------------------------------
+    def update(self, points=None, normals=None) -> wp.array:
+        """Recompute :attr:`visibility` (and :attr:`masks`, :attr:`form_factor`) for new positions.
+
+        Args:
+            points: New vertex positions, shape (V, 3) (the current ones if None).
+            normals: Optional unit normals; recomputed (angle-weighted) when None.
+
+        Returns:
+            :attr:`visibility`.
+        """
+        if points is not None:
+            # same validation and normal recomputation as every TransferMethod
+            TransferMethod.set_points(self, points, normals)
+        self._compute()
+        return self.visibility
+
+    @abstractmethod
+    def _compute(self) -> None:
+        """Fill :attr:`masks`, :attr:`visibility` and :attr:`form_factor`."""
+
+    def radiance(self, emitted: float = 1.0, albedo=1.0) -> np.ndarray:
+        """Lambertian exit radiance ``ρ L_e F`` per vertex (needs a prior :meth:`update`).
+
+        Args:
+            emitted: Light radiance L_e [W/(m² sr)], scalar or RGB shape (3,).
+            albedo: Albedo ρ, scalar, (3,) or per vertex (V, 3).
+
+        Returns:
+            Radiance, shape (V,) for scalar inputs else (V, 3), float32.
+        """
+        f = self.form_factor.numpy()
+        e = np.asarray(emitted, dtype=np.float32)
+        a = np.asarray(albedo, dtype=np.float32)
+        if e.ndim == 0 and a.ndim == 0:
+            return (f * e * a).astype(np.float32)
+        return (f[:, None] * e * a).astype(np.float32)
+
+    # -- reporting ---------------------------------------------------------------------------
+    def _offset_abs(self) -> float:
+        return self.offset_rel * (self.mesh.bbox_diagonal() or 1.0)
+
+    def light_args(self) -> list:
+        """(c, u, v, unit normal) as Warp vectors for kernel launches."""
+        lt = self.light
+        return [wp.vec3(*lt.center), wp.vec3(*lt.u), wp.vec3(*lt.v), wp.vec3(*lt.normal)]
+
+    def knobs(self) -> dict:
+        return {"k": self.k, "offset": self.offset_rel}
+
+    def stats(self) -> dict:
+        return {}

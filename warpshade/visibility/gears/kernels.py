@@ -1,0 +1,531 @@
+"""Kernels of GEARS area-light visibility (Popescu) and its ray-traced reference.
+
+Light parameterisation (shared by every kernel here): a parallelogram light with centre ``c`` and
+half-axes ``u``, ``v``; the point with light coordinates ``(s, t) ∈ [-1, 1]²`` is ``c + s u + t v``.
+A k×k visibility mask samples the light at cell centres ``s_i = -1 + (2 i + 1) / k`` (row ``j`` holds
+``t_j``); bit ``i`` of row ``j`` is set when the sample is *blocked*. Masks are ``uint32`` rows, so
+``k <= 32``.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+MAX_POLY = 10  # a triangle clipped by six planes has at most 9 vertices
+mat63 = wp.types.matrix(shape=(MAX_POLY, 3), dtype=float)
+
+
+# -- small math ---------------------------------------------------------------------------------
+@wp.func
+def clip_polygon(poly: mat63, n: int, plane: wp.vec3, offset: float, origin: wp.vec3):
+    """Sutherland–Hodgman: keep the part of polygon ``poly[:n]`` where ``dot(X - origin, plane) >= offset``.
+
+    Returns the clipped polygon and its vertex count (0 when nothing remains).
+    """
+    out = mat63()
+    m = int(0)
+    for i in range(n):
+        a = poly[i]
+        b = poly[(i + 1) % n]
+        da = wp.dot(a - origin, plane) - offset
+        db = wp.dot(b - origin, plane) - offset
+        if da >= 0.0:
+            out[m] = a
+            m += 1
+        if (da >= 0.0) != (db >= 0.0):
+            # da and db have opposite signs here, so the denominator is never zero
+            out[m] = a + (b - a) * (da / (da - db))
+            m += 1
+    return out, m
+
+
+@wp.func
+def sample_index_range(lo: float, hi: float, k: int) -> wp.vec2i:
+    """Indices ``i`` of cell-centre samples ``-1 + (2i+1)/k`` inside ``[lo, hi]``, clamped to 0..k-1.
+
+    Returns ``(i0, i1)``; empty when ``i0 > i1``. Coordinates are clamped before the integer
+    conversion because projected blockers near the receiver reach huge light coordinates.
+    """
+    a = wp.clamp((lo + 1.0) * 0.5 * float(k) - 0.5, -2.0, float(k) + 2.0)
+    b = wp.clamp((hi + 1.0) * 0.5 * float(k) - 0.5, -2.0, float(k) + 2.0)
+    i0 = wp.max(int(wp.ceil(a)), 0)
+    i1 = wp.min(int(wp.floor(b)), k - 1)
+    return wp.vec2i(i0, i1)
+
+
+@wp.func
+def bit_span(i0: int, i1: int) -> wp.uint32:
+    """A uint32 with bits ``i0..i1`` set (``0 <= i0 <= i1 <= 31``)."""
+    ones = ~wp.uint32(0)
+    w = i1 - i0 + 1
+    return (ones >> wp.uint32(32 - w)) << wp.uint32(i0)
+
+
+@wp.func
+def popcount(x: wp.uint32) -> int:
+    """Number of set bits (SWAR)."""
+    x = x - ((x >> wp.uint32(1)) & wp.uint32(0x55555555))
+    x = (x & wp.uint32(0x33333333)) + ((x >> wp.uint32(2)) & wp.uint32(0x33333333))
+    x = (x + (x >> wp.uint32(4))) & wp.uint32(0x0F0F0F0F)
+    return int((x * wp.uint32(0x01010101)) >> wp.uint32(24))
+
+
+@wp.func
+def light_point(c: wp.vec3, u: wp.vec3, v: wp.vec3, s: float, t: float) -> wp.vec3:
+    return c + u * s + v * t
+
+
+@wp.func
+def light_sample_weight(p: wp.vec3, n: wp.vec3, q: wp.vec3, light_normal: wp.vec3) -> float:
+    """Form-factor density ``max(0, n·ω) |n_L·ω| / (π r²)`` of light point ``q`` seen from ``p``.
+
+    The light emits on both sides, hence the absolute value of its cosine.
+    """
+    d = q - p
+    r2 = wp.dot(d, d)
+    if r2 == 0.0:
+        return 0.0
+    r = wp.sqrt(r2)
+    w = d / r
+    return wp.max(0.0, wp.dot(n, w)) * wp.abs(wp.dot(light_normal, w)) / (wp.pi * r2)
+
+
+@wp.func
+def summarize_mask(
+    masks: wp.array2d[wp.uint32],
+    r: int,
+    k: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    c: wp.vec3,
+    u: wp.vec3,
+    v: wp.vec3,
+    light_normal: wp.vec3,
+    dA: float,
+) -> wp.vec2:
+    """(fraction of samples visible, form factor of the visible samples) of receiver ``r``'s mask."""
+    blocked = int(0)
+    ff = float(0.0)
+    # the light is convex: if all four corners are behind the tangent plane, every point is
+    facing = bool(False)
+    for q in range(4):
+        if wp.dot(light_point(c, u, v, wp.where(q % 2 == 0, -1.0, 1.0), wp.where(q < 2, -1.0, 1.0)) - p, n) > 0.0:
+            facing = True
+    for j in range(k):
+        row = masks[r, j]
+        blocked += popcount(row)
+        if not facing:
+            continue
+        t = -1.0 + (2.0 * float(j) + 1.0) / float(k)
+        for i in range(k):
+            if (row & (wp.uint32(1) << wp.uint32(i))) == wp.uint32(0):
+                s = -1.0 + (2.0 * float(i) + 1.0) / float(k)
+                ff += light_sample_weight(p, n, light_point(c, u, v, s, t), light_normal) * dA
+    return wp.vec2(1.0 - float(blocked) / float(k * k), ff)
+
+
+# -- acceleration grid (the paper's A.1–A.3) -----------------------------------------------------
+@wp.kernel
+def locate_receivers(
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    offset: float,
+    c: wp.vec3,
+    light_normal: wp.vec3,
+    e1: wp.vec3,
+    e2: wp.vec3,
+    grid_lo: wp.array2d[float],
+    grid_cell: wp.array[float],
+    grid_res: int,
+    cell_of: wp.array[int],
+):
+    """Grid cell of every receiver (A.2): orthographic projection along the light normal, one grid per side.
+
+    ``grid_lo[side]`` is the (e1, e2) corner of that side's grid and ``grid_cell[side]`` its cell size.
+    Receivers in the light's plane get cell -1 (they see the light edge-on).
+    """
+    r = wp.tid()
+    p = points[r] + normals[r] * offset
+    h = wp.dot(p - c, light_normal)
+    if h == 0.0:
+        cell_of[r] = -1
+        return
+    side = wp.where(h > 0.0, 0, 1)
+    x = (wp.dot(p - c, e1) - grid_lo[side, 0]) / grid_cell[side]
+    y = (wp.dot(p - c, e2) - grid_lo[side, 1]) / grid_cell[side]
+    cx = wp.clamp(int(wp.floor(x)), 0, grid_res - 1)
+    cy = wp.clamp(int(wp.floor(y)), 0, grid_res - 1)
+    cell_of[r] = (side * grid_res + cy) * grid_res + cx
+
+
+@wp.kernel
+def bound_shadow_volumes(
+    points: wp.array[wp.vec3],
+    faces: wp.array2d[wp.int32],
+    c: wp.vec3,
+    u: wp.vec3,
+    v: wp.vec3,
+    light_normal: wp.vec3,
+    e1: wp.vec3,
+    e2: wp.vec3,
+    side_height: wp.array[float],
+    grid_lo: wp.array2d[float],
+    grid_cell: wp.array[float],
+    grid_res: int,
+    boxes: wp.array2d[int],
+    near_height: wp.array[float],
+):
+    """Grid-cell AABB of each triangle's shadow volume, per side of the light (A.3), shape (F, 2) x 4.
+
+    The paper extends each triangle vertex B_i away from light corner L_j by ``|B_i - L_j|``; that
+    truncation can miss receivers farther away. Here the part of the triangle on one side of the
+    light (0 <= height <= H, H the farthest receiver on that side) is extended from each corner L_j
+    up to height H: ``F_ij = L_j + (B_i - L_j) H / h_i``. The shadow volume restricted to heights
+    <= H lies in conv{B_i, F_ij} (F is affine in L and projective in B), so the AABB of their
+    orthographic projections never misses a receiver. Parts touching the light's plane (h -> 0)
+    reach infinitely far and get the whole grid. ``boxes[f*2+side] = (x0, y0, x1, y1)``; x0 = -1: none.
+    ``near_height[f*2+side]`` is the clipped triangle's smallest height above the light: it cannot
+    block a receiver at that height or lower (the grid is 2-D; this restores the third dimension).
+    """
+    f, side = wp.tid()
+    row = f * 2 + side
+    boxes[row, 0] = -1
+    H = side_height[side]
+    if H <= 0.0:
+        return
+    sgn = wp.where(side == 0, 1.0, -1.0)
+    nrm = light_normal * sgn
+    poly = mat63()
+    tmp = mat63()
+    poly[0] = points[faces[f, 0]]
+    poly[1] = points[faces[f, 1]]
+    poly[2] = points[faces[f, 2]]
+    tmp, m = clip_polygon(poly, 3, nrm, 0.0, c)
+    if m == 0:
+        return
+    poly, m = clip_polygon(tmp, m, -nrm, -H, c)
+    if m == 0:
+        return
+    inf = float(1.0e30)
+    xmin = inf
+    ymin = inf
+    xmax = -inf
+    ymax = -inf
+    hmin = inf
+    whole = bool(False)
+    for i in range(m):
+        b = poly[i]
+        hb = wp.dot(b - c, nrm)
+        hmin = wp.min(hmin, hb)
+        px = wp.dot(b - c, e1)
+        py = wp.dot(b - c, e2)
+        xmin = wp.min(xmin, px)
+        xmax = wp.max(xmax, px)
+        ymin = wp.min(ymin, py)
+        ymax = wp.max(ymax, py)
+        if hb <= 1.0e-6 * H:
+            whole = True
+        else:
+            for j in range(4):
+                sj = wp.where(j % 2 == 0, -1.0, 1.0)
+                tj = wp.where(j < 2, -1.0, 1.0)
+                lj = light_point(c, u, v, sj, tj)
+                fp = lj + (b - lj) * (H / hb)
+                qx = wp.dot(fp - c, e1)
+                qy = wp.dot(fp - c, e2)
+                xmin = wp.min(xmin, qx)
+                xmax = wp.max(xmax, qx)
+                ymin = wp.min(ymin, qy)
+                ymax = wp.max(ymax, qy)
+    g = float(grid_res)
+    near_height[row] = hmin
+    if whole:
+        boxes[row, 0] = 0
+        boxes[row, 1] = 0
+        boxes[row, 2] = grid_res - 1
+        boxes[row, 3] = grid_res - 1
+        return
+    x0 = wp.clamp((xmin - grid_lo[side, 0]) / grid_cell[side], -1.0, g + 1.0)
+    x1 = wp.clamp((xmax - grid_lo[side, 0]) / grid_cell[side], -1.0, g + 1.0)
+    y0 = wp.clamp((ymin - grid_lo[side, 1]) / grid_cell[side], -1.0, g + 1.0)
+    y1 = wp.clamp((ymax - grid_lo[side, 1]) / grid_cell[side], -1.0, g + 1.0)
+    # receivers are binned with floor() and clamped into the grid, so clamp the box the same way
+    ix0 = wp.clamp(int(wp.floor(x0)), 0, grid_res - 1)
+    ix1 = wp.clamp(int(wp.floor(x1)), 0, grid_res - 1)
+    iy0 = wp.clamp(int(wp.floor(y0)), 0, grid_res - 1)
+    iy1 = wp.clamp(int(wp.floor(y1)), 0, grid_res - 1)
+    boxes[row, 0] = ix0
+    boxes[row, 1] = iy0
+    boxes[row, 2] = ix1
+    boxes[row, 3] = iy1
+
+
+@wp.kernel
+def count_cell_triangles(boxes: wp.array2d[int], grid_res: int, cell_count: wp.array[int]):
+    """Number of triangles assigned to each grid cell."""
+    row = wp.tid()
+    if boxes[row, 0] < 0:
+        return
+    side = row % 2
+    for y in range(boxes[row, 1], boxes[row, 3] + 1):
+        for x in range(boxes[row, 0], boxes[row, 2] + 1):
+            wp.atomic_add(cell_count, (side * grid_res + y) * grid_res + x, 1)
+
+
+@wp.kernel
+def fill_cell_triangles(
+    boxes: wp.array2d[int],
+    grid_res: int,
+    near_height: wp.array[float],
+    cell_start: wp.array[int],
+    cell_fill: wp.array[int],
+    cell_tris: wp.array[int],
+    cell_keys: wp.array[float],
+):
+    """Scatter triangle ids (and their near heights, the sort key) into the per-cell lists."""
+    row = wp.tid()
+    if boxes[row, 0] < 0:
+        return
+    side = row % 2
+    f = row / 2
+    for y in range(boxes[row, 1], boxes[row, 3] + 1):
+        for x in range(boxes[row, 0], boxes[row, 2] + 1):
+            cell = (side * grid_res + y) * grid_res + x
+            slot = wp.atomic_add(cell_fill, cell, 1)
+            cell_tris[cell_start[cell] + slot] = f
+            cell_keys[cell_start[cell] + slot] = near_height[row]
+
+
+@wp.kernel
+def add_counts(count: wp.array[int], end: wp.array[int]):
+    """``end += count`` (segment ends from starts)."""
+    i = wp.tid()
+    end[i] = end[i] + count[i]
+
+
+# -- GEARS visibility masks (the paper's step 4) ---------------------------------------------------
+@wp.kernel
+def rasterize_light_masks(
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    faces: wp.array2d[wp.int32],
+    offset: float,
+    c: wp.vec3,
+    u: wp.vec3,
+    v: wp.vec3,
+    du: wp.vec3,
+    dv: wp.vec3,
+    light_normal: wp.vec3,
+    k: int,
+    cell_of: wp.array[int],
+    cell_start: wp.array[int],
+    cell_count: wp.array[int],
+    cell_tris: wp.array[int],
+    cell_keys: wp.array[float],
+    masks: wp.array2d[wp.uint32],
+    visibility: wp.array[float],
+    form_factor: wp.array[float],
+    tri_count: wp.array[int],
+):
+    """Per receiver: rasterize its blocker triangles, seen from it, onto the light's k×k mask.
+
+    Each triangle is clipped to the part strictly between receiver P and the light's plane
+    (``0 < h < 1`` with ``h(X) = n_L·(X-P) / n_L·(c-P)``), projected centrally from P onto the light
+    plane (``X' = P + (X-P)/h``), expressed in light coordinates through the dual axes ``du, dv``
+    (``s = du·(X'-c)``, computed homogeneously as ``(s h, t h, h)``, which is linear in X and is
+    clipped to 1.5× the light when the projection would reach far past it), and scan-converted row
+    by row into bit spans. ``cell_of[r] = -2`` means
+    "all triangles" (brute force: ``cell_start[0] = 0``, ``cell_count[0] = F``). Each cell's list is
+    sorted by the triangles' near height above the light: triangles no closer to the light than the
+    receiver are skipped by a binary search (the near clip would reject them), and the rest are
+    walked from the receiver toward the light.
+    """
+    r = wp.tid()
+    n = normals[r]
+    p = points[r] + n * offset
+    for j in range(k):
+        masks[r, j] = wp.uint32(0)
+    denom = wp.dot(c - p, light_normal)
+    cell = cell_of[r]
+    tested = int(0)
+    if denom != 0.0 and cell != -1:
+        if cell == -2:
+            cell = 0
+        start = cell_start[cell]
+        count = cell_count[cell]
+        nrm = light_normal / denom  # h(X) = dot(X - p, nrm)
+        s0 = wp.dot(p - c, du)
+        t0 = wp.dot(p - c, dv)
+        full = wp.uint32(0)
+        full = ~full >> wp.uint32(32 - k)
+        poly = mat63()
+        tmp = mat63()
+        height = wp.abs(denom)
+        # triangles with near height > receiver height cannot block (sorted: binary search the cut)
+        lo = int(0)
+        hi = count
+        while lo < hi:
+            mid = (lo + hi) / 2
+            if cell_keys[start + mid] > height:
+                hi = mid
+            else:
+                lo = mid + 1
+        # walk from the receiver toward the light: near triangles subtend more of the light, so
+        # fully shadowed receivers fill their mask and stop early
+        for e in range(lo):
+            f = cell_tris[start + lo - 1 - e]
+            a0 = points[faces[f, 0]]
+            a1 = points[faces[f, 1]]
+            a2 = points[faces[f, 2]]
+            tested += 1
+            # keep 1e-6 <= h <= 1: in front of the receiver, not beyond the light. The near plane
+            # keeps the projection finite; the receiver offset keeps its own triangles behind it.
+            h0 = wp.dot(a0 - p, nrm)
+            h1 = wp.dot(a1 - p, nrm)
+            h2 = wp.dot(a2 - p, nrm)
+            if wp.max(h0, wp.max(h1, h2)) < 1.0e-6 or wp.min(h0, wp.min(h1, h2)) > 1.0:
+                continue  # entirely behind the receiver or beyond the light (most triangles)
+            poly[0] = a0
+            poly[1] = a1
+            poly[2] = a2
+            m = int(3)
+            if wp.min(h0, wp.min(h1, h2)) < 1.0e-6 or wp.max(h0, wp.max(h1, h2)) > 1.0:
+                tmp, m = clip_polygon(poly, 3, nrm, 1.0e-6, p)
+                if m == 0:
+                    continue
+                poly, m = clip_polygon(tmp, m, -nrm, -1.0, p)
+                if m < 3:
+                    continue
+            # Homogeneous light coordinates (S, T, H) = (s h, t h, h), linear in X: the central
+            # projection X' = P + (X - P)/h has s = s0 + du·(X - P)/h with s0 = du·(P - c).
+            # all tests in homogeneous form (H >= 0 after the near clip, possibly rounded to 0)
+            out_lo_s = bool(True)
+            out_hi_s = bool(True)
+            out_lo_t = bool(True)
+            out_hi_t = bool(True)
+            big = bool(False)
+            for i in range(m):
+                x = poly[i]
+                hx = wp.dot(x - p, nrm)
+                hom = wp.vec3(hx * s0 + wp.dot(x - p, du), hx * t0 + wp.dot(x - p, dv), hx)
+                poly[i] = hom
+                out_lo_s = out_lo_s and hom[0] < -hx
+                out_hi_s = out_hi_s and hom[0] > hx
+                out_lo_t = out_lo_t and hom[1] < -hx
+                out_hi_t = out_hi_t and hom[1] > hx
+                if not (wp.abs(hom[0]) <= 4.0 * hx and wp.abs(hom[1]) <= 4.0 * hx):
+                    big = True
+            if out_lo_s or out_hi_s or out_lo_t or out_hi_t:
+                continue  # projection misses the light
+            if big:
+                # The projection reaches far past the light (a blocker close to the receiver, or a
+                # light seen almost edge-on), where float32 spans on huge coordinates lose samples.
+                # Clip in homogeneous coordinates to |s|, |t| <= 1.5 H (GPU-style clipping, well
+                # conditioned where 3-D planes through the receiver would be nearly parallel).
+                zero = wp.vec3(0.0, 0.0, 0.0)
+                for j in range(4):
+                    plane = wp.vec3(wp.where(j == 0, -1.0, wp.where(j == 1, 1.0, 0.0)),
+                                    wp.where(j == 2, -1.0, wp.where(j == 3, 1.0, 0.0)), 1.5)
+                    tmp, m = clip_polygon(poly, m, plane, 0.0, zero)
+                    poly = tmp
+                    if m == 0:
+                        break
+                if m < 3:
+                    continue
+            tmin = float(1.0e30)
+            tmax = float(-1.0e30)
+            for i in range(m):
+                hom = poly[i]
+                hh = wp.max(hom[2], 1.0e-30)
+                tmp[i] = wp.vec3(hom[0] / hh, hom[1] / hh, 0.0)
+                tmin = wp.min(tmin, tmp[i][1])
+                tmax = wp.max(tmax, tmp[i][1])
+            rows = sample_index_range(tmin, tmax, k)
+            for j in range(rows[0], rows[1] + 1):
+                t = -1.0 + (2.0 * float(j) + 1.0) / float(k)
+                smin = float(1.0e30)
+                smax = float(-1.0e30)
+                for i in range(m):
+                    a = tmp[i]
+                    b = tmp[(i + 1) % m]
+                    # half-open crossing rule: an edge counts for rows in [min t, max t)
+                    if (a[1] <= t and t < b[1]) or (b[1] <= t and t < a[1]):
+                        sx = a[0] + (t - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
+                        smin = wp.min(smin, sx)
+                        smax = wp.max(smax, sx)
+                if smin <= smax:
+                    cols = sample_index_range(smin, smax, k)
+                    if cols[0] <= cols[1]:
+                        masks[r, j] = masks[r, j] | bit_span(cols[0], cols[1])
+            # fully blocked: no later triangle can change the mask
+            if e % 4 == 3:
+                done = bool(True)
+                for j in range(k):
+                    if masks[r, j] != full:
+                        done = False
+                if done:
+                    break
+    tri_count[r] = tested
+    dA = 4.0 * wp.length(wp.cross(u, v)) / float(k * k)
+    res = summarize_mask(masks, r, k, points[r], n, c, u, v, light_normal, dA)
+    visibility[r] = res[0]
+    form_factor[r] = res[1]
+
+
+# -- ray-traced reference --------------------------------------------------------------------------
+@wp.kernel
+def trace_light_masks(
+    mesh: wp.uint64,
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    offset: float,
+    c: wp.vec3,
+    u: wp.vec3,
+    v: wp.vec3,
+    light_normal: wp.vec3,
+    k: int,
+    jitter: int,
+    seed: int,
+    masks: wp.array2d[wp.uint32],
+    visibility: wp.array[float],
+    form_factor: wp.array[float],
+):
+    """k×k stratified shadow rays from each receiver to the light (``wp.mesh_query_ray``).
+
+    One ray per light cell, at the cell centre (``jitter = 0``, the same samples as the GEARS mask)
+    or at a uniformly jittered point in the cell. Bits mark blocked rays like GEARS masks.
+    """
+    r = wp.tid()
+    n = normals[r]
+    p = points[r] + n * offset
+    rng = wp.rand_init(seed, r)
+    dA = 4.0 * wp.length(wp.cross(u, v)) / float(k * k)
+    blocked = int(0)
+    ff = float(0.0)
+    for j in range(k):
+        row = wp.uint32(0)
+        for i in range(k):
+            ju = float(0.5)
+            jv = float(0.5)
+            if jitter != 0:
+                ju = wp.randf(rng)
+                jv = wp.randf(rng)
+            s = -1.0 + 2.0 * (float(i) + ju) / float(k)
+            t = -1.0 + 2.0 * (float(j) + jv) / float(k)
+            q = light_point(c, u, v, s, t)
+            d = q - p
+            dist = wp.length(d)
+            hit = bool(False)
+            if dist > 0.0:
+                # stop just short of the light so geometry lying in the light's plane does not count
+                hit = wp.mesh_query_ray(mesh, p, d / dist, dist * (1.0 - 1.0e-6)).result
+            if hit:
+                row = row | (wp.uint32(1) << wp.uint32(i))
+                blocked += 1
+            else:
+                ff += light_sample_weight(points[r], n, q, light_normal) * dA
+        masks[r, j] = row
+    visibility[r] = 1.0 - float(blocked) / float(k * k)
+    form_factor[r] = ff

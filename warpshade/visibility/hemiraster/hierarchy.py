@@ -1,0 +1,236 @@
+"""Static blocker structures of hemispherical rasterization (Kautz et al. 2004 §3.2), built once on the host.
+
+* **k-ring lists**: per receiver vertex, the full-resolution triangles touching a vertex at most ``k``
+  edges away, minus the triangles incident to the receiver (they contain it, so they subtend no
+  solid angle, and rasterizing them would only add quantisation noise).
+* **Coarse mesh** by quadric decimation (``fast_simplification``). Each coarse vertex is bound to
+  its closest fine triangle (barycentrics + offset along that triangle's normal), so it follows the
+  deforming fine mesh every frame with no re-decimation.
+* **Near-field exclusion**: per receiver, the coarse triangles closer (rest pose) than the receiver's
+  k-ring radius, stored as a bitset. The k-ring represents that region at full resolution; a
+  coarse triangle there would cut through the fine surface and shadow the receiver falsely.
+* **Clusters**: blocker triangles sorted along a Morton curve of their rest centroids and cut into
+  clusters of ``G`` triangles, clusters grouped into super-clusters; bounding boxes are refitted
+  per frame and tested against the tangent plane (two-level hierarchical culling).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def vertex_faces(faces: np.ndarray, num_vertices: int) -> list[np.ndarray]:
+    """Triangles incident to each vertex."""
+    order = np.argsort(faces.ravel(), kind="stable")
+    owner = faces.ravel()[order]
+    starts = np.searchsorted(owner, np.arange(num_vertices + 1))
+    tri = order // 3
+    return [tri[starts[v]:starts[v + 1]] for v in range(num_vertices)]
+
+
+def ring_triangles(faces: np.ndarray, num_vertices: int, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-vertex k-ring blocker triangles (CSR) and k-ring vertex sets.
+
+    Args:
+        faces: Triangles, shape (F, 3).
+        num_vertices: V.
+        k: Ring depth (>= 1): triangles touching a vertex within ``k`` edges of the receiver.
+
+    Returns:
+        ``(offsets, tris, ring_vertices)``: offsets shape (V+1,) int32, tris int32 (incident triangles
+        excluded), ring_vertices a list of int arrays (the k-ring vertices, receiver included).
+    """
+    vf = vertex_faces(faces, num_vertices)
+    nbrs = [np.unique(faces[f].ravel()) if len(f) else np.zeros(0, np.int64) for f in vf]
+    offsets = [0]
+    out, rings = [], []
+    for v in range(num_vertices):
+        ring = {v}
+        frontier = {v}
+        for _ in range(k):
+            nxt = set()
+            for u in frontier:
+                nxt.update(nbrs[u].tolist())
+            frontier = nxt - ring
+            ring |= nxt
+        ringv = np.fromiter(ring, dtype=np.int64)
+        tris = np.unique(np.concatenate([vf[u] for u in ringv]))
+        tris = tris[(faces[tris] != v).all(axis=1)]
+        out.append(tris)
+        rings.append(ringv)
+        offsets.append(offsets[-1] + len(tris))
+    tri_arr = np.concatenate(out).astype(np.int32) if out else np.zeros(0, np.int32)
+    return np.array(offsets, dtype=np.int32), tri_arr, rings
+
+
+def closest_points_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closest point on triangles (a, b, c) to points p (Ericson, Real-Time Collision Detection §5.1.5).
+
+    All arrays broadcast to (..., 3). Returns ``(point, barycentric)`` with shapes (..., 3) and (..., 3).
+    Degenerate triangles fall back to their closest corner.
+    """
+    p, a, b, c = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (p, a, b, c)))
+    ab, ac, ap = b - a, c - a, p - a
+    d1 = np.einsum("...i,...i", ab, ap)
+    d2 = np.einsum("...i,...i", ac, ap)
+    bp = p - b
+    d3 = np.einsum("...i,...i", ab, bp)
+    d4 = np.einsum("...i,...i", ac, bp)
+    cp = p - c
+    d5 = np.einsum("...i,...i", ab, cp)
+    d6 = np.einsum("...i,...i", ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    denom = va + vb + vc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = np.where(denom != 0, vb / denom, 0.0)
+        w = np.where(denom != 0, vc / denom, 0.0)
+        bary = np.stack([1 - v - w, v, w], axis=-1)
+        # region tests in Ericson's order, last assignment wins for the earliest region
+        t_ab = np.where(d1 - d3 != 0, d1 / (d1 - d3), 0.0)
+        t_ac = np.where(d2 - d6 != 0, d2 / (d2 - d6), 0.0)
+        t_bc = np.where((d4 - d3) + (d5 - d6) != 0, (d4 - d3) / ((d4 - d3) + (d5 - d6)), 0.0)
+    z = np.zeros_like(d1)
+    o = np.ones_like(d1)
+    cases = [
+        ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), np.stack([z, 1 - t_bc, t_bc], -1)),
+        ((vb <= 0) & (d2 >= 0) & (d6 <= 0), np.stack([1 - t_ac, z, t_ac], -1)),
+        ((d6 >= 0) & (d5 <= d6), np.stack([z, z, o], -1)),
+        ((vc <= 0) & (d1 >= 0) & (d3 <= 0), np.stack([1 - t_ab, t_ab, z], -1)),
+        ((d3 >= 0) & (d4 <= d3), np.stack([z, o, z], -1)),
+        ((d1 <= 0) & (d2 <= 0), np.stack([o, z, z], -1)),
+    ]
+    for cond, val in cases:
+        bary = np.where(cond[..., None], val, bary)
+    bary = np.where(np.isfinite(bary).all(axis=-1, keepdims=True), bary, np.array([1.0, 0.0, 0.0]))
+    point = bary[..., :1] * a + bary[..., 1:2] * b + bary[..., 2:] * c
+    return point, bary
+
+
+def decimate(points: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
+    """Quadric decimation to about ``target`` triangles (``fast_simplification``); degenerate faces dropped."""
+    import fast_simplification
+
+    points = np.asarray(points, dtype=np.float64)
+    if target >= len(faces):
+        return points, faces.astype(np.int64)
+    # fast_simplification's collapse thresholds are absolute: decimate a copy normalised to a unit
+    # bounding-box diagonal so the coarse mesh does not depend on the mesh's scale or position
+    lo = points.min(axis=0)
+    scale = float(np.linalg.norm(points.max(axis=0) - lo)) or 1.0
+    # (snapped to a 2^-20 grid: float32 inputs at different scales differ in the last bits, and the
+    # greedy collapse order would amplify that into a different coarse mesh)
+    unit = np.round((points - lo) / scale * 2.0**20) / 2.0**20
+    pts, tris = fast_simplification.simplify(unit, faces.astype(np.int32), target_count=int(target))
+    pts = np.asarray(pts) * scale + lo
+    tris = tris[(tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2]) & (tris[:, 0] != tris[:, 2])]
+    return np.asarray(pts, dtype=np.float64), np.asarray(tris, dtype=np.int64)
+
+
+def bind_to_surface(query: np.ndarray, points: np.ndarray, faces: np.ndarray, neighbours: int = 16):
+    """Bind query points to their closest triangle of (points, faces).
+
+    Candidates are the triangles incident to the ``neighbours`` nearest vertices (a KD-tree), which
+    contain the closest triangle on any mesh whose triangles are not far larger than their
+    neighbours'.
+
+    Returns:
+        ``(face, bary, offset)``: face (Q,) int32, bary (Q, 3) float32, offset (Q,) float32: signed
+        distance along that triangle's unit normal, so
+        ``q = Σ bary_k p[f_k] + offset · n̂_f`` reproduces the query point at rest.
+    """
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, dtype=np.float64)
+    query = np.asarray(query, dtype=np.float64)
+    a, b, c = (points[faces[:, k]] for k in range(3))
+    fn = np.cross(b - a, c - a)
+    ln = np.linalg.norm(fn, axis=1, keepdims=True)
+    fn = np.where(ln > 0, fn / np.where(ln > 0, ln, 1.0), 0.0)
+    vf = vertex_faces(faces, len(points))
+    _, near = cKDTree(points).query(query, k=min(neighbours, len(points)))
+    near = np.atleast_2d(near)
+    face = np.zeros(len(query), np.int32)
+    bary = np.zeros((len(query), 3))
+    off = np.zeros(len(query))
+    for i, q in enumerate(query):
+        cand = np.unique(np.concatenate([vf[v] for v in near[i]]))
+        cp, bc = closest_points_on_triangles(q[None], a[cand], b[cand], c[cand])
+        best = int(np.argmin(((cp - q) ** 2).sum(-1)))
+        face[i] = cand[best]
+        bary[i] = bc[best]
+        off[i] = np.dot(q - cp[best], fn[cand[best]])
+    return face, bary.astype(np.float32), off.astype(np.float32)
+
+
+def near_exclusion(points: np.ndarray, rings: list[np.ndarray], cpoints: np.ndarray, cfaces: np.ndarray,
+                   scale: float = 1.0, chunk: int = 128) -> np.ndarray:
+    """Per receiver, the coarse triangles nearer than ``scale ×`` its k-ring radius (rest pose), as bits.
+
+    Returns:
+        shape (V, ceil(Fc/32)) uint32; bit t of row v set = skip coarse triangle t for receiver v.
+    """
+    nv = len(points)
+    radius = np.array([np.linalg.norm(points[r] - points[v], axis=1).max() for v, r in enumerate(rings)]) * scale
+    a, b, c = (cpoints[cfaces[:, k]] for k in range(3))
+    nw = (len(cfaces) + 31) // 32
+    bits = np.zeros((nv, nw * 32), dtype=bool)
+    for s in range(0, nv, chunk):
+        q = points[s:s + chunk, None, :].astype(np.float64)
+        cp, _ = closest_points_on_triangles(q, a[None], b[None], c[None])
+        d = np.linalg.norm(cp - q, axis=-1)
+        bits[s:s + chunk, :len(cfaces)] = d < radius[s:s + chunk, None]
+    words = bits.reshape(nv, nw, 32).astype(np.uint64) << np.arange(32, dtype=np.uint64)
+    return words.sum(axis=-1, dtype=np.uint64).astype(np.uint32)
+
+
+def morton_order(centroids: np.ndarray) -> np.ndarray:
+    """Permutation sorting points along a 3D Morton curve (10 bits per axis) of their bounding box."""
+    lo, hi = centroids.min(axis=0), centroids.max(axis=0)
+    q = ((centroids - lo) / np.where(hi > lo, hi - lo, 1.0) * 1023).astype(np.int64)
+    code = np.zeros(len(centroids), dtype=np.int64)
+    for bit in range(10):
+        for ax in range(3):
+            code |= ((q[:, ax] >> bit) & 1) << (3 * bit + ax)
+    return np.argsort(code, kind="stable")
+
+
+def build_clusters(points: np.ndarray, faces: np.ndarray, size: int, super_size: int):
+    """Reorder blocker triangles into clusters of ``size`` and super-clusters of ``super_size`` clusters.
+
+    Returns:
+        ``(perm, cluster_start, super_start)``: perm (F,) the new triangle order (faces[perm]);
+        cluster_start (C+1,) int32 offsets into the reordered triangles; super_start (S+1,) int32
+        offsets into the clusters.
+    """
+    cent = points[faces].mean(axis=1)
+    perm = morton_order(cent)
+    nf = len(faces)
+    cluster_start = np.arange(0, nf + size, size, dtype=np.int64)
+    cluster_start[-1] = nf
+    cluster_start = np.unique(cluster_start)
+    nc = len(cluster_start) - 1
+    super_start = np.arange(0, nc + super_size, super_size, dtype=np.int64)
+    super_start[-1] = nc
+    super_start = np.unique(super_start)
+    return perm, cluster_start.astype(np.int32), super_start.astype(np.int32)
+
+
+def closed_orientation(points: np.ndarray, faces: np.ndarray) -> int:
+    """+1 for a closed mesh with outward-facing triangles, -1 for inward, 0 if not closed or not consistent.
+
+    Closed and consistent: every directed edge appears once and its reverse once.
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    if (e[:, 0] == e[:, 1]).any():
+        return 0
+    key = e[:, 0] * (int(e.max()) + 1) + e[:, 1]
+    rkey = e[:, 1] * (int(e.max()) + 1) + e[:, 0]
+    if len(np.unique(key)) != len(key) or not np.isin(rkey, key).all():
+        return 0
+    p = np.asarray(points, dtype=np.float64)
+    p = p - p.mean(axis=0)
+    vol = np.einsum("ij,ij->i", p[f[:, 0]], np.cross(p[f[:, 1]], p[f[:, 2]])).sum()
+    return 0 if vol == 0 else (1 if vol > 0 else -1)

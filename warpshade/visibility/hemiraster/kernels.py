@@ -1,0 +1,434 @@
+"""Kernels of hemispherical rasterization (Kautz et al. 2004); orchestration lives in :mod:`.method`.
+
+Per frame: :func:`follow_coarse_points` (coarse vertices ride the fine mesh), :func:`refit_clusters`
+and :func:`refit_super_clusters` (bounding boxes), then one :func:`rasterize_transfer` launch that,
+per receiver vertex, rasterizes blockers into a bit mask and integrates it into SH transfer.
+Mask layout, LUT convention and block tables: :mod:`.tables`.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from ...sh.kernels import sh_accumulate
+from ..reference_kernels import orthonormal_basis
+
+
+@wp.struct
+class PlaneLut:
+    """The plane LUT and how triangles use it (see :mod:`.tables`)."""
+
+    rows: wp.array2d[wp.uint64]
+    """Mask words above each quantised plane, shape (6R², W), dtype uint64."""
+    occupancy: wp.array[wp.uint64]
+    """Bitmap of the non-zero words of each row, shape (6R²,), dtype uint64."""
+    debruijn: wp.array[wp.int32]
+    """Bit index lookup of the de Bruijn bit scan, shape (64,), dtype int32."""
+    res: int
+    """Cube-map resolution R."""
+    words: int
+    """Words per mask W."""
+    backface: float
+    """Skip triangles with ``det * backface > 0`` (0: keep both sides)."""
+
+
+@wp.func
+def popcount64(x: wp.uint64) -> int:
+    """Number of set bits (SWAR; Warp has no popcount intrinsic)."""
+    x = x - ((x >> wp.uint64(1)) & wp.uint64(0x5555555555555555))
+    x = (x & wp.uint64(0x3333333333333333)) + ((x >> wp.uint64(2)) & wp.uint64(0x3333333333333333))
+    x = (x + (x >> wp.uint64(4))) & wp.uint64(0x0F0F0F0F0F0F0F0F)
+    return int((x * wp.uint64(0x0101010101010101)) >> wp.uint64(56))
+
+
+@wp.func
+def cube_cell(n: wp.vec3, res: int) -> int:
+    """LUT row of a plane normal (cube-map cell; convention in :mod:`.tables`, mirrored by ``cube_cell_np``).
+
+    Branch-free selects: the major axis changes from edge to edge, so branches would mispredict.
+    """
+    ax = wp.abs(n[0])
+    ay = wp.abs(n[1])
+    az = wp.abs(n[2])
+    use_x = ax >= ay and ax >= az
+    use_y = (not use_x) and ay >= az
+    major = wp.where(use_x, n[0], wp.where(use_y, n[1], n[2]))
+    u = wp.where(use_x, n[1], wp.where(use_y, n[2], n[0]))
+    v = wp.where(use_x, n[2], wp.where(use_y, n[0], n[1]))
+    neg = major < 0.0
+    # index the positive face and mirror for the negative one, so that cell(-n) is exactly the
+    # mirror of cell(n) (also when u or v is exactly 0): the two triangles sharing an edge then get
+    # complementary masks along it (no crack, no overlap)
+    u = wp.where(neg, -u, u)
+    v = wp.where(neg, -v, v)
+    face = wp.where(use_x, 0, wp.where(use_y, 2, 4)) + wp.where(neg, 1, 0)
+    half = 0.5 * float(res)
+    inv = half / wp.abs(major)
+    iu = wp.clamp(int(u * inv + half), 0, res - 1)
+    iv = wp.clamp(int(v * inv + half), 0, res - 1)
+    iu = wp.where(neg, res - 1 - iu, iu)
+    iv = wp.where(neg, res - 1 - iv, iv)
+    return (face * res + iu) * res + iv
+
+
+@wp.func
+def edge_plane(a: wp.vec3, b: wp.vec3, ia: int, ib: int) -> wp.vec3:
+    """``a × b``, always computed from the lower-indexed corner so the shared edge of two triangles
+    gives exactly opposite normals (a fused multiply-add would otherwise break ``b × a = -(a × b)``).
+    Branch-free: which corner comes first is unpredictable."""
+    swap = ib < ia
+    lo = wp.where(swap, b, a)
+    hi = wp.where(swap, a, b)
+    return wp.where(swap, -1.0, 1.0) * wp.cross(lo, hi)
+
+
+@wp.func
+def rasterize_triangle(
+    a: wp.vec3,
+    b: wp.vec3,
+    c: wp.vec3,
+    ia: int,
+    ib: int,
+    ic: int,
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    row: int,
+) -> int:
+    """OR the spherical image of triangle (a, b, c) (positions relative to the receiver) into ``mask[row]``.
+
+    Paper §3.1.1: each edge and the receiver span a plane; a pixel is inside the image when it is
+    above all three planes, so the image is the AND of three LUT masks, and occluders fuse by OR
+    (no depth, any order). Planes are oriented by the sign of ``det[a b c]`` so both windings block.
+
+    Returns:
+        0 when culled (wholly at or below the horizon, or degenerate / edge-on: zero solid angle),
+        1 when rasterized with an empty image, 2 when it set at least one bit.
+    """
+    # horizon cull first (3 dots): a triangle wholly at or below the tangent plane has no image,
+    # and quantised planes would otherwise leak bits at the disk rim
+    nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
+    if wp.dot(nz, a) <= 0.0 and wp.dot(nz, b) <= 0.0 and wp.dot(nz, c) <= 0.0:
+        return 0
+    ft = wp.transpose(frame)
+    la = ft * a
+    lb = ft * b
+    lc = ft * c
+    nab = edge_plane(la, lb, ia, ib)
+    nbc = edge_plane(lb, lc, ib, ic)
+    nca = edge_plane(lc, la, ic, ia)
+    det = wp.dot(la, nbc)
+    # det = -(face normal)·(receiver - a): on a closed mesh every blocked direction leaves the solid
+    # through a triangle facing away from the receiver, so the others add no bits (``backface`` = ±1
+    # skips the side facing the receiver for the mesh's orientation; 0 keeps both)
+    if det == 0.0 or det * lut.backface > 0.0:
+        return 0
+    # orient the planes so the triangle's image is above all three (either winding blocks)
+    orient = wp.where(det < 0.0, -1.0, 1.0)
+    nab = orient * nab
+    nbc = orient * nbc
+    nca = orient * nca
+    i0 = cube_cell(nab, lut.res)
+    i1 = cube_cell(nbc, lut.res)
+    i2 = cube_cell(nca, lut.res)
+    # occupancy bitmaps (which words of each row are non-zero) live apart from the rows: they stay in
+    # cache, and only words all three edge masks share are fetched (set bits visited in order with
+    # a de Bruijn bit scan, no branch per word)
+    occ = lut.occupancy[i0] & lut.occupancy[i1] & lut.occupancy[i2]
+    hit = wp.uint64(0)
+    while occ != wp.uint64(0):
+        low = occ & (~occ + wp.uint64(1))
+        w = lut.debruijn[int((low * wp.uint64(0x03F79D71B4CB0A89)) >> wp.uint64(58))]
+        occ = occ ^ low
+        m = lut.rows[i0, w] & lut.rows[i1, w] & lut.rows[i2, w]
+        hit = hit | m
+        mask[row, w] = mask[row, w] | m
+    if hit != wp.uint64(0):
+        return 2
+    return 1
+
+
+@wp.func
+def box_above_plane(lo: wp.vec3, hi: wp.vec3, n: wp.vec3, offset: float) -> bool:
+    """True when some corner of box [lo, hi] has ``n·x > offset`` (the box reaches above the tangent plane)."""
+    center = 0.5 * (lo + hi)
+    half = 0.5 * (hi - lo)
+    reach = wp.dot(n, center) + wp.abs(n[0]) * half[0] + wp.abs(n[1]) * half[1] + wp.abs(n[2]) * half[2]
+    return reach > offset
+
+
+@wp.kernel
+def follow_coarse_points(
+    points: wp.array[wp.vec3],
+    faces: wp.array2d[wp.int32],
+    bind_face: wp.array[wp.int32],
+    bind_bary: wp.array[wp.vec3],
+    bind_offset: wp.array[float],
+    coarse_points: wp.array[wp.vec3],
+):
+    """Coarse vertex = barycentric point of its bound fine triangle + offset along that triangle's unit normal."""
+    i = wp.tid()
+    f = bind_face[i]
+    a = points[faces[f, 0]]
+    b = points[faces[f, 1]]
+    c = points[faces[f, 2]]
+    w = bind_bary[i]
+    q = w[0] * a + w[1] * b + w[2] * c
+    n = wp.cross(b - a, c - a)
+    ln = wp.length(n)
+    if ln > 0.0:
+        q = q + n * (bind_offset[i] / ln)
+    coarse_points[i] = q
+
+
+@wp.kernel
+def refit_clusters(
+    points: wp.array[wp.vec3],
+    faces: wp.array2d[wp.int32],
+    cluster_start: wp.array[wp.int32],
+    lo: wp.array[wp.vec3],
+    hi: wp.array[wp.vec3],
+):
+    """Bounding box of each cluster's triangles (clusters are contiguous triangle ranges)."""
+    c = wp.tid()
+    bmin = wp.vec3(1.0e30, 1.0e30, 1.0e30)
+    bmax = wp.vec3(-1.0e30, -1.0e30, -1.0e30)
+    for t in range(cluster_start[c], cluster_start[c + 1]):
+        for k in range(3):
+            p = points[faces[t, k]]
+            bmin = wp.min(bmin, p)
+            bmax = wp.max(bmax, p)
+    lo[c] = bmin
+    hi[c] = bmax
+
+
+@wp.kernel
+def refit_super_clusters(
+    cluster_lo: wp.array[wp.vec3],
+    cluster_hi: wp.array[wp.vec3],
+    super_start: wp.array[wp.int32],
+    lo: wp.array[wp.vec3],
+    hi: wp.array[wp.vec3],
+):
+    """Bounding box of each super-cluster from its clusters' boxes."""
+    s = wp.tid()
+    bmin = wp.vec3(1.0e30, 1.0e30, 1.0e30)
+    bmax = wp.vec3(-1.0e30, -1.0e30, -1.0e30)
+    for c in range(super_start[s], super_start[s + 1]):
+        bmin = wp.min(bmin, cluster_lo[c])
+        bmax = wp.max(bmax, cluster_hi[c])
+    lo[s] = bmin
+    hi[s] = bmax
+
+
+@wp.func
+def excluded(excl: wp.array2d[wp.uint32], v: int, t: int) -> bool:
+    """Bit ``t`` of receiver ``v``'s exclusion set."""
+    return (excl[v, t >> 5] >> wp.uint32(t & 31)) & wp.uint32(1) != wp.uint32(0)
+
+
+@wp.func
+def rasterize_blocker(
+    t: int,
+    v: int,
+    p: wp.vec3,
+    bpoints: wp.array[wp.vec3],
+    bfaces: wp.array2d[wp.int32],
+    bsource: wp.array[wp.int32],
+    skip_incident: int,
+    use_excl: int,
+    excl: wp.array2d[wp.uint32],
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    record: int,
+    hits: wp.array2d[wp.uint32],
+) -> int:
+    """Rasterize blocker triangle ``t`` for receiver ``v`` after the incident / near-field skips; returns 0/1."""
+    i = bfaces[t, 0]
+    j = bfaces[t, 1]
+    k = bfaces[t, 2]
+    if skip_incident != 0:
+        if i == v or j == v or k == v:
+            return 0
+    src = bsource[t]
+    if use_excl != 0:
+        if excluded(excl, v, src):
+            return 0
+    r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, i, j, k, frame, lut, mask, v)
+    if record != 0 and r == 2:
+        hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
+    if r > 0:
+        return 1
+    return 0
+
+
+@wp.func
+def subtract_blocks(
+    nblk: int,
+    nn: int,
+    blk_index: wp.array2d[wp.int32],
+    blk_weight: wp.array2d[float],
+    block_weights: wp.array2d[float],
+    local: wp.array2d[float],
+    v: int,
+):
+    """``local[v, i] -= Σ_k blk_weight[v, k] · block_weights[blk_index[v, k], i]`` over the gathered blocks."""
+    for i in range(nn):
+        acc = float(0.0)
+        for k in range(nblk):
+            acc += blk_weight[v, k] * block_weights[blk_index[v, k], i]
+        local[v, i] = local[v, i] - acc
+
+
+@wp.kernel
+def rasterize_transfer(
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    faces: wp.array2d[wp.int32],
+    ring_start: wp.array[wp.int32],
+    ring_tris: wp.array[wp.int32],
+    bpoints: wp.array[wp.vec3],
+    bfaces: wp.array2d[wp.int32],
+    bsource: wp.array[wp.int32],
+    skip_incident: int,
+    use_excl: int,
+    excl: wp.array2d[wp.uint32],
+    use_cull: int,
+    cluster_start: wp.array[wp.int32],
+    cluster_lo: wp.array[wp.vec3],
+    cluster_hi: wp.array[wp.vec3],
+    super_start: wp.array[wp.int32],
+    super_lo: wp.array[wp.vec3],
+    super_hi: wp.array[wp.vec3],
+    use_pvs: int,
+    pvs_start: wp.array[wp.int32],
+    pvs_tris: wp.array[wp.int32],
+    lut: PlaneLut,
+    block_bits: int,
+    block_valid: wp.array[wp.int32],
+    block_weights: wp.array2d[float],
+    block_dirs: wp.array[wp.vec3],
+    unoccluded: wp.array[float],
+    glossy: int,
+    view: wp.vec3,
+    phong: float,
+    rot_dirs: wp.array[wp.vec3],
+    rot_pinv: wp.array2d[float],
+    order: int,
+    sh_norm: wp.array[float],
+    record: int,
+    mask: wp.array2d[wp.uint64],
+    local: wp.array2d[float],
+    blk_index: wp.array2d[wp.int32],
+    blk_weight: wp.array2d[float],
+    scaled_norm: wp.array2d[float],
+    hits: wp.array2d[wp.uint32],
+    counts: wp.array[wp.int32],
+    transfer: wp.array2d[float],
+):
+    """Per receiver vertex: rasterize its blockers, integrate the mask into SH, rotate to world (paper eq. 3).
+
+    Blockers: the receiver's full-resolution k-ring (``ring_*``) plus the blocker mesh (``b*``:
+    coarse mesh, or the fine mesh itself when the hierarchy is off), traversed through the
+    culled super-cluster / cluster hierarchy, linearly, or through the receiver's PVS list.
+
+    Integration: with ``f_b`` the blocked fraction of block b, diffuse transfer in the tangent frame
+    is ``Σ_b W_b - Σ_b f_b W_b`` (CONTRACTS.md §2 with ``dA = cos θ dω``); glossy (``glossy=1``)
+    weighs visible blocks by the normalised Phong lobe ``(e+2)/(2π) max(0, r·s_b)^e`` around the
+    mirrored view direction (eq. 3 with ``f_r`` Phong, constant over a block). The local vector is
+    rotated to world space band by band by sampling (:func:`.tables.rotation_directions`).
+    """
+    v = wp.tid()
+    p = points[v]
+    n = normals[v]
+    frame = orthonormal_basis(n)
+    nn = order * order
+    for w in range(lut.words):
+        mask[v, w] = wp.uint64(0)
+    count = int(0)
+    # near field at full resolution
+    for r in range(ring_start[v], ring_start[v + 1]):
+        t = ring_tris[r]
+        i = faces[t, 0]
+        j = faces[t, 1]
+        k = faces[t, 2]
+        count += wp.min(1, rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, mask, v))
+    # far field
+    offset = wp.dot(n, p)
+    if use_pvs != 0:
+        for r in range(pvs_start[v], pvs_start[v + 1]):
+            count += rasterize_blocker(pvs_tris[r], v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
+                                       frame, lut, mask, record, hits)
+    elif use_cull != 0:
+        for s in range(super_start.shape[0] - 1):
+            if box_above_plane(super_lo[s], super_hi[s], n, offset):
+                for c in range(super_start[s], super_start[s + 1]):
+                    if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
+                        for t in range(cluster_start[c], cluster_start[c + 1]):
+                            count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl,
+                                                       excl, frame, lut, mask, record, hits)
+    else:
+        for t in range(bfaces.shape[0]):
+            count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
+                                       frame, lut, mask, record, hits)
+    counts[v] = count
+
+    # integrate (tangent frame): unoccluded integral minus blocked fractions of blocks
+    lv = wp.transpose(frame) * view
+    refl = wp.vec3(-lv[0], -lv[1], lv[2])  # mirror of the view direction about the normal (+z)
+    lobe_norm = (phong + 2.0) / (2.0 * wp.pi)
+    if glossy == 0:
+        for i in range(nn):
+            local[v, i] = unoccluded[i]
+    else:
+        for i in range(nn):
+            local[v, i] = 0.0
+        for b in range(block_valid.shape[0]):
+            cosr = wp.dot(refl, block_dirs[b])
+            if cosr > 0.0:
+                lobe = lobe_norm * wp.pow(cosr, phong)
+                for i in range(nn):
+                    local[v, i] = local[v, i] + lobe * block_weights[b, i]
+    # blocked blocks are gathered first, then subtracted coefficient by coefficient with a register
+    # accumulator (a block-by-block update would load and store the whole SH row per block)
+    nblk = int(0)
+    per_word = 64 // block_bits
+    run = wp.uint64(0xFFFFFFFFFFFFFFFF)
+    if block_bits < 64:
+        run = (wp.uint64(1) << wp.uint64(block_bits)) - wp.uint64(1)
+    for w in range(lut.words):
+        x = mask[v, w]
+        if x != wp.uint64(0):
+            for j in range(per_word):
+                bits = (x >> wp.uint64(j * block_bits)) & run
+                if bits != wp.uint64(0):
+                    b = w * per_word + j
+                    wgt = float(popcount64(bits)) / float(block_valid[b])
+                    if glossy != 0:
+                        cosr = wp.dot(refl, block_dirs[b])
+                        if cosr > 0.0:
+                            wgt = wgt * lobe_norm * wp.pow(cosr, phong)
+                        else:
+                            wgt = 0.0
+                    blk_index[v, nblk] = b
+                    blk_weight[v, nblk] = wgt
+                    nblk += 1
+                    if nblk == blk_index.shape[1]:
+                        subtract_blocks(nblk, nn, blk_index, blk_weight, block_weights, local, v)
+                        nblk = 0
+    subtract_blocks(nblk, nn, blk_index, blk_weight, block_weights, local, v)
+
+    # rotate to world, band by band: g_l = Σ_k y_l(Q s_k) (Y_l(S)^+ c_l)_k. The per-band factor of
+    # direction k is folded into the normalisation constants handed to sh_accumulate (one SH
+    # evaluation per direction, accumulated straight into the output row).
+    for i in range(nn):
+        transfer[v, i] = 0.0
+    for k in range(rot_dirs.shape[0]):
+        for l in range(order):
+            acc = float(0.0)
+            for i in range(l * l, (l + 1) * (l + 1)):
+                acc += rot_pinv[k, i] * local[v, i]
+            for i in range(l * l, (l + 1) * (l + 1)):
+                scaled_norm[v, i] = sh_norm[i] * acc
+        sh_accumulate(frame * rot_dirs[k], 1.0, order, scaled_norm[v], transfer, v)

@@ -1,0 +1,305 @@
+"""Hemispherical rasterization (Kautz, Lehtinen, Aila 2004) as a :class:`TransferMethod`.
+
+Per vertex, blocker triangles are projected onto the hemisphere of the vertex's tangent frame and
+rasterized into a small bit mask on the unit disk (dropping z importance-samples the cosine, §3.1);
+each triangle's image is the AND of three plane masks from a cube-map LUT, occluders fuse by OR
+(§3.1.1). The mask is downsampled to coverage fractions and integrated against the SH basis into
+the diffuse transfer of CONTRACTS.md §2 (or the glossy Phong transfer of eq. 3 for a view
+direction). The optimizations of §3.2 (two-level hierarchy, hierarchical cluster culling, PVS) are
+each switchable. No precomputation depends on the pose: ``update(points)`` reuses all static tables.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import warp as wp
+
+from ...geometry.mesh import TriMesh
+from ...sh.kernels import normalization_array
+from ..base import TransferMethod
+from . import hierarchy, tables
+from .kernels import PlaneLut, follow_coarse_points, rasterize_transfer, refit_clusters, refit_super_clusters
+
+
+def _parse_vec3(text: str) -> tuple[float, float, float]:
+    parts = [float(x) for x in str(text).split(",")]
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(f"expected x,y,z, got '{text}'")
+    return tuple(parts)
+
+
+class HemirasterTransfer(TransferMethod):
+    """Per-vertex SH transfer by hemispherical rasterization.
+
+    Args:
+        mesh: Receiver and blocker mesh (self-shadowing); topology is fixed for the method's lifetime.
+        order: SH order N (default 5, the paper's "4th order").
+        device: Warp device.
+        mask: Visibility-mask resolution, 8, 16, 32 or 64 pixels across.
+        lut: Cube-map resolution R of the plane LUT (6·R·R entries).
+        downsample: Block size D (1, 2, 4, 8) for coverage integration.
+        ring: k of the full-resolution k-ring used near each vertex when the hierarchy is on.
+        coarse: Target triangle count of the coarse (far-field) mesh; 0, or a count >= the mesh's,
+            turns the hierarchy off and rasterizes the full mesh.
+        cull: Hierarchical culling of triangle clusters against the tangent plane (else a linear
+            per-triangle horizon test).
+        cluster: Triangles per cluster (16 clusters form a super-cluster).
+        exclude: Near-field exclusion radius of coarse triangles, in units of the k-ring radius.
+        backface: Rasterize only triangles facing away from the receiver when the mesh (and the
+            coarse mesh) is closed and consistently oriented: every blocked ray leaves the solid
+            through one of them, so the mask is the same with about half the triangles.
+        mode: ``"diffuse"`` (CONTRACTS.md §2) or ``"glossy"`` (eq. 3 with a normalised Phong lobe).
+        view: Glossy mode: unit direction towards the viewer, world space (distant viewer).
+        phong: Glossy mode: Phong exponent e of ``(e+2)/(2π) cos^e α``.
+        lut_dir: Optional directory caching the LUT on disk between processes.
+        pvs_frames: Optional recorded animation, shape (T, V, 3): builds a potentially-visible set
+            (blocker triangles that set a bit in any frame) and rasterizes only those.
+    """
+
+    name = "hemiraster"
+
+    def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 64,
+                 downsample: int = 2, ring: int = 4, coarse: int = 512, cull: bool = True, cluster: int = 16,
+                 exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
+                 phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None):
+        super().__init__(mesh, order, device)
+        tables.check_mask(int(mask), int(downsample))
+        if ring not in (1, 2, 3, 4):
+            raise ValueError(f"hemiraster: ring must be 1, 2, 3 or 4, got {ring}")
+        if mode not in ("diffuse", "glossy"):
+            raise ValueError(f"hemiraster: mode must be 'diffuse' or 'glossy', got {mode!r}")
+        if int(coarse) < 0:
+            raise ValueError(f"hemiraster: coarse must be >= 0 triangles, got {coarse}")
+        if cluster < 1:
+            raise ValueError(f"hemiraster: cluster must be >= 1 triangles, got {cluster}")
+        view = np.asarray(view, dtype=np.float64)
+        if view.shape != (3,) or not np.isfinite(view).all() or np.linalg.norm(view) == 0:
+            raise ValueError(f"hemiraster: view must be a non-zero finite direction x,y,z, got {view.tolist()}")
+        if phong < 0:
+            raise ValueError(f"hemiraster: phong exponent must be >= 0, got {phong}")
+        self.mask_res, self.lut_res, self.downsample = int(mask), int(lut), int(downsample)
+        self.ring, self.coarse_target, self.cull = int(ring), int(coarse), bool(cull)
+        self.cluster, self.exclude, self.mode = int(cluster), float(exclude), mode
+        self.view = view / np.linalg.norm(view)
+        self.backface = bool(backface)
+        self.phong, self.lut_dir = float(phong), lut_dir
+        t_start = time.perf_counter()
+        d = device
+        nv, nf = mesh.num_vertices, mesh.num_faces
+        faces = mesh.faces.astype(np.int64)
+
+        # plane LUT and integration tables (cached per (mask, R) / built per setting)
+        lut_np, self._lut_seconds, self._lut_source = tables.build_lut(self.mask_res, self.lut_res, lut_dir, d)
+        self._words = tables.words_per_mask(self.mask_res)
+        self._lut = PlaneLut()
+        self._lut.rows = wp.array(np.ascontiguousarray(lut_np[:, :self._words]), dtype=wp.uint64, device=d)
+        self._lut.occupancy = wp.array(np.ascontiguousarray(lut_np[:, self._words]), dtype=wp.uint64, device=d)
+        self._lut.debruijn = wp.array(tables.debruijn_table(), dtype=wp.int32, device=d)
+        self._lut.res = self.lut_res
+        self._lut.words = self._words
+        blocks = tables.block_tables(self.mask_res, self.downsample, self.order)
+        self._block_valid = wp.array(blocks["valid"], dtype=wp.int32, device=d)
+        self._block_weights = wp.array(blocks["weights"].astype(np.float32), dtype=float, device=d)
+        self._block_dirs = wp.array(blocks["dirs"].astype(np.float32), dtype=wp.vec3, device=d)
+        self._unoccluded = wp.array(blocks["weights"].sum(axis=0).astype(np.float32), dtype=float, device=d)
+        rot_dirs, rot_pinv = tables.rotation_directions(self.order)
+        self._rot_dirs = wp.array(rot_dirs.astype(np.float32), dtype=wp.vec3, device=d)
+        self._rot_pinv = wp.array(rot_pinv.astype(np.float32), dtype=float, device=d)
+        self._sh_norm = normalization_array(self.order, d)
+
+        # two-level hierarchy: fine k-ring + coarse mesh riding the fine one, or the full mesh alone
+        self.hierarchy = 0 < self.coarse_target < nf
+        if self.hierarchy:
+            ring_start, ring_tris, rings = hierarchy.ring_triangles(faces, nv, self.ring)
+            cpts, cfaces = hierarchy.decimate(mesh.points, faces, self.coarse_target)
+            bface, bbary, boff = hierarchy.bind_to_surface(cpts, mesh.points.astype(np.float64), faces)
+            excl = hierarchy.near_exclusion(mesh.points.astype(np.float64), rings, cpts, cfaces, self.exclude)
+            self._bind = (wp.array(bface, dtype=wp.int32, device=d), wp.array(bbary, dtype=wp.vec3, device=d),
+                          wp.array(boff, dtype=float, device=d))
+            self._bpoints = wp.zeros(len(cpts), dtype=wp.vec3, device=d)
+            block_faces = cfaces
+            self._excl = wp.array(excl, dtype=wp.uint32, device=d)
+        else:
+            ring_start, ring_tris = np.zeros(nv + 1, np.int32), np.zeros(1, np.int32)
+            self._bind = None
+            self._bpoints = self.points
+            block_faces = faces
+            self._excl = wp.zeros((1, 1), dtype=wp.uint32, device=d)
+        self._ring_start = wp.array(ring_start, dtype=wp.int32, device=d)
+        self._ring_tris = wp.array(ring_tris if len(ring_tris) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
+        self._ring_avg = float(ring_start[-1]) / nv
+        rest_blockers = (self._bpoints_rest() if self.hierarchy else mesh.points)
+        # back-face culling needs closed, consistently oriented fine and blocker meshes; the sign
+        # of the enclosed volume says which side faces out
+        side = hierarchy.closed_orientation(mesh.points, faces)
+        if self.hierarchy:
+            cside = hierarchy.closed_orientation(rest_blockers, block_faces)
+            side = side if side == cside else 0
+        # keep the triangles facing away: every blocked ray leaves the solid through one of those,
+        # also rays that enter it right at the receiver (concave spots, under a skipped incident triangle)
+        self._backface_side = -float(side) if self.backface else 0.0
+        self._lut.backface = self._backface_side
+        perm, cstart, sstart = hierarchy.build_clusters(rest_blockers, block_faces, self.cluster, 16)
+        self._bfaces = wp.array(block_faces[perm].astype(np.int32), dtype=wp.int32, device=d)
+        self._bsource = wp.array(perm.astype(np.int32), dtype=wp.int32, device=d)
+        self._perm_inv = np.argsort(perm)
+        self._cluster_start = wp.array(cstart, dtype=wp.int32, device=d)
+        self._super_start = wp.array(sstart, dtype=wp.int32, device=d)
+        nc, ns = len(cstart) - 1, len(sstart) - 1
+        self._cluster_box = (wp.zeros(nc, dtype=wp.vec3, device=d), wp.zeros(nc, dtype=wp.vec3, device=d))
+        self._super_box = (wp.zeros(ns, dtype=wp.vec3, device=d), wp.zeros(ns, dtype=wp.vec3, device=d))
+        self.num_blockers = len(block_faces)
+
+        # per-vertex scratch (one row per receiver; rows are private to their thread)
+        nn = self.order * self.order
+        self._mask = wp.zeros((nv, self._words), dtype=wp.uint64, device=d)
+        self._local = wp.zeros((nv, nn), dtype=float, device=d)
+        self._blk_index = wp.zeros((nv, 64), dtype=wp.int32, device=d)
+        self._blk_weight = wp.zeros((nv, 64), dtype=float, device=d)
+        self._scaled_norm = wp.zeros((nv, nn), dtype=float, device=d)
+        self._counts = wp.zeros(nv, dtype=wp.int32, device=d)
+        self._hits = wp.zeros((1, 1), dtype=wp.uint32, device=d)
+        self._pvs = None
+        self._pvs_start = wp.zeros(nv + 1, dtype=wp.int32, device=d)
+        self._pvs_tris = wp.zeros(1, dtype=wp.int32, device=d)
+        self._pvs_frames = 0
+        self._static_seconds = time.perf_counter() - t_start
+        if pvs_frames is not None:
+            self.build_pvs(pvs_frames)
+
+    def _bpoints_rest(self) -> np.ndarray:
+        self._follow()
+        return self._bpoints.numpy()
+
+    # -- command line ------------------------------------------------------------------------
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        parser.add_argument("--mask", type=int, default=32, choices=tables.MASK_SIZES,
+                            help="visibility mask pixels across (default 32)")
+        parser.add_argument("--lut", type=int, default=64, help="plane LUT cube-map resolution R (6*R*R planes)")
+        parser.add_argument("--downsample", type=int, default=2, choices=(1, 2, 4, 8),
+                            help="coverage block size in pixels (default 2)")
+        parser.add_argument("--ring", type=int, default=2, choices=(1, 2, 3, 4), help="full-resolution k-ring (default 4)")
+        parser.add_argument("--coarse", type=int, default=512,
+                            help="coarse far-field mesh triangles (0: no hierarchy, full mesh); default 512")
+        parser.add_argument("--no-cull", dest="cull", action="store_false", help="disable cluster culling")
+        parser.add_argument("--cluster", type=int, default=16, help="triangles per culling cluster (default 16)")
+        parser.add_argument("--exclude", type=float, default=0.35,
+                            help="coarse triangles nearer than this many k-ring radii are left to the k-ring")
+        parser.add_argument("--no-backface", dest="backface", action="store_false",
+                            help="rasterize back faces too (only matters on closed meshes)")
+        parser.add_argument("--mode", choices=("diffuse", "glossy"), default="diffuse",
+                            help="diffuse transfer (CONTRACTS §2) or glossy Phong transfer for --view")
+        parser.add_argument("--view", type=_parse_vec3, default=(0.0, 0.0, 1.0),
+                            help="glossy: direction towards the viewer x,y,z (world)")
+        parser.add_argument("--phong", type=float, default=8.0, help="glossy: Phong exponent (default 8)")
+        parser.add_argument("--lut-dir", default=None, help="directory caching the plane LUT on disk")
+
+    @classmethod
+    def knobs_from_args(cls, args) -> dict:
+        return {"mask": args.mask, "lut": args.lut, "downsample": args.downsample, "ring": args.ring,
+                "coarse": args.coarse, "cull": args.cull, "cluster": args.cluster, "exclude": args.exclude,
+                "backface": args.backface, "mode": args.mode,
+                "view": tuple(args.view), "phong": args.phong, "lut_dir": args.lut_dir}
+
+    @classmethod
+    def sweep(cls, quick: bool = False) -> list[dict]:
+        if quick:
+            return [{}, {"mask": 16}, {"ring": 2, "coarse": 256}]
+        out = [{}]
+        out += [{"mask": m} for m in (8, 16, 64)]
+        out += [{"lut": r} for r in (32, 128)]
+        out += [{"downsample": s} for s in (1, 4)]
+        out += [{"ring": 2}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 0}, {"cull": False}]
+        return out
+
+    def knobs(self) -> dict:
+        return {"mask": self.mask_res, "lut": self.lut_res, "downsample": self.downsample, "ring": self.ring,
+                "coarse": self.coarse_target, "cull": self.cull, "cluster": self.cluster, "exclude": self.exclude,
+                "backface": self.backface, "mode": self.mode, "view": self.view.tolist(), "phong": self.phong, "lut_dir": self.lut_dir,
+                "pvs_frames": self._pvs_frames}
+
+    def stats(self) -> dict:
+        counts = self._counts.numpy()
+        return {
+            "triangles_per_vertex": float(counts.mean()),
+            "triangles_per_vertex_max": int(counts.max()),
+            "blocker_triangles": self.num_blockers,
+            "hierarchy": self.hierarchy,
+            "backface_culled": self._backface_side != 0.0,
+            "ring_triangles_per_vertex": self._ring_avg,
+            "clusters": int(self._cluster_start.shape[0] - 1),
+            "lut_bytes": tables.lut_bytes(self.mask_res, self.lut_res),
+            "lut_seconds": self._lut_seconds,
+            "lut_source": self._lut_source,
+            "static_seconds": self._static_seconds,
+            "pvs_triangles_per_vertex": (float(self._pvs_start.numpy()[-1]) / self.mesh.num_vertices
+                                         if self._pvs_frames else None),
+        }
+
+    # -- per frame ---------------------------------------------------------------------------
+    def _follow(self) -> None:
+        if self._bind is not None:
+            wp.launch(follow_coarse_points, dim=self._bpoints.shape[0], inputs=[self.points, self.faces, *self._bind],
+                      outputs=[self._bpoints], device=self.device)
+
+    def _launch(self, record: int, use_pvs: int) -> None:
+        self._follow()
+        if self.cull and not use_pvs:
+            wp.launch(refit_clusters, dim=self._cluster_box[0].shape[0],
+                      inputs=[self._bpoints, self._bfaces, self._cluster_start], outputs=[*self._cluster_box],
+                      device=self.device)
+            wp.launch(refit_super_clusters, dim=self._super_box[0].shape[0],
+                      inputs=[*self._cluster_box, self._super_start], outputs=[*self._super_box], device=self.device)
+        wp.launch(
+            rasterize_transfer,
+            dim=self.mesh.num_vertices,
+            inputs=[self.points, self.normals, self.faces, self._ring_start, self._ring_tris,
+                    self._bpoints, self._bfaces, self._bsource, 0 if self.hierarchy else 1,
+                    1 if self.hierarchy else 0, self._excl,
+                    1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._super_start, *self._super_box,
+                    use_pvs, self._pvs_start, self._pvs_tris,
+                    self._lut,
+                    self.downsample * self.downsample, self._block_valid, self._block_weights, self._block_dirs,
+                    self._unoccluded, 1 if self.mode == "glossy" else 0, wp.vec3(*self.view.astype(np.float32)),
+                    self.phong, self._rot_dirs, self._rot_pinv, self.order, self._sh_norm, record],
+            outputs=[self._mask, self._local, self._blk_index, self._blk_weight, self._scaled_norm, self._hits, self._counts, self.transfer],
+            device=self.device,
+        )
+
+    def _compute(self) -> None:
+        self._launch(record=0, use_pvs=1 if self._pvs_frames else 0)
+
+    def build_pvs(self, frames) -> None:
+        """Potentially-visible sets from a recorded animation (paper §3.2, "PVS").
+
+        Every frame is rasterized with full culling; a blocker triangle enters a receiver's set when
+        it sets at least one mask bit in some frame. Afterwards :meth:`update` rasterizes only the
+        k-ring and the set (exact for the recorded frames, an approximation for other poses).
+
+        Args:
+            frames: Vertex positions per frame [m], shape (T, V, 3).
+        """
+        frames = np.asarray(frames, dtype=np.float32)
+        nv = self.mesh.num_vertices
+        if frames.ndim != 3 or frames.shape[1:] != (nv, 3) or len(frames) == 0:
+            raise ValueError(f"{self.mesh.name}: pvs_frames must have shape (T, {nv}, 3), got {frames.shape}")
+        self._hits = wp.zeros((nv, (self.num_blockers + 31) // 32), dtype=wp.uint32, device=self.device)
+        for f, pts in enumerate(frames):
+            if not np.isfinite(pts).all():
+                raise ValueError(f"{self.mesh.name}: pvs frame {f} has non-finite positions")
+            self.set_points(pts)
+            self._launch(record=1, use_pvs=0)
+        bits = ((self._hits.numpy()[..., None] >> np.arange(32, dtype=np.uint32)) & 1).astype(bool)
+        bits = bits.reshape(nv, -1)[:, :self.num_blockers]
+        lists = [np.sort(self._perm_inv[np.flatnonzero(row)]) for row in bits]
+        start = np.concatenate([[0], np.cumsum([len(x) for x in lists])]).astype(np.int32)
+        tris = np.concatenate(lists).astype(np.int32) if start[-1] else np.zeros(1, np.int32)
+        self._pvs_start = wp.array(start, dtype=wp.int32, device=self.device)
+        self._pvs_tris = wp.array(tris, dtype=wp.int32, device=self.device)
+        self._hits = wp.zeros((1, 1), dtype=wp.uint32, device=self.device)
+        self._pvs_frames = len(frames)
+        self.set_points(self.mesh.points)

@@ -1,0 +1,377 @@
+"""Static tables of hemispherical rasterization (Kautz et al. 2004 §3.1): mask layout, plane LUT, SH weights.
+
+Everything here is built once per setting on the host (NumPy, or one Warp launch for the LUT) and
+cached; the per-frame kernels only read it.
+
+**Visibility mask.** An ``M×M`` grid over the square ``[-1, 1]²`` in the receiver's tangent frame
+(normal = +z). Pixel ``(i, j)`` has centre ``x = -1 + (i + ½)·2/M``, ``y = -1 + (j + ½)·2/M`` and is
+*valid* when the centre lies inside the unit disk; its direction is ``(x, y, sqrt(1 - x² - y²))``.
+Dropping z maps the hemisphere onto the disk with ``dA = cos θ dω`` (Nusselt analog, paper §3.1),
+so a disk region's *area* is its projected solid angle and ``T_i = ∫_disk y_i V dA``.
+
+Bits are stored in Morton (Z) order of ``(i, j)`` in uint64 words: every aligned ``D×D`` block
+(``D`` a power of two) is a run of ``D²`` contiguous bits inside one word, so downsampling is a
+mask-and-popcount and the LUT does not depend on ``D``.
+
+**Plane LUT.** For a plane through the origin with normal ``n``, the bitmask of valid pixels whose
+direction ``d`` has ``n·d > 0``. Normals are quantised with a cube map of ``6×R×R`` cells (paper
+§3.1.1): face ``2a`` (``n_a >= 0``) or ``2a+1`` on the major axis ``a`` (ties go to the lower axis),
+``u = n_{(a+1)%3}/|n_a|``, ``v = n_{(a+2)%3}/|n_a|``, cell ``(⌊(u+1)R/2⌋, ⌊(v+1)R/2⌋)`` clamped;
+a negative face uses the mirror ``(R-1-i, R-1-j)`` of the cell of ``-n``, so ``cell(-n)`` mirrors
+``cell(n)`` exactly and the two triangles sharing an edge get exactly complementary masks.
+Each row has ``W + 1`` words: the ``W`` mask words and a bitmap of which of them are non-zero,
+so the rasterizer touches only words all three edge masks share.
+
+**SH weights.** Per ``D×D`` block intersecting the disk, ``W_b,i = ∫_{block ∩ disk} y_i dA`` in the
+tangent frame (supersampled, so ``Σ_b W_b`` is the analytic unoccluded transfer to ~1e-5). A block
+with visible fraction ``f_b`` (visible valid pixels / valid pixels) contributes ``f_b W_b``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import numpy as np
+import warp as wp
+
+from ...sh.basis import sh_eval
+
+MASK_SIZES = (8, 16, 32, 64)
+"""Supported mask resolutions (pixels across)."""
+
+
+def check_mask(mask: int, downsample: int) -> None:
+    """Validate the mask resolution and the downsampling block size.
+
+    Raises:
+        ValueError: naming the offending knob.
+    """
+    if mask not in MASK_SIZES:
+        raise ValueError(f"hemiraster: mask must be one of {MASK_SIZES} pixels across, got {mask}")
+    if downsample not in (1, 2, 4, 8) or downsample > mask:
+        raise ValueError(f"hemiraster: downsample must be 1, 2, 4 or 8 (and <= mask {mask}), got {downsample}")
+
+
+def morton2(i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Interleave the bits of ``i`` (even positions) and ``j`` (odd positions), 6 bits each."""
+    out = np.zeros_like(np.asarray(i, dtype=np.int64))
+    for b in range(6):
+        out |= ((np.asarray(i) >> b) & 1) << (2 * b)
+        out |= ((np.asarray(j) >> b) & 1) << (2 * b + 1)
+    return out
+
+
+def words_per_mask(mask: int) -> int:
+    """uint64 words of an ``mask×mask`` bit mask."""
+    return (mask * mask + 63) // 64
+
+
+def pixel_directions(mask: int) -> tuple[np.ndarray, np.ndarray]:
+    """Direction of every mask bit, in bit order.
+
+    Returns:
+        ``(dirs, valid)``: dirs shape (M*M, 3) float64 unit vectors (zero for pixels outside the
+        disk), valid shape (M*M,) bool.
+    """
+    i, j = np.meshgrid(np.arange(mask), np.arange(mask), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    x = -1.0 + (i + 0.5) * 2.0 / mask
+    y = -1.0 + (j + 0.5) * 2.0 / mask
+    r2 = x * x + y * y
+    valid = r2 < 1.0
+    dirs = np.zeros((mask * mask, 3))
+    bit = morton2(i, j)
+    dirs[bit, 0] = np.where(valid, x, 0.0)
+    dirs[bit, 1] = np.where(valid, y, 0.0)
+    dirs[bit, 2] = np.where(valid, np.sqrt(np.maximum(0.0, 1.0 - r2)), 0.0)
+    v = np.zeros(mask * mask, dtype=bool)
+    v[bit] = valid
+    return dirs, v
+
+
+def pack_bits(bits: np.ndarray) -> np.ndarray:
+    """Pack booleans (..., M*M) in bit order into uint64 words (..., W); bit k -> word k//64, bit k%64."""
+    bits = np.asarray(bits, dtype=bool)
+    n = bits.shape[-1]
+    w = (n + 63) // 64
+    padded = np.zeros(bits.shape[:-1] + (w * 64,), dtype=np.uint64)
+    padded[..., :n] = bits
+    shifts = np.arange(64, dtype=np.uint64)
+    return (padded.reshape(bits.shape[:-1] + (w, 64)) << shifts).sum(axis=-1, dtype=np.uint64)
+
+
+def unpack_bits(words: np.ndarray, nbits: int) -> np.ndarray:
+    """Inverse of :func:`pack_bits`: (..., W) uint64 -> (..., nbits) bool."""
+    words = np.asarray(words, dtype=np.uint64)
+    shifts = np.arange(64, dtype=np.uint64)
+    bits = ((words[..., None] >> shifts) & np.uint64(1)).astype(bool)
+    return bits.reshape(words.shape[:-1] + (-1,))[..., :nbits]
+
+
+# ---------------------------------------------------------------------------------------------
+# cube-map quantisation of plane normals
+def cube_cell_np(n: np.ndarray, lut: int) -> np.ndarray:
+    """LUT row of each plane normal (cube-map cell; the convention of the module docstring).
+
+    Args:
+        n: Plane normals, shape (..., 3), any non-zero length.
+        lut: Cube-map resolution R.
+
+    Returns:
+        Row indices in ``0..6R²-1``, int64, shape (...).
+    """
+    n = np.asarray(n, dtype=np.float32)
+    a = np.abs(n)
+    axis = np.where((a[..., 0] >= a[..., 1]) & (a[..., 0] >= a[..., 2]), 0, np.where(a[..., 1] >= a[..., 2], 1, 2))
+    major = np.take_along_axis(n, axis[..., None], -1)[..., 0]
+    u = np.take_along_axis(n, ((axis + 1) % 3)[..., None], -1)[..., 0]
+    v = np.take_along_axis(n, ((axis + 2) % 3)[..., None], -1)[..., 0]
+    neg = major < 0
+    face = 2 * axis + neg
+    # negative faces are indexed as the mirror of the positive one (see the kernel's cube_cell)
+    u = np.where(neg, -u, u)
+    v = np.where(neg, -v, v)
+    half = np.float32(0.5 * lut)
+    inv = half / np.abs(major)
+    iu = np.clip((u * inv + half).astype(np.int64), 0, lut - 1)
+    iv = np.clip((v * inv + half).astype(np.int64), 0, lut - 1)
+    iu = np.where(neg, lut - 1 - iu, iu)
+    iv = np.where(neg, lut - 1 - iv, iv)
+    return (face * lut + iu) * lut + iv
+
+
+def cube_cell_normals(lut: int) -> np.ndarray:
+    """Centre normal of every cube-map cell, shape (6R², 3) float64 (not normalised)."""
+    c = -1.0 + (np.arange(lut) + 0.5) * 2.0 / lut
+    out = np.zeros((6, lut, lut, 3))
+    cu, cv = np.meshgrid(c, c, indexing="ij")
+    for face in range(6):
+        a, s = face // 2, (1.0 if face % 2 == 0 else -1.0)
+        out[face, :, :, a] = s
+        out[face, :, :, (a + 1) % 3] = cu
+        out[face, :, :, (a + 2) % 3] = cv
+    return out.reshape(-1, 3)
+
+
+def build_lut_np(mask: int, lut: int) -> np.ndarray:
+    """Plane LUT by plain NumPy (the obviously-correct reference of :func:`build_lut`).
+
+    Returns:
+        shape (6R², W+1) uint64: bit k of row r set when valid pixel k lies strictly above cell r's
+        plane; the last column is the bitmap of non-zero words.
+    """
+    dirs, valid = pixel_directions(mask)
+    normals = cube_cell_normals(lut)
+    nw = words_per_mask(mask)
+    out = np.empty((len(normals), nw + 1), dtype=np.uint64)
+    for s in range(0, len(normals), 4096):
+        above = (normals[s:s + 4096] @ dirs.T > 0.0) & valid
+        out[s:s + 4096, :nw] = pack_bits(above)
+    out[:, nw] = pack_bits(out[:, :nw] != 0)[:, 0]
+    return out
+
+
+@wp.kernel
+def fill_plane_lut(
+    normals: wp.array[wp.vec3],
+    pixel_dirs: wp.array[wp.vec3],
+    lut: wp.array2d[wp.uint64],
+):
+    """One plane LUT row: bit k set when pixel direction k is above the cell's plane; last word = occupancy.
+
+    Pixels outside the disk carry a zero direction, so ``n·d > 0`` never holds for them.
+    """
+    row = wp.tid()
+    n = normals[row]
+    nw = lut.shape[1] - 1
+    occ = wp.uint64(0)
+    for word in range(nw):
+        bits = wp.uint64(0)
+        for k in range(64):
+            p = word * 64 + k
+            if p < pixel_dirs.shape[0]:
+                if wp.dot(n, pixel_dirs[p]) > 0.0:
+                    bits = bits | (wp.uint64(1) << wp.uint64(k))
+        lut[row, word] = bits
+        if bits != wp.uint64(0):
+            occ = occ | (wp.uint64(1) << wp.uint64(word))
+    lut[row, nw] = occ
+
+
+_LUT_CACHE: dict[tuple[int, int], np.ndarray] = {}
+_LUT_BUILD_SECONDS: dict[tuple[int, int], float] = {}
+
+
+def build_lut(mask: int, lut: int, cache_dir: str | None = None, device: str = "cpu") -> tuple[np.ndarray, float, str]:
+    """The plane LUT for ``(mask, lut)``: from memory, else from ``cache_dir``, else built with Warp.
+
+    Args:
+        mask: Mask resolution M.
+        lut: Cube-map resolution R (>= 2).
+        cache_dir: Optional directory for ``hemiraster_lut_v2_M{M}_R{R}.npy`` files.
+        device: Warp device that builds it (the table is returned on the host either way).
+
+    Returns:
+        ``(table, seconds, source)``: table shape (6R², W) uint64; build (or load) seconds of the
+        first request in this process; source ``"built"``, ``"disk"`` or ``"memory"``.
+    """
+    if lut < 2:
+        raise ValueError(f"hemiraster: lut (cube-map resolution R) must be >= 2, got {lut}")
+    key = (int(mask), int(lut))
+    if key in _LUT_CACHE:
+        return _LUT_CACHE[key], _LUT_BUILD_SECONDS[key], "memory"
+    t0 = time.perf_counter()
+    path = os.path.join(cache_dir, f"hemiraster_lut_v2_M{mask}_R{lut}.npy") if cache_dir else None
+    table, source = None, "built"
+    if path and os.path.isfile(path):
+        loaded = np.load(path)
+        if loaded.shape == (6 * lut * lut, words_per_mask(mask) + 1) and loaded.dtype == np.uint64:
+            table, source = loaded, "disk"
+    if table is None:
+        dirs, _ = pixel_directions(mask)
+        normals = wp.array(cube_cell_normals(lut).astype(np.float32), dtype=wp.vec3, device=device)
+        out = wp.zeros((6 * lut * lut, words_per_mask(mask) + 1), dtype=wp.uint64, device=device)
+        wp.launch(fill_plane_lut, dim=out.shape[0],
+                  inputs=[normals, wp.array(dirs.astype(np.float32), dtype=wp.vec3, device=device)],
+                  outputs=[out], device=device)
+        table = out.numpy()
+        if path:
+            os.makedirs(cache_dir, exist_ok=True)
+            tmp = f"{path}.partial{os.getpid()}.npy"
+            np.save(tmp, table)
+            os.replace(tmp, path)
+    _LUT_CACHE[key] = table
+    _LUT_BUILD_SECONDS[key] = time.perf_counter() - t0
+    return table, _LUT_BUILD_SECONDS[key], source
+
+
+# ---------------------------------------------------------------------------------------------
+# blocks and SH weights
+def block_tables(mask: int, downsample: int, order: int, supersample: int = 512) -> dict:
+    """Per-block tables for downsampled integration, over all ``(M/D)²`` blocks in Morton block order.
+
+    Block ``b`` owns mask bits ``b·D² .. (b+1)·D² - 1`` (Morton contiguity), i.e. word
+    ``b·D² // 64``. A block with no valid pixel centre hands its sliver of the disk to the nearest
+    block that has one, so every part of the hemisphere can be blocked and ``Σ_b W_b`` is the whole
+    unoccluded integral.
+
+    Args:
+        mask: Mask resolution M.
+        downsample: Block size D in pixels (power of two, D² <= 64).
+        order: SH order N.
+        supersample: Integration grid across the disk for the block integrals.
+
+    Returns:
+        dict: ``valid`` (B,) int32 (valid pixels per block), ``weights`` (B, N*N) float64
+        (``∫_{block∩disk} y_i dA``, tangent frame), ``dirs`` (B, 3) float64 (unit mean direction
+        of the block's part of the disk, zero for blocks outside it), ``area`` (B,) float64.
+    """
+    check_mask(mask, downsample)
+    _, valid = pixel_directions(mask)
+    nb = mask // downsample
+    bbits = downsample * downsample
+    # fine grid of sample points (cell centres) covering [-1, 1]²
+    s = max(supersample, 8 * mask)
+    s -= s % mask
+    c = -1.0 + (np.arange(s) + 0.5) * 2.0 / s
+    x, y = np.meshgrid(c, c, indexing="ij")
+    r2 = x * x + y * y
+    inside = r2 < 1.0
+    d = np.stack([x, y, np.sqrt(np.maximum(0.0, 1.0 - r2))], axis=-1)[inside]
+    ysh = sh_eval(d, order) * (2.0 / s) ** 2
+    bi = (np.floor((x[inside] + 1.0) * 0.5 * nb)).astype(np.int64).clip(0, nb - 1)
+    bj = (np.floor((y[inside] + 1.0) * 0.5 * nb)).astype(np.int64).clip(0, nb - 1)
+    bid = morton2(bi, bj)
+    weights = np.zeros((nb * nb, order * order))
+    np.add.at(weights, bid, ysh)
+    dsum = np.zeros((nb * nb, 3))
+    np.add.at(dsum, bid, d)
+    area = np.bincount(bid, minlength=nb * nb) * (2.0 / s) ** 2
+    counts = valid.reshape(nb * nb, bbits).sum(axis=1)
+    # slivers of the disk in blocks without a valid pixel centre could never be blocked; hand their
+    # integrals to the nearest block that has one (Σ_b W_b stays the whole hemisphere)
+    bc = -1.0 + (np.arange(nb) + 0.5) * 2.0 / nb
+    ci, cj = np.meshgrid(bc, bc, indexing="ij")
+    centre = np.zeros((nb * nb, 2))
+    centre[morton2(*np.meshgrid(np.arange(nb), np.arange(nb), indexing="ij")).ravel()] = np.stack(
+        [ci.ravel(), cj.ravel()], 1)
+    live = np.flatnonzero(counts > 0)
+    for b in np.flatnonzero((counts == 0) & (area > 0)):
+        to = live[np.argmin(np.linalg.norm(centre[live] - centre[b], axis=1))]
+        weights[to] += weights[b]
+        dsum[to] += dsum[b]
+        area[to] += area[b]
+        weights[b] = 0.0
+        dsum[b] = 0.0
+        area[b] = 0.0
+    ln = np.linalg.norm(dsum, axis=1, keepdims=True)
+    dirs = np.where(ln > 0, dsum / np.where(ln > 0, ln, 1.0), 0.0)
+    return {"valid": counts.astype(np.int32), "weights": weights, "dirs": dirs, "area": area}
+
+
+def rotation_directions(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Directions and pseudo-inverses that rotate a band-limited SH vector by sampling.
+
+    Band ``l`` of an SH vector rotates by an orthogonal ``R_l`` with ``y_l(Q s) = R_l y_l(s)``. With
+    ``K = 2N-1`` fixed directions ``s_k``, ``R_l = Y_l(QS) Y_l(S)^+``, so a local vector ``c`` maps to
+    world as ``g_l = Y_l(QS) (Y_l(S)^+ c_l)``: K SH evaluations per vertex, no rotation recurrences.
+    The directions are the best-conditioned of a few seeded random sets.
+
+    Returns:
+        ``(dirs, pinv)``: dirs shape (K, 3) float64 unit; pinv shape (K, N*N) float64 with
+        ``pinv[k, l(l+1)+m] = (Y_l(S)^+)[k, m]``.
+    """
+    k = 2 * order - 1
+    best, best_cond = None, np.inf
+    rng = np.random.default_rng(20040621)
+    for _ in range(200):
+        dirs = rng.normal(size=(k, 3))
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        y = sh_eval(dirs, order)
+        cond = max(np.linalg.cond(y[:, l * l:(l + 1) ** 2]) for l in range(order))
+        if cond < best_cond:
+            best, best_cond = dirs, cond
+    y = sh_eval(best, order)
+    pinv = np.zeros((k, order * order))
+    for l in range(order):
+        pinv[:, l * l:(l + 1) ** 2] = np.linalg.pinv(y[:, l * l:(l + 1) ** 2].T)
+    return best, pinv
+
+
+def debruijn_table() -> np.ndarray:
+    """Bit index of ``1 << k`` from ``((1 << k) * 0x03F79D71B4CB0A89 mod 2^64) >> 58``, shape (64,) int32."""
+    out = np.zeros(64, np.int32)
+    for k in range(64):
+        out[((1 << k) * 0x03F79D71B4CB0A89 % (1 << 64)) >> 58] = k
+    return out
+
+
+def lut_bytes(mask: int, lut: int) -> int:
+    """Memory of the plane LUT [bytes]."""
+    return 6 * lut * lut * (words_per_mask(mask) + 1) * 8
+
+
+def projected_solid_angle_np(poly: np.ndarray) -> float:
+    """Projected solid angle (``∫ cos θ dω``) of a convex spherical polygon on or above the horizon.
+
+    Lambert's formula: ``Φ = ½ Σ_edges θ_e (ĝ_e · z)`` with ``θ_e`` the angle an edge subtends and
+    ``ĝ_e`` the unit normal of the plane through the origin and the edge, pointing inwards.
+
+    Args:
+        poly: Polygon corners in the tangent frame (normal +z), shape (K, 3), all with z >= 0,
+            convex as seen from the origin, either winding.
+    """
+    a = np.asarray(poly, dtype=np.float64)
+    if (a[:, 2] < 0).any():
+        raise ValueError("projected_solid_angle_np needs a polygon on or above the horizon (z >= 0)")
+    u = a / np.linalg.norm(a, axis=1, keepdims=True)
+    if np.dot(u.mean(axis=0), np.cross(u[0], u[1])) < 0:
+        u = u[::-1]
+    total = 0.0
+    for e in range(len(u)):
+        p, q = u[e], u[(e + 1) % len(u)]
+        g = np.cross(p, q)
+        total += math.acos(np.clip(np.dot(p, q), -1, 1)) * g[2] / np.linalg.norm(g)
+    return 0.5 * total
