@@ -19,7 +19,7 @@ from types import SimpleNamespace
 
 import warp as wp
 
-from ...sh.kernels import SQRT_4PI, OLTableArrays, ol_lookup, sh_product_vector_funcs, zh_vector_funcs
+from ...sh.kernels import SQRT_4PI, OLTableArrays, SHProductTable, ol_lookup, sh_product_vector_funcs, zh_vector_funcs
 from .kernels import EXP_BLEND, EXP_HYBRID, EXP_OL, VIS_NORM_SLACK, adjust_sphere
 
 wp.set_module_options({"enable_backward": False})
@@ -58,7 +58,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         out[0] = s * sqrt_4pi
         return out
 
-    def exp_hybrid(f: vec_sh, m: float, threshold: float, ol: OLTableArrays) -> vec_sh:
+    def exp_hybrid(f: vec_sh, m: float, threshold: float, ol: OLTableArrays, products: SHProductTable) -> vec_sh:
         # The SH core's sh_exp_hybrid (eq. 3.32) on a register vector: OL on f̂/2^p, p renormalised squarings.
         f0 = f[0]
         out = vec_sh()
@@ -77,7 +77,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         t = t / nrm
         log_s = ac[0] + wp.log(nrm)
         for _k in range(p):
-            t = square(t)
+            t = square(t, products)
             nrm = wp.length(t)
             if nrm == 0.0:
                 log_s = 2.0 * log_s - 1.0e30
@@ -94,7 +94,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         f = x - float(i0)
         return table[i0] * (1.0 - f) + table[i0 + 1] * f
 
-    def exp_series(f: vec_sh, p: int) -> vec_sh:
+    def exp_series(f: vec_sh, p: int, products: SHProductTable) -> vec_sh:
         # (exp_*(2^-p f))^(2^p): 8 Taylor terms of SH products (eq. 3.25) at the small scale, p squarings
         # (eq. 3.32); the DC is isolated (eq. 3.27) and restored as a factor.
         # (Fresh vectors, not `fh = f; fh[0] = 0`: a component store may alias the assigned-from local.)
@@ -107,14 +107,14 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         one[0] = sqrt_4pi
         out = term + one
         for kk in range(2, 9):
-            term = product(term, fh) * (s / float(kk))
+            term = product(term, fh, products) * (s / float(kk))
             out = out + term
         out = out * wp.exp(f[0] * s / sqrt_4pi)
         for _q in range(p):
-            out = square(out)
+            out = square(out, products)
         return out
 
-    def exp_blended(f: vec_sh, mode: int, tau: float, ol: OLTableArrays) -> vec_sh:
+    def exp_blended(f: vec_sh, mode: int, tau: float, ol: OLTableArrays, products: SHProductTable) -> vec_sh:
         """SH exponential (thesis §3.1.4): EXP_OL the SH core's optimal linear (eq. 3.30); EXP_HYBRID the
         core's hybrid (OL on f̂/2^p with ||f̂||/2^p <= tau, p squarings, eq. 3.32); EXP_SERIES 8 Taylor terms
         after scaling to ||f̂|| <= 1/4, then squarings (accurate, slow). For the two squaring modes the
@@ -134,14 +134,14 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             w = wp.clamp((q - (float(p) - blend)) / blend, 0.0, 1.0)
         out = vec_sh()
         if mode == hybrid:
-            out = exp_hybrid(f, m, lim, ol)
+            out = exp_hybrid(f, m, lim, ol, products)
             if w > 0.0:
                 # threshold/2 makes the core's hybrid take exactly one more squaring
-                out = out * (1.0 - w) + exp_hybrid(f, m, 0.5 * lim, ol) * w
+                out = out * (1.0 - w) + exp_hybrid(f, m, 0.5 * lim, ol, products) * w
         else:
-            out = exp_series(f, p)
+            out = exp_series(f, p, products)
             if w > 0.0:
-                out = out * (1.0 - w) + exp_series(f, p + 1) * w
+                out = out * (1.0 - w) + exp_series(f, p + 1, products) * w
         return out
 
     def shade(
@@ -158,6 +158,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         cos_zh: vec_zh,
         kz: vec_sh,
         ol: OLTableArrays,
+        products: SHProductTable,
         mode: int,
         tau: float,
         used: wp.array(dtype=wp.int32),
@@ -199,7 +200,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             count = count + 1
         used[v] = count
         # SH exponential (thesis §3.1.4), blended between p and p+1 squarings (exp_blended).
-        vis = exp_blended(logsum, mode, tau, ol)
+        vis = exp_blended(logsum, mode, tau, ol, products)
         # Divergence guard: geometric-mean visibility when the exponential exploded (kernels.VIS_NORM_SLACK).
         bound = slack * sqrt_4pi
         fb = int(0)
@@ -209,7 +210,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             fb = 1
         fallback[v] = fb
         # Transfer = V * clamped cosine (CONTRACTS.md §2); negative irradiance (ringing) -> 0.
-        t = product(vis, zh_rotate(n, cos_zh, kz))
+        t = product(vis, zh_rotate(n, cos_zh, kz), products)
         if t[0] < 0.0:
             t = vec_sh()
         for i in range(n2):
@@ -230,6 +231,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         cos_zh: vec_zh,
         kz: vec_sh,
         ol: OLTableArrays,
+        products: SHProductTable,
         mode: int,
         tau: float,
         key: wp.array2d(dtype=float),
@@ -277,7 +279,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             d = wp.vec3(a[0], a[1], a[2]) - p
             theta = wp.asin(wp.min(a[3] / wp.max(bd, 1.0e-30), 1.0))
             logsum = logsum + zh_rotate(d, lerp_table(log_table, theta, theta_step), kz)
-            e_new = exp_blended(logsum, mode, tau, ol)
+            e_new = exp_blended(logsum, mode, tau, ol, products)
             # sphere visibility as a difference of two exponentials (eq. 4.32) dotted with the cosine (4.33)
             vis = wp.dot(e_prev - e_new, cosine)
             e_prev = e_new

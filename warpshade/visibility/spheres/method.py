@@ -230,7 +230,8 @@ class SpheresTransfer(TransferMethod):
         t = self.tables
         wp.launch(self._fixed.shade, dim=points.shape[0],
                   inputs=[points, normals, cluster, sc.centers, sc.radii, cut_start, cut_sphere, cut_ratio,
-                          self._log_vec, t.theta_step, self._cos_vec, self._fixed.kz, self._ol, EXP_MODES[self.exp],
+                          self._log_vec, t.theta_step, self._cos_vec, self._fixed.kz, self._ol, self._products,
+                          EXP_MODES[self.exp],
                           self.tau],
                   outputs=[used, fallback, visibility, transfer], device=d)
         self._cut = (cut_start, cut_sphere, cut_ratio)

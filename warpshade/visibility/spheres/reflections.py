@@ -214,7 +214,7 @@ class SphereReflections:
         wp.launch(meth._fixed.reflect, dim=meth.mesh.num_vertices,
                   inputs=[meth.points, meth.normals, self._spheres, sc.centers, sc.radii, sc.rotations,
                           self.radiance, meth._log_vec, meth._ff_vec, t.theta_step, meth._cos_vec, meth._fixed.kz,
-                          meth._ol, EXP_MODES[self.exp], meth.tau, self._key],
+                          meth._ol, meth._products, EXP_MODES[self.exp], meth.tau, self._key],
                   outputs=[self.irradiance], device=d)
         return self.irradiance
 
