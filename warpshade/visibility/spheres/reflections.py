@@ -29,6 +29,7 @@ from .kernels import fit_clusters
 from .method import EXP_MODES, SpheresTransfer
 from .reflection_kernels import project_sphere_radiance, resample_surface, trace_sphere_samples
 from .sets import _csr
+from .tables import sphere_tables
 
 
 def sample_directions(subdivisions: int = 1) -> np.ndarray:
@@ -71,6 +72,11 @@ class SphereReflections:
             raise ValueError(f"exp must be one of {', '.join(EXP_MODES)}, got {exp!r}")
         self.method, self.exp, self.device = method, exp, method.device
         d, order = method.device, method.order
+        # The log blocker table is fitted to the exponential that will use it (tables.py); the second pass
+        # may use another exponential than the shadows (default ol vs hyb), so it gets its own table. With
+        # the shadows' hybrid-fitted table, OL overshot a lit ball's reflection by 20 % at distance 1.5.
+        self._log_vec = wp.array(sphere_tables(order, exp, method.tau).log_blocker.astype(np.float32),
+                                 dtype=method._fixed.vec_zh, device=d)
         self.directions = sample_directions(subdivisions)
         m = len(self.directions)
         self._voronoi = wp.array(voronoi_sh(self.directions, order).astype(np.float32), dtype=float, device=d)
@@ -213,7 +219,7 @@ class SphereReflections:
         t, sc = meth.tables, meth.scene
         wp.launch(meth._fixed.reflect, dim=meth.mesh.num_vertices,
                   inputs=[meth.points, meth.normals, self._spheres, sc.centers, sc.radii, sc.rotations,
-                          self.radiance, meth._log_vec, meth._ff_vec, t.theta_step, meth._cos_vec, meth._fixed.kz,
+                          self.radiance, self._log_vec, meth._ff_vec, t.theta_step, meth._cos_vec, meth._fixed.kz,
                           meth._ol, meth._products, EXP_MODES[self.exp], meth.tau, self._key],
                   outputs=[self.irradiance], device=d)
         return self.irradiance
