@@ -189,7 +189,7 @@ def _choose(obj: SceneObject, order: int, max_error: float | None, frontier: dic
             raise ValueError(f"{obj.name}: no measured configuration at SH order {order} meets --max-error "
                              f"{max_error} (best: {min((c['error'] for c in frontier['configs'] if c['order'] == order), default=float('nan')):.3f})")
         best = min(ok, key=lambda c: (estimate_seconds(c, v), c["error"]))
-        knobs = {k: val for k, val in best["knobs"].items()}
+        knobs = dict(best.get("kwargs", best["knobs"]))
         return best["method"], knobs, best, f"fastest measured within error {max_error}"
     if obj.method is None:
         return None, {}, None, ""

@@ -149,8 +149,11 @@ def frontier_from_results(records: list[dict]) -> dict:
     """The planner's frontier: per method configuration, its worst mean error over the benchmark meshes
     and its measured time on each mesh (the planner scales the time of the mesh nearest in size).
 
+    ``kwargs`` are the constructor keyword arguments the sweep passed (``knobs`` is what the method
+    reported using, possibly with resolved sentinels).
+
     Returns:
-        ``{"configs": [{"method", "order", "knobs", "error", "error_p95", "timings": [{"mesh", "vertices",
+        ``{"configs": [{"method", "order", "knobs", "kwargs", "error", "error_p95", "timings": [{"mesh", "vertices",
         "triangles", "seconds", "build_seconds"}]}], "source": ...}``.
     """
     groups: dict[str, dict] = {}
@@ -159,6 +162,7 @@ def frontier_from_results(records: list[dict]) -> dict:
             continue
         key = json.dumps([r["method"], r["order"], r["knobs"]], sort_keys=True, default=_jsonable)
         g = groups.setdefault(key, {"method": r["method"], "order": r["order"], "knobs": r["knobs"],
+                                    "kwargs": r.get("config", {}),
                                     "error": 0.0, "error_p95": 0.0, "timings": []})
         g["error"] = max(g["error"], r["error_mean"])
         g["error_p95"] = max(g["error_p95"], r["error_p95"])

@@ -189,6 +189,7 @@ def measure(cls, config: dict, bm: BenchMesh, truth: np.ndarray, lights: dict, s
         "triangles": bm.rest.num_faces,
         "order": method.order,
         "knobs": method.knobs(),
+        "config": {k: v for k, v in config.items() if k != "order"},
         "seconds": seconds,
         "repeat": repeat,
         "build_seconds": build_seconds,
