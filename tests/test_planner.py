@@ -92,3 +92,13 @@ def test_shipped_frontier_loads_and_covers_every_method_at_order_5():
     # GEARS is an area-light method (different output), not a transfer method swept by bench
     assert {m for m in METHODS if m != "gears"} <= have, have
     assert all(np.isfinite(c["error"]) for c in fr["configs"])
+
+
+def test_apply_plan_sets_each_objects_method():
+    from warpshade.planner import apply_plan
+
+    scene = Scene([ico("a", method=None), ico("b", kind="cloth", method="disks")], frames=2)
+    plan = make_plan(scene, max_error=0.05, frontier=FRONTIER)
+    apply_plan(scene, plan)
+    assert [o.method for o in scene.objects] == ["hemiraster", "hemiraster"]
+    assert scene.object("a").knobs == {"mask": 32}  # knobs when the frontier has no constructor kwargs

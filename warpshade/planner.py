@@ -282,6 +282,15 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     return Plan(order, scene.frames, plans, structures, lighting_changes, bool(moving), max_error, notes)
 
 
+def apply_plan(scene: Scene, plan: Plan) -> None:
+    """Set each shaded object's ``method`` and ``knobs`` to the plan's choice (what ``warpshade run
+    --max-error`` does before handing the scene to the pipeline)."""
+    for op in plan.objects:
+        obj = scene.object(op.name)
+        obj.method = op.method
+        obj.knobs = dict(op.knobs)
+
+
 def naive_seconds(plan: Plan) -> float:
     """Estimated cost of the same run with no reuse (every object's transfer and shading every frame)."""
     return sum(o.seconds_build + (o.seconds_first - o.seconds_build) * plan.frames for o in plan.objects)
