@@ -144,32 +144,53 @@ class _Fitter:
     def energy(self, c, r):
         return float(sum(self.sphere_outside(c[i], r[i]) for i in range(len(r))))
 
-    def optimise_center(self, c0, pts):
+    def optimise_center(self, c0, pts, max_evals: int = 60):
+        """Centre minimising a smoothed outside volume of the sphere bounding ``pts``: compass search.
+
+        A pattern search on the 6 axis moves with steps from ``max(2h, r/4)`` halving down to ``h/4``
+        (grid spacing ``h``). It replaces scipy's Powell, whose line search starts from a unit bracket
+        (not scale invariant) and whose path through this flat, many-minima objective turned 3e-8
+        perturbations of the input (float32 rounding of a scaled mesh) into different fits. The move
+        with the lowest value wins only if it improves, so near-ties rarely change the path.
+        """
         if len(pts) == 0:
             return c0
-        near = self.outside
-        if self.out_tree is not None:
-            r0 = np.linalg.norm(pts - c0, axis=1).max()
-            near = self.outside[self.out_tree.query_ball_point(c0, 2.0 * r0 + 2 * self.h)]
         h = self.h
+        r0 = np.linalg.norm(pts - c0, axis=1).max()
+        near = None
+        if self.out_tree is not None:
+            near = self.outside[self.out_tree.query_ball_point(c0, 2.0 * r0 + 4 * h)]
 
-        def outside_volume(c):
-            r = np.linalg.norm(pts - c, axis=1).max()
-            if self.out_tree is None or len(near) == 0:
-                return r ** 3
-            # smooth count (logistic over one cell) so Powell sees a slope, not steps
-            t = np.clip((r - np.linalg.norm(near - c, axis=1)) / h, -40, 40)
-            return float(np.sum(1.0 / (1.0 + np.exp(-t)))) + 1e-3 * (r / h) ** 3
+        def outside_volume(cs):
+            """Smoothed outside volume [cells] of the spheres centred at ``cs`` (K, 3) bounding ``pts``."""
+            r = np.sqrt(((pts[None] - cs[:, None]) ** 2).sum(-1)).max(axis=1)
+            if near is None or len(near) == 0:
+                return (r / h) ** 3
+            # smooth count (logistic over one cell) so the search sees a slope, not steps
+            d = np.sqrt(((near[None] - cs[:, None]) ** 2).sum(-1))
+            t = np.clip((r[:, None] - d) / h, -40, 40)
+            return np.sum(1.0 / (1.0 + np.exp(-t)), axis=1) + 1e-3 * (r / h) ** 3
 
-        res = minimize(outside_volume, c0, method="Powell", options={"maxfev": 36, "xtol": 0.25 * h})
-        return res.x
+        moves = np.vstack([np.eye(3), -np.eye(3)])
+        x, fx = np.asarray(c0, dtype=np.float64), float(outside_volume(c0[None])[0])
+        step, evals = max(2.0 * h, 0.25 * r0), 1
+        while step >= 0.25 * h and evals < max_evals:
+            cand = x + step * moves
+            v = outside_volume(cand)
+            evals += len(moves)
+            k = int(np.argmin(v))
+            if v[k] < fx:
+                x, fx = cand[k], float(v[k])
+            else:
+                step *= 0.5
+        return x
 
     def lloyd(self, c, iterations):
         e_best, best = math.inf, None
         for _ in range(iterations):
             lab, r = self.assign(c)
             e = self.energy(c, r)
-            if e < e_best - 1e-12:
+            if e < e_best - 1e-9 * self.cell:
                 e_best, best = e, (c.copy(), r.copy(), lab)
             elif e >= e_best * 0.995:
                 break
@@ -205,6 +226,20 @@ class _Fitter:
         return c2
 
 
+def _unit_frame(points: np.ndarray) -> tuple[np.ndarray, float]:
+    """Origin and length unit of the fit: bounding-box minimum and diagonal [m].
+
+    The fit runs on ``(points - origin) / unit`` so every tolerance, step and threshold in it (grid
+    spacing, Powell's unit line-search bracket and tolerances, energy comparisons, Lloyd convergence)
+    is relative to the mesh size: the spheres of a scaled or moved mesh are the scaled or moved spheres.
+    """
+    lo = points.min(axis=0)
+    unit = float(np.linalg.norm(points.max(axis=0) - lo))
+    if not np.isfinite(unit) or unit <= 0.0:
+        raise ValueError(f"mesh points must be finite and not all coincident (bounding-box diagonal {unit})")
+    return lo, unit
+
+
 def fit_leaf_spheres(points, faces, spheres: int = 30, seed: int = 0, iterations: int = 4, teleports: int = 2,
                      grid_cells: int = 12000, surface_samples: int = 3000, device: str = "cpu"):
     """Bounding leaf spheres of a mesh minimising the outside volume (thesis §4.1, [43]).
@@ -223,9 +258,17 @@ def fit_leaf_spheres(points, faces, spheres: int = 30, seed: int = 0, iterations
         ``(centers (S,3), radii (S,), vertex_labels (V,), closed, outside_volume)``; every vertex lies in
         its leaf (``||p_v - c|| <= r``).
     """
+    points = np.asarray(points, dtype=np.float64)
+    lo, unit = _unit_frame(points)
+    c, r, lab, closed, e = _fit_leaf_unit((points - lo) / unit, faces, spheres, seed, iterations, teleports,
+                                          grid_cells, surface_samples, device)
+    return lo + unit * c, unit * r, lab, closed, e * unit ** 3
+
+
+def _fit_leaf_unit(points, faces, spheres, seed, iterations, teleports, grid_cells, surface_samples, device):
+    """:func:`fit_leaf_spheres` on a mesh of bounding-box diagonal 1 (see :func:`_unit_frame`)."""
     import trimesh
 
-    points = np.asarray(points, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     if spheres < 1:
         raise ValueError(f"spheres must be >= 1, got {spheres}")
@@ -267,8 +310,13 @@ def _bounding_sphere_of_spheres(c, r):
     if len(c) == 1:
         return c[0], r[0]
     f = lambda x: float(np.max(np.linalg.norm(c - x, axis=1) + r))  # noqa: E731
-    x = minimize(f, c.mean(axis=0), method="Nelder-Mead", options={"xatol": 1e-9 * (r.max() + 1e-30),
-                                                                    "fatol": 1e-9 * (r.max() + 1e-30)}).x
+    x0 = c.mean(axis=0)
+    step = 0.05 * float(np.max(np.linalg.norm(c - x0, axis=1) + r))
+    # explicit initial simplex sized by the spheres (scipy's default steps are 5 % of each coordinate,
+    # or 2.5e-4 m for a zero coordinate: not scale or translation invariant)
+    simplex = np.vstack([x0, x0 + step * np.eye(3)])
+    x = minimize(f, x0, method="Nelder-Mead", options={"xatol": 1e-9 * step, "fatol": 1e-9 * step,
+                                                        "initial_simplex": simplex}).x
     return x, f(x)
 
 
@@ -287,7 +335,10 @@ def build_sphere_tree(points, faces, spheres: int = 30, levels: int = 3, branchi
     if levels < 1:
         raise ValueError(f"levels must be >= 1, got {levels}")
     points = np.asarray(points, dtype=np.float64)
-    c, r, vlab, closed, e = fit_leaf_spheres(points, faces, spheres, seed=seed, device=device, **fit_kwargs)
+    # fit and cluster in the unit frame (bounding-box diagonal 1) so the tree is scale invariant
+    lo, unit = _unit_frame(points)
+    c, r, vlab, closed, e = fit_leaf_spheres((points - lo) / unit, faces, spheres, seed=seed, device=device,
+                                             **fit_kwargs)
     n = len(r)
     if branching is None:
         branching = max(2, math.ceil(n ** (1.0 / (levels - 1)))) if levels > 1 else 2
@@ -327,7 +378,7 @@ def build_sphere_tree(points, faces, spheres: int = 30, levels: int = 3, branchi
     start = np.zeros(len(radii) + 1, dtype=np.int64)
     start[1:] = np.cumsum([len(x) for x in lists])
     index = np.array([v for x in lists for v in x], dtype=np.int64)
-    return SphereTree(centers, radii, level, parent, start, index, closed, e)
+    return SphereTree(lo + unit * centers, unit * radii, level, parent, start, index, closed, e * unit ** 3)
 
 
 def _kmeans(x, k, rng, iterations: int = 30):
@@ -336,13 +387,12 @@ def _kmeans(x, k, rng, iterations: int = 30):
     if k >= len(x):
         return np.arange(len(x))
     c = x[rng.choice(len(x), k, replace=False)]
-    lab = np.zeros(len(x), dtype=np.int64)
+    lab = -np.ones(len(x), dtype=np.int64)
     for _ in range(iterations):
-        lab = cKDTree(c).query(x)[1]
-        new = np.array([x[lab == j].mean(axis=0) if (lab == j).any() else x[rng.integers(len(x))] for j in range(k)])
-        if np.allclose(new, c):
+        prev, lab = lab, cKDTree(c).query(x)[1]
+        if np.array_equal(lab, prev):  # converged; a label test has no length scale (np.allclose has)
             break
-        c = new
+        c = np.array([x[lab == j].mean(axis=0) if (lab == j).any() else x[rng.integers(len(x))] for j in range(k)])
     # drop empty clusters, keep labels dense
     return np.unique(lab, return_inverse=True)[1]
 

@@ -78,6 +78,14 @@ def refit_spheres(
     for k in range(a, b):
         v = vert_index[k]
         h = h + wp.outer(rest_points[v] - m0, points[v] - m)
+    # The rotation does not depend on the scale of h, but wp.svd3 has absolute float32 thresholds: a
+    # mesh scaled by 1e-4 gives entries ~1e-10 and a garbage rotation. Normalise to max |h_ij| = 1.
+    hmax = float(0.0)
+    for i in range(3):
+        for j in range(3):
+            hmax = wp.max(hmax, wp.abs(h[i, j]))
+    if hmax > 0.0:
+        h = h / hmax
     u = wp.mat33()
     sig = wp.vec3()
     vv = wp.mat33()
