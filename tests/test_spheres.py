@@ -242,10 +242,10 @@ def test_fit_bounds_vertices_and_hierarchy():
         ch = tree.children(s)
         assert (np.linalg.norm(tree.centers[ch] - tree.centers[s], axis=1) + tree.radii[ch]
                 <= tree.radii[s] * (1 + 1e-6)).all()
-    # outside volume (eq. 4.1) falls with more spheres; measured on the bear: 1 sphere 341, 12 spheres
-    # 179, 30 spheres 119 (grid estimate)
+    # outside volume (eq. 4.1) falls with more spheres; measured on the bear (grid estimate): 1 sphere 290,
+    # 12 spheres 178 (ratio 0.61; before the scale-invariant fit 341 and 179, when 1 sphere fitted worse)
     one = build_sphere_tree(bear.points, bear.faces, spheres=1, levels=1, seed=1)
-    assert tree.outside_volume < 0.6 * one.outside_volume, (tree.outside_volume, one.outside_volume)
+    assert tree.outside_volume < 0.7 * one.outside_volume, (tree.outside_volume, one.outside_volume)
 
 
 def test_refit_follows_deformation_and_matches_numpy():
