@@ -9,7 +9,10 @@ spread; parents re-bound their children.
 Outside volume (eq. 4.1) is measured on a regular grid: cells inside the mesh (winding number > 0.5)
 are *inner points*, the rest *outside points*; a sphere's outside volume is the number of outside
 points it covers times the cell volume. For an open mesh (cloth) there is no inside and the fit
-minimises the covered volume, i.e. tight spheres around the surface.
+minimises the covered volume (analytic, no grid), i.e. tight spheres around the surface.
+
+The fit runs in a unit frame (bounding-box diagonal 1, see :func:`_unit_frame`), so a scaled or moved
+mesh gets the scaled or moved spheres.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize
-from scipy.spatial import cKDTree
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 
 @dataclass
@@ -82,6 +85,10 @@ def _grid_points(points: np.ndarray, faces: np.ndarray, closed: bool, cells: int
     ext = np.maximum(hi - lo, 1e-9 * max(float(np.max(hi - lo)), 1e-30))
     h = float(np.cbrt(np.prod(ext) / cells))
     h = max(h, float(ext.max()) / 200.0)
+    if not closed:
+        # no inside: every covered point is outside, so the outside volume is the spheres' volume,
+        # computed analytically (the grid, 200x200x5 points for a flat cloth, dominated the build)
+        return np.zeros((0, 3)), np.zeros((0, 3)), h
     pad = 2.0 * h
     axes = [np.arange(lo[i] - pad, hi[i] + pad + 0.5 * h, h) for i in range(3)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
@@ -147,6 +154,12 @@ class _Fitter:
     def optimise_center(self, c0, pts):
         if len(pts) == 0:
             return c0
+        if len(pts) > 64:
+            # the farthest point of a set from any centre is a vertex of its convex hull: same r, less work
+            try:
+                pts = pts[ConvexHull(pts).vertices]
+            except QhullError:  # flat or degenerate set: keep every point
+                pass
         near = self.outside
         r0 = np.linalg.norm(pts - c0, axis=1).max()
         if self.out_tree is not None:
