@@ -30,6 +30,8 @@ class PlaneLut:
     """Words per mask W."""
     backface: float
     """Skip triangles with ``det * backface > 0`` (0: keep both sides)."""
+    min_area: float
+    """Skip triangles whose projected solid angle bound is below this disk area (0: keep all)."""
 
 
 @wp.func
@@ -123,6 +125,19 @@ def rasterize_triangle(
     # skips the side facing the receiver for the mesh's orientation; 0 keeps both)
     if det == 0.0 or det * lut.backface > 0.0:
         return 0
+    if lut.min_area > 0.0:
+        # tiny images (mostly far triangles seen almost edge-on, slivers between pixel centres) cost
+        # three cube cells and ~3 LUT words each but rarely cover a pixel centre: skip those whose
+        # projected solid angle is below ``min_area``. Van Oosterom–Strackee: tan(Ω/2) = |det| / d,
+        # so Ω <= 2|det|/d, and the projected solid angle is at most Ω times the largest cosine of
+        # the three corners (an approximation for images whose cosine peaks inside an edge)
+        ra = wp.length(la)
+        rb = wp.length(lb)
+        rc = wp.length(lc)
+        d = ra * rb * rc + wp.dot(la, lb) * rc + wp.dot(la, lc) * rb + wp.dot(lb, lc) * ra
+        zmax = wp.max(wp.max(la[2] * rb * rc, lb[2] * ra * rc), lc[2] * ra * rb)  # max cos · ra rb rc
+        if 2.0 * wp.abs(det) * zmax < lut.min_area * d * ra * rb * rc:
+            return 0
     # orient the planes so the triangle's image is above all three (either winding blocks)
     orient = wp.where(det < 0.0, -1.0, 1.0)
     nab = orient * nab

@@ -57,6 +57,9 @@ class HemirasterTransfer(TransferMethod):
         lut_dir: Optional directory caching the LUT on disk between processes.
         pvs_frames: Optional recorded animation, shape (T, V, 3): builds a potentially-visible set
             (blocker triangles that set a bit in any frame) and rasterizes only those.
+        min_image: Skip triangles whose projected solid angle (an upper bound from the
+            Van Oosterom–Strackee formula) is below this many mask pixels: mostly far triangles
+            seen nearly edge-on, whose images rarely hold a pixel centre. 0 rasterizes all (exact).
     """
 
     name = "hemiraster"
@@ -64,7 +67,7 @@ class HemirasterTransfer(TransferMethod):
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 64,
                  downsample: int = 2, ring: int = 4, coarse: int = 512, cull: bool = True, cluster: int = 16,
                  exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
-                 phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None):
+                 phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.0):
         super().__init__(mesh, order, device)
         tables.check_mask(int(mask), int(downsample))
         if ring not in (1, 2, 3, 4):
@@ -85,6 +88,9 @@ class HemirasterTransfer(TransferMethod):
         self.cluster, self.exclude, self.mode = int(cluster), float(exclude), mode
         self.view = view / np.linalg.norm(view)
         self.backface = bool(backface)
+        if not (float(min_image) >= 0.0):
+            raise ValueError(f"hemiraster: min_image must be >= 0 pixels, got {min_image}")
+        self.min_image = float(min_image)
         self.phong, self.lut_dir = float(phong), lut_dir
         t_start = time.perf_counter()
         d = device
@@ -142,6 +148,8 @@ class HemirasterTransfer(TransferMethod):
         # also rays that enter it right at the receiver (concave spots, under a skipped incident triangle)
         self._backface_side = -float(side) if self.backface else 0.0
         self._lut.backface = self._backface_side
+        # one pixel of the mask covers (2/M)² of the disk (= its projected solid angle)
+        self._lut.min_area = self.min_image * (2.0 / self.mask_res) ** 2
         perm, cstart, sstart = hierarchy.build_clusters(rest_blockers, block_faces, self.cluster, 16)
         self._bfaces = wp.array(block_faces[perm].astype(np.int32), dtype=wp.int32, device=d)
         self._bsource = wp.array(perm.astype(np.int32), dtype=wp.int32, device=d)
@@ -197,13 +205,15 @@ class HemirasterTransfer(TransferMethod):
                             help="glossy: direction towards the viewer x,y,z (world)")
         parser.add_argument("--phong", type=float, default=8.0, help="glossy: Phong exponent (default 8)")
         parser.add_argument("--lut-dir", default=None, help="directory caching the plane LUT on disk")
+        parser.add_argument("--min-image", type=float, default=0.0,
+                            help="skip triangles whose image is smaller than this many mask pixels (0: exact)")
 
     @classmethod
     def knobs_from_args(cls, args) -> dict:
         return {"mask": args.mask, "lut": args.lut, "downsample": args.downsample, "ring": args.ring,
                 "coarse": args.coarse, "cull": args.cull, "cluster": args.cluster, "exclude": args.exclude,
                 "backface": args.backface, "mode": args.mode,
-                "view": tuple(args.view), "phong": args.phong, "lut_dir": args.lut_dir}
+                "view": tuple(args.view), "phong": args.phong, "lut_dir": args.lut_dir, "min_image": args.min_image}
 
     @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
@@ -220,7 +230,7 @@ class HemirasterTransfer(TransferMethod):
         return {"mask": self.mask_res, "lut": self.lut_res, "downsample": self.downsample, "ring": self.ring,
                 "coarse": self.coarse_target, "cull": self.cull, "cluster": self.cluster, "exclude": self.exclude,
                 "backface": self.backface, "mode": self.mode, "view": self.view.tolist(), "phong": self.phong, "lut_dir": self.lut_dir,
-                "pvs_frames": self._pvs_frames}
+                "pvs_frames": self._pvs_frames, "min_image": self.min_image}
 
     def stats(self) -> dict:
         counts = self._counts.numpy()
