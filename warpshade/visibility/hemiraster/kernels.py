@@ -85,6 +85,62 @@ def edge_plane(a: wp.vec3, b: wp.vec3, ia: int, ib: int) -> wp.vec3:
 
 
 @wp.func
+def image_below(a: wp.vec3, b: wp.vec3, c: wp.vec3, nz: wp.vec3, min_area: float) -> bool:
+    """True when the projected solid angle of triangle (a, b, c) (relative to the receiver) is below ``min_area``.
+
+    Tiny images (mostly far triangles seen almost edge-on: slivers between pixel centres) cost three
+    cube cells and ~3 LUT words each but rarely cover a pixel centre. Van Oosterom–Strackee:
+    tan(Ω/2) = |det| / d, so Ω <= 2|det|/d; the projected solid angle is at most Ω times the largest
+    corner cosine (an approximation for images whose cosine peaks inside an edge).
+    """
+    ra = wp.length(a)
+    rb = wp.length(b)
+    rc = wp.length(c)
+    det = wp.dot(a, wp.cross(b, c))
+    d = ra * rb * rc + wp.dot(a, b) * rc + wp.dot(a, c) * rb + wp.dot(b, c) * ra
+    zmax = wp.max(wp.max(wp.dot(nz, a) * rb * rc, wp.dot(nz, b) * ra * rc), wp.dot(nz, c) * ra * rb)  # max cos · ra rb rc
+    return 2.0 * wp.abs(det) * zmax < min_area * d * ra * rb * rc
+
+
+@wp.func
+def bounds_below(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, n: wp.vec3, min_area: float) -> bool:
+    """Cheap pre-test of :func:`image_below` from per-frame triangle data (no vertex gathers).
+
+    ``plane`` = (N, N·a) with N = (b-a)×(c-a) (twice the area times the unit normal), ``sphere`` =
+    (centroid, radius). A triangle of area A whose plane is h from the receiver and whose points
+    are at least d_min = |centroid - p| - radius away subtends Ω = ∫ h/|x|³ dA <= A h / d_min³
+    = |N·p - N·a| / (2 d_min³); its largest cosine is at most (n·(centroid - p) + radius) / d_min.
+    """
+    q = wp.vec3(sphere[0], sphere[1], sphere[2]) - p
+    dc = wp.length(q)
+    dmin = dc - sphere[3]
+    if dmin <= 0.0:
+        return False
+    cmax = wp.min(1.0, (wp.dot(n, q) + sphere[3]) / dmin)
+    twice_ah = wp.abs(wp.dot(wp.vec3(plane[0], plane[1], plane[2]), p) - plane[3])
+    return twice_ah * cmax < min_area * 2.0 * dmin * dmin * dmin
+
+
+@wp.kernel
+def triangle_bounds(
+    points: wp.array[wp.vec3],
+    faces: wp.array2d[wp.int32],
+    plane: wp.array[wp.vec4],
+    sphere: wp.array[wp.vec4],
+):
+    """Per triangle: (N, N·a) with N = (b-a)×(c-a), and a bounding sphere (centroid, max corner distance)."""
+    t = wp.tid()
+    a = points[faces[t, 0]]
+    b = points[faces[t, 1]]
+    c = points[faces[t, 2]]
+    nrm = wp.cross(b - a, c - a)
+    plane[t] = wp.vec4(nrm[0], nrm[1], nrm[2], wp.dot(nrm, a))
+    cen = (a + b + c) / 3.0
+    r = wp.max(wp.max(wp.length(a - cen), wp.length(b - cen)), wp.length(c - cen))
+    sphere[t] = wp.vec4(cen[0], cen[1], cen[2], r)
+
+
+@wp.func
 def rasterize_triangle(
     a: wp.vec3,
     b: wp.vec3,
@@ -112,6 +168,9 @@ def rasterize_triangle(
     nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
     if wp.dot(nz, a) <= 0.0 and wp.dot(nz, b) <= 0.0 and wp.dot(nz, c) <= 0.0:
         return 0
+    if lut.min_area > 0.0:
+        if image_below(a, b, c, nz, lut.min_area):
+            return 0
     ft = wp.transpose(frame)
     la = ft * a
     lb = ft * b
@@ -125,19 +184,6 @@ def rasterize_triangle(
     # skips the side facing the receiver for the mesh's orientation; 0 keeps both)
     if det == 0.0 or det * lut.backface > 0.0:
         return 0
-    if lut.min_area > 0.0:
-        # tiny images (mostly far triangles seen almost edge-on, slivers between pixel centres) cost
-        # three cube cells and ~3 LUT words each but rarely cover a pixel centre: skip those whose
-        # projected solid angle is below ``min_area``. Van Oosterom–Strackee: tan(Ω/2) = |det| / d,
-        # so Ω <= 2|det|/d, and the projected solid angle is at most Ω times the largest cosine of
-        # the three corners (an approximation for images whose cosine peaks inside an edge)
-        ra = wp.length(la)
-        rb = wp.length(lb)
-        rc = wp.length(lc)
-        d = ra * rb * rc + wp.dot(la, lb) * rc + wp.dot(la, lc) * rb + wp.dot(lb, lc) * ra
-        zmax = wp.max(wp.max(la[2] * rb * rc, lb[2] * ra * rc), lc[2] * ra * rb)  # max cos · ra rb rc
-        if 2.0 * wp.abs(det) * zmax < lut.min_area * d * ra * rb * rc:
-            return 0
     # orient the planes so the triangle's image is above all three (either winding blocks)
     orient = wp.where(det < 0.0, -1.0, 1.0)
     nab = orient * nab
@@ -249,6 +295,8 @@ def rasterize_blocker(
     p: wp.vec3,
     bpoints: wp.array[wp.vec3],
     bfaces: wp.array2d[wp.int32],
+    bplane: wp.array[wp.vec4],
+    bsphere: wp.array[wp.vec4],
     bsource: wp.array[wp.int32],
     skip_incident: int,
     use_excl: int,
@@ -259,7 +307,10 @@ def rasterize_blocker(
     record: int,
     hits: wp.array2d[wp.uint32],
 ) -> int:
-    """Rasterize blocker triangle ``t`` for receiver ``v`` after the incident / near-field skips; returns 0/1."""
+    """Rasterize blocker triangle ``t`` for receiver ``v`` after the incident / near-field / tiny-image skips; returns 0/1."""
+    if lut.min_area > 0.0:
+        if bounds_below(bplane[t], bsphere[t], p, wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2]), lut.min_area):
+            return 0
     i = bfaces[t, 0]
     j = bfaces[t, 1]
     k = bfaces[t, 2]
@@ -305,6 +356,8 @@ def rasterize_transfer(
     ring_tris: wp.array[wp.int32],
     bpoints: wp.array[wp.vec3],
     bfaces: wp.array2d[wp.int32],
+    bplane: wp.array[wp.vec4],
+    bsphere: wp.array[wp.vec4],
     bsource: wp.array[wp.int32],
     skip_incident: int,
     use_excl: int,
@@ -373,7 +426,7 @@ def rasterize_transfer(
     offset = wp.dot(n, p)
     if use_pvs != 0:
         for r in range(pvs_start[v], pvs_start[v + 1]):
-            count += rasterize_blocker(pvs_tris[r], v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
+            count += rasterize_blocker(pvs_tris[r], v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl,
                                        frame, lut, mask, record, hits)
     elif use_cull != 0:
         for s in range(super_start.shape[0] - 1):
@@ -381,11 +434,11 @@ def rasterize_transfer(
                 for c in range(super_start[s], super_start[s + 1]):
                     if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
                         for t in range(cluster_start[c], cluster_start[c + 1]):
-                            count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl,
+                            count += rasterize_blocker(t, v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl,
                                                        excl, frame, lut, mask, record, hits)
     else:
         for t in range(bfaces.shape[0]):
-            count += rasterize_blocker(t, v, p, bpoints, bfaces, bsource, skip_incident, use_excl, excl,
+            count += rasterize_blocker(t, v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl,
                                        frame, lut, mask, record, hits)
     counts[v] = count
 

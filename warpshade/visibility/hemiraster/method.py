@@ -21,7 +21,8 @@ from ...geometry.mesh import TriMesh
 from ...sh.kernels import normalization_array
 from ..base import TransferMethod
 from . import hierarchy, tables
-from .kernels import PlaneLut, follow_coarse_points, rasterize_transfer, refit_clusters, refit_super_clusters
+from .kernels import (PlaneLut, follow_coarse_points, rasterize_transfer, refit_clusters, refit_super_clusters,
+                      triangle_bounds)
 
 
 def _parse_vec3(text: str) -> tuple[float, float, float]:
@@ -160,6 +161,8 @@ class HemirasterTransfer(TransferMethod):
         self._cluster_box = (wp.zeros(nc, dtype=wp.vec3, device=d), wp.zeros(nc, dtype=wp.vec3, device=d))
         self._super_box = (wp.zeros(ns, dtype=wp.vec3, device=d), wp.zeros(ns, dtype=wp.vec3, device=d))
         self.num_blockers = len(block_faces)
+        self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
+        self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
 
         # per-vertex scratch (one row per receiver; rows are private to their thread)
         nn = self.order * self.order
@@ -264,11 +267,14 @@ class HemirasterTransfer(TransferMethod):
                       device=self.device)
             wp.launch(refit_super_clusters, dim=self._super_box[0].shape[0],
                       inputs=[*self._cluster_box, self._super_start], outputs=[*self._super_box], device=self.device)
+        if self.min_image > 0.0:
+            wp.launch(triangle_bounds, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
+                      outputs=[self._bplane, self._bsphere], device=self.device)
         wp.launch(
             rasterize_transfer,
             dim=self.mesh.num_vertices,
             inputs=[self.points, self.normals, self.faces, self._ring_start, self._ring_tris,
-                    self._bpoints, self._bfaces, self._bsource, 0 if self.hierarchy else 1,
+                    self._bpoints, self._bfaces, self._bplane, self._bsphere, self._bsource, 0 if self.hierarchy else 1,
                     1 if self.hierarchy else 0, self._excl,
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
