@@ -307,19 +307,28 @@ def rasterize_blocker(
     record: int,
     hits: wp.array2d[wp.uint32],
 ) -> int:
-    """Rasterize blocker triangle ``t`` for receiver ``v`` after the incident / near-field / tiny-image skips; returns 0/1."""
+    """Rasterize blocker triangle ``t`` for receiver ``v`` after the cheap skips; returns 0/1.
+
+    Skips, cheapest first, all from per-frame data of ``t`` alone (no vertex gathers): the bounding
+    sphere wholly at or below the tangent plane (a subset of :func:`rasterize_triangle`'s exact
+    horizon cull, so the mask is unchanged), the near-field exclusion, the tiny-image bound.
+    """
+    sph = bsphere[t]
+    nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
+    if wp.dot(nz, wp.vec3(sph[0], sph[1], sph[2]) - p) + sph[3] <= 0.0:
+        return 0
+    src = bsource[t]
+    if use_excl != 0:
+        if excluded(excl, v, src):
+            return 0
     if lut.min_area > 0.0:
-        if bounds_below(bplane[t], bsphere[t], p, wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2]), lut.min_area):
+        if bounds_below(bplane[t], sph, p, nz, lut.min_area):
             return 0
     i = bfaces[t, 0]
     j = bfaces[t, 1]
     k = bfaces[t, 2]
     if skip_incident != 0:
         if i == v or j == v or k == v:
-            return 0
-    src = bsource[t]
-    if use_excl != 0:
-        if excluded(excl, v, src):
             return 0
     r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, i, j, k, frame, lut, mask, v)
     if record != 0 and r == 2:

@@ -267,9 +267,9 @@ class HemirasterTransfer(TransferMethod):
                       device=self.device)
             wp.launch(refit_super_clusters, dim=self._super_box[0].shape[0],
                       inputs=[*self._cluster_box, self._super_start], outputs=[*self._super_box], device=self.device)
-        if self.min_image > 0.0:
-            wp.launch(triangle_bounds, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
-                      outputs=[self._bplane, self._bsphere], device=self.device)
+        # bounding spheres pre-cull blockers below the horizon; the planes serve the tiny-image bound
+        wp.launch(triangle_bounds, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
+                  outputs=[self._bplane, self._bsphere], device=self.device)
         wp.launch(
             rasterize_transfer,
             dim=self.mesh.num_vertices,
