@@ -168,9 +168,6 @@ def rasterize_triangle(
     nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
     if wp.dot(nz, a) <= 0.0 and wp.dot(nz, b) <= 0.0 and wp.dot(nz, c) <= 0.0:
         return 0
-    if lut.min_area > 0.0:
-        if image_below(a, b, c, nz, lut.min_area):
-            return 0
     ft = wp.transpose(frame)
     la = ft * a
     lb = ft * b
@@ -330,7 +327,13 @@ def rasterize_blocker(
     if skip_incident != 0:
         if i == v or j == v or k == v:
             return 0
-    r = rasterize_triangle(bpoints[i] - p, bpoints[j] - p, bpoints[k] - p, i, j, k, frame, lut, mask, v)
+    a = bpoints[i] - p
+    b = bpoints[j] - p
+    c = bpoints[k] - p
+    if lut.min_area > 0.0:
+        if image_below(a, b, c, nz, lut.min_area):
+            return 0
+    r = rasterize_triangle(a, b, c, i, j, k, frame, lut, mask, v)
     if record != 0 and r == 2:
         hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
     if r > 0:
