@@ -359,6 +359,27 @@ def subtract_blocks(
         local[v, i] = local[v, i] - acc
 
 
+@wp.func
+def push_block(
+    b: int,
+    wgt: float,
+    nblk: int,
+    nn: int,
+    blk_index: wp.array2d[wp.int32],
+    blk_weight: wp.array2d[float],
+    block_weights: wp.array2d[float],
+    local: wp.array2d[float],
+    v: int,
+) -> int:
+    """Append (block, weight) to receiver ``v``'s gather list, subtracting when it is full; returns the new length."""
+    blk_index[v, nblk] = b
+    blk_weight[v, nblk] = wgt
+    if nblk + 1 == blk_index.shape[1]:
+        subtract_blocks(nblk + 1, nn, blk_index, blk_weight, block_weights, local, v)
+        return 0
+    return nblk + 1
+
+
 @wp.kernel
 def rasterize_transfer(
     points: wp.array[wp.vec3],
@@ -387,6 +408,7 @@ def rasterize_transfer(
     lut: PlaneLut,
     block_bits: int,
     block_valid: wp.array[wp.int32],
+    valid_words: wp.array[wp.uint64],
     block_weights: wp.array2d[float],
     block_dirs: wp.array[wp.vec3],
     unoccluded: wp.array[float],
@@ -477,10 +499,28 @@ def rasterize_transfer(
     run = wp.uint64(0xFFFFFFFFFFFFFFFF)
     if block_bits < 64:
         run = (wp.uint64(1) << wp.uint64(block_bits)) - wp.uint64(1)
+    # a wholly blocked group of 4 sibling blocks (a 2D×2D Morton block) is one entry with the sum of
+    # their weights (rows after the blocks): the same result with up to 4× fewer entries (diffuse only:
+    # glossy weighs each block by its own lobe value)
+    group_bits = 4 * block_bits
+    use_group = glossy == 0 and group_bits <= 64 and block_weights.shape[0] > block_valid.shape[0]
+    grun = wp.uint64(0xFFFFFFFFFFFFFFFF)
+    if group_bits < 64:
+        grun = (wp.uint64(1) << wp.uint64(group_bits)) - wp.uint64(1)
     for w in range(lut.words):
         x = mask[v, w]
         if x != wp.uint64(0):
-            for j in range(per_word):
+            vw = valid_words[w]
+            j = int(0)
+            while j < per_word:
+                if use_group and j % 4 == 0:
+                    gbits = (x >> wp.uint64(j * block_bits)) & grun
+                    if gbits == wp.uint64(0) or gbits == ((vw >> wp.uint64(j * block_bits)) & grun):
+                        if gbits != wp.uint64(0):
+                            nblk = push_block(block_valid.shape[0] + (w * per_word + j) // 4, 1.0, nblk, nn,
+                                              blk_index, blk_weight, block_weights, local, v)
+                        j += 4
+                        continue
                 bits = (x >> wp.uint64(j * block_bits)) & run
                 if bits != wp.uint64(0):
                     b = w * per_word + j
@@ -491,12 +531,8 @@ def rasterize_transfer(
                             wgt = wgt * lobe_norm * wp.pow(cosr, phong)
                         else:
                             wgt = 0.0
-                    blk_index[v, nblk] = b
-                    blk_weight[v, nblk] = wgt
-                    nblk += 1
-                    if nblk == blk_index.shape[1]:
-                        subtract_blocks(nblk, nn, blk_index, blk_weight, block_weights, local, v)
-                        nblk = 0
+                    nblk = push_block(b, wgt, nblk, nn, blk_index, blk_weight, block_weights, local, v)
+                j += 1
     subtract_blocks(nblk, nn, blk_index, blk_weight, block_weights, local, v)
 
     # rotate to world, band by band: g_l = Σ_k y_l(Q s_k) (Y_l(S)^+ c_l)_k. The per-band factor of

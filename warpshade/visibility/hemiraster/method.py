@@ -109,7 +109,14 @@ class HemirasterTransfer(TransferMethod):
         self._lut.words = self._words
         blocks = tables.block_tables(self.mask_res, self.downsample, self.order)
         self._block_valid = wp.array(blocks["valid"], dtype=wp.int32, device=d)
-        self._block_weights = wp.array(blocks["weights"].astype(np.float32), dtype=float, device=d)
+        # rows after the B blocks: summed weights of each group of 4 sibling blocks (one gather entry
+        # when all four are wholly blocked)
+        weights = blocks["weights"]
+        if len(weights) % 4 == 0 and len(weights) >= 4:
+            weights = np.concatenate([weights, weights.reshape(-1, 4, weights.shape[1]).sum(axis=1)])
+        self._block_weights = wp.array(weights.astype(np.float32), dtype=float, device=d)
+        self._valid_words = wp.array(tables.pack_bits(tables.pixel_directions(self.mask_res)[1]), dtype=wp.uint64,
+                                     device=d)
         self._block_dirs = wp.array(blocks["dirs"].astype(np.float32), dtype=wp.vec3, device=d)
         self._unoccluded = wp.array(blocks["weights"].sum(axis=0).astype(np.float32), dtype=float, device=d)
         rot_dirs, rot_pinv = tables.rotation_directions(self.order)
@@ -279,7 +286,7 @@ class HemirasterTransfer(TransferMethod):
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
                     self._lut,
-                    self.downsample * self.downsample, self._block_valid, self._block_weights, self._block_dirs,
+                    self.downsample * self.downsample, self._block_valid, self._valid_words, self._block_weights, self._block_dirs,
                     self._unoccluded, 1 if self.mode == "glossy" else 0, wp.vec3(*self.view.astype(np.float32)),
                     self.phong, self._rot_dirs, self._rot_pinv, self.order, self._sh_norm, record],
             outputs=[self._mask, self._local, self._blk_index, self._blk_weight, self._scaled_norm, self._hits, self._counts, self.transfer],
