@@ -103,6 +103,22 @@ def image_below(a: wp.vec3, b: wp.vec3, c: wp.vec3, nz: wp.vec3, min_area: float
 
 
 @wp.func
+def skip_early(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, nz: wp.vec3, backface: float) -> bool:
+    """Per-frame triangle data say: wholly at or below the tangent plane, or back-facing (``backface``).
+
+    The sphere test is a subset of :func:`rasterize_triangle`'s exact horizon cull; ``N·a - N·p`` is
+    its determinant ``det[a-p, b-p, c-p]`` computed another way (signs can differ only for
+    triangles seen exactly edge-on, which have empty images).
+    """
+    if wp.dot(nz, wp.vec3(sphere[0], sphere[1], sphere[2]) - p) + sphere[3] <= 0.0:
+        return True
+    if backface != 0.0:
+        if (plane[3] - wp.dot(wp.vec3(plane[0], plane[1], plane[2]), p)) * backface > 0.0:
+            return True
+    return False
+
+
+@wp.func
 def bounds_below(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, n: wp.vec3, min_area: float) -> bool:
     """Cheap pre-test of :func:`image_below` from per-frame triangle data (no vertex gathers).
 
@@ -308,18 +324,20 @@ def rasterize_blocker(
 
     Skips, cheapest first, all from per-frame data of ``t`` alone (no vertex gathers): the bounding
     sphere wholly at or below the tangent plane (a subset of :func:`rasterize_triangle`'s exact
-    horizon cull, so the mask is unchanged), the near-field exclusion, the tiny-image bound.
+    horizon cull, so the mask is unchanged) or back-facing (:func:`skip_early`), the near-field
+    exclusion, the tiny-image bound.
     """
     sph = bsphere[t]
+    pln = bplane[t]
     nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
-    if wp.dot(nz, wp.vec3(sph[0], sph[1], sph[2]) - p) + sph[3] <= 0.0:
+    if skip_early(pln, sph, p, nz, lut.backface):
         return 0
     src = bsource[t]
     if use_excl != 0:
         if excluded(excl, v, src):
             return 0
     if lut.min_area > 0.0:
-        if bounds_below(bplane[t], sph, p, nz, lut.min_area):
+        if bounds_below(pln, sph, p, nz, lut.min_area):
             return 0
     i = bfaces[t, 0]
     j = bfaces[t, 1]
@@ -387,6 +405,8 @@ def rasterize_transfer(
     faces: wp.array2d[wp.int32],
     ring_start: wp.array[wp.int32],
     ring_tris: wp.array[wp.int32],
+    fplane: wp.array[wp.vec4],
+    fsphere: wp.array[wp.vec4],
     bpoints: wp.array[wp.vec3],
     bfaces: wp.array2d[wp.int32],
     bplane: wp.array[wp.vec4],
@@ -452,6 +472,8 @@ def rasterize_transfer(
     # near field at full resolution
     for r in range(ring_start[v], ring_start[v + 1]):
         t = ring_tris[r]
+        if skip_early(fplane[t], fsphere[t], p, n, lut.backface):
+            continue
         i = faces[t, 0]
         j = faces[t, 1]
         k = faces[t, 2]

@@ -168,6 +168,8 @@ class HemirasterTransfer(TransferMethod):
         self._cluster_box = (wp.zeros(nc, dtype=wp.vec3, device=d), wp.zeros(nc, dtype=wp.vec3, device=d))
         self._super_box = (wp.zeros(ns, dtype=wp.vec3, device=d), wp.zeros(ns, dtype=wp.vec3, device=d))
         self.num_blockers = len(block_faces)
+        self._fplane = wp.zeros(nf, dtype=wp.vec4, device=d)
+        self._fsphere = wp.zeros(nf, dtype=wp.vec4, device=d)
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
 
@@ -274,13 +276,17 @@ class HemirasterTransfer(TransferMethod):
                       device=self.device)
             wp.launch(refit_super_clusters, dim=self._super_box[0].shape[0],
                       inputs=[*self._cluster_box, self._super_start], outputs=[*self._super_box], device=self.device)
-        # bounding spheres pre-cull blockers below the horizon; the planes serve the tiny-image bound
+        # planes and bounding spheres pre-cull triangles below the horizon or back-facing, and bound
+        # image sizes, before any vertex is gathered
         wp.launch(triangle_bounds, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
                   outputs=[self._bplane, self._bsphere], device=self.device)
+        if self.hierarchy:
+            wp.launch(triangle_bounds, dim=self.mesh.num_faces, inputs=[self.points, self.faces],
+                      outputs=[self._fplane, self._fsphere], device=self.device)
         wp.launch(
             rasterize_transfer,
             dim=self.mesh.num_vertices,
-            inputs=[self.points, self.normals, self.faces, self._ring_start, self._ring_tris,
+            inputs=[self.points, self.normals, self.faces, self._ring_start, self._ring_tris, self._fplane, self._fsphere,
                     self._bpoints, self._bfaces, self._bplane, self._bsphere, self._bsource, 0 if self.hierarchy else 1,
                     1 if self.hierarchy else 0, self._excl,
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._super_start, *self._super_box,
