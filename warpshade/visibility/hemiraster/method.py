@@ -236,7 +236,7 @@ class HemirasterTransfer(TransferMethod):
     def sweep(cls, quick: bool = False) -> list[dict]:
         if quick:
             return [{}, {"min_image": 0.0}, {"mask": 16}]
-        out = [{}]
+        out = [{}, {"lut": 64, "downsample": 2, "min_image": 0.0}]  # the defaults before the tiny-image cull
         out += [{"min_image": x} for x in (0.0, 0.25, 1.0)]
         out += [{"mask": m} for m in (8, 16, 64)]
         out += [{"lut": r} for r in (32, 64, 128)]
