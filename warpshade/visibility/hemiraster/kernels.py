@@ -1,8 +1,9 @@
 """Kernels of hemispherical rasterization (Kautz et al. 2004); orchestration lives in :mod:`.method`.
 
 Per frame: :func:`follow_coarse_points` (coarse vertices ride the fine mesh), :func:`refit_clusters`
-and :func:`refit_super_clusters` (bounding boxes), then one :func:`rasterize_transfer` launch that,
-per receiver vertex, rasterizes blockers into a bit mask and integrates it into SH transfer.
+and :func:`refit_super_clusters` (bounding boxes), :func:`triangle_bounds` (per-triangle plane and
+bounding sphere, for pre-tests without vertex gathers), then one :func:`rasterize_transfer` launch
+that, per receiver vertex, rasterizes blockers into a bit mask and integrates it into SH transfer.
 Mask layout, LUT convention and block tables: :mod:`.tables`.
 """
 
