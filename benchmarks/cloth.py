@@ -171,7 +171,7 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-baselines", action="store_true", help="only time warpshade")
     ap.add_argument("--json", help="write the numbers to this file")
     args = ap.parse_args(argv)
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     wp.init()
 
     res = run_warpshade(args.grid, args.frames, args.repeats, not args.no_self_collision)

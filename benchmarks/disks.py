@@ -58,7 +58,7 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", default=None, help="write the records here")
     args = ap.parse_args()
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     meshes = ["bear.usd"] if args.quick else ["bunny.usd", "bear.usd"]
     configs = [("disks", k) for k in get_method("disks").sweep(args.quick)]
     configs += [("disks", {"sides": "two"})] if not args.quick else []

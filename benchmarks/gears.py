@@ -45,7 +45,7 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", default=None, help="write the records here")
     args = ap.parse_args()
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     Gears, Rays = get_area_method("gears"), get_area_method("reference")
     meshes = ["bunny.usd"] if args.quick else ["bunny.usd", "bear.usd"]
     ks = (8, 16) if args.quick else (4, 8, 16, 32)

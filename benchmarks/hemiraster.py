@@ -237,7 +237,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=None, metavar="PATH")
     ap.add_argument("--no-embree", action="store_true")
     args = ap.parse_args(argv)
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     cls = get_method("hemiraster")
     results = {"machine_note": "shared, loaded 2-core machine (other jobs running)", "order": ORDER,
                "reference_rays": REF_RAYS, "meshes": {}}

@@ -30,7 +30,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="smaller map, fewer repeats")
     ap.add_argument("--json", help="write the numbers to this file")
     args = ap.parse_args(argv)
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     repeat = 3 if args.quick else 7
     h = 256 if args.quick else 1024
     rng = np.random.default_rng(0)

@@ -23,7 +23,7 @@ from warpshade.cluster import loopback_cluster
 from warpshade.geometry import load_mesh
 from warpshade.parallel import TransferSpec, shade_frames
 
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
 
 
 def frames(mesh, n, start=0):

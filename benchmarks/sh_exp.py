@@ -169,7 +169,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="fewer samples and repeats")
     ap.add_argument("--json", metavar="PATH", help="write all numbers as JSON")
     args = ap.parse_args(argv)
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     wp.init()
     rng = np.random.default_rng(0)
     count = 60 if args.quick else 300

@@ -30,7 +30,10 @@ import time
 import numpy as np
 import warp as wp
 
-wp.config.quiet = True
+# Measure the checkout this script belongs to (a plain `python benchmarks/spheres.py` would otherwise
+# import whichever warpshade is installed).
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
 
 from warpshade.geometry import TriMesh, load_mesh  # noqa: E402
 from warpshade.metrics import error_summary  # noqa: E402

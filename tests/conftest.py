@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
 
 WARP_ASSETS = os.path.join(os.path.dirname(wp.__file__), "examples", "assets")
 

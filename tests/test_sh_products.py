@@ -9,7 +9,7 @@ import pytest
 import warp as wp
 
 from warpshade.sh import sh_eval, sh_index
-from warpshade.sh.kernels import multiply_sh, product_table_arrays
+from warpshade.sh.kernels import SHProductTable, multiply_sh, product_table_arrays
 from warpshade.sh.products import gaunt_tensor, product_matrix, sh_product, sh_square, symmetric_product_table
 
 
@@ -134,3 +134,42 @@ def test_warp_products_float32(order, rng):
     assert err.max() < 1e-5, (order, err.max(), int(err.argmax()))
     sym = symmetric_product_table(order)
     assert sym.value.size <= gaunt_tensor(order).nnz
+
+
+def _vector_product_kernel(order):
+    from warpshade.sh.kernels import sh_product_vector_funcs
+
+    f = sh_product_vector_funcs(order)
+    V = f.vec_sh
+
+    def products(a: wp.array(dtype=V), b: wp.array(dtype=V), table: SHProductTable, ab: wp.array(dtype=V),
+                 aa: wp.array(dtype=V)):
+        i = wp.tid()
+        ab[i] = f.product(a[i], b[i], table)
+        aa[i] = f.square(a[i], table)
+
+    products.__annotations__ = {"a": wp.array(dtype=V), "b": wp.array(dtype=V), "table": SHProductTable,
+                                "ab": wp.array(dtype=V), "aa": wp.array(dtype=V)}
+    products.__name__ = f"vector_products_order{order}"
+    return V, wp.kernel(products, enable_backward=False)
+
+
+@pytest.mark.parametrize("order", [1, 2, 4, 5, 7])
+def test_vector_products_float32(order, rng):
+    # The vector product and square (unrolled up to UNROLL_MAX_ORDER = 6, table loop at 7) against the
+    # float64 NumPy product; tolerance as in test_warp_products_float32 (same float32 sums, only the
+    # order of the terms differs).
+    n = order * order
+    a = rng.normal(size=(50, n))
+    b = rng.normal(size=(50, n))
+    a[1] *= 1e15
+    b[2] *= 1e-15
+    V, kernel = _vector_product_kernel(order)
+    ab, aa = wp.zeros(50, dtype=V), wp.zeros(50, dtype=V)
+    wp.launch(kernel, dim=50, inputs=[wp.array(a.astype(np.float32), dtype=V), wp.array(b.astype(np.float32), dtype=V),
+                                      product_table_arrays(order)], outputs=[ab, aa])
+    na, nb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+    err_ab = np.abs(ab.numpy().reshape(50, n) - sh_product(a, b)).max(axis=1) / (na * nb / math.sqrt(4 * math.pi))
+    err_aa = np.abs(aa.numpy().reshape(50, n) - sh_square(a)).max(axis=1) / (na * na / math.sqrt(4 * math.pi))
+    assert err_ab.max() < 1e-5, (order, err_ab.max(), int(err_ab.argmax()))
+    assert err_aa.max() < 1e-5, (order, err_aa.max(), int(err_aa.argmax()))

@@ -10,12 +10,15 @@ from .sh import n_coeffs, sh_eval
 from .sim import (ClothBuilder, ClothControl, ClothModel, ClothState, ColliderSet, LBSSkinner, MeshCollider,
                   SimulationError, WalkingFigure, XPBDSolver)
 from .visibility import METHODS, TransferMethod, get_method
+from .pipeline import Pipeline, RunReport
+from .scene import LightSpec, Material, Scene, SceneError, SceneObject
 from .visibility.gears import AreaVisibilityMethod, LightRect, get_area_method
 
 __all__ = ["ConstantEnvironment", "DirectionalLight", "EnvironmentMap", "PointLight", "RectLight", "Sky",
            "SphereLight", "default_environment", "exit_radiance", "shade"]
 __all__ += ["METHODS", "MeshError", "TransferMethod", "TriMesh", "__version__", "get_method", "load_mesh",
            "n_coeffs", "sh_eval"]
+__all__ += ["LightSpec", "Material", "Pipeline", "RunReport", "Scene", "SceneError", "SceneObject"]
 __all__ += ["AreaVisibilityMethod", "LightRect", "get_area_method"]
 __all__ += ["ClothBuilder", "ClothControl", "ClothModel", "ClothState", "ColliderSet", "LBSSkinner", "MeshCollider",
             "SimulationError", "WalkingFigure", "XPBDSolver"]

@@ -62,7 +62,7 @@ _WORKER_SHADERS: dict[str, ShadeFn] = {}
 def _init_worker(token: str, spec: FrameShaderSpec) -> None:
     import warp as wp
 
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     _WORKER_SHADERS[token] = spec.build()
 
 

@@ -14,6 +14,14 @@ import numpy as np
 
 from .geometry.mesh import TriMesh
 
+class SceneError(ValueError):
+    """Invalid scene input. The message names the file and the prim at fault."""
+
+
+class SceneWarning(UserWarning):
+    """Something in a scene file that warpshade ignores (an unsupported prim or input)."""
+
+
 OBJECT_KINDS = ("static", "cloth", "skinned", "animated")
 """``static``: never moves; ``cloth``: simulated; ``skinned``: linear-blend skinned; ``animated``:
 time-sampled points read from the file."""
@@ -34,6 +42,76 @@ class Material:
     @property
     def glossy(self) -> bool:
         return self.roughness < 1.0
+
+
+LIGHT_KINDS = ("dome", "distant", "sphere", "rect")
+"""UsdLux light types warpshade reads and writes (DomeLight, DistantLight, SphereLight, RectLight)."""
+
+
+@dataclass
+class LightSpec:
+    """A light as described in a scene file, before it becomes a :mod:`warpshade.lighting` object.
+
+    Conventions follow UsdLux: radiance = ``color * intensity * 2**exposure`` (linear RGB); a
+    distant light shines along ``-Z`` of its frame; a rect light lies in the frame's XY plane
+    (``width`` along X, ``height`` along Y) and emits towards ``-Z``; a dome light's lat-long
+    ``texture`` has +Y (in the dome's frame) at the top row.
+
+    Attributes:
+        kind: One of :data:`LIGHT_KINDS`.
+        name: Prim path (for messages and as the output prim name).
+        color: Linear RGB, shape (3,), float64.
+        intensity: Scalar multiplier.
+        exposure: Power-of-two multiplier (radiance scales by ``2**exposure``).
+        transform: Light-to-world matrix acting on column vectors (``p_world = M @ [p, 1]``),
+            shape (4, 4), float64.
+        angle: Distant light: angular diameter [degrees].
+        radius: Sphere light: radius [scene units].
+        width: Rect light: size along the frame's X [scene units].
+        height: Rect light: size along the frame's Y [scene units].
+        texture: Dome light: absolute path of the lat-long environment image, or None for a
+            uniform dome of ``color``.
+        normalize: UsdLux ``inputs:normalize``: the power does not depend on the light's size
+            (radiance is divided by the emitting area; a distant light then gives irradiance).
+        treat_as_point: Sphere light: UsdLux ``treatAsPoint``.
+    """
+
+    kind: str
+    name: str = "light"
+    color: np.ndarray = field(default_factory=lambda: np.ones(3))
+    intensity: float = 1.0
+    exposure: float = 0.0
+    transform: np.ndarray = field(default_factory=lambda: np.eye(4))
+    angle: float = 0.53
+    radius: float = 0.5
+    width: float = 1.0
+    height: float = 1.0
+    texture: str | None = None
+    normalize: bool = False
+    treat_as_point: bool = False
+
+    def __post_init__(self):
+        if self.kind not in LIGHT_KINDS:
+            raise ValueError(f"{self.name}: unknown light kind '{self.kind}' (known: {', '.join(LIGHT_KINDS)})")
+        self.color = np.asarray(self.color, dtype=np.float64).reshape(3)
+        self.transform = np.asarray(self.transform, dtype=np.float64).reshape(4, 4)
+
+    @property
+    def radiance(self) -> np.ndarray:
+        """Emitted radiance, linear RGB, shape (3,): ``color * intensity * 2**exposure``."""
+        return self.color * self.intensity * 2.0 ** self.exposure
+
+    @property
+    def position(self) -> np.ndarray:
+        """Origin of the light's frame in world space, shape (3,)."""
+        return self.transform[:3, 3].copy()
+
+    @property
+    def direction(self) -> np.ndarray:
+        """Unit world direction the light shines along (its frame's ``-Z``), shape (3,)."""
+        d = -self.transform[:3, 2]
+        n = np.linalg.norm(d)
+        return d / n if n > 0 else np.array([0.0, -1.0, 0.0])
 
 
 @dataclass
@@ -75,7 +153,8 @@ class Scene:
 
     Attributes:
         objects: Meshes.
-        lights: Light objects from :mod:`warpshade.lighting` (environment, directional, sphere, rect...).
+        lights: Light descriptions (:class:`LightSpec`); the pipeline turns them into
+            :mod:`warpshade.lighting` objects.
         frames: Number of frames to produce.
         fps: Frames per second.
         up_axis: ``"Y"`` or ``"Z"``.
@@ -85,7 +164,7 @@ class Scene:
     """
 
     objects: list[SceneObject] = field(default_factory=list)
-    lights: list[Any] = field(default_factory=list)
+    lights: list[LightSpec] = field(default_factory=list)
     frames: int = 120
     fps: float = 60.0
     up_axis: str = "Y"

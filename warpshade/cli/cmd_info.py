@@ -15,11 +15,11 @@ def add_arguments(parser) -> None:
 def collect() -> dict:
     import numpy
     import warp as wp
-    from pxr import Usd
 
     from .. import __version__
+    from ..usd import usd_version
 
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     wp.init()
     return {
         "warpshade": __version__,
@@ -27,7 +27,7 @@ def collect() -> dict:
         "platform": platform.platform(),
         "warp": wp.__version__,
         "numpy": numpy.__version__,
-        "usd": ".".join(str(v) for v in Usd.GetVersion()),
+        "usd": usd_version(),
         "devices": [str(d) for d in wp.get_devices()],
         "preferred_device": str(wp.get_preferred_device()),
         "kernel_cache": wp.config.kernel_cache_dir,

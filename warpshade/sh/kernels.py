@@ -250,6 +250,83 @@ def zh_vector_funcs(order: int) -> SimpleNamespace:
                            accumulate_lobes=kernel)
 
 
+UNROLL_MAX_ORDER = 6
+"""Highest order whose vector products are unrolled. Cold compile of the sphere-set kernels (both
+products, several call sites) on a loaded 2-core machine: 21 s for orders 4 and 5 together, 37 s at
+order 6, 125 s at order 8; above this order the products loop over the table instead."""
+
+
+@functools.lru_cache(maxsize=None)
+def sh_product_vector_funcs(order: int) -> SimpleNamespace:
+    """Truncated SH product and square on the ``vec_sh`` of :func:`zh_vector_funcs` (built once, cached).
+
+    Returns a namespace with ``vec_sh`` and two ``@wp.func``s:
+
+    * ``product(a: vec_sh, b: vec_sh, table: SHProductTable) -> vec_sh``: ``a * b`` (thesis eq. 3.19);
+    * ``square(a: vec_sh, table: SHProductTable) -> vec_sh``: ``a * a`` with one multiply per symmetric
+      entry (``c_i = sum 2 v a_j a_k`` over :func:`~warpshade.sh.products.symmetric_product_table`,
+      whose diagonal entries hold ``Gamma_ijj / 2``).
+
+    ``table`` is :func:`product_table_arrays` of the same order. Up to :data:`UNROLL_MAX_ORDER` the
+    Gaunt coefficients are written into generated source as float32 literals and ``table`` is not
+    read, so the compiler keeps the operands in registers: with the square, what makes the sphere-set
+    kernels 2.8x faster than rows + :func:`sh_product_rows` (README, benchmarks/spheres.py). The
+    generated source is registered with ``linecache`` so Warp can parse it. Above that order the
+    functions loop over ``table`` (compile time).
+    """
+    import linecache
+
+    from .products import symmetric_product_table
+
+    zf = zh_vector_funcs(order)
+    vec_sh = zf.vec_sh
+    if order > UNROLL_MAX_ORDER:
+
+        def product(a: vec_sh, b: vec_sh, table: SHProductTable) -> vec_sh:
+            out = vec_sh()
+            for e in range(table.v.shape[0]):
+                i = table.i[e]
+                j = table.j[e]
+                k = table.k[e]
+                out[i] = out[i] + table.v[e] * (a[j] * b[k] + a[k] * b[j])
+            return out
+
+        def square(a: vec_sh, table: SHProductTable) -> vec_sh:
+            out = vec_sh()
+            for e in range(table.v.shape[0]):
+                i = table.i[e]
+                out[i] = out[i] + 2.0 * table.v[e] * (a[table.j[e]] * a[table.k[e]])
+            return out
+
+        # This module uses postponed annotations; Warp needs the real (closure-local) types.
+        product.__annotations__ = {"a": vec_sh, "b": vec_sh, "table": SHProductTable, "return": vec_sh}
+        square.__annotations__ = {"a": vec_sh, "table": SHProductTable, "return": vec_sh}
+        product.__name__, square.__name__ = f"sh_product_order{order}", f"sh_square_order{order}"
+        return SimpleNamespace(order=order, vec_sh=vec_sh, product=wp.func(product), square=wp.func(square))
+
+    t = symmetric_product_table(order)
+    n = order * order
+    prod_terms = [[] for _ in range(n)]
+    sq_terms = [[] for _ in range(n)]
+    for i, j, k, v in zip(t.i, t.j, t.k, t.value):
+        prod_terms[i].append(f"{float(np.float32(v))!r} * (a[{j}] * b[{k}] + a[{k}] * b[{j}])")
+        sq_terms[i].append(f"{float(np.float32(2.0 * v))!r} * a[{j}] * a[{k}]")
+
+    def body(terms):
+        return ",\n        ".join(" + ".join(x) if x else "0.0" for x in terms)
+
+    src = (f"def sh_product_order{order}(a: vec_sh, b: vec_sh, table: SHProductTable) -> vec_sh:\n"
+           f"    return vec_sh(\n        {body(prod_terms)})\n\n\n"
+           f"def sh_square_order{order}(a: vec_sh, table: SHProductTable) -> vec_sh:\n"
+           f"    return vec_sh(\n        {body(sq_terms)})\n")
+    filename = f"<warpshade-sh-product-order{order}>"
+    linecache.cache[filename] = (len(src), None, src.splitlines(keepends=True), filename)
+    scope = {"vec_sh": vec_sh, "SHProductTable": SHProductTable}
+    exec(compile(src, filename, "exec"), scope)  # noqa: S102 - source generated above from the Gaunt table
+    return SimpleNamespace(order=order, vec_sh=vec_sh, product=wp.func(scope[f"sh_product_order{order}"]),
+                           square=wp.func(scope[f"sh_square_order{order}"]))
+
+
 @wp.struct
 class SHProductTable:
     """Sparse symmetric Gaunt table on the device (:class:`~warpshade.sh.products.SymmetricProductTable`).

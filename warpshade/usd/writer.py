@@ -1,114 +1,481 @@
-"""Time-sampled mesh animation written to USD (CONTRACTS.md §6).
+"""Streaming export of shaded, animated meshes to USD (CONTRACTS.md §6).
 
-Minimal writer: topology once at the default time, then per frame ``points``, ``normals``,
-``extent`` and, when given, ``primvars:displayColor``. The file is written to a temporary path
-beside the target and renamed on :meth:`AnimationWriter.close`, so an interrupted run never
-leaves a half-written file at ``path``.
+Layout of an output ``OUT.usda``::
+
+    OUT.usda                        stage metadata, topology, material, lights, value-clip metadata
+    OUT_frames/<run>/manifest.usda  the animated attributes, declared once (clip manifest)
+    OUT_frames/<run>/chunk_000000.usdc, chunk_000032.usdc, ...   time samples, ``chunk`` frames each
+
+Why value clips: a single layer keeps every time sample in memory until it is saved (memory grows
+with the frame count) and, in ``.usdc``, writing many time samples to one attribute slows down
+sharply (OpenUSD issue #3249; ``benchmarks/usd_write.py`` measures both). With clips the writer
+holds at most ``chunk`` frames, each chunk is a small crate file written once, and the stage
+composes them with the standard value-clip machinery that usdview, Blender, Houdini and Omniverse
+all resolve. ``usdcat --flatten OUT.usda -o single.usdc`` makes one self-contained file.
+
+Crash safety: every file is written under a temporary name and renamed into place. After each
+chunk the top-level file is rewritten (temp + rename) to list the chunks done so far, so at any
+moment ``OUT.usda`` is either the previous output (untouched until the first chunk of this run is
+committed; this run's chunks go to a fresh ``<run>`` directory) or a valid stage holding every
+committed frame.
 """
 
 from __future__ import annotations
 
 import os
 import re
+import shutil
+import time
+import uuid
 
 import numpy as np
-from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, Vt
+
+from .. import __version__
+
+#: Animated attributes: name -> (value type, USD interpolation or None).
+_ANIMATED = {
+    "points": Sdf.ValueTypeNames.Point3fArray,
+    "normals": Sdf.ValueTypeNames.Normal3fArray,
+    "extent": Sdf.ValueTypeNames.Float3Array,
+    "primvars:displayColor": Sdf.ValueTypeNames.Color3fArray,
+    "primvars:warpshade:transfer": Sdf.ValueTypeNames.FloatArray,
+}
 
 
-def _prim_name(name: str) -> str:
-    n = re.sub(r"[^A-Za-z0-9_]", "_", name)
+def prim_name(name: str) -> str:
+    """A valid USD prim name from any string (non-identifier characters become ``_``)."""
+    n = re.sub(r"[^A-Za-z0-9_]", "_", str(name).strip("/").split("/")[-1] if "/" in str(name) else str(name))
     return n if n and not n[0].isdigit() else "_" + n
 
 
+_prim_name = prim_name  # older name, kept for callers
+
+
+def _replace_atomically(write, path: str) -> None:
+    """Call ``write(tmp_path)`` then rename the temporary file onto ``path``."""
+    root, ext = os.path.splitext(path)
+    tmp = f"{root}.partial{os.getpid()}{ext}"
+    write(tmp)
+    os.replace(tmp, path)
+
+
 class AnimationWriter:
-    """Write animated triangle meshes to a USD file.
+    """Write animated triangle meshes, their shading and the lights to USD, one frame at a time.
+
+    Usage: :meth:`add_mesh` (and :meth:`add_light`) for everything, then :meth:`write_frame` per
+    mesh per frame with non-decreasing frame numbers, then :meth:`close`. Memory stays constant in
+    the number of frames (at most ``chunk`` frames are held).
 
     Args:
-        path: Output file (``.usda``, ``.usdc`` or ``.usd``).
+        path: Output file (``.usda``, ``.usdc`` or ``.usd``); clip files go to ``<stem>_frames/``
+            beside it.
         fps: Frames per second; frame ``k`` is written at time code ``k``.
         up_axis: ``"Y"`` or ``"Z"``.
         meters_per_unit: Stage units.
+        chunk: Frames per clip file (also the commit interval: a hard kill loses at most this many
+            frames).
+        metadata: Extra strings recorded in the root layer's ``customLayerData`` (scene, method...).
+        resume: Continue an output that an interrupted run left at ``path``: its committed frames are
+            kept, new chunks are added to the same run directory, and :attr:`resume_frame` says
+            which frame to produce next. The same meshes must be declared again (checked against
+            the existing manifest). Without an existing output this is an ordinary new run.
     """
 
-    def __init__(self, path: str, fps: float = 60.0, up_axis: str = "Y", meters_per_unit: float = 1.0):
-        self.path = os.fspath(path)
-        root, ext = os.path.splitext(self.path)
-        self._tmp = f"{root}.partial{os.getpid()}{ext or '.usda'}"
-        self.stage = Usd.Stage.CreateNew(self._tmp)
+    def __init__(self, path: str, fps: float = 60.0, up_axis: str = "Y", meters_per_unit: float = 1.0,
+                 chunk: int = 64, metadata: dict | None = None, resume: bool = False):
+        if chunk < 1:
+            raise ValueError(f"{path}: chunk must be >= 1 frame, got {chunk}")
+        self.path = os.path.abspath(os.fspath(path))
+        self.chunk = int(chunk)
+        ext = os.path.splitext(self.path)[1].lower()
+        if ext not in (".usda", ".usdc", ".usd"):
+            raise ValueError(f"{path}: output must end in .usda, .usdc or .usd")
+        stem = os.path.splitext(os.path.basename(self.path))[0]
+        self._frames_dir = os.path.join(os.path.dirname(self.path), f"{stem}_frames")
+        self._run = f"run-{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:6]}"
+        self._run_dir = os.path.join(self._frames_dir, self._run)
+        self._rel_run = f"./{stem}_frames/{self._run}"
+
+        # The top-level stage lives in memory; it is exported (temp + rename) at every commit.
+        self.stage = Usd.Stage.CreateInMemory()
         UsdGeom.SetStageUpAxis(self.stage, UsdGeom.Tokens.y if up_axis.upper() == "Y" else UsdGeom.Tokens.z)
         UsdGeom.SetStageMetersPerUnit(self.stage, meters_per_unit)
         self.stage.SetTimeCodesPerSecond(fps)
         self.stage.SetFramesPerSecond(fps)
         world = UsdGeom.Xform.Define(self.stage, "/World")
         self.stage.SetDefaultPrim(world.GetPrim())
-        self._meshes: dict[str, UsdGeom.Mesh] = {}
-        self._first = None
-        self._last = None
+        data = {"generator": f"warpshade {__version__}", "warpshade:layout": "value clips"}
+        data.update({f"warpshade:{k}": str(v) for k, v in (metadata or {}).items()})
+        self.stage.GetRootLayer().customLayerData = data
+        self.stage.GetRootLayer().documentation = "Shaded animation written by warpshade (CONTRACTS.md §6)"
 
-    def add_mesh(self, name: str, faces: np.ndarray, points: np.ndarray | None = None) -> str:
-        """Declare a mesh; its topology is written once at the default time.
+        self._meshes: dict[str, dict] = {}      # prim name -> info (path, vertex count, transfer size)
+        self._lights: list[str] = []
+        self._chunk_layer: Sdf.Layer | None = None
+        self._chunk_start: int | None = None
+        self._chunk_tmp: str | None = None
+        self._clips: list[tuple[int, str]] = []  # (first frame, relative asset path) of committed chunks
+        self._first: int | None = None           # first frame written
+        self._last_committed: int | None = None
+        self._frame: int | None = None           # frame being written
+        self._frame_meshes: set[str] = set()     # meshes written for ``_frame``
+        self._animated_meshes: set[str] = set()  # meshes written in some earlier frame
+        self._attrs: set[tuple[str, str]] = set()  # (mesh, attribute) pairs that were written
+        self._closed = False
+        self._resumed_attrs: dict[str, set[str]] = {}  # prim path -> attributes of the manifest resumed
+        self.resume_frame = 0
+        """First frame this writer still needs (> 0 when resuming an interrupted output)."""
+        if resume and os.path.isfile(self.path):
+            self._load_existing(metadata or {})
+
+    def _load_existing(self, metadata: dict) -> None:
+        """Pick up the committed clips of an interrupted output (see ``resume``)."""
+        try:
+            layer = Sdf.Layer.FindOrOpen(self.path)
+        except Exception as exc:  # pxr raises Tf.ErrorException
+            raise ValueError(f"{self.path}: cannot resume: not a readable USD layer ({exc})") from exc
+        world = layer.GetPrimAtPath("/World") if layer else None
+        clips = world.GetInfo("clips").get("default") if world and world.HasInfo("clips") else None
+        if not clips:
+            return  # a static output or one with no committed frame: start over
+        old = layer.customLayerData or {}
+        for k, v in metadata.items():
+            key = f"warpshade:{k}"
+            if key in old and old[key] != str(v):
+                raise ValueError(f"{self.path}: cannot resume: it was written with {k} = {old[key]}, "
+                                 f"this run has {k} = {v}")
+        manifest = clips["manifestAssetPath"].path
+        rel_run = os.path.dirname(manifest)
+        run_dir = os.path.normpath(os.path.join(os.path.dirname(self.path), rel_run))
+        assets = [a.path for a in clips["assetPaths"]]
+        starts = [int(t[0]) for t in clips["active"]]
+        missing = [a for a in assets if not os.path.isfile(os.path.join(os.path.dirname(self.path), a))]
+        if missing:
+            raise ValueError(f"{self.path}: cannot resume: clip file {missing[0]} is missing")
+        self._run = os.path.basename(run_dir)
+        self._run_dir = run_dir
+        self._rel_run = rel_run
+        self._clips = list(zip(starts, assets))
+        times = clips["times"]
+        self._first = int(times[0][0])
+        self._last_committed = int(times[-1][0])
+        self.resume_frame = self._last_committed + 1
+        man = Sdf.Layer.FindOrOpen(os.path.join(run_dir, "manifest.usda"))
+        for prim in man.rootPrims:
+            for child in [prim] + list(prim.nameChildren):
+                if child.attributes:
+                    self._resumed_attrs[str(child.path)] = {a.name for a in child.attributes}
+        for entry in os.listdir(run_dir):  # a chunk that was being written when the run died
+            if entry.endswith(".partial.usdc"):
+                os.remove(os.path.join(run_dir, entry))
+
+    # -- declarations -----------------------------------------------------------------------
+    def add_mesh(self, name: str, faces: np.ndarray, points: np.ndarray | None = None, *,
+                 normals: np.ndarray | None = None, albedo=None, roughness: float = 1.0, transfer_order: int | None = None) -> str:
+        """Declare a mesh; its topology (and ``points`` if given) is written at the default time.
 
         Args:
             name: Prim name under ``/World`` (sanitised to a valid identifier).
             faces: Triangle indices, shape (F, 3), int.
-            points: Optional rest positions, shape (V, 3), written at the default time.
+            points: Rest positions, shape (V, 3). Give them for meshes that never move (they are
+                then written at the default time and :meth:`write_frame` may pass ``points=None``);
+                animated meshes get their points per frame.
+            normals: Unit vertex normals of a static mesh, shape (V, 3), written at the default time.
+            albedo: Diffuse reflectance, linear RGB, shape (3,), recorded as ``warpshade:albedo``.
+            roughness: UsdPreviewSurface roughness of the output material.
+            transfer_order: SH order N if :meth:`write_frame` will get ``transfer`` (V, N*N).
 
         Returns:
             The prim name used.
         """
-        pname = _prim_name(name)
-        mesh = UsdGeom.Mesh.Define(self.stage, f"/World/{pname}")
-        faces = np.asarray(faces, dtype=np.int32)
+        if self._frame is not None:
+            raise ValueError(f"{self.path}: add_mesh('{name}') after frames were written; declare every mesh first")
+        pname = base = prim_name(name)
+        k = 1
+        while pname in self._meshes:  # two prims with the same leaf name (/A/Mesh, /B/Mesh)
+            pname, k = f"{base}_{k}", k + 1
+        path = f"/World/{pname}"
+        mesh = UsdGeom.Mesh.Define(self.stage, path)
+        faces = np.asarray(faces, dtype=np.int32).reshape(-1, 3)
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, dtype=np.int32)))
-        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.reshape(-1)))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(faces.reshape(-1))))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
         mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+        mesh.CreateDoubleSidedAttr(True)
+        mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+        nverts = int(faces.max()) + 1 if len(faces) else 0
         if points is not None:
-            pts = np.asarray(points, dtype=np.float32)
+            pts = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
+            nverts = len(pts)
             mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pts))
-            mesh.CreateExtentAttr(UsdGeom.PointBased.ComputeExtent(Vt.Vec3fArray.FromNumpy(pts)))
-        self._meshes[pname] = mesh
+            mesh.CreateExtentAttr(Vt.Vec3fArray.FromNumpy(_extent(pts)))
+            if normals is not None:
+                mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(_check(normals, pts.shape, pname, "default", "normals")))
+        pv = UsdGeom.PrimvarsAPI(mesh)
+        pv.CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
+        if transfer_order is not None:
+            n2 = int(transfer_order) ** 2
+            pv.CreatePrimvar("warpshade:transfer", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex, n2)
+            mesh.GetPrim().CreateAttribute("warpshade:transferOrder", Sdf.ValueTypeNames.Int,
+                                           custom=True).Set(int(transfer_order))
+        if albedo is not None:
+            mesh.GetPrim().CreateAttribute("warpshade:albedo", Sdf.ValueTypeNames.Color3f, custom=True).Set(
+                Gf.Vec3f(*[float(a) for a in np.asarray(albedo).reshape(3)]))
+        self._bind_material(mesh, pname, roughness)
+        self._meshes[pname] = {"path": path, "vertices": nverts, "static": points is not None,
+                               "transfer": None if transfer_order is None else int(transfer_order) ** 2}
+        if self._resumed_attrs:
+            if path not in self._resumed_attrs:
+                raise ValueError(f"{self.path}: cannot resume: mesh {path} is not in the interrupted output "
+                                 f"(it has {', '.join(sorted(self._resumed_attrs))})")
+            self._attrs |= {(pname, a) for a in self._resumed_attrs[path]}
         return pname
 
+    def _bind_material(self, mesh: UsdGeom.Mesh, pname: str, roughness: float) -> None:
+        # displayColor holds exit radiance (shading already done), so the material shows it as
+        # emission with a black diffuse: a renderer that re-lights the scene does not light it twice.
+        looks = UsdGeom.Scope.Define(self.stage, "/World/Looks")
+        mat = UsdShade.Material.Define(self.stage, f"{looks.GetPath()}/{pname}_radiance")
+        surf = UsdShade.Shader.Define(self.stage, f"{mat.GetPath()}/PreviewSurface")
+        surf.CreateIdAttr("UsdPreviewSurface")
+        reader = UsdShade.Shader.Define(self.stage, f"{mat.GetPath()}/displayColorReader")
+        reader.CreateIdAttr("UsdPrimvarReader_float3")
+        reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("displayColor")
+        reader.CreateInput("fallback", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(0.0, 0.0, 0.0))
+        out = reader.CreateOutput("result", Sdf.ValueTypeNames.Float3)
+        surf.CreateInput("emissiveColor", Sdf.ValueTypeNames.Color3f).ConnectToSource(out)
+        surf.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0.0, 0.0, 0.0))
+        surf.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(roughness))
+        mat.CreateSurfaceOutput().ConnectToSource(surf.ConnectableAPI(), "surface")
+        UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
+
+    def add_light(self, light) -> str:
+        """Write a light (a :class:`warpshade.scene.LightSpec`) under ``/World/Lights``.
+
+        Returns:
+            The light's prim path.
+        """
+        UsdGeom.Scope.Define(self.stage, "/World/Lights")
+        pname = prim_name(light.name)
+        path = f"/World/Lights/{pname}"
+        if self.stage.GetPrimAtPath(path):
+            path = f"{path}_{len(self._lights)}"
+        cls = {"dome": UsdLux.DomeLight, "distant": UsdLux.DistantLight, "sphere": UsdLux.SphereLight,
+               "rect": UsdLux.RectLight}[light.kind]
+        lux = cls.Define(self.stage, path)
+        lux.CreateColorAttr(Gf.Vec3f(*[float(c) for c in light.color]))
+        lux.CreateIntensityAttr(float(light.intensity))
+        lux.CreateExposureAttr(float(light.exposure))
+        if light.normalize:
+            lux.CreateNormalizeAttr(True)
+        if light.kind == "distant":
+            lux.CreateAngleAttr(float(light.angle))
+        elif light.kind == "sphere":
+            lux.CreateRadiusAttr(float(light.radius))
+            if light.treat_as_point:
+                lux.CreateTreatAsPointAttr(True)
+        elif light.kind == "rect":
+            lux.CreateWidthAttr(float(light.width))
+            lux.CreateHeightAttr(float(light.height))
+        elif light.kind == "dome" and light.texture:
+            lux.CreateTextureFileAttr(Sdf.AssetPath(self._asset_path(light.texture)))
+            lux.CreateTextureFormatAttr(UsdLux.Tokens.latlong)
+        xf = np.asarray(light.transform, dtype=np.float64)
+        if not np.allclose(xf, np.eye(4)):
+            # USD matrices act on row vectors, ours on column vectors: transpose.
+            UsdGeom.Xformable(lux).AddTransformOp().Set(Gf.Matrix4d(*xf.T.reshape(-1).tolist()))
+        self._lights.append(path)
+        return path
+
+    def asset_dir(self) -> str:
+        """A directory for files the output refers to (e.g. an environment image), kept with this
+        run's clip files (and removed with them if the run commits nothing)."""
+        os.makedirs(self._run_dir, exist_ok=True)
+        return self._run_dir
+
+    def _asset_path(self, file: str) -> str:
+        rel = os.path.relpath(os.path.abspath(file), os.path.dirname(self.path))
+        return rel if rel.startswith("..") else f"./{rel}"
+
+    # -- frames -----------------------------------------------------------------------------
     def write_frame(self, frame: int, name: str, points: np.ndarray, normals: np.ndarray | None = None,
-                    colors: np.ndarray | None = None) -> None:
+                    colors: np.ndarray | None = None, transfer: np.ndarray | None = None) -> None:
         """Write one frame of one mesh.
 
         Args:
-            frame: Frame number (time code).
+            frame: Frame number (time code); non-decreasing across calls.
             name: A name returned by :meth:`add_mesh`.
-            points: Positions, shape (V, 3).
+            points: Positions, shape (V, 3), or None for a mesh declared with rest points (static).
             normals: Unit vertex normals, shape (V, 3), or None.
             colors: Linear RGB exit radiance per vertex, shape (V, 3), or None.
+            transfer: SH transfer per vertex, shape (V, N*N) (N from ``transfer_order``), or None.
         """
-        mesh = self._meshes[name]
-        t = Usd.TimeCode(frame)
-        pts = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(points, dtype=np.float32))
-        mesh.GetPointsAttr().Set(pts, t)
-        mesh.GetExtentAttr().Set(UsdGeom.PointBased.ComputeExtent(pts), t)
+        if self._closed:
+            raise ValueError(f"{self.path}: write_frame after close")
+        if name not in self._meshes:
+            raise KeyError(f"{self.path}: no mesh '{name}' (declared: {', '.join(self._meshes)})")
+        frame = int(frame)
+        if self._frame is not None and frame < self._frame:
+            raise ValueError(f"{self.path}: frame {frame} written after frame {self._frame}; frames must not go back")
+        info = self._meshes[name]
+        values = {}
+        if points is None:
+            if not info["static"]:
+                raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: points=None needs rest points in add_mesh")
+            v = info["vertices"]
+        else:
+            pts = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
+            v = len(pts)
+            if info["vertices"] and v != info["vertices"]:
+                raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: {v} points, topology has {info['vertices']}")
+            info["vertices"] = v
+            if not np.isfinite(pts).all():
+                bad = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
+                raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: vertex {bad} is not finite {pts[bad].tolist()}")
+            values = {"points": Vt.Vec3fArray.FromNumpy(pts), "extent": Vt.Vec3fArray.FromNumpy(_extent(pts))}
+        if self._frame is None or frame > self._frame:
+            self._start_frame(frame)
+        self._frame_meshes.add(name)
         if normals is not None:
-            attr = mesh.GetNormalsAttr()
-            if not attr.HasAuthoredValue() and not attr.GetNumTimeSamples():
-                mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
-            attr.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(normals, dtype=np.float32)), t)
+            values["normals"] = Vt.Vec3fArray.FromNumpy(_check(normals, (v, 3), name, frame, "normals"))
         if colors is not None:
-            pv = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("displayColor")
-            if not pv:
-                pv = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(
-                    "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
-            pv.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(colors, dtype=np.float32)), t)
-        self._first = frame if self._first is None else min(self._first, frame)
-        self._last = frame if self._last is None else max(self._last, frame)
+            values["primvars:displayColor"] = Vt.Vec3fArray.FromNumpy(_check(colors, (v, 3), name, frame, "colors"))
+        if transfer is not None:
+            n2 = info["transfer"]
+            if n2 is None:
+                raise ValueError(f"{self.path}: mesh '{name}': transfer given but add_mesh had no transfer_order")
+            values["primvars:warpshade:transfer"] = Vt.FloatArray.FromNumpy(
+                _check(transfer, (v, n2), name, frame, "transfer").reshape(-1))
+        layer = self._chunk_layer
+        prim = layer.GetPrimAtPath(info["path"]) or Sdf.CreatePrimInLayer(layer, info["path"])
+        for attr, value in values.items():
+            spec = prim.attributes.get(attr) if attr in prim.attributes else None
+            if spec is None:
+                spec = Sdf.AttributeSpec(prim, attr, _ANIMATED[attr])
+            layer.SetTimeSample(spec.path, float(frame), value)
+            self._attrs.add((name, attr))
 
+    def _start_frame(self, frame: int) -> None:
+        if self._frame is not None:
+            self._animated_meshes |= self._frame_meshes
+        if self._chunk_layer is not None and frame >= self._chunk_start + self.chunk:
+            self._commit(self._frame)
+        if self._chunk_layer is None:
+            os.makedirs(self._run_dir, exist_ok=True)
+            self._chunk_start = frame
+            self._chunk_tmp = os.path.join(self._run_dir, f"chunk_{frame:06d}.partial.usdc")
+            self._chunk_layer = Sdf.Layer.CreateNew(self._chunk_tmp)
+        if self._first is None:
+            self._first = frame
+        self._frame = frame
+        self._frame_meshes = set()
+
+    def _commit(self, last: int) -> None:
+        """Save the open chunk and rewrite the top-level file to include frames up to ``last``."""
+        layer = self._chunk_layer
+        final = os.path.join(self._run_dir, f"chunk_{self._chunk_start:06d}.usdc")
+        # Drop samples after ``last`` (an unfinished frame on abort) before saving.
+        for prim in list(layer.rootPrims):
+            for spec in _walk_attrs(prim):
+                for t in layer.ListTimeSamplesForPath(spec.path):
+                    if t > last:
+                        layer.EraseTimeSample(spec.path, t)
+        layer.Save()
+        self._chunk_layer = None
+        del layer
+        os.replace(self._chunk_tmp, final)
+        self._clips.append((self._chunk_start, f"{self._rel_run}/chunk_{self._chunk_start:06d}.usdc"))
+        self._last_committed = last
+        if len(self._clips) == 1:
+            self._write_manifest()
+        self._write_top()
+        if len(self._clips) == 1:
+            self._remove_old_runs()
+
+    def _write_manifest(self) -> None:
+        def write(tmp):
+            man = Sdf.Layer.CreateNew(tmp)
+            for name, attr in sorted(self._attrs):
+                path = self._meshes[name]["path"]
+                prim = man.GetPrimAtPath(path) or Sdf.CreatePrimInLayer(man, path)
+                if attr not in prim.attributes:
+                    Sdf.AttributeSpec(prim, attr, _ANIMATED[attr])
+            man.Save()
+
+        _replace_atomically(write, os.path.join(self._run_dir, "manifest.usda"))
+
+    def _write_top(self) -> None:
+        root = self.stage.GetRootLayer()
+        out = Sdf.Layer.CreateAnonymous(".usda")
+        out.TransferContent(root)
+        world = out.GetPrimAtPath("/World")
+        for name, attr in self._attrs:  # animated values come from the clips: no default may hide them
+            spec = out.GetPropertyAtPath(f"{self._meshes[name]['path']}.{attr}")
+            if spec is not None and spec.HasDefaultValue():
+                spec.ClearDefaultValue()
+        world.SetInfo("clips", {"default": {
+            "assetPaths": Sdf.AssetPathArray([Sdf.AssetPath(p) for _, p in self._clips]),
+            "active": Vt.Vec2dArray([Gf.Vec2d(s, i) for i, (s, _) in enumerate(self._clips)]),
+            "times": Vt.Vec2dArray([Gf.Vec2d(self._first, self._first),
+                                    Gf.Vec2d(self._last_committed, self._last_committed)]),
+            "primPath": "/World",
+            "manifestAssetPath": Sdf.AssetPath(f"{self._rel_run}/manifest.usda"),
+        }})
+        out.startTimeCode = float(self._first)
+        out.endTimeCode = float(self._last_committed)
+        _replace_atomically(lambda tmp: out.Export(tmp), self.path)
+
+    def _remove_old_runs(self) -> None:
+        for entry in os.listdir(self._frames_dir):
+            if entry != self._run and entry.startswith("run-"):
+                shutil.rmtree(os.path.join(self._frames_dir, entry), ignore_errors=True)
+
+    # -- end --------------------------------------------------------------------------------
     def close(self) -> str:
-        """Set the time range, save, and atomically move the file into place. Returns the path."""
-        if self._first is not None:
-            self.stage.SetStartTimeCode(self._first)
-            self.stage.SetEndTimeCode(self._last)
-        self.stage.GetRootLayer().Save()
-        del self.stage
-        os.replace(self._tmp, self.path)
+        """Commit the remaining frames and finish the file. Returns the output path.
+
+        A writer that received no frames writes a static stage (topology, lights, materials).
+        """
+        if self._closed:
+            return self.path
+        if self._chunk_layer is not None:
+            self._commit(self._frame)
+        elif not self._clips:
+            out = Sdf.Layer.CreateAnonymous(".usda")
+            out.TransferContent(self.stage.GetRootLayer())
+            _replace_atomically(lambda tmp: out.Export(tmp), self.path)
+        self._closed = True
         return self.path
+
+    def abort(self) -> str | None:
+        """Stop after an error: keep every complete frame (a valid file) or, if none was committed
+        and none is complete, leave any previous output untouched. Returns the path if a file was
+        written by this run, else None."""
+        if self._closed:
+            return self.path
+        self._closed = True
+        if self._chunk_layer is not None:
+            done = self._frame
+            if not self._frame_meshes >= self._animated_meshes:
+                done = self._frame - 1  # the current frame is missing some meshes: drop it
+            if done >= self._chunk_start:
+                self._commit(done)
+            else:
+                self._chunk_layer = None
+                try:
+                    os.remove(self._chunk_tmp)
+                except OSError:
+                    pass
+        if not self._clips:
+            shutil.rmtree(self._run_dir, ignore_errors=True)
+            return None
+        return self.path
+
+    @property
+    def frames_committed(self) -> int:
+        """Number of frames the file on disk holds."""
+        return 0 if self._last_committed is None else self._last_committed - self._first + 1
 
     def __enter__(self):
         return self
@@ -116,10 +483,27 @@ class AnimationWriter:
     def __exit__(self, exc_type, exc, tb):
         if exc_type is None:
             self.close()
-        else:  # leave any previous output untouched
-            self.stage = None
-            try:
-                os.remove(self._tmp)
-            except OSError:
-                pass
+        else:
+            self.abort()
         return False
+
+
+def _extent(pts: np.ndarray) -> np.ndarray:
+    if len(pts) == 0:
+        return np.zeros((2, 3), dtype=np.float32)
+    return np.stack([pts.min(axis=0), pts.max(axis=0)]).astype(np.float32)
+
+
+def _check(a, shape, name, frame, what) -> np.ndarray:
+    a = np.ascontiguousarray(a, dtype=np.float32)
+    if a.shape != shape:
+        if a.size == shape[0] * shape[1]:
+            return a.reshape(shape)
+        raise ValueError(f"mesh '{name}' frame {frame}: {what} must have shape {shape}, got {a.shape}")
+    return a
+
+
+def _walk_attrs(prim: Sdf.PrimSpec):
+    yield from prim.attributes
+    for child in prim.nameChildren:
+        yield from _walk_attrs(child)

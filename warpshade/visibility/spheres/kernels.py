@@ -1,15 +1,14 @@
 """Warp kernels of the sphere-set shadows (orchestration in :mod:`.method`, NumPy reference in :mod:`.reference`).
 
 Per frame: ``refit_spheres``/``bound_parents`` move the spheres with the mesh, ``fit_clusters`` bounds
-the receiver clusters, ``compute_cut_ratios`` evaluates eq. 4.9 at cluster centres, and
-``shade_sphere_shadows`` does, per receiver: tangent-plane adjustment (§4.2), table lookup of the log
-blocker ZH vector, ZH rotation (eq. 3.17), log accumulation (eq. 4.7), SH exponential (eq. 3.30 /
-3.32) and the product with the clamped cosine (CONTRACTS.md §2). The one-bounce reflections are in
-:mod:`.reflection_kernels`. SH products, the optimal-linear/hybrid exponentials and ZH rotation are
-the SH core's (:mod:`warpshade.sh.kernels`).
-
-SH vectors live in rows of 2D scratch arrays (one row per thread), so one compiled kernel serves every
-order; SH convention: :mod:`warpshade.sh.basis`.
+the receiver clusters, ``compute_cut_ratios`` evaluates eq. 4.9 at cluster centres (SH vectors in rows
+of 2D scratch arrays, one compiled kernel for every order). The per-receiver work (tangent-plane
+adjustment ``adjust_sphere`` of §4.2, table lookup of the log blocker ZH vector, ZH rotation (eq.
+3.17), log accumulation (eq. 4.7), SH exponential (eqs. 3.30 / 3.32) and the product with the clamped
+cosine, CONTRACTS.md §2) is the kernel ``shade`` of :mod:`.fixed_kernels`, compiled per order with
+the SH vectors in registers; the one-bounce reflections are in :mod:`.reflection_kernels`. SH
+products, the optimal-linear/hybrid exponentials and ZH rotation are the SH core's
+(:mod:`warpshade.sh.kernels`); SH convention: :mod:`warpshade.sh.basis`.
 """
 
 from __future__ import annotations
@@ -17,8 +16,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ...sh.kernels import (SQRT_4PI, OLTableArrays, SHProductTable, sh_dc_free_norm, sh_exp_hybrid, sh_exp_ol,
-                           sh_product_rows, zh_lerp_rotate_accumulate, zh_rotate_accumulate)
+from ...sh.kernels import SHProductTable, sh_product_rows, zh_rotate_accumulate
 
 EXP_OL = 0
 EXP_HYBRID = 1
@@ -193,226 +191,13 @@ EXP_BLEND = 0.125
 blended, so the result is continuous where the squaring count changes (the SH core's hybrid jumps
 there by up to 0.1 in a coefficient: visible flicker as receivers move)."""
 
-
-@wp.func
-def exp_series_scaled(
-    f: wp.array2d[float],
-    row: int,
-    p: int,
-    n2: int,
-    products: SHProductTable,
-    out: wp.array2d[float],
-    tmp: wp.array2d[float],
-    tmp2: wp.array2d[float],
-):
-    """``out[row] = (exp_*(2^-p f))^(2^p)`` with 8 Taylor terms of SH products (eq. 3.25) at the small
-    scale and p squarings (eq. 3.32). ``f``'s DC is isolated (eq. 3.27): zeroed while multiplying by
-    ``f̂`` and restored."""
-    s = wp.pow(0.5, float(p))
-    f0 = f[row, 0]
-    f[row, 0] = 0.0
-    for i in range(n2):
-        tmp[row, i] = s * f[row, i]
-        out[row, i] = s * f[row, i]
-    out[row, 0] = SQRT_4PI
-    for kk in range(2, 9):
-        sh_product_rows(tmp, row, f, row, n2, products, tmp2, row)
-        for i in range(n2):
-            tmp[row, i] = tmp2[row, i] * s / float(kk)
-            out[row, i] = out[row, i] + tmp[row, i]
-    f[row, 0] = f0
-    dc = wp.exp(f0 * s / SQRT_4PI)
-    for i in range(n2):
-        out[row, i] = out[row, i] * dc
-    for _q in range(p):
-        sh_product_rows(out, row, out, row, n2, products, tmp, row)
-        for i in range(n2):
-            out[row, i] = tmp[row, i]
-
-
-@wp.func
-def sh_exp_rows(
-    f: wp.array2d[float],
-    row: int,
-    mode: int,
-    tau: float,
-    n2: int,
-    ol: OLTableArrays,
-    products: SHProductTable,
-    out: wp.array2d[float],
-    alt: wp.array2d[float],
-    tmp: wp.array2d[float],
-    tmp2: wp.array2d[float],
-):
-    """``out[row] = exp_*(f[row])`` (thesis §3.1.4).
-
-    EXP_OL: the SH core's optimal linear (eq. 3.30). EXP_HYBRID: the SH core's hybrid (OL on
-    ``f̂/2^p`` with ``||f̂||/2^p <= tau``, p squarings, eq. 3.32). EXP_SERIES: 8 Taylor terms after
-    scaling to ``||f̂|| <= 1/4``, then squarings (accurate, slow). For the two squaring modes the
-    results with ``p`` and ``p+1`` squarings are blended within :data:`EXP_BLEND` octaves below each
-    change of ``p``, linearly in ``log2 ||f̂||`` (continuity).
-    """
-    if mode == EXP_OL:
-        sh_exp_ol(f, row, n2, ol, out, row)
-        return
-    m = sh_dc_free_norm(f, row, n2)
-    lim = tau
-    if mode == EXP_SERIES:
-        lim = 0.25
-    p = int(0)
-    w = float(0.0)
-    if m > 0.0:
-        q = wp.log2(m / lim)
-        p = wp.clamp(int(wp.ceil(q)), 0, 30)
-        w = wp.clamp((q - (float(p) - EXP_BLEND)) / EXP_BLEND, 0.0, 1.0)
-    if mode == EXP_HYBRID:
-        sh_exp_hybrid(f, row, n2, lim, ol, products, tmp, row, out, row)
-        if w > 0.0:
-            # threshold/2 makes the core's hybrid take exactly one more squaring
-            sh_exp_hybrid(f, row, n2, 0.5 * lim, ol, products, tmp, row, alt, row)
-    else:
-        exp_series_scaled(f, row, p, n2, products, out, tmp, tmp2)
-        if w > 0.0:
-            exp_series_scaled(f, row, p + 1, n2, products, alt, tmp, tmp2)
-    if w > 0.0:
-        for i in range(n2):
-            out[row, i] = (1.0 - w) * out[row, i] + w * alt[row, i]
-
-
 VIS_NORM_SLACK = 1.1
 """A visibility in [0, 1] has ``||V|| <= sqrt(4π)`` and ``0 <= V_0 <= sqrt(4π)``; 10 % slack admits SH
-ringing of legitimate results. Beyond it the exponential has diverged (see :func:`guard_visibility`)."""
-
-
-@wp.func
-def guard_visibility(f: wp.array2d[float], row: int, order: int, vis: wp.array2d[float]) -> int:
-    """Replace an implausible exponential by the geometric-mean visibility ``exp(f_0/sqrt(4π))`` (DC only).
-
-    When many blockers overlap in one direction the log sum is a deep narrow well whose order-N SH
-    truncation rings positive elsewhere, and exp of that ringing explodes (1000 overlapping spheres:
-    V_0 ~ 200). No exponential can recover from it; the geometric mean is bounded by the true mean
-    visibility (Jensen) and goes to 0 as blockers accumulate. Returns 1 when the fallback was used.
-    """
-    n2 = order * order
-    nv = float(0.0)
-    for i in range(n2):
-        nv = nv + vis[row, i] * vis[row, i]
-    bound = VIS_NORM_SLACK * SQRT_4PI
-    v0 = vis[row, 0]
-    if v0 >= 0.0 and v0 <= bound and nv <= bound * bound:
-        return 0
-    for i in range(n2):
-        vis[row, i] = 0.0
-    vis[row, 0] = SQRT_4PI * wp.exp(wp.min(f[row, 0] / SQRT_4PI, 0.0))
-    return 1
-
-
-@wp.func
-def cosine_row(n: wp.vec3, cos_zh: wp.array2d[float], order: int, kz: wp.array[float], out: wp.array2d[float],
-               row: int):
-    """``out[row]`` = clamped cosine about ``n`` (the unoccluded transfer, CONTRACTS.md §2)."""
-    for i in range(order * order):
-        out[row, i] = 0.0
-    zh_rotate_accumulate(n, cos_zh, 0, 1.0, order, kz, out, row)
-
-
-@wp.func
-def accumulate_blockers(
-    p: wp.vec3,
-    n: wp.vec3,
-    first: int,
-    last: int,
-    cut_sphere: wp.array[wp.int32],
-    cut_ratio: wp.array2d[float],
-    centers: wp.array[wp.vec3],
-    radii: wp.array[float],
-    log_table: wp.array2d[float],
-    theta_step: float,
-    order: int,
-    kz: wp.array[float],
-    zbuf: wp.array2d[float],
-    logsum: wp.array2d[float],
-    row: int,
-) -> int:
-    """Add the rotated, ratio-scaled log blocker vectors of cut entries ``first..last-1`` (eq. 4.7); returns how many."""
-    used = int(0)
-    for e in range(first, last):
-        s = cut_sphere[e]
-        a = adjust_sphere(p, n, centers[s], radii[s])
-        rho = a[3]
-        if rho <= 0.0:
-            continue
-        d = wp.vec3(a[0], a[1], a[2]) - p
-        dist = wp.length(d)
-        if dist <= 0.0:
-            continue
-        theta = wp.asin(wp.min(rho / dist, 1.0))
-        plain = int(1)
-        for l in range(order):
-            if cut_ratio[e, l] != 1.0:
-                plain = 0
-        if plain == 1:
-            # leaves (no ratio): interpolate inside the rotation, no scratch row
-            t = wp.clamp(theta / theta_step, 0.0, float(log_table.shape[0] - 1))
-            i0 = wp.min(int(t), log_table.shape[0] - 2)
-            zh_lerp_rotate_accumulate(d, log_table, i0, i0 + 1, t - float(i0), 1.0, order, kz, logsum, row)
-        else:
-            lerp_zh_row(log_table, theta, theta_step, cut_ratio, e, order, zbuf, row)
-            zh_rotate_accumulate(d, zbuf, row, 1.0, order, kz, logsum, row)
-        used = used + 1
-    return used
-
-
-@wp.kernel
-def shade_sphere_shadows(
-    points: wp.array[wp.vec3],
-    normals: wp.array[wp.vec3],
-    cluster: wp.array[wp.int32],
-    centers: wp.array[wp.vec3],
-    radii: wp.array[float],
-    cut_start: wp.array[wp.int32],
-    cut_sphere: wp.array[wp.int32],
-    cut_ratio: wp.array2d[float],
-    log_table: wp.array2d[float],
-    theta_step: float,
-    cos_zh: wp.array2d[float],
-    kz: wp.array[float],
-    ol: OLTableArrays,
-    products: SHProductTable,
-    mode: int,
-    tau: float,
-    order: int,
-    logsum: wp.array2d[float],
-    zbuf: wp.array2d[float],
-    ybuf: wp.array2d[float],
-    alt: wp.array2d[float],
-    tmp: wp.array2d[float],
-    tmp2: wp.array2d[float],
-    used: wp.array[wp.int32],
-    fallback: wp.array[wp.int32],
-    visibility: wp.array2d[float],
-    transfer: wp.array2d[float],
-):
-    """Sphere-set visibility (eq. 4.7) and diffuse transfer ``V * cos`` (CONTRACTS.md §2) of receiver ``v``.
-
-    ``transfer_0`` (irradiance under a uniform sky) is physically >= 0; SH ringing of a nearly closed
-    visibility can push it below, in which case the row is set to 0. ``fallback[v] = 1`` marks a
-    diverged exponential replaced by :func:`guard_visibility`.
-    """
-    v = wp.tid()
-    c = cluster[v]
-    n2 = order * order
-    for i in range(n2):
-        logsum[v, i] = 0.0
-    used[v] = accumulate_blockers(points[v], normals[v], cut_start[c], cut_start[c + 1], cut_sphere, cut_ratio,
-                                  centers, radii, log_table, theta_step, order, kz, zbuf, logsum, v)
-    sh_exp_rows(logsum, v, mode, tau, n2, ol, products, visibility, alt, tmp, tmp2)
-    fallback[v] = guard_visibility(logsum, v, order, visibility)
-    cosine_row(normals[v], cos_zh, order, kz, ybuf, v)
-    sh_product_rows(visibility, v, ybuf, v, n2, products, transfer, v)
-    if transfer[v, 0] < 0.0:
-        for i in range(n2):
-            transfer[v, i] = 0.0
+ringing of legitimate results. Beyond it the exponential has diverged: when many blockers overlap in
+one direction the log sum is a deep narrow well whose order-N SH truncation rings positive elsewhere,
+and exp of that ringing explodes (1000 overlapping spheres: V_0 ~ 200). No exponential recovers from
+it; the kernels then use the geometric-mean visibility ``exp(f_0/sqrt(4π))`` (DC only), bounded by the
+true mean visibility (Jensen) and tending to 0 as blockers accumulate."""
 
 
 @wp.kernel

@@ -21,8 +21,8 @@ from ...sh.kernels import ol_table_arrays, product_table_arrays, zh_normalizatio
 from ...sh.zonal import clamped_cosine_zh
 from ..base import TransferMethod
 from .fitting import SphereTree, build_sphere_tree, cluster_receivers
-from .kernels import (EXP_HYBRID, EXP_OL, EXP_SERIES, compute_cut_ratios, fit_clusters, multiply_transfer,
-                      shade_sphere_shadows)
+from .fixed_kernels import shade_kernel_fixed
+from .kernels import EXP_HYBRID, EXP_OL, EXP_SERIES, compute_cut_ratios, fit_clusters, multiply_transfer
 from .sets import SphereScene, _csr
 from .tables import sphere_tables
 
@@ -103,7 +103,6 @@ class SpheresTransfer(TransferMethod):
         V, n2 = mesh.num_vertices, self.order * self.order
         self.visibility = wp.zeros((V, n2), dtype=float, device=device)
         """Sphere-set visibility, shape (V, N*N), dtype float32, world space (eq. 4.7)."""
-        self._scratch = [wp.zeros((V, n2), dtype=float, device=device) for _ in range(6)]
         self._leaf_start = wp.array(self.scene.leaf_start, dtype=wp.int32, device=device)
         self._leaf_index = wp.array(self.scene.leaf_index, dtype=wp.int32, device=device)
         self.fallback = wp.zeros(V, dtype=wp.int32, device=device)
@@ -119,11 +118,14 @@ class SpheresTransfer(TransferMethod):
         self.tables = t
         self._kz = zh_normalization_array(self.order, d)
         self._log = wp.array(t.log_blocker.astype(np.float32), dtype=float, device=d)
-        self._ff = wp.array(t.form_factor.astype(np.float32), dtype=float, device=d)
-        self._cos_zh = wp.array(clamped_cosine_zh(self.order)[None].astype(np.float32), dtype=float, device=d)
         self._ol = ol_table_arrays(self.order, d)
         self._products = product_table_arrays(self.order, d)
         self._ones = wp.array(np.ones((1, self.order), np.float32), dtype=float, device=d)
+        # Per-receiver kernels are compiled per order with SH vectors in registers (fixed_kernels.py).
+        self._fixed = shade_kernel_fixed(self.order)
+        self._log_vec = wp.array(t.log_blocker.astype(np.float32), dtype=self._fixed.vec_zh, device=d)
+        self._ff_vec = wp.array(t.form_factor.astype(np.float32), dtype=self._fixed.vec_zh, device=d)
+        self._cos_vec = self._fixed.vec_zh(*clamped_cosine_zh(self.order).astype(np.float32).tolist())
 
     # -- command line ------------------------------------------------------------------------
     @classmethod
@@ -185,14 +187,14 @@ class SpheresTransfer(TransferMethod):
         wp.launch(fit_clusters, dim=self.clusters, inputs=[*self._members, self.points],
                   outputs=[self.cluster_centers, self.cluster_radii], device=d)
         ncut = self.shade_points(self.points, self.normals, self.cluster, self.cluster_centers, self.cluster_radii,
-                                 self._scratch, self.used, self.fallback, self.visibility, self.transfer)
+                                 self.used, self.fallback, self.visibility, self.transfer)
         sc = self.scene
         self._stats = {"cut_spheres_per_cluster": float(ncut) / self.clusters,
                        "leaf_spheres": int((sc.level == 0).sum()), "total_spheres": sc.num_spheres,
                        "clusters": self.clusters, "exp_fallbacks": int(self.fallback.numpy().sum())}
 
-    def shade_points(self, points, normals, cluster, cluster_centers, cluster_radii, scratch, used, fallback,
-                     visibility, transfer) -> int:
+    def shade_points(self, points, normals, cluster, cluster_centers, cluster_radii, used, fallback, visibility,
+                     transfer) -> int:
         """Sphere-set visibility and transfer of any receiver points against the current (refitted) spheres.
 
         Used for the mesh vertices and for the surface samples of the reflection pass.
@@ -201,7 +203,6 @@ class SpheresTransfer(TransferMethod):
             points, normals: Receivers, shape (R,), vec3.
             cluster: Cluster of each receiver, shape (R,), int32.
             cluster_centers, cluster_radii: Cluster bounding spheres, shape (K,), vec3 / float32.
-            scratch: Six (R, N*N) float32 arrays.
             used, fallback: Per-receiver counters, shape (R,), int32.
             visibility, transfer: Outputs, shape (R, N*N), float32.
 
@@ -227,10 +228,11 @@ class SpheresTransfer(TransferMethod):
                               self.order, self._kz, *buf],
                       outputs=[cut_ratio], device=d)
         t = self.tables
-        wp.launch(shade_sphere_shadows, dim=points.shape[0],
-                  inputs=[points, normals, cluster, sc.centers, sc.radii, cut_start, cut_sphere, cut_ratio, self._log,
-                          t.theta_step, self._cos_zh, self._kz, self._ol, self._products, EXP_MODES[self.exp],
-                          self.tau, self.order, *scratch],
+        wp.launch(self._fixed.shade, dim=points.shape[0],
+                  inputs=[points, normals, cluster, sc.centers, sc.radii, cut_start, cut_sphere, cut_ratio,
+                          self._log_vec, t.theta_step, self._cos_vec, self._fixed.kz, self._ol, self._products,
+                          EXP_MODES[self.exp],
+                          self.tau],
                   outputs=[used, fallback, visibility, transfer], device=d)
         self._cut = (cut_start, cut_sphere, cut_ratio)
         return len(sph)

@@ -55,7 +55,7 @@ def cosine_np(n, order):
 
 
 def shade_np(p, n, centers, radii, order, mode="hyb", tau=0.5, ratios=None):
-    """Visibility and transfer of one receiver under blocker spheres (kernel ``shade_sphere_shadows``).
+    """Visibility and transfer of one receiver under blocker spheres (kernel ``shade`` of :mod:`.fixed_kernels`).
 
     Args:
         p, n: Receiver position and unit normal, (3,).
@@ -79,7 +79,7 @@ def shade_np(p, n, centers, radii, order, mode="hyb", tau=0.5, ratios=None):
             g = g * ratios[s]
         logsum += zh_rotate(g, d)
     vis = sh_exp_np(logsum, order, mode, tau)
-    bound = 1.1 * SQRT_4PI  # kernel guard_visibility
+    bound = 1.1 * SQRT_4PI  # kernels.VIS_NORM_SLACK
     if not (0 <= vis[0] <= bound and vis @ vis <= bound * bound):
         vis = np.zeros_like(vis)
         vis[0] = SQRT_4PI * math.exp(min(logsum[0] / SQRT_4PI, 0.0))

@@ -27,8 +27,9 @@ from ...geometry.normals import vertex_normals
 from ...sh.basis import sh_eval
 from .kernels import fit_clusters
 from .method import EXP_MODES, SpheresTransfer
-from .reflection_kernels import project_sphere_radiance, resample_surface, shade_sphere_reflections, trace_sphere_samples
+from .reflection_kernels import project_sphere_radiance, resample_surface, trace_sphere_samples
 from .sets import _csr
+from .tables import sphere_tables
 
 
 def sample_directions(subdivisions: int = 1) -> np.ndarray:
@@ -71,6 +72,11 @@ class SphereReflections:
             raise ValueError(f"exp must be one of {', '.join(EXP_MODES)}, got {exp!r}")
         self.method, self.exp, self.device = method, exp, method.device
         d, order = method.device, method.order
+        # The log blocker table is fitted to the exponential that will use it (tables.py); the second pass
+        # may use another exponential than the shadows (default ol vs hyb), so it gets its own table. With
+        # the shadows' hybrid-fitted table, OL overshot a lit ball's reflection by 20 % at distance 1.5.
+        self._log_vec = wp.array(sphere_tables(order, exp, method.tau).log_blocker.astype(np.float32),
+                                 dtype=method._fixed.vec_zh, device=d)
         self.directions = sample_directions(subdivisions)
         m = len(self.directions)
         self._voronoi = wp.array(voronoi_sh(self.directions, order).astype(np.float32), dtype=float, device=d)
@@ -105,7 +111,6 @@ class SphereReflections:
         self._salb = wp.zeros((max(L, 1), m), dtype=wp.vec3, device=d)
         self._snrm = wp.zeros((max(L, 1), m), dtype=wp.vec3, device=d)
         n2 = order * order
-        self._s_scratch = [wp.zeros((R, n2), dtype=float, device=d) for _ in range(6)]
         self._s_used = wp.zeros(R, dtype=wp.int32, device=d)
         self._s_fallback = wp.zeros(R, dtype=wp.int32, device=d)
         self._s_vis = wp.zeros((R, n2), dtype=float, device=d)
@@ -116,7 +121,6 @@ class SphereReflections:
         self.radiance = wp.zeros((max(L, 1), 3, n2), dtype=float, device=d)
         """Radiance SH vector of each reflecting leaf sphere per colour, rest frame, shape (L, 3, N*N)."""
         V = method.mesh.num_vertices
-        self._r_scratch = [wp.zeros((V, n2), dtype=float, device=d) for _ in range(8)]
         self._key = wp.zeros((V, max(L, 1)), dtype=float, device=d)
         self.irradiance = wp.zeros(V, dtype=wp.vec3, device=d)
         """Reflected irradiance at each receiver vertex (eq. 4.22, no albedo, no 1/π), shape (V,), vec3."""
@@ -205,7 +209,7 @@ class SphereReflections:
         snrm = self._snrm.reshape((L * m,))
         wp.launch(fit_clusters, dim=L, inputs=[*self._s_members, spts], outputs=[self._s_centers, self._s_radii],
                   device=d)
-        meth.shade_points(spts, snrm, self._s_cluster, self._s_centers, self._s_radii, self._s_scratch,
+        meth.shade_points(spts, snrm, self._s_cluster, self._s_centers, self._s_radii,
                           self._s_used, self._s_fallback, self._s_vis, self._s_transfer)
         wp.launch(project_sphere_radiance, dim=(L, 3),
                   inputs=[self._s_transfer, self._face, wp.array(light, dtype=float, device=d), self._salb,
@@ -213,10 +217,10 @@ class SphereReflections:
                   outputs=[self.radiance], device=d)
         # second pass at the receiver vertices
         t, sc = meth.tables, meth.scene
-        wp.launch(shade_sphere_reflections, dim=meth.mesh.num_vertices,
-                  inputs=[meth.points, meth.normals, self._spheres, sc.centers, sc.radii, sc.rotations, self.radiance,
-                          meth._log, meth._ff, t.theta_step, meth._ones, meth._cos_zh, meth._kz, meth._ol,
-                          meth._products, EXP_MODES[self.exp], meth.tau, meth.order, self._key, *self._r_scratch],
+        wp.launch(meth._fixed.reflect, dim=meth.mesh.num_vertices,
+                  inputs=[meth.points, meth.normals, self._spheres, sc.centers, sc.radii, sc.rotations,
+                          self.radiance, self._log_vec, meth._ff_vec, t.theta_step, meth._cos_vec, meth._fixed.kz,
+                          meth._ol, meth._products, EXP_MODES[self.exp], meth.tau, self._key],
                   outputs=[self.irradiance], device=d)
         return self.irradiance
 

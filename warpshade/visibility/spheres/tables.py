@@ -140,7 +140,7 @@ def _series_scaled(f, p, order):
 
 
 def sh_exp_np(f, order, mode="hyb", tau=0.5):
-    """Host twin of the kernel ``sh_exp_rows`` (modes ``ol``, ``hyb``, ``series``; see there), float64."""
+    """Host twin of ``exp_blended`` in :mod:`.fixed_kernels` (modes ``ol``, ``hyb``, ``series``; see there), float64."""
     f = np.asarray(f, dtype=np.float64)
     if mode == "ol":
         return sh_exp(f, "ol")

@@ -1,0 +1,125 @@
+"""``warpshade run``: simulate, shade and write a scene to USD (CONTRACTS.md §5, §6)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+HELP = "run a scene end to end (simulate, shade, write USD); no SCENE runs the shipped default scene"
+ACCEPTS_EXTRA = True  # method knobs, parsed once --method is known
+
+
+def shipped_scene(name: str = "default.usda") -> str:
+    """Path of a scene in the repository's ``usd_scenes/``."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    return os.path.normpath(os.path.join(here, "..", "..", "usd_scenes", name))
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from ..visibility import METHODS
+
+    parser.add_argument("scene", nargs="?", default=None, metavar="SCENE",
+                        help="USD scene (default: usd_scenes/default.usda)")
+    parser.add_argument("--out", default=None, metavar="OUT.usda",
+                        help="output (default: <scene name>_shaded.usda in the current directory)")
+    parser.add_argument("--frames", type=int, default=None, help="frames to produce (default: the scene's)")
+    parser.add_argument("--method", default=None, choices=sorted(METHODS) + ["none"],
+                        help="visibility method for every object (default: the scene's, else the fastest accurate one)")
+    parser.add_argument("--order", type=int, default=None, help="SH order (default: the scene's warpshade:order, else 4)")
+    parser.add_argument("--write-transfer", action="store_true",
+                        help="also write primvars:warpshade:transfer (N*N floats per vertex per frame) for relighting")
+    parser.add_argument("--chunk", type=int, default=64, help="frames per clip file (also the commit interval)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="shading worker processes while this one simulates (default: all cores; 0 shades inline)")
+    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                        help="shade on a Dask cluster ('local' starts one) instead of local processes")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
+    parser.epilog = "Method knobs (e.g. --rays for reference) follow --method; see README."
+
+
+def _reclaim_knob_value(args, method_cls) -> None:
+    """Undo argparse giving a knob's value to the optional SCENE positional.
+
+    Knobs are unknown to the main parser, so in ``warpshade run --method reference --rays 64`` the
+    ``64`` looks like SCENE. The first knob flag in ``args.extra`` that lacks its value gets it back.
+    """
+    if args.scene is None or not args.extra:
+        return
+    p = argparse.ArgumentParser(add_help=False)
+    method_cls.add_arguments(p)
+    takes_value = {opt for a in p._actions if a.nargs != 0 for opt in a.option_strings}
+    for k, tok in enumerate(args.extra):
+        flag = tok.split("=", 1)[0]
+        if flag in takes_value and "=" not in tok and (k + 1 == len(args.extra) or args.extra[k + 1].startswith("-")):
+            args.extra.insert(k + 1, args.scene)
+            args.scene = None
+            return
+
+
+def run(args) -> int:
+    import warp as wp
+
+    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines between progress updates
+    from ..pipeline import Pipeline
+    from ..usd import AnimationWriter, read_scene
+    from .cmd_transfer import parse_knobs
+
+    knobs = {}
+    method = args.method
+    if method not in (None, "none"):
+        from ..visibility import get_method
+
+        cls = get_method(method)
+        _reclaim_knob_value(args, cls)
+        knobs = parse_knobs(cls, args.extra)
+    elif args.extra:
+        raise ValueError(f"unknown option(s) {' '.join(args.extra)} (method knobs need --method)")
+    t0 = time.perf_counter()
+    scene_path = args.scene or shipped_scene()
+    scene = read_scene(scene_path)
+    if method == "none":
+        method = None
+        for o in scene.objects:  # unoccluded transfer for every object
+            o.method = None
+    out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
+    load = time.perf_counter() - t0
+    from ..parallel import default_workers
+
+    workers = default_workers() if args.workers is None else args.workers
+    pipe = Pipeline(scene, frames=args.frames, method=method, knobs=knobs, order=args.order,
+                    write_transfer=True if args.write_transfer else None, workers=workers,
+                    scheduler=args.scheduler, device=args.device)
+    writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
+                             chunk=args.chunk, resume=args.resume,
+                             metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,
+                                       "groups": "; ".join(f"{g.method} {g.knobs}" for g in pipe.groups)})
+    if writer.resume_frame:
+        print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
+    try:
+        report = pipe.run(writer, progress=not args.no_progress)
+    except KeyboardInterrupt:
+        kept = writer.frames_committed
+        where = f"{kept} complete frames kept in {writer.path}" if kept else "previous output (if any) left untouched"
+        print(f"warpshade run: interrupted; {where}", file=sys.stderr)
+        return 130
+    report.seconds["load"] = load
+    s = report.seconds
+    resumed = f" (resumed at frame {report.resumed_from})" if report.resumed_from else ""
+    print(f"warpshade run: {scene_path}: {report.frames} frames{resumed}, {report.vertices} shaded vertices, SH order {pipe.order}",
+          file=sys.stderr)
+    for g in report.groups:
+        print(f"  shading group: {g}", file=sys.stderr)
+    per = 1e3 / max(report.frames, 1)
+    print(f"  load {s['load']:.2f} s | setup {s['setup']:.2f} s | simulate {s['simulate']:.2f} s "
+          f"({s['simulate'] * per:.1f} ms/frame) | shade {s['shade']:.2f} s ({s['shade'] * per:.1f} ms/frame) | "
+          f"write {s['write']:.2f} s ({s['write'] * per:.1f} ms/frame) | total {s['total'] + load:.2f} s",
+          file=sys.stderr)
+    print(f"  preview: warpshade preview {report.path} --contact-sheet : -o {os.path.splitext(report.path)[0]}.png",
+          file=sys.stderr)
+    print(report.path)
+    return 0

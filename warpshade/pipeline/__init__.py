@@ -1,0 +1,215 @@
+"""The main job: simulate, shade and write a scene, one frame at a time (``warpshade run``).
+
+Data flows one way (STYLE.md): per frame each object's positions come from the simulation (cloth,
+:mod:`.cloth`), from skinning or time samples (skinned, animated) or stay put (static); each
+*shading group* — the objects that share a visibility method and its knobs — is one receiver mesh,
+so its members shadow each other (with ``reference``: exactly, ray traced); the group's
+:class:`~warpshade.visibility.TransferMethod` updates the SH transfer (CONTRACTS.md §2); exit
+radiance ``(ρ/π) Σ_i L_i T_i`` uses the lights' SH (world space); the writer streams the frame out.
+
+Shading runs through :func:`warpshade.parallel.shade_frames` with a picklable
+:class:`~.shading.SceneShader`: inline by default, or on worker processes / a Dask cluster
+(``workers``, ``scheduler``) while this process keeps simulating; frames are written in order.
+
+No ``pxr`` here: the scene arrives as a :class:`warpshade.scene.Scene` and the output goes to any
+object with the :class:`warpshade.usd.AnimationWriter` methods.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..scene import Scene, SceneError
+from ..sh.basis import check_order
+from .cloth import ClothSimulation
+from .lights import default_lights, light_from_spec, sky_light_specs
+from .shading import GroupSpec, SceneShader, group_objects, unoccluded_transfer
+
+METHOD_PREFERENCE = ("reference",)
+"""Default visibility method: the first of these that is registered (fastest accurate first).
+
+Only methods measured accurate on the shipped scenes belong here (``benchmarks/run_methods.py``):
+on ``default.usda`` reference at 256 rays has 1.5 % radiance error against 4096 rays, ``disks``
+14 % (2.4x faster), ``spheres`` (sphere-set blockers, made for closed objects) 45 %, worse than no
+shadows at all (35 %) on this open cloth and ground plane. A method goes in front once it is
+measured close to reference@256."""
+
+DEFAULT_KNOBS = {"reference": {"rays": 256}}
+"""Knobs a run uses when the scene and the command line give none (reference: 256 rays, 3.5 %
+relative L2 error, measured in the README's reference section)."""
+
+DEFAULT_ORDER = 4
+"""SH order of a run unless the scene (``warpshade:order``) or ``--order`` says otherwise."""
+
+
+def default_method() -> str:
+    """The method a run uses when neither the scene nor the command line names one."""
+    from ..visibility import METHODS
+
+    return next(m for m in METHOD_PREFERENCE if m in METHODS)
+
+
+@dataclass
+class RunReport:
+    """What a run did and how long each stage took.
+
+    Attributes:
+        path: Output file.
+        frames: Frames written.
+        seconds: Wall time per stage [s]: ``setup`` (simulation model, method structures and
+            lights, built once per worker: summed),
+            ``simulate``, ``shade`` (summed over frames; with workers it overlaps the others),
+            ``write``, ``total`` (wall).
+        vertices: Shaded vertices per frame.
+        groups: One line per shading group (method, knobs, objects).
+        resumed_from: First frame produced by this run (> 0 after ``--resume``).
+    """
+
+    path: str
+    frames: int
+    seconds: dict = field(default_factory=dict)
+    vertices: int = 0
+    groups: list = field(default_factory=list)
+    resumed_from: int = 0
+
+
+class Pipeline:
+    """Simulate, shade and write one scene.
+
+    Args:
+        scene: The scene (from :func:`warpshade.usd.read_scene` or built in Python).
+        frames: Frames to produce (default: the scene's).
+        method: Visibility method for every shaded object (overrides the scene), or None.
+        knobs: Method knobs (with ``method``).
+        order: SH order (default: ``warpshade:order`` or :data:`DEFAULT_ORDER`).
+        write_transfer: Also write ``primvars:warpshade:transfer`` (V × N*N floats per frame).
+        lights: :mod:`warpshade.lighting` objects to use instead of the scene's.
+        workers: Shading worker processes (0: shade in this process).
+        scheduler: Dask scheduler (``"local"`` or ``tcp://HOST:PORT``) instead of local processes.
+        device: Warp device.
+    """
+
+    def __init__(self, scene: Scene, frames: int | None = None, method: str | None = None,
+                 knobs: dict | None = None, order: int | None = None, write_transfer: bool | None = None,
+                 lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu"):
+        self.scene = scene
+        self.frames = int(frames if frames is not None else scene.frames)
+        if self.frames < 1:
+            raise ValueError(f"frames must be >= 1, got {self.frames}")
+        self.order = check_order(order if order is not None else scene.settings.get("order", DEFAULT_ORDER))
+        self.write_transfer = bool(write_transfer if write_transfer is not None
+                                   else scene.settings.get("writeTransfer", False))
+        self.workers, self.scheduler, self.device = int(workers), scheduler, device
+        self.groups = group_objects(scene.objects, method, knobs, DEFAULT_KNOBS)
+        if not self.groups:
+            raise SceneError(f"{scene.source}: no shaded object")
+        self.shader = SceneShader(self.groups, self.order, scene.fps, list(scene.lights), scene.up_axis, lights,
+                                  self.write_transfer, device)
+        self.report = None
+
+    def _geometry(self, sims, secs, failure: list, start: int = 0):
+        """Yield ``(frame, {name: points})`` for every moving object from ``start`` on, timing the simulation.
+
+        Frames before ``start`` (already written by an interrupted run) are simulated, since the
+        simulation is sequential and deterministic, but not shaded.
+
+        An error ends the iteration and is put in ``failure`` instead of being raised here, so the
+        frames already in flight are still shaded and written before the run stops with it.
+        """
+        try:
+            for f, geo in self._geometry_frames(sims, secs):
+                if f >= start:
+                    yield f, geo
+        except Exception as exc:  # noqa: BLE001 - re-raised by run() after the in-flight frames
+            failure.append(exc)
+
+    def _geometry_frames(self, sims, secs):
+        driven = [o for o in self.scene.objects if o.kind in ("animated", "skinned")]
+        for f in range(self.frames):
+            t = time.perf_counter()
+            geo = {o.name: np.asarray(o.params["points_at"](f), dtype=np.float32) for o in driven}
+            if sims is not None:  # cloth after the bodies it collides with and hangs from
+                geo.update(sims.advance(f, geo))
+            for name, pts in geo.items():
+                if not np.isfinite(pts).all():
+                    v = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
+                    raise SceneError(f"{name}: frame {f}: vertex {v} is not finite")
+            secs["simulate"] += time.perf_counter() - t
+            yield f, geo
+
+    def run(self, writer, progress: bool = True) -> RunReport:
+        """Produce every frame into ``writer`` (an :class:`warpshade.usd.AnimationWriter`-like object).
+
+        The writer is closed on success and aborted (keeping complete frames) on error. A writer
+        opened with ``resume=True`` on an interrupted output has ``resume_frame > 0``: the run then
+        produces only the frames from there on (``--resume``).
+        """
+        from ..parallel import shade_frames
+
+        secs = dict.fromkeys(("setup", "simulate", "shade", "write"), 0.0)
+        start = int(getattr(writer, "resume_frame", 0))
+        t0 = time.perf_counter()
+        bar = None
+        try:
+            sims = ClothSimulation(self.scene, self.device) if any(o.kind == "cloth" for o in self.scene.objects) else None
+            static = {o.name for o in self.scene.objects if o.kind == "static"}
+            names = {}
+            for g in self.groups:
+                for name, mesh, albedo in zip(g.names, g.meshes, g.albedos):
+                    obj = self.scene.object(name)
+                    names[name] = writer.add_mesh(
+                        name, mesh.faces, points=mesh.points if name in static else None,
+                        normals=mesh.normals if name in static else None, albedo=albedo,
+                        roughness=obj.material.roughness, transfer_order=self.order if self.write_transfer else None)
+            specs = list(self.scene.lights)
+            if not specs and self.shader.lights is None:
+                sky = default_lights(self.scene.up_axis)[0]
+                specs = sky_light_specs(sky, os.path.join(writer.asset_dir(), "default_sky.exr"), self.scene.up_axis)
+            for spec in specs:
+                writer.add_light(spec)
+            secs["setup"] = time.perf_counter() - t0
+            if progress:
+                from tqdm import tqdm
+
+                bar = tqdm(total=self.frames, initial=min(start, self.frames), desc="warpshade run", unit="frame")
+            failure: list = []
+            results = shade_frames(self.shader, self._geometry(sims, secs, failure, start), workers=self.workers,
+                                   scheduler=self.scheduler)
+            for f, res in results:
+                t = time.perf_counter()
+                secs["shade"] += res.pop("_seconds")
+                secs["setup"] += res.pop("_build_seconds", 0.0)
+                for name, (points, normals, colors, transfer) in res.items():
+                    # CONTRACTS.md §6: every shaded mesh has points, normals and extent time-sampled
+                    # per frame, static ones included
+                    writer.write_frame(f, names[name], points, normals, colors, transfer)
+                secs["write"] += time.perf_counter() - t
+                if bar is not None:
+                    bar.update(1)
+            if failure:
+                raise failure[0]
+            if bar is not None:
+                bar.close()
+            t = time.perf_counter()
+            path = writer.close()
+            secs["write"] += time.perf_counter() - t
+        except BaseException:
+            if bar is not None:
+                bar.close()
+            writer.abort()
+            raise
+        secs["total"] = time.perf_counter() - t0
+        self.report = RunReport(path=path, frames=max(0, self.frames - start), seconds=secs, resumed_from=start,
+                                vertices=sum(m.num_vertices for g in self.groups for m in g.meshes),
+                                groups=[f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
+                                        for g in self.groups])
+        return self.report
+
+
+__all__ = ["DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
+           "RunReport", "SceneShader", "default_method", "light_from_spec", "sky_light_specs",
+           "unoccluded_transfer"]

@@ -1,0 +1,113 @@
+"""Cloth of a scene simulated with :mod:`warpshade.sim` (pxr-free)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..scene import Scene, SceneError
+
+
+CLOTH_PARAMS = {"density": "density", "stretchStiffness": "stretch_stiffness", "bendStiffness": "bend_stiffness"}
+"""``warpshade:cloth:*`` attributes passed per piece to :meth:`warpshade.sim.ClothBuilder.add_mesh`."""
+CLOTH_GLOBAL = {"damping": "damping", "thickness": "thickness"}
+"""``warpshade:cloth:*`` attributes that are builder-wide (taken from the first cloth object)."""
+
+
+class ClothSimulation:
+    """Every cloth object of a scene in one :mod:`warpshade.sim` model, with the scene's colliders.
+
+    Colliders (``warpshade:collider``): ``ground`` -> a plane at the mesh's mean height facing up;
+    ``sphere`` -> the analytic sphere of a Sphere prim; ``mesh`` -> the triangle mesh, which may
+    move (a skinned or animated body: its pose is passed every frame). Pins (``warpshade:pinned``)
+    are fixed; attachments (``warpshade:attached`` vertices, ``warpshade:attachTarget`` a moving
+    object) follow the target's nearest rest vertex with their rest offset (a cape on shoulders);
+    ``warpshade:wind`` on the default prim blows on all cloth. Frame 0 is the rest pose; each later
+    frame advances one step of ``1/fps`` seconds.
+    """
+
+    def __init__(self, scene: Scene, device: str = "cpu"):
+        try:
+            from ..sim import ClothBuilder, ColliderSet, XPBDSolver
+        except ImportError as exc:
+            name = next(o.name for o in scene.objects if o.kind == "cloth")
+            raise SceneError(f"{scene.source}: {name} is cloth, and cloth needs warpshade.sim, which is not "
+                             f"installed yet ({exc})") from None
+        cloth = [o for o in scene.objects if o.kind == "cloth"]
+        first = cloth[0].params.get("cloth", {})
+        self.attachments = []  # (target name, target vertex per slot (A,), rest offset (A, 3))
+        self.moving_colliders = []  # (object name, MeshCollider)
+        builder = ClothBuilder(**{k2: float(first[k]) for k, k2 in CLOTH_GLOBAL.items() if k in first})
+        self.ranges = {}
+        friction = float(first.get("friction", 0.5))
+        for o in cloth:
+            p = o.params.get("cloth", {})
+            ids = builder.add_mesh(o.mesh.points, o.mesh.faces, name=o.name,
+                                   **{k2: float(p[k]) for k, k2 in CLOTH_PARAMS.items() if k in p})
+            if "pinned" in o.params and len(o.params["pinned"]):
+                builder.pin(ids[o.params["pinned"]])
+            if "attached" in o.params:
+                self._attach(builder, scene, o, ids)
+            self.ranges[o.name] = (int(ids[0]), int(ids[-1]) + 1)
+        self.model = builder.finalize(device=device)
+        up = np.array([0.0, 1.0, 0.0]) if scene.up_axis.upper() == "Y" else np.array([0.0, 0.0, 1.0])
+        colliders = ColliderSet(device=device)
+        for o in scene.objects:
+            kind = o.params.get("collider")
+            if kind is None or o.kind == "cloth":
+                continue
+            if kind == "ground":
+                colliders.add_plane(normal=up, offset=float(np.mean(o.mesh.points @ up)), friction=friction)
+            elif kind == "sphere" and "sphere" in o.params:
+                colliders.add_sphere(o.params["sphere"]["center"], o.params["sphere"]["radius"], friction=friction)
+            elif kind in ("mesh", "sphere"):
+                mc = colliders.add_mesh(o.mesh.points, o.mesh.faces, friction=friction)
+                if o.kind != "static":
+                    self.moving_colliders.append((o.name, mc))
+            else:
+                raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, mesh")
+        gravity = tuple(-9.81 / scene.meters_per_unit * up)  # [scene units/s²]
+        self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
+                                 gravity=gravity, self_collision=bool(first.get("selfCollision", True)))
+        self.control = self.model.control()
+        if "wind" in scene.settings:
+            self.control.set_wind(scene.settings["wind"])
+        self.state = self.model.state()
+        self.dt = 1.0 / scene.fps
+        self._frame = 0
+        self._points = self.state.points.numpy()
+
+    def _attach(self, builder, scene: Scene, obj, ids) -> None:
+        target_name = obj.params.get("attachTarget")
+        if target_name is None:
+            raise SceneError(f"{obj.name}: warpshade:attached needs warpshade:attachTarget (a moving object)")
+        try:
+            target = scene.object(str(target_name))
+        except KeyError:
+            raise SceneError(f"{obj.name}: warpshade:attachTarget '{target_name}' is not a mesh of the scene") from None
+        verts = np.asarray(obj.params["attached"], dtype=np.int64).reshape(-1)
+        if len(verts) and (verts.min() < 0 or verts.max() >= obj.mesh.num_vertices):
+            raise SceneError(f"{obj.name}: warpshade:attached vertex out of range 0..{obj.mesh.num_vertices - 1}")
+        builder.attach(ids[verts])
+        rest = obj.mesh.points[verts].astype(np.float64)
+        tp = target.mesh.points.astype(np.float64)
+        nearest = np.argmin(((rest[:, None, :] - tp[None, :, :]) ** 2).sum(-1), axis=1)
+        self.attachments.append((target.name, nearest, rest - tp[nearest]))
+
+    def advance(self, frame: int, geometry: dict) -> dict:
+        """Step to ``frame`` (frames come in order) and return ``{cloth name: positions (V, 3)}``.
+
+        Args:
+            frame: Frame number.
+            geometry: This frame's positions of the other moving objects (colliders and attachment
+                targets), ``{name: (V, 3)}``.
+        """
+        while self._frame < frame:
+            for name, mc in self.moving_colliders:
+                mc.set_points(geometry[name])  # pose at the end of this step
+            if self.attachments:
+                self.control.set_targets(np.concatenate(
+                    [geometry[name][idx] + off for name, idx, off in self.attachments]))
+            self.solver.step(self.state, self.state, self.dt, self.control)
+            self._frame += 1
+            self._points = self.state.points.numpy()
+        return {name: self._points[a:b].copy() for name, (a, b) in self.ranges.items()}

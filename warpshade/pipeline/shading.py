@@ -1,0 +1,188 @@
+"""Shading one frame of a scene: shading groups, SH transfer, lights, exit radiance.
+
+:class:`SceneShader` is a picklable :class:`warpshade.parallel.FrameShaderSpec`: it carries only
+meshes, materials, method names and light descriptions; ``build()`` (once per worker, or once
+inline) constructs the visibility methods and lights, and returns ``shade(frame, geometry)``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from ..geometry.mesh import TriMesh
+from ..geometry.normals import vertex_normals
+from ..sh.zonal import clamped_cosine_zh, zh_rotate
+
+
+def unoccluded_transfer(normals: np.ndarray, order: int) -> np.ndarray:
+    """Transfer of an unshadowed vertex (CONTRACTS.md §2): the clamped-cosine lobe rotated to the
+    normal, ``sqrt(4π/(2l+1)) A_l y_lm(n)``.
+
+    Returns:
+        Shape (V, N*N), float32.
+    """
+    return zh_rotate(clamped_cosine_zh(order), normals).astype(np.float32)
+
+
+@dataclass
+class GroupSpec:
+    """Objects shaded as one receiver mesh (they shadow each other) by one visibility method.
+
+    Attributes:
+        method: A ``warpshade.visibility.METHODS`` name, or None for unshadowed (analytic) transfer.
+        knobs: Method keyword arguments.
+        names: Object names, in order.
+        meshes: Their rest meshes (topology fixed).
+        albedos: Their albedos, linear RGB, shape (3,) each.
+        moving: Whether each object moves (static objects keep their rest points).
+    """
+
+    method: str | None
+    knobs: dict
+    names: list = field(default_factory=list)
+    meshes: list = field(default_factory=list)
+    albedos: list = field(default_factory=list)
+    moving: list = field(default_factory=list)
+
+
+class _Group:
+    """A built :class:`GroupSpec`: the merged receiver mesh and its method."""
+
+    def __init__(self, spec: GroupSpec, order: int, device: str):
+        self.spec, self.order = spec, order
+        self.offsets = np.cumsum([0] + [m.num_vertices for m in spec.meshes])
+        faces = np.concatenate([m.faces + off for m, off in zip(spec.meshes, self.offsets[:-1])])
+        self.rest = np.concatenate([m.points for m in spec.meshes])
+        self.mesh = TriMesh(self.rest, faces, name=f"group[{', '.join(spec.names)}]")
+        self.any_moving = any(spec.moving)
+        self.cached = None
+        if spec.method is not None:
+            from ..visibility import get_method
+
+            self.method = get_method(spec.method)(self.mesh, order=order, device=device, **spec.knobs)
+        else:
+            self.method = None
+            self._faces = wp.array(faces, dtype=wp.int32, device=device)
+            self._points = wp.array(self.rest, dtype=wp.vec3, device=device)
+            self._normals = wp.zeros(len(self.rest), dtype=wp.vec3, device=device)
+
+    def update(self, geometry: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Points (V, 3), transfer (V, N*N) and unit normals (V, 3) of the group this frame."""
+        if self.cached is not None and not self.any_moving:
+            return self.cached  # nothing in the group moves: transfer computed once
+        pts = np.concatenate([geometry[n] if mv else self.rest[a:b] for n, mv, a, b in
+                              zip(self.spec.names, self.spec.moving, self.offsets[:-1], self.offsets[1:])])
+        pts = pts.astype(np.float32)
+        if self.method is not None:
+            transfer = self.method.update(pts).numpy().copy()  # the next update overwrites it
+            normals = self.method.normals.numpy().copy()
+        else:
+            self._points.assign(pts)
+            normals = vertex_normals(self._points, self._faces, out=self._normals).numpy().copy()
+            transfer = unoccluded_transfer(normals, self.order)
+        self.cached = (pts, transfer, normals)
+        return self.cached
+
+
+@dataclass
+class SceneShader:
+    """Picklable description of how a scene is shaded (a :class:`warpshade.parallel.FrameShaderSpec`).
+
+    Attributes:
+        groups: Shading groups.
+        order: SH order.
+        fps: Frames per second (light motion is evaluated at ``frame / fps`` seconds).
+        light_specs: UsdLux descriptions; empty means the default sky.
+        up_axis: Stage up axis (for the default sky).
+        lights: Ready :mod:`warpshade.lighting` objects instead of ``light_specs`` (must be
+            picklable to shade in worker processes).
+        write_transfer: Return the transfer too.
+        device: Warp device.
+    """
+
+    groups: list
+    order: int
+    fps: float = 60.0
+    light_specs: list = field(default_factory=list)
+    up_axis: str = "Y"
+    lights: list | None = None
+    write_transfer: bool = False
+    device: str = "cpu"
+
+    def build_lights(self) -> list:
+        """The :mod:`warpshade.lighting` objects this spec shades with."""
+        from .lights import default_lights, light_from_spec
+
+        if self.lights is not None:
+            return list(self.lights)
+        if not self.light_specs:
+            return default_lights(self.up_axis)
+        return [light_from_spec(s, self.up_axis) for s in self.light_specs]
+
+    def build(self):
+        """Build methods and lights; returns ``shade(frame, geometry) -> {name: (points, normals,
+        colors, transfer or None)}`` plus the keys ``"_seconds"`` (time spent shading the frame) and,
+        in the first result of this build, ``"_build_seconds"`` (method structures and lights)."""
+        from ..lighting import lights_sh
+        from ..radiance import exit_radiance
+
+        t_build = time.perf_counter()
+        groups = [_Group(g, self.order, self.device) for g in self.groups]
+        lights = self.build_lights()
+        pending_build = [time.perf_counter() - t_build]  # reported once, with the first frame
+
+        def shade(frame: int, geometry: dict) -> dict:
+            t0 = time.perf_counter()
+            out = {"_build_seconds": pending_build.pop()} if pending_build else {}
+            t = frame / self.fps
+            frame_lights = [light.at_time(t) for light in lights]
+            for g in groups:
+                pts, transfer, normals = g.update(geometry)
+                distant, local = lights_sh(frame_lights, self.order, pts)
+                for k, (name, albedo) in enumerate(zip(g.spec.names, g.spec.albedos)):
+                    a, b = g.offsets[k], g.offsets[k + 1]
+                    # clamped at 0: SH ringing behind bright lights must not make displayColor negative
+                    rad = exit_radiance(transfer[a:b], distant, albedo, None if local is None else local[a:b],
+                                        device=self.device).numpy().copy()
+                    out[name] = (pts[a:b], normals[a:b], rad, transfer[a:b] if self.write_transfer else None)
+            wp.synchronize()
+            out["_seconds"] = time.perf_counter() - t0
+            return out
+
+        return shade
+
+
+def group_objects(objects, method: str | None = None, knobs: dict | None = None,
+                  default_knobs: dict | None = None) -> list[GroupSpec]:
+    """Group shaded objects by (method, knobs).
+
+    Args:
+        objects: :class:`warpshade.scene.SceneObject` list.
+        method: Override every object's method (``--method``), or None to use each object's.
+        knobs: Knobs with ``method``.
+        default_knobs: Method name -> knobs used when an object names a method but no knobs.
+    """
+    by_key: dict = {}
+    for obj in objects:
+        if not obj.shaded:
+            continue
+        if method is not None:
+            name, kn = method, dict(knobs or {})
+        else:
+            name, kn = obj.method, dict(obj.knobs)
+            if name is not None and not kn:
+                kn = dict((default_knobs or {}).get(name, {}))
+        key = (name, tuple(sorted(kn.items())))
+        g = by_key.setdefault(key, GroupSpec(name, kn))
+        g.names.append(obj.name)
+        g.meshes.append(obj.mesh)
+        g.albedos.append(np.asarray(obj.material.albedo, dtype=np.float64))
+        g.moving.append(obj.kind != "static")
+    return list(by_key.values())
+
+
+__all__ = ["GroupSpec", "SceneShader", "group_objects", "unoccluded_transfer"]

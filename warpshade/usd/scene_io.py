@@ -1,0 +1,394 @@
+"""Read a USD stage into a :class:`warpshade.scene.Scene` (the pipeline's pxr-free description).
+
+What is read (README "Running scenes (USD)" documents every attribute):
+
+* ``UsdGeom.Mesh`` prims, world transform applied, n-gons fan-triangulated. Kind: ``warpshade:kind``
+  if authored, else ``skinned`` for meshes bound to a UsdSkel skeleton, ``animated`` for meshes
+  with time-sampled points, ``static`` otherwise.
+* ``UsdGeom.Sphere`` prims, tessellated for shading and kept analytic (``params["sphere"]``) for
+  colliders.
+* UsdLux ``DomeLight`` (``inputs:texture:file`` -> environment map), ``DistantLight``,
+  ``SphereLight``, ``RectLight`` -> :class:`warpshade.scene.LightSpec`.
+* ``UsdPreviewSurface`` ``diffuseColor`` / ``roughness`` of the bound material -> ``Material``
+  (without a material: a constant ``primvars:displayColor`` is the albedo).
+* ``warpshade:`` attributes on meshes (cloth, pins, method, knobs) and on the default prim
+  (frames, SH order, default method).
+
+Anything else is skipped with a :class:`warpshade.scene.SceneWarning` naming the prim. Malformed
+files, missing textures and invalid values raise :class:`warpshade.scene.SceneError` naming the
+file and the prim.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import numpy as np
+from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel
+
+from ..geometry.mesh import MeshError, TriMesh
+from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
+from .mesh_io import triangulate
+
+# Prim types that carry no geometry warpshade needs but are expected in scenes: skipped silently.
+_CONTAINERS = {"", "Xform", "Scope", "SkelRoot", "Skeleton", "SkelAnimation", "Material", "Shader",
+               "NodeGraph", "GeomSubset", "BlendShape"}
+_LIGHTS = {"DomeLight": "dome", "DistantLight": "distant", "SphereLight": "sphere", "RectLight": "rect"}
+#: Scene-wide ``warpshade:`` settings on the default prim and their Python types.
+SCENE_SETTINGS = {"frames": int, "fps": float, "order": int, "method": str, "writeTransfer": bool,
+                  "substeps": int}
+
+
+def read_scene(path: str) -> Scene:
+    """Read a scene file.
+
+    Args:
+        path: ``.usda``, ``.usdc`` or ``.usd`` file.
+
+    Returns:
+        The scene, its objects in stage traversal order.
+
+    Raises:
+        SceneError: unreadable or malformed file, missing texture, invalid ``warpshade:`` value.
+    """
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise SceneError(f"{path}: no such scene file")
+    try:
+        stage = Usd.Stage.Open(path)
+    except Exception as exc:  # pxr raises Tf.ErrorException for syntax errors
+        raise SceneError(f"{path}: cannot open USD stage: {str(exc).strip().splitlines()[-1]}") from exc
+    if stage is None:
+        raise SceneError(f"{path}: cannot open USD stage")
+    return scene_from_stage(stage, path)
+
+
+def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
+    """Build a :class:`Scene` from an open stage (see :func:`read_scene`)."""
+    scene = Scene(source=source)
+    scene.up_axis = str(UsdGeom.GetStageUpAxis(stage))
+    scene.meters_per_unit = float(UsdGeom.GetStageMetersPerUnit(stage))
+    scene.fps = float(stage.GetTimeCodesPerSecond())
+    if stage.HasAuthoredMetadata("endTimeCode"):
+        scene.frames = int(round(stage.GetEndTimeCode() - stage.GetStartTimeCode())) + 1
+    root = stage.GetDefaultPrim() or stage.GetPseudoRoot()
+    scene.settings = _namespace(root, source, skip=())
+    for key, value in list(scene.settings.items()):
+        if key in SCENE_SETTINGS:
+            scene.settings[key] = _cast(value, SCENE_SETTINGS[key], source, root, key)
+    if "frames" in scene.settings:
+        scene.frames = scene.settings["frames"]
+    if "fps" in scene.settings:
+        scene.fps = scene.settings["fps"]
+    if scene.frames < 1:
+        raise SceneError(f"{source}:{root.GetPath()}: warpshade:frames must be >= 1, got {scene.frames}")
+
+    cache = UsdSkel.Cache()
+    for skel_root in stage.Traverse():
+        if skel_root.IsA(UsdSkel.Root):
+            cache.Populate(UsdSkel.Root(skel_root), Usd.PrimDefaultPredicate)
+    default_method = scene.settings.get("method")
+    if default_method is None:
+        from ..pipeline import default_method as fastest
+
+        default_method = fastest()
+    it = iter(Usd.PrimRange(stage.GetPseudoRoot()))
+    for prim in it:
+        if prim.IsPseudoRoot():
+            continue
+        tname = prim.GetTypeName()
+        if not prim.IsActive() or (prim.IsA(UsdGeom.Imageable)
+                                   and UsdGeom.Imageable(prim).ComputeVisibility() == UsdGeom.Tokens.invisible):
+            it.PruneChildren()
+            continue
+        if tname in ("Material", "Shader", "NodeGraph"):
+            it.PruneChildren()
+            continue
+        if prim.IsA(UsdGeom.Mesh):
+            scene.objects.append(_read_mesh(prim, source, cache, default_method))
+        elif prim.IsA(UsdGeom.Sphere):
+            scene.objects.append(_read_sphere(prim, source, default_method))
+        elif tname in _LIGHTS:
+            scene.lights.append(_read_light(prim, _LIGHTS[tname], source))
+        elif tname not in _CONTAINERS:
+            warnings.warn(f"{source}: skipping {prim.GetPath()} ({tname}): warpshade reads Mesh, Sphere, "
+                          "UsdLux Dome/Distant/Sphere/Rect lights and UsdSkel", SceneWarning, stacklevel=2)
+            it.PruneChildren()
+    if not scene.objects:
+        raise SceneError(f"{source}: no Mesh or Sphere prim to shade")
+    return scene
+
+
+# -- meshes -------------------------------------------------------------------------------------
+def _world(prim, t=Usd.TimeCode.Default()) -> np.ndarray:
+    """Local-to-world of ``prim`` acting on column vectors, shape (4, 4), float64."""
+    return np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t), dtype=np.float64).T
+
+
+def _apply(xf: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    return pts @ xf[:3, :3].T + xf[:3, 3]
+
+
+def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> SceneObject:
+    where = f"{source}:{prim.GetPath()}"
+    mesh = UsdGeom.Mesh(prim)
+    counts = mesh.GetFaceVertexCountsAttr().Get()
+    idx = mesh.GetFaceVertexIndicesAttr().Get()
+    pattr = mesh.GetPointsAttr()
+    samples = pattr.GetTimeSamples()
+    t0 = Usd.TimeCode.Default() if pattr.HasAuthoredValue() and pattr.Get() is not None else (
+        Usd.TimeCode(samples[0]) if samples else Usd.TimeCode.Default())
+    pts = pattr.Get(t0)
+    if pts is None or counts is None or idx is None:
+        raise SceneError(f"{where}: mesh lacks points, faceVertexCounts or faceVertexIndices")
+    try:
+        faces = triangulate(np.asarray(counts), np.asarray(idx), where)
+    except MeshError as exc:
+        raise SceneError(str(exc)) from None
+    local = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+    settings = _namespace(prim, source)
+    skinning = UsdSkel.BindingAPI(prim) if prim.HasAPI(UsdSkel.BindingAPI) else None
+    kind = settings.pop("kind", None)
+    if kind is None:
+        kind = "skinned" if skinning is not None else (
+            "animated" if len(samples) > 1 or _xform_varies(prim) else "static")
+    if kind not in OBJECT_KINDS:
+        raise SceneError(f"{where}: warpshade:kind '{kind}' is not one of {', '.join(OBJECT_KINDS)}")
+    params: dict = {}
+    if kind == "skinned":
+        params["points_at"] = _skinned_points(prim, cache, where)
+        points = params["points_at"](samples[0] if samples else 0)
+    else:
+        points = _apply(_world(prim, t0), local)
+    if kind == "animated":
+        params["points_at"] = _animated_points(prim, where)
+    try:
+        tri = TriMesh(points, faces, name=where)
+    except MeshError as exc:
+        raise SceneError(str(exc)) from None
+    if kind == "cloth":
+        params["cloth"] = {k[len("cloth:"):]: v for k, v in settings.items() if k.startswith("cloth:")}
+    for k in [k for k in settings if k.startswith("cloth:")]:
+        settings.pop(k)
+    for key in ("pinned", "attached"):
+        if key in settings:
+            vs = np.asarray(settings.pop(key), dtype=np.int64).reshape(-1)
+            bad = vs[(vs < 0) | (vs >= tri.num_vertices)]
+            if len(bad):
+                raise SceneError(f"{where}: warpshade:{key} vertex {int(bad[0])} out of range 0..{tri.num_vertices - 1}")
+            params[key] = vs.astype(np.int32)
+    return _object(prim, where, tri, kind, settings, params, default_method, _material(prim, where))
+
+
+def _read_sphere(prim, source: str, default_method) -> SceneObject:
+    import trimesh
+
+    where = f"{source}:{prim.GetPath()}"
+    settings = _namespace(prim, source)
+    radius = float(UsdGeom.Sphere(prim).GetRadiusAttr().Get())
+    if not radius > 0:
+        raise SceneError(f"{where}: sphere radius must be > 0, got {radius}")
+    subdiv = int(settings.pop("subdivisions", 3))
+    ico = trimesh.creation.icosphere(subdivisions=subdiv, radius=radius)
+    xf = _world(prim)
+    tri = TriMesh(_apply(xf, np.asarray(ico.vertices)), np.asarray(ico.faces), name=where)
+    scale = float(np.cbrt(abs(np.linalg.det(xf[:3, :3]))))
+    params = {"sphere": {"center": xf[:3, 3].copy(), "radius": radius * scale}}
+    kind = settings.pop("kind", "static")
+    return _object(prim, where, tri, kind, settings, params, default_method, _material(prim, where))
+
+
+def _object(prim, where, tri, kind, settings, params, default_method, material) -> SceneObject:
+    knobs = {k[len("knobs:"):]: v for k, v in settings.items() if k.startswith("knobs:")}
+    method = settings.pop("method", default_method)
+    if method in ("none", ""):
+        method = None
+    if method is not None:
+        from ..visibility import METHODS
+
+        if method not in METHODS:
+            raise SceneError(f"{where}: warpshade:method '{method}' is unknown (known: {', '.join(sorted(METHODS))}, none)")
+    params.update({k: v for k, v in settings.items()
+                   if not k.startswith("knobs:") and k not in ("shaded", "castsShadows")})
+    try:
+        return SceneObject(name=str(prim.GetPath()), mesh=tri, kind=kind, material=material, method=method,
+                           knobs=knobs, casts_shadows=bool(settings.get("castsShadows", True)),
+                           shaded=bool(settings.get("shaded", True)), params=params)
+    except ValueError as exc:
+        raise SceneError(f"{where}: {exc}") from None
+
+
+def _xform_varies(prim) -> bool:
+    """Whether the prim's or an ancestor's transform is time-sampled."""
+    while prim and not prim.IsPseudoRoot():
+        if prim.IsA(UsdGeom.Xformable) and UsdGeom.Xformable(prim).TransformMightBeTimeVarying():
+            return True
+        prim = prim.GetParent()
+    return False
+
+
+def _animated_points(prim, where):
+    """Per-frame world positions read lazily from the stage (memory constant in frame count)."""
+    attr = UsdGeom.Mesh(prim).GetPointsAttr()
+
+    stage = prim.GetStage()  # the closure keeps the stage alive
+
+    def points_at(frame: float) -> np.ndarray:
+        assert stage
+        t = Usd.TimeCode(frame)
+        pts = attr.Get(t)
+        if pts is None:
+            raise SceneError(f"{where}: no points at frame {frame}")
+        return _apply(_world(prim, t), np.asarray(pts, dtype=np.float64).reshape(-1, 3)).astype(np.float32)
+
+    return points_at
+
+
+def _skinned_points(prim, cache: UsdSkel.Cache, where):
+    """Per-frame world positions of a UsdSkel-skinned mesh (linear blend skinning by UsdSkel)."""
+    query = cache.GetSkinningQuery(prim)
+    if not query:
+        raise SceneError(f"{where}: bound to UsdSkel but has no valid skinning query "
+                         "(is it under a SkelRoot with skel:skeleton and joint influences?)")
+    binding = UsdSkel.BindingAPI(prim)
+    skel = binding.GetInheritedSkeleton()
+    if not skel:
+        raise SceneError(f"{where}: skel:skeleton is not set")
+    skel_query = cache.GetSkelQuery(skel)
+    rest = UsdGeom.Mesh(prim).GetPointsAttr().Get()
+
+    stage = prim.GetStage()  # the closure keeps the stage and the skel cache alive
+
+    def points_at(frame: float) -> np.ndarray:
+        assert stage and cache
+        t = Usd.TimeCode(frame)
+        xforms = skel_query.ComputeSkinningTransforms(t)
+        pts = type(rest)(rest)
+        if not query.ComputeSkinnedPoints(xforms, pts, t):
+            raise SceneError(f"{where}: UsdSkel skinning failed at frame {frame}")
+        # Skinned points are in skeleton space (UsdSkel "Skinning" docs): apply the skeleton's transform.
+        return _apply(_world(skel.GetPrim(), t), np.asarray(pts, dtype=np.float64).reshape(-1, 3)).astype(np.float32)
+
+    return points_at
+
+
+def _material(prim, where) -> Material:
+    mat, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+    if mat:
+        shader = mat.ComputeSurfaceSource()[0]
+        if shader and shader.GetIdAttr().Get() == "UsdPreviewSurface":
+            out = Material()
+            dc = shader.GetInput("diffuseColor")
+            if dc:
+                if dc.HasConnectedSource():
+                    warnings.warn(f"{where}: diffuseColor of {shader.GetPath()} is connected (texture?); "
+                                  "using its fallback/default value", SceneWarning, stacklevel=4)
+                val = dc.Get()
+                if val is not None:
+                    out.albedo = np.asarray(val, dtype=np.float64)
+            r = shader.GetInput("roughness")
+            if r and r.Get() is not None:
+                out.roughness = float(r.Get())
+            _check_material(out, where, shader.GetPath())
+            return out
+        warnings.warn(f"{where}: bound material {mat.GetPath()} has no UsdPreviewSurface; default material used",
+                      SceneWarning, stacklevel=4)
+        return Material()
+    dc = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
+    if dc and dc.HasAuthoredValue():
+        v = np.asarray(dc.Get(), dtype=np.float64).reshape(-1, 3)
+        if len(v) == 1:
+            out = Material(albedo=v[0])
+            _check_material(out, where, prim.GetPath())
+            return out
+    return Material()
+
+
+def _check_material(m: Material, where, shader_path) -> None:
+    if m.albedo.shape != (3,) or not np.all((m.albedo >= 0) & (m.albedo <= 1)):
+        raise SceneError(f"{where}: {shader_path}: diffuseColor {m.albedo.tolist()} must be RGB in [0, 1]")
+    if not 0 <= m.roughness <= 1:
+        raise SceneError(f"{where}: {shader_path}: roughness {m.roughness} must be in [0, 1]")
+
+
+# -- lights -------------------------------------------------------------------------------------
+def _read_light(prim, kind: str, source: str) -> LightSpec:
+    where = f"{source}:{prim.GetPath()}"
+    lux = UsdLux.LightAPI(prim)
+
+    def get(attr, default):
+        v = attr.Get() if attr else None
+        return default if v is None else v
+
+    spec = LightSpec(kind=kind, name=str(prim.GetPath()),
+                     color=np.asarray(get(lux.GetColorAttr(), (1.0, 1.0, 1.0)), dtype=np.float64),
+                     intensity=float(get(lux.GetIntensityAttr(), 1.0)),
+                     exposure=float(get(lux.GetExposureAttr(), 0.0)),
+                     transform=_world(prim),
+                     normalize=bool(get(lux.GetNormalizeAttr(), False)))
+    if kind == "distant":
+        spec.angle = float(get(UsdLux.DistantLight(prim).GetAngleAttr(), 0.53))
+    elif kind == "sphere":
+        spec.radius = float(get(UsdLux.SphereLight(prim).GetRadiusAttr(), 0.5))
+        spec.treat_as_point = bool(get(UsdLux.SphereLight(prim).GetTreatAsPointAttr(), False))
+    elif kind == "rect":
+        spec.width = float(get(UsdLux.RectLight(prim).GetWidthAttr(), 1.0))
+        spec.height = float(get(UsdLux.RectLight(prim).GetHeightAttr(), 1.0))
+        if UsdLux.RectLight(prim).GetTextureFileAttr().Get():
+            warnings.warn(f"{where}: RectLight textures are not supported; using its color", SceneWarning, stacklevel=3)
+    elif kind == "dome":
+        asset = UsdLux.DomeLight(prim).GetTextureFileAttr().Get()
+        if asset is not None and asset.path:
+            resolved = asset.resolvedPath
+            if not resolved or not os.path.isfile(resolved):
+                layer_dir = os.path.dirname(os.path.abspath(source))
+                raise SceneError(f"{where}: inputs:texture:file '{asset.path}' not found "
+                                 f"(looked relative to {layer_dir})")
+            spec.texture = resolved
+            fmt = UsdLux.DomeLight(prim).GetTextureFormatAttr().Get()
+            if fmt not in (None, "automatic", "latlong"):
+                raise SceneError(f"{where}: texture format '{fmt}' unsupported (use latlong)")
+    for name, value in (("intensity", spec.intensity), ("radius", spec.radius), ("width", spec.width),
+                        ("height", spec.height)):
+        if not np.isfinite(value) or value < 0:
+            raise SceneError(f"{where}: {name} must be finite and >= 0, got {value}")
+    if not np.all(np.isfinite(spec.color)) or np.any(spec.color < 0):
+        raise SceneError(f"{where}: color must be finite and >= 0, got {spec.color.tolist()}")
+    return spec
+
+
+# -- warpshade: namespace ----------------------------------------------------------------------
+def _namespace(prim, source: str, skip=()) -> dict:
+    """Every authored ``warpshade:`` attribute of ``prim`` as ``{name without prefix: value}``."""
+    out = {}
+    for attr in prim.GetAuthoredAttributes():
+        name = attr.GetName()
+        if not name.startswith("warpshade:") or name in skip:
+            continue
+        value = attr.Get()
+        if value is None:
+            continue
+        if hasattr(value, "__len__") and not isinstance(value, str):
+            try:
+                value = np.asarray(value)
+            except Exception:  # noqa: BLE001 - leave exotic Vt types as they are
+                pass
+        elif isinstance(value, Sdf.AssetPath):
+            value = value.resolvedPath or value.path
+        out[name[len("warpshade:"):]] = value
+    for rel in prim.GetAuthoredRelationships():  # e.g. rel warpshade:attachTarget = </World/Walker/Body>
+        name = rel.GetName()
+        if name.startswith("warpshade:"):
+            targets = rel.GetTargets()
+            if len(targets) != 1:
+                raise SceneError(f"{source}:{prim.GetPath()}: {name} must have exactly one target, has {len(targets)}")
+            out[name[len("warpshade:"):]] = str(targets[0])
+    return out
+
+
+def _cast(value, typ, source, prim, key):
+    try:
+        return typ(value)
+    except (TypeError, ValueError):
+        raise SceneError(f"{source}:{prim.GetPath()}: warpshade:{key} must be {typ.__name__}, got {value!r}") from None
