@@ -415,10 +415,16 @@ def test_tiny_image_bounds_never_cull_a_larger_image():
             bad = np.flatnonzero(got.any(axis=1))
             assert len(bad) == 0, (tris[bad[:3]], truth[bad[:3]])
         else:
-            # Van Oosterom's bound is tight for small images (measured within 1.5x here): 4x the
-            # truth culls every one; the sphere bound is looser (d_min from the bounding sphere)
-            assert got[:, 0].all(), np.flatnonzero(~got[:, 0].astype(bool))[:5]
-            assert got[:, 1].mean() > 0.5
+            # only grazing triangles (sine of the sight line to the plane < EDGE_ON_SINE = 0.5) are
+            # candidates; among them Van Oosterom's bound is tight for small images (measured within
+            # 1.5x here): 4x the truth culls every one; the sphere bound is looser (d_min from the sphere)
+            nrm = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+            sine = np.abs((nrm * tris[:, 0]).sum(1)) / (np.linalg.norm(nrm, axis=1) * np.linalg.norm(tris[:, 0], axis=1))
+            grazing, facing = sine < 0.45, sine > 0.55
+            assert grazing.sum() > 50 and facing.sum() > 50
+            assert got[grazing, 0].all(), np.flatnonzero(grazing & ~got[:, 0].astype(bool))[:5]
+            assert not got[facing].any()
+            assert got[grazing, 1].mean() > 0.5
 
 
 def test_min_image_culls_far_field_only():

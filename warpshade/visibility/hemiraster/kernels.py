@@ -85,6 +85,14 @@ def edge_plane(a: wp.vec3, b: wp.vec3, ia: int, ib: int) -> wp.vec3:
     return wp.where(swap, -1.0, 1.0) * wp.cross(lo, hi)
 
 
+EDGE_ON_SINE = wp.constant(0.5)
+"""The tiny-image cull skips only triangles whose plane passes within asin(0.5) = 30° of the
+receiver's line of sight: many small triangles *facing* the receiver together form a surface that
+blocks (bunny with a 1024-triangle coarse mesh: 1.6 -> 2.8 % error without this condition), while
+grazing slivers are what wastes the time (cloth). Measured: 0.25 keeps too many cloth slivers
+(208 vs 144 triangles per vertex), 0.7 costs the bunny 0.13 % error."""
+
+
 @wp.func
 def image_below(a: wp.vec3, b: wp.vec3, c: wp.vec3, nz: wp.vec3, min_area: float) -> bool:
     """True when the projected solid angle of triangle (a, b, c) (relative to the receiver) is below ``min_area``.
@@ -98,6 +106,9 @@ def image_below(a: wp.vec3, b: wp.vec3, c: wp.vec3, nz: wp.vec3, min_area: float
     rb = wp.length(b)
     rc = wp.length(c)
     det = wp.dot(a, wp.cross(b, c))
+    # only triangles seen at a grazing angle: |n̂_t·â| = |det| / (|N| |a|) with N = (b-a)×(c-a)
+    if wp.abs(det) >= EDGE_ON_SINE * wp.length(wp.cross(b - a, c - a)) * ra:
+        return False
     d = ra * rb * rc + wp.dot(a, b) * rc + wp.dot(a, c) * rb + wp.dot(b, c) * ra
     zmax = wp.max(wp.max(wp.dot(nz, a) * rb * rc, wp.dot(nz, b) * ra * rc), wp.dot(nz, c) * ra * rb)  # max cos · ra rb rc
     return 2.0 * wp.abs(det) * zmax < min_area * d * ra * rb * rc
@@ -133,8 +144,13 @@ def bounds_below(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, n: wp.vec3, min_ar
     dmin = dc - sphere[3]
     if dmin <= 0.0:
         return False
+    nrm = wp.vec3(plane[0], plane[1], plane[2])
+    twice_ah = wp.abs(wp.dot(nrm, p) - plane[3])
+    # only triangles seen at a grazing angle: h / d_min bounds the sine seen from any corner, so this
+    # skips nothing that :func:`image_below` would keep
+    if twice_ah >= EDGE_ON_SINE * wp.length(nrm) * dmin:
+        return False
     cmax = wp.min(1.0, (wp.dot(n, q) + sphere[3]) / dmin)
-    twice_ah = wp.abs(wp.dot(wp.vec3(plane[0], plane[1], plane[2]), p) - plane[3])
     return twice_ah * cmax < min_area * 2.0 * dmin * dmin * dmin
 
 
