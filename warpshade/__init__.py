@@ -22,3 +22,7 @@ __all__ += ["LightSpec", "Material", "Pipeline", "RunReport", "Scene", "SceneErr
 __all__ += ["AreaVisibilityMethod", "LightRect", "get_area_method"]
 __all__ += ["ClothBuilder", "ClothControl", "ClothModel", "ClothState", "ColliderSet", "LBSSkinner", "MeshCollider",
             "SimulationError", "WalkingFigure", "XPBDSolver"]
+
+from .planner import Plan, apply_plan, make_plan
+
+__all__ += ["Plan", "apply_plan", "make_plan"]

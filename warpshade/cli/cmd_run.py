@@ -28,6 +28,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", default=None, choices=sorted(METHODS) + ["none"],
                         help="visibility method for every object (default: the scene's, else the fastest accurate one)")
     parser.add_argument("--order", type=int, default=None, help="SH order (default: the scene's warpshade:order, else 4)")
+    parser.add_argument("--max-error", type=float, default=None,
+                        help="error budget: per object, the fastest measured method within this mean transfer error "
+                             "(warpshade.planner; ignored with --method)")
     parser.add_argument("--write-transfer", action="store_true",
                         help="also write primvars:warpshade:transfer (N*N floats per vertex per frame) for relighting")
     parser.add_argument("--chunk", type=int, default=64, help="frames per clip file (also the commit interval)")
@@ -86,6 +89,13 @@ def run(args) -> int:
         method = None
         for o in scene.objects:  # unoccluded transfer for every object
             o.method = None
+    if args.max_error is not None and method is None:
+        from ..planner import apply_plan, make_plan
+
+        scene.settings["order"] = args.order or scene.settings.get("order", 4)
+        plan = make_plan(scene, max_error=args.max_error)
+        apply_plan(scene, plan)
+        print(plan.describe(), file=sys.stderr)
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
     load = time.perf_counter() - t0
     from ..parallel import default_workers

@@ -1,0 +1,180 @@
+"""The benchmark's standard mesh set: deterministic procedural frames plus Warp's shipped meshes.
+
+Each :class:`BenchMesh` has a rest pose (what a method builds its static structures from) and a
+frame pose (what ``update(points)`` is timed and judged on). For rigid meshes the two coincide; the
+cloth, character and two-object entries deform or move between rest and frame, so the benchmark
+times a real per-frame update rather than a recomputation of the rest pose.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.mesh import TriMesh
+
+
+@dataclass
+class BenchMesh:
+    """One benchmark input.
+
+    Attributes:
+        name: Short name used in results (``cloth``, ``bunny``...).
+        rest: Topology and rest pose.
+        frame: Vertex positions of the judged frame [m], shape (V, 3), dtype float32.
+        description: One line for the README and the printed table.
+        up: World up axis (``"Z"`` for the procedural meshes, ``"Y"`` for Warp's USD assets), so the
+            benchmark environments light every mesh from above.
+    """
+
+    name: str
+    rest: TriMesh
+    frame: np.ndarray
+    description: str = ""
+    up: str = "Z"
+
+    @property
+    def frame_mesh(self) -> TriMesh:
+        """The judged frame as a mesh (same topology as :attr:`rest`)."""
+        return TriMesh(self.frame, self.rest.faces, name=f"{self.name}-frame")
+
+
+def grid(n: int, size: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Flat ``n``×``n`` vertex grid in the xy plane centred at the origin, normals +z.
+
+    Returns:
+        ``(points (n*n, 3) float32, faces (2*(n-1)**2, 3) int32)``.
+    """
+    u = np.linspace(-0.5 * size, 0.5 * size, n)
+    x, y = np.meshgrid(u, u, indexing="xy")
+    pts = np.stack([x.ravel(), y.ravel(), np.zeros(n * n)], axis=1)
+    i = np.arange(n - 1)
+    a = (i[None, :] + n * i[:, None]).ravel()
+    faces = np.concatenate([np.stack([a, a + 1, a + n + 1], 1), np.stack([a, a + n + 1, a + n], 1)])
+    return pts.astype(np.float32), faces.astype(np.int32)
+
+
+def wrinkled_cloth(n: int = 64, seed: int = 7) -> BenchMesh:
+    """A 1 m square of cloth (rest: flat) crumpled into deep folds plus fine wrinkles (frame).
+
+    Folds: three sinusoids of 9-17 cm wavelength and up to 6 cm amplitude with seeded directions
+    and phases, modulated so some regions are nearly flat; the frame also compresses the sheet in x by
+    15 % (as a draped cloth would), which deepens the folds' self-occlusion.
+    """
+    rng = np.random.default_rng(seed)
+    pts, faces = grid(n)
+    x, y = pts[:, 0].astype(np.float64), pts[:, 1].astype(np.float64)
+    z = np.zeros_like(x)
+    for k in range(3):
+        ang = rng.uniform(0, np.pi)
+        wl = rng.uniform(0.09, 0.17)
+        ph = rng.uniform(0, 2 * np.pi)
+        amp = rng.uniform(0.03, 0.06)
+        env = 0.6 + 0.4 * np.cos(2 * np.pi * (x * rng.uniform(0.5, 1.5) + y * rng.uniform(0.5, 1.5)) + ph)
+        z += amp * env * np.sin(2 * np.pi * (np.cos(ang) * x + np.sin(ang) * y) / wl + ph)
+    z += 0.004 * np.sin(2 * np.pi * 25 * x + 1.3) * np.cos(2 * np.pi * 19 * y)
+    frame = np.stack([0.85 * x, y, z], axis=1).astype(np.float32)
+    return BenchMesh("cloth", TriMesh(pts, faces, name="wrinkled-cloth"), frame,
+                     f"{n}x{n} cloth crumpled into 3 seeded folds + fine wrinkles (rest: flat)")
+
+
+def _rotation(axis, angle: float) -> np.ndarray:
+    a = np.asarray(axis, dtype=np.float64)
+    a = a / np.linalg.norm(a)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def character(subdivisions: int = 3) -> BenchMesh:
+    """A posed procedural figure (1.8 m): capsule torso, limbs and a sphere head, rigidly skinned.
+
+    Rest is a T-pose; the frame lowers both arms against the torso, swings one leg forward and bends
+    an elbow, so limbs shadow the torso and each other (contact-like, the hard case for visibility).
+    Every body part keeps its topology, so rest and frame share faces.
+    """
+    import trimesh
+
+    parts = []  # (mesh vertices, faces, joint, rest rotation axis-angle, frame axis-angle)
+    def capsule(radius, height, count=(16, 12)):
+        return trimesh.creation.capsule(height=height, radius=radius, count=list(count))
+
+    def place(m, centre, direction):
+        # capsule axis is +z; rotate to direction, translate to centre
+        d = np.asarray(direction, float) / np.linalg.norm(direction)
+        z = np.array([0.0, 0.0, 1.0])
+        v = np.cross(z, d)
+        if np.linalg.norm(v) < 1e-9:
+            r = np.eye(3) if d[2] > 0 else _rotation([1, 0, 0], np.pi)
+        else:
+            r = _rotation(v, np.arccos(np.clip(d @ z, -1, 1)))
+        return np.asarray(m.vertices) @ r.T + np.asarray(centre)
+
+    torso = capsule(0.16, 0.45, (20, 14))
+    head = trimesh.creation.icosphere(subdivisions=subdivisions - 1, radius=0.11)
+    # (name, mesh, rest centre, rest direction, joint, frame rotation about the joint)
+    specs = [
+        ("torso", torso, (0, 0, 1.15), (0, 0, 1), None, None),
+        ("head", head, (0, 0, 1.62), (0, 0, 1), None, None),
+        ("arm_l", capsule(0.05, 0.55), (0.50, 0, 1.38), (1, 0, 0), (0.2, 0, 1.38), ((0, 1, 0), 1.35)),
+        ("arm_r", capsule(0.05, 0.55), (-0.50, 0, 1.38), (1, 0, 0), (-0.2, 0, 1.38), ((0, 1, 0), -1.25)),
+        ("leg_l", capsule(0.075, 0.75), (0.1, 0, 0.5), (0, 0, 1), (0.1, 0, 0.9), ((1, 0, 0), -0.45)),
+        ("leg_r", capsule(0.075, 0.75), (-0.1, 0, 0.5), (0, 0, 1), (-0.1, 0, 0.9), ((1, 0, 0), 0.15)),
+    ]
+    rest_pts, frame_pts, faces, base = [], [], [], 0
+    for name, m, centre, direction, joint, rot in specs:
+        p = place(m, centre, direction)
+        q = p.copy()
+        if rot is not None:
+            r = _rotation(*rot)
+            q = (p - np.asarray(joint)) @ r.T + np.asarray(joint)
+        rest_pts.append(p)
+        frame_pts.append(q)
+        faces.append(np.asarray(m.faces) + base)
+        base += len(p)
+    rest = TriMesh(np.concatenate(rest_pts), np.concatenate(faces), name="procedural-character")
+    frame = np.concatenate(frame_pts).astype(np.float32)
+    return BenchMesh("character", rest, frame, "procedural figure, arms lowered against the torso, one leg forward")
+
+
+def two_objects(ground_n: int = 48, torus_sections: int = 48) -> BenchMesh:
+    """A torus floating above a 2 m ground grid, merged into one mesh (inter-object shadows).
+
+    Rest: torus 0.5 m above the ground, axis vertical; frame: torus tilted 50° and lowered so its
+    rim nearly touches the ground (receivers near blockers).
+    """
+    import trimesh
+
+    gp, gf = grid(ground_n, size=2.0)
+    t = trimesh.creation.torus(major_radius=0.35, minor_radius=0.12, major_sections=torus_sections,
+                               minor_sections=torus_sections // 2)
+    tv = np.asarray(t.vertices, dtype=np.float64)
+    rest_t = tv + (0, 0, 0.5)
+    frame_t = tv @ _rotation((1, 0.3, 0), np.radians(50)).T + (0.1, 0, 0.34)
+    faces = np.concatenate([gf, np.asarray(t.faces) + len(gp)])
+    rest = TriMesh(np.concatenate([gp, rest_t]), faces, name="torus-over-ground")
+    frame = np.concatenate([gp, frame_t]).astype(np.float32)
+    return BenchMesh("two-objects", rest, frame, "torus tilted over a ground grid (merged mesh)")
+
+
+def warp_mesh(name: str) -> BenchMesh:
+    """One of Warp's shipped meshes (``bunny``, ``bear``...) from ``warp/examples/assets``, rigid."""
+    import warp as wp
+
+    from ..geometry.mesh import load_mesh
+
+    path = os.path.join(os.path.dirname(wp.__file__), "examples", "assets", f"{name}.usd")
+    m = load_mesh(path)
+    return BenchMesh(name, m, m.points.copy(), f"Warp's {name}.usd", up="Y")
+
+
+def standard_meshes(quick: bool = False) -> list[BenchMesh]:
+    """The standard set: full — cloth 64², bunny, bear, character, two objects; quick — small versions.
+
+    Quick keeps a deforming and a two-object input, both small (cloth 20², a 16² ground with a coarse
+    torus), so the whole quick sweep stays under two minutes on a loaded machine.
+    """
+    if quick:
+        return [wrinkled_cloth(20), two_objects(16, 16)]
+    return [wrinkled_cloth(64), warp_mesh("bunny"), warp_mesh("bear"), character(), two_objects()]

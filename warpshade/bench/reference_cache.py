@@ -1,0 +1,74 @@
+"""Ground-truth transfer for the benchmark: :class:`ReferenceTransfer` at many rays, cached on disk.
+
+The ground truth uses a different seed (:data:`GROUND_TRUTH_SEED`) from the ``reference`` method's
+default, so the ``reference`` entries of the sweep are judged against independent samples rather
+than against themselves.
+
+Cache files are ``<cache_dir>/<content hash>-o<order>-r<rays>-s<seed>.npy`` where the hash covers the
+points and faces (float32/int32 bytes); the reference's other knobs stay at their defaults. A cached result of a higher order
+serves lower orders (SH coefficients nest: order N is the first N*N of any higher order).
+"""
+
+from __future__ import annotations
+
+import glob
+import hashlib
+import os
+import re
+
+import numpy as np
+
+from ..geometry.mesh import TriMesh
+
+GROUND_TRUTH_SEED = 982451653
+"""Seed of the ground-truth rays (independent of the ``reference`` method's default seed 0)."""
+
+DEFAULT_CACHE_DIR = ".warpshade-cache/reference"
+"""Relative to the working directory; git-ignored in the repository."""
+
+
+def mesh_hash(mesh: TriMesh) -> str:
+    """Hex digest (16 characters) of a mesh's positions and faces."""
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(mesh.points, dtype=np.float32).tobytes())
+    h.update(np.ascontiguousarray(mesh.faces, dtype=np.int32).tobytes())
+    return h.hexdigest()[:16]
+
+
+def ground_truth(mesh: TriMesh, order: int, rays: int = 4096, cache_dir: str | None = DEFAULT_CACHE_DIR,
+                 device: str = "cpu", log=None) -> np.ndarray:
+    """Reference transfer of ``mesh`` (it shadows itself), shape (V, order*order), float32.
+
+    Args:
+        mesh: Mesh in the judged pose.
+        order: SH order needed.
+        rays: Rays per vertex (rounded to a square by :class:`ReferenceTransfer`).
+        cache_dir: Directory of cached results; None disables caching.
+        device: Warp device.
+        log: Optional ``print``-like callable told about cache misses and their cost.
+    """
+    import time
+
+    from ..visibility.reference import ReferenceTransfer
+
+    key = mesh_hash(mesh)
+    if cache_dir:
+        for path in glob.glob(os.path.join(cache_dir, f"{key}-o*-r{rays}-s{GROUND_TRUTH_SEED}.npy")):
+            m = re.search(r"-o(\d+)-r", os.path.basename(path))
+            if m and int(m.group(1)) >= order:
+                t = np.load(path)
+                if t.shape == (mesh.num_vertices, int(m.group(1)) ** 2):
+                    return t[:, : order * order]
+    t0 = time.perf_counter()
+    ref = ReferenceTransfer(mesh, order=order, device=device, rays=rays, seed=GROUND_TRUTH_SEED)
+    t = ref.update().numpy()
+    if log:
+        log(f"  ground truth {mesh.name}: {mesh.num_vertices} vertices x {rays} rays, order {order}: "
+            f"{time.perf_counter() - t0:.1f} s" + (f" (cached in {cache_dir})" if cache_dir else ""))
+    if cache_dir:
+        os.makedirs(cache_dir, exist_ok=True)
+        path = os.path.join(cache_dir, f"{key}-o{order}-r{rays}-s{GROUND_TRUTH_SEED}.npy")
+        tmp = f"{path}.partial{os.getpid()}.npy"
+        np.save(tmp, t)
+        os.replace(tmp, path)
+    return t

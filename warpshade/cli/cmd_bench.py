@@ -1,0 +1,70 @@
+"""``warpshade bench``: speed/accuracy sweep of every visibility method (CONTRACTS.md §5)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+HELP = "measure time, memory and error of every visibility method's knob settings; write JSON, CSV, Pareto plot"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quick", action="store_true",
+                        help="few configurations on two small meshes, orders 3 and 5, 4096-ray ground truth (< 2 minutes)")
+    parser.add_argument("--out", required=True, metavar="DIR", help="writes DIR/results.json, results.csv, pareto.png")
+    parser.add_argument("--methods", default=None, help="comma-separated method names (default: all registered)")
+    parser.add_argument("--meshes", default=None,
+                        help="comma-separated mesh names (cloth, bunny, bear, character, two-objects)")
+    parser.add_argument("--orders", default=None, help="comma-separated SH orders swept at default knobs "
+                        "(default 2,3,4,5,6; quick 3)")
+    parser.add_argument("--repeat", type=int, default=None, help="timed runs per configuration (default 5; quick 3)")
+    parser.add_argument("--ground-truth-rays", type=int, default=None,
+                        help="rays per vertex of the ground truth (default 16384; quick 4096)")
+    parser.add_argument("--cache-dir", default=None,
+                        help="ground-truth cache (default .warpshade-cache/reference; 'none' disables)")
+    parser.add_argument("--frontier", default=None, metavar="FRONTIER.json",
+                        help="also write the planner's frontier file (e.g. warpshade/data/frontier.json)")
+    parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
+
+
+def _csv(text, conv=str):
+    return None if text is None else [conv(x) for x in text.split(",") if x.strip()]
+
+
+def run(args) -> int:
+    from ..bench import BenchSettings, run_bench
+    from ..bench.report import format_table, frontier_from_results, plot_pareto, write_csv, write_json
+    from ..bench.runner import machine_note
+
+    orders = _csv(args.orders, int)
+    cache = args.cache_dir
+    settings = BenchSettings.for_mode(
+        args.quick, methods=_csv(args.methods), meshes=_csv(args.meshes), orders=tuple(orders) if orders else None,
+        repeat=args.repeat, ground_truth_rays=args.ground_truth_rays, device=args.device,
+        cache_dir=None if cache is None else (None if cache.lower() == "none" else cache))
+    os.makedirs(args.out, exist_ok=True)
+    t0 = time.perf_counter()
+    records = run_bench(settings)
+    wall = time.perf_counter() - t0
+    mode = ("QUICK sweep: small meshes, few configurations, ground truth at "
+            f"{settings.ground_truth_rays} rays — for smoke-testing, not for the README"
+            if args.quick else f"full sweep, ground truth at {settings.ground_truth_rays} rays")
+    note = f"{mode}; {machine_note()}; medians of up to {settings.repeat} runs after warm-up, compile excluded"
+    write_json(os.path.join(args.out, "results.json"), records)
+    write_csv(os.path.join(args.out, "results.csv"), records)
+    plot_pareto(os.path.join(args.out, "pareto.png"), records, title=note)
+    if args.frontier:
+        from .cmd_transfer import write_json as write_plain_json
+
+        os.makedirs(os.path.dirname(os.path.abspath(args.frontier)), exist_ok=True)
+        write_plain_json(args.frontier, {**frontier_from_results(records), "machine": note})
+    print(format_table(records))
+    print(f"\n{note}\n{len(records)} configurations in {wall:.1f} s -> {args.out}/results.json, results.csv, pareto.png"
+          + (f", {args.frontier}" if args.frontier else ""))
+    failed = [r for r in records if "failed" in r]
+    if failed:
+        print(f"{len(failed)} configuration(s) failed (recorded with 'failed')", file=sys.stderr)
+    return 0

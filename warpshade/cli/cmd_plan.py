@@ -1,0 +1,39 @@
+"""``warpshade plan SCENE``: which passes and structures a scene needs, and their estimated cost."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+HELP = "print the plan (passes, shared structures, reuse, method per object) and estimated cost per frame"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", metavar="SCENE", help="scene file (.usd/.usda) read by warpshade.usd")
+    parser.add_argument("--max-error", type=float, default=None,
+                        help="error budget: per object, the fastest measured method within this mean error")
+    parser.add_argument("--frontier", default=None, help="frontier.json or bench results.json (default: shipped)")
+    parser.add_argument("--json", default=None, metavar="PLAN.json", help="also write the plan as JSON")
+
+
+def load_scene(path: str):
+    """Read a scene through the USD package (the only place that imports pxr)."""
+    from .. import usd
+
+    reader = getattr(usd, "read_scene", None)
+    if reader is None:
+        raise ValueError(f"{path}: reading scenes needs warpshade.usd.read_scene (the USD pipeline), not installed here")
+    return reader(path)
+
+
+def run(args) -> int:
+    from ..planner import make_plan, naive_seconds
+
+    plan = make_plan(load_scene(args.scene), max_error=args.max_error, frontier=args.frontier)
+    print(plan.describe())
+    print(f"  without reuse (every object every frame): {naive_seconds(plan):.2f} s")
+    if args.json:
+        from .cmd_transfer import write_json
+
+        write_json(args.json, plan.to_dict())
+    return 0
