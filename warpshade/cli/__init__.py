@@ -34,6 +34,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``warpshade`` console script."""
+    import warp as wp
+
+    # stdout carries results (paths, tables, JSON): no Warp init banner or module-load lines
+    wp.config.log_level = wp.LOG_WARNING
     parser = build_parser()
     # Subcommands with ACCEPTS_EXTRA = True get unrecognised flags as ``args.extra`` (method knobs,
     # which depend on another flag's value); the rest reject them as usual.

@@ -19,7 +19,6 @@ def collect() -> dict:
     from .. import __version__
     from ..usd import usd_version
 
-    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     wp.init()
     return {
         "warpshade": __version__,

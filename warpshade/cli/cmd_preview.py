@@ -45,9 +45,6 @@ def _frames(spec: str | None, single, start: float, end: float) -> list[float]:
 def run(args) -> int:
     import imageio.v3 as iio
     import numpy as np
-    import warp as wp
-
-    wp.config.log_level = wp.LOG_WARNING
 
     from ..preview import contact_sheet, frame_camera, render, tonemap
     from ..usd.frames import ShadedStage

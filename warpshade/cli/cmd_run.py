@@ -65,9 +65,6 @@ def _reclaim_knob_value(args, method_cls) -> None:
 
 
 def run(args) -> int:
-    import warp as wp
-
-    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines between progress updates
     from ..pipeline import Pipeline
     from ..usd import AnimationWriter, read_scene
     from .cmd_transfer import parse_knobs
