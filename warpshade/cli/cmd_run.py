@@ -38,6 +38,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="shading worker processes while this one simulates (default: all cores; 0 shades inline)")
     parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                         help="shade on a Dask cluster ('local' starts one) instead of local processes")
+    parser.add_argument("--between", choices=["spheres", "none"], default="spheres",
+                        help="shadows between objects shaded by different methods: sphere sets (default) or none")
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -100,11 +102,13 @@ def run(args) -> int:
     workers = default_workers() if args.workers is None else args.workers
     pipe = Pipeline(scene, frames=args.frames, method=method, knobs=knobs, order=args.order,
                     write_transfer=True if args.write_transfer else None, workers=workers,
-                    scheduler=args.scheduler, device=args.device)
+                    scheduler=args.scheduler, device=args.device,
+                    between=None if args.between == "none" else args.between)
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,
-                                       "groups": "; ".join(f"{g.method} {g.knobs}" for g in pipe.groups)})
+                                       "groups": "; ".join(f"{g.method} {g.knobs}" for g in pipe.groups),
+                                       "between": args.between})
     if writer.resume_frame:
         print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
     try:

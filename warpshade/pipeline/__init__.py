@@ -91,11 +91,14 @@ class Pipeline:
         workers: Shading worker processes (0: shade in this process).
         scheduler: Dask scheduler (``"local"`` or ``tcp://HOST:PORT``) instead of local processes.
         device: Warp device.
+        between: Shadows between shading groups (objects with different methods or knobs):
+            ``"spheres"`` (sphere sets, default) or None.
     """
 
     def __init__(self, scene: Scene, frames: int | None = None, method: str | None = None,
                  knobs: dict | None = None, order: int | None = None, write_transfer: bool | None = None,
-                 lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu"):
+                 lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu",
+                 between: str | None = "spheres"):
         self.scene = scene
         self.frames = int(frames if frames is not None else scene.frames)
         if self.frames < 1:
@@ -108,7 +111,7 @@ class Pipeline:
         if not self.groups:
             raise SceneError(f"{scene.source}: no shaded object")
         self.shader = SceneShader(self.groups, self.order, scene.fps, list(scene.lights), scene.up_axis, lights,
-                                  self.write_transfer, device)
+                                  self.write_transfer, device, between)
         self.report = None
 
     def _geometry(self, sims, secs, failure: list, start: int = 0):

@@ -102,6 +102,10 @@ class SceneShader:
             picklable to shade in worker processes).
         write_transfer: Return the transfer too.
         device: Warp device.
+        between: Shadows between shading groups: ``"spheres"`` (each group is shadowed by sphere sets
+            fitted to every other group, thesis §4.2; visibilities multiply with the group's own,
+            eq. 4.5) or None (groups do not shadow each other). Objects inside one group always
+            shadow each other through the group's method.
     """
 
     groups: list
@@ -112,6 +116,7 @@ class SceneShader:
     lights: list | None = None
     write_transfer: bool = False
     device: str = "cpu"
+    between: str | None = "spheres"
 
     def build_lights(self) -> list:
         """The :mod:`warpshade.lighting` objects this spec shades with."""
@@ -132,6 +137,10 @@ class SceneShader:
 
         t_build = time.perf_counter()
         groups = [_Group(g, self.order, self.device) for g in self.groups]
+        if self.between not in (None, "spheres"):
+            raise ValueError(f"between-group shadows must be 'spheres' or None, got {self.between!r}")
+        between = (_between_group_shadows(groups, self.order, self.device)
+                   if self.between == "spheres" and len(groups) > 1 else None)
         lights = self.build_lights()
         pending_build = [time.perf_counter() - t_build]  # reported once, with the first frame
 
@@ -140,8 +149,11 @@ class SceneShader:
             out = {"_build_seconds": pending_build.pop()} if pending_build else {}
             t = frame / self.fps
             frame_lights = [light.at_time(t) for light in lights]
-            for g in groups:
-                pts, transfer, normals = g.update(geometry)
+            updated = [g.update(geometry) for g in groups]
+            for i, g in enumerate(groups):
+                pts, transfer, normals = updated[i]
+                if between is not None:
+                    transfer = _shadow_by_others(between[i], i, updated, self.device)
                 distant, local = lights_sh(frame_lights, self.order, pts)
                 for k, (name, albedo) in enumerate(zip(g.spec.names, g.spec.albedos)):
                     a, b = g.offsets[k], g.offsets[k + 1]
@@ -154,6 +166,26 @@ class SceneShader:
             return out
 
         return shade
+
+
+def _between_group_shadows(groups: list, order: int, device: str) -> list:
+    """One :class:`~warpshade.visibility.spheres.SpheresTransfer` per group, whose blockers are the
+    sphere trees of all other groups (each tree fitted once, on the group's rest pose)."""
+    from ..visibility.spheres.fitting import build_sphere_tree
+    from ..visibility.spheres.method import SpheresTransfer
+
+    trees = [build_sphere_tree(g.rest, g.mesh.faces, device=device) for g in groups]
+    return [SpheresTransfer(g.mesh, order=order, device=device, self_shadow=False,
+                            blockers=[(trees[j], groups[j].rest) for j in range(len(groups)) if j != i])
+            for i, g in enumerate(groups)]
+
+
+def _shadow_by_others(spheres, i: int, updated: list, device: str) -> np.ndarray:
+    """Group ``i``'s transfer times the visibility of every other group's spheres this frame."""
+    pts, transfer, normals = updated[i]
+    spheres.update(pts, normals, blocker_points=[u[0] for j, u in enumerate(updated) if j != i])
+    out = spheres.shadow(wp.array(transfer, dtype=float, device=device))
+    return out.numpy().copy()
 
 
 def group_objects(objects, method: str | None = None, knobs: dict | None = None,
