@@ -6,9 +6,17 @@
 * **Coarse mesh** by quadric decimation (``fast_simplification``). Each coarse vertex is bound to
   its closest fine triangle (barycentrics + offset along that triangle's normal), so it follows the
   deforming fine mesh every frame with no re-decimation.
-* **Near-field exclusion**: per receiver, the coarse triangles closer (rest pose) than the receiver's
-  k-ring radius, stored as a bitset. The k-ring represents that region at full resolution; a
-  coarse triangle there would cut through the fine surface and shadow the receiver falsely.
+* **Coarse-to-fine map**: each fine triangle belongs to the coarse triangle nearest to it at rest,
+  so every coarse triangle knows the fine triangles it stands for. Per frame, a coarse triangle whose
+  refitted bounds (its own and its fine triangles') come near a receiver, relative to their size, is
+  replaced by its fine triangles (spatial near-field refinement): where surfaces touch or fold,
+  the receiver sees the exact surface, never a coarse triangle cutting through it.
+* **Topological near field**: with refinement, per receiver the coarse triangles standing for fine
+  triangles of its k-ring, as a bitset: always refined, so the k-ring is rasterized exactly, at the
+  granularity of coarse triangles. Without refinement (the paper's scheme), the k-ring's own
+  triangle lists plus an exclusion bitset of the coarse triangles closer (rest pose) than the
+  receiver's k-ring radius, which fails where another part of the mesh was near at rest (a
+  shoulder next to the torso) or where the coarse surface cuts through the fine one.
 * **Clusters**: blocker triangles sorted along a Morton curve of their rest centroids and cut into
   clusters of ``G`` triangles, clusters grouped into super-clusters; bounding boxes are refitted
   per frame and tested against the tangent plane (two-level hierarchical culling).
@@ -162,6 +170,103 @@ def bind_to_surface(query: np.ndarray, points: np.ndarray, faces: np.ndarray, ne
         bary[i] = bc[best]
         off[i] = np.dot(q - cp[best], fn[cand[best]])
     return face, bary.astype(np.float32), off.astype(np.float32)
+
+
+def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int]):
+    """Coarse blocker mesh of several parts (receiver mesh, static occluders), each decimated alone.
+
+    Each part is decimated to its target (kept whole when the target reaches its triangle count),
+    its coarse vertices are bound to its own fine triangles (a coarse ground vertex must not follow
+    a cloth lying on the ground) and its fine triangles are assigned to its own coarse triangles.
+
+    Args:
+        parts: ``(points (Vp, 3), faces (Fp, 3))`` per part, in scene order (the scene's fine
+            vertices and faces are the parts' concatenated in this order).
+        targets: Coarse triangle target per part.
+
+    Returns:
+        dict with ``points`` (Vc, 3) float64, ``faces`` (Fc, 3) int64, ``bind_face`` (Vc,) int32 (scene
+        face index), ``bind_bary`` (Vc, 3) float32, ``bind_offset`` (Vc,) float32, ``owner`` (F,) int64:
+        the coarse triangle each scene face belongs to.
+    """
+    cpts, cfaces, bface, bbary, boff, owner = [], [], [], [], [], []
+    vbase = fbase = cbase = cfbase = 0
+    for (pts, faces), target in zip(parts, targets):
+        pts = np.asarray(pts, dtype=np.float64)
+        faces = np.asarray(faces, dtype=np.int64)
+        cp, cf = decimate(pts, faces, target)
+        f, b, o = bind_to_surface(cp, pts, faces)
+        cpts.append(cp)
+        cfaces.append(cf + cbase)
+        bface.append(f + fbase)
+        bbary.append(b)
+        boff.append(o)
+        owner.append(assign_to_coarse(pts, faces, cp, cf) + cfbase)
+        vbase += len(pts)
+        fbase += len(faces)
+        cbase += len(cp)
+        cfbase += len(cf)
+    return {"points": np.concatenate(cpts), "faces": np.concatenate(cfaces), "bind_face": np.concatenate(bface).astype(np.int32),
+            "bind_bary": np.concatenate(bbary), "bind_offset": np.concatenate(boff), "owner": np.concatenate(owner)}
+
+
+def assign_to_coarse(points: np.ndarray, faces: np.ndarray, cpoints: np.ndarray, cfaces: np.ndarray,
+                     candidates: int = 8) -> np.ndarray:
+    """Coarse triangle nearest to each fine triangle's centroid (rest pose), shape (F,) int64.
+
+    Candidates are the ``candidates`` coarse triangles with the nearest centroids (a KD-tree); the
+    exact point-triangle distance picks among them. Any assignment keeps the refinement exact (the
+    bounds are refitted over whatever a coarse triangle owns); a near one keeps those bounds tight.
+    """
+    from scipy.spatial import cKDTree
+
+    cent = np.asarray(points, dtype=np.float64)[faces].mean(axis=1)
+    a, b, c = (np.asarray(cpoints, dtype=np.float64)[cfaces[:, k]] for k in range(3))
+    k = min(candidates, len(cfaces))
+    _, cand = cKDTree((a + b + c) / 3.0).query(cent, k=k)
+    cand = cand.reshape(len(cent), k)
+    cp, _ = closest_points_on_triangles(cent[:, None, :], a[cand], b[cand], c[cand])
+    best = np.argmin(((cp - cent[:, None, :]) ** 2).sum(-1), axis=1)
+    return cand[np.arange(len(cent)), best].astype(np.int64)
+
+
+def groups_in_order(owner: np.ndarray, perm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """CSR of the fine triangles each reordered coarse triangle stands for.
+
+    Args:
+        owner: Coarse triangle (original index) of each fine triangle, shape (F,).
+        perm: Coarse triangle order (``faces[perm]``), shape (Fc,).
+
+    Returns:
+        ``(start (Fc+1,) int32, tris (F,) int32)``: fine triangles of reordered coarse triangle ``t``
+        are ``tris[start[t]:start[t+1]]``.
+    """
+    new_index = np.empty(len(perm), np.int64)
+    new_index[perm] = np.arange(len(perm))
+    key = new_index[owner]
+    tris = np.argsort(key, kind="stable")
+    start = np.searchsorted(key[tris], np.arange(len(perm) + 1))
+    return start.astype(np.int32), tris.astype(np.int32)
+
+
+def ring_groups(ring_start: np.ndarray, ring_tris: np.ndarray, faces: np.ndarray, owner: np.ndarray,
+                num_coarse: int) -> np.ndarray:
+    """Per receiver, the coarse triangles that stand for at least one fine triangle of its k-ring (or
+    one touching it), as bits: they are always replaced by their fine triangles, so the near field
+    is exact (a superset of the k-ring, with no triangle twice) in every pose.
+
+    Returns:
+        shape (V, ceil(Fc/32)) uint32; bit t of row v set = refine coarse triangle t (original index).
+    """
+    nv = len(ring_start) - 1
+    vf = vertex_faces(faces, nv)
+    nw = (num_coarse + 31) // 32
+    bits = np.zeros((nv, nw * 32), dtype=bool)
+    for v in range(nv):
+        tris = np.concatenate([ring_tris[ring_start[v]:ring_start[v + 1]], vf[v]])
+        bits[v, owner[tris]] = True
+    words = bits.reshape(nv, nw, 32).astype(np.uint64) << np.arange(32, dtype=np.uint64)
+    return words.sum(axis=-1, dtype=np.uint64).astype(np.uint32)
 
 
 def near_exclusion(points: np.ndarray, rings: list[np.ndarray], cpoints: np.ndarray, cfaces: np.ndarray,

@@ -1,7 +1,7 @@
 """Kernels of hemispherical rasterization (Kautz et al. 2004); orchestration lives in :mod:`.method`.
 
-Per frame: :func:`follow_coarse_points` (coarse vertices ride the fine mesh), :func:`refit_clusters`
-and :func:`refit_super_clusters` (bounding boxes), :func:`triangle_bounds` (per-triangle plane and
+Per frame: :func:`follow_coarse_points` (coarse vertices ride the fine mesh), :func:`refit_blocker_boxes`
+and :func:`union_boxes` (bounding boxes of blockers with their fine triangles, clusters, super-clusters), :func:`triangle_bounds` (per-triangle plane and
 bounding sphere, for pre-tests without vertex gathers), then one :func:`rasterize_transfer` launch
 that, per receiver vertex, rasterizes blockers into a bit mask and integrates it into SH transfer.
 Mask layout, LUT convention and block tables: :mod:`.tables`.
@@ -273,43 +273,155 @@ def follow_coarse_points(
 
 
 @wp.kernel
-def refit_clusters(
+def refit_blocker_boxes(
+    bpoints: wp.array[wp.vec3],
+    bfaces: wp.array2d[wp.int32],
     points: wp.array[wp.vec3],
     faces: wp.array2d[wp.int32],
-    cluster_start: wp.array[wp.int32],
+    use_groups: int,
+    group_start: wp.array[wp.int32],
+    group_tris: wp.array[wp.int32],
+    bind_offset: wp.array[float],
     lo: wp.array[wp.vec3],
     hi: wp.array[wp.vec3],
+    deviation: wp.array[float],
 ):
-    """Bounding box of each cluster's triangles (clusters are contiguous triangle ranges)."""
-    c = wp.tid()
+    """Per blocker triangle: bounding box of it and (``use_groups``) of the fine triangles it stands
+    for, and their deviation [m] across the surface: the largest distance of those fine vertices
+    from the blocker's plane, or of the blocker's corners from the fine surface (``bind_offset``,
+    indexed by blocker vertex).
+
+    With refinement a blocker is either rasterized itself or replaced by its fine triangles, so
+    culling and the refinement test need the box of both. The deviation bounds how far the coarse
+    triangle is from the surface it stands for in this frame (0 on flat ground, large across a fold).
+    """
+    t = wp.tid()
     bmin = wp.vec3(1.0e30, 1.0e30, 1.0e30)
     bmax = wp.vec3(-1.0e30, -1.0e30, -1.0e30)
-    for t in range(cluster_start[c], cluster_start[c + 1]):
-        for k in range(3):
-            p = points[faces[t, k]]
-            bmin = wp.min(bmin, p)
-            bmax = wp.max(bmax, p)
-    lo[c] = bmin
-    hi[c] = bmax
+    for k in range(3):
+        q = bpoints[bfaces[t, k]]
+        bmin = wp.min(bmin, q)
+        bmax = wp.max(bmax, q)
+    dev = float(0.0)
+    if use_groups != 0:
+        a = bpoints[bfaces[t, 0]]
+        b = bpoints[bfaces[t, 1]]
+        c = bpoints[bfaces[t, 2]]
+        nrm = wp.cross(b - a, c - a)
+        ln = wp.length(nrm)
+        # across the surface only: fine vertices off the coarse plane, and the coarse corners off the
+        # fine surface (their binding offsets). Along it, a fine triangle sticking out past the coarse
+        # triangle's edge lies on its neighbour's plane and changes nothing (flat ground: 0).
+        dev = wp.max(wp.max(wp.abs(bind_offset[bfaces[t, 0]]), wp.abs(bind_offset[bfaces[t, 1]])),
+                     wp.abs(bind_offset[bfaces[t, 2]]))
+        for r in range(group_start[t], group_start[t + 1]):
+            f = group_tris[r]
+            for k in range(3):
+                q = points[faces[f, k]]
+                bmin = wp.min(bmin, q)
+                bmax = wp.max(bmax, q)
+                if ln > 0.0:
+                    dev = wp.max(dev, wp.abs(wp.dot(nrm, q - a)) / ln)
+                else:
+                    dev = wp.max(dev, wp.length(q - a))
+        cen = (a + b + c) / 3.0
+        size = wp.max(wp.max(wp.length(a - cen), wp.length(b - cen)), wp.length(c - cen))
+        if group_start[t + 1] == group_start[t]:
+            # stands for nothing (a sliver left by the assignment): its size, so it is dropped near
+            # receivers and rasterized as part of the far field
+            dev = wp.max(dev, size)
+        # at least 1/1000 of its size: a large ``refine`` converges to the exact fine mesh also where
+        # the coarse triangle is flat with its fine triangles (its outline still differs from theirs)
+        dev = wp.max(dev, 1.0e-3 * size)
+    lo[t] = bmin
+    hi[t] = bmax
+    deviation[t] = dev
 
 
 @wp.kernel
-def refit_super_clusters(
-    cluster_lo: wp.array[wp.vec3],
-    cluster_hi: wp.array[wp.vec3],
-    super_start: wp.array[wp.int32],
+def union_boxes(
+    child_lo: wp.array[wp.vec3],
+    child_hi: wp.array[wp.vec3],
+    child_reach: wp.array[float],
+    start: wp.array[wp.int32],
     lo: wp.array[wp.vec3],
     hi: wp.array[wp.vec3],
+    reach: wp.array[float],
 ):
-    """Bounding box of each super-cluster from its clusters' boxes."""
+    """Bounding box of each contiguous range of child boxes (clusters from triangles, super-clusters
+    from clusters), and the largest ``child_reach`` (deviation) of its children."""
     s = wp.tid()
     bmin = wp.vec3(1.0e30, 1.0e30, 1.0e30)
     bmax = wp.vec3(-1.0e30, -1.0e30, -1.0e30)
-    for c in range(super_start[s], super_start[s + 1]):
-        bmin = wp.min(bmin, cluster_lo[c])
-        bmax = wp.max(bmax, cluster_hi[c])
+    r = float(0.0)
+    for c in range(start[s], start[s + 1]):
+        bmin = wp.min(bmin, child_lo[c])
+        bmax = wp.max(bmax, child_hi[c])
+        r = wp.max(r, child_reach[c])
     lo[s] = bmin
     hi[s] = bmax
+    reach[s] = r
+
+
+@wp.func
+def box_near(p: wp.vec3, lo: wp.vec3, hi: wp.vec3, radius: float) -> bool:
+    """True when the box [lo, hi] comes within ``radius`` of ``p``."""
+    d = wp.max(wp.max(lo - p, p - hi), wp.vec3(0.0, 0.0, 0.0))
+    return wp.dot(d, d) < radius * radius
+
+
+@wp.func
+def refine_here(p: wp.vec3, lo: wp.vec3, hi: wp.vec3, deviation: float, refine: float) -> bool:
+    """Refinement test of one blocker: its box (own and its fine triangles') comes within ``refine``
+    times its deviation of the receiver. The coarse triangle lies within ``deviation`` of the fine
+    surface it stands for, so seen from farther than ``refine · deviation`` its image is off by
+    at most about 1/refine radians; nearer, it can cut through the fine surface (contact, folds)
+    and is replaced by that surface."""
+    return box_near(p, lo, hi, refine * deviation)
+
+
+@wp.func
+def rasterize_group(
+    t: int,
+    v: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    points: wp.array[wp.vec3],
+    faces: wp.array2d[wp.int32],
+    fplane: wp.array[wp.vec4],
+    fsphere: wp.array[wp.vec4],
+    group_start: wp.array[wp.int32],
+    group_tris: wp.array[wp.int32],
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    src: int,
+    record: int,
+    hits: wp.array2d[wp.uint32],
+) -> int:
+    """Rasterize the fine triangles blocker ``t`` stands for (spatial near field); returns how many.
+
+    Triangles incident to the receiver are skipped (they contain it: no solid angle); a fine
+    triangle that is also in the receiver's k-ring is rasterized twice, which the OR fusion of
+    §3.1.1 makes harmless.
+    """
+    count = int(0)
+    hit = int(0)
+    for r in range(group_start[t], group_start[t + 1]):
+        f = group_tris[r]
+        if skip_early(fplane[f], fsphere[f], p, n, lut.backface):
+            continue
+        i = faces[f, 0]
+        j = faces[f, 1]
+        k = faces[f, 2]
+        if i == v or j == v or k == v:
+            continue
+        res = rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, mask, v)
+        count += wp.min(1, res)
+        hit = wp.max(hit, res)
+    if record != 0 and hit == 2:
+        hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
+    return count
 
 
 @wp.func
@@ -329,8 +441,6 @@ def rasterize_blocker(
     bsphere: wp.array[wp.vec4],
     bsource: wp.array[wp.int32],
     skip_incident: int,
-    use_excl: int,
-    excl: wp.array2d[wp.uint32],
     frame: wp.mat33,
     lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
@@ -338,11 +448,11 @@ def rasterize_blocker(
     hits: wp.array2d[wp.uint32],
 ) -> int:
     """Rasterize blocker triangle ``t`` for receiver ``v`` after the cheap skips; returns 0/1.
+    (The near-field exclusion is tested before, in :func:`rasterize_far`.)
 
     Skips, cheapest first, all from per-frame data of ``t`` alone (no vertex gathers): the bounding
     sphere wholly at or below the tangent plane (a subset of :func:`rasterize_triangle`'s exact
-    horizon cull, so the mask is unchanged) or back-facing (:func:`skip_early`), the near-field
-    exclusion, the tiny-image bound.
+    horizon cull, so the mask is unchanged) or back-facing (:func:`skip_early`), the tiny-image bound.
     """
     sph = bsphere[t]
     pln = bplane[t]
@@ -350,9 +460,6 @@ def rasterize_blocker(
     if skip_early(pln, sph, p, nz, lut.backface):
         return 0
     src = bsource[t]
-    if use_excl != 0:
-        if excluded(excl, v, src):
-            return 0
     if lut.min_area > 0.0:
         if bounds_below(pln, sph, p, nz, lut.min_area):
             return 0
@@ -374,6 +481,59 @@ def rasterize_blocker(
     if r > 0:
         return 1
     return 0
+
+
+@wp.func
+def rasterize_far(
+    t: int,
+    near: bool,
+    v: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    points: wp.array[wp.vec3],
+    faces: wp.array2d[wp.int32],
+    fplane: wp.array[wp.vec4],
+    fsphere: wp.array[wp.vec4],
+    refine: float,
+    blo: wp.array[wp.vec3],
+    bhi: wp.array[wp.vec3],
+    bdev: wp.array[float],
+    group_start: wp.array[wp.int32],
+    group_tris: wp.array[wp.int32],
+    bpoints: wp.array[wp.vec3],
+    bfaces: wp.array2d[wp.int32],
+    bplane: wp.array[wp.vec4],
+    bsphere: wp.array[wp.vec4],
+    bsource: wp.array[wp.int32],
+    skip_incident: int,
+    use_excl: int,
+    excl: wp.array2d[wp.uint32],
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    record: int,
+    hits: wp.array2d[wp.uint32],
+) -> int:
+    """One far-field blocker: its fine triangles when it is near the receiver (``near``: its cluster
+    may be, :func:`refine_here`), else the blocker itself (:func:`rasterize_blocker`).
+
+    Returns:
+        ``coarse + 2 * fine``: coarse is 1 when the blocker itself was rasterized, fine the number
+        of fine triangles rasterized in its place.
+    """
+    if use_excl != 0:
+        if excluded(excl, v, bsource[t]):
+            if use_excl == 1:  # left to the k-ring (paper scheme)
+                return 0
+            # stands for part of the receiver's k-ring: always its fine triangles
+            return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_tris, frame, lut,
+                                       mask, bsource[t], record, hits)
+    if near:
+        if refine_here(p, blo[t], bhi[t], bdev[t], refine):
+            return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_tris, frame, lut,
+                                       mask, bsource[t], record, hits)
+    return rasterize_blocker(t, v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, frame, lut, mask, record,
+                             hits)
 
 
 @wp.func
@@ -432,10 +592,17 @@ def rasterize_transfer(
     skip_incident: int,
     use_excl: int,
     excl: wp.array2d[wp.uint32],
+    refine: float,
+    blo: wp.array[wp.vec3],
+    bhi: wp.array[wp.vec3],
+    bdev: wp.array[float],
+    group_start: wp.array[wp.int32],
+    group_tris: wp.array[wp.int32],
     use_cull: int,
     cluster_start: wp.array[wp.int32],
     cluster_lo: wp.array[wp.vec3],
     cluster_hi: wp.array[wp.vec3],
+    cluster_reach: wp.array[float],
     super_start: wp.array[wp.int32],
     super_lo: wp.array[wp.vec3],
     super_hi: wp.array[wp.vec3],
@@ -464,13 +631,16 @@ def rasterize_transfer(
     scaled_norm: wp.array2d[float],
     hits: wp.array2d[wp.uint32],
     counts: wp.array[wp.int32],
+    refined: wp.array[wp.int32],
     transfer: wp.array2d[float],
 ):
     """Per receiver vertex: rasterize its blockers, integrate the mask into SH, rotate to world (paper eq. 3).
 
     Blockers: the receiver's full-resolution k-ring (``ring_*``) plus the blocker mesh (``b*``:
     coarse mesh, or the fine mesh itself when the hierarchy is off), traversed through the
-    culled super-cluster / cluster hierarchy, linearly, or through the receiver's PVS list.
+    culled super-cluster / cluster hierarchy, linearly, or through the receiver's PVS list. With
+    ``refine > 0`` a coarse blocker near the receiver is replaced by the fine triangles it stands
+    for (``group_*``, :func:`refine_here`), so contact and folds see the exact surface.
 
     Integration: with ``f_b`` the blocked fraction of block b, diffuse transfer in the tangent frame
     is ``Σ_b W_b - Σ_b f_b W_b`` (CONTRACTS.md §2 with ``dA = cos θ dω``); glossy (``glossy=1``)
@@ -495,24 +665,38 @@ def rasterize_transfer(
         j = faces[t, 1]
         k = faces[t, 2]
         count += wp.min(1, rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, mask, v))
-    # far field
+    # far field: coarse blockers, replaced by their fine triangles near the receiver
     offset = wp.dot(n, p)
+    fine = int(0)
+    near_all = refine > 0.0
     if use_pvs != 0:
         for r in range(pvs_start[v], pvs_start[v + 1]):
-            count += rasterize_blocker(pvs_tris[r], v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl,
-                                       frame, lut, mask, record, hits)
+            res = rasterize_far(pvs_tris[r], near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev, group_start,
+                                group_tris, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame,
+                                lut, mask, record, hits)
+            count += (res & 1) + (res >> 1)
+            fine += res >> 1
     elif use_cull != 0:
         for s in range(super_start.shape[0] - 1):
             if box_above_plane(super_lo[s], super_hi[s], n, offset):
                 for c in range(super_start[s], super_start[s + 1]):
                     if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
+                        # per-blocker refinement tests only in clusters that come near enough
+                        near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], refine * cluster_reach[c])
                         for t in range(cluster_start[c], cluster_start[c + 1]):
-                            count += rasterize_blocker(t, v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl,
-                                                       excl, frame, lut, mask, record, hits)
+                            res = rasterize_far(t, near, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev,
+                                                group_start, group_tris, bpoints, bfaces, bplane, bsphere, bsource,
+                                                skip_incident, use_excl, excl, frame, lut, mask, record, hits)
+                            count += (res & 1) + (res >> 1)
+                            fine += res >> 1
     else:
         for t in range(bfaces.shape[0]):
-            count += rasterize_blocker(t, v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl,
-                                       frame, lut, mask, record, hits)
+            res = rasterize_far(t, near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev, group_start, group_tris,
+                                bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame, lut, mask,
+                                record, hits)
+            count += (res & 1) + (res >> 1)
+            fine += res >> 1
+    refined[v] = fine
     counts[v] = count
 
     # integrate (tangent frame): unoccluded integral minus blocked fractions of blocks

@@ -21,8 +21,8 @@ from ...geometry.mesh import TriMesh
 from ...sh.kernels import normalization_array
 from ..base import TransferMethod
 from . import hierarchy, tables
-from .kernels import (PlaneLut, follow_coarse_points, rasterize_transfer, refit_clusters, refit_super_clusters,
-                      triangle_bounds)
+from .kernels import (PlaneLut, follow_coarse_points, rasterize_transfer, refit_blocker_boxes, triangle_bounds,
+                      union_boxes)
 
 
 def _parse_vec3(text: str) -> tuple[float, float, float]:
@@ -42,13 +42,26 @@ class HemirasterTransfer(TransferMethod):
         mask: Visibility-mask resolution, 8, 16, 32 or 64 pixels across.
         lut: Cube-map resolution R of the plane LUT (6·R·R entries).
         downsample: Block size D (1, 2, 4, 8) for coverage integration.
-        ring: k of the full-resolution k-ring used near each vertex when the hierarchy is on.
+        ring: k of the full-resolution k-ring used near each vertex when the hierarchy is on (0: none,
+            the spatial refinement alone gives the near field; needs ``refine > 0``). With
+            refinement, the coarse triangles standing for the k-ring are always refined.
         coarse: Target triangle count of the coarse (far-field) mesh; 0, or a count >= the mesh's,
             turns the hierarchy off and rasterizes the full mesh.
+        refine: Spatial near-field refinement: a coarse triangle whose bounds (its own and those of
+            the fine triangles it stands for, refitted every frame) come within ``refine`` times
+            its deviation (the largest distance of those fine vertices from it, this frame) of the
+            receiver is replaced by its fine triangles, so surfaces in contact or folded onto each
+            other are rasterized exactly, while flat stretches stay coarse. 0 turns it off (the
+            near field is then only the topological k-ring).
+        occluders: Extra static meshes that cast shadows on ``mesh`` (they receive nothing), as in
+            :class:`~warpshade.visibility.reference.ReferenceTransfer`; decimated to the receiver's
+            coarse density and refined near receivers like the mesh itself.
         cull: Hierarchical culling of triangle clusters against the tangent plane (else a linear
             per-triangle horizon test).
         cluster: Triangles per cluster (16 clusters form a super-cluster).
-        exclude: Near-field exclusion radius of coarse triangles, in units of the k-ring radius.
+        exclude: Without refinement (``refine=0``): near-field exclusion radius of coarse triangles,
+            in units of the k-ring radius (rest pose). With refinement the k-ring excludes exactly
+            the coarse triangles whose fine triangles it holds, and this knob is unused.
         backface: Rasterize only triangles facing away from the receiver when the mesh (and the
             coarse mesh) is closed and consistently oriented: every blocked ray leaves the solid
             through one of them, so the mask is the same with about half the triangles.
@@ -69,11 +82,16 @@ class HemirasterTransfer(TransferMethod):
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 48,
                  downsample: int = 1, ring: int = 4, coarse: int = 512, cull: bool = True, cluster: int = 16,
                  exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
-                 phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5):
+                 phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
+                 refine: float = 2.0, occluders: list[TriMesh] | None = None):
         super().__init__(mesh, order, device)
         tables.check_mask(int(mask), int(downsample))
-        if ring not in (1, 2, 3, 4):
-            raise ValueError(f"hemiraster: ring must be 1, 2, 3 or 4, got {ring}")
+        if ring not in (0, 1, 2, 3, 4):
+            raise ValueError(f"hemiraster: ring must be 0, 1, 2, 3 or 4, got {ring}")
+        if not (float(refine) >= 0.0 and np.isfinite(float(refine))):
+            raise ValueError(f"hemiraster: refine must be a finite number >= 0, got {refine}")
+        if ring == 0 and float(refine) == 0.0:
+            raise ValueError("hemiraster: ring=0 needs refine > 0 (else nothing rasterizes the near field)")
         if mode not in ("diffuse", "glossy"):
             raise ValueError(f"hemiraster: mode must be 'diffuse' or 'glossy', got {mode!r}")
         if int(coarse) < 0:
@@ -88,6 +106,7 @@ class HemirasterTransfer(TransferMethod):
         self.mask_res, self.lut_res, self.downsample = int(mask), int(lut), int(downsample)
         self.ring, self.coarse_target, self.cull = int(ring), int(coarse), bool(cull)
         self.cluster, self.exclude, self.mode = int(cluster), float(exclude), mode
+        self.refine = float(refine)
         self.view = view / np.linalg.norm(view)
         self.backface = bool(backface)
         if not (float(min_image) >= 0.0):
@@ -125,31 +144,72 @@ class HemirasterTransfer(TransferMethod):
         self._rot_pinv = wp.array(rot_pinv.astype(np.float32), dtype=float, device=d)
         self._sh_norm = normalization_array(self.order, d)
 
-        # two-level hierarchy: fine k-ring + coarse mesh riding the fine one, or the full mesh alone
+        # the blocker scene: the receiver mesh, then the static occluders (they block, never receive)
+        occluders = list(occluders or [])
+        for k, o in enumerate(occluders):
+            if not isinstance(o, TriMesh):
+                raise TypeError(f"hemiraster: occluders[{k}] must be a TriMesh, got {type(o).__name__}")
+        self.occluders = occluders
+        parts = [(mesh.points, faces)] + [(o.points, o.faces.astype(np.int64)) for o in occluders]
+        vbase = np.cumsum([0] + [len(q) for q, _ in parts])
+        scene_pts = np.concatenate([q for q, _ in parts]).astype(np.float32)
+        scene_faces = np.concatenate([f + b for (_, f), b in zip(parts, vbase[:-1])])
+        nsf = len(scene_faces)
+        if occluders:
+            self._spoints = wp.array(scene_pts, dtype=wp.vec3, device=d)
+            self._sfaces = wp.array(scene_faces.astype(np.int32), dtype=wp.int32, device=d)
+        else:
+            self._spoints, self._sfaces = self.points, self.faces
+
+        # two-level hierarchy: coarse mesh riding the fine one, refined to the fine triangles near
+        # each receiver (spatial near field) and/or the receiver's k-ring; or the full mesh alone.
+        # Occluders get the receiver's coarse density (each part decimated on its own).
+        targets = [self.coarse_target] + [max(1, round(self.coarse_target * len(o.faces) / max(nf, 1))) for o in occluders]
         self.hierarchy = 0 < self.coarse_target < nf
+        group_start, group_tris = np.zeros(2, np.int32), np.zeros(1, np.int32)
         if self.hierarchy:
-            ring_start, ring_tris, rings = hierarchy.ring_triangles(faces, nv, self.ring)
-            cpts, cfaces = hierarchy.decimate(mesh.points, faces, self.coarse_target)
-            bface, bbary, boff = hierarchy.bind_to_surface(cpts, mesh.points.astype(np.float64), faces)
-            excl = hierarchy.near_exclusion(mesh.points.astype(np.float64), rings, cpts, cfaces, self.exclude)
-            self._bind = (wp.array(bface, dtype=wp.int32, device=d), wp.array(bbary, dtype=wp.vec3, device=d),
-                          wp.array(boff, dtype=float, device=d))
+            far = hierarchy.far_field([(q.astype(np.float64), f) for q, f in parts], targets)
+            cpts, block_faces = far["points"], far["faces"]
+            self._near_mode = 0  # 0: none, 1: exclusion bits (paper scheme), 2: forced refinement bits
+            if self.ring:
+                ring_start, ring_tris, rings = hierarchy.ring_triangles(faces, nv, self.ring)
+                if self.refine > 0.0:
+                    # the k-ring through the coarse triangles standing for it: exact in any pose, no
+                    # triangle twice, no coarse triangle cutting through it
+                    excl = hierarchy.ring_groups(ring_start, ring_tris, faces, far["owner"], len(block_faces))
+                    ring_start, ring_tris = np.zeros(nv + 1, np.int32), np.zeros(1, np.int32)
+                    self._near_mode = 2
+                else:
+                    excl = hierarchy.near_exclusion(mesh.points.astype(np.float64), rings, cpts, block_faces, self.exclude)
+                    self._near_mode = 1
+                self._excl = wp.array(excl, dtype=wp.uint32, device=d)
+            else:
+                ring_start, ring_tris = np.zeros(nv + 1, np.int32), np.zeros(1, np.int32)
+                self._excl = wp.zeros((1, 1), dtype=wp.uint32, device=d)
+            self._bind = (wp.array(far["bind_face"], dtype=wp.int32, device=d),
+                          wp.array(far["bind_bary"], dtype=wp.vec3, device=d),
+                          wp.array(far["bind_offset"], dtype=float, device=d))
             self._bpoints = wp.zeros(len(cpts), dtype=wp.vec3, device=d)
-            block_faces = cfaces
-            self._excl = wp.array(excl, dtype=wp.uint32, device=d)
         else:
             ring_start, ring_tris = np.zeros(nv + 1, np.int32), np.zeros(1, np.int32)
             self._bind = None
-            self._bpoints = self.points
-            block_faces = faces
+            self._near_mode = 0
+            self._bpoints = self._spoints
+            block_faces = scene_faces
             self._excl = wp.zeros((1, 1), dtype=wp.uint32, device=d)
+        self._use_refine = self.hierarchy and self.refine > 0.0
+        self._bind_offset_abs = self._bind[2] if self.hierarchy else wp.zeros(1, dtype=float, device=d)
         self._ring_start = wp.array(ring_start, dtype=wp.int32, device=d)
         self._ring_tris = wp.array(ring_tris if len(ring_tris) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
         self._ring_avg = float(ring_start[-1]) / nv
-        rest_blockers = (self._bpoints_rest() if self.hierarchy else mesh.points)
+        if self._near_mode == 2:  # k-ring held by its coarse triangles: their fine triangles per vertex
+            gsize = np.bincount(far["owner"], minlength=len(block_faces))
+            bits = (excl[:, :, None] >> np.arange(32, dtype=np.uint32)) & 1
+            self._ring_avg = float((bits.reshape(nv, -1)[:, :len(block_faces)] * gsize).sum()) / nv
+        rest_blockers = (self._bpoints_rest() if self.hierarchy else scene_pts)
         # back-face culling needs closed, consistently oriented fine and blocker meshes; the sign
         # of the enclosed volume says which side faces out
-        side = hierarchy.closed_orientation(mesh.points, faces)
+        side = hierarchy.closed_orientation(scene_pts, scene_faces)
         if self.hierarchy:
             cside = hierarchy.closed_orientation(rest_blockers, block_faces)
             side = side if side == cside else 0
@@ -162,17 +222,26 @@ class HemirasterTransfer(TransferMethod):
         # but together the whole nearby surface (bear, full mesh: 1.4 -> 11 % error)
         self._lut.min_area = self.min_image * (2.0 / self.mask_res) ** 2 if self.hierarchy else 0.0
         perm, cstart, sstart = hierarchy.build_clusters(rest_blockers, block_faces, self.cluster, 16)
+        if self._use_refine:
+            group_start, group_tris = hierarchy.groups_in_order(far["owner"], perm)
+        self._group_start = wp.array(group_start, dtype=wp.int32, device=d)
+        self._group_tris = wp.array(group_tris, dtype=wp.int32, device=d)
         self._bfaces = wp.array(block_faces[perm].astype(np.int32), dtype=wp.int32, device=d)
         self._bsource = wp.array(perm.astype(np.int32), dtype=wp.int32, device=d)
         self._perm_inv = np.argsort(perm)
         self._cluster_start = wp.array(cstart, dtype=wp.int32, device=d)
         self._super_start = wp.array(sstart, dtype=wp.int32, device=d)
         nc, ns = len(cstart) - 1, len(sstart) - 1
-        self._cluster_box = (wp.zeros(nc, dtype=wp.vec3, device=d), wp.zeros(nc, dtype=wp.vec3, device=d))
-        self._super_box = (wp.zeros(ns, dtype=wp.vec3, device=d), wp.zeros(ns, dtype=wp.vec3, device=d))
         self.num_blockers = len(block_faces)
-        self._fplane = wp.zeros(nf, dtype=wp.vec4, device=d)
-        self._fsphere = wp.zeros(nf, dtype=wp.vec4, device=d)
+        self._blocker_box = (wp.zeros(self.num_blockers, dtype=wp.vec3, device=d),
+                             wp.zeros(self.num_blockers, dtype=wp.vec3, device=d))
+        self._blocker_dev = wp.zeros(self.num_blockers, dtype=float, device=d)
+        self._cluster_box = (wp.zeros(nc, dtype=wp.vec3, device=d), wp.zeros(nc, dtype=wp.vec3, device=d))
+        self._cluster_reach = wp.zeros(nc, dtype=float, device=d)
+        self._super_box = (wp.zeros(ns, dtype=wp.vec3, device=d), wp.zeros(ns, dtype=wp.vec3, device=d))
+        self._super_reach = wp.zeros(ns, dtype=float, device=d)
+        self._fplane = wp.zeros(nsf, dtype=wp.vec4, device=d)
+        self._fsphere = wp.zeros(nsf, dtype=wp.vec4, device=d)
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
 
@@ -184,6 +253,7 @@ class HemirasterTransfer(TransferMethod):
         self._blk_weight = wp.zeros((nv, 64), dtype=float, device=d)
         self._scaled_norm = wp.zeros((nv, nn), dtype=float, device=d)
         self._counts = wp.zeros(nv, dtype=wp.int32, device=d)
+        self._refined = wp.zeros(nv, dtype=wp.int32, device=d)
         self._hits = wp.zeros((1, 1), dtype=wp.uint32, device=d)
         self._pvs = None
         self._pvs_start = wp.zeros(nv + 1, dtype=wp.int32, device=d)
@@ -206,7 +276,11 @@ class HemirasterTransfer(TransferMethod):
                             help="plane LUT cube-map resolution R (6*R*R planes; default 48)")
         parser.add_argument("--downsample", type=int, default=1, choices=(1, 2, 4, 8),
                             help="coverage block size in pixels (default 1)")
-        parser.add_argument("--ring", type=int, default=4, choices=(1, 2, 3, 4), help="full-resolution k-ring (default 4)")
+        parser.add_argument("--ring", type=int, default=4, choices=(0, 1, 2, 3, 4),
+                            help="full-resolution k-ring (default 4; 0: spatial refinement only)")
+        parser.add_argument("--refine", type=float, default=2.0,
+                            help="replace coarse triangles nearer than this many times their deviation from the fine "
+                                 "surface by their fine triangles (contact, folds; default 2; 0: off)")
         parser.add_argument("--coarse", type=int, default=512,
                             help="coarse far-field mesh triangles (0: no hierarchy, full mesh); default 512")
         parser.add_argument("--no-cull", dest="cull", action="store_false", help="disable cluster culling")
@@ -230,7 +304,8 @@ class HemirasterTransfer(TransferMethod):
         return {"mask": args.mask, "lut": args.lut, "downsample": args.downsample, "ring": args.ring,
                 "coarse": args.coarse, "cull": args.cull, "cluster": args.cluster, "exclude": args.exclude,
                 "backface": args.backface, "mode": args.mode,
-                "view": tuple(args.view), "phong": args.phong, "lut_dir": args.lut_dir, "min_image": args.min_image}
+                "view": tuple(args.view), "phong": args.phong, "lut_dir": args.lut_dir, "min_image": args.min_image,
+                "refine": args.refine}
 
     @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
@@ -248,13 +323,16 @@ class HemirasterTransfer(TransferMethod):
         return {"mask": self.mask_res, "lut": self.lut_res, "downsample": self.downsample, "ring": self.ring,
                 "coarse": self.coarse_target, "cull": self.cull, "cluster": self.cluster, "exclude": self.exclude,
                 "backface": self.backface, "mode": self.mode, "view": self.view.tolist(), "phong": self.phong, "lut_dir": self.lut_dir,
-                "pvs_frames": self._pvs_frames, "min_image": self.min_image}
+                "pvs_frames": self._pvs_frames, "min_image": self.min_image, "refine": self.refine,
+                "occluders": [o.name for o in self.occluders]}
 
     def stats(self) -> dict:
         counts = self._counts.numpy()
         return {
             "triangles_per_vertex": float(counts.mean()),
             "triangles_per_vertex_max": int(counts.max()),
+            "refined_per_vertex": float(self._refined.numpy().mean()),
+            "occluder_triangles": int(sum(o.num_faces for o in self.occluders)),
             "blocker_triangles": self.num_blockers,
             "hierarchy": self.hierarchy,
             "backface_culled": self._backface_side != 0.0,
@@ -272,38 +350,49 @@ class HemirasterTransfer(TransferMethod):
     # -- per frame ---------------------------------------------------------------------------
     def _follow(self) -> None:
         if self._bind is not None:
-            wp.launch(follow_coarse_points, dim=self._bpoints.shape[0], inputs=[self.points, self.faces, *self._bind],
+            wp.launch(follow_coarse_points, dim=self._bpoints.shape[0], inputs=[self._spoints, self._sfaces, *self._bind],
                       outputs=[self._bpoints], device=self.device)
 
     def _launch(self, record: int, use_pvs: int) -> None:
+        if self.occluders:
+            wp.copy(self._spoints, self.points, count=self.mesh.num_vertices)
         self._follow()
+        d = self.device
+        if (self.cull and not use_pvs) or self._use_refine:
+            wp.launch(refit_blocker_boxes, dim=self.num_blockers,
+                      inputs=[self._bpoints, self._bfaces, self._spoints, self._sfaces, 1 if self._use_refine else 0,
+                              self._group_start, self._group_tris, self._bind_offset_abs],
+                      outputs=[*self._blocker_box, self._blocker_dev],
+                      device=d)
         if self.cull and not use_pvs:
-            wp.launch(refit_clusters, dim=self._cluster_box[0].shape[0],
-                      inputs=[self._bpoints, self._bfaces, self._cluster_start], outputs=[*self._cluster_box],
-                      device=self.device)
-            wp.launch(refit_super_clusters, dim=self._super_box[0].shape[0],
-                      inputs=[*self._cluster_box, self._super_start], outputs=[*self._super_box], device=self.device)
+            wp.launch(union_boxes, dim=self._cluster_box[0].shape[0], inputs=[*self._blocker_box, self._blocker_dev, self._cluster_start],
+                      outputs=[*self._cluster_box, self._cluster_reach], device=d)
+            wp.launch(union_boxes, dim=self._super_box[0].shape[0], inputs=[*self._cluster_box, self._cluster_reach, self._super_start],
+                      outputs=[*self._super_box, self._super_reach], device=d)
         # planes and bounding spheres pre-cull triangles below the horizon or back-facing, and bound
         # image sizes, before any vertex is gathered
         wp.launch(triangle_bounds, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
-                  outputs=[self._bplane, self._bsphere], device=self.device)
+                  outputs=[self._bplane, self._bsphere], device=d)
         if self.hierarchy:
-            wp.launch(triangle_bounds, dim=self.mesh.num_faces, inputs=[self.points, self.faces],
-                      outputs=[self._fplane, self._fsphere], device=self.device)
+            wp.launch(triangle_bounds, dim=self._sfaces.shape[0], inputs=[self._spoints, self._sfaces],
+                      outputs=[self._fplane, self._fsphere], device=d)
         wp.launch(
             rasterize_transfer,
             dim=self.mesh.num_vertices,
-            inputs=[self.points, self.normals, self.faces, self._ring_start, self._ring_tris, self._fplane, self._fsphere,
+            inputs=[self._spoints, self.normals, self._sfaces, self._ring_start, self._ring_tris, self._fplane, self._fsphere,
                     self._bpoints, self._bfaces, self._bplane, self._bsphere, self._bsource, 0 if self.hierarchy else 1,
-                    1 if self.hierarchy else 0, self._excl,
-                    1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._super_start, *self._super_box,
+                    self._near_mode, self._excl,
+                    self.refine if self._use_refine else 0.0, *self._blocker_box, self._blocker_dev, self._group_start, self._group_tris,
+                    1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
+                    self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
                     self._lut,
                     self.downsample * self.downsample, self._block_valid, self._valid_words, self._block_weights, self._block_dirs,
                     self._unoccluded, 1 if self.mode == "glossy" else 0, wp.vec3(*self.view.astype(np.float32)),
                     self.phong, self._rot_dirs, self._rot_pinv, self.order, self._sh_norm, record],
-            outputs=[self._mask, self._local, self._blk_index, self._blk_weight, self._scaled_norm, self._hits, self._counts, self.transfer],
-            device=self.device,
+            outputs=[self._mask, self._local, self._blk_index, self._blk_weight, self._scaled_norm, self._hits, self._counts,
+                     self._refined, self.transfer],
+            device=d,
         )
 
     def _compute(self) -> None:
