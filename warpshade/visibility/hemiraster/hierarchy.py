@@ -186,10 +186,11 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int]):
 
     Returns:
         dict with ``points`` (Vc, 3) float64, ``faces`` (Fc, 3) int64, ``bind_face`` (Vc,) int32 (scene
-        face index), ``bind_bary`` (Vc, 3) float32, ``bind_offset`` (Vc,) float32, ``owner`` (F,) int64:
-        the coarse triangle each scene face belongs to.
+        face index), ``bind_bary`` (Vc, 3) float32, ``bind_offset`` (Vc,) float32, ``owner`` (F,)
+        int64: the primary coarse triangle of each scene face, ``extra`` (P, 2) int64: further
+        (scene face, coarse triangle) pairs (:func:`assign_to_coarse`).
     """
-    cpts, cfaces, bface, bbary, boff, owner = [], [], [], [], [], []
+    cpts, cfaces, bface, bbary, boff, owner, extras = [], [], [], [], [], [], []
     vbase = fbase = cbase = cfbase = 0
     for (pts, faces), target in zip(parts, targets):
         pts = np.asarray(pts, dtype=np.float64)
@@ -201,58 +202,94 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int]):
         bface.append(f + fbase)
         bbary.append(b)
         boff.append(o)
-        owner.append(assign_to_coarse(pts, faces, cp, cf) + cfbase)
+        prim, extra = assign_to_coarse(pts, faces, cp, cf)
+        owner.append(prim + cfbase)
+        extras.append(extra + np.array([fbase, cfbase]))
         vbase += len(pts)
         fbase += len(faces)
         cbase += len(cp)
         cfbase += len(cf)
     return {"points": np.concatenate(cpts), "faces": np.concatenate(cfaces), "bind_face": np.concatenate(bface).astype(np.int32),
-            "bind_bary": np.concatenate(bbary), "bind_offset": np.concatenate(boff), "owner": np.concatenate(owner)}
+            "bind_bary": np.concatenate(bbary), "bind_offset": np.concatenate(boff), "owner": np.concatenate(owner),
+            "extra": np.concatenate(extras)}
 
 
 def assign_to_coarse(points: np.ndarray, faces: np.ndarray, cpoints: np.ndarray, cfaces: np.ndarray,
-                     candidates: int = 8) -> np.ndarray:
-    """Coarse triangle nearest to each fine triangle's centroid (rest pose), shape (F,) int64.
+                     candidates: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Which coarse triangles each fine triangle belongs to (rest pose).
 
+    *Primary*: the coarse triangle nearest to the fine triangle's centroid (each fine triangle has
+    one); the bounds and deviation that decide refinement are taken over those, so they stay
+    tight. *Extras* make a refined coarse triangle's fine triangles cover its whole outline where it
+    meets unrefined neighbours (no crack; a closed shell stays closed): the coarse triangle nearest
+    to each fine corner (a fine triangle straddling a seam belongs to both sides), and around each
+    coarse vertex, the fine triangles at the fine vertex nearest to it belong to every coarse
+    triangle of the coarse vertex's fan (nearest-triangle regions meet ambiguously there).
     Candidates are the ``candidates`` coarse triangles with the nearest centroids (a KD-tree); the
-    exact point-triangle distance picks among them. Any assignment keeps the refinement exact (the
-    bounds are refitted over whatever a coarse triangle owns); a near one keeps those bounds tight.
+    exact point-triangle distance decides.
+
+    Returns:
+        ``(primary, extra)``: primary shape (F,) int64; extra shape (P, 2) int64 unique (fine, coarse)
+        pairs that are not primary.
     """
     from scipy.spatial import cKDTree
 
-    cent = np.asarray(points, dtype=np.float64)[faces].mean(axis=1)
+    pts = np.asarray(points, dtype=np.float64)
+    query = np.concatenate([pts[faces].mean(axis=1)[:, None, :], pts[faces]], axis=1).reshape(-1, 3)
     a, b, c = (np.asarray(cpoints, dtype=np.float64)[cfaces[:, k]] for k in range(3))
     k = min(candidates, len(cfaces))
-    _, cand = cKDTree((a + b + c) / 3.0).query(cent, k=k)
-    cand = cand.reshape(len(cent), k)
-    cp, _ = closest_points_on_triangles(cent[:, None, :], a[cand], b[cand], c[cand])
-    best = np.argmin(((cp - cent[:, None, :]) ** 2).sum(-1), axis=1)
-    return cand[np.arange(len(cent)), best].astype(np.int64)
+    _, cand = cKDTree((a + b + c) / 3.0).query(query, k=k)
+    cand = cand.reshape(len(query), k)
+    best = np.zeros(len(query), np.int64)
+    for s0 in range(0, len(query), 65536):
+        q = query[s0:s0 + 65536]
+        cc = cand[s0:s0 + 65536]
+        cp, _ = closest_points_on_triangles(q[:, None, :], a[cc], b[cc], c[cc])
+        best[s0:s0 + 65536] = cc[np.arange(len(q)), np.argmin(((cp - q[:, None, :]) ** 2).sum(-1), axis=1)]
+    best = best.reshape(len(faces), 4)
+    primary = best[:, 0].copy()
+    pairs = [np.stack([np.repeat(np.arange(len(faces)), 3), best[:, 1:].ravel()], 1)]
+    vf = vertex_faces(faces, len(pts))
+    cvf = vertex_faces(cfaces, len(cpoints))
+    _, nearest_fine = cKDTree(pts).query(np.asarray(cpoints, dtype=np.float64))
+    for cv in range(len(cpoints)):
+        if len(cvf[cv]) and len(vf[nearest_fine[cv]]):
+            pairs.append(np.stack(np.meshgrid(vf[nearest_fine[cv]], cvf[cv], indexing="ij"), -1).reshape(-1, 2))
+    pairs = np.unique(np.concatenate(pairs), axis=0)
+    extra = pairs[pairs[:, 1] != primary[pairs[:, 0]]]
+    return primary, extra
 
 
-def groups_in_order(owner: np.ndarray, perm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """CSR of the fine triangles each reordered coarse triangle stands for.
+def groups_in_order(primary: np.ndarray, extra: np.ndarray, perm: np.ndarray):
+    """CSR of the fine triangles each reordered coarse triangle stands for: primary ones, then extras.
 
     Args:
-        owner: Coarse triangle (original index) of each fine triangle, shape (F,).
+        primary: Primary coarse triangle (original index) of each fine triangle, shape (F,).
+        extra: Further (fine, coarse) pairs, shape (P, 2) (:func:`assign_to_coarse`).
         perm: Coarse triangle order (``faces[perm]``), shape (Fc,).
 
     Returns:
-        ``(start (Fc+1,) int32, tris (F,) int32)``: fine triangles of reordered coarse triangle ``t``
-        are ``tris[start[t]:start[t+1]]``.
+        ``(start (Fc+1,), mid (Fc,), tris, owner)`` int32: reordered coarse triangle ``t`` stands for
+        ``tris[start[t]:mid[t]]`` (primary) and also covers ``tris[mid[t]:start[t+1]]`` (extras);
+        ``owner`` (same length as ``tris``) is each entry's primary coarse triangle (reordered).
     """
     new_index = np.empty(len(perm), np.int64)
     new_index[perm] = np.arange(len(perm))
-    key = new_index[owner]
-    tris = np.argsort(key, kind="stable")
-    start = np.searchsorted(key[tris], np.arange(len(perm) + 1))
-    return start.astype(np.int32), tris.astype(np.int32)
+    fine = np.concatenate([np.arange(len(primary)), extra[:, 0]])
+    coarse = new_index[np.concatenate([primary, extra[:, 1]])]
+    is_extra = np.concatenate([np.zeros(len(primary), np.int64), np.ones(len(extra), np.int64)])
+    order = np.lexsort((fine, is_extra, coarse))
+    start = np.searchsorted(coarse[order], np.arange(len(perm) + 1))
+    mid = np.searchsorted(coarse[order] * 2 + is_extra[order], np.arange(len(perm)) * 2 + 1)
+    # each entry's primary coarse triangle (reordered): an extra is skipped when that one is refined too
+    owner = new_index[primary][fine[order]]
+    return start.astype(np.int32), mid.astype(np.int32), fine[order].astype(np.int32), owner.astype(np.int32)
 
 
 def ring_groups(ring_start: np.ndarray, ring_tris: np.ndarray, faces: np.ndarray, owner: np.ndarray,
                 num_coarse: int) -> np.ndarray:
-    """Per receiver, the coarse triangles that stand for at least one fine triangle of its k-ring (or
-    one touching it), as bits: they are always replaced by their fine triangles, so the near field
+    """Per receiver, the coarse triangles that stand for (``owner``: primary, shape (F,)) at least
+    one fine triangle of its k-ring (or one touching it), as bits: they are always replaced by their fine triangles, so the near field
     is exact (a superset of the k-ring, with no triangle twice) in every pose.
 
     Returns:

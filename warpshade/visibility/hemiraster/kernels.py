@@ -280,6 +280,7 @@ def refit_blocker_boxes(
     faces: wp.array2d[wp.int32],
     use_groups: int,
     group_start: wp.array[wp.int32],
+    group_mid: wp.array[wp.int32],
     group_tris: wp.array[wp.int32],
     bind_offset: wp.array[float],
     lo: wp.array[wp.vec3],
@@ -320,13 +321,15 @@ def refit_blocker_boxes(
                 q = points[faces[f, k]]
                 bmin = wp.min(bmin, q)
                 bmax = wp.max(bmax, q)
+                if r >= group_mid[t]:
+                    continue  # extras (seam cover) are in the box, not in the deviation
                 if ln > 0.0:
                     dev = wp.max(dev, wp.abs(wp.dot(nrm, q - a)) / ln)
                 else:
                     dev = wp.max(dev, wp.length(q - a))
         cen = (a + b + c) / 3.0
         size = wp.max(wp.max(wp.length(a - cen), wp.length(b - cen)), wp.length(c - cen))
-        if group_start[t + 1] == group_start[t]:
+        if group_mid[t] == group_start[t]:
             # stands for nothing (a sliver left by the assignment): its size, so it is dropped near
             # receivers and rasterized as part of the far field
             dev = wp.max(dev, size)
@@ -391,19 +394,29 @@ def rasterize_group(
     fplane: wp.array[wp.vec4],
     fsphere: wp.array[wp.vec4],
     group_start: wp.array[wp.int32],
+    group_mid: wp.array[wp.int32],
     group_tris: wp.array[wp.int32],
+    group_owner: wp.array[wp.int32],
+    dedupe: int,
+    refine: float,
+    blo: wp.array[wp.vec3],
+    bhi: wp.array[wp.vec3],
+    bdev: wp.array[float],
+    bsource: wp.array[wp.int32],
+    near_mode: int,
+    excl: wp.array2d[wp.uint32],
     frame: wp.mat33,
     lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
-    src: int,
     record: int,
     hits: wp.array2d[wp.uint32],
 ) -> int:
     """Rasterize the fine triangles blocker ``t`` stands for (spatial near field); returns how many.
 
-    Triangles incident to the receiver are skipped (they contain it: no solid angle); a fine
-    triangle that is also in the receiver's k-ring is rasterized twice, which the OR fusion of
-    §3.1.1 makes harmless.
+    The seam-cover extras (``group_mid[t]`` on) are skipped (``dedupe``) when their primary coarse
+    triangle is refined for this receiver too: it rasterizes them itself. Triangles incident to the
+    receiver are skipped (they contain it: no solid angle); a triangle rasterized twice (also in a
+    k-ring) is harmless under the OR fusion of §3.1.1.
     """
     count = int(0)
     hit = int(0)
@@ -411,6 +424,14 @@ def rasterize_group(
         f = group_tris[r]
         if skip_early(fplane[f], fsphere[f], p, n, lut.backface):
             continue
+        if dedupe != 0 and r >= group_mid[t]:
+            o = group_owner[r]
+            if near_mode == 2:
+                if excluded(excl, v, bsource[o]):
+                    continue
+            if refine > 0.0:
+                if refine_here(p, blo[o], bhi[o], bdev[o], refine):
+                    continue
         i = faces[f, 0]
         j = faces[f, 1]
         k = faces[f, 2]
@@ -420,6 +441,7 @@ def rasterize_group(
         count += wp.min(1, res)
         hit = wp.max(hit, res)
     if record != 0 and hit == 2:
+        src = bsource[t]
         hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
     return count
 
@@ -499,7 +521,10 @@ def rasterize_far(
     bhi: wp.array[wp.vec3],
     bdev: wp.array[float],
     group_start: wp.array[wp.int32],
+    group_mid: wp.array[wp.int32],
     group_tris: wp.array[wp.int32],
+    group_owner: wp.array[wp.int32],
+    dedupe: int,
     bpoints: wp.array[wp.vec3],
     bfaces: wp.array2d[wp.int32],
     bplane: wp.array[wp.vec4],
@@ -526,12 +551,14 @@ def rasterize_far(
             if use_excl == 1:  # left to the k-ring (paper scheme)
                 return 0
             # stands for part of the receiver's k-ring: always its fine triangles
-            return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_tris, frame, lut,
-                                       mask, bsource[t], record, hits)
+            return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_mid, group_tris,
+                                       group_owner, dedupe, refine, blo, bhi, bdev, bsource, use_excl, excl, frame, lut,
+                                       mask, record, hits)
     if near:
         if refine_here(p, blo[t], bhi[t], bdev[t], refine):
-            return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_tris, frame, lut,
-                                       mask, bsource[t], record, hits)
+            return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_mid, group_tris,
+                                       group_owner, dedupe, refine, blo, bhi, bdev, bsource, use_excl, excl, frame, lut,
+                                       mask, record, hits)
     return rasterize_blocker(t, v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, frame, lut, mask, record,
                              hits)
 
@@ -597,7 +624,9 @@ def rasterize_transfer(
     bhi: wp.array[wp.vec3],
     bdev: wp.array[float],
     group_start: wp.array[wp.int32],
+    group_mid: wp.array[wp.int32],
     group_tris: wp.array[wp.int32],
+    group_owner: wp.array[wp.int32],
     use_cull: int,
     cluster_start: wp.array[wp.int32],
     cluster_lo: wp.array[wp.vec3],
@@ -672,7 +701,7 @@ def rasterize_transfer(
     if use_pvs != 0:
         for r in range(pvs_start[v], pvs_start[v + 1]):
             res = rasterize_far(pvs_tris[r], near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev, group_start,
-                                group_tris, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame,
+                                group_mid, group_tris, group_owner, 0, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame,
                                 lut, mask, record, hits)
             count += (res & 1) + (res >> 1)
             fine += res >> 1
@@ -685,14 +714,14 @@ def rasterize_transfer(
                         near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], refine * cluster_reach[c])
                         for t in range(cluster_start[c], cluster_start[c + 1]):
                             res = rasterize_far(t, near, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev,
-                                                group_start, group_tris, bpoints, bfaces, bplane, bsphere, bsource,
+                                                group_start, group_mid, group_tris, group_owner, 1, bpoints, bfaces, bplane, bsphere, bsource,
                                                 skip_incident, use_excl, excl, frame, lut, mask, record, hits)
                             count += (res & 1) + (res >> 1)
                             fine += res >> 1
     else:
         for t in range(bfaces.shape[0]):
-            res = rasterize_far(t, near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev, group_start, group_tris,
-                                bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame, lut, mask,
+            res = rasterize_far(t, near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev, group_start, group_mid,
+                                group_tris, group_owner, 1, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame, lut, mask,
                                 record, hits)
             count += (res & 1) + (res >> 1)
             fine += res >> 1

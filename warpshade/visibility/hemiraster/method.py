@@ -166,7 +166,8 @@ class HemirasterTransfer(TransferMethod):
         # Occluders get the receiver's coarse density (each part decimated on its own).
         targets = [self.coarse_target] + [max(1, round(self.coarse_target * len(o.faces) / max(nf, 1))) for o in occluders]
         self.hierarchy = 0 < self.coarse_target < nf
-        group_start, group_tris = np.zeros(2, np.int32), np.zeros(1, np.int32)
+        group_start, group_mid, group_tris = np.zeros(2, np.int32), np.zeros(1, np.int32), np.zeros(1, np.int32)
+        group_owner = np.zeros(1, np.int32)
         if self.hierarchy:
             far = hierarchy.far_field([(q.astype(np.float64), f) for q, f in parts], targets)
             cpts, block_faces = far["points"], far["faces"]
@@ -203,7 +204,8 @@ class HemirasterTransfer(TransferMethod):
         self._ring_tris = wp.array(ring_tris if len(ring_tris) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
         self._ring_avg = float(ring_start[-1]) / nv
         if self._near_mode == 2:  # k-ring held by its coarse triangles: their fine triangles per vertex
-            gsize = np.bincount(far["owner"], minlength=len(block_faces))
+            gstart, _, _, _ = hierarchy.groups_in_order(far["owner"], far["extra"], np.arange(len(block_faces)))
+            gsize = np.diff(gstart)
             bits = (excl[:, :, None] >> np.arange(32, dtype=np.uint32)) & 1
             self._ring_avg = float((bits.reshape(nv, -1)[:, :len(block_faces)] * gsize).sum()) / nv
         rest_blockers = (self._bpoints_rest() if self.hierarchy else scene_pts)
@@ -223,9 +225,11 @@ class HemirasterTransfer(TransferMethod):
         self._lut.min_area = self.min_image * (2.0 / self.mask_res) ** 2 if self.hierarchy else 0.0
         perm, cstart, sstart = hierarchy.build_clusters(rest_blockers, block_faces, self.cluster, 16)
         if self._use_refine:
-            group_start, group_tris = hierarchy.groups_in_order(far["owner"], perm)
+            group_start, group_mid, group_tris, group_owner = hierarchy.groups_in_order(far["owner"], far["extra"], perm)
         self._group_start = wp.array(group_start, dtype=wp.int32, device=d)
         self._group_tris = wp.array(group_tris, dtype=wp.int32, device=d)
+        self._group_mid = wp.array(group_mid, dtype=wp.int32, device=d)
+        self._group_owner = wp.array(group_owner, dtype=wp.int32, device=d)
         self._bfaces = wp.array(block_faces[perm].astype(np.int32), dtype=wp.int32, device=d)
         self._bsource = wp.array(perm.astype(np.int32), dtype=wp.int32, device=d)
         self._perm_inv = np.argsort(perm)
@@ -361,7 +365,7 @@ class HemirasterTransfer(TransferMethod):
         if (self.cull and not use_pvs) or self._use_refine:
             wp.launch(refit_blocker_boxes, dim=self.num_blockers,
                       inputs=[self._bpoints, self._bfaces, self._spoints, self._sfaces, 1 if self._use_refine else 0,
-                              self._group_start, self._group_tris, self._bind_offset_abs],
+                              self._group_start, self._group_mid, self._group_tris, self._bind_offset_abs],
                       outputs=[*self._blocker_box, self._blocker_dev],
                       device=d)
         if self.cull and not use_pvs:
@@ -382,7 +386,7 @@ class HemirasterTransfer(TransferMethod):
             inputs=[self._spoints, self.normals, self._sfaces, self._ring_start, self._ring_tris, self._fplane, self._fsphere,
                     self._bpoints, self._bfaces, self._bplane, self._bsphere, self._bsource, 0 if self.hierarchy else 1,
                     self._near_mode, self._excl,
-                    self.refine if self._use_refine else 0.0, *self._blocker_box, self._blocker_dev, self._group_start, self._group_tris,
+                    self.refine if self._use_refine else 0.0, *self._blocker_box, self._blocker_dev, self._group_start, self._group_mid, self._group_tris, self._group_owner,
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
                     self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
