@@ -344,7 +344,8 @@ def test_lut_disk_cache_round_trip(tmp_path):
 
 
 @pytest.mark.parametrize("knobs, word", [({"mask": 12}, "mask"), ({"downsample": 3}, "downsample"),
-                                         ({"ring": 0}, "ring"), ({"mode": "shiny"}, "mode"),
+                                         ({"ring": 5}, "ring"), ({"ring": 0, "refine": 0}, "ring"),
+                                         ({"refine": -1}, "refine"), ({"mode": "shiny"}, "mode"),
                                          ({"lut": 1}, "lut"), ({"view": (0, 0, 0)}, "view")])
 def test_bad_knobs_name_themselves(knobs, word):
     with pytest.raises(ValueError, match=word):

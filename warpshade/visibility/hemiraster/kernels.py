@@ -397,7 +397,6 @@ def rasterize_group(
     group_mid: wp.array[wp.int32],
     group_tris: wp.array[wp.int32],
     group_owner: wp.array[wp.int32],
-    dedupe: int,
     refine: float,
     blo: wp.array[wp.vec3],
     bhi: wp.array[wp.vec3],
@@ -413,8 +412,9 @@ def rasterize_group(
 ) -> int:
     """Rasterize the fine triangles blocker ``t`` stands for (spatial near field); returns how many.
 
-    The seam-cover extras (``group_mid[t]`` on) are skipped (``dedupe``) when their primary coarse
-    triangle is refined for this receiver too: it rasterizes them itself. Triangles incident to the
+    The seam-cover extras (``group_mid[t]`` on) are skipped when their primary coarse triangle is
+    refined for this receiver too: it rasterizes them itself (in PVS mode, when it is in the set:
+    it was refined whenever the extra set a bit while recording). Triangles incident to the
     receiver are skipped (they contain it: no solid angle); a triangle rasterized twice (also in a
     k-ring) is harmless under the OR fusion of §3.1.1.
     """
@@ -424,7 +424,7 @@ def rasterize_group(
         f = group_tris[r]
         if skip_early(fplane[f], fsphere[f], p, n, lut.backface):
             continue
-        if dedupe != 0 and r >= group_mid[t]:
+        if r >= group_mid[t]:
             o = group_owner[r]
             if near_mode == 2:
                 if excluded(excl, v, bsource[o]):
@@ -524,7 +524,6 @@ def rasterize_far(
     group_mid: wp.array[wp.int32],
     group_tris: wp.array[wp.int32],
     group_owner: wp.array[wp.int32],
-    dedupe: int,
     bpoints: wp.array[wp.vec3],
     bfaces: wp.array2d[wp.int32],
     bplane: wp.array[wp.vec4],
@@ -552,12 +551,12 @@ def rasterize_far(
                 return 0
             # stands for part of the receiver's k-ring: always its fine triangles
             return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_mid, group_tris,
-                                       group_owner, dedupe, refine, blo, bhi, bdev, bsource, use_excl, excl, frame, lut,
+                                       group_owner, refine, blo, bhi, bdev, bsource, use_excl, excl, frame, lut,
                                        mask, record, hits)
     if near:
         if refine_here(p, blo[t], bhi[t], bdev[t], refine):
             return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_mid, group_tris,
-                                       group_owner, dedupe, refine, blo, bhi, bdev, bsource, use_excl, excl, frame, lut,
+                                       group_owner, refine, blo, bhi, bdev, bsource, use_excl, excl, frame, lut,
                                        mask, record, hits)
     return rasterize_blocker(t, v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, frame, lut, mask, record,
                              hits)
@@ -701,7 +700,7 @@ def rasterize_transfer(
     if use_pvs != 0:
         for r in range(pvs_start[v], pvs_start[v + 1]):
             res = rasterize_far(pvs_tris[r], near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev, group_start,
-                                group_mid, group_tris, group_owner, 0, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame,
+                                group_mid, group_tris, group_owner, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame,
                                 lut, mask, record, hits)
             count += (res & 1) + (res >> 1)
             fine += res >> 1
@@ -714,14 +713,14 @@ def rasterize_transfer(
                         near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], refine * cluster_reach[c])
                         for t in range(cluster_start[c], cluster_start[c + 1]):
                             res = rasterize_far(t, near, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev,
-                                                group_start, group_mid, group_tris, group_owner, 1, bpoints, bfaces, bplane, bsphere, bsource,
+                                                group_start, group_mid, group_tris, group_owner, bpoints, bfaces, bplane, bsphere, bsource,
                                                 skip_incident, use_excl, excl, frame, lut, mask, record, hits)
                             count += (res & 1) + (res >> 1)
                             fine += res >> 1
     else:
         for t in range(bfaces.shape[0]):
             res = rasterize_far(t, near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev, group_start, group_mid,
-                                group_tris, group_owner, 1, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame, lut, mask,
+                                group_tris, group_owner, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame, lut, mask,
                                 record, hits)
             count += (res & 1) + (res >> 1)
             fine += res >> 1
