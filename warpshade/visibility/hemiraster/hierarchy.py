@@ -328,9 +328,15 @@ def near_exclusion(points: np.ndarray, rings: list[np.ndarray], cpoints: np.ndar
 
 
 def morton_order(centroids: np.ndarray) -> np.ndarray:
-    """Permutation sorting points along a 3D Morton curve (10 bits per axis) of their bounding box."""
+    """Permutation sorting points along a 3D Morton curve (10 bits per axis) of their bounding cube.
+
+    One scale for all axes: per-axis scaling would stretch a nearly flat sheet's tiny thickness to
+    the full 10 bits, and the interleaved z bits of its wrinkles would scatter neighbours across
+    the curve (cluster boxes of a cloth spanned half the sheet).
+    """
     lo, hi = centroids.min(axis=0), centroids.max(axis=0)
-    q = ((centroids - lo) / np.where(hi > lo, hi - lo, 1.0) * 1023).astype(np.int64)
+    ext = float((hi - lo).max())
+    q = ((centroids - lo) / (ext if ext > 0 else 1.0) * 1023).astype(np.int64)
     code = np.zeros(len(centroids), dtype=np.int64)
     for bit in range(10):
         for ax in range(3):
