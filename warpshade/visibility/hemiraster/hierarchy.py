@@ -215,18 +215,19 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int]):
 
 
 def assign_to_coarse(points: np.ndarray, faces: np.ndarray, cpoints: np.ndarray, cfaces: np.ndarray,
-                     candidates: int = 8) -> tuple[np.ndarray, np.ndarray]:
+                     candidates: int = 8, reach: float = 0.5, tol: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
     """Which coarse triangles each fine triangle belongs to (rest pose).
 
     *Primary*: the coarse triangle nearest to the fine triangle's centroid (each fine triangle has
-    one); the bounds and deviation that decide refinement are taken over those, so they stay
-    tight. *Extras* make a refined coarse triangle's fine triangles cover its whole outline where it
-    meets unrefined neighbours (no crack; a closed shell stays closed): the coarse triangle nearest
-    to each fine corner (a fine triangle straddling a seam belongs to both sides), and around each
-    coarse vertex, the fine triangles at the fine vertex nearest to it belong to every coarse
-    triangle of the coarse vertex's fan (nearest-triangle regions meet ambiguously there).
-    Candidates are the ``candidates`` coarse triangles with the nearest centroids (a KD-tree); the
-    exact point-triangle distance decides.
+    one); the bounds and deviation that decide refinement are taken over those, so they stay tight.
+    *Extras* make a refined coarse triangle's fine triangles cover everything it stands in for, so
+    no light leaks where a refined coarse triangle meets unrefined ones (a closed shell stays closed;
+    in a thin fold decimated into one layer, both layers): every fine triangle with its centroid or
+    a corner inside the coarse triangle's prism (projection inside its outline, widened by ``tol``
+    of its barycentric range, and nearer to its plane than ``reach`` times its radius) or nearest
+    to it; and around each coarse vertex, the fine triangles at the fine vertex nearest to it
+    belong to every coarse triangle of the coarse vertex's fan (nearest regions meet ambiguously).
+    Candidates are the ``candidates`` coarse triangles with the nearest centroids (a KD-tree).
 
     Returns:
         ``(primary, extra)``: primary shape (F,) int64; extra shape (P, 2) int64 unique (fine, coarse)
@@ -235,27 +236,52 @@ def assign_to_coarse(points: np.ndarray, faces: np.ndarray, cpoints: np.ndarray,
     from scipy.spatial import cKDTree
 
     pts = np.asarray(points, dtype=np.float64)
+    cp_ = np.asarray(cpoints, dtype=np.float64)
     query = np.concatenate([pts[faces].mean(axis=1)[:, None, :], pts[faces]], axis=1).reshape(-1, 3)
-    a, b, c = (np.asarray(cpoints, dtype=np.float64)[cfaces[:, k]] for k in range(3))
+    a, b, c = (cp_[cfaces[:, k]] for k in range(3))
+    cen = (a + b + c) / 3.0
+    radius = np.maximum(np.maximum(np.linalg.norm(a - cen, axis=1), np.linalg.norm(b - cen, axis=1)),
+                        np.linalg.norm(c - cen, axis=1))
     k = min(candidates, len(cfaces))
-    _, cand = cKDTree((a + b + c) / 3.0).query(query, k=k)
+    _, cand = cKDTree(cen).query(query, k=k)
     cand = cand.reshape(len(query), k)
-    best = np.zeros(len(query), np.int64)
+    primary = np.zeros(len(faces), np.int64)
+    fine_all, coarse_all = [], []
     for s0 in range(0, len(query), 65536):
-        q = query[s0:s0 + 65536]
+        q = query[s0:s0 + 65536, None, :]
         cc = cand[s0:s0 + 65536]
-        cp, _ = closest_points_on_triangles(q[:, None, :], a[cc], b[cc], c[cc])
-        best[s0:s0 + 65536] = cc[np.arange(len(q)), np.argmin(((cp - q[:, None, :]) ** 2).sum(-1), axis=1)]
-    best = best.reshape(len(faces), 4)
-    primary = best[:, 0].copy()
-    pairs = [np.stack([np.repeat(np.arange(len(faces)), 3), best[:, 1:].ravel()], 1)]
+        qa, qb, qc = a[cc], b[cc], c[cc]
+        cp, _ = closest_points_on_triangles(q, qa, qb, qc)
+        dist = ((cp - q) ** 2).sum(-1)
+        rows = np.arange(s0, s0 + len(cc))
+        is_cent = rows % 4 == 0
+        primary[rows[is_cent] // 4] = cc[is_cent, np.argmin(dist[is_cent], axis=1)]
+        # prism test: barycentrics of the projection onto the coarse plane, and the height
+        e1, e2, d = qb - qa, qc - qa, q - qa
+        nrm = np.cross(e1, e2)
+        area2 = np.einsum("...i,...i", nrm, nrm)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = np.einsum("...i,...i", np.cross(d, e2), nrm) / area2
+            w = np.einsum("...i,...i", np.cross(e1, d), nrm) / area2
+            h = np.abs(np.einsum("...i,...i", d, nrm)) / np.sqrt(area2)
+        inside = (u >= -tol) & (w >= -tol) & (u + w <= 1 + tol) & (h <= reach * radius[cc]) & (area2 > 0)
+        r_i, c_i = np.nonzero(inside)
+        fine_all.append(rows[r_i] // 4)
+        coarse_all.append(cc[r_i, c_i])
+        # the coarse triangle nearest to each corner (seams between coarse triangles)
+        fine_all.append(rows // 4)
+        coarse_all.append(cc[np.arange(len(cc)), np.argmin(dist, axis=1)])
+    # around each coarse vertex, the fine triangles at the fine vertex nearest to it belong to every
+    # coarse triangle of its fan (nearest-triangle regions meet ambiguously there)
     vf = vertex_faces(faces, len(pts))
-    cvf = vertex_faces(cfaces, len(cpoints))
-    _, nearest_fine = cKDTree(pts).query(np.asarray(cpoints, dtype=np.float64))
-    for cv in range(len(cpoints)):
+    cvf = vertex_faces(cfaces, len(cp_))
+    _, nearest_fine = cKDTree(pts).query(cp_)
+    for cv in range(len(cp_)):
         if len(cvf[cv]) and len(vf[nearest_fine[cv]]):
-            pairs.append(np.stack(np.meshgrid(vf[nearest_fine[cv]], cvf[cv], indexing="ij"), -1).reshape(-1, 2))
-    pairs = np.unique(np.concatenate(pairs), axis=0)
+            fan = np.stack(np.meshgrid(vf[nearest_fine[cv]], cvf[cv], indexing="ij"), -1).reshape(-1, 2)
+            fine_all.append(fan[:, 0])
+            coarse_all.append(fan[:, 1])
+    pairs = np.unique(np.stack([np.concatenate(fine_all), np.concatenate(coarse_all)], 1), axis=0)
     extra = pairs[pairs[:, 1] != primary[pairs[:, 0]]]
     return primary, extra
 
