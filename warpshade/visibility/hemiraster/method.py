@@ -6,7 +6,10 @@ each triangle's image is the AND of three plane masks from a cube-map LUT, occlu
 (§3.1.1). The mask is downsampled to coverage fractions and integrated against the SH basis into
 the diffuse transfer of CONTRACTS.md §2 (or the glossy Phong transfer of eq. 3 for a view
 direction). The optimizations of §3.2 (two-level hierarchy, hierarchical cluster culling, PVS) are
-each switchable. No precomputation depends on the pose: ``update(points)`` reuses all static tables.
+each switchable. Beyond the paper, the coarse far field is refined back to the fine triangles it
+stands for wherever it comes near a receiver (relative to how far it deviates from them this
+frame), so surfaces in contact, folds and static ``occluders`` are rasterized exactly there. No
+precomputation depends on the pose: ``update(points)`` reuses all static tables.
 """
 
 from __future__ import annotations
@@ -80,7 +83,7 @@ class HemirasterTransfer(TransferMethod):
     name = "hemiraster"
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 48,
-                 downsample: int = 1, ring: int = 4, coarse: int = 512, cull: bool = True, cluster: int = 16,
+                 downsample: int = 1, ring: int = 1, coarse: int = 512, cull: bool = True, cluster: int = 16,
                  exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
                  refine: float = 2.0, occluders: list[TriMesh] | None = None):
@@ -280,8 +283,8 @@ class HemirasterTransfer(TransferMethod):
                             help="plane LUT cube-map resolution R (6*R*R planes; default 48)")
         parser.add_argument("--downsample", type=int, default=1, choices=(1, 2, 4, 8),
                             help="coverage block size in pixels (default 1)")
-        parser.add_argument("--ring", type=int, default=4, choices=(0, 1, 2, 3, 4),
-                            help="full-resolution k-ring (default 4; 0: spatial refinement only)")
+        parser.add_argument("--ring", type=int, default=1, choices=(0, 1, 2, 3, 4),
+                            help="full-resolution k-ring (default 1; 0: spatial refinement only)")
         parser.add_argument("--refine", type=float, default=2.0,
                             help="replace coarse triangles nearer than this many times their deviation from the fine "
                                  "surface by their fine triangles (contact, folds; default 2; 0: off)")
@@ -314,13 +317,14 @@ class HemirasterTransfer(TransferMethod):
     @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
         if quick:
-            return [{}, {"min_image": 0.0}, {"mask": 16}]
-        out = [{}, {"lut": 64, "downsample": 2, "min_image": 0.0}]  # the defaults before the tiny-image cull
+            return [{}, {"refine": 0.0}, {"mask": 16}]
+        out = [{}, {"ring": 4, "refine": 0.0}]  # the defaults before the spatial refinement (wrong in contact)
         out += [{"min_image": x} for x in (0.0, 0.25, 1.0)]
         out += [{"mask": m} for m in (8, 16, 64)]
         out += [{"lut": r} for r in (32, 64, 128)]
         out += [{"downsample": s} for s in (2, 4)]
-        out += [{"ring": 2}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 0}, {"cull": False}]
+        out += [{"refine": x} for x in (1.0, 4.0)]
+        out += [{"ring": 0}, {"ring": 2}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 0}, {"cull": False}]
         return out
 
     def knobs(self) -> dict:
