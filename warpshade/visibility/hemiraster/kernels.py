@@ -20,9 +20,17 @@ class PlaneLut:
     """The plane LUT and how triangles use it (see :mod:`.tables`)."""
 
     rows: wp.array2d[wp.uint64]
-    """Mask words above each quantised plane, shape (6R², W), dtype uint64."""
+    """Mask words above each quantised plane of the positive cube faces, shape (3R², W), dtype uint64.
+    A negative face's row is the complement (within the valid pixels) of its mirror cell's row
+    (:mod:`.tables`), so only half the table is stored: it stays in cache twice as well."""
     occupancy: wp.array[wp.uint64]
-    """Bitmap of the non-zero words of each row, shape (6R²,), dtype uint64."""
+    """Bitmap of the non-zero words of each row, shape (3R²,), dtype uint64."""
+    full: wp.array[wp.uint64]
+    """Bitmap of the words of each row holding every valid pixel (zero in the complement), shape (3R²,)."""
+    valid: wp.array[wp.uint64]
+    """Valid pixels of each mask word, shape (W,), dtype uint64."""
+    valid_occupancy: wp.uint64
+    """Bitmap of the words holding any valid pixel."""
     debruijn: wp.array[wp.int32]
     """Bit index lookup of the de Bruijn bit scan, shape (64,), dtype int32."""
     res: int
@@ -46,7 +54,10 @@ def popcount64(x: wp.uint64) -> int:
 
 @wp.func
 def cube_cell(n: wp.vec3, res: int) -> int:
-    """LUT row of a plane normal (cube-map cell; convention in :mod:`.tables`, mirrored by ``cube_cell_np``).
+    """LUT row of a plane normal, encoded ``2·cell + negative`` (cube-map convention in :mod:`.tables`,
+    mirrored by ``cube_cell_np``): ``cell`` indexes the stored positive faces; a normal on a
+    negative face uses the complement of the row of ``-n``'s cell, which is exactly its own row
+    (the negative face is indexed as the mirror of the positive one).
 
     Branch-free selects: the major axis changes from edge to edge, so branches would mispredict.
     """
@@ -59,19 +70,30 @@ def cube_cell(n: wp.vec3, res: int) -> int:
     u = wp.where(use_x, n[1], wp.where(use_y, n[2], n[0]))
     v = wp.where(use_x, n[2], wp.where(use_y, n[0], n[1]))
     neg = major < 0.0
-    # index the positive face and mirror for the negative one, so that cell(-n) is exactly the
-    # mirror of cell(n) (also when u or v is exactly 0): the two triangles sharing an edge then get
-    # complementary masks along it (no crack, no overlap)
+    # the cell of -n on the positive face: cell(-n) and cell(n) are then exact mirrors (also when u
+    # or v is exactly 0), so the two triangles sharing an edge get complementary masks (no crack)
     u = wp.where(neg, -u, u)
     v = wp.where(neg, -v, v)
-    face = wp.where(use_x, 0, wp.where(use_y, 2, 4)) + wp.where(neg, 1, 0)
+    axis = wp.where(use_x, 0, wp.where(use_y, 1, 2))
     half = 0.5 * float(res)
     inv = half / wp.abs(major)
     iu = wp.clamp(int(u * inv + half), 0, res - 1)
     iv = wp.clamp(int(v * inv + half), 0, res - 1)
-    iu = wp.where(neg, res - 1 - iu, iu)
-    iv = wp.where(neg, res - 1 - iv, iv)
-    return (face * res + iu) * res + iv
+    return 2 * ((axis * res + iu) * res + iv) + wp.where(neg, 1, 0)
+
+
+@wp.func
+def lut_occupancy(lut: PlaneLut, code: int) -> wp.uint64:
+    """Non-zero words of the row of ``code`` (:func:`cube_cell`)."""
+    c = code >> 1
+    return wp.where((code & 1) != 0, ~lut.full[c] & lut.valid_occupancy, lut.occupancy[c])
+
+
+@wp.func
+def lut_word(lut: PlaneLut, code: int, w: int) -> wp.uint64:
+    """Word ``w`` of the row of ``code`` (:func:`cube_cell`)."""
+    x = lut.rows[code >> 1, w]
+    return wp.where((code & 1) != 0, ~x & lut.valid[w], x)
 
 
 @wp.func
@@ -225,13 +247,13 @@ def rasterize_triangle(
     # occupancy bitmaps (which words of each row are non-zero) live apart from the rows: they stay in
     # cache, and only words all three edge masks share are fetched (set bits visited in order with
     # a de Bruijn bit scan, no branch per word)
-    occ = lut.occupancy[i0] & lut.occupancy[i1] & lut.occupancy[i2]
+    occ = lut_occupancy(lut, i0) & lut_occupancy(lut, i1) & lut_occupancy(lut, i2)
     hit = wp.uint64(0)
     while occ != wp.uint64(0):
         low = occ & (~occ + wp.uint64(1))
         w = lut.debruijn[int((low * wp.uint64(0x03F79D71B4CB0A89)) >> wp.uint64(58))]
         occ = occ ^ low
-        m = lut.rows[i0, w] & lut.rows[i1, w] & lut.rows[i2, w]
+        m = lut_word(lut, i0, w) & lut_word(lut, i1, w) & lut_word(lut, i2, w)
         hit = hit | m
         mask[row, w] = mask[row, w] | m
     if hit != wp.uint64(0):

@@ -125,8 +125,12 @@ class HemirasterTransfer(TransferMethod):
         lut_np, self._lut_seconds, self._lut_source = tables.build_lut(self.mask_res, self.lut_res, lut_dir, d)
         self._words = tables.words_per_mask(self.mask_res)
         self._lut = PlaneLut()
-        self._lut.rows = wp.array(np.ascontiguousarray(lut_np[:, :self._words]), dtype=wp.uint64, device=d)
-        self._lut.occupancy = wp.array(np.ascontiguousarray(lut_np[:, self._words]), dtype=wp.uint64, device=d)
+        half = tables.positive_half(lut_np, self.mask_res, self.lut_res)
+        self._lut.rows = wp.array(half["rows"], dtype=wp.uint64, device=d)
+        self._lut.occupancy = wp.array(half["occupancy"], dtype=wp.uint64, device=d)
+        self._lut.full = wp.array(half["full"], dtype=wp.uint64, device=d)
+        self._lut.valid = wp.array(half["valid"], dtype=wp.uint64, device=d)
+        self._lut.valid_occupancy = wp.uint64(int(half["valid_occupancy"]))
         self._lut.debruijn = wp.array(tables.debruijn_table(), dtype=wp.int32, device=d)
         self._lut.res = self.lut_res
         self._lut.words = self._words

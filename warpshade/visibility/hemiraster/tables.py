@@ -348,9 +348,33 @@ def debruijn_table() -> np.ndarray:
     return out
 
 
+def positive_half(table: np.ndarray, mask: int, lut: int) -> dict:
+    """The half of the plane LUT the rasterizer keeps: the rows of the positive cube faces.
+
+    A negative face's row is the complement within the valid pixels of the row of its mirror
+    cell on the positive face (the plane ``-n`` keeps exactly the other pixels; tested bit for bit),
+    so the kernel complements on the fly and the table it reads is half as large.
+
+    Returns:
+        dict of ``rows`` (3R², W) uint64, ``occupancy`` (3R²,) uint64 (non-zero words), ``full``
+        (3R²,) uint64 (words holding every valid pixel), ``valid`` (W,) uint64 (valid pixels per
+        word), ``valid_occupancy`` int (words holding any valid pixel).
+    """
+    w = words_per_mask(mask)
+    pos = table.reshape(6, lut * lut, w + 1)[0::2].reshape(3 * lut * lut, w + 1)
+    valid = pack_bits(pixel_directions(mask)[1])
+    rows = np.ascontiguousarray(pos[:, :w])
+    full_words = (rows == valid[None, :]) & (valid[None, :] != 0)
+    weights = np.uint64(1) << np.arange(w, dtype=np.uint64)
+    return {"rows": rows, "occupancy": np.ascontiguousarray(pos[:, w]),
+            "full": (full_words.astype(np.uint64) * weights).sum(axis=1, dtype=np.uint64),
+            "valid": valid, "valid_occupancy": int(((valid != 0).astype(np.uint64) * weights).sum(dtype=np.uint64))}
+
+
 def lut_bytes(mask: int, lut: int) -> int:
-    """Memory of the plane LUT [bytes]."""
-    return 6 * lut * lut * (words_per_mask(mask) + 1) * 8
+    """Memory of the plane LUT the rasterizer reads [bytes]: rows, occupancy and full-word bitmaps
+    of the positive cube faces (:func:`positive_half`)."""
+    return 3 * lut * lut * (words_per_mask(mask) + 2) * 8
 
 
 def projected_solid_angle_np(poly: np.ndarray) -> float:
