@@ -567,19 +567,17 @@ def rasterize_far(
         ``coarse + 2 * fine``: coarse is 1 when the blocker itself was rasterized, fine the number
         of fine triangles rasterized in its place.
     """
-    if use_excl != 0:
-        if excluded(excl, v, bsource[t]):
-            if use_excl == 1:  # left to the k-ring (paper scheme)
-                return 0
-            # stands for part of the receiver's k-ring: always its fine triangles
-            return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_mid, group_tris,
-                                       group_owner, refine, blo, bhi, bdev, bsource, use_excl, excl, frame, lut,
-                                       mask, record, hits)
-    if near:
-        if refine_here(p, blo[t], bhi[t], bdev[t], refine):
-            return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_mid, group_tris,
-                                       group_owner, refine, blo, bhi, bdev, bsource, use_excl, excl, frame, lut,
-                                       mask, record, hits)
+    fine = False
+    if use_excl != 0 and excluded(excl, v, bsource[t]):
+        if use_excl == 1:  # left to the k-ring (paper scheme)
+            return 0
+        fine = True  # stands for part of the receiver's k-ring: always its fine triangles
+    elif near:
+        fine = refine_here(p, blo[t], bhi[t], bdev[t], refine)
+    if fine:
+        return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_mid, group_tris,
+                                   group_owner, refine, blo, bhi, bdev, bsource, use_excl, excl, frame, lut, mask,
+                                   record, hits)
     return rasterize_blocker(t, v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, frame, lut, mask, record,
                              hits)
 
@@ -721,9 +719,9 @@ def rasterize_transfer(
     near_all = refine > 0.0
     if use_pvs != 0:
         for r in range(pvs_start[v], pvs_start[v + 1]):
-            res = rasterize_far(pvs_tris[r], near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev, group_start,
-                                group_mid, group_tris, group_owner, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame,
-                                lut, mask, record, hits)
+            res = rasterize_far(pvs_tris[r], near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi,
+                                bdev, group_start, group_mid, group_tris, group_owner, bpoints, bfaces, bplane,
+                                bsphere, bsource, skip_incident, use_excl, excl, frame, lut, mask, record, hits)
             count += (res & 1) + (res >> 1)
             fine += res >> 1
     elif use_cull != 0:
@@ -734,16 +732,17 @@ def rasterize_transfer(
                         # per-blocker refinement tests only in clusters that come near enough
                         near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], refine * cluster_reach[c])
                         for t in range(cluster_start[c], cluster_start[c + 1]):
-                            res = rasterize_far(t, near, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev,
-                                                group_start, group_mid, group_tris, group_owner, bpoints, bfaces, bplane, bsphere, bsource,
-                                                skip_incident, use_excl, excl, frame, lut, mask, record, hits)
+                            res = rasterize_far(t, near, v, p, n, points, faces, fplane, fsphere, refine, blo,
+                                                bhi, bdev, group_start, group_mid, group_tris, group_owner, bpoints,
+                                                bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl,
+                                                frame, lut, mask, record, hits)
                             count += (res & 1) + (res >> 1)
                             fine += res >> 1
     else:
         for t in range(bfaces.shape[0]):
-            res = rasterize_far(t, near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev, group_start, group_mid,
-                                group_tris, group_owner, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl, frame, lut, mask,
-                                record, hits)
+            res = rasterize_far(t, near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev,
+                                group_start, group_mid, group_tris, group_owner, bpoints, bfaces, bplane, bsphere,
+                                bsource, skip_incident, use_excl, excl, frame, lut, mask, record, hits)
             count += (res & 1) + (res >> 1)
             fine += res >> 1
     refined[v] = fine
