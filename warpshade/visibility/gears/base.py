@@ -167,6 +167,11 @@ class AreaVisibilityMethod(ABC):
     def knobs_from_args(cls, args: argparse.Namespace) -> dict:
         return {}
 
+    @classmethod
+    def sweep(cls, quick: bool = False) -> list[dict]:
+        """Constructor keyword arguments ``warpshade bench`` measures (``quick``: a few); includes the defaults."""
+        return [{"k": 16}]
+
     # -- per frame ---------------------------------------------------------------------------
     def update(self, points=None, normals=None) -> wp.array:
         """Recompute :attr:`visibility` (and :attr:`masks`, :attr:`form_factor`) for new positions.
