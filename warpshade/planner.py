@@ -301,7 +301,9 @@ def _light_moves(light) -> bool:
 
 def _is_rect(light) -> bool:
     """A rect light, as a :class:`warpshade.lighting.RectLight` or a scene file's ``LightSpec``."""
-    return type(light).__name__ == "RectLight" or getattr(light, "kind", None) == "rect"
+    from .lighting import RectLight
+
+    return isinstance(light, RectLight) or getattr(light, "kind", None) == "rect"
 
 
 def _is_local(light) -> bool:
