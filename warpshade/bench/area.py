@@ -102,6 +102,8 @@ def measure_area(method: str, kwargs: dict, bm, light, truth: np.ndarray, repeat
     rep = repeat if first < slow_seconds else 1
     seconds = median_seconds(m.update, repeat=rep, warmup=0)
     vis = m.visibility.numpy()
+    if bm.judged is not None:  # as the transfer records: buried vertices are not judged
+        vis, truth = vis[bm.judged], truth[bm.judged]
     return {
         "method": method,
         "mesh": bm.name,
@@ -114,6 +116,7 @@ def measure_area(method: str, kwargs: dict, bm, light, truth: np.ndarray, repeat
         "seconds": seconds,
         "repeat": rep,
         "build_seconds": build_seconds,
+        "judged_vertices": int(len(vis)),
         **area_errors(vis, truth),
         "finite": bool(np.isfinite(vis).all()),
         "stats": m.stats(),

@@ -16,7 +16,8 @@ What a record measures (one method configuration on one mesh):
   persistent structures and outputs; a ``wp.Mesh`` BVH is estimated at 64 bytes per triangle).
 * ``error_mean``/``error_p95``/``error_max``: :func:`warpshade.metrics.error_summary` of the transfer
   against the cached ground truth (:mod:`.reference_cache`), on the method's ``order*order``
-  coefficients.
+  coefficients, over the mesh's judged vertices (``judged_vertices``: all but the character's buried
+  ones, :attr:`.meshes.BenchMesh.judged`).
 * ``radiance_error_<env>``: :func:`warpshade.metrics.radiance_error` of white-Lambertian exit radiance
   under each environment of :mod:`.environments` (band-limited to order 6, so lower orders also pay
   for the bands they drop).
@@ -186,6 +187,8 @@ def measure(cls, config: dict, bm: BenchMesh, truth: np.ndarray, lights: dict, s
     seconds = median_seconds(method.update, repeat=repeat, warmup=0)
     transfer = method.transfer_numpy()
     n = transfer.shape[1]
+    if bm.judged is not None:  # errors over the judged vertices only (time covers all)
+        transfer, truth = transfer[bm.judged], truth[bm.judged]
     rec = {
         "method": cls.name,
         "mesh": bm.name,
@@ -197,6 +200,7 @@ def measure(cls, config: dict, bm: BenchMesh, truth: np.ndarray, lights: dict, s
         "seconds": seconds,
         "repeat": repeat,
         "build_seconds": build_seconds,
+        "judged_vertices": int(len(transfer)),
         **error_summary(transfer, truth[:, :n]),
     }
     for env, light in lights.items():
