@@ -21,6 +21,7 @@ Success criteria: the fitted constants reproduce each measurement within a facto
 How to run::
 
     python benchmarks/planner_costs.py [--order 4] [--repeat 3] [--json PATH] [--write-data]
+    python benchmarks/planner_costs.py --loo     # leave-one-mesh-out check of the method cost fit
 
 ``--write-data`` writes ``warpshade/data/pass_costs.json`` (what the planner loads). Timings: median
 of ``--repeat`` runs after one warm-up run (kernel compilation excluded), wall time on a shared,
@@ -49,7 +50,11 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", default=None, help="write all measurements and the fitted constants here")
     ap.add_argument("--write-data", action="store_true", help="write warpshade/data/pass_costs.json")
+    ap.add_argument("--loo", action="store_true",
+                    help="only: leave-one-mesh-out check of the planner's method cost fit on the shipped frontier")
     args = ap.parse_args(argv)
+    if args.loo:
+        return leave_one_out()
 
     import warp as wp
 
@@ -146,6 +151,31 @@ def main(argv=None) -> int:
         with open(DATA, "w") as f:
             json.dump({"constants": consts, "order": order, "note": note}, f, indent=1)
         print(f"wrote {os.path.normpath(DATA)}")
+    return 0
+
+
+def leave_one_out() -> int:
+    """Predict each frontier timing from the configuration's other meshes: the V/F fit
+    (:func:`warpshade.planner.estimate_seconds` with triangles) against scaling the nearest mesh by V."""
+    from warpshade.planner import estimate_seconds, load_frontier
+
+    fit, near = [], []
+    for c in load_frontier()["configs"]:
+        best = {}
+        for t in c["timings"]:  # fastest timing per mesh, as the planner
+            if t["mesh"] not in best or t["seconds"] < best[t["mesh"]]["seconds"]:
+                best[t["mesh"]] = t
+        if len(best) < 4:  # three left to fit
+            continue
+        for m, t in best.items():
+            rest = {"timings": [x for k, x in best.items() if k != m]}
+            fit.append(abs(np.log(estimate_seconds(rest, t["vertices"], triangles=t["triangles"]) / t["seconds"])))
+            near.append(abs(np.log(estimate_seconds(rest, t["vertices"]) / t["seconds"])))
+    print(f"leave-one-mesh-out over {len(fit)} timings (configurations measured on >= 4 meshes), "
+          "factor between predicted and measured:")
+    for name, e in (("fit a V + b V log2 F + c V F", fit), ("nearest mesh scaled by V", near)):
+        e = np.exp(np.array(e))
+        print(f"  {name:<30} median {np.median(e):.2f}  90 % {np.percentile(e, 90):.2f}  worst {e.max():.2f}")
     return 0
 
 
