@@ -161,3 +161,23 @@ def test_budget_choice_spells_out_measured_knobs_for_the_run():
     fr = {"configs": [{**FRONTIER["configs"][0], "kwargs": {}}]}
     plan = make_plan(Scene([ico()], frames=2), max_error=0.02, frontier=fr)
     assert plan.object("ball").knobs == {"rays": 1024}
+
+
+def test_plan_cli_on_shipped_rect_light_scene(tmp_path):
+    import json
+    import os
+
+    from warpshade.cli import main as cli_main
+
+    scene = os.path.join(os.path.dirname(__file__), "..", "usd_scenes", "rect_light.usda")
+    out = tmp_path / "plan.json"
+    assert cli_main(["plan", scene, "--json", str(out)]) == 0
+    plan = json.loads(out.read_text())
+    # what `warpshade run` does with this scene: order 4, one reference group (256 rays) of all three
+    # objects, recomputed every frame because the cloth moves; the UsdLux RectLight is seen
+    assert plan["order"] == 4 and "GEARS area-light structures" in plan["structures"]
+    (g,) = plan["groups"]
+    assert g["method"] == "reference" and g["knobs"] == {"rays": 256} and g["moves"]
+    assert g["names"] == ["/World/Ground", "/World/Ball", "/World/Cloth"] and g["vertices"] == 2820
+    assert g["seconds_lights"] > 0 and g["seconds_transfer"] > 0 and g["seconds_between"] == 0
+    assert plan["run_seconds_per_frame"] == pytest.approx(g["seconds_frame"])
