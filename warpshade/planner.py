@@ -368,6 +368,12 @@ def find_config(frontier: dict, method: str, order: int, knobs: dict) -> tuple[d
         match = [c for c in frontier["configs"] if _matches(c, method, o, knobs)]
         if match:
             cfg = max(match, key=lambda c: sum(c["knobs"].get(k) == v for k, v in defaults.items()))
+            if "kwargs" in cfg:
+                # the same constructor call may report different knobs per mesh (e.g. disks' sides=auto
+                # resolving to one or two sides): its timings on every mesh belong to one cost fit
+                same = [c for c in frontier["configs"] if c["method"] == method and c["order"] == o
+                        and c.get("kwargs") == cfg["kwargs"]]
+                cfg = {**cfg, "timings": [t for c in same for t in c["timings"]]}
             return cfg, ("" if o == order else f"cost measured at order {o}")
     return None, ""
 
