@@ -273,7 +273,8 @@ class Plan:
             lines.append(f"      passes per frame: {', '.join(o.passes) or 'reuse colours'}")
             lines.append(f"      est. first frame {o.seconds_first * 1e3:.1f} ms, later frames {o.seconds_frame * 1e3:.2f} ms"
                          + (f" — {o.reason}" if o.reason else ""))
-        lines.append(f"  estimated cost: {self.seconds_per_frame * 1e3:.2f} ms per frame after the first; "
+        lines.append(f"  estimated cost of what the scene requires (each object on its own, reuse applied): "
+                     f"{self.seconds_per_frame * 1e3:.2f} ms per frame after the first; "
                      f"{self.seconds_total:.2f} s for {self.frames} frames")
         if self.groups:
             lines.append(f"  warpshade run executes {len(self.groups)} shading group(s) (objects sharing a method are one mesh):")
