@@ -2,7 +2,8 @@
 
 :func:`run_bench` sweeps each registered method's ``sweep(quick)`` knobs and SH orders over the
 standard mesh set (:mod:`.meshes`) and judges transfer and radiance against a cached ray-traced
-ground truth, and GEARS area-light visibility against ray-traced area-light truth (:mod:`.area`); :mod:`.report` writes JSON, CSV, the Pareto plot and the planner's frontier file.
+ground truth, and GEARS area-light visibility against ray-traced area-light truth (:mod:`.area`);
+:mod:`.report` writes JSON, CSV, the Pareto plot and the planner's frontier file.
 """
 
 from .area import AREA_METHODS, area_errors, bench_light, run_area
