@@ -43,6 +43,42 @@ class PlaneLut:
     """Skip triangles whose projected solid angle bound is below this disk area (0: keep all)."""
 
 
+@wp.struct
+class FineMesh:
+    """The full-resolution blocker scene (receiver mesh, then static occluders) this frame."""
+
+    points: wp.array[wp.vec3]
+    """Vertex positions [m], shape (V + occluder vertices,), dtype vec3; the first V are the receivers."""
+    faces: wp.array2d[wp.int32]
+    """Triangles, shape (F + occluder triangles, 3), dtype int32."""
+    plane: wp.array[wp.vec4]
+    """Per triangle (N, N·a) with N = (b-a)×(c-a) (:func:`triangle_bounds`), dtype vec4."""
+    sphere: wp.array[wp.vec4]
+    """Per triangle bounding sphere (centroid [m], radius [m]), dtype vec4."""
+
+
+@wp.struct
+class Refinement:
+    """Coarse-to-fine map and per-frame bounds of the spatial near-field refinement (:mod:`.hierarchy`)."""
+
+    refine: float
+    """Refinement radius in deviations (0: off)."""
+    lo: wp.array[wp.vec3]
+    """Per blocker: box corner [m] over it and its fine triangles, shape (Fc,), dtype vec3."""
+    hi: wp.array[wp.vec3]
+    """Per blocker: the other box corner [m], shape (Fc,), dtype vec3."""
+    dev: wp.array[float]
+    """Per blocker: deviation from its primary fine triangles [m] (:func:`refit_blocker_boxes`), shape (Fc,)."""
+    start: wp.array[wp.int32]
+    """CSR offsets into ``tris`` per blocker, shape (Fc+1,), dtype int32."""
+    mid: wp.array[wp.int32]
+    """Per blocker: end of its primary fine triangles (extras follow), shape (Fc,), dtype int32."""
+    tris: wp.array[wp.int32]
+    """Fine triangle indices, primaries then extras per blocker, dtype int32."""
+    owner: wp.array[wp.int32]
+    """Primary blocker of each entry of ``tris`` (reordered index), dtype int32."""
+
+
 @wp.func
 def popcount64(x: wp.uint64) -> int:
     """Number of set bits (SWAR; Warp has no popcount intrinsic)."""
@@ -411,18 +447,8 @@ def rasterize_group(
     v: int,
     p: wp.vec3,
     n: wp.vec3,
-    points: wp.array[wp.vec3],
-    faces: wp.array2d[wp.int32],
-    fplane: wp.array[wp.vec4],
-    fsphere: wp.array[wp.vec4],
-    group_start: wp.array[wp.int32],
-    group_mid: wp.array[wp.int32],
-    group_tris: wp.array[wp.int32],
-    group_owner: wp.array[wp.int32],
-    refine: float,
-    blo: wp.array[wp.vec3],
-    bhi: wp.array[wp.vec3],
-    bdev: wp.array[float],
+    fine: FineMesh,
+    groups: Refinement,
     bsource: wp.array[wp.int32],
     near_mode: int,
     excl: wp.array2d[wp.uint32],
@@ -434,7 +460,7 @@ def rasterize_group(
 ) -> int:
     """Rasterize the fine triangles blocker ``t`` stands for (spatial near field); returns how many.
 
-    The seam-cover extras (``group_mid[t]`` on) are skipped when their primary coarse triangle is
+    The seam-cover extras (``groups.mid[t]`` on) are skipped when their primary coarse triangle is
     refined for this receiver too: it rasterizes them itself (in PVS mode, when it is in the set:
     it was refined whenever the extra set a bit while recording). Triangles incident to the
     receiver are skipped (they contain it: no solid angle); a triangle rasterized twice (also in a
@@ -442,24 +468,24 @@ def rasterize_group(
     """
     count = int(0)
     hit = int(0)
-    for r in range(group_start[t], group_start[t + 1]):
-        f = group_tris[r]
-        if skip_early(fplane[f], fsphere[f], p, n, lut.backface):
+    for r in range(groups.start[t], groups.start[t + 1]):
+        f = groups.tris[r]
+        if skip_early(fine.plane[f], fine.sphere[f], p, n, lut.backface):
             continue
-        if r >= group_mid[t]:
-            o = group_owner[r]
+        if r >= groups.mid[t]:
+            o = groups.owner[r]
             if near_mode == 2:
                 if excluded(excl, v, bsource[o]):
                     continue
-            if refine > 0.0:
-                if refine_here(p, blo[o], bhi[o], bdev[o], refine):
+            if groups.refine > 0.0:
+                if refine_here(p, groups.lo[o], groups.hi[o], groups.dev[o], groups.refine):
                     continue
-        i = faces[f, 0]
-        j = faces[f, 1]
-        k = faces[f, 2]
+        i = fine.faces[f, 0]
+        j = fine.faces[f, 1]
+        k = fine.faces[f, 2]
         if i == v or j == v or k == v:
             continue
-        res = rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, mask, v)
+        res = rasterize_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, i, j, k, frame, lut, mask, v)
         count += wp.min(1, res)
         hit = wp.max(hit, res)
     if record != 0 and hit == 2:
@@ -534,18 +560,8 @@ def rasterize_far(
     v: int,
     p: wp.vec3,
     n: wp.vec3,
-    points: wp.array[wp.vec3],
-    faces: wp.array2d[wp.int32],
-    fplane: wp.array[wp.vec4],
-    fsphere: wp.array[wp.vec4],
-    refine: float,
-    blo: wp.array[wp.vec3],
-    bhi: wp.array[wp.vec3],
-    bdev: wp.array[float],
-    group_start: wp.array[wp.int32],
-    group_mid: wp.array[wp.int32],
-    group_tris: wp.array[wp.int32],
-    group_owner: wp.array[wp.int32],
+    fine: FineMesh,
+    groups: Refinement,
     bpoints: wp.array[wp.vec3],
     bfaces: wp.array2d[wp.int32],
     bplane: wp.array[wp.vec4],
@@ -567,17 +583,15 @@ def rasterize_far(
         ``coarse + 2 * fine``: coarse is 1 when the blocker itself was rasterized, fine the number
         of fine triangles rasterized in its place.
     """
-    fine = False
+    use_fine = False
     if use_excl != 0 and excluded(excl, v, bsource[t]):
         if use_excl == 1:  # left to the k-ring (paper scheme)
             return 0
-        fine = True  # stands for part of the receiver's k-ring: always its fine triangles
+        use_fine = True  # stands for part of the receiver's k-ring: always its fine triangles
     elif near:
-        fine = refine_here(p, blo[t], bhi[t], bdev[t], refine)
-    if fine:
-        return 2 * rasterize_group(t, v, p, n, points, faces, fplane, fsphere, group_start, group_mid, group_tris,
-                                   group_owner, refine, blo, bhi, bdev, bsource, use_excl, excl, frame, lut, mask,
-                                   record, hits)
+        use_fine = refine_here(p, groups.lo[t], groups.hi[t], groups.dev[t], groups.refine)
+    if use_fine:
+        return 2 * rasterize_group(t, v, p, n, fine, groups, bsource, use_excl, excl, frame, lut, mask, record, hits)
     return rasterize_blocker(t, v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, frame, lut, mask, record,
                              hits)
 
@@ -623,13 +637,10 @@ def push_block(
 
 @wp.kernel
 def rasterize_transfer(
-    points: wp.array[wp.vec3],
+    fine: FineMesh,
     normals: wp.array[wp.vec3],
-    faces: wp.array2d[wp.int32],
     ring_start: wp.array[wp.int32],
     ring_tris: wp.array[wp.int32],
-    fplane: wp.array[wp.vec4],
-    fsphere: wp.array[wp.vec4],
     bpoints: wp.array[wp.vec3],
     bfaces: wp.array2d[wp.int32],
     bplane: wp.array[wp.vec4],
@@ -638,14 +649,7 @@ def rasterize_transfer(
     skip_incident: int,
     use_excl: int,
     excl: wp.array2d[wp.uint32],
-    refine: float,
-    blo: wp.array[wp.vec3],
-    bhi: wp.array[wp.vec3],
-    bdev: wp.array[float],
-    group_start: wp.array[wp.int32],
-    group_mid: wp.array[wp.int32],
-    group_tris: wp.array[wp.int32],
-    group_owner: wp.array[wp.int32],
+    groups: Refinement,
     use_cull: int,
     cluster_start: wp.array[wp.int32],
     cluster_lo: wp.array[wp.vec3],
@@ -697,7 +701,7 @@ def rasterize_transfer(
     rotated to world space band by band by sampling (:func:`.tables.rotation_directions`).
     """
     v = wp.tid()
-    p = points[v]
+    p = fine.points[v]
     n = normals[v]
     frame = orthonormal_basis(n)
     nn = order * order
@@ -707,45 +711,42 @@ def rasterize_transfer(
     # near field at full resolution
     for r in range(ring_start[v], ring_start[v + 1]):
         t = ring_tris[r]
-        if skip_early(fplane[t], fsphere[t], p, n, lut.backface):
+        if skip_early(fine.plane[t], fine.sphere[t], p, n, lut.backface):
             continue
-        i = faces[t, 0]
-        j = faces[t, 1]
-        k = faces[t, 2]
-        count += wp.min(1, rasterize_triangle(points[i] - p, points[j] - p, points[k] - p, i, j, k, frame, lut, mask, v))
+        i = fine.faces[t, 0]
+        j = fine.faces[t, 1]
+        k = fine.faces[t, 2]
+        a = fine.points[i] - p
+        count += wp.min(1, rasterize_triangle(a, fine.points[j] - p, fine.points[k] - p, i, j, k, frame, lut, mask, v))
     # far field: coarse blockers, replaced by their fine triangles near the receiver
     offset = wp.dot(n, p)
-    fine = int(0)
-    near_all = refine > 0.0
+    nfine = int(0)
+    near_all = groups.refine > 0.0
     if use_pvs != 0:
         for r in range(pvs_start[v], pvs_start[v + 1]):
-            res = rasterize_far(pvs_tris[r], near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi,
-                                bdev, group_start, group_mid, group_tris, group_owner, bpoints, bfaces, bplane,
+            res = rasterize_far(pvs_tris[r], near_all, v, p, n, fine, groups, bpoints, bfaces, bplane,
                                 bsphere, bsource, skip_incident, use_excl, excl, frame, lut, mask, record, hits)
             count += (res & 1) + (res >> 1)
-            fine += res >> 1
+            nfine += res >> 1
     elif use_cull != 0:
         for s in range(super_start.shape[0] - 1):
             if box_above_plane(super_lo[s], super_hi[s], n, offset):
                 for c in range(super_start[s], super_start[s + 1]):
                     if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
                         # per-blocker refinement tests only in clusters that come near enough
-                        near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], refine * cluster_reach[c])
+                        near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], groups.refine * cluster_reach[c])
                         for t in range(cluster_start[c], cluster_start[c + 1]):
-                            res = rasterize_far(t, near, v, p, n, points, faces, fplane, fsphere, refine, blo,
-                                                bhi, bdev, group_start, group_mid, group_tris, group_owner, bpoints,
-                                                bfaces, bplane, bsphere, bsource, skip_incident, use_excl, excl,
-                                                frame, lut, mask, record, hits)
+                            res = rasterize_far(t, near, v, p, n, fine, groups, bpoints, bfaces, bplane, bsphere,
+                                                bsource, skip_incident, use_excl, excl, frame, lut, mask, record, hits)
                             count += (res & 1) + (res >> 1)
-                            fine += res >> 1
+                            nfine += res >> 1
     else:
         for t in range(bfaces.shape[0]):
-            res = rasterize_far(t, near_all, v, p, n, points, faces, fplane, fsphere, refine, blo, bhi, bdev,
-                                group_start, group_mid, group_tris, group_owner, bpoints, bfaces, bplane, bsphere,
+            res = rasterize_far(t, near_all, v, p, n, fine, groups, bpoints, bfaces, bplane, bsphere,
                                 bsource, skip_incident, use_excl, excl, frame, lut, mask, record, hits)
             count += (res & 1) + (res >> 1)
-            fine += res >> 1
-    refined[v] = fine
+            nfine += res >> 1
+    refined[v] = nfine
     counts[v] = count
 
     # integrate (tangent frame): unoccluded integral minus blocked fractions of blocks

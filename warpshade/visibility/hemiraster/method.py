@@ -24,8 +24,8 @@ from ...geometry.mesh import TriMesh
 from ...sh.kernels import normalization_array
 from ..base import TransferMethod
 from . import hierarchy, tables
-from .kernels import (PlaneLut, follow_coarse_points, rasterize_transfer, refit_blocker_boxes, triangle_bounds,
-                      union_boxes)
+from .kernels import (FineMesh, PlaneLut, Refinement, follow_coarse_points, rasterize_transfer, refit_blocker_boxes,
+                      triangle_bounds, union_boxes)
 
 
 def _parse_vec3(text: str) -> tuple[float, float, float]:
@@ -251,8 +251,16 @@ class HemirasterTransfer(TransferMethod):
         self._cluster_reach = wp.zeros(nc, dtype=float, device=d)
         self._super_box = (wp.zeros(ns, dtype=wp.vec3, device=d), wp.zeros(ns, dtype=wp.vec3, device=d))
         self._super_reach = wp.zeros(ns, dtype=float, device=d)
-        self._fplane = wp.zeros(nsf, dtype=wp.vec4, device=d)
-        self._fsphere = wp.zeros(nsf, dtype=wp.vec4, device=d)
+        self._fine = FineMesh()
+        self._fine.points, self._fine.faces = self._spoints, self._sfaces
+        self._fine.plane = wp.zeros(nsf, dtype=wp.vec4, device=d)
+        self._fine.sphere = wp.zeros(nsf, dtype=wp.vec4, device=d)
+        self._groups = Refinement()
+        self._groups.refine = self.refine if self._use_refine else 0.0
+        self._groups.lo, self._groups.hi = self._blocker_box
+        self._groups.dev = self._blocker_dev
+        self._groups.start, self._groups.mid = self._group_start, self._group_mid
+        self._groups.tris, self._groups.owner = self._group_tris, self._group_owner
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
 
@@ -387,14 +395,14 @@ class HemirasterTransfer(TransferMethod):
                   outputs=[self._bplane, self._bsphere], device=d)
         if self.hierarchy:
             wp.launch(triangle_bounds, dim=self._sfaces.shape[0], inputs=[self._spoints, self._sfaces],
-                      outputs=[self._fplane, self._fsphere], device=d)
+                      outputs=[self._fine.plane, self._fine.sphere], device=d)
         wp.launch(
             rasterize_transfer,
             dim=self.mesh.num_vertices,
-            inputs=[self._spoints, self.normals, self._sfaces, self._ring_start, self._ring_tris, self._fplane, self._fsphere,
+            inputs=[self._fine, self.normals, self._ring_start, self._ring_tris,
                     self._bpoints, self._bfaces, self._bplane, self._bsphere, self._bsource, 0 if self.hierarchy else 1,
                     self._near_mode, self._excl,
-                    self.refine if self._use_refine else 0.0, *self._blocker_box, self._blocker_dev, self._group_start, self._group_mid, self._group_tris, self._group_owner,
+                    self._groups,
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
                     self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
