@@ -58,6 +58,25 @@ class FineMesh:
 
 
 @wp.struct
+class Blockers:
+    """The far-field blocker triangles: the coarse mesh (or the fine scene without the hierarchy),
+    in cluster order, with their per-frame bounds."""
+
+    points: wp.array[wp.vec3]
+    """Blocker vertex positions [m], dtype vec3."""
+    faces: wp.array2d[wp.int32]
+    """Blocker triangles in cluster order, shape (Fc, 3), dtype int32."""
+    plane: wp.array[wp.vec4]
+    """Per blocker (N, N·a) (:func:`triangle_bounds`), dtype vec4."""
+    sphere: wp.array[wp.vec4]
+    """Per blocker bounding sphere (centroid [m], radius [m]), dtype vec4."""
+    source: wp.array[wp.int32]
+    """Index of each blocker before the cluster reordering (exclusion and PVS bits), dtype int32."""
+    skip_incident: int
+    """1 when the blockers are the fine triangles themselves (skip those incident to the receiver)."""
+
+
+@wp.struct
 class Refinement:
     """Coarse-to-fine map and per-frame bounds of the spatial near-field refinement (:mod:`.hierarchy`)."""
 
@@ -449,7 +468,7 @@ def rasterize_group(
     n: wp.vec3,
     fine: FineMesh,
     groups: Refinement,
-    bsource: wp.array[wp.int32],
+    source: wp.array[wp.int32],
     near_mode: int,
     excl: wp.array2d[wp.uint32],
     frame: wp.mat33,
@@ -475,7 +494,7 @@ def rasterize_group(
         if r >= groups.mid[t]:
             o = groups.owner[r]
             if near_mode == 2:
-                if excluded(excl, v, bsource[o]):
+                if excluded(excl, v, source[o]):
                     continue
             if groups.refine > 0.0:
                 if refine_here(p, groups.lo[o], groups.hi[o], groups.dev[o], groups.refine):
@@ -489,7 +508,7 @@ def rasterize_group(
         count += wp.min(1, res)
         hit = wp.max(hit, res)
     if record != 0 and hit == 2:
-        src = bsource[t]
+        src = source[t]
         hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
     return count
 
@@ -505,12 +524,7 @@ def rasterize_blocker(
     t: int,
     v: int,
     p: wp.vec3,
-    bpoints: wp.array[wp.vec3],
-    bfaces: wp.array2d[wp.int32],
-    bplane: wp.array[wp.vec4],
-    bsphere: wp.array[wp.vec4],
-    bsource: wp.array[wp.int32],
-    skip_incident: int,
+    blockers: Blockers,
     frame: wp.mat33,
     lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
@@ -524,24 +538,24 @@ def rasterize_blocker(
     sphere wholly at or below the tangent plane (a subset of :func:`rasterize_triangle`'s exact
     horizon cull, so the mask is unchanged) or back-facing (:func:`skip_early`), the tiny-image bound.
     """
-    sph = bsphere[t]
-    pln = bplane[t]
+    sph = blockers.sphere[t]
+    pln = blockers.plane[t]
     nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
     if skip_early(pln, sph, p, nz, lut.backface):
         return 0
-    src = bsource[t]
+    src = blockers.source[t]
     if lut.min_area > 0.0:
         if bounds_below(pln, sph, p, nz, lut.min_area):
             return 0
-    i = bfaces[t, 0]
-    j = bfaces[t, 1]
-    k = bfaces[t, 2]
-    if skip_incident != 0:
+    i = blockers.faces[t, 0]
+    j = blockers.faces[t, 1]
+    k = blockers.faces[t, 2]
+    if blockers.skip_incident != 0:
         if i == v or j == v or k == v:
             return 0
-    a = bpoints[i] - p
-    b = bpoints[j] - p
-    c = bpoints[k] - p
+    a = blockers.points[i] - p
+    b = blockers.points[j] - p
+    c = blockers.points[k] - p
     if lut.min_area > 0.0:
         if image_below(a, b, c, nz, lut.min_area):
             return 0
@@ -562,12 +576,7 @@ def rasterize_far(
     n: wp.vec3,
     fine: FineMesh,
     groups: Refinement,
-    bpoints: wp.array[wp.vec3],
-    bfaces: wp.array2d[wp.int32],
-    bplane: wp.array[wp.vec4],
-    bsphere: wp.array[wp.vec4],
-    bsource: wp.array[wp.int32],
-    skip_incident: int,
+    blockers: Blockers,
     use_excl: int,
     excl: wp.array2d[wp.uint32],
     frame: wp.mat33,
@@ -584,16 +593,16 @@ def rasterize_far(
         of fine triangles rasterized in its place.
     """
     use_fine = False
-    if use_excl != 0 and excluded(excl, v, bsource[t]):
+    if use_excl != 0 and excluded(excl, v, blockers.source[t]):
         if use_excl == 1:  # left to the k-ring (paper scheme)
             return 0
         use_fine = True  # stands for part of the receiver's k-ring: always its fine triangles
     elif near:
         use_fine = refine_here(p, groups.lo[t], groups.hi[t], groups.dev[t], groups.refine)
     if use_fine:
-        return 2 * rasterize_group(t, v, p, n, fine, groups, bsource, use_excl, excl, frame, lut, mask, record, hits)
-    return rasterize_blocker(t, v, p, bpoints, bfaces, bplane, bsphere, bsource, skip_incident, frame, lut, mask, record,
-                             hits)
+        return 2 * rasterize_group(t, v, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, record,
+                                   hits)
+    return rasterize_blocker(t, v, p, blockers, frame, lut, mask, record, hits)
 
 
 @wp.func
@@ -641,12 +650,7 @@ def rasterize_transfer(
     normals: wp.array[wp.vec3],
     ring_start: wp.array[wp.int32],
     ring_tris: wp.array[wp.int32],
-    bpoints: wp.array[wp.vec3],
-    bfaces: wp.array2d[wp.int32],
-    bplane: wp.array[wp.vec4],
-    bsphere: wp.array[wp.vec4],
-    bsource: wp.array[wp.int32],
-    skip_incident: int,
+    blockers: Blockers,
     use_excl: int,
     excl: wp.array2d[wp.uint32],
     groups: Refinement,
@@ -724,8 +728,8 @@ def rasterize_transfer(
     near_all = groups.refine > 0.0
     if use_pvs != 0:
         for r in range(pvs_start[v], pvs_start[v + 1]):
-            res = rasterize_far(pvs_tris[r], near_all, v, p, n, fine, groups, bpoints, bfaces, bplane,
-                                bsphere, bsource, skip_incident, use_excl, excl, frame, lut, mask, record, hits)
+            res = rasterize_far(pvs_tris[r], near_all, v, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
+                                mask, record, hits)
             count += (res & 1) + (res >> 1)
             nfine += res >> 1
     elif use_cull != 0:
@@ -736,14 +740,14 @@ def rasterize_transfer(
                         # per-blocker refinement tests only in clusters that come near enough
                         near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], groups.refine * cluster_reach[c])
                         for t in range(cluster_start[c], cluster_start[c + 1]):
-                            res = rasterize_far(t, near, v, p, n, fine, groups, bpoints, bfaces, bplane, bsphere,
-                                                bsource, skip_incident, use_excl, excl, frame, lut, mask, record, hits)
+                            res = rasterize_far(t, near, v, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
+                                                mask, record, hits)
                             count += (res & 1) + (res >> 1)
                             nfine += res >> 1
     else:
-        for t in range(bfaces.shape[0]):
-            res = rasterize_far(t, near_all, v, p, n, fine, groups, bpoints, bfaces, bplane, bsphere,
-                                bsource, skip_incident, use_excl, excl, frame, lut, mask, record, hits)
+        for t in range(blockers.faces.shape[0]):
+            res = rasterize_far(t, near_all, v, p, n, fine, groups, blockers, use_excl, excl, frame, lut, mask, record,
+                                hits)
             count += (res & 1) + (res >> 1)
             nfine += res >> 1
     refined[v] = nfine

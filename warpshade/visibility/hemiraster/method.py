@@ -24,7 +24,7 @@ from ...geometry.mesh import TriMesh
 from ...sh.kernels import normalization_array
 from ..base import TransferMethod
 from . import hierarchy, tables
-from .kernels import (FineMesh, PlaneLut, Refinement, follow_coarse_points, rasterize_transfer, refit_blocker_boxes,
+from .kernels import (Blockers, FineMesh, PlaneLut, Refinement, follow_coarse_points, rasterize_transfer, refit_blocker_boxes,
                       triangle_bounds, union_boxes)
 
 
@@ -263,6 +263,10 @@ class HemirasterTransfer(TransferMethod):
         self._groups.tris, self._groups.owner = self._group_tris, self._group_owner
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
+        self._blockers = Blockers()
+        self._blockers.points, self._blockers.faces = self._bpoints, self._bfaces
+        self._blockers.plane, self._blockers.sphere = self._bplane, self._bsphere
+        self._blockers.source, self._blockers.skip_incident = self._bsource, 0 if self.hierarchy else 1
 
         # per-vertex scratch (one row per receiver; rows are private to their thread)
         nn = self.order * self.order
@@ -400,7 +404,7 @@ class HemirasterTransfer(TransferMethod):
             rasterize_transfer,
             dim=self.mesh.num_vertices,
             inputs=[self._fine, self.normals, self._ring_start, self._ring_tris,
-                    self._bpoints, self._bfaces, self._bplane, self._bsphere, self._bsource, 0 if self.hierarchy else 1,
+                    self._blockers,
                     self._near_mode, self._excl,
                     self._groups,
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
