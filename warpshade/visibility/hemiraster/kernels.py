@@ -96,6 +96,12 @@ class Refinement:
     """Fine triangle indices, primaries then extras per blocker, dtype int32."""
     owner: wp.array[wp.int32]
     """Primary blocker of each entry of ``tris`` (reordered index), dtype int32."""
+    seen: wp.array2d[wp.uint64]
+    """Per receiver, bits of the fine triangles already rasterized this frame, shape (V, ceil(F/64));
+    one row per receiver thread, cleared at its start."""
+    use_seen: int
+    """1: skip fine triangles already in ``seen`` (a seam triangle belongs to several refined coarse
+    triangles; OR fusion makes the repeat harmless but not free); 0: no such table (large meshes)."""
 
 
 @wp.func
@@ -504,6 +510,12 @@ def rasterize_group(
         k = fine.faces[f, 2]
         if i == v or j == v or k == v:
             continue
+        if groups.use_seen != 0:
+            bit = wp.uint64(1) << wp.uint64(f & 63)
+            word = groups.seen[v, f >> 6]
+            if (word & bit) != wp.uint64(0):
+                continue
+            groups.seen[v, f >> 6] = word | bit
         res = rasterize_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, i, j, k, frame, lut, mask, v)
         count += wp.min(1, res)
         hit = wp.max(hit, res)
@@ -711,6 +723,9 @@ def rasterize_transfer(
     nn = order * order
     for w in range(lut.words):
         mask[v, w] = wp.uint64(0)
+    if groups.use_seen != 0:
+        for w in range(groups.seen.shape[1]):
+            groups.seen[v, w] = wp.uint64(0)
     count = int(0)
     # near field at full resolution
     for r in range(ring_start[v], ring_start[v + 1]):

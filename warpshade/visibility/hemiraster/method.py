@@ -28,6 +28,10 @@ from .kernels import (Blockers, FineMesh, PlaneLut, Refinement, follow_coarse_po
                       triangle_bounds, union_boxes)
 
 
+SEEN_BYTES = 64 * 1024 * 1024
+"""Largest per-receiver rasterized-once table (V × ceil(F/64) uint64 words) the method allocates."""
+
+
 def _parse_vec3(text: str) -> tuple[float, float, float]:
     parts = [float(x) for x in str(text).split(",")]
     if len(parts) != 3:
@@ -261,6 +265,11 @@ class HemirasterTransfer(TransferMethod):
         self._groups.dev = self._blocker_dev
         self._groups.start, self._groups.mid = self._group_start, self._group_mid
         self._groups.tris, self._groups.owner = self._group_tris, self._group_owner
+        # rasterized-once table: a seam triangle is listed by several coarse triangles; skip repeats
+        # (1 bit per fine triangle and receiver; off above SEEN_BYTES, where repeats are only slower)
+        seen_words = (nsf + 63) // 64
+        self._groups.use_seen = 1 if (self._use_refine and nv * seen_words * 8 <= SEEN_BYTES) else 0
+        self._groups.seen = wp.zeros((nv, seen_words) if self._groups.use_seen else (1, 1), dtype=wp.uint64, device=d)
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._blockers = Blockers()
