@@ -170,6 +170,19 @@ class SpheresTransfer(TransferMethod):
             blocker_points: Current vertices of each object in ``blockers`` (list aligned with it; None
                 entries stay where they were). The receiver's own spheres follow ``points``.
         """
+        self._set_blockers(blocker_points)
+        return super().update(points, normals)
+
+    def move(self, points=None, normals=None, blocker_points: list | None = None) -> None:
+        """Move receivers and spheres to the current frame without computing shadows (:meth:`update` minus
+        the per-receiver shading): what :class:`~.reflections.SphereReflections` needs when another method
+        shades the receivers' direct light. Arguments as :meth:`update`."""
+        self._set_blockers(blocker_points)
+        if points is not None:
+            self.set_points(points, normals)
+        self._refit()
+
+    def _set_blockers(self, blocker_points) -> None:
         if blocker_points is not None:
             if len(blocker_points) != self.num_blockers:
                 raise ValueError(f"expected {self.num_blockers} blocker point sets, got {len(blocker_points)}")
@@ -177,13 +190,15 @@ class SpheresTransfer(TransferMethod):
             for i, b in enumerate(blocker_points):
                 if b is not None:
                     self._blocker_points[off + i] = b
-        return super().update(points, normals)
 
-    def _compute(self) -> None:
-        d = self.device
+    def _refit(self) -> None:
         if self.self_shadow:
             self._blocker_points[0] = self.points
         self.scene.refit(self._blocker_points)
+
+    def _compute(self) -> None:
+        d = self.device
+        self._refit()
         wp.launch(fit_clusters, dim=self.clusters, inputs=[*self._members, self.points],
                   outputs=[self.cluster_centers, self.cluster_radii], device=d)
         ncut = self.shade_points(self.points, self.normals, self.cluster, self.cluster_centers, self.cluster_radii,

@@ -164,7 +164,9 @@ class SphereReflections:
         return face, bary
 
     def update(self, light, albedo) -> wp.array:
-        """Recompute :attr:`irradiance` for the current frame (call ``method.update`` first).
+        """Recompute :attr:`irradiance` for the current frame (call ``method.update`` or ``method.move`` first).
+
+        :meth:`shade_samples` (first pass) then :meth:`gather` (second pass) at the method's receivers.
 
         Args:
             light: Distant lighting, SH radiance per colour, shape (N*N, 3) (world space).
@@ -173,6 +175,15 @@ class SphereReflections:
 
         Returns:
             :attr:`irradiance`, shape (V,), vec3.
+        """
+        self.shade_samples(light, albedo)
+        return self.gather()
+
+    def shade_samples(self, light, albedo) -> wp.array:
+        """First pass (§4.3.2): re-read the surface samples from the current meshes, shade them with the
+        sphere-set shadows and project the white exit radiance times albedo to :attr:`radiance`.
+
+        Arguments as :meth:`update`. Returns :attr:`radiance`, shape (L, 3, N*N).
         """
         meth, d = self.method, self.device
         n2 = meth.order * meth.order
@@ -183,8 +194,7 @@ class SphereReflections:
             raise ValueError(f"need one albedo per sphere-set object ({len(meth.scene.trees)}), got {len(albedo)}")
         L = len(self.leaves)
         if L == 0:
-            self.irradiance.zero_()
-            return self.irradiance
+            return self.radiance
         m = len(self.directions)
         for ob in self.objects:
             pts = meth._blocker_points[ob["obj"]]
@@ -204,7 +214,7 @@ class SphereReflections:
                       inputs=[self._face[k0:k1], self._bary[k0:k1], ob["faces"], pts, ob["normals"],
                               wp.array(np.ascontiguousarray(a), dtype=wp.vec3, device=d)],
                       outputs=[self._spts[k0:k1], self._snrm[k0:k1], self._salb[k0:k1]], device=d)
-        # first pass: shadows at the samples, one cluster per sphere (bounded by the sphere itself)
+        # shadows at the samples, one cluster per sphere (bounded by the sphere itself)
         spts = self._spts.reshape((L * m,))
         snrm = self._snrm.reshape((L * m,))
         wp.launch(fit_clusters, dim=L, inputs=[*self._s_members, spts], outputs=[self._s_centers, self._s_radii],
@@ -215,14 +225,40 @@ class SphereReflections:
                   inputs=[self._s_transfer, self._face, wp.array(light, dtype=float, device=d), self._salb,
                           self._voronoi, n2],
                   outputs=[self.radiance], device=d)
-        # second pass at the receiver vertices
+        return self.radiance
+
+    def gather(self, points: wp.array | None = None, normals: wp.array | None = None,
+               out: wp.array | None = None) -> wp.array:
+        """Second pass (§4.3.3): reflected irradiance (eq. 4.22) at receivers from the current :attr:`radiance`.
+
+        Args:
+            points, normals: Receivers, shape (R,), vec3 (default: the method's vertices, output
+                :attr:`irradiance`).
+            out: Output for other receivers, shape (R,), vec3 (allocated when None).
+
+        Returns:
+            Reflected irradiance (no albedo, no 1/π), shape (R,), vec3.
+        """
+        meth, d = self.method, self.device
+        if points is None:
+            points, normals, out = meth.points, meth.normals, self.irradiance
+        elif normals is None:
+            raise ValueError("gather needs normals with points")
+        R = points.shape[0]
+        if out is None:
+            out = wp.zeros(R, dtype=wp.vec3, device=d)
+        L = len(self.leaves)
+        if L == 0:
+            out.zero_()
+            return out
+        key = self._key if R == self._key.shape[0] else wp.zeros((R, L), dtype=float, device=d)
         t, sc = meth.tables, meth.scene
-        wp.launch(meth._fixed.reflect, dim=meth.mesh.num_vertices,
-                  inputs=[meth.points, meth.normals, self._spheres, sc.centers, sc.radii, sc.rotations,
+        wp.launch(meth._fixed.reflect, dim=R,
+                  inputs=[points, normals, self._spheres, sc.centers, sc.radii, sc.rotations,
                           self.radiance, self._log_vec, meth._ff_vec, t.theta_step, meth._cos_vec, meth._fixed.kz,
-                          meth._ol, meth._products, EXP_MODES[self.exp], meth.tau, self._key],
-                  outputs=[self.irradiance], device=d)
-        return self.irradiance
+                          meth._ol, meth._products, EXP_MODES[self.exp], meth.tau, key],
+                  outputs=[out], device=d)
+        return out
 
     def exit_radiance(self, light, albedo_receiver) -> np.ndarray:
         """``(ρ/π)(L · T + E_R)`` at the receiver vertices: shadowed direct plus one bounce, shape (V, 3).
