@@ -151,6 +151,75 @@ def run_scene(objs: dict, order: int, exp: str, spheres_per_object: int, repeat:
     return out
 
 
+REFLECTION_CONFIGS = [
+    ("leaves (pipeline default)", {}),
+    ("leaves, no eq. 4.32 exclusion", {"exclude_intersecting": False}),
+    ("leaves, self-reflection", {"self_reflection": True}),
+    ("cuts + ratios (eq. 4.34)", {"cuts": True}),
+    ("cuts, no ratios", {"cuts": True, "ratios": False}),
+]
+ALBEDO = {"ground": [0.5, 0.5, 0.5], "bunny": [0.9, 0.35, 0.2], "bear": [0.25, 0.5, 0.9]}
+
+
+def bounce_reference(objs: dict, order: int, rays: int, light: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ray-traced direct exit radiance (V, 3) and reflected irradiance (V, 3) of every vertex, cached."""
+    from warpshade.visibility.spheres.bounce_reference import reflected_irradiance_reference
+
+    names = list(objs)
+    direct = [np.maximum(np.asarray(ALBEDO[n]) / math.pi * (reference(objs[n], [objs[o] for o in names if o != n],
+                                                                      order, rays) @ light), 0.0) for n in names]
+    h = hashlib.sha1()
+    for n in names:
+        h.update(objs[n].points.tobytes())
+    h.update(f"{order}-{rays}-{light.tobytes().hex()[:64]}-{ALBEDO}".encode())
+    path = os.path.join(CACHE, f"spheres_bounce_{h.hexdigest()[:12]}.npz")
+    if os.path.isfile(path):
+        e = np.load(path)["irradiance"]
+    else:
+        pts = np.concatenate([objs[n].points for n in names])
+        nrm = np.concatenate([objs[n].normals for n in names])
+        e = reflected_irradiance_reference(pts, nrm, [objs[n] for n in names], direct, rays=rays)
+        os.makedirs(CACHE, exist_ok=True)
+        np.savez(path, irradiance=e)
+    return np.concatenate(direct), e
+
+
+def reflection_rows(objs: dict, order: int, rays: int, repeat: int) -> list[dict]:
+    """Scene reflections (the pipeline's :class:`SceneReflections`: every object, ground included, reflects
+    through its own 15 leaf spheres, 3 levels) against the ray-traced bounce; time per frame of the bounce
+    alone (both passes, refits included)."""
+    from warpshade.metrics import radiance_error
+    from warpshade.pipeline.reflections import SceneReflections
+
+    names = list(objs)
+    meshes = [objs[n] for n in names]
+    light = sky(order)
+    direct, e_ref = bounce_reference(objs, order, rays, light)
+    rho = np.concatenate([np.broadcast_to(ALBEDO[n], (objs[n].num_vertices, 3)) for n in names]) / math.pi
+    truth = direct + rho * e_ref
+    t0 = time.perf_counter()
+    trees = [build_sphere_tree(m.points, m.faces, 15, 3, seed=0) for m in meshes]
+    fit = time.perf_counter() - t0
+    pts = [m.points.astype(np.float32) for m in meshes]
+    nrm = [m.normals.astype(np.float32) for m in meshes]
+    albedos = [np.asarray(ALBEDO[n]) for n in names]
+    rows = [{"config": "no bounce", "order": order, "bounce_error": 1.0, "radiance_error": radiance_error(direct, truth),
+             "bounce_over_direct": float(np.linalg.norm(rho * e_ref, axis=1).mean() / np.linalg.norm(direct, axis=1).mean())}]
+    for label, kw in REFLECTION_CONFIGS:
+        sr = SceneReflections(meshes, order, spheres=15, levels=3, trees=trees, **kw)
+
+        def frame():
+            return sr.update(pts, nrm, light, albedos)
+
+        e = frame()
+        sec = median_seconds(frame, repeat=repeat)
+        cpu = cpu_seconds(frame, repeat)
+        rows.append({"config": label, "order": order, "seconds_per_frame": sec, "cpu_seconds_per_frame": cpu,
+                     "bounce_error": radiance_error(e, e_ref), "radiance_error": radiance_error(direct + rho * e, truth),
+                     "fit_seconds": fit, **sr.reflections.stats()})
+    return rows
+
+
 def self_shadowing(order: int, rays: int, repeat: int) -> list[dict]:
     rows = []
     for name in ("bunny", "bear"):
@@ -176,9 +245,25 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=None, metavar="PATH", help="write the numbers")
     ap.add_argument("--repeat", type=int, default=3, help="timed frames after one warm-up")
     ap.add_argument("--rays", type=int, default=1024, help="reference rays per vertex")
+    ap.add_argument("--reflections-only", action="store_true",
+                    help="only the scene-reflection accuracy/time table (against the ray-traced bounce)")
     args = ap.parse_args(argv)
     ground_n = 60 if args.quick else 150
     objs = scene(ground_n)
+    refl_rows = reflection_rows(objs, 4, args.rays, args.repeat)
+    print(f"# one bounce (pipeline SceneReflections), order 4, {sum(m.num_vertices for m in objs.values())} receivers; "
+          "error vs ray-traced bounce (relative, radiance_error); shared, loaded machine")
+    print(f"{'config':>32} {'ms/frame':>9} {'cpu ms':>7} {'bounce err':>10} {'total err':>9} {'spheres/cluster':>15}")
+    for r in refl_rows:
+        ms = f"{r['seconds_per_frame'] * 1e3:9.1f}" if "seconds_per_frame" in r else f"{'':>9}"
+        cms = f"{r['cpu_seconds_per_frame'] * 1e3:7.1f}" if "cpu_seconds_per_frame" in r else f"{'':>7}"
+        spc = f"{r['reflect_spheres_per_cluster']:15.1f}" if "reflect_spheres_per_cluster" in r else f"{'':>15}"
+        print(f"{r['config']:>32} {ms} {cms} {r['bounce_error']:10.3f} {r['radiance_error']:9.4f} {spc}")
+    if args.reflections_only:
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump({"reflections": refl_rows}, f, indent=2)
+        return 0
     t0 = time.perf_counter()
     trees = {n: build_sphere_tree(objs[n].points, objs[n].faces, 15, 3, seed=0) for n in ("bunny", "bear")}
     fit_s = time.perf_counter() - t0
@@ -218,7 +303,7 @@ def main(argv=None) -> int:
               f"{r['error_mean']:9.4f} {r['error_p95']:8.4f}")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"scene": rows, "self_shadowing": single, "fit_seconds": fit_s,
+            json.dump({"scene": rows, "self_shadowing": single, "fit_seconds": fit_s, "reflections": refl_rows,
                        "note": "median of repeats after warm-up, compile and fit excluded; shared loaded machine"},
                       f, indent=2)
     return 0

@@ -153,7 +153,6 @@ class SceneShader:
 
             bounce = SceneReflections([m for g in groups for m in g.spec.meshes], self.order, self.device,
                                       **self.reflections)
-            albedos = [a for g in groups for a in g.spec.albedos]
         lights = self.build_lights()
         pending_build = [time.perf_counter() - t_build]  # reported once, with the first frame
 
@@ -163,14 +162,7 @@ class SceneShader:
             t = frame / self.fps
             frame_lights = [light.at_time(t) for light in lights]
             updated = [g.update(geometry) for g in groups]
-            bounced = None
-            if bounce is not None:
-                distant_all, _ = lights_sh([li for li in frame_lights if not li.local], self.order)
-                bounced = bounce.update([u[0][a:b] for g, u in zip(groups, updated)
-                                         for a, b in zip(g.offsets[:-1], g.offsets[1:])],
-                                        [u[2][a:b] for g, u in zip(groups, updated)
-                                         for a, b in zip(g.offsets[:-1], g.offsets[1:])], distant_all, albedos)
-            obj = 0
+            direct = []  # per object: (name, points, normals, radiance, transfer or None, albedo)
             for i, g in enumerate(groups):
                 pts, transfer, normals = updated[i]
                 if between is not None:
@@ -181,11 +173,18 @@ class SceneShader:
                     # clamped at 0: SH ringing behind bright lights must not make displayColor negative
                     rad = exit_radiance(transfer[a:b], distant, albedo, None if local is None else local[a:b],
                                         device=self.device).numpy().copy()
-                    if bounced is not None:
-                        # eq. 4.23: reflected exit radiance (ρ/π) E_R added to the shadowed direct one
-                        rad += (np.asarray(albedo, dtype=np.float32) / np.float32(np.pi)) * bounce.slice(bounced, obj)
-                    obj += 1
-                    out[name] = (pts[a:b], normals[a:b], rad, transfer[a:b] if self.write_transfer else None)
+                    direct.append([name, pts[a:b], normals[a:b], rad,
+                                   transfer[a:b] if self.write_transfer else None, albedo])
+            if bounce is not None:
+                # One bounce (thesis §4.3): the reflectors' samples take the direct exit radiance just shaded
+                # (every light, the group's own visibility method), the second pass sums sphere by sphere.
+                e_r = bounce.update([d[1] for d in direct], [d[2] for d in direct], None,
+                                    [d[5] for d in direct], exit_radiance=[d[3] for d in direct])
+                for k, d in enumerate(direct):
+                    # eq. 4.23: reflected exit radiance (ρ/π) E_R added to the shadowed direct one
+                    d[3] += (np.asarray(d[5], dtype=np.float32) / np.float32(np.pi)) * bounce.slice(e_r, k)
+            for name, pts, normals, rad, transfer, _ in direct:
+                out[name] = (pts, normals, rad, transfer)
             wp.synchronize()
             out["_seconds"] = time.perf_counter() - t0
             return out

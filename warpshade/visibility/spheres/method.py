@@ -181,6 +181,8 @@ class SpheresTransfer(TransferMethod):
         if points is not None:
             self.set_points(points, normals)
         self._refit()
+        wp.launch(fit_clusters, dim=self.clusters, inputs=[*self._members, self.points],
+                  outputs=[self.cluster_centers, self.cluster_radii], device=self.device)
 
     def _set_blockers(self, blocker_points) -> None:
         if blocker_points is not None:
