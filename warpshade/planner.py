@@ -34,6 +34,15 @@ REDOT_SECONDS_PER_COEFF = 2.5e-9
 6102×25 @ 25×3 in ~1.1 ms)."""
 
 
+REFLECTION_SECONDS_PER_VERTEX_SPHERE = 1.5e-7
+"""One-bounce reflection cost per receiver vertex per reflecting leaf sphere at SH order 4 [s] (both passes,
+CPU time of ``python benchmarks/spheres.py --reflections-only``: 11 688 receivers, 45 leaf spheres, ~70 ms);
+scaled by (order/4)² for other orders."""
+
+REFLECTION_SPHERES_PER_OBJECT = 15
+"""Leaf spheres per object of ``warpshade run --reflections`` (``--reflection-spheres``)."""
+
+
 def load_frontier(path: str | None = None) -> dict:
     """The measured frontier: ``path`` (a ``--frontier`` file or a ``results.json`` from ``warpshade bench``),
     else the one shipped in ``warpshade/data/frontier.json``."""
@@ -253,19 +262,23 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
             passes.append("area-light visibility (GEARS)")
         if obj.material.glossy:
             passes.append("glossy transfer")
-        if reflections and (moves or shadowed_by_moving):
+        if reflections and (moves or shadowed_by_moving or lighting_changes):
             passes.append("reflection (one bounce)")
         relit = moves or shadowed_by_moving or lighting_changes
         if relit:
             passes.append("re-dot lighting")
         passes = [p for p in passes if p]
+        t_reflect = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT * len(shaded)
+                     * (order / 4.0) ** 2) if reflections else 0.0
         t_transfer = estimate_seconds(cfg, v) if cfg else 0.0
         t_build = estimate_seconds(cfg, v, "build_seconds") if cfg else 0.0
         redot = REDOT_SECONDS_PER_COEFF * v * order * order * 3
         if method is not None and cfg is None:
             notes.append(f"{obj.name}: {method} {_knobs(knobs)}at order {order} is not in the frontier; its cost is not estimated")
-        seconds_first = t_build + t_transfer + redot
+        seconds_first = t_build + t_transfer + redot + t_reflect
         seconds_frame = (t_transfer if transfer == "every_frame" else 0.0) + (redot if relit else 0.0)
+        if reflections and (moves or shadowed_by_moving or lighting_changes):
+            seconds_frame += t_reflect
         plans.append(ObjectPlan(obj.name, obj.kind, v, moves, method, knobs, transfer, passes,
                                 cfg["error"] if cfg else None, seconds_first, seconds_frame, reason,
                                  t_transfer, t_build))

@@ -14,6 +14,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="error budget: per object, the fastest measured method within this mean error")
     parser.add_argument("--frontier", default=None, help="frontier.json or bench results.json (default: shipped)")
     parser.add_argument("--json", default=None, metavar="PLAN.json", help="also write the plan as JSON")
+    parser.add_argument("--reflections", action="store_true", default=None,
+                        help="plan the one-bounce reflection pass (as warpshade run --reflections; default: the "
+                             "scene's warpshade:reflections)")
 
 
 def load_scene(path: str):
@@ -29,7 +32,10 @@ def load_scene(path: str):
 def run(args) -> int:
     from ..planner import make_plan, naive_seconds
 
-    plan = make_plan(load_scene(args.scene), max_error=args.max_error, frontier=args.frontier)
+    scene = load_scene(args.scene)
+    if args.reflections:
+        scene.settings["reflections"] = True
+    plan = make_plan(scene, max_error=args.max_error, frontier=args.frontier)
     print(plan.describe())
     print(f"  without reuse (every object every frame): {naive_seconds(plan):.2f} s")
     if args.json:
