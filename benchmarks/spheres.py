@@ -220,6 +220,83 @@ def reflection_rows(objs: dict, order: int, rays: int, repeat: int) -> list[dict
     return rows
 
 
+def bone_refit_rows(repeat: int) -> list[dict]:
+    """Spheres following skinning bones vs their vertices (point refit): on the skinned arm scene (UsdSkel)
+    and the walking figure; sphere geometry differences, leaks, refit time per frame, and the transfer a
+    ground under the figure gets from its spheres either way."""
+    from warpshade.sim import LBSSkinner, WalkingFigure
+    from warpshade.visibility.spheres.sets import SphereScene
+
+    cases = []
+    try:
+        from warpshade.usd.skel import read_usd_skel
+
+        sm = read_usd_skel(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "usd_scenes",
+                                        "skinned_arm.usda"))
+        sk = LBSSkinner(sm.rest_points, sm.joint_indices, sm.joint_weights, len(sm.joint_names))
+        cases.append(("skinned arm (UsdSkel)", sm.rest_points, sm.faces, sm.joint_indices, sm.joint_weights,
+                      len(sm.joint_names), list(sm.transforms), sk, 8))
+    except ImportError:
+        pass
+    fig = WalkingFigure()
+    xfs = [fig.transforms(t) for t in np.linspace(0.0, 1.2, 25)]
+    cases.append(("walking figure", fig.rest_points, fig.faces, fig.skinner.joint_indices.numpy(),
+                  fig.skinner.joint_weights.numpy(), len(fig.joint_names), xfs, fig.skinner, 30))
+    # the figure subdivided twice (16x the triangles), weights interpolated: where the point refit's O(V)
+    # starts to show
+    import trimesh
+
+    dense = np.zeros((len(fig.rest_points), len(fig.joint_names)))
+    fji, fjw = fig.skinner.joint_indices.numpy(), fig.skinner.joint_weights.numpy()
+    np.add.at(dense, (np.repeat(np.arange(len(fji)), fji.shape[1]), fji.ravel()), fjw.ravel())
+    v, f = fig.rest_points.astype(np.float64), fig.faces
+    for _ in range(2):
+        v, f, attr = trimesh.remesh.subdivide(v, f, vertex_attributes={"w": dense})
+        dense = attr["w"]
+    k = 4
+    top = np.argsort(-dense, axis=1)[:, :k].astype(np.int32)
+    big = LBSSkinner(v, top, np.take_along_axis(dense, top, 1), len(fig.joint_names))
+    cases.append(("walking figure x16", v.astype(np.float32), f.astype(np.int32), top,
+                  np.take_along_axis(dense, top, 1), len(fig.joint_names), xfs, big, 30))
+    rows = []
+    for name, rest, faces, ji, jw, nj, xfs, sk, nsph in cases:
+        tree = build_sphere_tree(rest, faces, nsph, 3, seed=0)
+        by_pts, by_bones = SphereScene([tree], [rest]), SphereScene([tree], [rest])
+        by_bones.bind_bones(0, ji, jw, nj)
+        dc = dr = leak = 0.0
+        ratios = []
+        leaf = tree.level == 0
+        frames = [(x, sk.update(x).numpy().copy()) for x in xfs]
+        for x, pts in frames:
+            by_pts.refit([pts])
+            by_bones.refit([None], [x])
+            ca, ra, cb, rb = (a.numpy() for a in (by_pts.centers, by_pts.radii, by_bones.centers, by_bones.radii))
+            dc = max(dc, float((np.linalg.norm(ca - cb, axis=1) / ra)[leaf].max()))
+            dr = max(dr, float(np.abs(rb / ra - 1)[leaf].max()))
+            ratios.append(rb[leaf] / ra[leaf])
+            for s in range(tree.num_spheres):
+                v = tree.vertices_of(s)
+                leak = max(leak, float((np.linalg.norm(pts[v] - cb[s], axis=1) - rb[s]).max() / rb[s]))
+        pts_wp = [wp.array(p, dtype=wp.vec3) for _, p in frames]
+        xf_wp = [wp.array(np.asarray(x, np.float32), dtype=wp.mat44) for x, _ in frames]
+        it = iter(range(10 ** 9))
+
+        def point_refit():
+            by_pts.refit([pts_wp[next(it) % len(pts_wp)]])
+            wp.synchronize()
+
+        def bone_refit():
+            by_bones.refit([None], [xf_wp[next(it) % len(xf_wp)]])
+            wp.synchronize()
+
+        rows.append({"mesh": name, "vertices": len(rest), "spheres": tree.num_spheres, "joints": nj,
+                     "max_center_diff_over_radius": dc, "max_radius_rel_diff": dr, "max_leak_over_radius": leak,
+                     "mean_radius_ratio": float(np.mean(ratios)),
+                     "point_refit_cpu_ms": 1e3 * cpu_seconds(point_refit, max(repeat, 20)),
+                     "bone_refit_cpu_ms": 1e3 * cpu_seconds(bone_refit, max(repeat, 20))})
+    return rows
+
+
 def self_shadowing(order: int, rays: int, repeat: int) -> list[dict]:
     rows = []
     for name in ("bunny", "bear"):
@@ -247,7 +324,24 @@ def main(argv=None) -> int:
     ap.add_argument("--rays", type=int, default=1024, help="reference rays per vertex")
     ap.add_argument("--reflections-only", action="store_true",
                     help="only the scene-reflection accuracy/time table (against the ray-traced bounce)")
+    ap.add_argument("--bones-only", action="store_true", help="only the bone-driven vs point refit table")
     args = ap.parse_args(argv)
+    bone_rows = bone_refit_rows(args.repeat)
+    print("# sphere refit from skinning bones vs from vertices (CPU time per refit, median; shared, loaded machine)")
+    print("# leaves: max centre distance / point-refit radius, max |r_bones / r_points - 1|, mean r_bones / r_points,"
+          " max vertex outside its bone-refit sphere / radius")
+    print(f"{'mesh':>22} {'V':>6} {'S':>4} {'J':>3} {'centre diff/r':>13} {'|r_b/r_p-1|':>11} {'mean r_b/r_p':>12} "
+          f"{'leak/r':>7} {'points ms':>9} {'bones ms':>8}")
+    for r in bone_rows:
+        print(f"{r['mesh']:>22} {r['vertices']:>6} {r['spheres']:>4} {r['joints']:>3} "
+              f"{r['max_center_diff_over_radius']:13.3f} {r['max_radius_rel_diff']:11.3f} {r['mean_radius_ratio']:12.3f} "
+              f"{r['max_leak_over_radius']:7.3f} "
+              f"{r['point_refit_cpu_ms']:9.3f} {r['bone_refit_cpu_ms']:8.3f}")
+    if args.bones_only:
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump({"bones": bone_rows}, f, indent=2)
+        return 0
     ground_n = 60 if args.quick else 150
     objs = scene(ground_n)
     refl_rows = reflection_rows(objs, 4, args.rays, args.repeat)
@@ -262,7 +356,7 @@ def main(argv=None) -> int:
     if args.reflections_only:
         if args.json:
             with open(args.json, "w") as f:
-                json.dump({"reflections": refl_rows}, f, indent=2)
+                json.dump({"reflections": refl_rows, "bones": bone_rows}, f, indent=2)
         return 0
     t0 = time.perf_counter()
     trees = {n: build_sphere_tree(objs[n].points, objs[n].faces, 15, 3, seed=0) for n in ("bunny", "bear")}
@@ -303,7 +397,7 @@ def main(argv=None) -> int:
               f"{r['error_mean']:9.4f} {r['error_p95']:8.4f}")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"scene": rows, "self_shadowing": single, "fit_seconds": fit_s, "reflections": refl_rows,
+            json.dump({"scene": rows, "self_shadowing": single, "fit_seconds": fit_s, "reflections": refl_rows, "bones": bone_rows,
                        "note": "median of repeats after warm-up, compile and fit excluded; shared loaded machine"},
                       f, indent=2)
     return 0
