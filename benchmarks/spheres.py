@@ -152,11 +152,15 @@ def run_scene(objs: dict, order: int, exp: str, spheres_per_object: int, repeat:
 
 
 REFLECTION_CONFIGS = [
-    ("leaves (pipeline default)", {}),
-    ("leaves, no eq. 4.32 exclusion", {"exclude_intersecting": False}),
-    ("leaves, self-reflection", {"self_reflection": True}),
-    ("cuts + ratios (eq. 4.34)", {"cuts": True}),
-    ("cuts, no ratios", {"cuts": True, "ratios": False}),
+    ("leaves", {"cuts": False}),
+    ("leaves + eq. 4.32 rule", {"exclude_intersecting": True}),
+    ("leaves, self-refl. everywhere", {"self_reflection": True}),
+    ("thesis first pass (sphere shadows)", {"first_pass": "spheres"}),
+    ("cuts 0.5 + ratios (eq. 4.34)", {"cuts": True}),
+    ("cuts 0.5, no ratios", {"cuts": True, "ratios": False}),
+    ("cuts 1.0 + ratios (pipeline default)", {"cuts": True, "threshold": 1.0}),
+    ("cuts 1.0, no ratios", {"cuts": True, "ratios": False, "threshold": 1.0}),
+    ("cuts 1.0, eq. 4.34 as printed", {"cuts": True, "ratios": "printed", "threshold": 1.0}),
 ]
 ALBEDO = {"ground": [0.5, 0.5, 0.5], "bunny": [0.9, 0.35, 0.2], "bear": [0.25, 0.5, 0.9]}
 
@@ -187,7 +191,8 @@ def bounce_reference(objs: dict, order: int, rays: int, light: np.ndarray) -> tu
 def reflection_rows(objs: dict, order: int, rays: int, repeat: int) -> list[dict]:
     """Scene reflections (the pipeline's :class:`SceneReflections`: every object, ground included, reflects
     through its own 15 leaf spheres, 3 levels) against the ray-traced bounce; time per frame of the bounce
-    alone (both passes, refits included)."""
+    alone (both passes, refits included). The first pass reads the ray-traced direct exit radiance at the
+    samples, as the pipeline reads its own direct shading (one row: the thesis' sphere-shadowed samples)."""
     from warpshade.metrics import radiance_error
     from warpshade.pipeline.reflections import SceneReflections
 
@@ -205,11 +210,16 @@ def reflection_rows(objs: dict, order: int, rays: int, repeat: int) -> list[dict
     albedos = [np.asarray(ALBEDO[n]) for n in names]
     rows = [{"config": "no bounce", "order": order, "bounce_error": 1.0, "radiance_error": radiance_error(direct, truth),
              "bounce_over_direct": float(np.linalg.norm(rho * e_ref, axis=1).mean() / np.linalg.norm(direct, axis=1).mean())}]
+    direct_parts = np.split(direct, np.cumsum([m.num_vertices for m in meshes])[:-1])
     for label, kw in REFLECTION_CONFIGS:
+        kw = dict(kw)
+        # default first pass as the pipeline: the samples read the (here ray-traced) direct exit radiance
+        given = None if kw.pop("first_pass", "given") == "spheres" else direct_parts
+        kw = {"cuts": False, **kw}  # the rows above name every departure from the plain leaves setup
         sr = SceneReflections(meshes, order, spheres=15, levels=3, trees=trees, **kw)
 
         def frame():
-            return sr.update(pts, nrm, light, albedos)
+            return sr.update(pts, nrm, light, albedos, exit_radiance=given)
 
         e = frame()
         sec = median_seconds(frame, repeat=repeat)
@@ -347,12 +357,12 @@ def main(argv=None) -> int:
     refl_rows = reflection_rows(objs, 4, args.rays, args.repeat)
     print(f"# one bounce (pipeline SceneReflections), order 4, {sum(m.num_vertices for m in objs.values())} receivers; "
           "error vs ray-traced bounce (relative, radiance_error); shared, loaded machine")
-    print(f"{'config':>32} {'ms/frame':>9} {'cpu ms':>7} {'bounce err':>10} {'total err':>9} {'spheres/cluster':>15}")
+    print(f"{'config':>34} {'ms/frame':>9} {'cpu ms':>7} {'bounce err':>10} {'total err':>9} {'spheres/cluster':>15}")
     for r in refl_rows:
         ms = f"{r['seconds_per_frame'] * 1e3:9.1f}" if "seconds_per_frame" in r else f"{'':>9}"
         cms = f"{r['cpu_seconds_per_frame'] * 1e3:7.1f}" if "cpu_seconds_per_frame" in r else f"{'':>7}"
         spc = f"{r['reflect_spheres_per_cluster']:15.1f}" if "reflect_spheres_per_cluster" in r else f"{'':>15}"
-        print(f"{r['config']:>32} {ms} {cms} {r['bounce_error']:10.3f} {r['radiance_error']:9.4f} {spc}")
+        print(f"{r['config']:>34} {ms} {cms} {r['bounce_error']:10.3f} {r['radiance_error']:9.4f} {spc}")
     if args.reflections_only:
         if args.json:
             with open(args.json, "w") as f:

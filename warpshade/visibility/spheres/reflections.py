@@ -74,10 +74,22 @@ class SphereReflections:
             mesh whose surface the spheres reflect, or None for an object that does not reflect.
         subdivisions: Geodesic sphere subdivisions for the sample directions (1: 42, 2: 162 per sphere).
         exp: Exponential of the second pass (``"ol"`` default: one exponential per sphere and receiver).
+        cuts: Per receiver cluster and object, the coarsest hierarchy level whose spheres subtend at most
+            ``method.threshold`` (eq. 4.8) instead of the leaves (module docstring); samples are traced
+            for every level.
+        ratios: With ``cuts``, scale each coarse sphere by the corrected ratio of eq. 4.34 (``"printed"``:
+            the equation as printed, for measurements only).
+        exclude_intersecting: The thesis' rule for eq. 4.32 (below eq. 4.33): closer spheres of the same
+            object that intersect sphere ``i`` are left out of its visibility. Off by default: measured
+            less accurate and 2.3x slower (README).
+        self_reflection: Whether receivers get light from their own object's spheres; False needs
+            ``receiver_objects``.
+        receiver_objects: Object (index into ``method.scene``) of each receiver vertex, shape (V,), int;
+            -1 for vertices that take every object's light.
     """
 
     def __init__(self, method: SpheresTransfer, meshes: list[TriMesh | None], subdivisions: int = 1,
-                 exp: str = "ol", cuts: bool = False, ratios: bool = True, exclude_intersecting: bool = True,
+                 exp: str = "ol", cuts: bool = False, ratios: bool | str = True, exclude_intersecting: bool = False,
                  self_reflection: bool = True, receiver_objects: np.ndarray | None = None):
         if len(meshes) != len(method.scene.trees):
             raise ValueError(f"need one mesh (or None) per sphere-set object: {len(method.scene.trees)}, "
@@ -85,7 +97,9 @@ class SphereReflections:
         if exp not in EXP_MODES:
             raise ValueError(f"exp must be one of {', '.join(EXP_MODES)}, got {exp!r}")
         self.method, self.exp, self.device = method, exp, method.device
-        self.cuts, self.ratios, self.exclude_intersecting = bool(cuts), bool(ratios), bool(exclude_intersecting)
+        if ratios not in (True, False, "printed"):
+            raise ValueError(f"ratios must be True, False or 'printed', got {ratios!r}")
+        self.cuts, self.ratios, self.exclude_intersecting = bool(cuts), ratios, bool(exclude_intersecting)
         d, order = method.device, method.order
         # The log blocker table is fitted to the exponential that will use it (tables.py); the second pass
         # may use another exponential than the shadows (default ol vs hyb), so it gets its own table. With
@@ -413,8 +427,10 @@ class SphereReflections:
                 num = sum(leaf_value.get(int(j), 0.0) for j in sc.leaf_index[sc.leaf_start[s]:sc.leaf_start[s + 1]])
                 den = float(coarse[e])
                 scale = max(abs(den), abs(num))
-                if scale > 0 and abs(den) > 1e-6 * scale:
-                    ratio[e] = float(np.clip(num / den, 0.0, 4.0))
+                if scale > 0 and abs(den) > 1e-6 * scale and abs(num) > 1e-6 * scale:
+                    # "printed": eq. 4.34 as printed (inverted), kept only to measure that it is wrong
+                    r = den / num if self.ratios == "printed" else num / den
+                    ratio[e] = float(np.clip(r, 0.0, 4.0))
         return ratio
 
     def stats(self) -> dict:
