@@ -34,10 +34,10 @@ REDOT_SECONDS_PER_COEFF = 2.5e-9
 6102×25 @ 25×3 in ~1.1 ms)."""
 
 
-REFLECTION_SECONDS_PER_VERTEX_SPHERE = 1.5e-7
+REFLECTION_SECONDS_PER_VERTEX_SPHERE = 1.0e-7
 """One-bounce reflection cost per receiver vertex per reflecting leaf sphere at SH order 4 [s] (both passes,
-CPU time of ``python benchmarks/spheres.py --reflections-only``: 11 688 receivers, 45 leaf spheres, ~70 ms);
-scaled by (order/4)² for other orders."""
+the pipeline's default cuts; CPU time of ``python benchmarks/spheres.py --reflections-only``: 141 ms for
+30 588 receivers and 45 leaf spheres); scaled by (order/4)² for other orders."""
 
 REFLECTION_SPHERES_PER_OBJECT = 15
 """Leaf spheres per object of ``warpshade run --reflections`` (``--reflection-spheres``)."""
