@@ -47,6 +47,17 @@ def winding_inside(points: np.ndarray, faces: np.ndarray, query: np.ndarray, dev
     return out.numpy().astype(bool)
 
 
+@wp.func
+def max_abs_entry(m: wp.mat33) -> float:
+    """Largest ``|m_ij|``: the scale to normalise a matrix by before ``wp.svd3``, whose float32 thresholds
+    are absolute (a mesh scaled by 1e-4 gives entries ~1e-10 and a garbage decomposition)."""
+    h = float(0.0)
+    for i in range(3):
+        for j in range(3):
+            h = wp.max(h, wp.abs(m[i, j]))
+    return h
+
+
 @wp.kernel
 def refit_spheres(
     vert_start: wp.array[wp.int32],
@@ -80,10 +91,7 @@ def refit_spheres(
         h = h + wp.outer(rest_points[v] - m0, points[v] - m)
     # The rotation does not depend on the scale of h, but wp.svd3 has absolute float32 thresholds: a
     # mesh scaled by 1e-4 gives entries ~1e-10 and a garbage rotation. Normalise to max |h_ij| = 1.
-    hmax = float(0.0)
-    for i in range(3):
-        for j in range(3):
-            hmax = wp.max(hmax, wp.abs(h[i, j]))
+    hmax = max_abs_entry(h)
     if hmax > 0.0:
         h = h / hmax
     u = wp.mat33()
@@ -142,10 +150,7 @@ def refit_spheres_bones(
     c = m * c0 + t
     centers[s] = c
     # polar decomposition by SVD (normalised, as refit_spheres: wp.svd3 has absolute thresholds)
-    hmax = float(0.0)
-    for i in range(3):
-        for j in range(3):
-            hmax = wp.max(hmax, wp.abs(m[i, j]))
+    hmax = max_abs_entry(m)
     u = wp.mat33()
     sig = wp.vec3()
     vv = wp.mat33()

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ..reference_kernels import concentric_disk, orthonormal_basis
+from ..reference_kernels import cosine_direction, orthonormal_basis
 
 
 @wp.kernel
@@ -161,10 +161,7 @@ def trace_bounce(
         for sy in range(strata):
             u = (float(sx) + wp.randf(rng)) / float(strata)
             w = (float(sy) + wp.randf(rng)) / float(strata)
-            d2 = concentric_disk(u, w)
-            z = wp.sqrt(wp.max(0.0, 1.0 - wp.dot(d2, d2)))
-            d = frame * wp.vec3(d2[0], d2[1], z)
-            q = wp.mesh_query_ray(mesh, origin, d, max_t)
+            q = wp.mesh_query_ray(mesh, origin, cosine_direction(frame, u, w), max_t)
             if q.result and q.sign > 0.0:
                 acc = acc + wp.mesh_eval_velocity(mesh, q.face, q.u, q.v)
     irradiance[v] = acc * (wp.pi / float(strata * strata))
