@@ -171,6 +171,7 @@ class SphereReflections:
         ms, mi = _csr([np.arange(i * m, (i + 1) * m) for i in range(max(L, 1))])
         self._s_members = (wp.array(ms, dtype=wp.int32, device=d), wp.array(mi, dtype=wp.int32, device=d))
         self._stats = {}
+        self._scratch = {}
 
     def _trace(self, mesh: TriMesh, tree, leaf: np.ndarray):
         """Rest-pose sample triangles and barycentrics of each leaf of one object, shapes (L, m), (L, m, 3)."""
@@ -332,7 +333,11 @@ class SphereReflections:
         meth, d = self.method, self.device
         R = points.shape[0]
         width = max(int(np.diff(starts).max()), 1)
-        key = wp.empty((R, width), dtype=float, device=d)
+        key = self._scratch.get((R, width))
+        if key is None:  # reused across frames (cut sizes change little); a few shapes at most
+            key = self._scratch[(R, width)] = wp.empty((R, width), dtype=float, device=d)
+            if len(self._scratch) > 8:
+                self._scratch.pop(next(iter(self._scratch)))
         E = max(len(rows), 1)
         rec = contribution if contribution is not None else wp.empty(1, dtype=float, device=d)
         t, sc = meth.tables, meth.scene
