@@ -8,8 +8,11 @@ the Voronoi-cell SH sums of eq. 4.19. Per frame (:meth:`SphereReflections.update
    samples rigid) and their normals;
 2. first pass: sphere-set soft shadows at the samples (the same kernel as the receivers, one cluster
    per sphere) give the white shadowed exit radiance, projected to a radiance SH vector per sphere and
-   colour (eqs. 4.16–4.20);
-3. second pass: per receiver vertex, the reflected irradiance ``E_R = Σ_s L̃_s Ṽ_s`` (eq. 4.22).
+   colour (eqs. 4.16–4.20); or the samples read a given per-vertex exit radiance (the pipeline's own
+   direct shading, :meth:`SphereReflections.shade_samples`);
+3. second pass: per receiver vertex, the reflected irradiance ``E_R = Σ_s L̃_s Ṽ_s`` (eq. 4.22) with
+   the sphere visibility of eq. 4.32 (optionally with the thesis' rule for intersecting spheres of one
+   object, ``exclude_intersecting``) and, optionally, without the receiver's own object's spheres.
 
 Exit radiance including the bounce: ``(ρ/π) (L · T + E_R)`` (CONTRACTS.md §2 for the first term).
 
