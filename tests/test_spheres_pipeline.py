@@ -162,3 +162,19 @@ def test_run_reflections_follow_a_skinned_arm(tmp_path):
     for s, r in zip(sums, ref_sums):
         assert r < s < 2.0 * r, (s, r)
     assert sums[1] < sums[0] and ref_sums[1] < ref_sums[0], (sums, ref_sums)
+
+
+def test_scene_setting_turns_reflections_on(runs, tmp_path):
+    # bool warpshade:reflections = true on the default prim acts as --reflections; --no-reflections wins
+    scene, _, out = runs
+    st = Usd.Stage.Open(scene)
+    from pxr import Sdf
+
+    st.GetDefaultPrim().CreateAttribute("warpshade:reflections", Sdf.ValueTypeNames.Bool).Set(True)
+    path = tmp_path / "on.usda"
+    st.Export(str(path))
+    assert read_scene(str(path)).settings["reflections"] is True
+    on = _run(str(path), tmp_path / "o1.usda")["/World/ground"][0]
+    off = _run(str(path), tmp_path / "o2.usda", "--no-reflections")["/World/ground"][0]
+    np.testing.assert_array_equal(on, out["bounce"]["/World/ground"][0])
+    np.testing.assert_array_equal(off, out["plain"]["/World/ground"][0])
