@@ -16,6 +16,9 @@ from warpshade.scene import Material, Scene, SceneObject
 FRONTIER = {"configs": [
     {"method": "reference", "order": 5, "knobs": {"rays": 1024}, "error": 0.015, "error_p95": 0.02,
      "timings": [{"mesh": "a", "vertices": 1000, "triangles": 2000, "seconds": 0.5, "build_seconds": 0.01}]},
+    # what `warpshade run` uses for "reference" without knobs (pipeline.DEFAULT_KNOBS)
+    {"method": "reference", "order": 5, "knobs": {"rays": 256}, "error": 0.035, "error_p95": 0.05,
+     "timings": [{"mesh": "a", "vertices": 1000, "triangles": 2000, "seconds": 0.125, "build_seconds": 0.01}]},
     {"method": "hemiraster", "order": 5, "knobs": {"mask": 32}, "error": 0.04, "error_p95": 0.1,
      "timings": [{"mesh": "a", "vertices": 1000, "triangles": 2000, "seconds": 0.1, "build_seconds": 0.2}]},
     {"method": "disks", "order": 5, "knobs": {"lod": 2.0}, "error": 0.2, "error_p95": 0.3,
@@ -102,3 +105,79 @@ def test_apply_plan_sets_each_objects_method():
     apply_plan(scene, plan)
     assert [o.method for o in scene.objects] == ["hemiraster", "hemiraster"]
     assert scene.object("a").knobs == {"mask": 32}  # knobs when the frontier has no constructor kwargs
+
+
+def test_fit_cost_recovers_known_coefficients():
+    from warpshade.planner import cost_features, fit_cost
+
+    # seconds generated from a known a V + b V log2 F + c V F (a, b, c chosen, not measured)
+    v = np.array([500, 1200, 2500, 4000, 6100])
+    f = np.array([1000, 2300, 4900, 7900, 12200])
+    coef = np.array([2e-5, 3e-6, 4e-9])
+    t = cost_features(v, f) @ coef
+    np.testing.assert_allclose(fit_cost(cost_features(v, f), t), coef, rtol=1e-6)
+
+
+def test_estimate_uses_triangles_when_three_meshes_are_measured():
+    # exactly linear in V·F (brute force over blockers): doubling V and F quadruples the time;
+    # the nearest-mesh rule (linear in V) would say 2x
+    cfg = {"timings": [{"vertices": v, "triangles": 2 * v, "seconds": 1e-7 * v * 2 * v} for v in (1000, 2000, 4000)]}
+    assert estimate_seconds(cfg, 8000, triangles=16000) == pytest.approx(1e-7 * 8000 * 16000, rel=1e-6)
+    assert estimate_seconds(cfg, 8000) == pytest.approx(2 * cfg["timings"][2]["seconds"])  # no F: nearest mesh, x2
+
+
+def test_groups_mirror_the_pipeline_and_cost_the_between_pass():
+    from warpshade.pipeline import Pipeline
+
+    scene = Scene([ico("ball", method="hemiraster"), ground(method="reference"), ico("cloth", kind="cloth")],
+                  frames=4)
+    plan = make_plan(scene, frontier=FRONTIER)
+    want = [(g.method, g.names) for g in Pipeline(scene).groups]
+    assert [(g.method, g.names) for g in plan.groups] == want  # same grouping as warpshade run
+    by = {tuple(g.names): g for g in plan.groups}
+    still = by[("ball",)]
+    assert not still.moves and still.seconds_frame == still.seconds_between + still.seconds_lights + still.seconds_radiance
+    assert by[("ground", "cloth")].moves  # a static object shares its group's recomputation
+    assert all(g.seconds_between > 0 for g in plan.groups) and plan.seconds_setup_between > 0
+    assert plan.seconds_setup_structures > 0  # hemiraster plane LUT
+    alone = make_plan(scene, frontier=FRONTIER, between=None)
+    assert all(g.seconds_between == 0 for g in alone.groups) and alone.seconds_setup_between == 0
+
+
+def test_run_defaults_knobs_and_rect_light_spec():
+    from warpshade.scene import LightSpec
+
+    scene = Scene([ico()], lights=[LightSpec("rect", "/Panel", width=1.0, height=1.0)], frames=3)
+    plan = make_plan(scene, frontier=FRONTIER)
+    # the pipeline gives "reference" without knobs 256 rays (pipeline.DEFAULT_KNOBS): plan and cost that
+    assert plan.object("ball").knobs == {"rays": 256} and plan.groups[0].knobs == {"rays": 256}
+    assert plan.object("ball").error == 0.035
+    assert "GEARS area-light structures" in plan.structures  # a scene file's rect light counts
+    assert plan.groups[0].seconds_lights > make_plan(Scene([ico()], frames=3), frontier=FRONTIER).groups[0].seconds_lights
+
+
+def test_budget_choice_spells_out_measured_knobs_for_the_run():
+    # the frontier's default-knob configuration has empty kwargs; the run must not swap in its 256-ray default
+    fr = {"configs": [{**FRONTIER["configs"][0], "kwargs": {}}]}
+    plan = make_plan(Scene([ico()], frames=2), max_error=0.02, frontier=fr)
+    assert plan.object("ball").knobs == {"rays": 1024}
+
+
+def test_plan_cli_on_shipped_rect_light_scene(tmp_path):
+    import json
+    import os
+
+    from warpshade.cli import main as cli_main
+
+    scene = os.path.join(os.path.dirname(__file__), "..", "usd_scenes", "rect_light.usda")
+    out = tmp_path / "plan.json"
+    assert cli_main(["plan", scene, "--json", str(out)]) == 0
+    plan = json.loads(out.read_text())
+    # what `warpshade run` does with this scene: order 4, one reference group (256 rays) of all three
+    # objects, recomputed every frame because the cloth moves; the UsdLux RectLight is seen
+    assert plan["order"] == 4 and "GEARS area-light structures" in plan["structures"]
+    (g,) = plan["groups"]
+    assert g["method"] == "reference" and g["knobs"] == {"rays": 256} and g["moves"]
+    assert g["names"] == ["/World/Ground", "/World/Ball", "/World/Cloth"] and g["vertices"] == 2820
+    assert g["seconds_lights"] > 0 and g["seconds_transfer"] > 0 and g["seconds_between"] == 0
+    assert plan["run_seconds_per_frame"] == pytest.approx(g["seconds_frame"])

@@ -16,8 +16,23 @@ Rules (issue 8):
 * with ``max_error``, each object gets the configuration of the frontier whose worst measured mean error
   is within budget and whose estimated time on this object is smallest.
 
-Cost estimates scale the time measured on the benchmark mesh nearest in vertex count linearly by vertex
-count (a first-order model: methods scale between V log F and V·F); they are estimates, printed as such.
+Cost model (estimates, printed as such):
+
+* a visibility method's time per frame (and build time) is fitted per frontier configuration from the
+  meshes ``warpshade bench`` measured it on, as ``t = a V + b V log2 F + c V F`` with ``a, b, c >= 0``
+  (V vertices, F triangles: per-receiver fixed work, BVH-like and brute-force-like work over the
+  blockers; :func:`fit_cost`); with fewer than three measured meshes, the time of the nearest mesh in
+  vertex count is scaled linearly in V. A configuration missing at the plan's SH order is costed from
+  the same knobs at the nearest measured order (time depends little on order: ≤ 20 % from 2 to 6 in
+  the frontier);
+* the other passes — between-group sphere-set shadows (setup fit + per frame), lights' SH (fixed for
+  distant lights, per vertex for each local light), exit radiance, unoccluded transfer, the
+  hemiraster LUT — use constants measured by ``benchmarks/planner_costs.py`` on the shipped scenes
+  (``warpshade/data/pass_costs.json``);
+* :attr:`Plan.groups` mirrors what ``warpshade run`` executes (the pipeline's shading groups: objects
+  sharing a method and knobs are one receiver mesh, recomputed when any member moves; groups shadow
+  each other through sphere sets), so :attr:`Plan.run_seconds_per_frame` is comparable to the
+  ``shade`` time a run reports (``benchmarks/planner_savings.py --scenes`` prints both).
 """
 
 from __future__ import annotations
@@ -32,6 +47,41 @@ from .scene import Scene, SceneObject
 REDOT_SECONDS_PER_COEFF = 2.5e-9
 """Re-dot cost per vertex per SH coefficient per RGB channel [s] (NumPy matmul, measured on this machine:
 6102×25 @ 25×3 in ~1.1 ms)."""
+
+_PASS_COSTS: dict | None = None
+
+
+def load_pass_costs() -> dict:
+    """The measured per-pass constants (``warpshade/data/pass_costs.json``, written by
+    ``benchmarks/planner_costs.py --write-data``): ``{"constants": {...}, "order", "note"}``."""
+    global _PASS_COSTS
+    if _PASS_COSTS is None:
+        with resources.files("warpshade").joinpath("data/pass_costs.json").open() as f:
+            _PASS_COSTS = json.load(f)
+    return _PASS_COSTS
+
+
+def cost_features(vertices, triangles) -> "np.ndarray":
+    """Features of the method cost model, ``[V, V log2 F, V F]``, shape (n, 3) float64."""
+    import numpy as np
+
+    v = np.atleast_1d(np.asarray(vertices, dtype=np.float64))
+    f = np.maximum(np.atleast_1d(np.asarray(triangles, dtype=np.float64)), 2.0)
+    return np.stack([v, v * np.log2(f), v * f], axis=1)
+
+
+def fit_cost(features, seconds) -> "np.ndarray":
+    """Non-negative least squares ``seconds ≈ features @ coef`` with relative residuals (each row weighted
+    by 1/seconds, so small and large meshes count alike); shape (k,) float64."""
+    import numpy as np
+    from scipy.optimize import nnls
+
+    x = np.asarray(features, dtype=np.float64)
+    y = np.asarray(seconds, dtype=np.float64)
+    w = 1.0 / np.maximum(y, 1e-12)
+    scale = np.maximum(np.abs(x).max(axis=0), 1e-300)  # conditioning: V·F is ~1e7 where V is ~1e3
+    coef, _ = nnls(x * w[:, None] / scale, y * w)
+    return coef / scale
 
 
 REFLECTION_SECONDS_PER_VERTEX_SPHERE = 1.0e-7
@@ -62,10 +112,25 @@ def load_frontier(path: str | None = None) -> dict:
     return data
 
 
-def estimate_seconds(config: dict, vertices: int, key: str = "seconds") -> float:
-    """Time of a frontier configuration on ``vertices`` vertices, scaled from the nearest measured mesh."""
+def estimate_seconds(config: dict, vertices: int, key: str = "seconds", triangles: int | None = None) -> float:
+    """Time of a frontier configuration on a mesh of ``vertices`` vertices and ``triangles`` triangles.
+
+    With ``triangles`` and at least three distinct measured meshes: :func:`fit_cost` over the timings
+    (the fastest timing per mesh, since repeats on a loaded machine only add noise). Otherwise the time of
+    the measured mesh nearest in vertex count, scaled linearly by vertex count.
+    """
     import math
 
+    best: dict = {}
+    for t in config["timings"]:
+        k = (t["vertices"], t.get("triangles"))
+        if k not in best or t.get(key, 0.0) < best[k].get(key, 0.0):
+            best[k] = t
+    rows = [t for t in best.values() if t.get("triangles")]
+    if triangles is not None and len(rows) >= 3:
+        coef = fit_cost(cost_features([t["vertices"] for t in rows], [t["triangles"] for t in rows]),
+                        [t.get(key, 0.0) for t in rows])
+        return float(cost_features(vertices, triangles)[0] @ coef)
     t = min(config["timings"], key=lambda t: abs(math.log(max(1, t["vertices"]) / max(1, vertices))))
     return float(t.get(key, 0.0)) * vertices / max(1, t["vertices"])
 
@@ -111,8 +176,48 @@ class ObjectPlan:
 
 
 @dataclass
+class GroupPlan:
+    """One shading group as ``warpshade run`` executes it (:func:`warpshade.pipeline.shading.group_objects`):
+    its objects are merged into one receiver mesh and shaded by one method.
+
+    Attributes:
+        method: Visibility method (None: unoccluded transfer).
+        knobs: Method constructor kwargs as the run uses them (the pipeline's defaults filled in).
+        names: Member objects.
+        vertices, triangles: Of the merged mesh.
+        moves: Any member moves, so the group's transfer is recomputed every frame.
+        seconds_build: Estimated method construction [s].
+        seconds_transfer: Estimated transfer update on the merged mesh [s].
+        seconds_between: Estimated per-frame shadowing by the other groups' sphere sets [s].
+        seconds_lights: Estimated per-frame lights' SH at the group's points [s].
+        seconds_radiance: Estimated per-frame exit radiance [s].
+        cost_source: Where the transfer estimate comes from (frontier configuration, fit or nearest mesh).
+    """
+
+    method: str | None
+    knobs: dict
+    names: list[str]
+    vertices: int
+    triangles: int
+    moves: bool
+    seconds_build: float = 0.0
+    seconds_transfer: float = 0.0
+    seconds_between: float = 0.0
+    seconds_lights: float = 0.0
+    seconds_radiance: float = 0.0
+    cost_source: str = ""
+
+    @property
+    def seconds_frame(self) -> float:
+        """Estimated shading time of this group per frame [s] (what the run's ``shade`` time sums)."""
+        return ((self.seconds_transfer if self.moves else 0.0) + self.seconds_between + self.seconds_lights
+                + self.seconds_radiance)
+
+
+@dataclass
 class Plan:
-    """The scene's plan. ``objects`` in scene order; ``structures``: shared things to build once."""
+    """The scene's plan. ``objects`` in scene order; ``structures``: shared things to build once;
+    ``groups``: what ``warpshade run`` executes (see :class:`GroupPlan`)."""
 
     order: int
     frames: int
@@ -122,6 +227,21 @@ class Plan:
     geometry_changes: bool
     max_error: float | None = None
     notes: list[str] = field(default_factory=list)
+    groups: list[GroupPlan] = field(default_factory=list)
+    seconds_setup_between: float = 0.0
+    seconds_setup_structures: float = 0.0
+
+    @property
+    def run_seconds_per_frame(self) -> float:
+        """Estimated ``shade`` time per frame of ``warpshade run`` on this scene [s] (every group; the
+        first frame's transfer of static groups excluded, it is counted in :attr:`run_seconds_setup`)."""
+        return sum(g.seconds_frame for g in self.groups)
+
+    @property
+    def run_seconds_setup(self) -> float:
+        """Estimated one-off cost of a run [s]: method structures, sphere trees, LUT, static groups' transfer."""
+        return (sum(g.seconds_build + (0.0 if g.moves else g.seconds_transfer) for g in self.groups)
+                + self.seconds_setup_between + self.seconds_setup_structures)
 
     def object(self, name: str) -> ObjectPlan:
         for o in self.objects:
@@ -142,8 +262,11 @@ class Plan:
     def to_dict(self) -> dict:
         import dataclasses
 
-        return {**dataclasses.asdict(self), "seconds_per_frame": self.seconds_per_frame,
-                "seconds_total": self.seconds_total}
+        d = dataclasses.asdict(self)
+        for g, gd in zip(self.groups, d["groups"]):
+            gd["seconds_frame"] = g.seconds_frame
+        return {**d, "seconds_per_frame": self.seconds_per_frame, "seconds_total": self.seconds_total,
+                "run_seconds_per_frame": self.run_seconds_per_frame, "run_seconds_setup": self.run_seconds_setup}
 
     def describe(self) -> str:
         """Human-readable plan with estimated costs (what ``warpshade plan`` prints)."""
@@ -159,8 +282,21 @@ class Plan:
             lines.append(f"      passes per frame: {', '.join(o.passes) or 'reuse colours'}")
             lines.append(f"      est. first frame {o.seconds_first * 1e3:.1f} ms, later frames {o.seconds_frame * 1e3:.2f} ms"
                          + (f" — {o.reason}" if o.reason else ""))
-        lines.append(f"  estimated cost: {self.seconds_per_frame * 1e3:.2f} ms per frame after the first; "
+        lines.append(f"  estimated cost of what the scene requires (each object on its own, reuse applied): "
+                     f"{self.seconds_per_frame * 1e3:.2f} ms per frame after the first; "
                      f"{self.seconds_total:.2f} s for {self.frames} frames")
+        if self.groups:
+            lines.append(f"  warpshade run executes {len(self.groups)} shading group(s) (objects sharing a method are one mesh):")
+            for g in self.groups:
+                lines.append(f"    {g.method or 'unoccluded'} {_knobs(g.knobs)}[{', '.join(g.names)}]: {g.vertices} vertices, "
+                             f"{g.triangles} triangles, transfer {'every frame' if g.moves else 'once'}")
+                lines.append(f"      est. per frame {g.seconds_frame * 1e3:.1f} ms = transfer "
+                             f"{(g.seconds_transfer if g.moves else 0.0) * 1e3:.1f} + between-group shadows "
+                             f"{g.seconds_between * 1e3:.1f} + lights {g.seconds_lights * 1e3:.1f} + radiance "
+                             f"{g.seconds_radiance * 1e3:.2f}; build {g.seconds_build * 1e3:.0f} ms"
+                             + (f" ({g.cost_source})" if g.cost_source else ""))
+            lines.append(f"  estimated run: setup {self.run_seconds_setup:.2f} s (sphere trees "
+                         f"{self.seconds_setup_between:.2f} s), shading {self.run_seconds_per_frame * 1e3:.1f} ms per frame")
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 
@@ -174,7 +310,17 @@ def _light_moves(light) -> bool:
 
 
 def _is_rect(light) -> bool:
-    return type(light).__name__ == "RectLight"
+    """A rect light, as a :class:`warpshade.lighting.RectLight` or a scene file's ``LightSpec``."""
+    from .lighting import RectLight
+
+    return isinstance(light, RectLight) or getattr(light, "kind", None) == "rect"
+
+
+def _is_local(light) -> bool:
+    """A light whose SH depends on the receiver's position (rect, sphere), costed per vertex."""
+    if hasattr(light, "kind") and isinstance(light.kind, str):
+        return light.kind in ("rect", "sphere")
+    return bool(getattr(light, "local", False))
 
 
 def default_knobs(method: str) -> dict:
@@ -197,20 +343,53 @@ def _choose(obj: SceneObject, order: int, max_error: float | None, frontier: dic
         if not ok:
             raise ValueError(f"{obj.name}: no measured configuration at SH order {order} meets --max-error "
                              f"{max_error} (best: {min((c['error'] for c in frontier['configs'] if c['order'] == order), default=float('nan')):.3f})")
-        best = min(ok, key=lambda c: (estimate_seconds(c, v), c["error"]))
+        best = min(ok, key=lambda c: (estimate_seconds(c, v, triangles=obj.mesh.num_faces), c["error"]))
         knobs = dict(best.get("kwargs", best["knobs"]))
+        # empty kwargs mean the method's own defaults, but `warpshade run` gives a method named without
+        # knobs its DEFAULT_KNOBS (reference: 256 rays): spell out what was measured
+        knobs.update({k: best["knobs"][k] for k in _run_default_knobs(best["method"]) if k not in knobs and k in best["knobs"]})
         return best["method"], knobs, best, f"fastest measured within error {max_error}"
     if obj.method is None:
         return None, {}, None, ""
-    # the scene's knobs must match; among those, the configuration agreeing with most CLI defaults
-    # (defaults may be sentinels such as "auto" that knobs() reports resolved, so agreement is scored)
-    defaults = default_knobs(obj.method)
-    match = [c for c in frontier["configs"] if _matches(c, obj.method, order, obj.knobs)]
-    cfg = max(match, key=lambda c: sum(c["knobs"].get(k) == v for k, v in defaults.items()), default=None)
-    return obj.method, dict(obj.knobs), cfg, "as the scene asks"
+    knobs = dict(obj.knobs) or _run_default_knobs(obj.method)
+    cfg, _ = find_config(frontier, obj.method, order, knobs)
+    return obj.method, knobs, cfg, "as the scene asks"
 
 
-def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str | None = None) -> Plan:
+def _run_default_knobs(method: str) -> dict:
+    """Knobs ``warpshade run`` gives a method the scene names without knobs (``pipeline.DEFAULT_KNOBS``)."""
+    from .pipeline import DEFAULT_KNOBS
+
+    return dict(DEFAULT_KNOBS.get(method, {}))
+
+
+def find_config(frontier: dict, method: str, order: int, knobs: dict) -> tuple[dict | None, str]:
+    """The frontier configuration of ``method`` with ``knobs`` at ``order`` (else at the nearest measured order).
+
+    Among matches, the one agreeing with most command-line defaults (defaults may be sentinels such as
+    "auto" that ``knobs()`` reports resolved, so agreement is scored).
+
+    Returns:
+        ``(config or None, source)``: source says which order it was measured at when not ``order``.
+    """
+    defaults = default_knobs(method)
+    orders = sorted({c["order"] for c in frontier["configs"] if c["method"] == method}, key=lambda o: (abs(o - order), -o))
+    for o in orders:
+        match = [c for c in frontier["configs"] if _matches(c, method, o, knobs)]
+        if match:
+            cfg = max(match, key=lambda c: sum(c["knobs"].get(k) == v for k, v in defaults.items()))
+            if "kwargs" in cfg:
+                # the same constructor call may report different knobs per mesh (e.g. disks' sides=auto
+                # resolving to one or two sides): its timings on every mesh belong to one cost fit
+                same = [c for c in frontier["configs"] if c["method"] == method and c["order"] == o
+                        and c.get("kwargs") == cfg["kwargs"]]
+                cfg = {**cfg, "timings": [t for c in same for t in c["timings"]]}
+            return cfg, ("" if o == order else f"cost measured at order {o}")
+    return None, ""
+
+
+def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str | None = None,
+              between: str | None = "spheres") -> Plan:
     """Build the :class:`Plan` of ``scene``.
 
     Args:
@@ -218,6 +397,8 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         max_error: Error budget (mean relative L2 transfer error, :mod:`warpshade.metrics`); when set,
             each object's method is chosen from the frontier, overriding the scene's choice.
         frontier: Frontier dict, a path (frontier or ``results.json``), or None for the shipped one.
+        between: The run's between-group shadows (``"spheres"`` or None, as ``warpshade run --between``),
+            for :attr:`Plan.groups`.
 
     Raises:
         ValueError: an empty scene, or no configuration within ``max_error``.
@@ -236,6 +417,8 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     inter = len(scene.objects) >= 2 and any(c.name != r.name for c in casters for r in shaded)
     structures, notes, plans = [], [], []
     rect = any(_is_rect(li) for li in scene.lights)
+    pc = load_pass_costs()["constants"]
+    n_local = sum(1 for li in scene.lights if _is_local(li))
     for obj in scene.objects:
         if not obj.shaded:
             continue
@@ -268,17 +451,24 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         if relit:
             passes.append("re-dot lighting")
         passes = [p for p in passes if p]
-        t_reflect = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT * len(shaded)
-                     * (order / 4.0) ** 2) if reflections else 0.0
-        t_transfer = estimate_seconds(cfg, v) if cfg else 0.0
-        t_build = estimate_seconds(cfg, v, "build_seconds") if cfg else 0.0
+        f = obj.mesh.num_faces
+        t_transfer = estimate_seconds(cfg, v, triangles=f) if cfg else 0.0
+        t_build = estimate_seconds(cfg, v, "build_seconds", triangles=f) if cfg else 0.0
         redot = REDOT_SECONDS_PER_COEFF * v * order * order * 3
         if method is not None and cfg is None:
             notes.append(f"{obj.name}: {method} {_knobs(knobs)}at order {order} is not in the frontier; its cost is not estimated")
-        seconds_first = t_build + t_transfer + redot + t_reflect
-        seconds_frame = (t_transfer if transfer == "every_frame" else 0.0) + (redot if relit else 0.0)
-        if reflections and (moves or shadowed_by_moving or lighting_changes):
-            seconds_frame += t_reflect
+        others = sum(1 for c in casters if c.name != obj.name)
+        t_inter = _between_frame_seconds(v, others, pc) if inter and others else 0.0
+        t_gears = _gears_seconds(fr, v, f) if rect else 0.0
+        t_local = pc["local_light_seconds_per_vertex"] * v * n_local
+        t_reflect = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT * len(shaded)
+                     * (order / 4.0) ** 2) if reflections else 0.0
+        seconds_first = t_build + t_transfer + redot + t_inter + t_gears + t_local + t_reflect
+        seconds_frame = ((t_transfer if transfer == "every_frame" else 0.0) + (redot if relit else 0.0)
+                         + (t_inter if "inter-object shadows (sphere sets)" in passes else 0.0)
+                         + (t_gears if "area-light visibility (GEARS)" in passes else 0.0)
+                         + (t_local if relit else 0.0)
+                         + (t_reflect if "reflection (one bounce)" in passes else 0.0))
         plans.append(ObjectPlan(obj.name, obj.kind, v, moves, method, knobs, transfer, passes,
                                 cfg["error"] if cfg else None, seconds_first, seconds_frame, reason,
                                  t_transfer, t_build))
@@ -292,7 +482,78 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         structures.append("reflection (one-bounce) transfer")
     if any(o.material.glossy for o in scene.objects if o.shaded):
         structures.append("glossy transfer")
-    return Plan(order, scene.frames, plans, structures, lighting_changes, bool(moving), max_error, notes)
+    plan = Plan(order, scene.frames, plans, structures, lighting_changes, bool(moving), max_error, notes)
+    _plan_groups(plan, scene, fr, pc, n_local, between)
+    return plan
+
+
+def _between_frame_seconds(receivers: int, other_groups: int, pc: dict) -> float:
+    """Per-frame sphere-set shadowing of ``receivers`` vertices by ``other_groups`` groups (measured fit)."""
+    return pc["between_seconds_fixed"] + pc["between_seconds_per_receiver_vertex_per_other_group"] * receivers * other_groups
+
+
+def _distant_lights_seconds(scene: Scene, pc: dict) -> float:
+    """Per-frame SH of the scene's non-local lights (the default sky when it has none), by light kind."""
+    kinds = []
+    for li in scene.lights or [None]:
+        if li is None:
+            kinds.append("dome_texture")  # the default sky is an environment like a textured dome
+        elif not _is_local(li):
+            k = getattr(li, "kind", None)
+            kinds.append("dome_texture" if k == "dome" and getattr(li, "texture", None) else (k or "distant"))
+    fallback = max((v for k, v in pc.items() if k.startswith("light_")), default=0.0)
+    return sum(pc.get(f"light_{k}_seconds", fallback) for k in kinds)
+
+
+def _gears_seconds(frontier: dict, vertices: int, triangles: int) -> float:
+    """GEARS visibility per frame at its default knobs (k=16, grid=16), from the frontier's area records."""
+    cfg = next((c for c in frontier.get("area", []) if c["method"] == "gears"
+                and c["knobs"].get("k") == 16 and c["knobs"].get("grid") == 16), None)
+    return estimate_seconds(cfg, vertices, triangles=triangles) if cfg else 0.0
+
+
+def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: int, between: str | None) -> None:
+    """Fill ``plan.groups`` with the shading groups ``warpshade run`` forms from the plan's methods, and cost them."""
+    import dataclasses
+
+    from .pipeline import DEFAULT_KNOBS
+    from .pipeline.shading import group_objects
+
+    chosen = {o.name: o for o in plan.objects}
+    objs = [dataclasses.replace(o, method=chosen[o.name].method, knobs=dict(chosen[o.name].knobs))
+            for o in scene.objects if o.shaded]
+    specs = group_objects(objs, None, None, DEFAULT_KNOBS)
+    n = plan.order * plan.order
+    tris = 0
+    for spec in specs:
+        v = sum(m.num_vertices for m in spec.meshes)
+        f = sum(m.num_faces for m in spec.meshes)
+        tris += f
+        g = GroupPlan(spec.method, dict(spec.knobs), list(spec.names), v, f, any(spec.moving))
+        if spec.method is None:
+            g.seconds_transfer = pc["unoccluded_seconds_per_vertex"] * v
+            g.cost_source = "measured constant"
+        else:
+            cfg, src = find_config(frontier, spec.method, plan.order, spec.knobs)
+            if cfg is None:
+                g.cost_source = "not in the frontier: transfer not estimated"
+                plan.notes.append(f"group {spec.names}: {spec.method} {_knobs(spec.knobs)}is not in the frontier; "
+                                  "its transfer cost is not estimated")
+            else:
+                g.seconds_transfer = estimate_seconds(cfg, v, triangles=f)
+                g.seconds_build = estimate_seconds(cfg, v, "build_seconds", triangles=f)
+                fit = len({t["vertices"] for t in cfg["timings"]}) >= 3
+                g.cost_source = ", ".join(x for x in (("fit over measured meshes" if fit else "nearest measured mesh"), src) if x)
+        if between and len(specs) > 1:
+            g.seconds_between = _between_frame_seconds(v, len(specs) - 1, pc)
+        g.seconds_lights = _distant_lights_seconds(scene, pc) + pc["local_light_seconds_per_vertex"] * v * n_local
+        g.seconds_radiance = pc["radiance_seconds_fixed"] + pc["radiance_seconds_per_vertex_coeff"] * v * n
+        plan.groups.append(g)
+    if between and len(specs) > 1:
+        plan.seconds_setup_between = (pc["between_build_seconds_per_group"] * len(specs)
+                                      + pc["between_build_seconds_per_triangle"] * tris)
+    if any(g.method == "hemiraster" for g in plan.groups):
+        plan.seconds_setup_structures = pc["hemiraster_lut_seconds"]
 
 
 def apply_plan(scene: Scene, plan: Plan) -> None:

@@ -2,15 +2,17 @@
 
 :func:`run_bench` sweeps each registered method's ``sweep(quick)`` knobs and SH orders over the
 standard mesh set (:mod:`.meshes`) and judges transfer and radiance against a cached ray-traced
-ground truth; :mod:`.report` writes JSON, CSV, the Pareto plot and the planner's frontier file.
+ground truth, and GEARS area-light visibility against ray-traced area-light truth (:mod:`.area`);
+:mod:`.report` writes JSON, CSV, the Pareto plot and the planner's frontier file.
 """
 
+from .area import AREA_METHODS, area_errors, bench_light, run_area
 from .environments import ENV_ORDER, environments, radiance
 from .meshes import BenchMesh, character, standard_meshes, two_objects, wrinkled_cloth
 from .reference_cache import ground_truth, mesh_hash
 from .report import frontier_from_results, markdown_table, plot_pareto, write_csv, write_json
 from .runner import BenchSettings, method_configs, pareto_mask, run_bench
 
-__all__ = ["ENV_ORDER", "BenchMesh", "BenchSettings", "character", "environments", "frontier_from_results",
+__all__ = ["AREA_METHODS", "area_errors", "bench_light", "run_area", "ENV_ORDER", "BenchMesh", "BenchSettings", "character", "environments", "frontier_from_results",
            "ground_truth", "markdown_table", "mesh_hash", "method_configs", "pareto_mask", "plot_pareto",
            "radiance", "run_bench", "standard_meshes", "two_objects", "wrinkled_cloth", "write_csv", "write_json"]

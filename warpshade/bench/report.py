@@ -9,7 +9,7 @@ import os
 
 import numpy as np
 
-CSV_COLUMNS = ["method", "mesh", "vertices", "triangles", "order", "knobs", "seconds", "repeat", "build_seconds",
+CSV_COLUMNS = ["method", "mesh", "quantity", "vertices", "triangles", "order", "knobs", "seconds", "repeat", "build_seconds",
                "error_mean", "error_p95", "error_max", "radiance_error_sky", "radiance_error_studio",
                "peak_rss_bytes", "array_bytes", "pareto", "finite", "failed"]
 
@@ -42,6 +42,7 @@ def write_csv(path: str, records: list[dict]) -> None:
         for r in records:
             row = dict(r)
             row["knobs"] = json.dumps(r.get("knobs", {}), sort_keys=True, default=_jsonable)
+            row.setdefault("quantity", "transfer")
             w.writerow(row)
     _atomic_write(path, write)
 
@@ -49,7 +50,16 @@ def write_csv(path: str, records: list[dict]) -> None:
 def label(r: dict) -> str:
     """Short configuration label: order and the knobs that are not seeds."""
     knobs = " ".join(f"{k}={v}" for k, v in sorted(r.get("knobs", {}).items()) if k != "seed")
-    return f"o{r['order']} {knobs}".strip()
+    return knobs if is_area(r) else f"o{r['order']} {knobs}".strip()
+
+
+def is_area(r: dict) -> bool:
+    """An area-light visibility record (GEARS or its ray-traced comparison; see :mod:`.area`)."""
+    return r.get("quantity") == "area_visibility"
+
+
+def _fmt(x, spec: str, width: int) -> str:
+    return f"{'-':>{width}}" if x is None else f"{x:>{width}{spec}}"
 
 
 def format_table(records: list[dict]) -> str:
@@ -61,10 +71,14 @@ def format_table(records: list[dict]) -> str:
             lines.append(f"{r['mesh']:<12}{r['method']:<12}{label(r):<44} FAILED: {r['failed']}")
             continue
         peak = "-" if r.get("peak_rss_bytes") is None else f"{r['peak_rss_bytes'] / 2**20:.1f}"
+        arr = None if r.get("array_bytes") is None else r["array_bytes"] / 2**20
         lines.append(f"{r['mesh']:<12}{r['method']:<12}{label(r)[:43]:<44}{r['seconds'] * 1e3:>10.2f}"
-                     f"{r['error_mean']:>10.4f}{r['error_p95']:>9.4f}{r['radiance_error_sky']:>9.4f}"
-                     f"{r['radiance_error_studio']:>9.4f}{peak:>9}{r['array_bytes'] / 2**20:>8.2f}"
+                     f"{r['error_mean']:>10.4f}{r['error_p95']:>9.4f}{_fmt(r.get('radiance_error_sky'), '.4f', 9)}"
+                     f"{_fmt(r.get('radiance_error_studio'), '.4f', 9)}{peak:>9}{_fmt(arr, '.2f', 8)}"
                      f"  {'*' if r.get('pareto') else ''}")
+    if any(is_area(r) for r in records):
+        lines.append("gears / area-rays rows: error = absolute visible fraction of the rect light |V - V*| "
+                     "(not transfer error), truth: 32x32 jittered rays per vertex")
     return "\n".join(lines)
 
 
@@ -78,10 +92,17 @@ def markdown_table(records: list[dict]) -> str:
             continue
         peak = "-" if r.get("peak_rss_bytes") is None else f"{r['peak_rss_bytes'] / 2**20:.1f}"
         star = " ★" if r.get("pareto") else ""
+        if is_area(r):
+            out.append(f"| {r['mesh']} | {r['method']} | `{label(r)}`{star} | {r['seconds'] * 1e3:.2f} | "
+                       f"{r['error_mean']:.4f} ‡ | {r['error_p95']:.4f} ‡ | - | {peak} | - |")
+            continue
         out.append(f"| {r['mesh']} | {r['method']} | `{label(r)}`{star} | {r['seconds'] * 1e3:.2f} | "
                    f"{r['error_mean']:.4f} | {r['error_p95']:.4f} | "
                    f"{r['radiance_error_sky']:.4f} / {r['radiance_error_studio']:.4f} | {peak} | "
                    f"{r['array_bytes'] / 2**20:.2f} |")
+    if any(is_area(r) for r in records):
+        out.append("\n‡ gears / area-rays: absolute error of the visible fraction of a rect light (CONTRACTS.md §4) "
+                   "against 32×32 jittered shadow rays per vertex, not the transfer error.")
     return "\n".join(out)
 
 
@@ -101,11 +122,13 @@ def plot_pareto(path: str, records: list[dict], title: str = "") -> None:
 
     from .runner import DEFAULT_ORDER
 
-    ok = [r for r in records if "failed" not in r and r["order"] == DEFAULT_ORDER]
+    ok = [r for r in records if "failed" not in r and r["order"] == DEFAULT_ORDER and not is_area(r)]
+    area = [r for r in records if "failed" not in r and is_area(r)]
     meshes = list(dict.fromkeys(r["mesh"] for r in ok))
     methods = list(dict.fromkeys(r["method"] for r in ok))
-    cols = min(3, max(1, len(meshes)))
-    rows = (len(meshes) + cols - 1) // cols
+    panels = len(meshes) + (1 if area else 0)
+    cols = min(3, max(1, panels))
+    rows = (panels + cols - 1) // cols
     fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 4.2 * rows), squeeze=False)
     colors = {m: plt.get_cmap("tab10")(i % 10) for i, m in enumerate(methods)}
     for ax, mesh in zip(axes.ravel(), meshes):
@@ -134,7 +157,9 @@ def plot_pareto(path: str, records: list[dict], title: str = "") -> None:
         ax.set_ylabel("mean relative L2 transfer error")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    for ax in axes.ravel()[len(meshes):]:
+    if area:
+        _plot_area(axes.ravel()[len(meshes)], area, plt)
+    for ax in axes.ravel()[panels:]:
         ax.axis("off")
     if title:
         fig.suptitle("\n".join(textwrap.wrap(title, 40 * cols)), fontsize=8)
@@ -143,6 +168,36 @@ def plot_pareto(path: str, records: list[dict], title: str = "") -> None:
     fig.savefig(tmp, dpi=110)
     plt.close(fig)
     os.replace(tmp, path)
+
+
+def _plot_area(ax, area: list[dict], plt) -> None:
+    """The area-light panel: GEARS (solid, one curve per mesh along k) and the ray tracer at equal k
+    (dashed); y is the mean absolute visible-fraction error, another quantity than the transfer panels."""
+    meshes = list(dict.fromkeys(r["mesh"] for r in area))
+    colors = {m: plt.get_cmap("Dark2")(i % 8) for i, m in enumerate(meshes)}
+    for mesh in meshes:
+        for method, style in (("gears", "o-"), ("area-rays", "s--")):
+            mr = sorted((r for r in area if r["mesh"] == mesh and r["method"] == method
+                         and (method == "area-rays" or r["knobs"].get("grid") == 16)), key=lambda r: r["knobs"]["k"])
+            if not mr:
+                continue
+            s = [r["seconds"] for r in mr]
+            e = [max(r["error_mean"], 1e-6) for r in mr]
+            ax.plot(s, e, style, color=colors[mesh], ms=4, label=f"{method} {mesh}")
+            for r, x, y in zip(mr, s, e):
+                ax.annotate(f"k{r['knobs']['k']}", (x, y), fontsize=6, xytext=(2, 2), textcoords="offset points")
+        other = [r for r in area if r["mesh"] == mesh and r["method"] == "gears" and r["knobs"].get("grid", 16) != 16]
+        for r in other:  # grid changes time only (the grid is exact): crosses at the k=16 error
+            ax.scatter([r["seconds"]], [max(r["error_mean"], 1e-6)], color=colors[mesh], marker="x", s=20)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.xaxis.set_minor_formatter(plt.NullFormatter())  # a narrow time range crowds minor labels
+    ax.set_title("rect-light visibility: GEARS (x: grid 8, 32) vs rays\n(different quantity from the transfer panels)",
+                 fontsize=9)
+    ax.set_xlabel("visibility time per frame [s]")
+    ax.set_ylabel("mean |visible fraction − truth| (32×32 rays)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6)
 
 
 def frontier_from_results(records: list[dict]) -> dict:
@@ -154,20 +209,24 @@ def frontier_from_results(records: list[dict]) -> dict:
 
     Returns:
         ``{"configs": [{"method", "order", "knobs", "kwargs", "error", "error_p95", "timings": [{"mesh", "vertices",
-        "triangles", "seconds", "build_seconds"}]}], "source": ...}``.
+        "triangles", "seconds", "build_seconds"}]}], "area": [the same for area-light records, no order],
+        "meshes": [...], "note": ...}``.
     """
     groups: dict[str, dict] = {}
+    area: dict[str, dict] = {}
     for r in records:
         if "failed" in r:
             continue
-        key = json.dumps([r["method"], r["order"], r["knobs"]], sort_keys=True, default=_jsonable)
-        g = groups.setdefault(key, {"method": r["method"], "order": r["order"], "knobs": r["knobs"],
-                                    "kwargs": r.get("config", {}),
-                                    "error": 0.0, "error_p95": 0.0, "timings": []})
+        # area-light records (GEARS, rays) are not transfer methods: kept apart, no order
+        into, ident = (area, [r["method"], r["knobs"]]) if is_area(r) else (groups, [r["method"], r["order"], r["knobs"]])
+        key = json.dumps(ident, sort_keys=True, default=_jsonable)
+        g = into.setdefault(key, {"method": r["method"], "order": r["order"], "knobs": r["knobs"],
+                                  "kwargs": r.get("config", {}), "error": 0.0, "error_p95": 0.0, "timings": []})
         g["error"] = max(g["error"], r["error_mean"])
         g["error_p95"] = max(g["error_p95"], r["error_p95"])
         g["timings"].append({"mesh": r["mesh"], "vertices": r["vertices"], "triangles": r["triangles"],
                              "seconds": r["seconds"], "build_seconds": r.get("build_seconds", 0.0)})
-    return {"configs": list(groups.values()),
+    return {"configs": list(groups.values()), "area": list(area.values()),
             "meshes": sorted({t["mesh"] for g in groups.values() for t in g["timings"]}),
-            "note": "error = worst error_mean over the benchmark meshes; timings measured by `warpshade bench`"}
+            "note": "error = worst error_mean over the benchmark meshes; timings measured by `warpshade bench`; "
+                    "'area': rect-light visibility (GEARS, rays), error = absolute visible fraction"}

@@ -16,10 +16,15 @@ What a record measures (one method configuration on one mesh):
   persistent structures and outputs; a ``wp.Mesh`` BVH is estimated at 64 bytes per triangle).
 * ``error_mean``/``error_p95``/``error_max``: :func:`warpshade.metrics.error_summary` of the transfer
   against the cached ground truth (:mod:`.reference_cache`), on the method's ``order*order``
-  coefficients.
+  coefficients, over the mesh's judged vertices (``judged_vertices``: all but the character's buried
+  ones, :attr:`.meshes.BenchMesh.judged`).
 * ``radiance_error_<env>``: :func:`warpshade.metrics.radiance_error` of white-Lambertian exit radiance
   under each environment of :mod:`.environments` (band-limited to order 6, so lower orders also pay
   for the bands they drop).
+
+GEARS (``--methods gears``, included by default) is an area-light visibility method: its records
+(``quantity = "area_visibility"``, ``order = None``) come from :mod:`.area`, with errors in absolute
+visible fraction against a ray-traced area-light truth.
 """
 
 from __future__ import annotations
@@ -182,6 +187,8 @@ def measure(cls, config: dict, bm: BenchMesh, truth: np.ndarray, lights: dict, s
     seconds = median_seconds(method.update, repeat=repeat, warmup=0)
     transfer = method.transfer_numpy()
     n = transfer.shape[1]
+    if bm.judged is not None:  # errors over the judged vertices only (time covers all)
+        transfer, truth = transfer[bm.judged], truth[bm.judged]
     rec = {
         "method": cls.name,
         "mesh": bm.name,
@@ -193,6 +200,7 @@ def measure(cls, config: dict, bm: BenchMesh, truth: np.ndarray, lights: dict, s
         "seconds": seconds,
         "repeat": repeat,
         "build_seconds": build_seconds,
+        "judged_vertices": int(len(transfer)),
         **error_summary(transfer, truth[:, :n]),
     }
     for env, light in lights.items():
@@ -221,9 +229,13 @@ def run_bench(settings: BenchSettings) -> list[dict]:
     """Run the sweep; returns the records (each also carries ``pareto``: on its mesh's frontier)."""
     from ..visibility import METHODS, get_method
 
+    from .area import AREA_METHODS, run_area
+
     log = settings.log or (lambda msg: print(msg, file=sys.stderr, flush=True))
-    names = settings.methods or sorted(METHODS)
-    classes = [get_method(n) for n in names]
+    names = settings.methods or sorted(METHODS) + ["gears"]
+    # "gears" (area-light visibility) is measured by .area, with the ray tracer at equal k beside it
+    area = any(n in AREA_METHODS for n in names)
+    classes = [get_method(n) for n in names if n not in AREA_METHODS]
     meshes = standard_meshes(settings.quick)
     if settings.meshes:
         meshes = [m for m in meshes if m.name in settings.meshes]
@@ -233,7 +245,7 @@ def run_bench(settings: BenchSettings) -> list[dict]:
     configs = {cls.name: method_configs(cls, settings.quick, settings.orders) for cls in classes}
     max_order = max([ENV_ORDER] + [c["order"] for cs in configs.values() for c in cs])
     records = []
-    for bm in meshes:
+    for bm in meshes if classes else []:
         log(f"{bm.name}: {bm.rest.num_vertices} vertices, {bm.rest.num_faces} triangles — {bm.description}")
         truth = ground_truth(bm.frame_mesh, max_order, settings.ground_truth_rays, settings.cache_dir,
                              settings.device, log=log)
@@ -257,17 +269,20 @@ def run_bench(settings: BenchSettings) -> list[dict]:
                 records.append(rec)
                 log(f"  {cls.name:<11} order {rec['order']} {_short(rec['knobs'])}: {rec['seconds'] * 1e3:9.2f} ms  "
                     f"err {rec['error_mean']:.4f} (p95 {rec['error_p95']:.4f})")
+    if area:
+        records += run_area(meshes, settings, log)
     mark_pareto(records)
     return records
 
 
 def mark_pareto(records: list[dict]) -> None:
     """Set ``pareto`` on every measured record: on the time/``error_mean`` frontier of all methods' records
-    with the same mesh and SH order (errors of different orders compare different coefficient sets)."""
+    with the same mesh, SH order and quantity (errors of different orders compare different coefficient
+    sets; area-light visibility errors are another quantity altogether)."""
     by_mesh: dict[tuple, list[dict]] = {}
     for r in records:
         if "failed" not in r:
-            by_mesh.setdefault((r["mesh"], r["order"]), []).append(r)
+            by_mesh.setdefault((r["mesh"], r["order"], r.get("quantity", "transfer")), []).append(r)
     for recs in by_mesh.values():
         mask = pareto_mask([r["seconds"] for r in recs], [r["error_mean"] for r in recs])
         for r, m in zip(recs, mask):

@@ -13,6 +13,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-error", type=float, default=None,
                         help="error budget: per object, the fastest measured method within this mean error")
     parser.add_argument("--frontier", default=None, help="frontier.json or bench results.json (default: shipped)")
+    parser.add_argument("--order", type=int, default=None,
+                        help="SH order (default: the scene's warpshade:order, else warpshade run's default 4)")
+    parser.add_argument("--between", choices=("spheres", "none"), default="spheres",
+                        help="shadows between shading groups, as warpshade run --between (default spheres)")
     parser.add_argument("--json", default=None, metavar="PLAN.json", help="also write the plan as JSON")
     parser.add_argument("--reflections", action="store_true", default=None,
                         help="plan the one-bounce reflection pass (as warpshade run --reflections; default: the "
@@ -32,10 +36,15 @@ def load_scene(path: str):
 def run(args) -> int:
     from ..planner import make_plan, naive_seconds
 
+    from ..pipeline import DEFAULT_ORDER
+
     scene = load_scene(args.scene)
+    # the order warpshade run would use, so the plan costs what the run does
+    scene.settings["order"] = args.order or scene.settings.get("order", DEFAULT_ORDER)
     if args.reflections:
         scene.settings["reflections"] = True
-    plan = make_plan(scene, max_error=args.max_error, frontier=args.frontier)
+    plan = make_plan(scene, max_error=args.max_error, frontier=args.frontier,
+                     between=None if args.between == "none" else args.between)
     print(plan.describe())
     print(f"  without reuse (every object every frame): {naive_seconds(plan):.2f} s")
     if args.json:

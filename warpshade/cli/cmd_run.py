@@ -115,7 +115,7 @@ def run(args) -> int:
         from ..planner import apply_plan, make_plan
 
         scene.settings["order"] = args.order or scene.settings.get("order", 4)
-        plan = make_plan(scene, max_error=args.max_error)
+        plan = make_plan(scene, max_error=args.max_error, between=None if args.between == "none" else args.between)
         apply_plan(scene, plan)
         print(plan.describe(), file=sys.stderr)
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"

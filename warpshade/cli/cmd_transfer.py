@@ -48,22 +48,21 @@ def run(args) -> int:
     transfer = method.transfer_numpy()
     save_npz(args.save, points=method.points.numpy(), normals=method.normals.numpy(), faces=mesh.faces,
              transfer=transfer)
-    stats = {
-        "method": cls.name,
-        "order": method.order,
-        "vertices": mesh.num_vertices,
-        "triangles": mesh.num_faces,
-        "seconds": seconds,
-        "repeat": args.repeat,
-        "knobs": method.knobs(),
-        "mesh": mesh.name,
-        **method.stats(),
-    }
+    stats = method_stats(method, mesh, seconds, args.repeat, order=method.order)
     if args.json:
         write_json(args.json, stats)
     print(f"{cls.name}: {mesh.num_vertices} vertices, {mesh.num_faces} triangles, order {method.order}: "
           f"{seconds * 1e3:.2f} ms per frame (median of {args.repeat}) -> {args.save}", file=sys.stderr)
     return 0
+
+
+def method_stats(method, mesh, seconds: float, repeat: int, order: int | None, **extra) -> dict:
+    """The ``STATS.json`` of ``warpshade transfer`` and ``warpshade visibility`` (CONTRACTS.md §3, §4):
+    method name, order (None for area-light visibility), mesh size, timing, every knob as used, the
+    method's counters, then ``extra`` keys."""
+    return {"method": type(method).name, "order": order, "vertices": mesh.num_vertices, "triangles": mesh.num_faces,
+            "seconds": seconds, "repeat": repeat, "knobs": method.knobs(), "mesh": mesh.name, **extra,
+            **method.stats()}
 
 
 def save_npz(path: str, **arrays) -> None:

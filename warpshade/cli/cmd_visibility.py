@@ -31,7 +31,7 @@ def run(args) -> int:
     from ..geometry import load_mesh
     from ..timing import median_seconds
     from ..visibility.gears import LightRect, get_area_method
-    from .cmd_transfer import parse_knobs, save_npz, write_json
+    from .cmd_transfer import method_stats, parse_knobs, save_npz, write_json
 
     light = LightRect.parse(args.rect_light)
     cls = get_area_method(args.method)
@@ -41,18 +41,8 @@ def run(args) -> int:
     seconds = median_seconds(method.update, repeat=args.repeat, warmup=1)
     save_npz(args.save, points=method.points.numpy(), normals=method.normals.numpy(),
              visibility=method.visibility.numpy())
-    stats = {
-        "method": cls.name,
-        "order": None,
-        "vertices": mesh.num_vertices,
-        "triangles": mesh.num_faces,
-        "seconds": seconds,
-        "repeat": args.repeat,
-        "knobs": method.knobs(),
-        "mesh": mesh.name,
-        "light": {"center": list(light.center), "u": list(light.u), "v": list(light.v)},
-        **method.stats(),
-    }
+    stats = method_stats(method, mesh, seconds, args.repeat, order=None,
+                         light={"center": list(light.center), "u": list(light.u), "v": list(light.v)})
     if args.json:
         write_json(args.json, stats)
     print(f"{cls.name}: {mesh.num_vertices} vertices, {mesh.num_faces} triangles, k={method.k}: "

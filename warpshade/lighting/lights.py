@@ -217,13 +217,59 @@ class RectLight(Light):
     @property
     def emit_normal(self) -> np.ndarray:
         """Unit normal of the emitting side, ``−(u × v)/|u × v|``."""
+        return -self.normal
+
+    @property
+    def normal(self) -> np.ndarray:
+        """Unit normal of the rectangle's plane, ``u × v / |u × v|`` (geometric; emission is along −normal)."""
         n = np.cross(self.u, self.v)
-        return -n / np.linalg.norm(n)
+        return n / np.linalg.norm(n)
 
     @property
     def area(self) -> float:
         """Area [m²] (one side)."""
         return 4.0 * float(np.linalg.norm(np.cross(self.u, self.v)))
+
+    @property
+    def diagonal(self) -> float:
+        """Diagonal length [m]."""
+        return 2.0 * math.hypot(np.linalg.norm(self.u), np.linalg.norm(self.v))
+
+    def point(self, s, t) -> np.ndarray:
+        """Light point(s) ``c + s u + t v`` for light coordinates ``s, t ∈ [-1, 1]``, shape (..., 3)."""
+        s = np.asarray(s, dtype=np.float64)[..., None]
+        t = np.asarray(t, dtype=np.float64)[..., None]
+        return self.center + s * self.u + t * self.v
+
+    @classmethod
+    def parse(cls, text: str, **kwargs):
+        """From ``"cx,cy,cz,ux,uy,uz,vx,vy,vz"`` (the ``--rect-light`` syntax); ``kwargs`` set the other fields."""
+        try:
+            vals = [float(x) for x in text.split(",")]
+        except ValueError:
+            raise ValueError(f"--rect-light expects 9 comma-separated numbers, got '{text}'") from None
+        if len(vals) != 9:
+            raise ValueError(f"--rect-light expects 9 comma-separated numbers (c, u, v), got {len(vals)}: '{text}'")
+        return cls(center=vals[0:3], u=vals[3:6], v=vals[6:9], **kwargs)
+
+    @classmethod
+    def over_points(cls, points, size: float = 0.3, height: float = 1.5, tilt: float = 0.0, **kwargs):
+        """A light over a point set's bounding box (y up), for tests, benchmarks and quick looks.
+
+        Args:
+            points: Positions [m], shape (V, 3).
+            size: Half-axes as fractions of the box's x and z extents.
+            height: Centre height as a fraction of the y extent above the box's bottom (1 = top).
+            tilt: Rotation of the v axis about x [rad] (0: horizontal light facing down and up).
+            kwargs: The other fields (radiance, two_sided...).
+        """
+        p = np.asarray(points, dtype=np.float64)
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        d = hi - lo
+        c = lo + d * np.array([0.5, height, 0.5])
+        u = np.array([d[0] * size, 0.0, 0.0])
+        v = np.array([0.0, -np.sin(tilt), np.cos(tilt)]) * d[2] * size
+        return cls(center=c, u=u, v=v, **kwargs)
 
     def corners(self) -> np.ndarray:
         """Corners in order ``c−u−v, c+u−v, c+u+v, c−u+v``, shape (4, 3)."""

@@ -9,7 +9,6 @@ the light's cosine terms, for radiance).
 from __future__ import annotations
 
 import argparse
-import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import ClassVar
@@ -18,12 +17,15 @@ import numpy as np
 import warp as wp
 
 from ...geometry.mesh import TriMesh
+from ...lighting import RectLight
 from ..base import TransferMethod
 
 
-@dataclass(frozen=True)
-class LightRect:
-    """A two-sided rectangular area light (UsdLux LightRect) with corners ``center ± u ± v``.
+@dataclass
+class LightRect(RectLight):
+    """The rect light of area-light visibility: a :class:`warpshade.lighting.RectLight` that emits on both
+    sides (CONTRACTS.md §4) and whose half-axes must be orthogonal (the GEARS kernels recover light
+    coordinates with dual axes ``u/|u|²``, ``v/|v|²``). Positional ``LightRect(center, u, v)`` as before.
 
     Attributes:
         center: Centre [m], shape (3,).
@@ -31,75 +33,31 @@ class LightRect:
         v: Second half-axis [m], shape (3,), orthogonal to ``u``.
     """
 
-    center: tuple
-    u: tuple
-    v: tuple
+    two_sided: bool = True
 
     def __post_init__(self):
-        c, u, v = (np.asarray(x, dtype=np.float64) for x in (self.center, self.u, self.v))
-        for name, x in (("center", c), ("u", u), ("v", v)):
+        for name in ("center", "u", "v"):
+            x = np.asarray(getattr(self, name), dtype=np.float64)
             if x.shape != (3,) or not np.isfinite(x).all():
                 raise ValueError(f"rect light {name} must be 3 finite numbers, got {x.tolist()}")
+        u, v = np.asarray(self.u, np.float64), np.asarray(self.v, np.float64)
         lu, lv = np.linalg.norm(u), np.linalg.norm(v)
         if lu == 0.0 or lv == 0.0:
             raise ValueError(f"rect light half-axes must be non-zero, got u={u.tolist()} v={v.tolist()}")
         if abs(np.dot(u, v)) > 1e-4 * lu * lv:
             raise ValueError(f"rect light half-axes must be orthogonal, got u={u.tolist()} v={v.tolist()} "
                              f"(cos = {np.dot(u, v) / (lu * lv):.3g})")
-        object.__setattr__(self, "center", tuple(c.tolist()))
-        object.__setattr__(self, "u", tuple(u.tolist()))
-        object.__setattr__(self, "v", tuple(v.tolist()))
+        super().__post_init__()
 
     @classmethod
-    def parse(cls, text: str) -> LightRect:
-        """From ``"cx,cy,cz,ux,uy,uz,vx,vy,vz"`` (the ``--rect-light`` syntax)."""
-        try:
-            vals = [float(x) for x in text.split(",")]
-        except ValueError:
-            raise ValueError(f"--rect-light expects 9 comma-separated numbers, got '{text}'") from None
-        if len(vals) != 9:
-            raise ValueError(f"--rect-light expects 9 comma-separated numbers (c, u, v), got {len(vals)}: '{text}'")
-        return cls(tuple(vals[0:3]), tuple(vals[3:6]), tuple(vals[6:9]))
-
-    @classmethod
-    def over_points(cls, points, size: float = 0.3, height: float = 1.5, tilt: float = 0.0) -> LightRect:
-        """A light over a point set's bounding box (y up), for tests, benchmarks and quick looks.
-
-        Args:
-            points: Positions [m], shape (V, 3).
-            size: Half-axes as fractions of the box's x and z extents.
-            height: Centre height as a fraction of the y extent above the box's bottom (1 = top).
-            tilt: Rotation of the v axis about x [rad] (0: horizontal light facing down and up).
-        """
-        p = np.asarray(points, dtype=np.float64)
-        lo, hi = p.min(axis=0), p.max(axis=0)
-        d = hi - lo
-        c = lo + d * np.array([0.5, height, 0.5])
-        u = np.array([d[0] * size, 0.0, 0.0])
-        v = np.array([0.0, -np.sin(tilt), np.cos(tilt)]) * d[2] * size
-        return cls(tuple(c), tuple(u), tuple(v))
-
-    @property
-    def normal(self) -> np.ndarray:
-        """Unit normal ``u × v / |u × v|``, shape (3,)."""
-        n = np.cross(self.u, self.v)
-        return n / np.linalg.norm(n)
-
-    @property
-    def area(self) -> float:
-        """Area [m²] (``4 |u × v|``)."""
-        return 4.0 * float(np.linalg.norm(np.cross(self.u, self.v)))
-
-    @property
-    def diagonal(self) -> float:
-        """Diagonal length [m]."""
-        return 2.0 * math.hypot(np.linalg.norm(self.u), np.linalg.norm(self.v))
-
-    def point(self, s, t) -> np.ndarray:
-        """Light point(s) ``c + s u + t v`` for light coordinates ``s, t ∈ [-1, 1]``, shape (..., 3)."""
-        s = np.asarray(s, dtype=np.float64)[..., None]
-        t = np.asarray(t, dtype=np.float64)[..., None]
-        return np.asarray(self.center) + s * np.asarray(self.u) + t * np.asarray(self.v)
+    def from_light(cls, light) -> LightRect:
+        """The area-light view of any light with ``center``, ``u``, ``v`` (e.g. a :class:`RectLight`)."""
+        if isinstance(light, cls):
+            return light
+        if not all(hasattr(light, a) for a in ("center", "u", "v")):
+            raise TypeError(f"expected a LightRect or a light with center, u, v; got {type(light).__name__}")
+        kw = {"radiance": light.radiance, "name": light.name} if isinstance(light, RectLight) else {}
+        return cls(*(np.asarray(getattr(light, a), float).reshape(3) for a in ("center", "u", "v")), **kw)
 
 
 class AreaVisibilityMethod(ABC):
@@ -151,12 +109,7 @@ class AreaVisibilityMethod(ABC):
                 :class:`warpshade.lighting.RectLight`); visibility is geometric, so emission
                 (radiance, sidedness) is ignored and :attr:`form_factor` treats the light as two-sided.
         """
-        if not isinstance(light, LightRect):
-            if not all(hasattr(light, a) for a in ("center", "u", "v")):
-                raise TypeError(f"expected a LightRect or a light with center, u, v; got {type(light).__name__}")
-            light = LightRect(tuple(np.asarray(light.center, float).reshape(3)),
-                              tuple(np.asarray(light.u, float).reshape(3)), tuple(np.asarray(light.v, float).reshape(3)))
-        self.light = light
+        self.light = LightRect.from_light(light)
 
     # -- command line ------------------------------------------------------------------------
     @classmethod
@@ -166,6 +119,11 @@ class AreaVisibilityMethod(ABC):
     @classmethod
     def knobs_from_args(cls, args: argparse.Namespace) -> dict:
         return {}
+
+    @classmethod
+    def sweep(cls, quick: bool = False) -> list[dict]:
+        """Constructor keyword arguments ``warpshade bench`` measures (``quick``: a few); includes the defaults."""
+        return [{"k": 16}]
 
     # -- per frame ---------------------------------------------------------------------------
     def update(self, points=None, normals=None) -> wp.array:

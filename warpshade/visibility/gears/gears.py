@@ -68,6 +68,17 @@ class GearsVisibility(AreaVisibilityMethod):
     def knobs_from_args(cls, args) -> dict:
         return {"grid": args.grid}
 
+    @classmethod
+    def sweep(cls, quick: bool = False) -> list[dict]:
+        """k (light samples per side) at the default grid, then the grid at the default k.
+
+        Quick: k = 8 and 16 (the default) only. Full: k = 4, 8, 16, 32 and grid = 8, 32 (grid 0, brute
+        force, is V×F work and only for testing).
+        """
+        if quick:
+            return [{"k": 8, "grid": 16}, {"k": 16, "grid": 16}]
+        return [{"k": k, "grid": 16} for k in (4, 8, 16, 32)] + [{"k": 16, "grid": g} for g in (8, 32)]
+
     def knobs(self) -> dict:
         return {**super().knobs(), "grid": self.grid}
 
