@@ -191,6 +191,8 @@ class GroupPlan:
         seconds_between: Estimated per-frame shadowing by the other groups' sphere sets [s].
         seconds_lights: Estimated per-frame lights' SH at the group's points [s].
         seconds_radiance: Estimated per-frame exit radiance [s].
+        seconds_reflections: Estimated per-frame one-bounce reflections onto the group [s] (the run
+            recomputes them every frame).
         cost_source: Where the transfer estimate comes from (frontier configuration, fit or nearest mesh).
     """
 
@@ -205,13 +207,14 @@ class GroupPlan:
     seconds_between: float = 0.0
     seconds_lights: float = 0.0
     seconds_radiance: float = 0.0
+    seconds_reflections: float = 0.0
     cost_source: str = ""
 
     @property
     def seconds_frame(self) -> float:
         """Estimated shading time of this group per frame [s] (what the run's ``shade`` time sums)."""
         return ((self.seconds_transfer if self.moves else 0.0) + self.seconds_between + self.seconds_lights
-                + self.seconds_radiance)
+                + self.seconds_radiance + self.seconds_reflections)
 
 
 @dataclass
@@ -293,7 +296,9 @@ class Plan:
                 lines.append(f"      est. per frame {g.seconds_frame * 1e3:.1f} ms = transfer "
                              f"{(g.seconds_transfer if g.moves else 0.0) * 1e3:.1f} + between-group shadows "
                              f"{g.seconds_between * 1e3:.1f} + lights {g.seconds_lights * 1e3:.1f} + radiance "
-                             f"{g.seconds_radiance * 1e3:.2f}; build {g.seconds_build * 1e3:.0f} ms"
+                             f"{g.seconds_radiance * 1e3:.2f}"
+                             + (f" + reflections {g.seconds_reflections * 1e3:.1f}" if g.seconds_reflections else "")
+                             + f"; build {g.seconds_build * 1e3:.0f} ms"
                              + (f" ({g.cost_source})" if g.cost_source else ""))
             lines.append(f"  estimated run: setup {self.run_seconds_setup:.2f} s (sphere trees "
                          f"{self.seconds_setup_between:.2f} s), shading {self.run_seconds_per_frame * 1e3:.1f} ms per frame")
@@ -524,6 +529,7 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
             for o in scene.objects if o.shaded]
     specs = group_objects(objs, None, None, DEFAULT_KNOBS)
     n = plan.order * plan.order
+    reflections = bool(scene.settings.get("reflections", False))
     tris = 0
     for spec in specs:
         v = sum(m.num_vertices for m in spec.meshes)
@@ -548,10 +554,16 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
             g.seconds_between = _between_frame_seconds(v, len(specs) - 1, pc)
         g.seconds_lights = _distant_lights_seconds(scene, pc) + pc["local_light_seconds_per_vertex"] * v * n_local
         g.seconds_radiance = pc["radiance_seconds_fixed"] + pc["radiance_seconds_per_vertex_coeff"] * v * n
+        if reflections:
+            g.seconds_reflections = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT
+                                     * len(objs) * (plan.order / 4.0) ** 2)
         plan.groups.append(g)
     if between and len(specs) > 1:
         plan.seconds_setup_between = (pc["between_build_seconds_per_group"] * len(specs)
                                       + pc["between_build_seconds_per_triangle"] * tris)
+    if reflections:  # one sphere tree per object, fitted like the between-group trees
+        plan.seconds_setup_between += (pc["between_build_seconds_per_group"] * len(objs)
+                                       + pc["between_build_seconds_per_triangle"] * tris)
     if any(g.method == "hemiraster" for g in plan.groups):
         plan.seconds_setup_structures = pc["hemiraster_lut_seconds"]
 
