@@ -555,8 +555,12 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
         g.seconds_lights = _distant_lights_seconds(scene, pc) + pc["local_light_seconds_per_vertex"] * v * n_local
         g.seconds_radiance = pc["radiance_seconds_fixed"] + pc["radiance_seconds_per_vertex_coeff"] * v * n
         if reflections:
-            g.seconds_reflections = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT
-                                     * len(objs) * (plan.order / 4.0) ** 2)
+            t_refl = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT * len(objs)
+                      * (plan.order / 4.0) ** 2)
+            if plan.geometry_changes or plan.lighting_changes:
+                g.seconds_reflections = t_refl
+            else:  # the run computes the bounce of a frozen scene once
+                plan.seconds_setup_structures += t_refl
         plan.groups.append(g)
     if between and len(specs) > 1:
         plan.seconds_setup_between = (pc["between_build_seconds_per_group"] * len(specs)
@@ -565,7 +569,7 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
         plan.seconds_setup_between += (pc["between_build_seconds_per_group"] * len(objs)
                                        + pc["between_build_seconds_per_triangle"] * tris)
     if any(g.method == "hemiraster" for g in plan.groups):
-        plan.seconds_setup_structures = pc["hemiraster_lut_seconds"]
+        plan.seconds_setup_structures += pc["hemiraster_lut_seconds"]
 
 
 def apply_plan(scene: Scene, plan: Plan) -> None:

@@ -155,6 +155,10 @@ class SceneShader:
                                       **self.reflections)
         lights = self.build_lights()
         pending_build = [time.perf_counter() - t_build]  # reported once, with the first frame
+        # nothing moves and no light moves: the bounce of the first frame holds for every frame
+        frozen = (not any(g.any_moving for g in groups)
+                  and not any(getattr(light, "motion", None) is not None for light in lights))
+        bounce_cache = []
 
         def shade(frame: int, geometry: dict) -> dict:
             t0 = time.perf_counter()
@@ -178,8 +182,13 @@ class SceneShader:
             if bounce is not None:
                 # One bounce (thesis §4.3): the reflectors' samples take the direct exit radiance just shaded
                 # (every light, the group's own visibility method), the second pass sums sphere by sphere.
-                e_r = bounce.update([d[1] for d in direct], [d[2] for d in direct], None,
-                                    [d[5] for d in direct], exit_radiance=[d[3] for d in direct])
+                if bounce_cache:
+                    e_r = bounce_cache[0]
+                else:
+                    e_r = bounce.update([d[1] for d in direct], [d[2] for d in direct], None,
+                                        [d[5] for d in direct], exit_radiance=[d[3] for d in direct])
+                    if frozen:
+                        bounce_cache.append(e_r)
                 for k, d in enumerate(direct):
                     # eq. 4.23: reflected exit radiance (ρ/π) E_R added to the shadowed direct one
                     d[3] += (np.asarray(d[5], dtype=np.float32) / np.float32(np.pi)) * bounce.slice(e_r, k)
