@@ -244,6 +244,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         exclude_intersecting: int,
         record: int,
         key: wp.array2d(dtype=float),
+        slot: wp.array2d(dtype=wp.int32),
         irradiance: wp.array(dtype=wp.vec3),
         contribution: wp.array(dtype=float),
     ):
@@ -260,7 +261,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         sphere's rest frame, Fig. 4.17). With ``exclude_intersecting`` the thesis' rule below eq. 4.33:
         closer spheres of the same object that intersect sphere ``i`` are left out of its ``P`` (their
         occlusion is already in sphere ``i``'s black samples, §4.3.1). ``radiance`` (rows, 3, N*N) per
-        colour in each sphere's rest frame; ``key`` (R, >= max cut size) scratch; output ``irradiance``
+        colour in each sphere's rest frame; ``key``/``slot`` (R, >= max cut size) scratch; output ``irradiance``
         (R,) vec3; with ``record`` also ``contribution[e]`` = ``Ṽ L̃`` summed over colours, without the
         ratio (one receiver per cluster: the ratio pass at cluster centres).
         """
@@ -271,36 +272,37 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         own = receiver_object[v]
         e0 = cut_start[c]
         ns = cut_start[c + 1] - e0
-        # keys: distance of the adjusted centre; -1 removed (tangent-plane rules, own object); -2 done
+        # spheres kept by the tangent-plane rules (and not of the receiver's own object), sorted by the
+        # distance of their adjusted centres: insertion sort into (key, slot); the cut lists come sorted by
+        # distance from the cluster centre, so few shifts (the thesis' presorted lists, ch. 5.2)
+        cnt = int(0)
         for q in range(ns):
             row = cut_row[e0 + q]
-            sid = row_sphere[row]
-            key[v, q] = -1.0
             if record != 0:
                 contribution[e0 + q] = 0.0
             if own >= 0 and row_object[row] == own:
                 continue
+            sid = row_sphere[row]
             a = adjust_sphere(p, n, centers[sid], radii[sid])
             if a[3] > 0.0:
-                key[v, q] = wp.length(wp.vec3(a[0], a[1], a[2]) - p)
+                k = wp.length(wp.vec3(a[0], a[1], a[2]) - p)
+                j = cnt
+                while j > 0 and key[v, j - 1] > k:
+                    key[v, j] = key[v, j - 1]
+                    slot[v, j] = slot[v, j - 1]
+                    j = j - 1
+                key[v, j] = k
+                slot[v, j] = q
+                cnt = cnt + 1
         logsum = vec_sh()
         e_full = vec_sh()  # exp(logsum), valid while full_ok
         e_full[0] = sqrt_4pi
         full_ok = int(1)
         cosine = zh_rotate(n, cos_zh, kz)
         total = wp.vec3(0.0)
-        for _step in range(ns):
-            # nearest remaining sphere (selection: a cut is a few dozen spheres)
-            best = int(-1)
-            bd = float(0.0)
-            for q in range(ns):
-                kq = key[v, q]
-                if kq >= 0.0 and (best < 0 or kq < bd):
-                    best = q
-                    bd = kq
-            if best < 0:
-                break
-            key[v, best] = -2.0
+        for step in range(cnt):  # nearest first
+            best = slot[v, step]
+            bd = key[v, step]
             row = cut_row[e0 + best]
             sid = row_sphere[row]
             a = adjust_sphere(p, n, centers[sid], radii[sid])
@@ -311,16 +313,15 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             nex = int(0)
             if exclude_intersecting != 0:
                 obj = row_object[row]
-                for q in range(ns):
-                    if key[v, q] == -2.0 and q != best:
-                        row2 = cut_row[e0 + q]
-                        sid2 = row_sphere[row2]
-                        if row_object[row2] == obj and wp.length(centers[sid2] - centers[sid]) < radii[sid] + radii[sid2]:
-                            a2 = adjust_sphere(p, n, centers[sid2], radii[sid2])
-                            d2 = wp.vec3(a2[0], a2[1], a2[2]) - p
-                            th2 = wp.asin(wp.min(a2[3] / wp.max(wp.length(d2), 1.0e-30), 1.0))
-                            excl = excl + zh_rotate(d2, lerp_table(log_table, th2, theta_step), kz)
-                            nex = nex + 1
+                for jj in range(step):  # the closer spheres
+                    row2 = cut_row[e0 + slot[v, jj]]
+                    sid2 = row_sphere[row2]
+                    if row_object[row2] == obj and wp.length(centers[sid2] - centers[sid]) < radii[sid] + radii[sid2]:
+                        a2 = adjust_sphere(p, n, centers[sid2], radii[sid2])
+                        d2 = wp.vec3(a2[0], a2[1], a2[2]) - p
+                        th2 = wp.asin(wp.min(a2[3] / wp.max(wp.length(d2), 1.0e-30), 1.0))
+                        excl = excl + zh_rotate(d2, lerp_table(log_table, th2, theta_step), kz)
+                        nex = nex + 1
             # sphere visibility as a difference of two exponentials (eq. 4.32)
             e_a = vec_sh()
             e_b = vec_sh()

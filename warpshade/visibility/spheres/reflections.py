@@ -336,9 +336,10 @@ class SphereReflections:
         meth, d = self.method, self.device
         R = points.shape[0]
         width = max(int(np.diff(starts).max()), 1)
-        key = self._scratch.get((R, width))
-        if key is None:  # reused across frames (cut sizes change little); a few shapes at most
-            key = self._scratch[(R, width)] = wp.empty((R, width), dtype=float, device=d)
+        scratch = self._scratch.get((R, width))
+        if scratch is None:  # reused across frames (cut sizes change little); a few shapes at most
+            scratch = self._scratch[(R, width)] = (wp.empty((R, width), dtype=float, device=d),
+                                                   wp.empty((R, width), dtype=wp.int32, device=d))
             if len(self._scratch) > 8:
                 self._scratch.pop(next(iter(self._scratch)))
         E = max(len(rows), 1)
@@ -351,7 +352,7 @@ class SphereReflections:
                           self._row_sphere, self._row_object, sc.centers, sc.radii, sc.rotations,
                           self.radiance, self._log_vec, meth._ff_vec, t.theta_step, meth._cos_vec, meth._fixed.kz,
                           meth._ol, meth._products, EXP_MODES[self.exp], meth.tau, int(self.exclude_intersecting),
-                          int(contribution is not None), key],
+                          int(contribution is not None), *scratch],
                   outputs=[out, rec], device=d)
 
     def _receiver_cuts(self):
@@ -365,13 +366,23 @@ class SphereReflections:
         meth, sc = self.method, self.method.scene
         K = meth.clusters
         leaf_rows = self._row_of[self.leaves].astype(np.int32)
+        cc = meth.cluster_centers.numpy().astype(np.float64)
+        cen = sc.centers.numpy().astype(np.float64)
+
+        def presorted(lists):
+            # each cluster's rows by distance from its centre: the kernel's insertion sort then shifts little
+            out = [np.asarray(x, dtype=np.int32)[np.argsort(np.linalg.norm(cen[self.rows[x]] - cc[k], axis=1),
+                                                            kind="stable")] if len(x) else np.zeros(0, np.int32)
+                   for k, x in enumerate(lists)]
+            start = np.zeros(K + 1, np.int32)
+            start[1:] = np.cumsum([len(x) for x in out])
+            return start, (np.concatenate(out) if out else np.zeros(0, np.int32)).astype(np.int32)
+
         if not self.cuts:
             self._stats = {"reflect_spheres_per_cluster": float(len(leaf_rows))}
-            return (np.arange(K + 1, dtype=np.int32) * len(leaf_rows), np.tile(leaf_rows, K),
-                    np.ones(K * len(leaf_rows), np.float32))
-        cc = meth.cluster_centers.numpy().astype(np.float64)
+            start, rows = presorted([leaf_rows] * K)
+            return start, rows, np.ones(len(rows), np.float32)
         cr = meth.cluster_radii.numpy().astype(np.float64)
-        cen = sc.centers.numpy().astype(np.float64)
         rad = sc.radii.numpy().astype(np.float64)
         per_cluster = [[] for _ in range(K)]
         leaves_cluster = [[] for _ in range(K)]
@@ -391,9 +402,7 @@ class SphereReflections:
             for k in range(K):
                 per_cluster[k].extend(rows[lev == chosen[k]].tolist())
                 leaves_cluster[k].extend(rows[lev == 0].tolist())
-        start = np.zeros(K + 1, np.int32)
-        start[1:] = np.cumsum([len(x) for x in per_cluster])
-        rows = np.array([r for x in per_cluster for r in x], dtype=np.int32)
+        start, rows = presorted(per_cluster)
         ratio = np.ones(len(rows), np.float32)
         coarse = sc.level[self.rows[rows]] > 0 if len(rows) else np.zeros(0, bool)
         self._stats = {"reflect_spheres_per_cluster": len(rows) / max(K, 1),
