@@ -84,9 +84,9 @@ def fit_cost(features, seconds) -> "np.ndarray":
     return coef / scale
 
 
-REFLECTION_SECONDS_PER_VERTEX_SPHERE = 1.0e-7
+REFLECTION_SECONDS_PER_VERTEX_SPHERE = 7.7e-8
 """One-bounce reflection cost per receiver vertex per reflecting leaf sphere at SH order 4 [s] (both passes,
-the pipeline's default cuts; CPU time of ``python benchmarks/spheres.py --reflections-only``: 141 ms for
+the pipeline's default cuts; CPU time of ``python benchmarks/spheres.py --reflections-only``: 106 ms for
 30 588 receivers and 45 leaf spheres); scaled by (order/4)² for other orders."""
 
 REFLECTION_SPHERES_PER_OBJECT = 15
