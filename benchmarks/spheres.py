@@ -151,6 +151,162 @@ def run_scene(objs: dict, order: int, exp: str, spheres_per_object: int, repeat:
     return out
 
 
+REFLECTION_CONFIGS = [
+    ("leaves", {"cuts": False}),
+    ("leaves + eq. 4.32 rule", {"exclude_intersecting": True}),
+    ("leaves, self-refl. everywhere", {"self_reflection": True}),
+    ("thesis first pass (sphere shadows)", {"first_pass": "spheres"}),
+    ("cuts 0.5 + ratios (eq. 4.34)", {"cuts": True, "threshold": 0.5}),
+    ("cuts 0.5, no ratios", {"cuts": True, "ratios": False, "threshold": 0.5}),
+    ("cuts 1.0 + ratios (pipeline default)", {"cuts": True, "threshold": 1.0}),
+    ("cuts 1.0, no ratios", {"cuts": True, "ratios": False, "threshold": 1.0}),
+    ("cuts 1.0, eq. 4.34 as printed", {"cuts": True, "ratios": "printed", "threshold": 1.0}),
+]
+ALBEDO = {"ground": [0.5, 0.5, 0.5], "bunny": [0.9, 0.35, 0.2], "bear": [0.25, 0.5, 0.9]}
+
+
+def bounce_reference(objs: dict, order: int, rays: int, light: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ray-traced direct exit radiance (V, 3) and reflected irradiance (V, 3) of every vertex, cached."""
+    from warpshade.visibility.spheres.bounce_reference import reflected_irradiance_reference
+
+    names = list(objs)
+    direct = [np.maximum(np.asarray(ALBEDO[n]) / math.pi * (reference(objs[n], [objs[o] for o in names if o != n],
+                                                                      order, rays) @ light), 0.0) for n in names]
+    h = hashlib.sha1()
+    for n in names:
+        h.update(objs[n].points.tobytes())
+    h.update(f"{order}-{rays}-{light.tobytes().hex()[:64]}-{ALBEDO}".encode())
+    path = os.path.join(CACHE, f"spheres_bounce_{h.hexdigest()[:12]}.npz")
+    if os.path.isfile(path):
+        e = np.load(path)["irradiance"]
+    else:
+        pts = np.concatenate([objs[n].points for n in names])
+        nrm = np.concatenate([objs[n].normals for n in names])
+        e = reflected_irradiance_reference(pts, nrm, [objs[n] for n in names], direct, rays=rays)
+        os.makedirs(CACHE, exist_ok=True)
+        np.savez(path, irradiance=e)
+    return np.concatenate(direct), e
+
+
+def reflection_rows(objs: dict, order: int, rays: int, repeat: int) -> list[dict]:
+    """Scene reflections (the pipeline's :class:`SceneReflections`: every object, ground included, reflects
+    through its own 15 leaf spheres, 3 levels) against the ray-traced bounce; time per frame of the bounce
+    alone (both passes, refits included). The first pass reads the ray-traced direct exit radiance at the
+    samples, as the pipeline reads its own direct shading (one row: the thesis' sphere-shadowed samples)."""
+    from warpshade.metrics import radiance_error
+    from warpshade.pipeline.reflections import SceneReflections
+
+    names = list(objs)
+    meshes = [objs[n] for n in names]
+    light = sky(order)
+    direct, e_ref = bounce_reference(objs, order, rays, light)
+    rho = np.concatenate([np.broadcast_to(ALBEDO[n], (objs[n].num_vertices, 3)) for n in names]) / math.pi
+    truth = direct + rho * e_ref
+    t0 = time.perf_counter()
+    trees = [build_sphere_tree(m.points, m.faces, 15, 3, seed=0) for m in meshes]
+    fit = time.perf_counter() - t0
+    pts = [m.points.astype(np.float32) for m in meshes]
+    nrm = [m.normals.astype(np.float32) for m in meshes]
+    albedos = [np.asarray(ALBEDO[n]) for n in names]
+    rows = [{"config": "no bounce", "order": order, "bounce_error": 1.0, "radiance_error": radiance_error(direct, truth),
+             "bounce_over_direct": float(np.linalg.norm(rho * e_ref, axis=1).mean() / np.linalg.norm(direct, axis=1).mean())}]
+    direct_parts = np.split(direct, np.cumsum([m.num_vertices for m in meshes])[:-1])
+    for label, kw in REFLECTION_CONFIGS:
+        kw = dict(kw)
+        # default first pass as the pipeline: the samples read the (here ray-traced) direct exit radiance
+        given = None if kw.pop("first_pass", "given") == "spheres" else direct_parts
+        kw = {"cuts": False, **kw}  # the rows above name every departure from the plain leaves setup
+        sr = SceneReflections(meshes, order, spheres=15, levels=3, trees=trees, **kw)
+
+        def frame():
+            return sr.update(pts, nrm, light, albedos, exit_radiance=given)
+
+        e = frame()
+        sec = median_seconds(frame, repeat=repeat)
+        cpu = cpu_seconds(frame, repeat)
+        rows.append({"config": label, "order": order, "seconds_per_frame": sec, "cpu_seconds_per_frame": cpu,
+                     "bounce_error": radiance_error(e, e_ref), "radiance_error": radiance_error(direct + rho * e, truth),
+                     "fit_seconds": fit, **sr.reflections.stats()})
+    return rows
+
+
+def bone_refit_rows(repeat: int) -> list[dict]:
+    """Spheres following skinning bones vs their vertices (point refit): on the skinned arm scene (UsdSkel)
+    and the walking figure; sphere geometry differences, leaks, refit time per frame, and the transfer a
+    ground under the figure gets from its spheres either way."""
+    from warpshade.sim import LBSSkinner, WalkingFigure
+    from warpshade.visibility.spheres.sets import SphereScene
+
+    cases = []
+    try:
+        from warpshade.usd.skel import read_usd_skel
+
+        sm = read_usd_skel(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "usd_scenes",
+                                        "skinned_arm.usda"))
+        sk = LBSSkinner(sm.rest_points, sm.joint_indices, sm.joint_weights, len(sm.joint_names))
+        cases.append(("skinned arm (UsdSkel)", sm.rest_points, sm.faces, sm.joint_indices, sm.joint_weights,
+                      len(sm.joint_names), list(sm.transforms), sk, 8))
+    except ImportError:
+        pass
+    fig = WalkingFigure()
+    xfs = [fig.transforms(t) for t in np.linspace(0.0, 1.2, 25)]
+    cases.append(("walking figure", fig.rest_points, fig.faces, fig.skinner.joint_indices.numpy(),
+                  fig.skinner.joint_weights.numpy(), len(fig.joint_names), xfs, fig.skinner, 30))
+    # the figure subdivided twice (16x the triangles), weights interpolated: where the point refit's O(V)
+    # starts to show
+    import trimesh
+
+    dense = np.zeros((len(fig.rest_points), len(fig.joint_names)))
+    fji, fjw = fig.skinner.joint_indices.numpy(), fig.skinner.joint_weights.numpy()
+    np.add.at(dense, (np.repeat(np.arange(len(fji)), fji.shape[1]), fji.ravel()), fjw.ravel())
+    v, f = fig.rest_points.astype(np.float64), fig.faces
+    for _ in range(2):
+        v, f, attr = trimesh.remesh.subdivide(v, f, vertex_attributes={"w": dense})
+        dense = attr["w"]
+    k = 4
+    top = np.argsort(-dense, axis=1)[:, :k].astype(np.int32)
+    big = LBSSkinner(v, top, np.take_along_axis(dense, top, 1), len(fig.joint_names))
+    cases.append(("walking figure x16", v.astype(np.float32), f.astype(np.int32), top,
+                  np.take_along_axis(dense, top, 1), len(fig.joint_names), xfs, big, 30))
+    rows = []
+    for name, rest, faces, ji, jw, nj, xfs, sk, nsph in cases:
+        tree = build_sphere_tree(rest, faces, nsph, 3, seed=0)
+        by_pts, by_bones = SphereScene([tree], [rest]), SphereScene([tree], [rest])
+        by_bones.bind_bones(0, ji, jw, nj)
+        dc = dr = leak = 0.0
+        ratios = []
+        leaf = tree.level == 0
+        frames = [(x, sk.update(x).numpy().copy()) for x in xfs]
+        for x, pts in frames:
+            by_pts.refit([pts])
+            by_bones.refit([None], [x])
+            ca, ra, cb, rb = (a.numpy() for a in (by_pts.centers, by_pts.radii, by_bones.centers, by_bones.radii))
+            dc = max(dc, float((np.linalg.norm(ca - cb, axis=1) / ra)[leaf].max()))
+            dr = max(dr, float(np.abs(rb / ra - 1)[leaf].max()))
+            ratios.append(rb[leaf] / ra[leaf])
+            for s in range(tree.num_spheres):
+                v = tree.vertices_of(s)
+                leak = max(leak, float((np.linalg.norm(pts[v] - cb[s], axis=1) - rb[s]).max() / rb[s]))
+        pts_wp = [wp.array(p, dtype=wp.vec3) for _, p in frames]
+        xf_wp = [wp.array(np.asarray(x, np.float32), dtype=wp.mat44) for x, _ in frames]
+        it = iter(range(10 ** 9))
+
+        def point_refit():
+            by_pts.refit([pts_wp[next(it) % len(pts_wp)]])
+            wp.synchronize()
+
+        def bone_refit():
+            by_bones.refit([None], [xf_wp[next(it) % len(xf_wp)]])
+            wp.synchronize()
+
+        rows.append({"mesh": name, "vertices": len(rest), "spheres": tree.num_spheres, "joints": nj,
+                     "max_center_diff_over_radius": dc, "max_radius_rel_diff": dr, "max_leak_over_radius": leak,
+                     "mean_radius_ratio": float(np.mean(ratios)),
+                     "point_refit_cpu_ms": 1e3 * cpu_seconds(point_refit, max(repeat, 20)),
+                     "bone_refit_cpu_ms": 1e3 * cpu_seconds(bone_refit, max(repeat, 20))})
+    return rows
+
+
 def self_shadowing(order: int, rays: int, repeat: int) -> list[dict]:
     rows = []
     for name in ("bunny", "bear"):
@@ -176,9 +332,42 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=None, metavar="PATH", help="write the numbers")
     ap.add_argument("--repeat", type=int, default=3, help="timed frames after one warm-up")
     ap.add_argument("--rays", type=int, default=1024, help="reference rays per vertex")
+    ap.add_argument("--reflections-only", action="store_true",
+                    help="only the scene-reflection accuracy/time table (against the ray-traced bounce)")
+    ap.add_argument("--bones-only", action="store_true", help="only the bone-driven vs point refit table")
     args = ap.parse_args(argv)
+    bone_rows = bone_refit_rows(args.repeat)
+    print("# sphere refit from skinning bones vs from vertices (CPU time per refit, median; shared, loaded machine)")
+    print("# leaves: max centre distance / point-refit radius, max |r_bones / r_points - 1|, mean r_bones / r_points,"
+          " max vertex outside its bone-refit sphere / radius")
+    print(f"{'mesh':>22} {'V':>6} {'S':>4} {'J':>3} {'centre diff/r':>13} {'|r_b/r_p-1|':>11} {'mean r_b/r_p':>12} "
+          f"{'leak/r':>7} {'points ms':>9} {'bones ms':>8}")
+    for r in bone_rows:
+        print(f"{r['mesh']:>22} {r['vertices']:>6} {r['spheres']:>4} {r['joints']:>3} "
+              f"{r['max_center_diff_over_radius']:13.3f} {r['max_radius_rel_diff']:11.3f} {r['mean_radius_ratio']:12.3f} "
+              f"{r['max_leak_over_radius']:7.3f} "
+              f"{r['point_refit_cpu_ms']:9.3f} {r['bone_refit_cpu_ms']:8.3f}")
+    if args.bones_only:
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump({"bones": bone_rows}, f, indent=2)
+        return 0
     ground_n = 60 if args.quick else 150
     objs = scene(ground_n)
+    refl_rows = reflection_rows(objs, 4, args.rays, args.repeat)
+    print(f"# one bounce (pipeline SceneReflections), order 4, {sum(m.num_vertices for m in objs.values())} receivers; "
+          "error vs ray-traced bounce (relative, radiance_error); shared, loaded machine")
+    print(f"{'config':>34} {'ms/frame':>9} {'cpu ms':>7} {'bounce err':>10} {'total err':>9} {'spheres/cluster':>15}")
+    for r in refl_rows:
+        ms = f"{r['seconds_per_frame'] * 1e3:9.1f}" if "seconds_per_frame" in r else f"{'':>9}"
+        cms = f"{r['cpu_seconds_per_frame'] * 1e3:7.1f}" if "cpu_seconds_per_frame" in r else f"{'':>7}"
+        spc = f"{r['reflect_spheres_per_cluster']:15.1f}" if "reflect_spheres_per_cluster" in r else f"{'':>15}"
+        print(f"{r['config']:>34} {ms} {cms} {r['bounce_error']:10.3f} {r['radiance_error']:9.4f} {spc}")
+    if args.reflections_only:
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump({"reflections": refl_rows, "bones": bone_rows}, f, indent=2)
+        return 0
     t0 = time.perf_counter()
     trees = {n: build_sphere_tree(objs[n].points, objs[n].faces, 15, 3, seed=0) for n in ("bunny", "bear")}
     fit_s = time.perf_counter() - t0
@@ -218,7 +407,7 @@ def main(argv=None) -> int:
               f"{r['error_mean']:9.4f} {r['error_p95']:8.4f}")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"scene": rows, "self_shadowing": single, "fit_seconds": fit_s,
+            json.dump({"scene": rows, "self_shadowing": single, "fit_seconds": fit_s, "reflections": refl_rows, "bones": bone_rows,
                        "note": "median of repeats after warm-up, compile and fit excluded; shared loaded machine"},
                       f, indent=2)
     return 0

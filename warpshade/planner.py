@@ -84,6 +84,15 @@ def fit_cost(features, seconds) -> "np.ndarray":
     return coef / scale
 
 
+REFLECTION_SECONDS_PER_VERTEX_SPHERE = 7.7e-8
+"""One-bounce reflection cost per receiver vertex per reflecting leaf sphere at SH order 4 [s] (both passes,
+the pipeline's default cuts; CPU time of ``python benchmarks/spheres.py --reflections-only``: 106 ms for
+30 588 receivers and 45 leaf spheres); scaled by (order/4)² for other orders."""
+
+REFLECTION_SPHERES_PER_OBJECT = 15
+"""Leaf spheres per object of ``warpshade run --reflections`` (``--reflection-spheres``)."""
+
+
 def load_frontier(path: str | None = None) -> dict:
     """The measured frontier: ``path`` (a ``--frontier`` file or a ``results.json`` from ``warpshade bench``),
     else the one shipped in ``warpshade/data/frontier.json``."""
@@ -182,6 +191,8 @@ class GroupPlan:
         seconds_between: Estimated per-frame shadowing by the other groups' sphere sets [s].
         seconds_lights: Estimated per-frame lights' SH at the group's points [s].
         seconds_radiance: Estimated per-frame exit radiance [s].
+        seconds_reflections: Estimated per-frame one-bounce reflections onto the group [s] (the run
+            recomputes them every frame).
         cost_source: Where the transfer estimate comes from (frontier configuration, fit or nearest mesh).
     """
 
@@ -196,13 +207,14 @@ class GroupPlan:
     seconds_between: float = 0.0
     seconds_lights: float = 0.0
     seconds_radiance: float = 0.0
+    seconds_reflections: float = 0.0
     cost_source: str = ""
 
     @property
     def seconds_frame(self) -> float:
         """Estimated shading time of this group per frame [s] (what the run's ``shade`` time sums)."""
         return ((self.seconds_transfer if self.moves else 0.0) + self.seconds_between + self.seconds_lights
-                + self.seconds_radiance)
+                + self.seconds_radiance + self.seconds_reflections)
 
 
 @dataclass
@@ -284,7 +296,9 @@ class Plan:
                 lines.append(f"      est. per frame {g.seconds_frame * 1e3:.1f} ms = transfer "
                              f"{(g.seconds_transfer if g.moves else 0.0) * 1e3:.1f} + between-group shadows "
                              f"{g.seconds_between * 1e3:.1f} + lights {g.seconds_lights * 1e3:.1f} + radiance "
-                             f"{g.seconds_radiance * 1e3:.2f}; build {g.seconds_build * 1e3:.0f} ms"
+                             f"{g.seconds_radiance * 1e3:.2f}"
+                             + (f" + reflections {g.seconds_reflections * 1e3:.1f}" if g.seconds_reflections else "")
+                             + f"; build {g.seconds_build * 1e3:.0f} ms"
                              + (f" ({g.cost_source})" if g.cost_source else ""))
             lines.append(f"  estimated run: setup {self.run_seconds_setup:.2f} s (sphere trees "
                          f"{self.seconds_setup_between:.2f} s), shading {self.run_seconds_per_frame * 1e3:.1f} ms per frame")
@@ -436,7 +450,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
             passes.append("area-light visibility (GEARS)")
         if obj.material.glossy:
             passes.append("glossy transfer")
-        if reflections and (moves or shadowed_by_moving):
+        if reflections and (moves or shadowed_by_moving or lighting_changes):
             passes.append("reflection (one bounce)")
         relit = moves or shadowed_by_moving or lighting_changes
         if relit:
@@ -452,11 +466,14 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         t_inter = _between_frame_seconds(v, others, pc) if inter and others else 0.0
         t_gears = _gears_seconds(fr, v, f) if rect else 0.0
         t_local = pc["local_light_seconds_per_vertex"] * v * n_local
-        seconds_first = t_build + t_transfer + redot + t_inter + t_gears + t_local
+        t_reflect = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT * len(shaded)
+                     * (order / 4.0) ** 2) if reflections else 0.0
+        seconds_first = t_build + t_transfer + redot + t_inter + t_gears + t_local + t_reflect
         seconds_frame = ((t_transfer if transfer == "every_frame" else 0.0) + (redot if relit else 0.0)
                          + (t_inter if "inter-object shadows (sphere sets)" in passes else 0.0)
                          + (t_gears if "area-light visibility (GEARS)" in passes else 0.0)
-                         + (t_local if relit else 0.0))
+                         + (t_local if relit else 0.0)
+                         + (t_reflect if "reflection (one bounce)" in passes else 0.0))
         plans.append(ObjectPlan(obj.name, obj.kind, v, moves, method, knobs, transfer, passes,
                                 cfg["error"] if cfg else None, seconds_first, seconds_frame, reason,
                                  t_transfer, t_build))
@@ -512,6 +529,7 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
             for o in scene.objects if o.shaded]
     specs = group_objects(objs, None, None, DEFAULT_KNOBS)
     n = plan.order * plan.order
+    reflections = bool(scene.settings.get("reflections", False))
     tris = 0
     for spec in specs:
         v = sum(m.num_vertices for m in spec.meshes)
@@ -536,12 +554,22 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
             g.seconds_between = _between_frame_seconds(v, len(specs) - 1, pc)
         g.seconds_lights = _distant_lights_seconds(scene, pc) + pc["local_light_seconds_per_vertex"] * v * n_local
         g.seconds_radiance = pc["radiance_seconds_fixed"] + pc["radiance_seconds_per_vertex_coeff"] * v * n
+        if reflections:
+            t_refl = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT * len(objs)
+                      * (plan.order / 4.0) ** 2)
+            if plan.geometry_changes or plan.lighting_changes:
+                g.seconds_reflections = t_refl
+            else:  # the run computes the bounce of a frozen scene once
+                plan.seconds_setup_structures += t_refl
         plan.groups.append(g)
     if between and len(specs) > 1:
         plan.seconds_setup_between = (pc["between_build_seconds_per_group"] * len(specs)
                                       + pc["between_build_seconds_per_triangle"] * tris)
+    if reflections:  # one sphere tree per object, fitted like the between-group trees
+        plan.seconds_setup_between += (pc["between_build_seconds_per_group"] * len(objs)
+                                       + pc["between_build_seconds_per_triangle"] * tris)
     if any(g.method == "hemiraster" for g in plan.groups):
-        plan.seconds_setup_structures = pc["hemiraster_lut_seconds"]
+        plan.seconds_setup_structures += pc["hemiraster_lut_seconds"]
 
 
 def apply_plan(scene: Scene, plan: Plan) -> None:

@@ -32,12 +32,22 @@ class Material:
     """UsdPreviewSurface subset used for shading.
 
     Attributes:
-        albedo: Diffuse reflectance, linear RGB in [0, 1], shape (3,).
+        albedo: Diffuse reflectance, linear RGB in [0, 1], shape (3,) (default 0.8 grey).
         roughness: UsdPreviewSurface roughness in [0, 1]; < 1 makes the material glossy.
+        albedo_authored: Whether the albedo came from the scene (a material's ``diffuseColor`` or a
+            constant ``displayColor``); None: True when ``albedo`` was given. ``warpshade run --albedo``
+            replaces only albedos that were not authored.
     """
 
-    albedo: np.ndarray = field(default_factory=lambda: np.array([0.8, 0.8, 0.8]))
+    albedo: np.ndarray | None = None
     roughness: float = 1.0
+    albedo_authored: bool | None = None
+
+    def __post_init__(self):
+        if self.albedo_authored is None:
+            self.albedo_authored = self.albedo is not None
+        if self.albedo is None:
+            self.albedo = np.array([0.8, 0.8, 0.8])
 
     @property
     def glossy(self) -> bool:

@@ -18,6 +18,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--between", choices=("spheres", "none"), default="spheres",
                         help="shadows between shading groups, as warpshade run --between (default spheres)")
     parser.add_argument("--json", default=None, metavar="PLAN.json", help="also write the plan as JSON")
+    parser.add_argument("--reflections", action="store_true", default=None,
+                        help="plan the one-bounce reflection pass (as warpshade run --reflections; default: the "
+                             "scene's warpshade:reflections)")
 
 
 def load_scene(path: str):
@@ -38,6 +41,8 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     # the order warpshade run would use, so the plan costs what the run does
     scene.settings["order"] = args.order or scene.settings.get("order", DEFAULT_ORDER)
+    if args.reflections:
+        scene.settings["reflections"] = True
     plan = make_plan(scene, max_error=args.max_error, frontier=args.frontier,
                      between=None if args.between == "none" else args.between)
     print(plan.describe())

@@ -40,6 +40,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="shade on a Dask cluster ('local' starts one) instead of local processes")
     parser.add_argument("--between", choices=["spheres", "none"], default="spheres",
                         help="shadows between objects shaded by different methods: sphere sets (default) or none")
+    parser.add_argument("--reflections", action="store_true", default=None,
+                        help="add one bounce of diffuse reflection between all shaded objects (sphere sets, "
+                             "thesis §4.3; default: the scene's warpshade:reflections, else off)")
+    parser.add_argument("--no-reflections", dest="reflections", action="store_false",
+                        help="no reflection bounce even if the scene asks for it")
+    parser.add_argument("--reflection-spheres", type=int, default=15, metavar="N",
+                        help="leaf spheres per object for the reflection bounce (default 15)")
+    parser.add_argument("--albedo", default=None, metavar="A|R,G,B",
+                        help="albedo of objects whose scene gives none (no material diffuseColor, no constant "
+                             "displayColor); default 0.8")
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -64,6 +74,19 @@ def _reclaim_knob_value(args, method_cls) -> None:
             args.extra.insert(k + 1, args.scene)
             args.scene = None
             return
+
+
+def parse_albedo(text: str | None):
+    """``--albedo`` value: ``A`` or ``R,G,B`` in [0, 1] -> float or (3,) list; None stays None."""
+    if text is None:
+        return None
+    try:
+        vals = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise ValueError(f"--albedo: expected A or R,G,B numbers, got {text!r}") from None
+    if len(vals) not in (1, 3) or not all(0.0 <= v <= 1.0 for v in vals):
+        raise ValueError(f"--albedo: expected one or three values in [0, 1], got {text!r}")
+    return vals[0] if len(vals) == 1 else vals
 
 
 def run(args) -> int:
@@ -100,15 +123,22 @@ def run(args) -> int:
     from ..parallel import default_workers
 
     workers = default_workers() if args.workers is None else args.workers
+    reflections = args.reflections
+    if reflections is None and scene.settings.get("reflections"):
+        reflections = True
+    if reflections:
+        reflections = {"spheres": args.reflection_spheres}
     pipe = Pipeline(scene, frames=args.frames, method=method, knobs=knobs, order=args.order,
                     write_transfer=True if args.write_transfer else None, workers=workers,
                     scheduler=args.scheduler, device=args.device,
-                    between=None if args.between == "none" else args.between)
+                    between=None if args.between == "none" else args.between,
+                    reflections=reflections, albedo=parse_albedo(args.albedo))
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,
                                        "groups": "; ".join(f"{g.method} {g.knobs}" for g in pipe.groups),
-                                       "between": args.between})
+                                       "between": args.between,
+                                       "reflections": str(bool(pipe.reflections is not None))})
     if writer.resume_frame:
         print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
     try:

@@ -93,12 +93,17 @@ class Pipeline:
         device: Warp device.
         between: Shadows between shading groups (objects with different methods or knobs):
             ``"spheres"`` (sphere sets, default) or None.
+        reflections: One bounce of diffuse reflection between shaded objects (sphere sets, thesis
+            §4.3): True (defaults), a dict of :class:`~.reflections.SceneReflections` keyword arguments,
+            False, or None for the scene's ``warpshade:reflections`` (default off).
+        albedo: Albedo (scalar or RGB) of objects whose scene gives none (no material ``diffuseColor``,
+            no constant ``displayColor``); None keeps the default 0.8 grey.
     """
 
     def __init__(self, scene: Scene, frames: int | None = None, method: str | None = None,
                  knobs: dict | None = None, order: int | None = None, write_transfer: bool | None = None,
                  lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu",
-                 between: str | None = "spheres"):
+                 between: str | None = "spheres", reflections: bool | dict | None = None, albedo=None):
         self.scene = scene
         self.frames = int(frames if frames is not None else scene.frames)
         if self.frames < 1:
@@ -107,11 +112,20 @@ class Pipeline:
         self.write_transfer = bool(write_transfer if write_transfer is not None
                                    else scene.settings.get("writeTransfer", False))
         self.workers, self.scheduler, self.device = int(workers), scheduler, device
-        self.groups = group_objects(scene.objects, method, knobs, DEFAULT_KNOBS)
+        if albedo is not None:
+            a = np.asarray(albedo, dtype=np.float64)
+            if a.shape not in ((), (3,)) or not np.all((a >= 0) & (a <= 1)):
+                raise ValueError(f"albedo must be a scalar or RGB in [0, 1], got {a.tolist()}")
+        self.groups = group_objects(scene.objects, method, knobs, DEFAULT_KNOBS, default_albedo=albedo)
         if not self.groups:
             raise SceneError(f"{scene.source}: no shaded object")
+        if reflections is None:
+            reflections = bool(scene.settings.get("reflections", False))
+        if reflections is True:
+            reflections = {}
+        self.reflections = reflections if isinstance(reflections, dict) else None
         self.shader = SceneShader(self.groups, self.order, scene.fps, list(scene.lights), scene.up_axis, lights,
-                                  self.write_transfer, device, between)
+                                  self.write_transfer, device, between, self.reflections)
         self.report = None
 
     def _geometry(self, sims, secs, failure: list, start: int = 0):

@@ -106,6 +106,11 @@ class SceneShader:
             fitted to every other group, thesis §4.2; visibilities multiply with the group's own,
             eq. 4.5) or None (groups do not shadow each other). Objects inside one group always
             shadow each other through the group's method.
+        reflections: One bounce of diffuse reflection between all shaded objects (sphere sets, thesis
+            §4.3): None (off) or keyword arguments of :class:`~.reflections.SceneReflections`
+            (``{}`` for its defaults). Each object's reflected irradiance times its ``albedo/π`` is
+            added to its shadowed direct exit radiance (eq. 4.23); the reflecting surfaces use the
+            same albedos.
     """
 
     groups: list
@@ -117,6 +122,7 @@ class SceneShader:
     write_transfer: bool = False
     device: str = "cpu"
     between: str | None = "spheres"
+    reflections: dict | None = None
 
     def build_lights(self) -> list:
         """The :mod:`warpshade.lighting` objects this spec shades with."""
@@ -141,8 +147,18 @@ class SceneShader:
             raise ValueError(f"between-group shadows must be 'spheres' or None, got {self.between!r}")
         between = (_between_group_shadows(groups, self.order, self.device)
                    if self.between == "spheres" and len(groups) > 1 else None)
+        bounce = None
+        if self.reflections is not None:
+            from .reflections import SceneReflections
+
+            bounce = SceneReflections([m for g in groups for m in g.spec.meshes], self.order, self.device,
+                                      **self.reflections)
         lights = self.build_lights()
         pending_build = [time.perf_counter() - t_build]  # reported once, with the first frame
+        # nothing moves and no light moves: the bounce of the first frame holds for every frame
+        frozen = (not any(g.any_moving for g in groups)
+                  and not any(getattr(light, "motion", None) is not None for light in lights))
+        bounce_cache = []
 
         def shade(frame: int, geometry: dict) -> dict:
             t0 = time.perf_counter()
@@ -150,6 +166,7 @@ class SceneShader:
             t = frame / self.fps
             frame_lights = [light.at_time(t) for light in lights]
             updated = [g.update(geometry) for g in groups]
+            direct = []  # per object: (name, points, normals, radiance, transfer or None, albedo)
             for i, g in enumerate(groups):
                 pts, transfer, normals = updated[i]
                 if between is not None:
@@ -160,7 +177,23 @@ class SceneShader:
                     # clamped at 0: SH ringing behind bright lights must not make displayColor negative
                     rad = exit_radiance(transfer[a:b], distant, albedo, None if local is None else local[a:b],
                                         device=self.device).numpy().copy()
-                    out[name] = (pts[a:b], normals[a:b], rad, transfer[a:b] if self.write_transfer else None)
+                    direct.append([name, pts[a:b], normals[a:b], rad,
+                                   transfer[a:b] if self.write_transfer else None, albedo])
+            if bounce is not None:
+                # One bounce (thesis §4.3): the reflectors' samples take the direct exit radiance just shaded
+                # (every light, the group's own visibility method), the second pass sums sphere by sphere.
+                if bounce_cache:
+                    e_r = bounce_cache[0]
+                else:
+                    e_r = bounce.update([d[1] for d in direct], [d[2] for d in direct], None,
+                                        [d[5] for d in direct], exit_radiance=[d[3] for d in direct])
+                    if frozen:
+                        bounce_cache.append(e_r)
+                for k, d in enumerate(direct):
+                    # eq. 4.23: reflected exit radiance (ρ/π) E_R added to the shadowed direct one
+                    d[3] += (np.asarray(d[5], dtype=np.float32) / np.float32(np.pi)) * bounce.slice(e_r, k)
+            for name, pts, normals, rad, transfer, _ in direct:
+                out[name] = (pts, normals, rad, transfer)
             wp.synchronize()
             out["_seconds"] = time.perf_counter() - t0
             return out
@@ -189,7 +222,7 @@ def _shadow_by_others(spheres, i: int, updated: list, device: str) -> np.ndarray
 
 
 def group_objects(objects, method: str | None = None, knobs: dict | None = None,
-                  default_knobs: dict | None = None) -> list[GroupSpec]:
+                  default_knobs: dict | None = None, default_albedo=None) -> list[GroupSpec]:
     """Group shaded objects by (method, knobs).
 
     Args:
@@ -197,6 +230,8 @@ def group_objects(objects, method: str | None = None, knobs: dict | None = None,
         method: Override every object's method (``--method``), or None to use each object's.
         knobs: Knobs with ``method``.
         default_knobs: Method name -> knobs used when an object names a method but no knobs.
+        default_albedo: Albedo (scalar or RGB) of objects whose material's albedo was not authored
+            (``Material.albedo_authored``), or None to keep the material's default.
     """
     by_key: dict = {}
     for obj in objects:
@@ -212,7 +247,10 @@ def group_objects(objects, method: str | None = None, knobs: dict | None = None,
         g = by_key.setdefault(key, GroupSpec(name, kn))
         g.names.append(obj.name)
         g.meshes.append(obj.mesh)
-        g.albedos.append(np.asarray(obj.material.albedo, dtype=np.float64))
+        albedo = obj.material.albedo
+        if default_albedo is not None and not obj.material.albedo_authored:
+            albedo = np.broadcast_to(np.asarray(default_albedo, dtype=np.float64), (3,))
+        g.albedos.append(np.array(albedo, dtype=np.float64))
         g.moving.append(obj.kind != "static")
     return list(by_key.values())
 

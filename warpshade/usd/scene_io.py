@@ -37,7 +37,7 @@ _CONTAINERS = {"", "Xform", "Scope", "SkelRoot", "Skeleton", "SkelAnimation", "M
 _LIGHTS = {"DomeLight": "dome", "DistantLight": "distant", "SphereLight": "sphere", "RectLight": "rect"}
 #: Scene-wide ``warpshade:`` settings on the default prim and their Python types.
 SCENE_SETTINGS = {"frames": int, "fps": float, "order": int, "method": str, "writeTransfer": bool,
-                  "substeps": int}
+                  "substeps": int, "reflections": bool}
 
 
 def read_scene(path: str) -> Scene:
@@ -287,6 +287,7 @@ def _material(prim, where) -> Material:
                 val = dc.Get()
                 if val is not None:
                     out.albedo = np.asarray(val, dtype=np.float64)
+                    out.albedo_authored = True
             r = shader.GetInput("roughness")
             if r and r.Get() is not None:
                 out.roughness = float(r.Get())

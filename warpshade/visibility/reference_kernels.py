@@ -36,6 +36,15 @@ def concentric_disk(u: float, v: float) -> wp.vec2:
     return wp.vec2(r * wp.cos(phi), r * wp.sin(phi))
 
 
+@wp.func
+def cosine_direction(frame: wp.mat33, u: float, v: float) -> wp.vec3:
+    """Cosine-weighted hemisphere direction about ``frame``'s third column for (u, v) in [0,1)^2
+    (concentric disk lifted to the hemisphere, pdf ``cos/pi``)."""
+    d2 = concentric_disk(u, v)
+    z = wp.sqrt(wp.max(0.0, 1.0 - wp.dot(d2, d2)))
+    return frame * wp.vec3(d2[0], d2[1], z)
+
+
 @wp.kernel
 def trace_transfer(
     mesh: wp.uint64,
@@ -65,9 +74,7 @@ def trace_transfer(
         for sy in range(strata):
             u = (float(sx) + wp.randf(rng)) / float(strata)
             w = (float(sy) + wp.randf(rng)) / float(strata)
-            d2 = concentric_disk(u, w)
-            z = wp.sqrt(wp.max(0.0, 1.0 - wp.dot(d2, d2)))
-            d = frame * wp.vec3(d2[0], d2[1], z)
+            d = cosine_direction(frame, u, w)
             q = wp.mesh_query_ray(mesh, origin, d, max_t)
             if not q.result:
                 sh_accumulate(d, weight, order, k, transfer, v)

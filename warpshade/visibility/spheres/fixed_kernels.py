@@ -221,7 +221,13 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
     def reflect(
         points: wp.array(dtype=wp.vec3),
         normals: wp.array(dtype=wp.vec3),
-        spheres: wp.array(dtype=wp.int32),
+        cluster: wp.array(dtype=wp.int32),
+        receiver_object: wp.array(dtype=wp.int32),
+        cut_start: wp.array(dtype=wp.int32),
+        cut_row: wp.array(dtype=wp.int32),
+        cut_ratio: wp.array(dtype=float),
+        row_sphere: wp.array(dtype=wp.int32),
+        row_object: wp.array(dtype=wp.int32),
         centers: wp.array(dtype=wp.vec3),
         radii: wp.array(dtype=float),
         rotations: wp.array(dtype=wp.mat33),
@@ -235,67 +241,119 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         products: SHProductTable,
         mode: int,
         tau: float,
+        exclude_intersecting: int,
+        record: int,
         key: wp.array2d(dtype=float),
+        slot: wp.array2d(dtype=wp.int32),
         irradiance: wp.array(dtype=wp.vec3),
+        contribution: wp.array(dtype=float),
     ):
-        """Reflected irradiance at receiver ``v`` from every reflecting sphere (eqs. 4.22, 4.25, 4.32, 4.33).
+        """Reflected irradiance at receiver ``v`` from the reflecting spheres of its cluster's cut (eqs. 4.22,
+        4.25, 4.32, 4.33, 4.35).
 
-        Spheres (after the tangent-plane rules of §4.2) are taken nearest first; with ``P`` the running
-        sum of the closer spheres' log blocker vectors, a sphere's visibility is ``exp(P) - exp(P + G_i)``
-        (eq. 4.32), dotted with the clamped cosine (eq. 4.33), times the form-factor average of its
-        radiance vector (eq. 4.25; direction taken into the sphere's rest frame, Fig. 4.17).
-        ``spheres`` (S,) int32: reflecting sphere ids; ``radiance`` (S, 3, N*N) float32 per colour in each
-        sphere's rest frame; ``key`` (V, >=S) float32 scratch; output ``irradiance`` (V,) vec3.
+        Cut entries ``e`` of cluster ``cluster[v]`` are ``cut_start[c]..cut_start[c+1]-1``: radiance row
+        ``cut_row[e]`` (sphere ``row_sphere[row]`` of object ``row_object[row]``) with the ratio
+        ``cut_ratio[e]`` of eq. 4.34 (corrected, see :mod:`.reflections`). Spheres of the receiver's own
+        object (``receiver_object[v]``, -1: none) are skipped. Spheres (after the tangent-plane rules of
+        §4.2) are taken nearest first; with ``P`` the sum of the closer spheres' log blocker vectors, a
+        sphere's visibility is ``exp(P) - exp(P + G_i)`` (eq. 4.32), dotted with the clamped cosine (eq.
+        4.33), times the form-factor average of its radiance vector (eq. 4.25; direction taken into the
+        sphere's rest frame, Fig. 4.17). With ``exclude_intersecting`` the thesis' rule below eq. 4.33:
+        closer spheres of the same object that intersect sphere ``i`` are left out of its ``P`` (their
+        occlusion is already in sphere ``i``'s black samples, §4.3.1). ``radiance`` (rows, 3, N*N) per
+        colour in each sphere's rest frame; ``key``/``slot`` (R, >= max cut size) scratch; output ``irradiance``
+        (R,) vec3; with ``record`` also ``contribution[e]`` = ``Ṽ L̃`` summed over colours, without the
+        ratio (one receiver per cluster: the ratio pass at cluster centres).
         """
         v = wp.tid()
         p = points[v]
         n = normals[v]
-        ns = spheres.shape[0]
-        # keys: distance of the adjusted centre, or -1 when the tangent-plane rules removed the sphere
+        c = cluster[v]
+        own = receiver_object[v]
+        e0 = cut_start[c]
+        ns = cut_start[c + 1] - e0
+        # spheres kept by the tangent-plane rules (and not of the receiver's own object), sorted by the
+        # distance of their adjusted centres: insertion sort into (key, slot); the cut lists come sorted by
+        # distance from the cluster centre, so few shifts (the thesis' presorted lists, ch. 5.2)
+        cnt = int(0)
         for q in range(ns):
-            sid = spheres[q]
+            row = cut_row[e0 + q]
+            if record != 0:
+                contribution[e0 + q] = 0.0
+            if own >= 0 and row_object[row] == own:
+                continue
+            sid = row_sphere[row]
             a = adjust_sphere(p, n, centers[sid], radii[sid])
-            key[v, q] = -1.0
             if a[3] > 0.0:
-                key[v, q] = wp.length(wp.vec3(a[0], a[1], a[2]) - p)
+                k = wp.length(wp.vec3(a[0], a[1], a[2]) - p)
+                j = cnt
+                while j > 0 and key[v, j - 1] > k:
+                    key[v, j] = key[v, j - 1]
+                    slot[v, j] = slot[v, j - 1]
+                    j = j - 1
+                key[v, j] = k
+                slot[v, j] = q
+                cnt = cnt + 1
         logsum = vec_sh()
-        e_prev = vec_sh()
-        e_prev[0] = sqrt_4pi
+        e_full = vec_sh()  # exp(logsum), valid while full_ok
+        e_full[0] = sqrt_4pi
+        full_ok = int(1)
         cosine = zh_rotate(n, cos_zh, kz)
         total = wp.vec3(0.0)
-        for _step in range(ns):
-            # nearest remaining sphere (selection: ns is a few dozen)
-            best = int(-1)
-            bd = float(0.0)
-            for q in range(ns):
-                kq = key[v, q]
-                if kq >= 0.0 and (best < 0 or kq < bd):
-                    best = q
-                    bd = kq
-            if best < 0:
-                break
-            key[v, best] = -1.0
-            sid = spheres[best]
+        for step in range(cnt):  # nearest first
+            best = slot[v, step]
+            bd = key[v, step]
+            row = cut_row[e0 + best]
+            sid = row_sphere[row]
             a = adjust_sphere(p, n, centers[sid], radii[sid])
             d = wp.vec3(a[0], a[1], a[2]) - p
             theta = wp.asin(wp.min(a[3] / wp.max(bd, 1.0e-30), 1.0))
-            logsum = logsum + zh_rotate(d, lerp_table(log_table, theta, theta_step), kz)
-            e_new = exp_blended(logsum, mode, tau, ol, products)
-            # sphere visibility as a difference of two exponentials (eq. 4.32) dotted with the cosine (4.33)
-            vis = wp.dot(e_prev - e_new, cosine)
-            e_prev = e_new
+            g = zh_rotate(d, lerp_table(log_table, theta, theta_step), kz)
+            excl = vec_sh()
+            nex = int(0)
+            if exclude_intersecting != 0:
+                obj = row_object[row]
+                for jj in range(step):  # the closer spheres
+                    row2 = cut_row[e0 + slot[v, jj]]
+                    sid2 = row_sphere[row2]
+                    if row_object[row2] == obj and wp.length(centers[sid2] - centers[sid]) < radii[sid] + radii[sid2]:
+                        a2 = adjust_sphere(p, n, centers[sid2], radii[sid2])
+                        d2 = wp.vec3(a2[0], a2[1], a2[2]) - p
+                        th2 = wp.asin(wp.min(a2[3] / wp.max(wp.length(d2), 1.0e-30), 1.0))
+                        excl = excl + zh_rotate(d2, lerp_table(log_table, th2, theta_step), kz)
+                        nex = nex + 1
+            # sphere visibility as a difference of two exponentials (eq. 4.32)
+            e_a = vec_sh()
+            e_b = vec_sh()
+            if nex == 0:
+                if full_ok == 0:
+                    e_full = exp_blended(logsum, mode, tau, ol, products)
+                e_a = e_full
+                logsum = logsum + g
+                e_b = exp_blended(logsum, mode, tau, ol, products)
+                e_full = e_b
+                full_ok = 1
+            else:
+                pp = logsum - excl
+                e_a = exp_blended(pp, mode, tau, ol, products)
+                e_b = exp_blended(pp + g, mode, tau, ol, products)
+                logsum = logsum + g
+                full_ok = 0
+            vis = wp.dot(e_a - e_b, cosine)  # eq. 4.33
             if vis <= 0.0:
                 continue
             # form-factor lobe toward the receiver, in the sphere's rest frame (Fig. 4.17)
             u = wp.transpose(rotations[sid]) * (p - centers[sid])
             ff = zh_rotate(u, lerp_table(ff_table, theta, theta_step), kz)
             col = wp.vec3(0.0)
-            for c in range(3):
+            for cc in range(3):
                 acc = float(0.0)
                 for i in range(n2):
-                    acc = acc + radiance[best, c, i] * ff[i]
-                col[c] = acc
-            total = total + vis * col
+                    acc = acc + radiance[row, cc, i] * ff[i]
+                col[cc] = acc
+            if record != 0:
+                contribution[e0 + best] = vis * (col[0] + col[1] + col[2])
+            total = total + (vis * cut_ratio[e0 + best]) * col  # eq. 4.35
         # SH ringing of a sharply coloured radiance vector can dip below 0; irradiance cannot
         irradiance[v] = wp.vec3(wp.max(total[0], 0.0), wp.max(total[1], 0.0), wp.max(total[2], 0.0))
 

@@ -47,6 +47,17 @@ def winding_inside(points: np.ndarray, faces: np.ndarray, query: np.ndarray, dev
     return out.numpy().astype(bool)
 
 
+@wp.func
+def max_abs_entry(m: wp.mat33) -> float:
+    """Largest ``|m_ij|``: the scale to normalise a matrix by before ``wp.svd3``, whose float32 thresholds
+    are absolute (a mesh scaled by 1e-4 gives entries ~1e-10 and a garbage decomposition)."""
+    h = float(0.0)
+    for i in range(3):
+        for j in range(3):
+            h = wp.max(h, wp.abs(m[i, j]))
+    return h
+
+
 @wp.kernel
 def refit_spheres(
     vert_start: wp.array[wp.int32],
@@ -80,10 +91,7 @@ def refit_spheres(
         h = h + wp.outer(rest_points[v] - m0, points[v] - m)
     # The rotation does not depend on the scale of h, but wp.svd3 has absolute float32 thresholds: a
     # mesh scaled by 1e-4 gives entries ~1e-10 and a garbage rotation. Normalise to max |h_ij| = 1.
-    hmax = float(0.0)
-    for i in range(3):
-        for j in range(3):
-            hmax = wp.max(hmax, wp.abs(h[i, j]))
+    hmax = max_abs_entry(h)
     if hmax > 0.0:
         h = h / hmax
     u = wp.mat33()
@@ -101,6 +109,71 @@ def refit_spheres(
         spread = wp.max(spread, wp.length(points[vert_index[k]] - c))
     centers[s] = c
     radii[s] = wp.max(rest_radius[s] + spread - rest_spread[s], spread)
+    rotations[s] = rot
+
+
+@wp.kernel
+def refit_spheres_bones(
+    sphere_joint: wp.array2d[wp.int32],
+    sphere_weight: wp.array2d[float],
+    sphere_spread: wp.array2d[float],
+    rest_center: wp.array[wp.vec3],
+    rest_radius: wp.array[float],
+    transforms: wp.array[wp.mat44],
+    centers: wp.array[wp.vec3],
+    radii: wp.array[float],
+    rotations: wp.array[wp.mat33],
+):
+    """Move sphere ``s`` with the skinning bones: its rest centre ``c0`` skinned like a vertex with the
+    mean weights ``ŵ`` of its vertices (column-vector matrices as :func:`warpshade.sim.kernels.skin_points`),
+    rotation the polar part of the blended transform, and a radius that still bounds its vertices.
+
+    Bound: a vertex ``x = Σ_k w_k M_k r`` (``Σ w_k = 1``, rigid ``M_k``) of a sphere with rest radius
+    ``r_0 >= |r - c0|`` and skinned centre ``c = Σ_k ŵ_k M_k c0`` has
+    ``x - c = Σ_k w_k R_k (r - c0) + Σ_k (w_k - ŵ_k)(M_k c0 - c)`` (the ``ŵ`` also sum to 1), so
+    ``|x - c| <= σ r_0 + Σ_k δ_k |M_k c0 - c|`` with ``δ_k = max_v |w_vk - ŵ_k|`` over the sphere's vertices
+    (``sphere_spread``) and ``σ`` the largest singular value of the transforms (1 when rigid). It grows
+    only where the sphere's vertices bend between joints. ``sphere_joint``/``sphere_weight``/``sphere_spread``
+    (S, K): every joint influencing the sphere's vertices (unused slots weight 0, spread 0). Cost
+    O(S K) per frame instead of the point refit's O(V) with an SVD per sphere.
+    """
+    s = wp.tid()
+    m = wp.mat33(0.0)
+    t = wp.vec3(0.0)
+    for k in range(sphere_joint.shape[1]):
+        w = sphere_weight[s, k]
+        if w != 0.0:
+            x = transforms[sphere_joint[s, k]]
+            m = m + w * wp.mat33(x[0, 0], x[0, 1], x[0, 2], x[1, 0], x[1, 1], x[1, 2], x[2, 0], x[2, 1], x[2, 2])
+            t = t + w * wp.vec3(x[0, 3], x[1, 3], x[2, 3])
+    c0 = rest_center[s]
+    c = m * c0 + t
+    centers[s] = c
+    # polar decomposition by SVD (normalised, as refit_spheres: wp.svd3 has absolute thresholds)
+    hmax = max_abs_entry(m)
+    u = wp.mat33()
+    sig = wp.vec3()
+    vv = wp.mat33()
+    rot = wp.identity(n=3, dtype=float)
+    smax = float(0.0)
+    if hmax > 0.0:
+        wp.svd3(m / hmax, u, sig, vv)
+        rot = u * wp.transpose(vv)
+        if wp.determinant(rot) < 0.0:
+            u = wp.matrix_from_cols(wp.vec3(u[0, 0], u[1, 0], u[2, 0]), wp.vec3(u[0, 1], u[1, 1], u[2, 1]),
+                                    -wp.vec3(u[0, 2], u[1, 2], u[2, 2]))
+            rot = u * wp.transpose(vv)
+        smax = wp.max(wp.max(sig[0], sig[1]), sig[2]) * hmax
+    r = rest_radius[s] * wp.max(smax, 1.0)
+    for k in range(sphere_joint.shape[1]):
+        dk = sphere_spread[s, k]
+        if dk != 0.0:
+            x = transforms[sphere_joint[s, k]]
+            mk = wp.vec3(x[0, 0] * c0[0] + x[0, 1] * c0[1] + x[0, 2] * c0[2] + x[0, 3],
+                         x[1, 0] * c0[0] + x[1, 1] * c0[1] + x[1, 2] * c0[2] + x[1, 3],
+                         x[2, 0] * c0[0] + x[2, 1] * c0[1] + x[2, 2] * c0[2] + x[2, 3])
+            r = r + dk * wp.length(mk - c)
+    radii[s] = r
     rotations[s] = rot
 
 

@@ -110,6 +110,7 @@ class SpheresTransfer(TransferMethod):
         self.used = wp.zeros(V, dtype=wp.int32, device=device)
         """Spheres that contributed at each vertex in the last update, shape (V,), int32."""
         self._blocker_points = [None] * len(trees)
+        self._bone_transforms = None
         self._stats = {}
 
     def _load_tables(self):
@@ -161,7 +162,8 @@ class SpheresTransfer(TransferMethod):
         return dict(self._stats)
 
     # -- per frame ---------------------------------------------------------------------------
-    def update(self, points=None, normals=None, blocker_points: list | None = None) -> wp.array:
+    def update(self, points=None, normals=None, blocker_points: list | None = None,
+               bone_transforms: list | None = None) -> wp.array:
         """Recompute :attr:`visibility` and :attr:`transfer`.
 
         Args:
@@ -169,7 +171,36 @@ class SpheresTransfer(TransferMethod):
             normals: Optional receiver unit normals.
             blocker_points: Current vertices of each object in ``blockers`` (list aligned with it; None
                 entries stay where they were). The receiver's own spheres follow ``points``.
+            bone_transforms: Optional, per sphere-set object (own mesh first when ``self_shadow``, then
+                ``blockers``), skinning transforms (J, 4, 4) for objects bound with :meth:`bind_bones`
+                (their spheres then follow the bones, not the points), or None.
         """
+        self._set_blockers(blocker_points, bone_transforms)
+        return super().update(points, normals)
+
+    def bind_bones(self, obj: int, joint_indices, joint_weights, num_joints: int, influences: int = 8) -> None:
+        """Spheres of object ``obj`` (own mesh first when ``self_shadow``, then ``blockers``) follow skinning
+        bones (:meth:`SphereScene.bind_bones`) whenever :meth:`update` gets its ``bone_transforms``."""
+        self.scene.bind_bones(obj, joint_indices, joint_weights, num_joints, influences)
+
+    def move(self, points=None, normals=None, blocker_points: list | None = None,
+             bone_transforms: list | None = None) -> None:
+        """Move receivers and spheres to the current frame without computing shadows (:meth:`update` minus
+        the per-receiver shading): what :class:`~.reflections.SphereReflections` needs when another method
+        shades the receivers' direct light. Arguments as :meth:`update`."""
+        self._set_blockers(blocker_points, bone_transforms)
+        if points is not None:
+            self.set_points(points, normals)
+        self._refit()
+        wp.launch(fit_clusters, dim=self.clusters, inputs=[*self._members, self.points],
+                  outputs=[self.cluster_centers, self.cluster_radii], device=self.device)
+
+    def _set_blockers(self, blocker_points, bone_transforms=None) -> None:
+        if bone_transforms is not None:
+            if len(bone_transforms) != len(self.scene.trees):
+                raise ValueError(f"expected {len(self.scene.trees)} bone transform entries (one per sphere-set "
+                                 f"object), got {len(bone_transforms)}")
+            self._bone_transforms = list(bone_transforms)
         if blocker_points is not None:
             if len(blocker_points) != self.num_blockers:
                 raise ValueError(f"expected {self.num_blockers} blocker point sets, got {len(blocker_points)}")
@@ -177,13 +208,15 @@ class SpheresTransfer(TransferMethod):
             for i, b in enumerate(blocker_points):
                 if b is not None:
                     self._blocker_points[off + i] = b
-        return super().update(points, normals)
+
+    def _refit(self) -> None:
+        if self.self_shadow:
+            self._blocker_points[0] = self.points
+        self.scene.refit(self._blocker_points, self._bone_transforms)
 
     def _compute(self) -> None:
         d = self.device
-        if self.self_shadow:
-            self._blocker_points[0] = self.points
-        self.scene.refit(self._blocker_points)
+        self._refit()
         wp.launch(fit_clusters, dim=self.clusters, inputs=[*self._members, self.points],
                   outputs=[self.cluster_centers, self.cluster_radii], device=d)
         ncut = self.shade_points(self.points, self.normals, self.cluster, self.cluster_centers, self.cluster_radii,

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from ..reference_kernels import cosine_direction, orthonormal_basis
 
 
 @wp.kernel
@@ -103,6 +104,7 @@ def project_sphere_radiance(
     sample_albedo: wp.array2d[wp.vec3],
     voronoi_sh: wp.array2d[float],
     n2: int,
+    given: int,
     radiance: wp.array3d[float],
 ):
     """Radiance SH vector of sphere ``s``, colour ``c`` (eqs. 4.16–4.20), in the sphere's rest frame.
@@ -111,7 +113,8 @@ def project_sphere_radiance(
     ``transfer``: sample ``s * m + j``); projecting the Voronoi-cell-constant function by the
     precomputed cell sums ``voronoi_sh[j]`` (eq. 4.19), with the albedo sampled at the same point,
     gives ``r = Σ_j albedo_j,c M_j Y_j``: the product with the colour environment of eq. 4.20 taken
-    on the same Voronoi cells (no SH-product truncation); invalid directions are black.
+    on the same Voronoi cells (no SH-product truncation); invalid directions are black. With ``given``
+    the resampled ``sample_albedo`` already is the sample's exit radiance (albedo included).
     """
     s, c = wp.tid()
     m = sample_face.shape[1]
@@ -120,10 +123,45 @@ def project_sphere_radiance(
     for j in range(m):
         if sample_face[s, j] < 0:
             continue
-        row = s * m + j
-        e = float(0.0)
-        for i in range(n2):
-            e = e + light[i, c] * transfer[row, i]
-        e = e * sample_albedo[s, j][c] / wp.pi
+        e = sample_albedo[s, j][c]
+        if given == 0:
+            row = s * m + j
+            t = float(0.0)
+            for i in range(n2):
+                t = t + light[i, c] * transfer[row, i]
+            e = e * t / wp.pi
         for i in range(n2):
             radiance[s, c, i] = radiance[s, c, i] + e * voronoi_sh[j, i]
+
+
+@wp.kernel
+def trace_bounce(
+    mesh: wp.uint64,
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    strata: int,
+    offset: float,
+    max_t: float,
+    seed: int,
+    irradiance: wp.array[wp.vec3],
+):
+    """Ray-traced reflected irradiance ``E_R(p) = ∫ L_o(hit(p, ω)) max(0, n·ω) dω`` at receiver ``v``.
+
+    ``mesh`` carries the exit radiance of every vertex in its velocities (interpolated at the hit by
+    ``mesh_eval_velocity``); back-face hits (the inside of a closed object) reflect nothing. Stratified
+    cosine-weighted directions as the reference transfer: estimator ``(π/N) Σ L_o``.
+    """
+    v = wp.tid()
+    n = normals[v]
+    frame = orthonormal_basis(n)
+    origin = points[v] + n * offset
+    rng = wp.rand_init(seed, v)
+    acc = wp.vec3(0.0)
+    for sx in range(strata):
+        for sy in range(strata):
+            u = (float(sx) + wp.randf(rng)) / float(strata)
+            w = (float(sy) + wp.randf(rng)) / float(strata)
+            q = wp.mesh_query_ray(mesh, origin, cosine_direction(frame, u, w), max_t)
+            if q.result and q.sign > 0.0:
+                acc = acc + wp.mesh_eval_velocity(mesh, q.face, q.u, q.v)
+    irradiance[v] = acc * (wp.pi / float(strata * strata))

@@ -13,7 +13,7 @@ import numpy as np
 import warp as wp
 
 from .fitting import SphereTree
-from .kernels import bound_parents, refit_spheres
+from .kernels import bound_parents, refit_spheres, refit_spheres_bones
 
 
 def _csr(lists):
@@ -83,13 +83,72 @@ class SphereScene:
                 levels=levels, lo=int(o), n=t.num_spheres, nv=len(rp)))
         self.refit([None] * len(trees))
 
-    def refit(self, points: list) -> None:
-        """Move every object's spheres with its vertices (None: keep that object at the rest pose).
+    def bind_bones(self, obj: int, joint_indices, joint_weights, num_joints: int, influences: int = 8) -> None:
+        """Let object ``obj``'s spheres follow skinning bones instead of their vertices (see :meth:`refit`).
+
+        Each sphere takes the mean skinning weights of the vertices it was fitted to (its own vertices,
+        ``SphereTree.vertices_of``) and is skinned like a vertex at its rest centre; its radius grows by
+        the bound of kernel ``refit_spheres_bones`` so it keeps bounding those vertices (exactly for
+        rigid bone transforms).
+
+        Args:
+            obj: Object index (order of ``trees``).
+            joint_indices, joint_weights: The mesh's LBS influences, shape (V_o, K) (as
+                :class:`warpshade.sim.LBSSkinner`; rest pose = the pose the tree was fitted in).
+            num_joints: Number of joints J of the transforms that :meth:`refit` will get.
+            influences: Most joints per sphere (a leaf whose vertices have more raises ValueError: its
+                radius bound needs every joint; parents keep their strongest and are grown over their
+                children by ``bound_parents``).
+        """
+        o, tree = self._obj[obj], self.trees[obj]
+        idx = np.asarray(joint_indices, dtype=np.int64).reshape(o["nv"], -1)
+        w = np.asarray(joint_weights, dtype=np.float64).reshape(o["nv"], -1)
+        if idx.shape != w.shape or (idx < 0).any() or (idx >= num_joints).any() or not np.isfinite(w).all():
+            raise ValueError(f"object {obj}: joint indices/weights must be ({o['nv']}, K) with indices in "
+                             f"0..{num_joints - 1} and finite weights")
+        tot = w.sum(axis=1, keepdims=True)
+        if (tot <= 0).any():
+            raise ValueError(f"object {obj}: vertex {int(np.flatnonzero(tot <= 0)[0])} has no joint influence")
+        w = w / tot  # as LBSSkinner
+        S, K = tree.num_spheres, min(int(influences), num_joints)
+        sj, sw, sd = np.zeros((S, K), np.int32), np.zeros((S, K), np.float32), np.zeros((S, K), np.float32)
+        for s in range(S):
+            v = tree.vertices_of(s)
+            dense = np.zeros((len(v), num_joints))  # per-vertex weight of every joint
+            np.add.at(dense, (np.repeat(np.arange(len(v)), idx.shape[1]), idx[v].ravel()), w[v].ravel())
+            mean = dense.mean(axis=0)
+            used = np.flatnonzero(dense.max(axis=0) > 0)
+            if tree.level[s] > 0:
+                # parents: centre from their strongest joints; bound_parents then grows them over their
+                # children, which bound the vertices
+                used = used[np.argsort(-mean[used], kind="stable")[:K]]
+                sj[s, :len(used)], sw[s, :len(used)] = used, mean[used] / mean[used].sum()
+                continue
+            if len(used) > K:
+                raise ValueError(f"object {obj}: leaf sphere {s}'s vertices have {len(used)} joints, more than "
+                                 f"influences={K}")
+            sj[s, :len(used)], sw[s, :len(used)] = used, mean[used]
+            sd[s, :len(used)] = np.abs(dense[:, used] - mean[used]).max(axis=0)
+        d = self.device
+        o["bones"] = dict(joint=wp.array(sj, dtype=wp.int32, device=d), weight=wp.array(sw, dtype=float, device=d),
+                          spread=wp.array(sd, dtype=float, device=d),
+                          center=wp.array(tree.centers.astype(np.float32), dtype=wp.vec3, device=d),
+                          radius=wp.array(tree.radii.astype(np.float32), dtype=float, device=d), joints=int(num_joints))
+
+    def refit(self, points: list, transforms: list | None = None) -> None:
+        """Move every object's spheres with its vertices (None: keep that object at the rest pose), or, for
+        objects bound with :meth:`bind_bones` and given ``transforms``, with its bones.
 
         Args:
             points: Per object, current vertex positions: a (V_o,) vec3 ``wp.array``, a (V_o, 3) array, or None.
+            transforms: Optional, per object, skinning transforms (J, 4, 4) (column-vector convention of
+                :class:`warpshade.sim.LBSSkinner`) or a (J,) mat44 ``wp.array``, or None.
         """
-        for o, pts in zip(self._obj, points):
+        transforms = transforms if transforms is not None else [None] * len(self._obj)
+        for o, pts, xf in zip(self._obj, points, transforms):
+            if xf is not None and "bones" in o:
+                self._refit_bones(o, xf)
+                continue
             if pts is None:
                 pts = o["rest"]
             elif not isinstance(pts, wp.array):
@@ -147,3 +206,18 @@ class SphereScene:
         start = np.zeros(K + 1, dtype=np.int32)
         start[1:] = np.cumsum(np.bincount(k, minlength=K))
         return start, s.astype(np.int32), k.astype(np.int32)
+
+    def _refit_bones(self, o: dict, transforms) -> None:
+        b = o["bones"]
+        if not isinstance(transforms, wp.array):
+            m = np.asarray(transforms, dtype=np.float32)
+            if m.shape != (b["joints"], 4, 4) or not np.isfinite(m).all():
+                raise ValueError(f"bone transforms must be finite, shape ({b['joints']}, 4, 4), got {m.shape}")
+            transforms = wp.array(m, dtype=wp.mat44, device=self.device)
+        lo, n = o["lo"], o["n"]
+        c, r, rot = self.centers[lo:lo + n], self.radii[lo:lo + n], self.rotations[lo:lo + n]
+        wp.launch(refit_spheres_bones, dim=n, inputs=[b["joint"], b["weight"], b["spread"], b["center"], b["radius"], transforms],
+                  outputs=[c, r, rot], device=self.device)
+        for lev in o["levels"]:
+            wp.launch(bound_parents, dim=lev.shape[0], inputs=[o["child_start"], o["child_index"], lev],
+                      outputs=[c, r], device=self.device)
