@@ -46,6 +46,10 @@ DEFAULT_ORDER = 4
 """SH order of a run unless the scene (``warpshade:order``) or ``--order`` says otherwise."""
 
 
+def _fmt(knobs: dict) -> str:
+    return ", ".join(f"{k}={v}" for k, v in knobs.items())
+
+
 def default_method() -> str:
     """The method a run uses when neither the scene nor the command line names one."""
     from ..visibility import METHODS
@@ -67,6 +71,7 @@ class RunReport:
         vertices: Shaded vertices per frame.
         groups: One line per shading group (method, knobs, objects).
         resumed_from: First frame produced by this run (> 0 after ``--resume``).
+        area_lights: How rect lights were shaded ("" when the scene has none).
     """
 
     path: str
@@ -75,6 +80,7 @@ class RunReport:
     vertices: int = 0
     groups: list = field(default_factory=list)
     resumed_from: int = 0
+    area_lights: str = ""
 
 
 class Pipeline:
@@ -93,12 +99,15 @@ class Pipeline:
         device: Warp device.
         between: Shadows between shading groups (objects with different methods or knobs):
             ``"spheres"`` (sphere sets, default) or None.
+        area_lights: Rect lights: ``"gears"`` (default: exact irradiance, GEARS soft shadows,
+            :mod:`.area`) or ``"sh"`` (projected to SH).
+        area_knobs: GEARS knobs (``k``, ``grid``, ``weighting``) for ``area_lights="gears"``.
     """
 
     def __init__(self, scene: Scene, frames: int | None = None, method: str | None = None,
                  knobs: dict | None = None, order: int | None = None, write_transfer: bool | None = None,
                  lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu",
-                 between: str | None = "spheres"):
+                 between: str | None = "spheres", area_lights: str = "gears", area_knobs: dict | None = None):
         self.scene = scene
         self.frames = int(frames if frames is not None else scene.frames)
         if self.frames < 1:
@@ -111,8 +120,29 @@ class Pipeline:
         if not self.groups:
             raise SceneError(f"{scene.source}: no shaded object")
         self.shader = SceneShader(self.groups, self.order, scene.fps, list(scene.lights), scene.up_axis, lights,
-                                  self.write_transfer, device, between)
+                                  self.write_transfer, device, between, area_lights, dict(area_knobs or {}))
+        self.area_lights = self.shader.area_lights if self._rect_light_names() else None
+        """How rect lights are shaded (``"gears"`` or ``"sh"``), None when the scene has none."""
         self.report = None
+
+    def _rect_light_names(self) -> list[str]:
+        from .area import is_area_light
+
+        if self.shader.lights is not None:
+            return [li.name for li in self.shader.lights if is_area_light(li)]
+        return [s.name for s in self.scene.lights if s.kind == "rect"]
+
+    def describe_area_lights(self) -> str:
+        """How the rect lights are shaded, one line ("" without rect lights)."""
+        names = ", ".join(self._rect_light_names())
+        if not names:
+            return ""
+        if self.area_lights == "sh":
+            return f"SH projection (low-frequency shadows through the transfer): {names}"
+        from .area import DEFAULT_AREA_KNOBS
+
+        kn = {**DEFAULT_AREA_KNOBS, "weighting": "cosine", **self.shader.area_knobs}
+        return f"GEARS soft shadows ({_fmt(kn)}) from every shaded object, exact unshadowed irradiance: {names}"
 
     def _geometry(self, sims, secs, failure: list, start: int = 0):
         """Yield ``(frame, {name: points})`` for every moving object from ``start`` on, timing the simulation.
@@ -209,7 +239,8 @@ class Pipeline:
         self.report = RunReport(path=path, frames=max(0, self.frames - start), seconds=secs, resumed_from=start,
                                 vertices=sum(m.num_vertices for g in self.groups for m in g.meshes),
                                 groups=[f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
-                                        for g in self.groups])
+                                        for g in self.groups],
+                                area_lights=self.describe_area_lights())
         return self.report
 
 

@@ -106,6 +106,9 @@ class SceneShader:
             fitted to every other group, thesis §4.2; visibilities multiply with the group's own,
             eq. 4.5) or None (groups do not shadow each other). Objects inside one group always
             shadow each other through the group's method.
+        area_lights: Rect lights: ``"gears"`` (exact irradiance with GEARS soft shadows from every
+            group, :mod:`.area`) or ``"sh"`` (projected to SH like the other local lights).
+        area_knobs: :class:`~.area.AreaLightShading` keyword arguments (k, grid, weighting).
     """
 
     groups: list
@@ -117,6 +120,8 @@ class SceneShader:
     write_transfer: bool = False
     device: str = "cpu"
     between: str | None = "spheres"
+    area_lights: str = "gears"
+    area_knobs: dict = field(default_factory=dict)
 
     def build_lights(self) -> list:
         """The :mod:`warpshade.lighting` objects this spec shades with."""
@@ -142,6 +147,9 @@ class SceneShader:
         between = (_between_group_shadows(groups, self.order, self.device)
                    if self.between == "spheres" and len(groups) > 1 else None)
         lights = self.build_lights()
+        area = _area_shading(self, groups, lights)
+        if area is not None:
+            lights = [li for li in lights if not any(li is a for a in area.lights)]
         pending_build = [time.perf_counter() - t_build]  # reported once, with the first frame
 
         def shade(frame: int, geometry: dict) -> dict:
@@ -150,6 +158,7 @@ class SceneShader:
             t = frame / self.fps
             frame_lights = [light.at_time(t) for light in lights]
             updated = [g.update(geometry) for g in groups]
+            area_e = None if area is None else area.irradiance(t, [u[0] for u in updated], [u[2] for u in updated])
             for i, g in enumerate(groups):
                 pts, transfer, normals = updated[i]
                 if between is not None:
@@ -160,12 +169,27 @@ class SceneShader:
                     # clamped at 0: SH ringing behind bright lights must not make displayColor negative
                     rad = exit_radiance(transfer[a:b], distant, albedo, None if local is None else local[a:b],
                                         device=self.device).numpy().copy()
+                    if area_e is not None:  # GEARS-shadowed rect lights, (ρ/π) E (module .area)
+                        rad += (albedo / np.pi * area_e[i][a:b]).astype(np.float32)
                     out[name] = (pts[a:b], normals[a:b], rad, transfer[a:b] if self.write_transfer else None)
             wp.synchronize()
             out["_seconds"] = time.perf_counter() - t0
             return out
 
         return shade
+
+
+def _area_shading(spec: SceneShader, groups: list, lights: list):
+    """The :class:`~.area.AreaLightShading` of a build, or None (``--area-lights sh`` or no rect light)."""
+    from .area import AREA_MODES, AreaLightShading, split_area_lights
+
+    if spec.area_lights not in AREA_MODES:
+        raise ValueError(f"area lights must be one of {', '.join(AREA_MODES)}, got {spec.area_lights!r}")
+    rect = split_area_lights(lights)[1]
+    if spec.area_lights == "sh" or not rect:
+        return None
+    return AreaLightShading([g.mesh for g in groups], rect, static=not any(g.any_moving for g in groups),
+                            device=spec.device, **spec.area_knobs)
 
 
 def _between_group_shadows(groups: list, order: int, device: str) -> list:
