@@ -221,18 +221,26 @@ class Plan:
     groups: list[GroupPlan] = field(default_factory=list)
     seconds_setup_between: float = 0.0
     seconds_setup_structures: float = 0.0
+    area_lights: str | None = None
+    """How the run shades the scene's rect lights (``"gears"`` or ``"sh"``), None without rect lights."""
+    seconds_area: float = 0.0
+    """Estimated GEARS area-light pass over all shading groups [s] (0 unless ``area_lights == "gears"``)."""
+    area_moves: bool = False
+    """The area-light pass reruns every frame (something moves, or a rect light does)."""
 
     @property
     def run_seconds_per_frame(self) -> float:
-        """Estimated ``shade`` time per frame of ``warpshade run`` on this scene [s] (every group; the
-        first frame's transfer of static groups excluded, it is counted in :attr:`run_seconds_setup`)."""
-        return sum(g.seconds_frame for g in self.groups)
+        """Estimated ``shade`` time per frame of ``warpshade run`` on this scene [s] (every group and the
+        area-light pass; the first frame's transfer of static groups and area pass of a static scene
+        excluded, they are counted in :attr:`run_seconds_setup`)."""
+        return sum(g.seconds_frame for g in self.groups) + (self.seconds_area if self.area_moves else 0.0)
 
     @property
     def run_seconds_setup(self) -> float:
         """Estimated one-off cost of a run [s]: method structures, sphere trees, LUT, static groups' transfer."""
         return (sum(g.seconds_build + (0.0 if g.moves else g.seconds_transfer) for g in self.groups)
-                + self.seconds_setup_between + self.seconds_setup_structures)
+                + self.seconds_setup_between + self.seconds_setup_structures
+                + (0.0 if self.area_moves else self.seconds_area))
 
     def object(self, name: str) -> ObjectPlan:
         for o in self.objects:
@@ -286,6 +294,12 @@ class Plan:
                              f"{g.seconds_between * 1e3:.1f} + lights {g.seconds_lights * 1e3:.1f} + radiance "
                              f"{g.seconds_radiance * 1e3:.2f}; build {g.seconds_build * 1e3:.0f} ms"
                              + (f" ({g.cost_source})" if g.cost_source else ""))
+            if self.area_lights == "gears":
+                lines.append(f"    area-light visibility (GEARS k=16, grid=16) over all {sum(g.vertices for g in self.groups)} "
+                             f"shaded vertices: est. {self.seconds_area * 1e3:.1f} ms "
+                             + ("per frame" if self.area_moves else "once (nothing moves)"))
+            elif self.area_lights == "sh":
+                lines.append("    rect lights projected to SH (--area-lights sh): costed with the lights, no GEARS")
             lines.append(f"  estimated run: setup {self.run_seconds_setup:.2f} s (sphere trees "
                          f"{self.seconds_setup_between:.2f} s), shading {self.run_seconds_per_frame * 1e3:.1f} ms per frame")
         lines += [f"  note: {n}" for n in self.notes]
@@ -380,7 +394,7 @@ def find_config(frontier: dict, method: str, order: int, knobs: dict) -> tuple[d
 
 
 def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str | None = None,
-              between: str | None = "spheres") -> Plan:
+              between: str | None = "spheres", area_lights: str = "gears") -> Plan:
     """Build the :class:`Plan` of ``scene``.
 
     Args:
@@ -390,6 +404,9 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         frontier: Frontier dict, a path (frontier or ``results.json``), or None for the shipped one.
         between: The run's between-group shadows (``"spheres"`` or None, as ``warpshade run --between``),
             for :attr:`Plan.groups`.
+        area_lights: How the run shades rect lights (``warpshade run --area-lights``): ``"gears"``
+            (exact irradiance with GEARS visibility over all shaded objects, :mod:`warpshade.pipeline.area`)
+            or ``"sh"`` (projected to SH, costed as a local light).
 
     Raises:
         ValueError: an empty scene, or no configuration within ``max_error``.
@@ -407,9 +424,16 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     shaded = [o for o in scene.objects if o.shaded]
     inter = len(scene.objects) >= 2 and any(c.name != r.name for c in casters for r in shaded)
     structures, notes, plans = [], [], []
-    rect = any(_is_rect(li) for li in scene.lights)
+    from .pipeline.area import AREA_MODES
+
+    if area_lights not in AREA_MODES:
+        raise ValueError(f"area lights must be one of {', '.join(AREA_MODES)}, got {area_lights!r}")
+    # with --area-lights gears the run takes rect lights out of the SH sum and runs GEARS instead
+    n_rect = sum(1 for li in scene.lights if _is_rect(li)) if area_lights == "gears" else 0
+    rect = n_rect > 0
+    rect_moves = any(_light_moves(li) for li in scene.lights if _is_rect(li))
     pc = load_pass_costs()["constants"]
-    n_local = sum(1 for li in scene.lights if _is_local(li))
+    n_local = sum(1 for li in scene.lights if _is_local(li) and not (rect and _is_rect(li)))
     for obj in scene.objects:
         if not obj.shaded:
             continue
@@ -432,7 +456,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
             passes.append(f"transfer ({method})")
         if inter and (moves or shadowed_by_moving):
             passes.append("inter-object shadows (sphere sets)")
-        if rect and (moves or shadowed_by_moving):
+        if rect and (moves or shadowed_by_moving or rect_moves):
             passes.append("area-light visibility (GEARS)")
         if obj.material.glossy:
             passes.append("glossy transfer")
@@ -450,7 +474,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
             notes.append(f"{obj.name}: {method} {_knobs(knobs)}at order {order} is not in the frontier; its cost is not estimated")
         others = sum(1 for c in casters if c.name != obj.name)
         t_inter = _between_frame_seconds(v, others, pc) if inter and others else 0.0
-        t_gears = _gears_seconds(fr, v, f) if rect else 0.0
+        t_gears = n_rect * _area_seconds(fr, pc, v, f) if rect else 0.0
         t_local = pc["local_light_seconds_per_vertex"] * v * n_local
         seconds_first = t_build + t_transfer + redot + t_inter + t_gears + t_local
         seconds_frame = ((t_transfer if transfer == "every_frame" else 0.0) + (redot if relit else 0.0)
@@ -470,8 +494,14 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         structures.append("reflection (one-bounce) transfer")
     if any(o.material.glossy for o in scene.objects if o.shaded):
         structures.append("glossy transfer")
-    plan = Plan(order, scene.frames, plans, structures, lighting_changes, bool(moving), max_error, notes)
+    plan = Plan(order, scene.frames, plans, structures, lighting_changes, bool(moving), max_error, notes,
+                area_lights=area_lights if any(_is_rect(li) for li in scene.lights) else None)
     _plan_groups(plan, scene, fr, pc, n_local, between)
+    if rect:
+        # one GEARS pass per rect light over every shading group merged (blockers: all shaded objects)
+        plan.area_moves = any(g.moves for g in plan.groups) or rect_moves
+        plan.seconds_area = n_rect * _area_seconds(fr, pc, sum(g.vertices for g in plan.groups),
+                                                   sum(g.triangles for g in plan.groups))
     return plan
 
 
@@ -498,6 +528,12 @@ def _gears_seconds(frontier: dict, vertices: int, triangles: int) -> float:
     cfg = next((c for c in frontier.get("area", []) if c["method"] == "gears"
                 and c["knobs"].get("k") == 16 and c["knobs"].get("grid") == 16), None)
     return estimate_seconds(cfg, vertices, triangles=triangles) if cfg else 0.0
+
+
+def _area_seconds(frontier: dict, pc: dict, vertices: int, triangles: int) -> float:
+    """One rect light under ``--area-lights gears`` per frame: GEARS masks (frontier) plus the exact
+    irradiance and the sample weighting (measured per vertex, ``benchmarks/planner_costs.py``)."""
+    return _gears_seconds(frontier, vertices, triangles) + pc.get("area_shading_seconds_per_vertex", 0.0) * vertices
 
 
 def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: int, between: str | None) -> None:

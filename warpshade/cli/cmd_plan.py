@@ -17,6 +17,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="SH order (default: the scene's warpshade:order, else warpshade run's default 4)")
     parser.add_argument("--between", choices=("spheres", "none"), default="spheres",
                         help="shadows between shading groups, as warpshade run --between (default spheres)")
+    parser.add_argument("--area-lights", choices=("gears", "sh"), default="gears",
+                        help="rect lights as warpshade run --area-lights: GEARS soft shadows (default) or SH")
     parser.add_argument("--json", default=None, metavar="PLAN.json", help="also write the plan as JSON")
 
 
@@ -39,7 +41,7 @@ def run(args) -> int:
     # the order warpshade run would use, so the plan costs what the run does
     scene.settings["order"] = args.order or scene.settings.get("order", DEFAULT_ORDER)
     plan = make_plan(scene, max_error=args.max_error, frontier=args.frontier,
-                     between=None if args.between == "none" else args.between)
+                     between=None if args.between == "none" else args.between, area_lights=args.area_lights)
     print(plan.describe())
     print(f"  without reuse (every object every frame): {naive_seconds(plan):.2f} s")
     if args.json:
