@@ -153,7 +153,11 @@ def test_run_defaults_knobs_and_rect_light_spec():
     assert plan.object("ball").knobs == {"rays": 256} and plan.groups[0].knobs == {"rays": 256}
     assert plan.object("ball").error == 0.035
     assert "GEARS area-light structures" in plan.structures  # a scene file's rect light counts
-    assert plan.groups[0].seconds_lights > make_plan(Scene([ico()], frames=3), frontier=FRONTIER).groups[0].seconds_lights
+    # the run's default (--area-lights gears) shades the rect light in the GEARS pass, not in the lights' SH
+    # (no other light: no SH light cost at all)
+    assert plan.groups[0].seconds_lights == 0.0 and plan.area_lights == "gears"
+    sh = make_plan(scene, frontier=FRONTIER, area_lights="sh")
+    assert sh.groups[0].seconds_lights > 0.0 and sh.seconds_area == 0 and sh.area_lights == "sh"
 
 
 def test_budget_choice_spells_out_measured_knobs_for_the_run():
@@ -180,4 +184,6 @@ def test_plan_cli_on_shipped_rect_light_scene(tmp_path):
     assert g["method"] == "reference" and g["knobs"] == {"rays": 256} and g["moves"]
     assert g["names"] == ["/World/Ground", "/World/Ball", "/World/Cloth"] and g["vertices"] == 2820
     assert g["seconds_lights"] > 0 and g["seconds_transfer"] > 0 and g["seconds_between"] == 0
-    assert plan["run_seconds_per_frame"] == pytest.approx(g["seconds_frame"])
+    # the run's default --area-lights gears: one GEARS pass over the merged group, every frame (the cloth moves)
+    assert plan["area_lights"] == "gears" and plan["area_moves"] and plan["seconds_area"] > 0
+    assert plan["run_seconds_per_frame"] == pytest.approx(g["seconds_frame"] + plan["seconds_area"])
