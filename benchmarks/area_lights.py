@@ -49,17 +49,10 @@ SCENE = os.path.join(os.path.dirname(__file__), "..", "usd_scenes", "rect_light.
 
 
 def simulate(scene, frames: list[int]) -> dict:
-    """Moving objects' points at the wanted frames: ``{frame: {name: (V, 3)}}``."""
+    """Moving objects' points at the wanted frames, as ``warpshade run`` produces them: ``{frame: {name: (V, 3)}}``."""
+    pipe = Pipeline(scene, frames=max(frames) + 1)
     sims = ClothSimulation(scene) if any(o.kind == "cloth" for o in scene.objects) else None
-    out = {}
-    for f in range(max(frames) + 1):
-        geo = {o.name: np.asarray(o.params["points_at"](f), np.float32) for o in scene.objects
-               if o.kind in ("animated", "skinned")}
-        if sims is not None:
-            geo.update(sims.advance(f, geo))
-        if f in frames:
-            out[f] = geo
-    return out
+    return {f: geo for f, geo in pipe._geometry_frames(sims, {"simulate": 0.0}) if f in frames}
 
 
 def reference_term(points, normals, faces, light, albedo, k: int, seeds: list[int]) -> tuple[np.ndarray, np.ndarray]:
