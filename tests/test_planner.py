@@ -53,12 +53,34 @@ def test_structures_appear_only_when_used():
 
 
 def test_static_object_reused_moving_object_every_frame_and_caster_forces_update():
-    plan = make_plan(Scene([ico("cloth", kind="cloth"), ground()], frames=20), frontier=FRONTIER)
+    # different methods: two shading groups in the run, the ground's own group is static
+    plan = make_plan(Scene([ico("cloth", kind="cloth"), ground(method="hemiraster")], frames=20), frontier=FRONTIER)
     cloth, gr = plan.object("cloth"), plan.object("ground")
     assert cloth.transfer == "every_frame" and "transfer (reference)" in cloth.passes
     # the ground does not move: its self-transfer is computed once, but the moving cloth shadows it
-    assert gr.transfer == "once" and "inter-object shadows (sphere sets)" in gr.passes
+    # through the sphere sets between the run's groups
+    assert gr.transfer == "once" and gr.group_moves == [] and "inter-object shadows (sphere sets)" in gr.passes
+    assert "sphere sets of shadow casters" in plan.structures
     assert plan.seconds_total < naive_seconds(plan)
+
+
+def test_static_object_in_a_moving_shading_group_is_planned_every_frame():
+    # same method and knobs: one shading group, which warpshade run recomputes every frame because the
+    # cloth moves (the cloth can shadow the ground within the group), so the ground's transfer is not reused
+    plan = make_plan(Scene([ico("cloth", kind="cloth"), ground()], frames=20), frontier=FRONTIER)
+    gr = plan.object("ground")
+    (g,) = plan.groups
+    assert g.moves and g.names == ["cloth", "ground"]
+    assert gr.transfer == "every_frame" and gr.group_moves == ["cloth"]
+    assert "transfer (reference, with its shading group)" in gr.passes
+    assert gr.seconds_frame >= gr.seconds_transfer > 0  # costed as recomputed, not reused
+    # one group: its members shadow each other through the method, so no sphere sets are planned
+    assert "sphere sets of shadow casters" not in plan.structures
+    assert not any("sphere sets" in p for o in plan.objects for p in o.passes)
+    # all members static: the group's transfer is reused, and the plan says so
+    still = make_plan(Scene([ico("ball"), ground()], frames=20), frontier=FRONTIER)
+    assert [o.transfer for o in still.objects] == ["once", "once"] and not still.groups[0].moves
+    assert all(o.seconds_frame == 0.0 for o in still.objects)
 
 
 def test_lighting_only_change_is_a_redot():
