@@ -46,10 +46,6 @@ DEFAULT_ORDER = 4
 """SH order of a run unless the scene (``warpshade:order``) or ``--order`` says otherwise."""
 
 
-def _fmt(knobs: dict) -> str:
-    return ", ".join(f"{k}={v}" for k, v in knobs.items())
-
-
 def default_method() -> str:
     """The method a run uses when neither the scene nor the command line names one."""
     from ..visibility import METHODS
@@ -121,28 +117,11 @@ class Pipeline:
             raise SceneError(f"{scene.source}: no shaded object")
         self.shader = SceneShader(self.groups, self.order, scene.fps, list(scene.lights), scene.up_axis, lights,
                                   self.write_transfer, device, between, area_lights, dict(area_knobs or {}))
-        self.area_lights = self.shader.area_lights if self._rect_light_names() else None
-        """How rect lights are shaded (``"gears"`` or ``"sh"``), None when the scene has none."""
+        from .area import area_lights_used
+
+        self.area_lights, self.area_description = area_lights_used(self.shader)
+        """How rect lights are shaded (``"gears"``, ``"sh"``; None without rect lights), and in words."""
         self.report = None
-
-    def _rect_light_names(self) -> list[str]:
-        from .area import is_area_light
-
-        if self.shader.lights is not None:
-            return [li.name for li in self.shader.lights if is_area_light(li)]
-        return [s.name for s in self.scene.lights if s.kind == "rect"]
-
-    def describe_area_lights(self) -> str:
-        """How the rect lights are shaded, one line ("" without rect lights)."""
-        names = ", ".join(self._rect_light_names())
-        if not names:
-            return ""
-        if self.area_lights == "sh":
-            return f"SH projection (low-frequency shadows through the transfer): {names}"
-        from .area import DEFAULT_AREA_KNOBS
-
-        kn = {**DEFAULT_AREA_KNOBS, "weighting": "cosine", **self.shader.area_knobs}
-        return f"GEARS soft shadows ({_fmt(kn)}) from every shaded object, exact unshadowed irradiance: {names}"
 
     def _geometry(self, sims, secs, failure: list, start: int = 0):
         """Yield ``(frame, {name: points})`` for every moving object from ``start`` on, timing the simulation.
@@ -240,7 +219,7 @@ class Pipeline:
                                 vertices=sum(m.num_vertices for g in self.groups for m in g.meshes),
                                 groups=[f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
                                         for g in self.groups],
-                                area_lights=self.describe_area_lights())
+                                area_lights=self.area_description)
         return self.report
 
 

@@ -48,6 +48,22 @@ def split_area_lights(lights: list) -> tuple[list, list]:
     return [li for li in lights if not is_area_light(li)], rect
 
 
+def area_lights_used(shader) -> tuple[str | None, str]:
+    """How a :class:`~.shading.SceneShader` shades rect lights: ``("gears" | "sh" | None, one line)``
+    (None and "" when it has no rect light)."""
+    if shader.lights is not None:
+        names = [li.name for li in shader.lights if is_area_light(li)]
+    else:
+        names = [s.name for s in shader.light_specs if s.kind == "rect"]
+    if not names:
+        return None, ""
+    if shader.area_lights == "sh":
+        return "sh", f"SH projection (low-frequency shadows through the transfer): {', '.join(names)}"
+    kn = {**DEFAULT_AREA_KNOBS, "weighting": "cosine", **shader.area_knobs}
+    return shader.area_lights, (f"GEARS soft shadows ({', '.join(f'{k}={v}' for k, v in kn.items())}) from every "
+                                f"shaded object, exact unshadowed irradiance: {', '.join(names)}")
+
+
 class AreaLightShading:
     """GEARS-shadowed rect lights over all shading groups of a run.
 
@@ -126,4 +142,5 @@ class AreaLightShading:
         return {li.name: vis.stats() for li, vis in zip(self.lights, self.visibility)}
 
 
-__all__ = ["AREA_MODES", "DEFAULT_AREA_KNOBS", "WEIGHTINGS", "AreaLightShading", "is_area_light", "split_area_lights"]
+__all__ = ["AREA_MODES", "DEFAULT_AREA_KNOBS", "WEIGHTINGS", "AreaLightShading", "area_lights_used", "is_area_light",
+           "split_area_lights"]
