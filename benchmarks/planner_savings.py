@@ -23,7 +23,7 @@ every scene (a cost model fitted on other meshes on a loaded machine cannot do m
 How to run::
 
     python benchmarks/planner_savings.py [--frames 10] [--method disks] [--json PATH]
-    python benchmarks/planner_savings.py --scenes [--frames 5] [--max-error 0.2] [--split] [--json PATH]
+    python benchmarks/planner_savings.py --scenes [--frames 5] [--max-error 0.2] [--split] [--only NAME] [--json PATH]
 
 Numbers come from a shared, loaded machine: each loop runs ``--repeat`` times (default 3), alternating
 naive and planned, after a warm-up update that absorbs kernel compilation; medians are reported.

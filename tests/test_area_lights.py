@@ -202,3 +202,17 @@ def test_plan_lists_gears_iff_the_run_uses_it(mode):
         listed = any("area-light visibility (GEARS)" in o.passes for o in plan.objects)
         assert listed == runs and ("GEARS area-light structures" in plan.structures) == runs
         assert (plan.seconds_area > 0) == runs
+
+
+def test_static_scene_computes_the_pass_once_unless_the_light_moves():
+    from warpshade.lighting import spin
+
+    plane, lid = _plane_and_blocker()
+    args = ([plane.points, lid.points], [plane.normals, lid.normals])
+    still = AreaLightShading([plane, lid], [light()], static=True)
+    first = still.irradiance(0.0, *args)
+    assert still.irradiance(1.0, *args) is first  # nothing moves: frame 0's result is reused
+    spun = AreaLightShading([plane, lid], [light().with_motion(spin((0, 1, 0), 90.0))], static=True)
+    a, b = spun.irradiance(0.0, *args)[0], spun.irradiance(0.5, *args)[0]
+    # the light turns 45° about the vertical through the centre: off-centre vertices see it change
+    assert not np.allclose(a, b)
