@@ -22,7 +22,9 @@ medians of ``--repeat`` runs after a warm-up (kernel compilation excluded). Numb
 loaded 2-core machine.
 
 Success criteria: ``gears`` error well below ``sh`` error, on all vertices and on shadowed ones.
-How to run: ``python benchmarks/area_lights.py [--frames 0,40,80,119] [--seeds 4] [--json out.json]``.
+``--k 8,32`` (default) adds the GEARS path at other light sample counts (``warpshade run --area-k``).
+
+How to run: ``python benchmarks/area_lights.py [--frames 0,40,80,119] [--seeds 4] [--k 8,32] [--json out.json]``.
 """
 
 from __future__ import annotations
@@ -79,6 +81,7 @@ def main(argv=None) -> int:
     ap.add_argument("--scene", default=SCENE)
     ap.add_argument("--frames", default="0,40,80,119", help="comma-separated frame numbers")
     ap.add_argument("--seeds", type=int, default=4, help="reference: 32x32 jittered rays per seed")
+    ap.add_argument("--k", default="8,32", help="also GEARS at these light samples per side (comma-separated; '' none)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", default=None, metavar="PATH")
     args = ap.parse_args(argv)
@@ -96,6 +99,8 @@ def main(argv=None) -> int:
     pipe, sh_rect = shader("sh", [rect])
     _, gears_rect = shader("gears", [rect])
     _, area_rect = shader("gears", [rect], weighting="area")
+    ks = [int(k) for k in args.k.split(",") if k]
+    k_rect = {k: shader("gears", [rect], k=k)[1] for k in ks}
     names = [n for g in pipe.groups for n in g.names]
     albedo = np.concatenate([np.broadcast_to(a, (m.num_vertices, 3)) for g in pipe.groups
                              for a, m in zip(g.albedos, g.meshes)])
@@ -111,7 +116,8 @@ def main(argv=None) -> int:
     for f in frames:
         geo = geos[f]
         got = {}
-        for key, shade in (("sh", sh_rect), ("gears", gears_rect), ("gears-area", area_rect)):
+        for key, shade in [("sh", sh_rect), ("gears", gears_rect), ("gears-area", area_rect)] + [
+                (f"gears-k{k}", fn) for k, fn in k_rect.items()]:
             out = shade(f, geo)
             got[key] = np.concatenate([out[n][2] for n in names])
             pts = np.concatenate([out[n][0] for n in names])
@@ -129,6 +135,10 @@ def main(argv=None) -> int:
         print(f"{f:5d} {row['shadowed_vertices']:8d} {row['reference_noise']:9.4f} {row['error_sh']:7.4f} "
               f"{row['error_gears']:9.4f} {row['error_gears-area']:10.4f}   {row['error_sh_shadowed']:15.4f} "
               f"{row['error_gears_shadowed']:14.4f} {row['error_gears-area_shadowed']:19.4f}")
+    if ks:
+        print("GEARS light samples per side (form-factor weighting), error all / shadowed: " + "; ".join(
+            f"frame {r['frame']}: " + ", ".join(f"k={k} {r[f'error_gears-k{k}']:.4f} / {r[f'error_gears-k{k}_shadowed']:.4f}"
+                                                for k in ks) for r in rows))
     mean = {k: float(np.mean([r[k] for r in rows])) for k in rows[0] if k.startswith("error")}
     print("mean  " + "  ".join(f"{k[6:]} {v:.4f}" for k, v in mean.items()))
 
@@ -139,6 +149,10 @@ def main(argv=None) -> int:
         _, shade = shader(key)
         timing[f"frame_seconds_{key}"] = median_seconds(lambda: shade(f, geos[f]), repeat=args.repeat,
                                                          clock=time.process_time)
+    for k in ks:
+        _, shade = shader("gears", k=k)
+        timing[f"frame_seconds_gears_k{k}"] = median_seconds(lambda: shade(f, geos[f]), repeat=args.repeat,
+                                                             clock=time.process_time)
     _, shade = shader("sh", [rect])
     out = shade(f, geos[f])
     pts = [np.concatenate([out[n][0] for n in g.names]) for g in pipe.groups]
@@ -148,7 +162,8 @@ def main(argv=None) -> int:
                                                   repeat=args.repeat, clock=time.process_time)
     print(f"CPU time per frame (frame {f}, median of {args.repeat} after a warm-up; shared loaded machine): "
           f"sh {timing['frame_seconds_sh'] * 1e3:.1f} ms, gears {timing['frame_seconds_gears'] * 1e3:.1f} ms "
-          f"(GEARS pass alone {timing['gears_pass_seconds'] * 1e3:.1f} ms)")
+          f"(GEARS pass alone {timing['gears_pass_seconds'] * 1e3:.1f} ms)"
+          + "".join(f", gears k={k} {timing[f'frame_seconds_gears_k{k}'] * 1e3:.1f} ms" for k in ks))
     if args.json:
         with open(args.json, "w") as fh:
             json.dump({"scene": os.path.basename(args.scene), "frames": frames, "rows": rows, "mean": mean,
