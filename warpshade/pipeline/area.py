@@ -102,13 +102,6 @@ class AreaLightShading:
         self._w = wp.empty(self.mesh.num_vertices, dtype=float, device=device)
         self._cached = None
 
-    def describe(self) -> str:
-        """One line for the run report."""
-        names = ", ".join(li.name for li in self.lights)
-        vis = self.visibility[0]
-        return (f"area lights GEARS (k={vis.k}, grid={vis.grid}, {self.weighting} weighting) over "
-                f"{self.mesh.num_vertices} vertices: {names}")
-
     def irradiance(self, t: float, points: list, normals: list) -> list:
         """Shadowed RGB irradiance ``L_e Φ w`` summed over the lights, per group.
 

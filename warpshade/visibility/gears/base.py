@@ -99,6 +99,7 @@ class AreaVisibilityMethod(ABC):
 
         A Lambertian vertex of albedo ρ under a light of radiance L_e has exit radiance ``ρ L_e F``.
         """
+        self._clear = None  # all-clear masks for weighted_visibility, allocated on first use
         self.set_light(light)
 
     def set_light(self, light) -> None:
@@ -182,7 +183,7 @@ class AreaVisibilityMethod(ABC):
         from .kernels import weight_visibility
 
         n = self.mesh.num_vertices
-        if getattr(self, "_clear", None) is None:
+        if self._clear is None:
             self._clear = wp.zeros((n, self.k), dtype=wp.uint32, device=self.device)
         if out is None:
             out = wp.empty(n, dtype=float, device=self.device)
