@@ -235,6 +235,8 @@ class Plan:
     """Estimated GEARS area-light pass over all shading groups [s] (0 unless ``area_lights == "gears"``)."""
     area_moves: bool = False
     """The area-light pass reruns every frame (something moves, or a rect light does)."""
+    area_k: int = 16
+    """GEARS light samples per side the area-light pass is costed at."""
 
     @property
     def run_seconds_per_frame(self) -> float:
@@ -305,7 +307,8 @@ class Plan:
                              f"{g.seconds_radiance * 1e3:.2f}; build {g.seconds_build * 1e3:.0f} ms"
                              + (f" ({g.cost_source})" if g.cost_source else ""))
             if self.area_lights == "gears":
-                lines.append(f"    area-light visibility (GEARS k=16, grid=16) over all {sum(g.vertices for g in self.groups)} "
+                lines.append(f"    area-light visibility (GEARS k={self.area_k}, grid=16) over all "
+                             f"{sum(g.vertices for g in self.groups)} "
                              f"shaded vertices: est. {self.seconds_area * 1e3:.1f} ms "
                              + ("per frame" if self.area_moves else "once (nothing moves)"))
             elif self.area_lights == "sh":
@@ -404,7 +407,7 @@ def find_config(frontier: dict, method: str, order: int, knobs: dict) -> tuple[d
 
 
 def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str | None = None,
-              between: str | None = "spheres", area_lights: str = "gears") -> Plan:
+              between: str | None = "spheres", area_lights: str = "gears", area_k: int = 16) -> Plan:
     """Build the :class:`Plan` of ``scene``.
 
     Args:
@@ -417,6 +420,8 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         area_lights: How the run shades rect lights (``warpshade run --area-lights``): ``"gears"``
             (exact irradiance with GEARS visibility over all shaded objects, :mod:`warpshade.pipeline.area`)
             or ``"sh"`` (projected to SH, costed as a local light).
+        area_k: GEARS light samples per side (``warpshade run --area-k``), costed from the frontier's GEARS
+            record at this k (the nearest measured k otherwise).
 
     Raises:
         ValueError: an empty scene, or no configuration within ``max_error``.
@@ -488,7 +493,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         if method is not None and cfg is None:
             notes.append(f"{obj.name}: {method} {_knobs(knobs)}at order {order} is not in the frontier; its cost is not estimated")
         t_inter = _between_frame_seconds(v, n_groups - 1, pc) if sphere_sets else 0.0
-        t_gears = n_rect * _area_seconds(fr, pc, v, f) if rect else 0.0
+        t_gears = n_rect * _area_seconds(fr, pc, v, f, area_k) if rect else 0.0
         t_local = pc["local_light_seconds_per_vertex"] * v * n_local
         seconds_first = t_build + t_transfer + redot + t_inter + t_gears + t_local
         seconds_frame = ((t_transfer if transfer == "every_frame" else 0.0) + (redot if relit else 0.0)
@@ -515,8 +520,9 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     if rect:
         # one GEARS pass per rect light over every shading group merged (blockers: all shaded objects)
         plan.area_moves = any(g.moves for g in plan.groups) or rect_moves
+        plan.area_k = area_k
         plan.seconds_area = n_rect * _area_seconds(fr, pc, sum(g.vertices for g in plan.groups),
-                                                   sum(g.triangles for g in plan.groups))
+                                                   sum(g.triangles for g in plan.groups), area_k)
     return plan
 
 
@@ -557,17 +563,22 @@ def _distant_lights_seconds(scene: Scene, pc: dict) -> float:
     return sum(pc.get(f"light_{k}_seconds", fallback) for k in kinds)
 
 
-def _gears_seconds(frontier: dict, vertices: int, triangles: int) -> float:
-    """GEARS visibility per frame at its default knobs (k=16, grid=16), from the frontier's area records."""
-    cfg = next((c for c in frontier.get("area", []) if c["method"] == "gears"
-                and c["knobs"].get("k") == 16 and c["knobs"].get("grid") == 16), None)
-    return estimate_seconds(cfg, vertices, triangles=triangles) if cfg else 0.0
+def _gears_seconds(frontier: dict, vertices: int, triangles: int, k: int = 16) -> float:
+    """GEARS visibility per frame at ``k`` light samples per side (grid 16, the run's), from the frontier's
+    area records (the nearest measured k when ``k`` was not measured)."""
+    cfgs = [c for c in frontier.get("area", []) if c["method"] == "gears" and c["knobs"].get("grid") == 16]
+    if not cfgs:
+        return 0.0
+    cfg = min(cfgs, key=lambda c: abs(c["knobs"].get("k", 16) - k))
+    return estimate_seconds(cfg, vertices, triangles=triangles)
 
 
-def _area_seconds(frontier: dict, pc: dict, vertices: int, triangles: int) -> float:
+def _area_seconds(frontier: dict, pc: dict, vertices: int, triangles: int, k: int = 16) -> float:
     """One rect light under ``--area-lights gears`` per frame: GEARS masks (frontier) plus the exact
-    irradiance and the sample weighting (measured per vertex, ``benchmarks/planner_costs.py``)."""
-    return _gears_seconds(frontier, vertices, triangles) + pc.get("area_shading_seconds_per_vertex", 0.0) * vertices
+    irradiance and the sample weighting (measured per vertex at k = 16, ``benchmarks/planner_costs.py``;
+    dominated by the weighting's k² sample sums, so scaled by (k/16)²)."""
+    return (_gears_seconds(frontier, vertices, triangles, k)
+            + pc.get("area_shading_seconds_per_vertex", 0.0) * vertices * (k / 16) ** 2)
 
 
 def _run_groups(scene: Scene, methods: dict) -> list:

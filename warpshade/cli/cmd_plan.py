@@ -19,6 +19,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="shadows between shading groups, as warpshade run --between (default spheres)")
     parser.add_argument("--area-lights", choices=("gears", "sh"), default="gears",
                         help="rect lights as warpshade run --area-lights: GEARS soft shadows (default) or SH")
+    parser.add_argument("--area-k", type=int, default=16, help="GEARS light samples per side, as warpshade run --area-k")
     parser.add_argument("--json", default=None, metavar="PLAN.json", help="also write the plan as JSON")
 
 
@@ -41,7 +42,8 @@ def run(args) -> int:
     # the order warpshade run would use, so the plan costs what the run does
     scene.settings["order"] = args.order or scene.settings.get("order", DEFAULT_ORDER)
     plan = make_plan(scene, max_error=args.max_error, frontier=args.frontier,
-                     between=None if args.between == "none" else args.between, area_lights=args.area_lights)
+                     between=None if args.between == "none" else args.between, area_lights=args.area_lights,
+                     area_k=args.area_k)
     print(plan.describe())
     print(f"  without reuse (every object every frame): {naive_seconds(plan):.2f} s")
     if args.json:

@@ -96,7 +96,7 @@ def run(args) -> int:
 
         scene.settings["order"] = args.order or scene.settings.get("order", 4)
         plan = make_plan(scene, max_error=args.max_error, between=None if args.between == "none" else args.between,
-                         area_lights=args.area_lights)
+                         area_lights=args.area_lights, area_k=args.area_k or 16)
         apply_plan(scene, plan)
         print(plan.describe(), file=sys.stderr)
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
