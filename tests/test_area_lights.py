@@ -152,7 +152,7 @@ def test_pipeline_adds_gears_shadowed_rect_light_to_the_shading():
     assert colours["sh"][220, 0] > 1.3 * colours["gears"][220, 0]  # SH path: no shadow from another group
 
 
-def test_cli_run_on_tiny_rect_light_scene(tmp_path):
+def test_cli_run_on_tiny_rect_light_scene(tmp_path, capsys):
     from pxr import Gf, UsdGeom, UsdLux
 
     from warpshade.cli import main
@@ -167,9 +167,19 @@ def test_cli_run_on_tiny_rect_light_scene(tmp_path):
     rect.AddTranslateOp().Set(Gf.Vec3d(0.5, 2.5, 0.5))
     rect.AddRotateXOp().Set(-90.0)
     st.GetRootLayer().Save()
+    import json
+
+    # the plan lists the GEARS pass iff the run executes it (--area-lights gears, the default)
+    for mode, listed in (("gears", True), ("sh", False)):
+        assert main(["plan", path, "--area-lights", mode, "--json", str(tmp_path / f"{mode}.json")]) == 0
+        plan = json.loads((tmp_path / f"{mode}.json").read_text())
+        assert any("area-light visibility (GEARS)" in o["passes"] for o in plan["objects"]) == listed
+        assert ("GEARS area-light structures" in plan["structures"]) == listed and (plan["seconds_area"] > 0) == listed
+    capsys.readouterr()
     out = tmp_path / "out.usda"
     assert main(["run", path, "--out", str(out), "--no-progress", "--workers", "0", "--method", "reference",
                  "--rays", "4", "--order", "2"]) == 0
+    assert "rect lights: GEARS soft shadows" in capsys.readouterr().err
     from pxr import Usd
 
     stage = Usd.Stage.Open(str(out))
@@ -202,6 +212,8 @@ def test_plan_lists_gears_iff_the_run_uses_it(mode):
         listed = any("area-light visibility (GEARS)" in o.passes for o in plan.objects)
         assert listed == runs and ("GEARS area-light structures" in plan.structures) == runs
         assert (plan.seconds_area > 0) == runs
+        if runs:  # costed at the run's light samples (--area-k)
+            assert make_plan(scene, area_lights=mode, area_k=32).seconds_area > plan.seconds_area
 
 
 def test_static_scene_computes_the_pass_once_unless_the_light_moves():
