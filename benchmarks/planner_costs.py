@@ -10,6 +10,8 @@ through the same functions ``warpshade run`` calls (:mod:`warpshade.pipeline.sha
   kind for distant lights and domes, seconds per vertex per local light for rect and sphere lights);
 * exit radiance (``(ρ/π) Σ L_i T_i``, a Warp kernel): seconds per vertex per SH coefficient;
 * unoccluded transfer (groups with no method): seconds per vertex;
+* rect lights under ``--area-lights gears`` besides the GEARS masks (which the frontier costs): the
+  exact irradiance and the sample weighting (:mod:`warpshade.pipeline.area`), seconds per vertex per light;
 * the hemispherical-rasterization plane LUT (built once per run): seconds.
 
 Each pass's constants are a non-negative least-squares fit over the scenes with relative residuals
@@ -61,6 +63,7 @@ def main(argv=None) -> int:
     wp.config.quiet = True
     from warpshade.lighting import lights_sh
     from warpshade.planner import fit_cost
+    from warpshade.pipeline.area import AreaLightShading, is_area_light
     from warpshade.pipeline.lights import light_from_spec
     from warpshade.pipeline.shading import GroupSpec, _between_group_shadows, _Group, _shadow_by_others
     from warpshade.radiance import exit_radiance
@@ -69,7 +72,8 @@ def main(argv=None) -> int:
     from warpshade.visibility.hemiraster import tables
 
     order, rep = args.order, args.repeat
-    rows = {"between_build": [], "between_frame": [], "lights_local": [], "radiance": [], "unoccluded": []}
+    rows = {"between_build": [], "between_frame": [], "lights_local": [], "radiance": [], "unoccluded": [],
+            "area_shading": []}
     print(f"pass costs at SH order {order} (median of {rep} after a warm-up; shared loaded 2-core machine)")
     print(f"{'scene':<16}{'pass':<16}{'count':>12}{'ms':>10}")
     for path in sorted(glob.glob(os.path.join(SCENES, "*.usda"))):
@@ -111,6 +115,18 @@ def main(argv=None) -> int:
                 log(f"light_{kind}", [1], median_seconds(lambda li=li: lights_sh([li], order, pts), repeat=rep))
         if local:
             log("lights_local", [v_all * len(local)], median_seconds(lambda: lights_sh(local, order, pts), repeat=rep))
+        rect = [li for li in lights if is_area_light(li)]
+        if rect:
+            area = AreaLightShading([g.mesh for g in groups], rect)
+            area.irradiance(0.0, [u[0] for u in updated], [u[2] for u in updated])  # masks for the weighting
+
+            def weigh():  # what AreaLightShading.irradiance adds to the GEARS masks
+                for vis, li in zip(area.visibility, rect):
+                    w = vis.weighted_visibility(out=area._w).numpy()
+                    phi = li.projected_solid_angle(vis.points, vis.normals, out=area._phi).numpy()
+                    (phi.astype(np.float64) * w)[:, None] * li.radiance
+
+            log("area_shading", [v_all * len(rect)], median_seconds(weigh, repeat=rep))
         transfer = np.concatenate([u[1] for u in updated])
         L = lights_sh(lights, order, pts)
         loc = L[1]
@@ -123,6 +139,7 @@ def main(argv=None) -> int:
     names = {"between_build": ("between_build_seconds_per_group", "between_build_seconds_per_triangle"),
              "between_frame": ("between_seconds_fixed", "between_seconds_per_receiver_vertex_per_other_group"),
              "lights_local": ("local_light_seconds_per_vertex",),
+             "area_shading": ("area_shading_seconds_per_vertex",),
              "radiance": ("radiance_seconds_fixed", "radiance_seconds_per_vertex_coeff"),
              "unoccluded": ("unoccluded_seconds_fixed", "unoccluded_seconds_per_vertex")}
     names.update({k: (f"{k}_seconds",) for k in rows if k.startswith("light_")})

@@ -53,12 +53,34 @@ def test_structures_appear_only_when_used():
 
 
 def test_static_object_reused_moving_object_every_frame_and_caster_forces_update():
-    plan = make_plan(Scene([ico("cloth", kind="cloth"), ground()], frames=20), frontier=FRONTIER)
+    # different methods: two shading groups in the run, the ground's own group is static
+    plan = make_plan(Scene([ico("cloth", kind="cloth"), ground(method="hemiraster")], frames=20), frontier=FRONTIER)
     cloth, gr = plan.object("cloth"), plan.object("ground")
     assert cloth.transfer == "every_frame" and "transfer (reference)" in cloth.passes
     # the ground does not move: its self-transfer is computed once, but the moving cloth shadows it
-    assert gr.transfer == "once" and "inter-object shadows (sphere sets)" in gr.passes
+    # through the sphere sets between the run's groups
+    assert gr.transfer == "once" and gr.group_moves == [] and "inter-object shadows (sphere sets)" in gr.passes
+    assert "sphere sets of shadow casters" in plan.structures
     assert plan.seconds_total < naive_seconds(plan)
+
+
+def test_static_object_in_a_moving_shading_group_is_planned_every_frame():
+    # same method and knobs: one shading group, which warpshade run recomputes every frame because the
+    # cloth moves (the cloth can shadow the ground within the group), so the ground's transfer is not reused
+    plan = make_plan(Scene([ico("cloth", kind="cloth"), ground()], frames=20), frontier=FRONTIER)
+    gr = plan.object("ground")
+    (g,) = plan.groups
+    assert g.moves and g.names == ["cloth", "ground"]
+    assert gr.transfer == "every_frame" and gr.group_moves == ["cloth"]
+    assert "transfer (reference, with its shading group)" in gr.passes
+    assert gr.seconds_frame >= gr.seconds_transfer > 0  # costed as recomputed, not reused
+    # one group: its members shadow each other through the method, so no sphere sets are planned
+    assert "sphere sets of shadow casters" not in plan.structures
+    assert not any("sphere sets" in p for o in plan.objects for p in o.passes)
+    # all members static: the group's transfer is reused, and the plan says so
+    still = make_plan(Scene([ico("ball"), ground()], frames=20), frontier=FRONTIER)
+    assert [o.transfer for o in still.objects] == ["once", "once"] and not still.groups[0].moves
+    assert all(o.seconds_frame == 0.0 for o in still.objects)
 
 
 def test_lighting_only_change_is_a_redot():
@@ -153,7 +175,11 @@ def test_run_defaults_knobs_and_rect_light_spec():
     assert plan.object("ball").knobs == {"rays": 256} and plan.groups[0].knobs == {"rays": 256}
     assert plan.object("ball").error == 0.035
     assert "GEARS area-light structures" in plan.structures  # a scene file's rect light counts
-    assert plan.groups[0].seconds_lights > make_plan(Scene([ico()], frames=3), frontier=FRONTIER).groups[0].seconds_lights
+    # the run's default (--area-lights gears) shades the rect light in the GEARS pass, not in the lights' SH
+    # (no other light: no SH light cost at all)
+    assert plan.groups[0].seconds_lights == 0.0 and plan.area_lights == "gears"
+    sh = make_plan(scene, frontier=FRONTIER, area_lights="sh")
+    assert sh.groups[0].seconds_lights > 0.0 and sh.seconds_area == 0 and sh.area_lights == "sh"
 
 
 def test_budget_choice_spells_out_measured_knobs_for_the_run():
@@ -180,4 +206,6 @@ def test_plan_cli_on_shipped_rect_light_scene(tmp_path):
     assert g["method"] == "reference" and g["knobs"] == {"rays": 256} and g["moves"]
     assert g["names"] == ["/World/Ground", "/World/Ball", "/World/Cloth"] and g["vertices"] == 2820
     assert g["seconds_lights"] > 0 and g["seconds_transfer"] > 0 and g["seconds_between"] == 0
-    assert plan["run_seconds_per_frame"] == pytest.approx(g["seconds_frame"])
+    # the run's default --area-lights gears: one GEARS pass over the merged group, every frame (the cloth moves)
+    assert plan["area_lights"] == "gears" and plan["area_moves"] and plan["seconds_area"] > 0
+    assert plan["run_seconds_per_frame"] == pytest.approx(g["seconds_frame"] + plan["seconds_area"])

@@ -26,3 +26,7 @@ __all__ += ["ClothBuilder", "ClothControl", "ClothModel", "ClothState", "Collide
 from .planner import Plan, apply_plan, make_plan
 
 __all__ += ["Plan", "apply_plan", "make_plan"]
+
+from .pipeline.area import AreaLightShading
+
+__all__ += ["AreaLightShading"]

@@ -4,13 +4,17 @@ which visibility method and knobs to use — from the frontier ``warpshade bench
 
 Rules (issue 8):
 
-* transfer of an object that does not move (``kind == "static"``) and whose shadow casters do not move
-  is computed once and reused every frame;
+* transfer of an object that does not move (``kind == "static"``) is computed once and reused every frame
+  only when its whole shading group is static: ``warpshade run`` shades objects sharing a method and
+  knobs as one mesh (they shadow each other), recomputed every frame when any member moves, so a static
+  member of a moving group is planned ``every_frame`` (:attr:`ObjectPlan.group_moves`) and costed so;
 * when only lighting changes, shading is a re-dot ``(ρ/π) Σ L_i T_i`` of reused transfer; when neither
   geometry nor lighting changes, the first frame's colours are reused;
 * shared structures exist only when something uses them: the hemispherical-rasterization plane LUT only
   if an object uses ``hemiraster``; GEARS only with rect lights; sphere sets for inter-object shadows only
-  when at least two objects exist and one casts onto another (never for a single self-shadowing object);
+  when at least two objects exist, one casts onto another and the run has two or more shading groups
+  between which they carry shadows (never for a single self-shadowing object, nor for objects sharing a
+  group, which shadow each other through the group's method);
   reflection (one diffuse bounce) only when ``settings["reflections"]`` asks; glossy transfer only for
   objects whose material is glossy;
 * with ``max_error``, each object gets the configuration of the frontier whose worst measured mean error
@@ -151,7 +155,8 @@ class ObjectPlan:
         moves: Its geometry changes over time.
         method: Visibility method for self-shadowing (None: unoccluded transfer, no method).
         knobs: Method constructor kwargs.
-        transfer: ``"every_frame"``, ``"once"`` or ``"none"`` (unoccluded closed form).
+        transfer: ``"every_frame"``, ``"once"`` or ``"none"`` (unoccluded closed form). A static object
+            is ``"every_frame"`` when its shading group moves (:attr:`group_moves`).
         passes: Per-frame passes in execution order.
         error: Worst measured mean error of the chosen configuration (None: not in the frontier).
         seconds_first: Estimated first-frame cost [s] (build + transfer).
@@ -173,6 +178,9 @@ class ObjectPlan:
     reason: str = ""
     seconds_transfer: float = 0.0
     seconds_build: float = 0.0
+    group_moves: list[str] = field(default_factory=list)
+    """Moving members of this static object's shading group, which make the run recompute its transfer
+    every frame (empty: the object moves itself, or its group is static)."""
 
 
 @dataclass
@@ -233,18 +241,28 @@ class Plan:
     groups: list[GroupPlan] = field(default_factory=list)
     seconds_setup_between: float = 0.0
     seconds_setup_structures: float = 0.0
+    area_lights: str | None = None
+    """How the run shades the scene's rect lights (``"gears"`` or ``"sh"``), None without rect lights."""
+    seconds_area: float = 0.0
+    """Estimated GEARS area-light pass over all shading groups [s] (0 unless ``area_lights == "gears"``)."""
+    area_moves: bool = False
+    """The area-light pass reruns every frame (something moves, or a rect light does)."""
+    area_k: int = 16
+    """GEARS light samples per side the area-light pass is costed at."""
 
     @property
     def run_seconds_per_frame(self) -> float:
-        """Estimated ``shade`` time per frame of ``warpshade run`` on this scene [s] (every group; the
-        first frame's transfer of static groups excluded, it is counted in :attr:`run_seconds_setup`)."""
-        return sum(g.seconds_frame for g in self.groups)
+        """Estimated ``shade`` time per frame of ``warpshade run`` on this scene [s] (every group and the
+        area-light pass; the first frame's transfer of static groups and area pass of a static scene
+        excluded, they are counted in :attr:`run_seconds_setup`)."""
+        return sum(g.seconds_frame for g in self.groups) + (self.seconds_area if self.area_moves else 0.0)
 
     @property
     def run_seconds_setup(self) -> float:
         """Estimated one-off cost of a run [s]: method structures, sphere trees, LUT, static groups' transfer."""
         return (sum(g.seconds_build + (0.0 if g.moves else g.seconds_transfer) for g in self.groups)
-                + self.seconds_setup_between + self.seconds_setup_structures)
+                + self.seconds_setup_between + self.seconds_setup_structures
+                + (0.0 if self.area_moves else self.seconds_area))
 
     def object(self, name: str) -> ObjectPlan:
         for o in self.objects:
@@ -280,12 +298,14 @@ class Plan:
                      f"lighting changes: {'yes' if self.lighting_changes else 'no'}")
         for o in self.objects:
             err = "" if o.error is None else f", measured error ≤ {o.error:.3f}"
+            why = f" (its shading group moves: {', '.join(o.group_moves)})" if o.group_moves else ""
             lines.append(f"  {o.name} ({o.kind}, {o.vertices} vertices): method {o.method or 'none (unoccluded)'} "
-                         f"{_knobs(o.knobs)}transfer {o.transfer}{err}")
+                         f"{_knobs(o.knobs)}transfer {o.transfer}{why}{err}")
             lines.append(f"      passes per frame: {', '.join(o.passes) or 'reuse colours'}")
             lines.append(f"      est. first frame {o.seconds_first * 1e3:.1f} ms, later frames {o.seconds_frame * 1e3:.2f} ms"
                          + (f" — {o.reason}" if o.reason else ""))
-        lines.append(f"  estimated cost of what the scene requires (each object on its own, reuse applied): "
+        lines.append(f"  estimated cost of what the scene requires (each object on its own mesh, transfer reused "
+                     f"where the run reuses it): "
                      f"{self.seconds_per_frame * 1e3:.2f} ms per frame after the first; "
                      f"{self.seconds_total:.2f} s for {self.frames} frames")
         if self.groups:
@@ -300,6 +320,13 @@ class Plan:
                              + (f" + reflections {g.seconds_reflections * 1e3:.1f}" if g.seconds_reflections else "")
                              + f"; build {g.seconds_build * 1e3:.0f} ms"
                              + (f" ({g.cost_source})" if g.cost_source else ""))
+            if self.area_lights == "gears":
+                lines.append(f"    area-light visibility (GEARS k={self.area_k}, grid=16) over all "
+                             f"{sum(g.vertices for g in self.groups)} "
+                             f"shaded vertices: est. {self.seconds_area * 1e3:.1f} ms "
+                             + ("per frame" if self.area_moves else "once (nothing moves)"))
+            elif self.area_lights == "sh":
+                lines.append("    rect lights projected to SH (--area-lights sh): costed with the lights, no GEARS")
             lines.append(f"  estimated run: setup {self.run_seconds_setup:.2f} s (sphere trees "
                          f"{self.seconds_setup_between:.2f} s), shading {self.run_seconds_per_frame * 1e3:.1f} ms per frame")
         lines += [f"  note: {n}" for n in self.notes]
@@ -394,7 +421,7 @@ def find_config(frontier: dict, method: str, order: int, knobs: dict) -> tuple[d
 
 
 def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str | None = None,
-              between: str | None = "spheres") -> Plan:
+              between: str | None = "spheres", area_lights: str = "gears", area_k: int = 16) -> Plan:
     """Build the :class:`Plan` of ``scene``.
 
     Args:
@@ -404,6 +431,11 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         frontier: Frontier dict, a path (frontier or ``results.json``), or None for the shipped one.
         between: The run's between-group shadows (``"spheres"`` or None, as ``warpshade run --between``),
             for :attr:`Plan.groups`.
+        area_lights: How the run shades rect lights (``warpshade run --area-lights``): ``"gears"``
+            (exact irradiance with GEARS visibility over all shaded objects, :mod:`warpshade.pipeline.area`)
+            or ``"sh"`` (projected to SH, costed as a local light).
+        area_k: GEARS light samples per side (``warpshade run --area-k``), costed from the frontier's GEARS
+            record at this k (the nearest measured k otherwise).
 
     Raises:
         ValueError: an empty scene, or no configuration within ``max_error``.
@@ -421,13 +453,25 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     shaded = [o for o in scene.objects if o.shaded]
     inter = len(scene.objects) >= 2 and any(c.name != r.name for c in casters for r in shaded)
     structures, notes, plans = [], [], []
-    rect = any(_is_rect(li) for li in scene.lights)
+    from .pipeline.area import AREA_MODES
+
+    if area_lights not in AREA_MODES:
+        raise ValueError(f"area lights must be one of {', '.join(AREA_MODES)}, got {area_lights!r}")
+    # with --area-lights gears the run takes rect lights out of the SH sum and runs GEARS instead
+    n_rect = sum(1 for li in scene.lights if _is_rect(li)) if area_lights == "gears" else 0
+    rect = n_rect > 0
+    rect_moves = any(_light_moves(li) for li in scene.lights if _is_rect(li))
     pc = load_pass_costs()["constants"]
-    n_local = sum(1 for li in scene.lights if _is_local(li))
+    n_local = sum(1 for li in scene.lights if _is_local(li) and not (rect and _is_rect(li)))
+    chosen = {o.name: _choose(o, order, max_error, fr) for o in shaded}
+    # objects sharing a method and knobs are one mesh in the run and shadow each other through it; sphere
+    # sets carry shadows only between the run's shading groups (--between spheres)
+    n_groups = len(_run_groups(scene, {n: (c[0], c[1]) for n, c in chosen.items()}))
+    sphere_sets = inter and between is not None and n_groups > 1
     for obj in scene.objects:
         if not obj.shaded:
             continue
-        method, knobs, cfg, reason = _choose(obj, order, max_error, fr)
+        method, knobs, cfg, reason = chosen[obj.name]
         v = obj.mesh.num_vertices
         moves = obj.name in moving
         # a static receiver must redo its inter-object term if any other caster moves
@@ -444,9 +488,9 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         transfer = "none" if method is None else ("every_frame" if moves else "once")
         if method is not None and moves:
             passes.append(f"transfer ({method})")
-        if inter and (moves or shadowed_by_moving):
+        if sphere_sets and (moves or shadowed_by_moving):
             passes.append("inter-object shadows (sphere sets)")
-        if rect and (moves or shadowed_by_moving):
+        if rect and (moves or shadowed_by_moving or rect_moves):
             passes.append("area-light visibility (GEARS)")
         if obj.material.glossy:
             passes.append("glossy transfer")
@@ -462,9 +506,8 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         redot = REDOT_SECONDS_PER_COEFF * v * order * order * 3
         if method is not None and cfg is None:
             notes.append(f"{obj.name}: {method} {_knobs(knobs)}at order {order} is not in the frontier; its cost is not estimated")
-        others = sum(1 for c in casters if c.name != obj.name)
-        t_inter = _between_frame_seconds(v, others, pc) if inter and others else 0.0
-        t_gears = _gears_seconds(fr, v, f) if rect else 0.0
+        t_inter = _between_frame_seconds(v, n_groups - 1, pc) if sphere_sets else 0.0
+        t_gears = n_rect * _area_seconds(fr, pc, v, f, area_k) if rect else 0.0
         t_local = pc["local_light_seconds_per_vertex"] * v * n_local
         t_reflect = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT * len(shaded)
                      * (order / 4.0) ** 2) if reflections else 0.0
@@ -479,7 +522,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
                                  t_transfer, t_build))
     if any(p.method == "hemiraster" for p in plans):
         structures.append("hemiraster plane LUT")
-    if inter:
+    if sphere_sets:
         structures.append("sphere sets of shadow casters")
     if rect:
         structures.append("GEARS area-light structures")
@@ -487,9 +530,36 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         structures.append("reflection (one-bounce) transfer")
     if any(o.material.glossy for o in scene.objects if o.shaded):
         structures.append("glossy transfer")
-    plan = Plan(order, scene.frames, plans, structures, lighting_changes, bool(moving), max_error, notes)
+    plan = Plan(order, scene.frames, plans, structures, lighting_changes, bool(moving), max_error, notes,
+                area_lights=area_lights if any(_is_rect(li) for li in scene.lights) else None)
     _plan_groups(plan, scene, fr, pc, n_local, between)
+    _static_in_moving_groups(plan)
+    if rect:
+        # one GEARS pass per rect light over every shading group merged (blockers: all shaded objects)
+        plan.area_moves = any(g.moves for g in plan.groups) or rect_moves
+        plan.area_k = area_k
+        plan.seconds_area = n_rect * _area_seconds(fr, pc, sum(g.vertices for g in plan.groups),
+                                                   sum(g.triangles for g in plan.groups), area_k)
     return plan
+
+
+def _static_in_moving_groups(plan: Plan) -> None:
+    """A static object whose shading group has a moving member is recomputed with the group every
+    frame (objects of a group shadow each other through the group's method): plan and cost it so."""
+    for g in plan.groups:
+        movers = [n for n in g.names if plan.object(n).moves]
+        if not movers or g.method is None:
+            continue
+        for name in g.names:
+            o = plan.object(name)
+            if o.moves or o.transfer != "once":
+                continue
+            o.transfer, o.group_moves = "every_frame", movers
+            o.passes.insert(0, f"transfer ({o.method}, with its shading group)")
+            if "re-dot lighting" not in o.passes:
+                o.passes.append("re-dot lighting")
+                o.seconds_frame += REDOT_SECONDS_PER_COEFF * o.vertices * plan.order * plan.order * 3
+            o.seconds_frame += o.seconds_transfer
 
 
 def _between_frame_seconds(receivers: int, other_groups: int, pc: dict) -> float:
@@ -510,24 +580,40 @@ def _distant_lights_seconds(scene: Scene, pc: dict) -> float:
     return sum(pc.get(f"light_{k}_seconds", fallback) for k in kinds)
 
 
-def _gears_seconds(frontier: dict, vertices: int, triangles: int) -> float:
-    """GEARS visibility per frame at its default knobs (k=16, grid=16), from the frontier's area records."""
-    cfg = next((c for c in frontier.get("area", []) if c["method"] == "gears"
-                and c["knobs"].get("k") == 16 and c["knobs"].get("grid") == 16), None)
-    return estimate_seconds(cfg, vertices, triangles=triangles) if cfg else 0.0
+def _gears_seconds(frontier: dict, vertices: int, triangles: int, k: int = 16) -> float:
+    """GEARS visibility per frame at ``k`` light samples per side (grid 16, the run's), from the frontier's
+    area records (the nearest measured k when ``k`` was not measured)."""
+    cfgs = [c for c in frontier.get("area", []) if c["method"] == "gears" and c["knobs"].get("grid") == 16]
+    if not cfgs:
+        return 0.0
+    cfg = min(cfgs, key=lambda c: abs(c["knobs"].get("k", 16) - k))
+    return estimate_seconds(cfg, vertices, triangles=triangles)
 
 
-def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: int, between: str | None) -> None:
-    """Fill ``plan.groups`` with the shading groups ``warpshade run`` forms from the plan's methods, and cost them."""
+def _area_seconds(frontier: dict, pc: dict, vertices: int, triangles: int, k: int = 16) -> float:
+    """One rect light under ``--area-lights gears`` per frame: GEARS masks (frontier) plus the exact
+    irradiance and the sample weighting (measured per vertex at k = 16, ``benchmarks/planner_costs.py``;
+    dominated by the weighting's k² sample sums, so scaled by (k/16)²)."""
+    return (_gears_seconds(frontier, vertices, triangles, k)
+            + pc.get("area_shading_seconds_per_vertex", 0.0) * vertices * (k / 16) ** 2)
+
+
+def _run_groups(scene: Scene, methods: dict) -> list:
+    """The shading groups ``warpshade run`` forms (:func:`warpshade.pipeline.shading.group_objects`) when
+    each shaded object uses ``methods[name] = (method, knobs)``."""
     import dataclasses
 
     from .pipeline import DEFAULT_KNOBS
     from .pipeline.shading import group_objects
 
-    chosen = {o.name: o for o in plan.objects}
-    objs = [dataclasses.replace(o, method=chosen[o.name].method, knobs=dict(chosen[o.name].knobs))
+    objs = [dataclasses.replace(o, method=methods[o.name][0], knobs=dict(methods[o.name][1]))
             for o in scene.objects if o.shaded]
-    specs = group_objects(objs, None, None, DEFAULT_KNOBS)
+    return group_objects(objs, None, None, DEFAULT_KNOBS)
+
+
+def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: int, between: str | None) -> None:
+    """Fill ``plan.groups`` with the shading groups ``warpshade run`` forms from the plan's methods, and cost them."""
+    specs = _run_groups(scene, {o.name: (o.method, o.knobs) for o in plan.objects})
     n = plan.order * plan.order
     reflections = bool(scene.settings.get("reflections", False))
     tris = 0

@@ -17,6 +17,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="SH order (default: the scene's warpshade:order, else warpshade run's default 4)")
     parser.add_argument("--between", choices=("spheres", "none"), default="spheres",
                         help="shadows between shading groups, as warpshade run --between (default spheres)")
+    parser.add_argument("--area-lights", choices=("gears", "sh"), default="gears",
+                        help="rect lights as warpshade run --area-lights: GEARS soft shadows (default) or SH")
+    parser.add_argument("--area-k", type=int, default=16, help="GEARS light samples per side, as warpshade run --area-k")
     parser.add_argument("--json", default=None, metavar="PLAN.json", help="also write the plan as JSON")
     parser.add_argument("--reflections", action="store_true", default=None,
                         help="plan the one-bounce reflection pass (as warpshade run --reflections; default: the "
@@ -44,7 +47,8 @@ def run(args) -> int:
     if args.reflections:
         scene.settings["reflections"] = True
     plan = make_plan(scene, max_error=args.max_error, frontier=args.frontier,
-                     between=None if args.between == "none" else args.between)
+                     between=None if args.between == "none" else args.between, area_lights=args.area_lights,
+                     area_k=args.area_k)
     print(plan.describe())
     print(f"  without reuse (every object every frame): {naive_seconds(plan):.2f} s")
     if args.json:

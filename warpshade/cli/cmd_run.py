@@ -50,6 +50,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--albedo", default=None, metavar="A|R,G,B",
                         help="albedo of objects whose scene gives none (no material diffuseColor, no constant "
                              "displayColor); default 0.8")
+    parser.add_argument("--area-lights", choices=["gears", "sh"], default="gears",
+                        help="rect lights: exact irradiance with GEARS soft shadows (default) or projected to SH")
+    parser.add_argument("--area-k", type=int, default=None, help="GEARS light samples per side (default 16)")
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -115,7 +118,8 @@ def run(args) -> int:
         from ..planner import apply_plan, make_plan
 
         scene.settings["order"] = args.order or scene.settings.get("order", 4)
-        plan = make_plan(scene, max_error=args.max_error, between=None if args.between == "none" else args.between)
+        plan = make_plan(scene, max_error=args.max_error, between=None if args.between == "none" else args.between,
+                         area_lights=args.area_lights, area_k=args.area_k or 16)
         apply_plan(scene, plan)
         print(plan.describe(), file=sys.stderr)
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
@@ -132,12 +136,13 @@ def run(args) -> int:
                     write_transfer=True if args.write_transfer else None, workers=workers,
                     scheduler=args.scheduler, device=args.device,
                     between=None if args.between == "none" else args.between,
-                    reflections=reflections, albedo=parse_albedo(args.albedo))
+                    reflections=reflections, albedo=parse_albedo(args.albedo), area_lights=args.area_lights,
+                    area_knobs={} if args.area_k is None else {"k": args.area_k})
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,
                                        "groups": "; ".join(f"{g.method} {g.knobs}" for g in pipe.groups),
-                                       "between": args.between,
+                                       "between": args.between, "area_lights": args.area_lights,
                                        "reflections": str(bool(pipe.reflections is not None))})
     if writer.resume_frame:
         print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
@@ -155,6 +160,8 @@ def run(args) -> int:
           file=sys.stderr)
     for g in report.groups:
         print(f"  shading group: {g}", file=sys.stderr)
+    if report.area_lights:
+        print(f"  rect lights: {report.area_lights}", file=sys.stderr)
     per = 1e3 / max(report.frames, 1)
     print(f"  load {s['load']:.2f} s | setup {s['setup']:.2f} s | simulate {s['simulate']:.2f} s "
           f"({s['simulate'] * per:.1f} ms/frame) | shade {s['shade']:.2f} s ({s['shade'] * per:.1f} ms/frame) | "

@@ -5,6 +5,7 @@ from __future__ import annotations
 import warp as wp
 
 from ..sh.kernels import sh_accumulate
+from ..visibility.gears.kernels import clip_polygon, mat63
 
 
 @wp.func
@@ -62,3 +63,54 @@ def integrate_rect_light(
                     if cos_e > 0.0:
                         # solid angle of the sample: dA cos θ / r² (the receiver cosine is in the transfer)
                         sh_accumulate(d, weights[j] * inv * inv * cos_e / r2, order, k, out, p)
+
+
+@wp.func
+def rect_projected_solid_angle(x: wp.vec3, n: wp.vec3, center: wp.vec3, u: wp.vec3, v: wp.vec3) -> float:
+    """Projected solid angle ``∫ max(0, n·ω) dω`` of the rectangle ``center ± u ± v`` seen from ``x``.
+
+    Lambert's formula for a polygon, ``Φ = ½ |Σ_e θ_e (n · ĝ_e)|`` (``θ_e``: angle subtended by edge
+    e, ``ĝ_e``: unit normal of the plane through ``x`` and the edge), on the part of the rectangle
+    above the receiver's tangent plane (clipped, so the formula's clamped cosine holds). The edge
+    angle is ``atan2(|a × b|, a · b)``, accurate for short edges where ``acos`` is not.
+    """
+    poly = mat63()
+    poly[0] = center - u - v
+    poly[1] = center + u - v
+    poly[2] = center + u + v
+    poly[3] = center - u + v
+    clipped, m = clip_polygon(poly, 4, n, 0.0, x)
+    total = float(0.0)
+    for i in range(m):
+        a = clipped[i] - x
+        b = clipped[(i + 1) % m] - x
+        g = wp.cross(a, b)
+        lg = wp.length(g)
+        if lg > 0.0:
+            total += wp.atan2(lg, wp.dot(a, b)) * wp.dot(n, g) / lg
+    return 0.5 * wp.abs(total)
+
+
+@wp.kernel
+def integrate_rect_irradiance(
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    center: wp.vec3,
+    u: wp.vec3,
+    v: wp.vec3,
+    emit_normal: wp.vec3,
+    two_sided: int,
+    out: wp.array[float],
+):
+    """``out[p]`` = projected solid angle of the emitting rectangle from ``points[p]`` with unit normal
+    ``normals[p]`` (:func:`rect_projected_solid_angle`); irradiance is this times the radiance.
+
+    A one-sided light (``two_sided = 0``) gives 0 to receivers behind its emitting side
+    (``(x − c)·emit_normal <= 0``). Shape (P,).
+    """
+    p = wp.tid()
+    x = points[p]
+    out[p] = 0.0
+    if two_sided == 0 and wp.dot(x - center, emit_normal) <= 0.0:
+        return
+    out[p] = rect_projected_solid_angle(x, normals[p], center, u, v)

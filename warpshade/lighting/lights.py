@@ -325,5 +325,64 @@ class RectLight(Light):
             out[i] = ((w * cos_e / r2) @ sh_eval(d, order))[:, None] * self.radiance
         return out
 
+    def projected_solid_angle(self, points, normals, out=None):
+        """Exact unshadowed ``Φ(p) = ∫_light max(0, n_p·ω) dω`` per receiver (Lambert's polygon formula,
+        Warp kernel :func:`~warpshade.lighting.kernels.integrate_rect_irradiance`); irradiance is
+        ``Φ · radiance``. Zero behind a one-sided light's emitting side.
+
+        Args:
+            points: Receiver positions [m], shape (P, 3) or a ``wp.array`` of vec3.
+            normals: Unit receiver normals, shape (P, 3) or a ``wp.array`` of vec3.
+            out: Optional output ``wp.array`` of float, shape (P,), reused between frames.
+
+        Returns:
+            ``wp.array`` of float [sr], shape (P,).
+        """
+        import warp as wp
+
+        from .kernels import integrate_rect_irradiance
+
+        dev = self.device
+        pts = points if isinstance(points, wp.array) else wp.array(np.asarray(points, np.float32).reshape(-1, 3), dtype=wp.vec3, device=dev)
+        nrm = normals if isinstance(normals, wp.array) else wp.array(np.asarray(normals, np.float32).reshape(-1, 3), dtype=wp.vec3, device=dev)
+        if nrm.shape != pts.shape:
+            raise ValueError(f"{self.name}: normals shape {nrm.shape} does not match points shape {pts.shape}")
+        if out is None:
+            out = wp.empty(pts.shape[0], dtype=float, device=dev)
+        wp.launch(integrate_rect_irradiance, dim=pts.shape[0],
+                  inputs=[pts, nrm, wp.vec3(*self.center), wp.vec3(*self.u), wp.vec3(*self.v),
+                          wp.vec3(*self.emit_normal), int(self.two_sided)], outputs=[out], device=dev)
+        return out
+
+    def irradiance_at(self, points, normals) -> np.ndarray:
+        """Unshadowed RGB irradiance per receiver, ``Φ · radiance`` (:meth:`projected_solid_angle`), shape (P, 3), float64."""
+        return self.projected_solid_angle(points, normals).numpy().astype(np.float64)[:, None] * self.radiance
+
+    def irradiance_at_reference(self, points, normals) -> np.ndarray:
+        """NumPy reference of :meth:`irradiance_at` (float64, one receiver at a time): the rectangle
+        clipped to the receiver's upper hemisphere, then Lambert's formula
+        (:func:`~warpshade.visibility.hemiraster.tables.projected_solid_angle_np`). Shape (P, 3)."""
+        from ..visibility.hemiraster.tables import projected_solid_angle_np
+
+        pts = np.asarray(points, np.float64).reshape(-1, 3)
+        nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+        out = np.zeros((len(pts), 3))
+        for i, (x, n) in enumerate(zip(pts, nrm)):
+            if not self.two_sided and np.dot(x - self.center, self.emit_normal) <= 0.0:
+                continue
+            t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+            t1 /= np.linalg.norm(t1)
+            frame = np.stack([t1, np.cross(n, t1), n])  # world -> tangent frame (normal +z)
+            corners = (self.corners() - x) @ frame.T
+            poly = []  # Sutherland–Hodgman against z >= 0
+            for a, b in zip(corners, np.roll(corners, -1, axis=0)):
+                if a[2] >= 0:
+                    poly.append(a)
+                if (a[2] >= 0) != (b[2] >= 0):
+                    poly.append(a + (b - a) * (a[2] / (a[2] - b[2])))
+            if len(poly) >= 3:
+                out[i] = projected_solid_angle_np(np.maximum(np.array(poly), [-np.inf, -np.inf, 0.0])) * self.radiance
+        return out
+
     def _rotated(self, rotation):
         return dataclasses.replace(self, center=rotation @ self.center, u=rotation @ self.u, v=rotation @ self.v)

@@ -67,6 +67,7 @@ class RunReport:
         vertices: Shaded vertices per frame.
         groups: One line per shading group (method, knobs, objects).
         resumed_from: First frame produced by this run (> 0 after ``--resume``).
+        area_lights: How rect lights were shaded ("" when the scene has none).
     """
 
     path: str
@@ -75,6 +76,7 @@ class RunReport:
     vertices: int = 0
     groups: list = field(default_factory=list)
     resumed_from: int = 0
+    area_lights: str = ""
 
 
 class Pipeline:
@@ -98,12 +100,16 @@ class Pipeline:
             False, or None for the scene's ``warpshade:reflections`` (default off).
         albedo: Albedo (scalar or RGB) of objects whose scene gives none (no material ``diffuseColor``,
             no constant ``displayColor``); None keeps the default 0.8 grey.
+        area_lights: Rect lights: ``"gears"`` (default: exact irradiance, GEARS soft shadows,
+            :mod:`.area`) or ``"sh"`` (projected to SH).
+        area_knobs: GEARS knobs (``k``, ``grid``, ``weighting``) for ``area_lights="gears"``.
     """
 
     def __init__(self, scene: Scene, frames: int | None = None, method: str | None = None,
                  knobs: dict | None = None, order: int | None = None, write_transfer: bool | None = None,
                  lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu",
-                 between: str | None = "spheres", reflections: bool | dict | None = None, albedo=None):
+                 between: str | None = "spheres", reflections: bool | dict | None = None, albedo=None,
+                 area_lights: str = "gears", area_knobs: dict | None = None):
         self.scene = scene
         self.frames = int(frames if frames is not None else scene.frames)
         if self.frames < 1:
@@ -125,7 +131,12 @@ class Pipeline:
             reflections = {}
         self.reflections = reflections if isinstance(reflections, dict) else None
         self.shader = SceneShader(self.groups, self.order, scene.fps, list(scene.lights), scene.up_axis, lights,
-                                  self.write_transfer, device, between, self.reflections)
+                                  self.write_transfer, device, between, self.reflections, area_lights,
+                                  dict(area_knobs or {}))
+        from .area import area_lights_used
+
+        self.area_lights, self.area_description = area_lights_used(self.shader)
+        """How rect lights are shaded (``"gears"``, ``"sh"``; None without rect lights), and in words."""
         self.report = None
 
     def _geometry(self, sims, secs, failure: list, start: int = 0):
@@ -223,7 +234,8 @@ class Pipeline:
         self.report = RunReport(path=path, frames=max(0, self.frames - start), seconds=secs, resumed_from=start,
                                 vertices=sum(m.num_vertices for g in self.groups for m in g.meshes),
                                 groups=[f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
-                                        for g in self.groups])
+                                        for g in self.groups],
+                                area_lights=self.area_description)
         return self.report
 
 

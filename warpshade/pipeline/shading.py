@@ -111,6 +111,9 @@ class SceneShader:
             (``{}`` for its defaults). Each object's reflected irradiance times its ``albedo/π`` is
             added to its shadowed direct exit radiance (eq. 4.23); the reflecting surfaces use the
             same albedos.
+        area_lights: Rect lights: ``"gears"`` (exact irradiance with GEARS soft shadows from every
+            group, :mod:`.area`) or ``"sh"`` (projected to SH like the other local lights).
+        area_knobs: :class:`~.area.AreaLightShading` keyword arguments (k, grid, weighting).
     """
 
     groups: list
@@ -123,6 +126,8 @@ class SceneShader:
     device: str = "cpu"
     between: str | None = "spheres"
     reflections: dict | None = None
+    area_lights: str = "gears"
+    area_knobs: dict = field(default_factory=dict)
 
     def build_lights(self) -> list:
         """The :mod:`warpshade.lighting` objects this spec shades with."""
@@ -154,10 +159,14 @@ class SceneShader:
             bounce = SceneReflections([m for g in groups for m in g.spec.meshes], self.order, self.device,
                                       **self.reflections)
         lights = self.build_lights()
-        pending_build = [time.perf_counter() - t_build]  # reported once, with the first frame
-        # nothing moves and no light moves: the bounce of the first frame holds for every frame
+        # nothing moves and no light moves (rect lights included): the bounce of the first frame holds
+        # for every frame
         frozen = (not any(g.any_moving for g in groups)
                   and not any(getattr(light, "motion", None) is not None for light in lights))
+        area = _area_shading(self, groups, lights)
+        if area is not None:
+            lights = [li for li in lights if not any(li is a for a in area.lights)]
+        pending_build = [time.perf_counter() - t_build]  # reported once, with the first frame
         bounce_cache = []
 
         def shade(frame: int, geometry: dict) -> dict:
@@ -167,6 +176,7 @@ class SceneShader:
             frame_lights = [light.at_time(t) for light in lights]
             updated = [g.update(geometry) for g in groups]
             direct = []  # per object: (name, points, normals, radiance, transfer or None, albedo)
+            area_e = None if area is None else area.irradiance(t, [u[0] for u in updated], [u[2] for u in updated])
             for i, g in enumerate(groups):
                 pts, transfer, normals = updated[i]
                 if between is not None:
@@ -177,6 +187,8 @@ class SceneShader:
                     # clamped at 0: SH ringing behind bright lights must not make displayColor negative
                     rad = exit_radiance(transfer[a:b], distant, albedo, None if local is None else local[a:b],
                                         device=self.device).numpy().copy()
+                    if area_e is not None:  # GEARS-shadowed rect lights, (ρ/π) E (module .area)
+                        rad += (albedo / np.pi * area_e[i][a:b]).astype(np.float32)
                     direct.append([name, pts[a:b], normals[a:b], rad,
                                    transfer[a:b] if self.write_transfer else None, albedo])
             if bounce is not None:
@@ -199,6 +211,19 @@ class SceneShader:
             return out
 
         return shade
+
+
+def _area_shading(spec: SceneShader, groups: list, lights: list):
+    """The :class:`~.area.AreaLightShading` of a build, or None (``--area-lights sh`` or no rect light)."""
+    from .area import AREA_MODES, AreaLightShading, split_area_lights
+
+    if spec.area_lights not in AREA_MODES:
+        raise ValueError(f"area lights must be one of {', '.join(AREA_MODES)}, got {spec.area_lights!r}")
+    rect = split_area_lights(lights)[1]
+    if spec.area_lights == "sh" or not rect:
+        return None
+    return AreaLightShading([g.mesh for g in groups], rect, static=not any(g.any_moving for g in groups),
+                            device=spec.device, **spec.area_knobs)
 
 
 def _between_group_shadows(groups: list, order: int, device: str) -> list:

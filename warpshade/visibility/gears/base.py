@@ -99,6 +99,7 @@ class AreaVisibilityMethod(ABC):
 
         A Lambertian vertex of albedo ρ under a light of radiance L_e has exit radiance ``ρ L_e F``.
         """
+        self._clear = None  # all-clear masks for weighted_visibility, allocated on first use
         self.set_light(light)
 
     def set_light(self, light) -> None:
@@ -162,6 +163,35 @@ class AreaVisibilityMethod(ABC):
         if e.ndim == 0 and a.ndim == 0:
             return (f * e * a).astype(np.float32)
         return (f[:, None] * e * a).astype(np.float32)
+
+    def weighted_visibility(self, out: wp.array | None = None) -> wp.array:
+        """Cosine-weighted visible fraction per vertex (needs a prior :meth:`update`): the share of the
+        unshadowed form factor that the visible mask samples carry, ``F_visible / F_all`` over the k×k
+        samples (kernel :func:`~warpshade.visibility.gears.kernels.weight_visibility`).
+
+        Multiplied by the exact unshadowed irradiance it estimates the shadowed irradiance; unlike
+        :attr:`visibility` (every sample counts alike, the paper's ``v_p``) it weights samples by the
+        cosines and distance that make their irradiance, and it is exactly 1 for an unblocked vertex
+        and 0 for a fully blocked one.
+
+        Args:
+            out: Optional output, shape (V,), dtype float32.
+
+        Returns:
+            Shape (V,), dtype float32, in [0, 1].
+        """
+        from .kernels import weight_visibility
+
+        n = self.mesh.num_vertices
+        if self._clear is None:
+            self._clear = wp.zeros((n, self.k), dtype=wp.uint32, device=self.device)
+        if out is None:
+            out = wp.empty(n, dtype=float, device=self.device)
+        c, u, v, nl = self.light_args()
+        wp.launch(weight_visibility, dim=n, inputs=[self.points, self.normals, c, u, v, nl, self.k, self._clear,
+                                                    self.visibility, self.form_factor],
+                  outputs=[out], device=self.device)
+        return out
 
     # -- reporting ---------------------------------------------------------------------------
     def _offset_abs(self) -> float:

@@ -529,3 +529,33 @@ def trace_light_masks(
         masks[r, j] = row
     visibility[r] = 1.0 - float(blocked) / float(k * k)
     form_factor[r] = ff
+
+
+# -- shading weight --------------------------------------------------------------------------------
+@wp.kernel
+def weight_visibility(
+    points: wp.array[wp.vec3],
+    normals: wp.array[wp.vec3],
+    c: wp.vec3,
+    u: wp.vec3,
+    v: wp.vec3,
+    light_normal: wp.vec3,
+    k: int,
+    clear: wp.array2d[wp.uint32],
+    visibility: wp.array[float],
+    form_factor: wp.array[float],
+    weighted: wp.array[float],
+):
+    """Cosine-weighted visible fraction ``F_visible / F_all`` of the mask samples per receiver.
+
+    ``F_all`` is :func:`summarize_mask` of an all-clear mask (``clear``, zeros, shape (V, k)), so the
+    sums run over the same samples in the same order and an unblocked receiver gets exactly 1. Where
+    no sample faces the receiver (``F_all = 0``) the plain visible fraction is used.
+    """
+    r = wp.tid()
+    dA = 4.0 * wp.length(wp.cross(u, v)) / float(k * k)
+    full = summarize_mask(clear, r, k, points[r], normals[r], c, u, v, light_normal, dA)[1]
+    if full > 0.0:
+        weighted[r] = wp.min(form_factor[r] / full, 1.0)
+    else:
+        weighted[r] = visibility[r]
