@@ -616,6 +616,7 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
     specs = _run_groups(scene, {o.name: (o.method, o.knobs) for o in plan.objects})
     n = plan.order * plan.order
     reflections = bool(scene.settings.get("reflections", False))
+    n_objects = sum(len(spec.names) for spec in specs)  # every shaded object gets its own sphere tree
     tris = 0
     for spec in specs:
         v = sum(m.num_vertices for m in spec.meshes)
@@ -641,7 +642,7 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
         g.seconds_lights = _distant_lights_seconds(scene, pc) + pc["local_light_seconds_per_vertex"] * v * n_local
         g.seconds_radiance = pc["radiance_seconds_fixed"] + pc["radiance_seconds_per_vertex_coeff"] * v * n
         if reflections:
-            t_refl = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT * len(objs)
+            t_refl = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT * n_objects
                       * (plan.order / 4.0) ** 2)
             if plan.geometry_changes or plan.lighting_changes:
                 g.seconds_reflections = t_refl
@@ -652,7 +653,7 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
         plan.seconds_setup_between = (pc["between_build_seconds_per_group"] * len(specs)
                                       + pc["between_build_seconds_per_triangle"] * tris)
     if reflections:  # one sphere tree per object, fitted like the between-group trees
-        plan.seconds_setup_between += (pc["between_build_seconds_per_group"] * len(objs)
+        plan.seconds_setup_between += (pc["between_build_seconds_per_group"] * n_objects
                                        + pc["between_build_seconds_per_triangle"] * tris)
     if any(g.method == "hemiraster" for g in plan.groups):
         plan.seconds_setup_structures += pc["hemiraster_lut_seconds"]
