@@ -38,7 +38,7 @@ def ground(kind="static", method="reference"):
 
 def test_single_self_shadowing_object_needs_no_shared_structures():
     plan = make_plan(Scene([ico()], frames=10), frontier=FRONTIER)
-    assert plan.structures == []  # no LUT, no sphere sets, no GEARS, no bounce, no glossy
+    assert plan.structures == []  # no LUT, no sphere sets, no GEARS, no bounce
     o = plan.object("ball")
     assert o.transfer == "once" and o.passes == [] and o.seconds_frame == 0.0
 
@@ -47,9 +47,12 @@ def test_structures_appear_only_when_used():
     scene = Scene([ico(method="hemiraster", material=Material(roughness=0.3)), ground()],
                   lights=[RectLight(center=(0, 3, 0), u=(0.5, 0, 0), v=(0, 0, 0.5))],
                   settings={"reflections": True}, frames=5)
-    s = make_plan(scene, frontier=FRONTIER).structures
+    plan = make_plan(scene, frontier=FRONTIER)
     assert {"hemiraster plane LUT", "sphere sets of shadow casters", "GEARS area-light structures",
-            "reflection (one-bounce) transfer", "glossy transfer"} <= set(s)
+            "reflection (one-bounce) transfer"} <= set(plan.structures)
+    # the run writes per-vertex (view-independent) colours: a glossy material is noted, not planned as a pass
+    assert not any("glossy" in x for x in plan.structures + [p for o in plan.objects for p in o.passes])
+    assert any("glossy material on ball" in n for n in plan.notes)
 
 
 def test_static_object_reused_moving_object_every_frame_and_caster_forces_update():
@@ -199,11 +202,15 @@ def test_plan_cli_on_shipped_rect_light_scene(tmp_path):
     out = tmp_path / "plan.json"
     assert cli_main(["plan", scene, "--json", str(out)]) == 0
     plan = json.loads(out.read_text())
-    # what `warpshade run` does with this scene: order 4, one reference group (256 rays) of all three
-    # objects, recomputed every frame because the cloth moves; the UsdLux RectLight is seen
+    # what `warpshade run` does with this scene: order 4, one group of all three objects with the run's
+    # default method and knobs (pipeline.default_method / DEFAULT_KNOBS), recomputed every frame because
+    # the cloth moves; the UsdLux RectLight is seen
+    from warpshade.pipeline import DEFAULT_KNOBS, default_method
+
     assert plan["order"] == 4 and "GEARS area-light structures" in plan["structures"]
     (g,) = plan["groups"]
-    assert g["method"] == "reference" and g["knobs"] == {"rays": 256} and g["moves"]
+    method = default_method()
+    assert g["method"] == method and g["knobs"] == DEFAULT_KNOBS.get(method, {}) and g["moves"]
     assert g["names"] == ["/World/Ground", "/World/Ball", "/World/Cloth"] and g["vertices"] == 2820
     assert g["seconds_lights"] > 0 and g["seconds_transfer"] > 0 and g["seconds_between"] == 0
     # the run's default --area-lights gears: one GEARS pass over the merged group, every frame (the cloth moves)

@@ -15,8 +15,8 @@ Rules (issue 8):
   when at least two objects exist, one casts onto another and the run has two or more shading groups
   between which they carry shadows (never for a single self-shadowing object, nor for objects sharing a
   group, which shadow each other through the group's method);
-  reflection (one diffuse bounce) only when ``settings["reflections"]`` asks; glossy transfer only for
-  objects whose material is glossy;
+  reflection (one diffuse bounce) only when ``settings["reflections"]`` asks; no glossy pass (a run writes
+  view-independent per-vertex colours; glossy materials get a note);
 * with ``max_error``, each object gets the configuration of the frontier whose worst measured mean error
   is within budget and whose estimated time on this object is smallest.
 
@@ -492,8 +492,6 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
             passes.append("inter-object shadows (sphere sets)")
         if rect and (moves or shadowed_by_moving or rect_moves):
             passes.append("area-light visibility (GEARS)")
-        if obj.material.glossy:
-            passes.append("glossy transfer")
         if reflections and (moves or shadowed_by_moving or lighting_changes):
             passes.append("reflection (one bounce)")
         relit = moves or shadowed_by_moving or lighting_changes
@@ -528,8 +526,13 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         structures.append("GEARS area-light structures")
     if reflections:
         structures.append("reflection (one-bounce) transfer")
-    if any(o.material.glossy for o in scene.objects if o.shaded):
-        structures.append("glossy transfer")
+    glossy = [o.name for o in scene.objects if o.shaded and o.material.glossy]
+    if glossy:
+        # displayColor is one colour per vertex: a run writes view-independent (diffuse) exit radiance, so
+        # no glossy pass is planned; say so rather than cost a pass the run does not execute
+        notes.append(f"glossy material on {', '.join(glossy)}: warpshade run writes diffuse (view-independent) "
+                     "colours; glossy transfer for a view direction is the Python API's "
+                     "(hemiraster mode='glossy', eq. 3)")
     plan = Plan(order, scene.frames, plans, structures, lighting_changes, bool(moving), max_error, notes,
                 area_lights=area_lights if any(_is_rect(li) for li in scene.lights) else None)
     _plan_groups(plan, scene, fr, pc, n_local, between)
