@@ -14,6 +14,9 @@ import warp as wp
 from ...sh.kernels import sh_accumulate
 from ..reference_kernels import orthonormal_basis
 
+# forward only (nothing here is differentiated): half the generated code and compile time
+wp.set_module_options({"enable_backward": False, "optimization_level": 3})
+
 
 @wp.struct
 class PlaneLut:
@@ -23,14 +26,13 @@ class PlaneLut:
     """Mask words above each quantised plane of the positive cube faces, shape (3R², W), dtype uint64.
     A negative face's row is the complement (within the valid pixels) of its mirror cell's row
     (:mod:`.tables`), so only half the table is stored: it stays in cache twice as well."""
-    occupancy: wp.array[wp.uint64]
-    """Bitmap of the non-zero words of each row, shape (3R²,), dtype uint64."""
-    full: wp.array[wp.uint64]
-    """Bitmap of the words of each row holding every valid pixel (zero in the complement), shape (3R²,)."""
+    code_occupancy: wp.array[wp.uint64]
+    """Bitmap of the non-zero words of the row of every code ``2·cell + negative`` (:func:`cube_cell`),
+    shape (6R²,), dtype uint64 (:func:`.tables.code_occupancy`): both faces of a cell side by side,
+    so an edge costs one load and no select (the negative face's bitmap is precomputed from the
+    positive row's full words)."""
     valid: wp.array[wp.uint64]
     """Valid pixels of each mask word, shape (W,), dtype uint64."""
-    valid_occupancy: wp.uint64
-    """Bitmap of the words holding any valid pixel."""
     debruijn: wp.array[wp.int32]
     """Bit index lookup of the de Bruijn bit scan, shape (64,), dtype int32."""
     res: int
@@ -146,15 +148,14 @@ def cube_cell(n: wp.vec3, res: int) -> int:
 @wp.func
 def lut_occupancy(lut: PlaneLut, code: int) -> wp.uint64:
     """Non-zero words of the row of ``code`` (:func:`cube_cell`)."""
-    c = code >> 1
-    return wp.where((code & 1) != 0, ~lut.full[c] & lut.valid_occupancy, lut.occupancy[c])
+    return lut.code_occupancy[code]
 
 
 @wp.func
 def lut_word(lut: PlaneLut, code: int, w: int) -> wp.uint64:
-    """Word ``w`` of the row of ``code`` (:func:`cube_cell`)."""
-    x = lut.rows[code >> 1, w]
-    return wp.where((code & 1) != 0, ~x & lut.valid[w], x)
+    """Word ``w`` of the row of ``code`` (:func:`cube_cell`): the stored row, complemented within the
+    valid pixels for a negative face (XOR with all ones, no select; stored rows hold valid pixels only)."""
+    return (lut.rows[code >> 1, w] ^ (wp.uint64(0) - wp.uint64(code & 1))) & lut.valid[w]
 
 
 @wp.func
@@ -309,12 +310,20 @@ def rasterize_triangle(
     # cache, and only words all three edge masks share are fetched (set bits visited in order with
     # a de Bruijn bit scan, no branch per word)
     occ = lut_occupancy(lut, i0) & lut_occupancy(lut, i1) & lut_occupancy(lut, i2)
+    # the words of :func:`lut_word` with the per-edge row and complement flag hoisted out of the
+    # loop and the valid-pixel AND done once (stored rows hold valid pixels only: same bits)
+    r0 = i0 >> 1
+    r1 = i1 >> 1
+    r2 = i2 >> 1
+    f0 = wp.uint64(0) - wp.uint64(i0 & 1)
+    f1 = wp.uint64(0) - wp.uint64(i1 & 1)
+    f2 = wp.uint64(0) - wp.uint64(i2 & 1)
     hit = wp.uint64(0)
     while occ != wp.uint64(0):
         low = occ & (~occ + wp.uint64(1))
         w = lut.debruijn[int((low * wp.uint64(0x03F79D71B4CB0A89)) >> wp.uint64(58))]
         occ = occ ^ low
-        m = lut_word(lut, i0, w) & lut_word(lut, i1, w) & lut_word(lut, i2, w)
+        m = (lut.rows[r0, w] ^ f0) & (lut.rows[r1, w] ^ f1) & (lut.rows[r2, w] ^ f2) & lut.valid[w]
         hit = hit | m
         mask[row, w] = mask[row, w] | m
     if hit != wp.uint64(0):

@@ -131,10 +131,8 @@ class HemirasterTransfer(TransferMethod):
         self._lut = PlaneLut()
         half = tables.positive_half(lut_np, self.mask_res, self.lut_res)
         self._lut.rows = wp.array(half["rows"], dtype=wp.uint64, device=d)
-        self._lut.occupancy = wp.array(half["occupancy"], dtype=wp.uint64, device=d)
-        self._lut.full = wp.array(half["full"], dtype=wp.uint64, device=d)
+        self._lut.code_occupancy = wp.array(tables.code_occupancy(half), dtype=wp.uint64, device=d)
         self._lut.valid = wp.array(half["valid"], dtype=wp.uint64, device=d)
-        self._lut.valid_occupancy = wp.uint64(int(half["valid_occupancy"]))
         self._lut.debruijn = wp.array(tables.debruijn_table(), dtype=wp.int32, device=d)
         self._lut.res = self.lut_res
         self._lut.words = self._words

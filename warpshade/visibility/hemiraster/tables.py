@@ -371,9 +371,20 @@ def positive_half(table: np.ndarray, mask: int, lut: int) -> dict:
             "valid": valid, "valid_occupancy": int(((valid != 0).astype(np.uint64) * weights).sum(dtype=np.uint64))}
 
 
+def code_occupancy(half: dict) -> np.ndarray:
+    """Non-zero words of the row of every code ``2·cell + negative`` (the kernel's ``cube_cell``):
+    ``occupancy`` for a positive face, the words the complement leaves non-zero (``~full`` within
+    the valid words) for its mirror; shape (6R²,) uint64, the two faces of a cell side by side
+    (what ``lut_occupancy`` returns, one load instead of two and a select)."""
+    out = np.empty(2 * len(half["occupancy"]), dtype=np.uint64)
+    out[0::2] = half["occupancy"]
+    out[1::2] = ~half["full"] & np.uint64(half["valid_occupancy"])
+    return out
+
+
 def lut_bytes(mask: int, lut: int) -> int:
-    """Memory of the plane LUT the rasterizer reads [bytes]: rows, occupancy and full-word bitmaps
-    of the positive cube faces (:func:`positive_half`)."""
+    """Memory of the plane LUT the rasterizer reads [bytes]: rows of the positive cube faces
+    (:func:`positive_half`) and the occupancy bitmap of every code, both faces (:func:`code_occupancy`)."""
     return 3 * lut * lut * (words_per_mask(mask) + 2) * 8
 
 
