@@ -133,3 +133,19 @@ def test_character_is_the_skinned_figure_and_buried_vertices_are_the_dark_ones()
     buried = ~bm.judged
     assert (dark & buried).sum() >= 0.98 * buried.sum(), (dark.sum(), buried.sum())
     assert (dark & bm.judged).sum() == 0, np.flatnonzero(dark & bm.judged)[:10]
+
+
+def test_merge_results_replaces_only_the_remeasured_method_mesh_blocks():
+    # benchmarks/merge_results.py: a partial re-measurement replaces its (method, mesh) blocks in place,
+    # new pairs are appended, everything else is kept as measured and in order
+    import importlib.util
+    import os
+
+    path = os.path.join(os.path.dirname(__file__), "..", "benchmarks", "merge_results.py")
+    spec = importlib.util.spec_from_file_location("merge_results", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    old = [{"method": "a", "mesh": "x", "v": 1}, {"method": "b", "mesh": "x", "v": 2},
+           {"method": "b", "mesh": "x", "v": 3}, {"method": "a", "mesh": "y", "v": 4}]
+    new = [{"method": "b", "mesh": "x", "v": 20}, {"method": "b", "mesh": "y", "v": 30}]
+    assert [r["v"] for r in mod.merge_records(old, new)] == [1, 20, 4, 30]
