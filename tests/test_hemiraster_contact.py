@@ -154,13 +154,19 @@ def test_groups_cover_every_fine_triangle_once_as_primary():
     cp, cf = hierarchy.decimate(mesh.points, mesh.faces.astype(np.int64), 40)
     primary, extra = hierarchy.assign_to_coarse(mesh.points, mesh.faces.astype(np.int64), cp, cf)
     perm = np.random.default_rng(0).permutation(len(cf))
-    start, mid, tris, owner = hierarchy.groups_in_order(primary, extra, perm)
+    start, mid, tris, owner, run_end = hierarchy.groups_in_order(primary, extra, perm)
     prim = np.concatenate([tris[start[t]:mid[t]] for t in range(len(cf))])
     np.testing.assert_array_equal(np.sort(prim), np.arange(mesh.num_faces))
     for t in range(len(cf)):
         assert (primary[tris[start[t]:mid[t]]] == perm[t]).all()
         assert (primary[tris[mid[t]:start[t + 1]]] != perm[t]).all()
         np.testing.assert_array_equal(perm[owner[start[t]:start[t + 1]]], primary[tris[start[t]:start[t + 1]]])
+        # extras come in runs of one owner; run_end is where each run stops
+        for r in range(mid[t], start[t + 1]):
+            e = run_end[r]
+            assert r < e <= start[t + 1]
+            assert (owner[r:e] == owner[r]).all()
+            assert e == start[t + 1] or owner[e] != owner[r]
 
 
 # ------------------------------------------------------------------------------------------ occluders

@@ -295,21 +295,31 @@ def groups_in_order(primary: np.ndarray, extra: np.ndarray, perm: np.ndarray):
         perm: Coarse triangle order (``faces[perm]``), shape (Fc,).
 
     Returns:
-        ``(start (Fc+1,), mid (Fc,), tris, owner)`` int32: reordered coarse triangle ``t`` stands for
+        ``(start (Fc+1,), mid (Fc,), tris, owner, run_end)`` int32: reordered coarse triangle ``t`` stands for
         ``tris[start[t]:mid[t]]`` (primary) and also covers ``tris[mid[t]:start[t+1]]`` (extras);
-        ``owner`` (same length as ``tris``) is each entry's primary coarse triangle (reordered).
+        ``owner`` (same length as ``tris``) is each entry's primary coarse triangle (reordered);
+        extras are sorted by it, and ``run_end`` (same length) is the end of each entry's run of
+        equal (coarse, owner) entries.
     """
     new_index = np.empty(len(perm), np.int64)
     new_index[perm] = np.arange(len(perm))
     fine = np.concatenate([np.arange(len(primary)), extra[:, 0]])
     coarse = new_index[np.concatenate([primary, extra[:, 1]])]
     is_extra = np.concatenate([np.zeros(len(primary), np.int64), np.ones(len(extra), np.int64)])
-    order = np.lexsort((fine, is_extra, coarse))
+    # each entry's primary coarse triangle (reordered): an extra is skipped when that one is refined
+    # too, so a group's extras are sorted by it (one test per run of the same primary)
+    owner_all = new_index[primary][fine]
+    order = np.lexsort((fine, owner_all, is_extra, coarse))
     start = np.searchsorted(coarse[order], np.arange(len(perm) + 1))
     mid = np.searchsorted(coarse[order] * 2 + is_extra[order], np.arange(len(perm)) * 2 + 1)
-    # each entry's primary coarse triangle (reordered): an extra is skipped when that one is refined too
-    owner = new_index[primary][fine[order]]
-    return start.astype(np.int32), mid.astype(np.int32), fine[order].astype(np.int32), owner.astype(np.int32)
+    owner = owner_all[order]
+    # end of each entry's run of equal (coarse, owner): the kernel jumps there past a refined owner
+    key = coarse[order] * (len(perm) + 1) + owner
+    change = np.flatnonzero(np.diff(key) != 0) + 1
+    bounds = np.concatenate([change, [len(key)]])
+    run_end = bounds[np.searchsorted(bounds, np.arange(len(key)), side="right")]
+    return (start.astype(np.int32), mid.astype(np.int32), fine[order].astype(np.int32), owner.astype(np.int32),
+            run_end.astype(np.int32))
 
 
 def ring_groups(ring_start: np.ndarray, ring_tris: np.ndarray, faces: np.ndarray, owner: np.ndarray,

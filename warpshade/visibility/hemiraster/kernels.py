@@ -43,6 +43,10 @@ class PlaneLut:
     """Skip triangles with ``det * backface > 0`` (0: keep both sides)."""
     min_area: float
     """Skip triangles whose projected solid angle bound is below this disk area (0: keep all)."""
+    fine_area: float
+    """Tiny-image cull (as ``min_area``) for the fine triangles of refined blockers (0: keep all)."""
+    rim: float
+    """Sine of the elevation of the lowest valid pixel centre: images wholly below it hold no pixel."""
 
 
 @wp.struct
@@ -97,7 +101,10 @@ class Refinement:
     tris: wp.array[wp.int32]
     """Fine triangle indices, primaries then extras per blocker, dtype int32."""
     owner: wp.array[wp.int32]
-    """Primary blocker of each entry of ``tris`` (reordered index), dtype int32."""
+    """Primary blocker of each entry of ``tris`` (reordered index), dtype int32; a blocker's extras
+    are sorted by it."""
+    run_end: wp.array[wp.int32]
+    """End of each entry's run of extras with the same owner (:func:`.hierarchy.groups_in_order`), dtype int32."""
     seen: wp.array2d[wp.uint64]
     """Per receiver, bits of the fine triangles already rasterized this frame, shape (V, ceil(F/64));
     one row per receiver thread, cleared at its start."""
@@ -199,14 +206,21 @@ def image_below(a: wp.vec3, b: wp.vec3, c: wp.vec3, nz: wp.vec3, min_area: float
 
 
 @wp.func
-def skip_early(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, nz: wp.vec3, backface: float) -> bool:
+def skip_early(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, nz: wp.vec3, backface: float, rim: float) -> bool:
     """Per-frame triangle data say: wholly at or below the tangent plane, or back-facing (``backface``).
 
     The sphere test is a subset of :func:`rasterize_triangle`'s exact horizon cull; ``N·a - N·p`` is
     its determinant ``det[a-p, b-p, c-p]`` computed another way (signs can differ only for
     triangles seen exactly edge-on, which have empty images).
     """
-    if wp.dot(nz, wp.vec3(sphere[0], sphere[1], sphere[2]) - p) + sphere[3] <= 0.0:
+    q = wp.vec3(sphere[0], sphere[1], sphere[2]) - p
+    h = wp.dot(nz, q) + sphere[3]
+    if h <= 0.0:
+        return True
+    # below the lowest pixel centre: every point x of the sphere has sine of elevation
+    # n·(x-p)/|x-p| <= h / (|q| - r) <= rim, i.e. (h + rim r)² <= rim² |q|² (no square root)
+    hr = h + rim * sphere[3]
+    if hr * hr <= rim * rim * wp.dot(q, q):
         return True
     if backface != 0.0:
         if (plane[3] - wp.dot(wp.vec3(plane[0], plane[1], plane[2]), p)) * backface > 0.0:
@@ -257,7 +271,7 @@ def triangle_bounds(
     sphere[t] = wp.vec4(cen[0], cen[1], cen[2], r)
 
 
-@wp.func
+@wp.func(inline=True)
 def rasterize_triangle(
     a: wp.vec3,
     b: wp.vec3,
@@ -306,9 +320,6 @@ def rasterize_triangle(
     i0 = cube_cell(nab, lut.res)
     i1 = cube_cell(nbc, lut.res)
     i2 = cube_cell(nca, lut.res)
-    # occupancy bitmaps (which words of each row are non-zero) live apart from the rows: they stay in
-    # cache, and only words all three edge masks share are fetched (set bits visited in order with
-    # a de Bruijn bit scan, no branch per word)
     occ = lut_occupancy(lut, i0) & lut_occupancy(lut, i1) & lut_occupancy(lut, i2)
     # the words of :func:`lut_word` with the per-edge row and complement flag hoisted out of the
     # loop and the valid-pixel AND done once (stored rows hold valid pixels only: same bits)
@@ -475,7 +486,7 @@ def refine_here(p: wp.vec3, lo: wp.vec3, hi: wp.vec3, deviation: float, refine: 
     return box_near(p, lo, hi, refine * deviation)
 
 
-@wp.func
+@wp.func(inline=True)
 def rasterize_group(
     t: int,
     v: int,
@@ -502,18 +513,31 @@ def rasterize_group(
     """
     count = int(0)
     hit = int(0)
-    for r in range(groups.start[t], groups.start[t + 1]):
-        f = groups.tris[r]
-        if skip_early(fine.plane[f], fine.sphere[f], p, n, lut.backface):
-            continue
-        if r >= groups.mid[t]:
+    r = groups.start[t]
+    end = groups.start[t + 1]
+    mid = groups.mid[t]
+    while r < end:
+        if r >= mid:
+            # a run of extras of one primary blocker ``o``: all skipped when ``o`` is refined
+            # here too (or, in PVS mode, excluded), with one test for the run
             o = groups.owner[r]
+            skip = False
             if near_mode == 2:
-                if excluded(excl, v, source[o]):
-                    continue
-            if groups.refine > 0.0:
-                if refine_here(p, groups.lo[o], groups.hi[o], groups.dev[o], groups.refine):
-                    continue
+                skip = excluded(excl, v, source[o])
+            if groups.refine > 0.0 and not skip:
+                skip = refine_here(p, groups.lo[o], groups.hi[o], groups.dev[o], groups.refine)
+            if skip:
+                r = groups.run_end[r]
+                continue
+        f = groups.tris[r]
+        r += 1
+        fpl = fine.plane[f]
+        fsp = fine.sphere[f]
+        if skip_early(fpl, fsp, p, n, lut.backface, lut.rim):
+            continue
+        if lut.fine_area > 0.0:
+            if bounds_below(fpl, fsp, p, n, lut.fine_area):
+                continue
         i = fine.faces[f, 0]
         j = fine.faces[f, 1]
         k = fine.faces[f, 2]
@@ -525,7 +549,13 @@ def rasterize_group(
             if (word & bit) != wp.uint64(0):
                 continue
             groups.seen[v, f >> 6] = word | bit
-        res = rasterize_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, i, j, k, frame, lut, mask, v)
+        fa = fine.points[i] - p
+        fb = fine.points[j] - p
+        fc = fine.points[k] - p
+        if lut.fine_area > 0.0:
+            if image_below(fa, fb, fc, n, lut.fine_area):
+                continue
+        res = rasterize_triangle(fa, fb, fc, i, j, k, frame, lut, mask, v)
         count += wp.min(1, res)
         hit = wp.max(hit, res)
     if record != 0 and hit == 2:
@@ -540,7 +570,7 @@ def excluded(excl: wp.array2d[wp.uint32], v: int, t: int) -> bool:
     return (excl[v, t >> 5] >> wp.uint32(t & 31)) & wp.uint32(1) != wp.uint32(0)
 
 
-@wp.func
+@wp.func(inline=True)
 def rasterize_blocker(
     t: int,
     v: int,
@@ -562,7 +592,7 @@ def rasterize_blocker(
     sph = blockers.sphere[t]
     pln = blockers.plane[t]
     nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
-    if skip_early(pln, sph, p, nz, lut.backface):
+    if skip_early(pln, sph, p, nz, lut.backface, lut.rim):
         return 0
     src = blockers.source[t]
     if lut.min_area > 0.0:
@@ -588,7 +618,7 @@ def rasterize_blocker(
     return 0
 
 
-@wp.func
+@wp.func(inline=True)
 def rasterize_far(
     t: int,
     near: bool,
@@ -691,6 +721,7 @@ def rasterize_transfer(
     block_valid: wp.array[wp.int32],
     valid_words: wp.array[wp.uint64],
     block_weights: wp.array2d[float],
+    group_base: wp.array[wp.int32],
     block_dirs: wp.array[wp.vec3],
     unoccluded: wp.array[float],
     glossy: int,
@@ -739,7 +770,7 @@ def rasterize_transfer(
     # near field at full resolution
     for r in range(ring_start[v], ring_start[v + 1]):
         t = ring_tris[r]
-        if skip_early(fine.plane[t], fine.sphere[t], p, n, lut.backface):
+        if skip_early(fine.plane[t], fine.sphere[t], p, n, lut.backface, lut.rim):
             continue
         i = fine.faces[t, 0]
         j = fine.faces[t, 1]
@@ -794,46 +825,45 @@ def rasterize_transfer(
                 for i in range(nn):
                     local[v, i] = local[v, i] + lobe * block_weights[b, i]
     # blocked blocks are gathered first, then subtracted coefficient by coefficient with a register
-    # accumulator (a block-by-block update would load and store the whole SH row per block)
+    # accumulator (a block-by-block update would load and store the whole SH row per block).
+    # Each word is walked top-down through its aligned groups of 64, 16, 4 and 1 bits (8×8, 4×4,
+    # 2×2 pixels and one pixel in Morton order): an empty group is skipped, a wholly blocked group
+    # larger than a block is one entry with the sum of its blocks' weights (``group_base`` rows;
+    # diffuse only: glossy weighs each block by its own lobe value), others are split.
     nblk = int(0)
-    per_word = 64 // block_bits
-    run = wp.uint64(0xFFFFFFFFFFFFFFFF)
-    if block_bits < 64:
-        run = (wp.uint64(1) << wp.uint64(block_bits)) - wp.uint64(1)
-    # a wholly blocked group of 4 sibling blocks (a 2D×2D Morton block) is one entry with the sum of
-    # their weights (rows after the blocks): the same result with up to 4× fewer entries (diffuse only:
-    # glossy weighs each block by its own lobe value)
-    group_bits = 4 * block_bits
-    use_group = glossy == 0 and group_bits <= 64 and block_weights.shape[0] > block_valid.shape[0]
-    grun = wp.uint64(0xFFFFFFFFFFFFFFFF)
-    if group_bits < 64:
-        grun = (wp.uint64(1) << wp.uint64(group_bits)) - wp.uint64(1)
+    use_group = glossy == 0
     for w in range(lut.words):
         x = mask[v, w]
         if x != wp.uint64(0):
             vw = valid_words[w]
             j = int(0)
-            while j < per_word:
-                if use_group and j % 4 == 0:
-                    gbits = (x >> wp.uint64(j * block_bits)) & grun
-                    if gbits == wp.uint64(0) or gbits == ((vw >> wp.uint64(j * block_bits)) & grun):
-                        if gbits != wp.uint64(0):
-                            nblk = push_block(block_valid.shape[0] + (w * per_word + j) // 4, 1.0, nblk, nn,
-                                              blk_index, blk_weight, block_weights, local, v)
-                        j += 4
-                        continue
-                bits = (x >> wp.uint64(j * block_bits)) & run
-                if bits != wp.uint64(0):
-                    b = w * per_word + j
-                    wgt = float(popcount64(bits)) / float(block_valid[b])
-                    if glossy != 0:
-                        cosr = wp.dot(refl, block_dirs[b])
-                        if cosr > 0.0:
-                            wgt = wgt * lobe_norm * wp.pow(cosr, phong)
-                        else:
-                            wgt = 0.0
-                    nblk = push_block(b, wgt, nblk, nn, blk_index, blk_weight, block_weights, local, v)
-                j += 1
+            while j < 64:
+                s = wp.where(j == 0, 64, wp.where(j % 16 == 0, 16, wp.where(j % 4 == 0, 4, 1)))
+                while s >= block_bits:
+                    ones = wp.uint64(0xFFFFFFFFFFFFFFFF)
+                    if s < 64:
+                        ones = (wp.uint64(1) << wp.uint64(s)) - wp.uint64(1)
+                    bits = (x >> wp.uint64(j)) & ones
+                    if bits == wp.uint64(0):
+                        break
+                    if s == block_bits:
+                        b = (w * 64 + j) // block_bits
+                        wgt = float(wp.bit_count(bits)) / float(block_valid[b])
+                        if glossy != 0:
+                            cosr = wp.dot(refl, block_dirs[b])
+                            if cosr > 0.0:
+                                wgt = wgt * lobe_norm * wp.pow(cosr, phong)
+                            else:
+                                wgt = 0.0
+                        nblk = push_block(b, wgt, nblk, nn, blk_index, blk_weight, block_weights, local, v)
+                        break
+                    level = wp.where(s == 4, 0, wp.where(s == 16, 1, 2))
+                    if use_group and group_base[level] >= 0 and bits == ((vw >> wp.uint64(j)) & ones):
+                        nblk = push_block(group_base[level] + (w * 64 + j) // s, 1.0, nblk, nn, blk_index, blk_weight,
+                                          block_weights, local, v)
+                        break
+                    s = s // 4
+                j += wp.max(s, block_bits)
     subtract_blocks(nblk, nn, blk_index, blk_weight, block_weights, local, v)
 
     # rotate to world, band by band: g_l = Σ_k y_l(Q s_k) (Y_l(S)^+ c_l)_k. The per-band factor of

@@ -82,6 +82,13 @@ class HemirasterTransfer(TransferMethod):
             the Van Oosterom–Strackee formula) is below this many mask pixels: mostly triangles seen
             nearly edge-on, whose images rarely hold a pixel centre. 0 rasterizes all (exact); no
             effect without the hierarchy (``coarse=0``), nor on the k-ring.
+        fine_image: The same tiny-image cull for the fine triangles that replace refined coarse
+            blockers near a receiver (0, the default, rasterizes them all: the exact near field).
+            Most of them are grazing slivers along the receiver's horizon whose images hold no
+            pixel centre; the cull trades a little accuracy for time on wrinkled cloth.
+        rim: Skip blockers whose bounding sphere lies wholly below the elevation of the lowest pixel
+            centre of the mask (their exact images hold no pixel; the LUT could only leak rim bits
+            there). On by default; off only to measure it.
     """
 
     name = "hemiraster"
@@ -90,7 +97,7 @@ class HemirasterTransfer(TransferMethod):
                  downsample: int = 1, ring: int = 1, coarse: int = 512, cull: bool = True, cluster: int = 16,
                  exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
-                 refine: float = 2.0, occluders: list[TriMesh] | None = None):
+                 refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0):
         super().__init__(mesh, order, device)
         tables.check_mask(int(mask), int(downsample))
         if ring not in (0, 1, 2, 3, 4):
@@ -119,6 +126,10 @@ class HemirasterTransfer(TransferMethod):
         if not (float(min_image) >= 0.0):
             raise ValueError(f"hemiraster: min_image must be >= 0 pixels, got {min_image}")
         self.min_image = float(min_image)
+        if not (float(fine_image) >= 0.0):
+            raise ValueError(f"hemiraster: fine_image must be >= 0 pixels, got {fine_image}")
+        self.fine_image = float(fine_image)
+        self.rim = bool(rim)
         self.phong, self.lut_dir = float(phong), lut_dir
         t_start = time.perf_counter()
         d = device
@@ -136,13 +147,26 @@ class HemirasterTransfer(TransferMethod):
         self._lut.debruijn = wp.array(tables.debruijn_table(), dtype=wp.int32, device=d)
         self._lut.res = self.lut_res
         self._lut.words = self._words
+        pdirs, pvalid = tables.pixel_directions(self.mask_res)
+        # strictly below the lowest pixel centre (1e-4 relative: float32 rounding of the test)
+        self._lut.rim = float(pdirs[pvalid, 2].min()) * (1.0 - 1e-4) if self.rim else 0.0
         blocks = tables.block_tables(self.mask_res, self.downsample, self.order)
         self._block_valid = wp.array(blocks["valid"], dtype=wp.int32, device=d)
-        # rows after the B blocks: summed weights of each group of 4 sibling blocks (one gather entry
-        # when all four are wholly blocked)
+        # rows after the B blocks: summed weights of each aligned group of 4, 16 or 64 mask bits
+        # (2×2, 4×4, 8×8 pixels in Morton order) larger than a block: a wholly blocked group is one
+        # gather entry (``group_base[k]``: first row of the groups of 4^(k+1) bits, -1 when unused)
         weights = blocks["weights"]
-        if len(weights) % 4 == 0 and len(weights) >= 4:
-            weights = np.concatenate([weights, weights.reshape(-1, 4, weights.shape[1]).sum(axis=1)])
+        bb = self.downsample * self.downsample
+        rows, group_base = [weights], []
+        for size in (4, 16, 64):
+            per = size // bb
+            if size > bb and len(weights) % per == 0:
+                group_base.append(sum(len(r) for r in rows))
+                rows.append(weights.reshape(-1, per, weights.shape[1]).sum(axis=1))
+            else:
+                group_base.append(-1)
+        weights = np.concatenate(rows)
+        self._group_base = wp.array(np.array(group_base, np.int32), dtype=wp.int32, device=d)
         self._block_weights = wp.array(weights.astype(np.float32), dtype=float, device=d)
         self._valid_words = wp.array(tables.pack_bits(tables.pixel_directions(self.mask_res)[1]), dtype=wp.uint64,
                                      device=d)
@@ -176,7 +200,7 @@ class HemirasterTransfer(TransferMethod):
         targets = [self.coarse_target] + [max(1, round(self.coarse_target * len(o.faces) / max(nf, 1))) for o in occluders]
         self.hierarchy = 0 < self.coarse_target < nf
         group_start, group_mid, group_tris = np.zeros(2, np.int32), np.zeros(1, np.int32), np.zeros(1, np.int32)
-        group_owner = np.zeros(1, np.int32)
+        group_owner, group_run_end = np.zeros(1, np.int32), np.zeros(1, np.int32)
         if self.hierarchy:
             far = hierarchy.far_field([(q.astype(np.float64), f) for q, f in parts], targets)
             cpts, block_faces = far["points"], far["faces"]
@@ -213,7 +237,7 @@ class HemirasterTransfer(TransferMethod):
         self._ring_tris = wp.array(ring_tris if len(ring_tris) else np.zeros(1, np.int32), dtype=wp.int32, device=d)
         self._ring_avg = float(ring_start[-1]) / nv
         if self._near_mode == 2:  # k-ring held by its coarse triangles: their fine triangles per vertex
-            gstart, _, _, _ = hierarchy.groups_in_order(far["owner"], far["extra"], np.arange(len(block_faces)))
+            gstart = hierarchy.groups_in_order(far["owner"], far["extra"], np.arange(len(block_faces)))[0]
             gsize = np.diff(gstart)
             bits = (excl[:, :, None] >> np.arange(32, dtype=np.uint32)) & 1
             self._ring_avg = float((bits.reshape(nv, -1)[:, :len(block_faces)] * gsize).sum()) / nv
@@ -232,13 +256,15 @@ class HemirasterTransfer(TransferMethod):
         # field only: without the hierarchy the blockers are the fine triangles, individually tiny
         # but together the whole nearby surface (bear, full mesh: 1.4 -> 11 % error)
         self._lut.min_area = self.min_image * (2.0 / self.mask_res) ** 2 if self.hierarchy else 0.0
+        self._lut.fine_area = self.fine_image * (2.0 / self.mask_res) ** 2 if self.hierarchy else 0.0
         perm, cstart, sstart = hierarchy.build_clusters(rest_blockers, block_faces, self.cluster, 16)
         if self._use_refine:
-            group_start, group_mid, group_tris, group_owner = hierarchy.groups_in_order(far["owner"], far["extra"], perm)
+            group_start, group_mid, group_tris, group_owner, group_run_end = hierarchy.groups_in_order(far["owner"], far["extra"], perm)
         self._group_start = wp.array(group_start, dtype=wp.int32, device=d)
         self._group_tris = wp.array(group_tris, dtype=wp.int32, device=d)
         self._group_mid = wp.array(group_mid, dtype=wp.int32, device=d)
         self._group_owner = wp.array(group_owner, dtype=wp.int32, device=d)
+        self._group_run_end = wp.array(group_run_end, dtype=wp.int32, device=d)
         self._bfaces = wp.array(block_faces[perm].astype(np.int32), dtype=wp.int32, device=d)
         self._bsource = wp.array(perm.astype(np.int32), dtype=wp.int32, device=d)
         self._perm_inv = np.argsort(perm)
@@ -263,6 +289,7 @@ class HemirasterTransfer(TransferMethod):
         self._groups.dev = self._blocker_dev
         self._groups.start, self._groups.mid = self._group_start, self._group_mid
         self._groups.tris, self._groups.owner = self._group_tris, self._group_owner
+        self._groups.run_end = self._group_run_end
         # rasterized-once table: a seam triangle is listed by several coarse triangles; skip repeats
         # (1 bit per fine triangle and receiver; off above SEEN_BYTES, where repeats are only slower)
         seen_words = (nsf + 63) // 64
@@ -328,6 +355,9 @@ class HemirasterTransfer(TransferMethod):
         parser.add_argument("--min-image", type=float, default=0.5,
                             help="skip far-field triangles whose image is smaller than this many mask pixels "
                                  "(default 0.5; 0: exact)")
+        parser.add_argument("--fine-image", type=float, default=0.0,
+                            help="the same cull for the fine triangles of refined blockers near a receiver "
+                                 "(default 0: exact near field)")
 
     @classmethod
     def knobs_from_args(cls, args) -> dict:
@@ -335,6 +365,7 @@ class HemirasterTransfer(TransferMethod):
                 "coarse": args.coarse, "cull": args.cull, "cluster": args.cluster, "exclude": args.exclude,
                 "backface": args.backface, "mode": args.mode,
                 "view": tuple(args.view), "phong": args.phong, "lut_dir": args.lut_dir, "min_image": args.min_image,
+                "fine_image": args.fine_image,
                 "refine": args.refine}
 
     @classmethod
@@ -343,6 +374,7 @@ class HemirasterTransfer(TransferMethod):
             return [{}, {"refine": 0.0}, {"mask": 16}]
         out = [{}, {"ring": 4, "refine": 0.0}]  # the defaults before the spatial refinement (wrong in contact)
         out += [{"min_image": x} for x in (0.0, 0.25, 1.0)]
+        out += [{"fine_image": x} for x in (0.25, 0.5)]
         out += [{"mask": m} for m in (8, 16, 64)]
         out += [{"lut": r} for r in (32, 64, 128)]
         out += [{"downsample": s} for s in (2, 4)]
@@ -355,6 +387,7 @@ class HemirasterTransfer(TransferMethod):
                 "coarse": self.coarse_target, "cull": self.cull, "cluster": self.cluster, "exclude": self.exclude,
                 "backface": self.backface, "mode": self.mode, "view": self.view.tolist(), "phong": self.phong, "lut_dir": self.lut_dir,
                 "pvs_frames": self._pvs_frames, "min_image": self.min_image, "refine": self.refine,
+                "fine_image": self.fine_image, "rim": self.rim,
                 "occluders": [o.name for o in self.occluders]}
 
     def stats(self) -> dict:
@@ -418,7 +451,8 @@ class HemirasterTransfer(TransferMethod):
                     self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
                     self._lut,
-                    self.downsample * self.downsample, self._block_valid, self._valid_words, self._block_weights, self._block_dirs,
+                    self.downsample * self.downsample, self._block_valid, self._valid_words, self._block_weights, self._group_base,
+                    self._block_dirs,
                     self._unoccluded, 1 if self.mode == "glossy" else 0, wp.vec3(*self.view.astype(np.float32)),
                     self.phong, self._rot_dirs, self._rot_pinv, self.order, self._sh_norm, record],
             outputs=[self._mask, self._local, self._blk_index, self._blk_weight, self._scaled_norm, self._hits, self._counts,
