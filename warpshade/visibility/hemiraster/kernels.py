@@ -113,6 +113,33 @@ class Refinement:
     triangles; OR fusion makes the repeat harmless but not free); 0: no such table (large meshes)."""
 
 
+@wp.struct
+class Batch:
+    """Per receiver queue of blocker triangles that passed the culls, rasterized in batches
+    (:func:`flush_batch`): the LUT codes of a whole batch are computed in one branch-free loop, so
+    the core overlaps the triangles' divisions and loads instead of stalling on each after a
+    mispredicted cull."""
+
+    a: wp.array2d[wp.vec3]
+    """First corner relative to the receiver [m], world axes, shape (V, B), dtype vec3."""
+    b: wp.array2d[wp.vec3]
+    """Second corner, shape (V, B), dtype vec3."""
+    c: wp.array2d[wp.vec3]
+    """Third corner, shape (V, B), dtype vec3."""
+    corners: wp.array2d[wp.vec3i]
+    """Vertex indices of the corners (edge planes are taken from the lower index), shape (V, B)."""
+    src: wp.array2d[wp.int32]
+    """Blocker to mark in the receiver's PVS bits when the triangle sets a bit (-1: none), shape (V, B)."""
+    codes: wp.array2d[wp.vec3i]
+    """Scratch: LUT codes of the three oriented edge planes (-1: culled), shape (V, B)."""
+    record: int
+    """1 while recording a PVS (``hits``)."""
+    hits: wp.array2d[wp.uint32]
+    """PVS recording bits per receiver and blocker source index, shape (V, ceil(Fc/32))."""
+    counts: wp.array[wp.int32]
+    """Triangles rasterized per receiver (not culled by the exact tests), shape (V,)."""
+
+
 @wp.func
 def popcount64(x: wp.uint64) -> int:
     """Number of set bits (SWAR; Warp has no popcount intrinsic)."""
@@ -272,34 +299,16 @@ def triangle_bounds(
 
 
 @wp.func(inline=True)
-def rasterize_triangle(
-    a: wp.vec3,
-    b: wp.vec3,
-    c: wp.vec3,
-    ia: int,
-    ib: int,
-    ic: int,
-    frame: wp.mat33,
-    lut: PlaneLut,
-    mask: wp.array2d[wp.uint64],
-    row: int,
-) -> int:
-    """OR the spherical image of triangle (a, b, c) (positions relative to the receiver) into ``mask[row]``.
+def triangle_codes(a: wp.vec3, b: wp.vec3, c: wp.vec3, ia: int, ib: int, ic: int, ft: wp.mat33, backface: float,
+                   res: int) -> wp.vec3i:
+    """LUT codes (:func:`cube_cell`) of the three oriented edge planes of triangle (a, b, c) (corners
+    relative to the receiver, world axes; ``ft`` world -> tangent frame), or -1s when culled.
 
     Paper §3.1.1: each edge and the receiver span a plane; a pixel is inside the image when it is
-    above all three planes, so the image is the AND of three LUT masks, and occluders fuse by OR
-    (no depth, any order). Planes are oriented by the sign of ``det[a b c]`` so both windings block.
-
-    Returns:
-        0 when culled (wholly at or below the horizon, or degenerate / edge-on: zero solid angle),
-        1 when rasterized with an empty image, 2 when it set at least one bit.
+    above all three planes, so the image is the AND of three LUT masks (:func:`rasterize_codes`).
+    Planes are oriented by the sign of ``det[a b c]`` so both windings block. Culled: degenerate or
+    edge-on (zero solid angle), or facing the receiver when ``backface`` skips that side.
     """
-    # horizon cull first (3 dots): a triangle wholly at or below the tangent plane has no image,
-    # and quantised planes would otherwise leak bits at the disk rim
-    nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
-    if wp.dot(nz, a) <= 0.0 and wp.dot(nz, b) <= 0.0 and wp.dot(nz, c) <= 0.0:
-        return 0
-    ft = wp.transpose(frame)
     la = ft * a
     lb = ft * b
     lc = ft * c
@@ -310,16 +319,23 @@ def rasterize_triangle(
     # det = -(face normal)·(receiver - a): on a closed mesh every blocked direction leaves the solid
     # through a triangle facing away from the receiver, so the others add no bits (``backface`` = ±1
     # skips the side facing the receiver for the mesh's orientation; 0 keeps both)
-    if det == 0.0 or det * lut.backface > 0.0:
-        return 0
+    if det == 0.0 or det * backface > 0.0:
+        return wp.vec3i(-1, -1, -1)
     # orient the planes so the triangle's image is above all three (either winding blocks)
     orient = wp.where(det < 0.0, -1.0, 1.0)
-    nab = orient * nab
-    nbc = orient * nbc
-    nca = orient * nca
-    i0 = cube_cell(nab, lut.res)
-    i1 = cube_cell(nbc, lut.res)
-    i2 = cube_cell(nca, lut.res)
+    return wp.vec3i(cube_cell(orient * nab, res), cube_cell(orient * nbc, res), cube_cell(orient * nca, res))
+
+
+@wp.func(inline=True)
+def rasterize_codes(codes: wp.vec3i, lut: PlaneLut, mask: wp.array2d[wp.uint64], row: int) -> bool:
+    """OR the image with edge-plane LUT codes ``codes`` into ``mask[row]`` (occluders fuse by OR: no
+    depth, any order, §3.1.1); returns whether it set at least one bit."""
+    i0 = codes[0]
+    i1 = codes[1]
+    i2 = codes[2]
+    # occupancy bitmaps (which words of each row are non-zero) live apart from the rows: they stay in
+    # cache, and only words all three edge masks share are fetched (set bits visited in order with
+    # a de Bruijn bit scan, no branch per word)
     occ = lut_occupancy(lut, i0) & lut_occupancy(lut, i1) & lut_occupancy(lut, i2)
     # the words of :func:`lut_word` with the per-edge row and complement flag hoisted out of the
     # loop and the valid-pixel AND done once (stored rows hold valid pixels only: same bits)
@@ -337,9 +353,51 @@ def rasterize_triangle(
         m = (lut.rows[r0, w] ^ f0) & (lut.rows[r1, w] ^ f1) & (lut.rows[r2, w] ^ f2) & lut.valid[w]
         hit = hit | m
         mask[row, w] = mask[row, w] | m
-    if hit != wp.uint64(0):
-        return 2
-    return 1
+    return hit != wp.uint64(0)
+
+
+@wp.func(inline=False)
+def flush_batch(nb: int, v: int, frame: wp.mat33, lut: PlaneLut, mask: wp.array2d[wp.uint64], bt: Batch) -> int:
+    """Rasterize the ``nb`` queued triangles of receiver ``v`` (:class:`Batch`); returns 0 (the new
+    queue length). First all their LUT codes (straight-line arithmetic), then the LUT words."""
+    ft = wp.transpose(frame)
+    for k in range(nb):
+        q = bt.corners[v, k]
+        bt.codes[v, k] = triangle_codes(bt.a[v, k], bt.b[v, k], bt.c[v, k], q[0], q[1], q[2], ft, lut.backface, lut.res)
+    done = int(0)
+    for k in range(nb):
+        codes = bt.codes[v, k]
+        if codes[0] >= 0:
+            done += 1
+            hit = rasterize_codes(codes, lut, mask, v)
+            if hit and bt.record != 0:
+                src = bt.src[v, k]
+                if src >= 0:
+                    bt.hits[v, src >> 5] = bt.hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
+    bt.counts[v] = bt.counts[v] + done
+    return 0
+
+
+@wp.func(inline=True)
+def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, ia: int, ib: int, ic: int, src: int, nb: int, v: int,
+                  frame: wp.mat33, lut: PlaneLut, mask: wp.array2d[wp.uint64], bt: Batch) -> int:
+    """Queue triangle (a, b, c) (corners relative to the receiver) for receiver ``v`` unless it is
+    wholly at or below the horizon; flushes a full queue. Returns the new queue length.
+
+    The exact horizon cull (3 dots) comes first: such a triangle has no image, and quantised planes
+    would otherwise leak bits at the disk rim.
+    """
+    nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
+    if wp.dot(nz, a) <= 0.0 and wp.dot(nz, b) <= 0.0 and wp.dot(nz, c) <= 0.0:
+        return nb
+    bt.a[v, nb] = a
+    bt.b[v, nb] = b
+    bt.c[v, nb] = c
+    bt.corners[v, nb] = wp.vec3i(ia, ib, ic)
+    bt.src[v, nb] = src
+    if nb + 1 == bt.a.shape[1]:
+        return flush_batch(nb + 1, v, frame, lut, mask, bt)
+    return nb + 1
 
 
 @wp.func
@@ -500,10 +558,12 @@ def rasterize_group(
     frame: wp.mat33,
     lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
-    record: int,
-    hits: wp.array2d[wp.uint32],
+    bt: Batch,
+    nb: int,
+    refined: wp.array[wp.int32],
 ) -> int:
-    """Rasterize the fine triangles blocker ``t`` stands for (spatial near field); returns how many.
+    """Queue the fine triangles blocker ``t`` stands for (spatial near field); returns the queue
+    length and counts them in ``refined[v]``.
 
     The seam-cover extras (``groups.mid[t]`` on) are skipped when their primary coarse triangle is
     refined for this receiver too: it rasterizes them itself (in PVS mode, when it is in the set:
@@ -512,7 +572,7 @@ def rasterize_group(
     k-ring) is harmless under the OR fusion of §3.1.1.
     """
     count = int(0)
-    hit = int(0)
+    src = source[t]
     r = groups.start[t]
     end = groups.start[t + 1]
     mid = groups.mid[t]
@@ -555,13 +615,10 @@ def rasterize_group(
         if lut.fine_area > 0.0:
             if image_below(fa, fb, fc, n, lut.fine_area):
                 continue
-        res = rasterize_triangle(fa, fb, fc, i, j, k, frame, lut, mask, v)
-        count += wp.min(1, res)
-        hit = wp.max(hit, res)
-    if record != 0 and hit == 2:
-        src = source[t]
-        hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
-    return count
+        nb = push_triangle(fa, fb, fc, i, j, k, src, nb, v, frame, lut, mask, bt)
+        count += 1
+    refined[v] = refined[v] + count
+    return nb
 
 
 @wp.func
@@ -579,43 +636,37 @@ def rasterize_blocker(
     frame: wp.mat33,
     lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
-    record: int,
-    hits: wp.array2d[wp.uint32],
+    bt: Batch,
+    nb: int,
 ) -> int:
-    """Rasterize blocker triangle ``t`` for receiver ``v`` after the cheap skips; returns 0/1.
+    """Queue blocker triangle ``t`` for receiver ``v`` after the cheap skips; returns the queue length.
     (The near-field exclusion is tested before, in :func:`rasterize_far`.)
 
     Skips, cheapest first, all from per-frame data of ``t`` alone (no vertex gathers): the bounding
-    sphere wholly at or below the tangent plane (a subset of :func:`rasterize_triangle`'s exact
-    horizon cull, so the mask is unchanged) or back-facing (:func:`skip_early`), the tiny-image bound.
+    sphere wholly at or below the tangent plane (a subset of :func:`push_triangle`'s exact horizon
+    cull, so the mask is unchanged) or back-facing (:func:`skip_early`), the tiny-image bound.
     """
     sph = blockers.sphere[t]
     pln = blockers.plane[t]
     nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
     if skip_early(pln, sph, p, nz, lut.backface, lut.rim):
-        return 0
-    src = blockers.source[t]
+        return nb
     if lut.min_area > 0.0:
         if bounds_below(pln, sph, p, nz, lut.min_area):
-            return 0
+            return nb
     i = blockers.faces[t, 0]
     j = blockers.faces[t, 1]
     k = blockers.faces[t, 2]
     if blockers.skip_incident != 0:
         if i == v or j == v or k == v:
-            return 0
+            return nb
     a = blockers.points[i] - p
     b = blockers.points[j] - p
     c = blockers.points[k] - p
     if lut.min_area > 0.0:
         if image_below(a, b, c, nz, lut.min_area):
-            return 0
-    r = rasterize_triangle(a, b, c, i, j, k, frame, lut, mask, v)
-    if record != 0 and r == 2:
-        hits[v, src >> 5] = hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
-    if r > 0:
-        return 1
-    return 0
+            return nb
+    return push_triangle(a, b, c, i, j, k, blockers.source[t], nb, v, frame, lut, mask, bt)
 
 
 @wp.func(inline=True)
@@ -633,27 +684,24 @@ def rasterize_far(
     frame: wp.mat33,
     lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
-    record: int,
-    hits: wp.array2d[wp.uint32],
+    bt: Batch,
+    nb: int,
+    refined: wp.array[wp.int32],
 ) -> int:
     """One far-field blocker: its fine triangles when it is near the receiver (``near``: its cluster
-    may be, :func:`refine_here`), else the blocker itself (:func:`rasterize_blocker`).
-
-    Returns:
-        ``coarse + 2 * fine``: coarse is 1 when the blocker itself was rasterized, fine the number
-        of fine triangles rasterized in its place.
-    """
+    may be, :func:`refine_here`), else the blocker itself (:func:`rasterize_blocker`). Returns the
+    receiver's queue length (:class:`Batch`)."""
     use_fine = False
     if use_excl != 0 and excluded(excl, v, blockers.source[t]):
         if use_excl == 1:  # left to the k-ring (paper scheme)
-            return 0
+            return nb
         use_fine = True  # stands for part of the receiver's k-ring: always its fine triangles
     elif near:
         use_fine = refine_here(p, groups.lo[t], groups.hi[t], groups.dev[t], groups.refine)
     if use_fine:
-        return 2 * rasterize_group(t, v, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, record,
-                                   hits)
-    return rasterize_blocker(t, v, p, blockers, frame, lut, mask, record, hits)
+        return rasterize_group(t, v, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, bt, nb,
+                               refined)
+    return rasterize_blocker(t, v, p, blockers, frame, lut, mask, bt, nb)
 
 
 @wp.func
@@ -731,14 +779,12 @@ def rasterize_transfer(
     rot_pinv: wp.array2d[float],
     order: int,
     sh_norm: wp.array[float],
-    record: int,
+    bt: Batch,
     mask: wp.array2d[wp.uint64],
     local: wp.array2d[float],
     blk_index: wp.array2d[wp.int32],
     blk_weight: wp.array2d[float],
     scaled_norm: wp.array2d[float],
-    hits: wp.array2d[wp.uint32],
-    counts: wp.array[wp.int32],
     refined: wp.array[wp.int32],
     transfer: wp.array2d[float],
 ):
@@ -766,7 +812,9 @@ def rasterize_transfer(
     if groups.use_seen != 0:
         for w in range(groups.seen.shape[1]):
             groups.seen[v, w] = wp.uint64(0)
-    count = int(0)
+    bt.counts[v] = 0
+    refined[v] = 0
+    nb = int(0)
     # near field at full resolution
     for r in range(ring_start[v], ring_start[v + 1]):
         t = ring_tris[r]
@@ -775,18 +823,15 @@ def rasterize_transfer(
         i = fine.faces[t, 0]
         j = fine.faces[t, 1]
         k = fine.faces[t, 2]
-        a = fine.points[i] - p
-        count += wp.min(1, rasterize_triangle(a, fine.points[j] - p, fine.points[k] - p, i, j, k, frame, lut, mask, v))
+        nb = push_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, i, j, k, -1, nb, v, frame, lut,
+                           mask, bt)
     # far field: coarse blockers, replaced by their fine triangles near the receiver
     offset = wp.dot(n, p)
-    nfine = int(0)
     near_all = groups.refine > 0.0
     if use_pvs != 0:
         for r in range(pvs_start[v], pvs_start[v + 1]):
-            res = rasterize_far(pvs_tris[r], near_all, v, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
-                                mask, record, hits)
-            count += (res & 1) + (res >> 1)
-            nfine += res >> 1
+            nb = rasterize_far(pvs_tris[r], near_all, v, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
+                               mask, bt, nb, refined)
     elif use_cull != 0:
         for s in range(super_start.shape[0] - 1):
             if box_above_plane(super_lo[s], super_hi[s], n, offset):
@@ -795,18 +840,14 @@ def rasterize_transfer(
                         # per-blocker refinement tests only in clusters that come near enough
                         near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], groups.refine * cluster_reach[c])
                         for t in range(cluster_start[c], cluster_start[c + 1]):
-                            res = rasterize_far(t, near, v, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
-                                                mask, record, hits)
-                            count += (res & 1) + (res >> 1)
-                            nfine += res >> 1
+                            nb = rasterize_far(t, near, v, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
+                                               mask, bt, nb, refined)
     else:
         for t in range(blockers.faces.shape[0]):
-            res = rasterize_far(t, near_all, v, p, n, fine, groups, blockers, use_excl, excl, frame, lut, mask, record,
-                                hits)
-            count += (res & 1) + (res >> 1)
-            nfine += res >> 1
-    refined[v] = nfine
-    counts[v] = count
+            nb = rasterize_far(t, near_all, v, p, n, fine, groups, blockers, use_excl, excl, frame, lut, mask, bt, nb,
+                               refined)
+    if nb > 0:
+        flush_batch(nb, v, frame, lut, mask, bt)
 
     # integrate (tangent frame): unoccluded integral minus blocked fractions of blocks
     lv = wp.transpose(frame) * view
