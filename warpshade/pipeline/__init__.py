@@ -235,10 +235,16 @@ class Pipeline:
         secs["total"] = time.perf_counter() - t0
         self.report = RunReport(path=path, frames=max(0, self.frames - start), seconds=secs, resumed_from=start,
                                 vertices=sum(m.num_vertices for g in self.groups for m in g.meshes),
-                                groups=[f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
-                                        for g in self.groups],
+                                groups=[_group_line(g) for g in self.groups],
                                 area_lights=self.area_description)
         return self.report
+
+
+def _group_line(g: GroupSpec) -> str:
+    """One :attr:`RunReport.groups` line: method, knobs, objects, and which of them cast no shadows."""
+    line = f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
+    quiet = [n for n, c in zip(g.names, g.casts) if not c]
+    return line + (f" (casting no shadows: {', '.join(quiet)})" if quiet else "")
 
 
 __all__ = ["DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
