@@ -15,6 +15,9 @@ Rules (issue 8):
   when at least two objects exist, one casts onto another and the run has two or more shading groups
   between which they carry shadows (never for a single self-shadowing object, nor for objects sharing a
   group, which shadow each other through the group's method);
+  objects with ``casts_shadows`` False block nothing: they are left out of the sphere sets, out of the
+  GEARS blockers and out of their group method's blocker triangles, and a group without any caster is
+  unoccluded (method None), as the run does;
   reflection (one diffuse bounce) only when ``settings["reflections"]`` asks; no glossy pass (a run writes
   view-independent per-vertex colours; glossy materials get a note);
 * with ``max_error``, each object gets the configuration of the frontier whose worst measured mean error

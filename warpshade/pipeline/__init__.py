@@ -6,6 +6,8 @@ Data flows one way (STYLE.md): per frame each object's positions come from the s
 so its members shadow each other (with ``reference``: exactly, ray traced); the group's
 :class:`~warpshade.visibility.TransferMethod` updates the SH transfer (CONTRACTS.md §2); exit
 radiance ``(ρ/π) Σ_i L_i T_i`` uses the lights' SH (world space); the writer streams the frame out.
+An object with ``casts_shadows`` False stays in its group as a receiver only: the method, the
+between-group sphere sets and the GEARS pass get the casters' triangles alone.
 
 Shading runs through :func:`warpshade.parallel.shade_frames` with a picklable
 :class:`~.shading.SceneShader`: inline by default, or on worker processes / a Dask cluster

@@ -281,7 +281,8 @@ def _shadow_by_others(between, i: int, updated: list, device: str) -> np.ndarray
 
 def group_objects(objects, method: str | None = None, knobs: dict | None = None,
                   default_knobs: dict | None = None, default_albedo=None) -> list[GroupSpec]:
-    """Group shaded objects by (method, knobs).
+    """Group shaded objects by (method, knobs). A group none of whose members casts shadows
+    (``casts_shadows`` False) gets method None: nothing in it blocks light, so its transfer is unoccluded.
 
     Args:
         objects: :class:`warpshade.scene.SceneObject` list.
