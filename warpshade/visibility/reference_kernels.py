@@ -45,6 +45,158 @@ def cosine_direction(frame: wp.mat33, u: float, v: float) -> wp.vec3:
     return frame * wp.vec3(d2[0], d2[1], z)
 
 
+@wp.struct
+class SurfaceHit:
+    """The surface that blocks a ray (:func:`trace_surface_ray`): ``face`` (-1: none), distance ``t`` along the
+    ray, barycentrics ``u, v`` and ``sign`` (> 0: the ray meets the triangle's front, as ``MeshQueryRay.sign``)."""
+
+    face: int
+    t: float
+    u: float
+    v: float
+    sign: float
+
+
+@wp.func
+def has_vertex(mesh: wp.uint64, face: int, vertex: int) -> bool:
+    """Whether triangle ``face`` of ``mesh`` has corner ``vertex``."""
+    return (wp.mesh_get_index(mesh, face * 3) == vertex or wp.mesh_get_index(mesh, face * 3 + 1) == vertex
+            or wp.mesh_get_index(mesh, face * 3 + 2) == vertex)
+
+
+@wp.func
+def enter_front(mesh: wp.uint64, face: int, start: wp.vec3, d: wp.vec3, length: float) -> wp.vec3:
+    """Where the segment ``start + t d`` (0 <= t <= length) crosses triangle ``face`` from its front side
+    (Möller–Trumbore, edges inclusive): ``(t, u, v)``, or t = -1 when it does not."""
+    a = wp.mesh_get_point(mesh, face * 3)
+    e1 = wp.mesh_get_point(mesh, face * 3 + 1) - a
+    e2 = wp.mesh_get_point(mesh, face * 3 + 2) - a
+    pv = wp.cross(d, e2)
+    det = wp.dot(e1, pv)  # = -d · (e1 × e2): > 0 when the ray meets the front
+    scale = wp.length(e1) * wp.length(e2)
+    if not (det > 1.0e-7 * scale):
+        return wp.vec3(-1.0, 0.0, 0.0)
+    s = start - a
+    u = wp.dot(s, pv) / det
+    q = wp.cross(s, e1)
+    v = wp.dot(d, q) / det
+    t = wp.dot(e2, q) / det
+    tol = 1.0e-6  # barycentric slack: a point on a shared edge belongs to both triangles
+    if u < -tol or v < -tol or u + v > 1.0 + tol or t < 0.0 or t > length:
+        return wp.vec3(-1.0, 0.0, 0.0)
+    return wp.vec3(t, u, v)
+
+
+NEAR_FACES = 8
+"""Foreign triangles within a ray offset of a vertex kept per vertex (:class:`NearFaces`); with more, every ray
+queries the BVH for them itself."""
+
+
+class vec_near(wp.types.vector(length=NEAR_FACES, dtype=wp.int32)):
+    pass
+
+
+@wp.struct
+class NearFaces:
+    """Triangles whose bounds come within ``eps`` of a receiver point, its own triangles left out: the only
+    ones :func:`trace_surface_ray` tests in the near field. ``count`` > ``NEAR_FACES``: too many to keep."""
+
+    faces: vec_near
+    count: int
+
+
+@wp.func
+def continues_surface(mesh: wp.uint64, f: int, p: wp.vec3, n: wp.vec3) -> bool:
+    """Whether triangle ``f`` has a corner exactly at ``p`` and faces within 120° of normal ``n``: the receiver's
+    own surface through a duplicated vertex (a seam, split normals), not a surface it rests on."""
+    a = wp.mesh_get_point(mesh, f * 3)
+    b = wp.mesh_get_point(mesh, f * 3 + 1)
+    c = wp.mesh_get_point(mesh, f * 3 + 2)
+    if wp.length_sq(a - p) > 0.0 and wp.length_sq(b - p) > 0.0 and wp.length_sq(c - p) > 0.0:
+        return False
+    nf = wp.cross(b - a, c - a)
+    return wp.dot(nf, n) > -0.5 * wp.length(nf)
+
+
+@wp.func
+def near_faces(mesh: wp.uint64, vertex: int, p: wp.vec3, n: wp.vec3, eps: float) -> NearFaces:
+    """The :class:`NearFaces` of receiver point ``p`` with unit normal ``n`` (``vertex``: its index in ``mesh``,
+    or -1), gathered once for all its rays: triangles whose bounds come within ``eps`` of ``p``, except its
+    own (``vertex``'s, and :func:`continues_surface` ones)."""
+    out = NearFaces()
+    out.count = 0
+    e = wp.vec3(eps, eps, eps)
+    query = wp.mesh_query_aabb(mesh, p - e, p + e)
+    f = int(0)
+    faces = vec_near()
+    while wp.mesh_query_aabb_next(query, f):
+        if (vertex >= 0 and has_vertex(mesh, f, vertex)) or continues_surface(mesh, f, p, n):
+            continue
+        if out.count < NEAR_FACES:
+            faces[out.count] = f
+        out.count += 1
+    out.faces = faces
+    return out
+
+
+@wp.func
+def nearer_front(mesh: wp.uint64, f: int, start: wp.vec3, d: wp.vec3, eps: float, hit: SurfaceHit) -> SurfaceHit:
+    """``hit``, or triangle ``f`` if the near segment (``start``, length 2 eps) enters it from its front first."""
+    c = enter_front(mesh, f, start, d, 2.0 * eps)
+    if c[0] >= 0.0 and (hit.face < 0 or c[0] < hit.t):
+        out = SurfaceHit()
+        out.face = f
+        out.t = c[0]
+        out.u = c[1]
+        out.v = c[2]
+        out.sign = 1.0
+        return out
+    return hit
+
+
+@wp.func
+def trace_surface_ray(mesh: wp.uint64, vertex: int, p: wp.vec3, n: wp.vec3, d: wp.vec3, eps: float, max_t: float,
+                      near: NearFaces) -> SurfaceHit:
+    """The surface that blocks a ray leaving the surface point ``p`` along unit ``d`` within ``max_t``.
+
+    ``p`` lies on the mesh (``vertex``: its index in ``mesh``, or -1 when it is no vertex of it) and maybe
+    exactly on another surface too (an object resting on a ground). Pushing the ray origin off along the
+    normal moves it through such a surface whenever the normal leans into it (the rim of a box standing on
+    the ground: its rays then start under the ground and see the wrong half of the sky). Here, within
+    ``eps`` of ``p`` on both sides, a triangle blocks if the ray crosses it from its front (it enters the
+    surface there, e.g. the ground under a vertex for rays going down) and it is not the receiver's own
+    (``vertex``'s triangles, which meet the ray only at ``p``, and triangles through a vertex duplicated at
+    ``p`` that face the side of the unit normal ``n``, :func:`continues_surface`); a ray leaving a surface
+    through its back started on or just behind it and is let go. From ``p + eps d`` on, the first hit
+    blocks whichever side it meets (open meshes such as cloth block from both). ``eps`` is a length, a
+    small fraction of the scene's size; ``near`` comes from :func:`near_faces` with the same ``mesh``,
+    ``vertex``, ``p``, ``n`` and ``eps``.
+    """
+    hit = SurfaceHit()
+    hit.face = -1
+    start = p - d * eps
+    if near.count <= NEAR_FACES:
+        for k in range(near.count):
+            hit = nearer_front(mesh, near.faces[k], start, d, eps, hit)
+    else:
+        e = wp.vec3(eps, eps, eps)
+        query = wp.mesh_query_aabb(mesh, p - e, p + e)
+        f = int(0)
+        while wp.mesh_query_aabb_next(query, f):
+            if not ((vertex >= 0 and has_vertex(mesh, f, vertex)) or continues_surface(mesh, f, p, n)):
+                hit = nearer_front(mesh, f, start, d, eps, hit)
+    if hit.face >= 0:
+        return hit
+    q = wp.mesh_query_ray(mesh, p + d * eps, d, max_t)
+    if q.result:
+        hit.face = q.face
+        hit.t = q.t + 2.0 * eps
+        hit.u = q.u
+        hit.v = q.v
+        hit.sign = q.sign
+    return hit
+
+
 @wp.kernel
 def trace_transfer(
     mesh: wp.uint64,
@@ -65,9 +217,9 @@ def trace_transfer(
     v = wp.tid()
     n = normals[v]
     frame = orthonormal_basis(n)
-    origin = points[v] + n * offset
     rng = wp.rand_init(seed, v)
     weight = wp.pi / float(strata * strata)
+    near = near_faces(mesh, v, points[v], n, offset)
     for i in range(order * order):
         transfer[v, i] = 0.0
     for sx in range(strata):
@@ -75,6 +227,5 @@ def trace_transfer(
             u = (float(sx) + wp.randf(rng)) / float(strata)
             w = (float(sy) + wp.randf(rng)) / float(strata)
             d = cosine_direction(frame, u, w)
-            q = wp.mesh_query_ray(mesh, origin, d, max_t)
-            if not q.result:
+            if trace_surface_ray(mesh, v, points[v], n, d, offset, max_t, near).face < 0:
                 sh_accumulate(d, weight, order, k, transfer, v)
