@@ -179,6 +179,7 @@ def test_plan_costs_what_the_run_executes():
     one = make_plan(scene(ball_casts=False))
     assert one.groups[0].caster_triangles == ground_mesh().num_faces
     assert one.groups[0].triangles == ground_mesh().num_faces + ball_mesh().num_faces
+    assert f"({ground_mesh().num_faces} of them cast shadows" in one.describe()
 
 
 def test_cli_run_reads_casts_shadows_from_usd(tmp_path, capsys):

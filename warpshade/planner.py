@@ -321,8 +321,10 @@ class Plan:
         if self.groups:
             lines.append(f"  warpshade run executes {len(self.groups)} shading group(s) (objects sharing a method are one mesh):")
             for g in self.groups:
+                blockers = ("" if g.caster_triangles == g.triangles
+                            else f" ({g.caster_triangles} of them cast shadows: castsShadows false on the others)")
                 lines.append(f"    {g.method or 'unoccluded'} {_knobs(g.knobs)}[{', '.join(g.names)}]: {g.vertices} vertices, "
-                             f"{g.triangles} triangles, transfer {'every frame' if g.moves else 'once'}")
+                             f"{g.triangles} triangles{blockers}, transfer {'every frame' if g.moves else 'once'}")
                 lines.append(f"      est. per frame {g.seconds_frame * 1e3:.1f} ms = transfer "
                              f"{(g.seconds_transfer if g.moves else 0.0) * 1e3:.1f} + between-group shadows "
                              f"{g.seconds_between * 1e3:.1f} + lights {g.seconds_lights * 1e3:.1f} + radiance "
