@@ -200,3 +200,14 @@ def test_cli_run_reads_casts_shadows_from_usd(tmp_path, capsys):
     col = np.asarray(UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/World/ground")).GetPrimvar("displayColor").Get(0))
     # the ground (albedo 0.5) is unoccluded everywhere: exact up to float32 whatever the ray count
     assert np.allclose(col, 0.5, rtol=1e-5), col.min()
+
+
+def test_sphere_tree_leaves_out_vertices_in_no_triangle():
+    from warpshade.visibility.spheres.fitting import build_sphere_tree
+
+    ball = ball_mesh()
+    extra = np.array([[5.0, 5.0, 5.0], [-3.0, 0.0, 1.0]])  # far away: any sphere bounding them would be huge
+    alone = build_sphere_tree(ball.points, ball.faces, spheres=8, levels=2)
+    padded = build_sphere_tree(np.concatenate([extra, ball.points]), ball.faces + len(extra), spheres=8, levels=2)
+    assert np.allclose(padded.centers, alone.centers) and np.allclose(padded.radii, alone.radii)
+    assert np.array_equal(padded.vert_index, alone.vert_index + len(extra))  # indices into the padded points
