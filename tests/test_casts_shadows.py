@@ -175,6 +175,12 @@ def test_plan_costs_what_the_run_executes():
     assert "sphere sets of shadow casters" in plan.structures
     nobody = scene(ball_casts=False, ground_casts=False, ground_method=None)
     assert "sphere sets of shadow casters" not in make_plan(nobody).structures
+    # an unshaded object is no shadow caster in the run (README: a collider only): nor in the plan
+    collider = scene(ground_method=None)
+    collider.objects[1].shaded = False
+    collider.objects[1].kind = "animated"  # a moving caster would make the static ground re-shade every frame
+    assert "sphere sets of shadow casters" not in make_plan(collider).structures
+    assert make_plan(collider).object("ground").passes == []
     # in one group the method's blockers are the casters' triangles only
     one = make_plan(scene(ball_casts=False))
     assert one.groups[0].caster_triangles == ground_mesh().num_faces

@@ -461,7 +461,9 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     reflections = bool(scene.settings.get("reflections", False))
     lighting_changes = any(_light_moves(li) for li in scene.lights)
     moving = {o.name for o in scene.objects if o.kind != "static"}
-    casters = [o for o in scene.objects if o.casts_shadows]
+    # what blocks light in the run: shaded objects that cast shadows (an unshaded one, warpshade:shaded false,
+    # is only a collider: the run never sees it)
+    casters = [o for o in scene.objects if o.casts_shadows and o.shaded]
     shaded = [o for o in scene.objects if o.shaded]
     inter = len(scene.objects) >= 2 and any(c.name != r.name for c in casters for r in shaded)
     structures, notes, plans = [], [], []
