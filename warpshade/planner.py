@@ -15,6 +15,9 @@ Rules (issue 8):
   when at least two objects exist, one casts onto another and the run has two or more shading groups
   between which they carry shadows (never for a single self-shadowing object, nor for objects sharing a
   group, which shadow each other through the group's method);
+  objects with ``casts_shadows`` False block nothing: they are left out of the sphere sets, out of the
+  GEARS blockers and out of their group method's blocker triangles, and a group without any caster is
+  unoccluded (method None), as the run does;
   reflection (one diffuse bounce) only when ``settings["reflections"]`` asks; no glossy pass (a run writes
   view-independent per-vertex colours; glossy materials get a note);
 * with ``max_error``, each object gets the configuration of the frontier whose worst measured mean error
@@ -202,6 +205,8 @@ class GroupPlan:
         seconds_reflections: Estimated per-frame one-bounce reflections onto the group [s] (the run
             recomputes them every frame).
         cost_source: Where the transfer estimate comes from (frontier configuration, fit or nearest mesh).
+        caster_triangles: Triangles of the members that cast shadows (the method's blockers; objects with
+            ``castsShadows`` false only receive); None: all ``triangles``.
     """
 
     method: str | None
@@ -217,6 +222,11 @@ class GroupPlan:
     seconds_radiance: float = 0.0
     seconds_reflections: float = 0.0
     cost_source: str = ""
+    caster_triangles: int | None = None
+
+    def __post_init__(self):
+        if self.caster_triangles is None:
+            self.caster_triangles = self.triangles
 
     @property
     def seconds_frame(self) -> float:
@@ -311,8 +321,10 @@ class Plan:
         if self.groups:
             lines.append(f"  warpshade run executes {len(self.groups)} shading group(s) (objects sharing a method are one mesh):")
             for g in self.groups:
+                blockers = ("" if g.caster_triangles == g.triangles
+                            else f" ({g.caster_triangles} of them cast shadows: castsShadows false on the others)")
                 lines.append(f"    {g.method or 'unoccluded'} {_knobs(g.knobs)}[{', '.join(g.names)}]: {g.vertices} vertices, "
-                             f"{g.triangles} triangles, transfer {'every frame' if g.moves else 'once'}")
+                             f"{g.triangles} triangles{blockers}, transfer {'every frame' if g.moves else 'once'}")
                 lines.append(f"      est. per frame {g.seconds_frame * 1e3:.1f} ms = transfer "
                              f"{(g.seconds_transfer if g.moves else 0.0) * 1e3:.1f} + between-group shadows "
                              f"{g.seconds_between * 1e3:.1f} + lights {g.seconds_lights * 1e3:.1f} + radiance "
@@ -449,7 +461,9 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     reflections = bool(scene.settings.get("reflections", False))
     lighting_changes = any(_light_moves(li) for li in scene.lights)
     moving = {o.name for o in scene.objects if o.kind != "static"}
-    casters = [o for o in scene.objects if o.casts_shadows]
+    # what blocks light in the run: shaded objects that cast shadows (an unshaded one, warpshade:shaded false,
+    # is only a collider: the run never sees it)
+    casters = [o for o in scene.objects if o.casts_shadows and o.shaded]
     shaded = [o for o in scene.objects if o.shaded]
     inter = len(scene.objects) >= 2 and any(c.name != r.name for c in casters for r in shaded)
     structures, notes, plans = [], [], []
@@ -466,8 +480,18 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     chosen = {o.name: _choose(o, order, max_error, fr) for o in shaded}
     # objects sharing a method and knobs are one mesh in the run and shadow each other through it; sphere
     # sets carry shadows only between the run's shading groups (--between spheres)
-    n_groups = len(_run_groups(scene, {n: (c[0], c[1]) for n, c in chosen.items()}))
-    sphere_sets = inter and between is not None and n_groups > 1
+    run_groups = _run_groups(scene, {n: (c[0], c[1]) for n, c in chosen.items()})
+    for g in run_groups:
+        for name in g.names:
+            if g.method is None and chosen[name][0] is not None:
+                # no member of its group casts shadows (castsShadows false): the run shades it unoccluded
+                chosen[name] = (None, {}, None, "no object of its shading group casts shadows: unoccluded")
+    n_groups = len(run_groups)
+    group_of = {name: i for i, g in enumerate(run_groups) for name in g.names}
+    casting_groups = [i for i, g in enumerate(run_groups) if any(g.casts)]
+    # sphere sets shadow a group by the casters of the other groups (pipeline.shading._between_group_shadows)
+    other_casters = {name: sum(1 for j in casting_groups if j != group_of[name]) for name in group_of}
+    sphere_sets = inter and between is not None and any(other_casters.values())
     for obj in scene.objects:
         if not obj.shaded:
             continue
@@ -488,7 +512,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         transfer = "none" if method is None else ("every_frame" if moves else "once")
         if method is not None and moves:
             passes.append(f"transfer ({method})")
-        if sphere_sets and (moves or shadowed_by_moving):
+        if sphere_sets and other_casters[obj.name] and (moves or shadowed_by_moving):
             passes.append("inter-object shadows (sphere sets)")
         if rect and (moves or shadowed_by_moving or rect_moves):
             passes.append("area-light visibility (GEARS)")
@@ -504,7 +528,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         redot = REDOT_SECONDS_PER_COEFF * v * order * order * 3
         if method is not None and cfg is None:
             notes.append(f"{obj.name}: {method} {_knobs(knobs)}at order {order} is not in the frontier; its cost is not estimated")
-        t_inter = _between_frame_seconds(v, n_groups - 1, pc) if sphere_sets else 0.0
+        t_inter = _between_frame_seconds(v, other_casters[obj.name], pc) if sphere_sets and other_casters[obj.name] else 0.0
         t_gears = n_rect * _area_seconds(fr, pc, v, f, area_k) if rect else 0.0
         t_local = pc["local_light_seconds_per_vertex"] * v * n_local
         t_reflect = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT * len(shaded)
@@ -535,14 +559,15 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
                      "(hemiraster mode='glossy', eq. 3)")
     plan = Plan(order, scene.frames, plans, structures, lighting_changes, bool(moving), max_error, notes,
                 area_lights=area_lights if any(_is_rect(li) for li in scene.lights) else None)
-    _plan_groups(plan, scene, fr, pc, n_local, between)
+    _plan_groups(plan, scene, fr, pc, n_local, between, run_groups)
     _static_in_moving_groups(plan)
     if rect:
         # one GEARS pass per rect light over every shading group merged (blockers: all shaded objects)
         plan.area_moves = any(g.moves for g in plan.groups) or rect_moves
         plan.area_k = area_k
+        # blockers: the triangles of objects that cast shadows (pipeline.area.AreaLightShading)
         plan.seconds_area = n_rect * _area_seconds(fr, pc, sum(g.vertices for g in plan.groups),
-                                                   sum(g.triangles for g in plan.groups), area_k)
+                                                   sum(g.caster_triangles for g in plan.groups), area_k)
     return plan
 
 
@@ -614,18 +639,20 @@ def _run_groups(scene: Scene, methods: dict) -> list:
     return group_objects(objs, None, None, DEFAULT_KNOBS)
 
 
-def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: int, between: str | None) -> None:
-    """Fill ``plan.groups`` with the shading groups ``warpshade run`` forms from the plan's methods, and cost them."""
-    specs = _run_groups(scene, {o.name: (o.method, o.knobs) for o in plan.objects})
+def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: int, between: str | None,
+                 specs: list) -> None:
+    """Fill ``plan.groups`` with the shading groups ``warpshade run`` forms (``specs``, from :func:`_run_groups`
+    with the plan's methods), and cost them."""
     n = plan.order * plan.order
     reflections = bool(scene.settings.get("reflections", False))
     n_objects = sum(len(spec.names) for spec in specs)  # every shaded object gets its own sphere tree
-    tris = 0
-    for spec in specs:
+    tris = sum(m.num_faces for spec in specs for m in spec.meshes)
+    caster_tris = [len(spec.blocker_faces()) for spec in specs]
+    for k, spec in enumerate(specs):
         v = sum(m.num_vertices for m in spec.meshes)
         f = sum(m.num_faces for m in spec.meshes)
-        tris += f
-        g = GroupPlan(spec.method, dict(spec.knobs), list(spec.names), v, f, any(spec.moving))
+        g = GroupPlan(spec.method, dict(spec.knobs), list(spec.names), v, f, any(spec.moving),
+                      caster_triangles=caster_tris[k])
         if spec.method is None:
             g.seconds_transfer = pc["unoccluded_seconds_per_vertex"] * v
             g.cost_source = "measured constant"
@@ -636,12 +663,14 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
                 plan.notes.append(f"group {spec.names}: {spec.method} {_knobs(spec.knobs)}is not in the frontier; "
                                   "its transfer cost is not estimated")
             else:
-                g.seconds_transfer = estimate_seconds(cfg, v, triangles=f)
-                g.seconds_build = estimate_seconds(cfg, v, "build_seconds", triangles=f)
+                # the method's blockers are the casters' triangles; every vertex receives
+                g.seconds_transfer = estimate_seconds(cfg, v, triangles=caster_tris[k])
+                g.seconds_build = estimate_seconds(cfg, v, "build_seconds", triangles=caster_tris[k])
                 fit = len({t["vertices"] for t in cfg["timings"]}) >= 3
                 g.cost_source = ", ".join(x for x in (("fit over measured meshes" if fit else "nearest measured mesh"), src) if x)
-        if between and len(specs) > 1:
-            g.seconds_between = _between_frame_seconds(v, len(specs) - 1, pc)
+        others = sum(1 for j, t in enumerate(caster_tris) if j != k and t)  # other groups with shadow casters
+        if between and others:
+            g.seconds_between = _between_frame_seconds(v, others, pc)
         g.seconds_lights = _distant_lights_seconds(scene, pc) + pc["local_light_seconds_per_vertex"] * v * n_local
         g.seconds_radiance = pc["radiance_seconds_fixed"] + pc["radiance_seconds_per_vertex_coeff"] * v * n
         if reflections:
@@ -652,9 +681,10 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
             else:  # the run computes the bounce of a frozen scene once
                 plan.seconds_setup_structures += t_refl
         plan.groups.append(g)
-    if between and len(specs) > 1:
-        plan.seconds_setup_between = (pc["between_build_seconds_per_group"] * len(specs)
-                                      + pc["between_build_seconds_per_triangle"] * tris)
+    if between and sum(1 for t in caster_tris if t) and len(specs) > 1:
+        # a sphere tree per group with shadow casters, fitted to their triangles
+        plan.seconds_setup_between = (pc["between_build_seconds_per_group"] * sum(1 for t in caster_tris if t)
+                                      + pc["between_build_seconds_per_triangle"] * sum(caster_tris))
     if reflections:  # one sphere tree per object, fitted like the between-group trees
         plan.seconds_setup_between += (pc["between_build_seconds_per_group"] * n_objects
                                        + pc["between_build_seconds_per_triangle"] * tris)

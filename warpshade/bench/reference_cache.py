@@ -4,8 +4,8 @@ The ground truth uses a different seed (:data:`GROUND_TRUTH_SEED`) from the ``re
 default, so the ``reference`` entries of the sweep are judged against independent samples rather
 than against themselves.
 
-Cache files are ``<cache_dir>/<content hash>-o<order>-r<rays>-s<seed>.npy`` where the hash covers the
-points and faces (float32/int32 bytes); the reference's other knobs stay at their defaults. A cached result of a higher order
+Cache files are ``<cache_dir>/<content hash>-<TRUTH_VERSION>-o<order>-r<rays>-s<seed>.npy`` where the hash
+covers the points and faces (float32/int32 bytes); the reference's other knobs stay at their defaults. A cached result of a higher order
 serves lower orders (SH coefficients nest: order N is the first N*N of any higher order).
 """
 
@@ -22,6 +22,11 @@ from ..geometry.mesh import TriMesh
 
 GROUND_TRUTH_SEED = 982451653
 """Seed of the ground-truth rays (independent of the ``reference`` method's default seed 0)."""
+
+TRUTH_VERSION = "t2"
+"""Version of the reference's ray tracing in the cache file names: bumped when it changes what it computes
+(t2: rays leave the vertex itself, ``trace_surface_ray``; files without it came from origins pushed along the
+normal, wrong for vertices resting on another surface), so stale files are not reused."""
 
 DEFAULT_CACHE_DIR = ".warpshade-cache/reference"
 """Relative to the working directory; git-ignored in the repository."""
@@ -51,7 +56,7 @@ def ground_truth(mesh: TriMesh, order: int, rays: int = 4096, cache_dir: str | N
 
     from ..visibility.reference import ReferenceTransfer
 
-    key = mesh_hash(mesh)
+    key = f"{mesh_hash(mesh)}-{TRUTH_VERSION}"
     if cache_dir:
         for path in glob.glob(os.path.join(cache_dir, f"{key}-o*-r{rays}-s{GROUND_TRUTH_SEED}.npy")):
             m = re.search(r"-o(\d+)-r", os.path.basename(path))

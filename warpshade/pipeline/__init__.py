@@ -6,6 +6,8 @@ Data flows one way (STYLE.md): per frame each object's positions come from the s
 so its members shadow each other (with ``reference``: exactly, ray traced); the group's
 :class:`~warpshade.visibility.TransferMethod` updates the SH transfer (CONTRACTS.md §2); exit
 radiance ``(ρ/π) Σ_i L_i T_i`` uses the lights' SH (world space); the writer streams the frame out.
+An object with ``casts_shadows`` False stays in its group as a receiver only: the method, the
+between-group sphere sets and the GEARS pass get the casters' triangles alone.
 
 Shading runs through :func:`warpshade.parallel.shade_frames` with a picklable
 :class:`~.shading.SceneShader`: inline by default, or on worker processes / a Dask cluster
@@ -235,10 +237,16 @@ class Pipeline:
         secs["total"] = time.perf_counter() - t0
         self.report = RunReport(path=path, frames=max(0, self.frames - start), seconds=secs, resumed_from=start,
                                 vertices=sum(m.num_vertices for g in self.groups for m in g.meshes),
-                                groups=[f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
-                                        for g in self.groups],
+                                groups=[_group_line(g) for g in self.groups],
                                 area_lights=self.area_description)
         return self.report
+
+
+def _group_line(g: GroupSpec) -> str:
+    """One :attr:`RunReport.groups` line: method, knobs, objects, and which of them cast no shadows."""
+    line = f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
+    quiet = [n for n, c in zip(g.names, g.casts) if not c]
+    return line + (f" (casting no shadows: {', '.join(quiet)})" if quiet else "")
 
 
 __all__ = ["DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",

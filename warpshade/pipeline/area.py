@@ -13,8 +13,9 @@ light as seen from the vertex). The paper shades with the plain fraction of visi
 we weight the samples by their form factor (:meth:`~warpshade.visibility.gears.AreaVisibilityMethod.
 weighted_visibility`), which is exact for unblocked and fully blocked vertices and measured closer to
 ray tracing in between (``benchmarks/area_lights.py``). Blockers are all shaded objects of the frame
-(every shading group merged into one mesh), so cloth, colliders and ground shadow each other and
-themselves whatever their SH visibility method.
+that cast shadows (every shading group merged into one mesh), so cloth, colliders and ground shadow
+each other and themselves whatever their SH visibility method; an object with
+``warpshade:castsShadows = false`` receives but its triangles are left out of the blocker mesh.
 """
 
 from __future__ import annotations
@@ -75,10 +76,12 @@ class AreaLightShading:
         weighting: One of :data:`WEIGHTINGS`.
         static: Nothing in the scene moves: with motionless lights, frame 0's result is reused.
         device: Warp device.
+        blocker_faces: Per mesh, the triangles that block the lights (indices into that mesh), shape
+            (F_c, 3) int; None: all of them. Vertices in no blocking triangle still receive.
     """
 
     def __init__(self, meshes: list, lights: list, k: int = 16, grid: int = 16, weighting: str = "cosine",
-                 static: bool = False, device: str = "cpu"):
+                 static: bool = False, device: str = "cpu", blocker_faces: list | None = None):
         from ..visibility.gears import LightRect
         from ..visibility.gears.gears import GearsVisibility
 
@@ -87,8 +90,14 @@ class AreaLightShading:
         self.lights, self.weighting, self.device = list(lights), weighting, device
         self.sizes = [m.num_vertices for m in meshes]
         offsets = np.cumsum([0] + self.sizes)
-        faces = np.concatenate([m.faces + off for m, off in zip(meshes, offsets[:-1])])
-        self.mesh = TriMesh(np.concatenate([m.points for m in meshes]), faces, name="area-light blockers")
+        if blocker_faces is None:
+            blocker_faces = [m.faces for m in meshes]
+        faces = np.concatenate([np.asarray(f, dtype=np.int32).reshape(-1, 3) + off
+                                for f, off in zip(blocker_faces, offsets[:-1])])
+        points = np.concatenate([m.points for m in meshes])
+        normals = np.concatenate([m.normals for m in meshes])
+        # no blocking triangle at all (no object casts shadows): every light is fully visible
+        self.mesh = TriMesh(points, faces, normals=normals, name="area-light blockers") if len(faces) else None
         self.visibility = []
         for light in self.lights:
             try:
@@ -96,10 +105,11 @@ class AreaLightShading:
             except ValueError as exc:
                 raise ValueError(f"{light.name}: GEARS needs a rectangle with orthogonal axes ({exc}); "
                                  "use --area-lights sh for this scene") from None
-            self.visibility.append(GearsVisibility(self.mesh, rect, k=k, grid=grid, device=device))
+            self.visibility.append(GearsVisibility(self.mesh, rect, k=k, grid=grid, device=device)
+                                   if self.mesh is not None else None)
         self.static = bool(static) and all(li.motion is None for li in self.lights)
-        self._phi = wp.empty(self.mesh.num_vertices, dtype=float, device=device)
-        self._w = wp.empty(self.mesh.num_vertices, dtype=float, device=device)
+        self._phi = wp.empty(len(points), dtype=float, device=device)
+        self._w = wp.empty(len(points), dtype=float, device=device)
         self._cached = None
 
     def irradiance(self, t: float, points: list, normals: list) -> list:
@@ -120,6 +130,10 @@ class AreaLightShading:
         total = np.zeros((len(pts), 3))
         for vis, light in zip(self.visibility, self.lights):
             light = light.at_time(t)
+            if vis is None:
+                phi = light.projected_solid_angle(pts, nrm, out=self._phi)
+                total += phi.numpy().astype(np.float64)[:, None] * light.radiance
+                continue
             vis.set_light(light)
             vis.update(pts, nrm)
             w = vis.weighted_visibility(out=self._w) if self.weighting == "cosine" else vis.visibility
@@ -132,7 +146,7 @@ class AreaLightShading:
 
     def stats(self) -> dict:
         """GEARS counters of the last frame, per light."""
-        return {li.name: vis.stats() for li, vis in zip(self.lights, self.visibility)}
+        return {li.name: vis.stats() if vis is not None else {} for li, vis in zip(self.lights, self.visibility)}
 
 
 __all__ = ["AREA_MODES", "DEFAULT_AREA_KNOBS", "WEIGHTINGS", "AreaLightShading", "area_lights_used", "is_area_light",

@@ -39,6 +39,8 @@ class GroupSpec:
         meshes: Their rest meshes (topology fixed).
         albedos: Their albedos, linear RGB, shape (3,) each.
         moving: Whether each object moves (static objects keep their rest points).
+        casts: Whether each object casts shadows (``warpshade:castsShadows``; empty: all do). An object
+            that does not is a receiver only: its triangles block no light in any pass (not even its own).
     """
 
     method: str | None
@@ -47,6 +49,14 @@ class GroupSpec:
     meshes: list = field(default_factory=list)
     albedos: list = field(default_factory=list)
     moving: list = field(default_factory=list)
+    casts: list = field(default_factory=list)
+
+    def blocker_faces(self) -> np.ndarray:
+        """Triangles of the members that cast shadows, indexed into the merged group mesh, shape (F_c, 3), int32."""
+        offsets = np.cumsum([0] + [m.num_vertices for m in self.meshes])
+        casts = self.casts or [True] * len(self.meshes)
+        parts = [m.faces + off for m, off, c in zip(self.meshes, offsets[:-1], casts) if c]
+        return np.concatenate(parts).astype(np.int32) if parts else np.zeros((0, 3), np.int32)
 
 
 class _Group:
@@ -58,14 +68,24 @@ class _Group:
         faces = np.concatenate([m.faces + off for m, off in zip(spec.meshes, self.offsets[:-1])])
         self.rest = np.concatenate([m.points for m in spec.meshes])
         self.mesh = TriMesh(self.rest, faces, name=f"group[{', '.join(spec.names)}]")
+        """Receivers: every member's vertices and triangles (normals come from all of them)."""
+        self.blocker_faces = spec.blocker_faces()
+        """Triangles that block light (members casting shadows), shape (F_c, 3), int32."""
+        receivers_only = len(self.blocker_faces) < len(faces)
         self.any_moving = any(spec.moving)
         self.cached = None
-        if spec.method is not None:
+        self.method = None
+        if spec.method is not None and len(self.blocker_faces):
             from ..visibility import get_method
 
-            self.method = get_method(spec.method)(self.mesh, order=order, device=device, **spec.knobs)
-        else:
-            self.method = None
+            # Members that cast no shadows keep their vertices (receivers, with the normals of their own
+            # triangles, passed in update) but lose their triangles from the method's mesh, so every
+            # method sees them as points that block nothing.
+            mesh = self.mesh if not receivers_only else TriMesh(
+                self.rest, self.blocker_faces, normals=self.mesh.normals, name=f"{self.mesh.name} casters")
+            self.method = get_method(spec.method)(mesh, order=order, device=device, **spec.knobs)
+        self._faces = None
+        if self.method is None or receivers_only:
             self._faces = wp.array(faces, dtype=wp.int32, device=device)
             self._points = wp.array(self.rest, dtype=wp.vec3, device=device)
             self._normals = wp.zeros(len(self.rest), dtype=wp.vec3, device=device)
@@ -77,12 +97,15 @@ class _Group:
         pts = np.concatenate([geometry[n] if mv else self.rest[a:b] for n, mv, a, b in
                               zip(self.spec.names, self.spec.moving, self.offsets[:-1], self.offsets[1:])])
         pts = pts.astype(np.float32)
+        normals = None
+        if self._faces is not None:  # normals from every member's triangles, blocking or not
+            self._points.assign(pts)
+            normals = vertex_normals(self._points, self._faces, out=self._normals)
         if self.method is not None:
-            transfer = self.method.update(pts).numpy().copy()  # the next update overwrites it
+            transfer = self.method.update(pts, normals).numpy().copy()  # the next update overwrites it
             normals = self.method.normals.numpy().copy()
         else:
-            self._points.assign(pts)
-            normals = vertex_normals(self._points, self._faces, out=self._normals).numpy().copy()
+            normals = normals.numpy().copy()
             transfer = unoccluded_transfer(normals, self.order)
         self.cached = (pts, transfer, normals)
         return self.cached
@@ -103,9 +126,9 @@ class SceneShader:
         write_transfer: Return the transfer too.
         device: Warp device.
         between: Shadows between shading groups: ``"spheres"`` (each group is shadowed by sphere sets
-            fitted to every other group, thesis §4.2; visibilities multiply with the group's own,
-            eq. 4.5) or None (groups do not shadow each other). Objects inside one group always
-            shadow each other through the group's method.
+            fitted to every other group's shadow casters, thesis §4.2; visibilities multiply with the
+            group's own, eq. 4.5) or None (groups do not shadow each other). Objects inside one group
+            always shadow each other through the group's method (except objects that cast no shadows).
         reflections: One bounce of diffuse reflection between all shaded objects (sphere sets, thesis
             §4.3): None (off) or keyword arguments of :class:`~.reflections.SceneReflections`
             (``{}`` for its defaults). Each object's reflected irradiance times its ``albedo/π`` is
@@ -223,32 +246,43 @@ def _area_shading(spec: SceneShader, groups: list, lights: list):
     if spec.area_lights == "sh" or not rect:
         return None
     return AreaLightShading([g.mesh for g in groups], rect, static=not any(g.any_moving for g in groups),
-                            device=spec.device, **spec.area_knobs)
+                            device=spec.device, blocker_faces=[g.blocker_faces for g in groups], **spec.area_knobs)
 
 
 def _between_group_shadows(groups: list, order: int, device: str) -> list:
-    """One :class:`~warpshade.visibility.spheres.SpheresTransfer` per group, whose blockers are the
-    sphere trees of all other groups (each tree fitted once, on the group's rest pose)."""
+    """Per group, ``(spheres, others)``: a :class:`~warpshade.visibility.spheres.SpheresTransfer` whose
+    blockers are the sphere trees of the shadow casters of the groups ``others`` (every other group with
+    one; each tree fitted once, on the group's rest pose), or None when no other group casts shadows."""
     from ..visibility.spheres.fitting import build_sphere_tree
     from ..visibility.spheres.method import SpheresTransfer
 
-    trees = [build_sphere_tree(g.rest, g.mesh.faces, device=device) for g in groups]
-    return [SpheresTransfer(g.mesh, order=order, device=device, self_shadow=False,
-                            blockers=[(trees[j], groups[j].rest) for j in range(len(groups)) if j != i])
-            for i, g in enumerate(groups)]
+    # vertices of members that cast no shadows are in no triangle of blocker_faces: no sphere bounds them
+    trees = [build_sphere_tree(g.rest, g.blocker_faces, device=device) if len(g.blocker_faces) else None
+             for g in groups]
+    out = []
+    for i, g in enumerate(groups):
+        others = [j for j in range(len(groups)) if j != i and trees[j] is not None]
+        out.append((SpheresTransfer(g.mesh, order=order, device=device, self_shadow=False,
+                                    blockers=[(trees[j], groups[j].rest) for j in others]), others) if others else None)
+    return out
 
 
-def _shadow_by_others(spheres, i: int, updated: list, device: str) -> np.ndarray:
-    """Group ``i``'s transfer times the visibility of every other group's spheres this frame."""
+def _shadow_by_others(between, i: int, updated: list, device: str) -> np.ndarray:
+    """Group ``i``'s transfer times the visibility of the other casting groups' spheres this frame
+    (``between``: its entry of :func:`_between_group_shadows`)."""
     pts, transfer, normals = updated[i]
-    spheres.update(pts, normals, blocker_points=[u[0] for j, u in enumerate(updated) if j != i])
+    if between is None:
+        return transfer
+    spheres, others = between
+    spheres.update(pts, normals, blocker_points=[updated[j][0] for j in others])
     out = spheres.shadow(wp.array(transfer, dtype=float, device=device))
     return out.numpy().copy()
 
 
 def group_objects(objects, method: str | None = None, knobs: dict | None = None,
                   default_knobs: dict | None = None, default_albedo=None) -> list[GroupSpec]:
-    """Group shaded objects by (method, knobs).
+    """Group shaded objects by (method, knobs). A group none of whose members casts shadows
+    (``casts_shadows`` False) gets method None: nothing in it blocks light, so its transfer is unoccluded.
 
     Args:
         objects: :class:`warpshade.scene.SceneObject` list.
@@ -277,6 +311,13 @@ def group_objects(objects, method: str | None = None, knobs: dict | None = None,
             albedo = np.broadcast_to(np.asarray(default_albedo, dtype=np.float64), (3,))
         g.albedos.append(np.array(albedo, dtype=np.float64))
         g.moving.append(obj.kind != "static")
+        g.casts.append(bool(obj.casts_shadows))
+    for g in by_key.values():
+        if g.method is not None and not any(g.casts):
+            # nothing in the group blocks light (castsShadows false on every member): its own transfer is the
+            # unoccluded one whatever the method; it stays a group of its own, so other groups' sphere sets
+            # still shadow it
+            g.method, g.knobs = None, {}
     return list(by_key.values())
 
 

@@ -45,6 +45,193 @@ def cosine_direction(frame: wp.mat33, u: float, v: float) -> wp.vec3:
     return frame * wp.vec3(d2[0], d2[1], z)
 
 
+@wp.struct
+class SurfaceHit:
+    """The surface that blocks a ray (:func:`trace_surface_ray`): ``face`` (-1: none), distance ``t`` along the
+    ray, barycentrics ``u, v`` and ``sign`` (> 0: the ray meets the triangle's front, as ``MeshQueryRay.sign``)."""
+
+    face: int
+    t: float
+    u: float
+    v: float
+    sign: float
+
+
+@wp.func
+def has_vertex(mesh: wp.uint64, face: int, vertex: int) -> bool:
+    """Whether triangle ``face`` of ``mesh`` has corner ``vertex``."""
+    return (wp.mesh_get_index(mesh, face * 3) == vertex or wp.mesh_get_index(mesh, face * 3 + 1) == vertex
+            or wp.mesh_get_index(mesh, face * 3 + 2) == vertex)
+
+
+@wp.func
+def cross_triangle(mesh: wp.uint64, face: int, start: wp.vec3, d: wp.vec3, length: float, front_only: bool) -> wp.vec4:
+    """Where the segment ``start + t d`` (0 <= t <= length) crosses triangle ``face`` (Möller–Trumbore, edges
+    inclusive): ``(t, u, v, side)`` with side +1 when it meets the front, -1 the back; t = -1 when it does
+    not cross (or, with ``front_only``, meets the back)."""
+    a = wp.mesh_get_point(mesh, face * 3)
+    e1 = wp.mesh_get_point(mesh, face * 3 + 1) - a
+    e2 = wp.mesh_get_point(mesh, face * 3 + 2) - a
+    pv = wp.cross(d, e2)
+    det = wp.dot(e1, pv)  # = -d · (e1 × e2): > 0 when the ray meets the front
+    tiny = 1.0e-7 * wp.length(e1) * wp.length(e2)
+    if det <= tiny and (front_only or det >= -tiny):
+        return wp.vec4(-1.0, 0.0, 0.0, 0.0)
+    s = start - a
+    u = wp.dot(s, pv) / det
+    q = wp.cross(s, e1)
+    v = wp.dot(d, q) / det
+    t = wp.dot(e2, q) / det
+    tol = 1.0e-6  # barycentric slack: a point on a shared edge belongs to both triangles
+    if u < -tol or v < -tol or u + v > 1.0 + tol or t < 0.0 or t > length:
+        return wp.vec4(-1.0, 0.0, 0.0, 0.0)
+    return wp.vec4(t, u, v, wp.where(det > 0.0, 1.0, -1.0))
+
+
+@wp.func
+def continues_surface(mesh: wp.uint64, f: int, p: wp.vec3, n: wp.vec3) -> bool:
+    """Whether triangle ``f`` has a corner exactly at ``p`` and faces within 120° of normal ``n``: the receiver's
+    own surface through a duplicated vertex (a seam, split normals), not a surface it rests on."""
+    a = wp.mesh_get_point(mesh, f * 3)
+    b = wp.mesh_get_point(mesh, f * 3 + 1)
+    c = wp.mesh_get_point(mesh, f * 3 + 2)
+    if wp.length_sq(a - p) > 0.0 and wp.length_sq(b - p) > 0.0 and wp.length_sq(c - p) > 0.0:
+        return False
+    nf = wp.cross(b - a, c - a)
+    return wp.dot(nf, n) > -0.5 * wp.length(nf)
+
+
+@wp.func
+def own_surface(mesh: wp.uint64, f: int, vertex: int, p: wp.vec3, n: wp.vec3) -> bool:
+    """Whether triangle ``f`` is part of the receiver's own surface at ``p``: one of ``vertex``'s triangles, or
+    one through a duplicate of it (:func:`continues_surface`)."""
+    return (vertex >= 0 and has_vertex(mesh, f, vertex)) or continues_surface(mesh, f, p, n)
+
+
+NEAR_FACES = 16
+"""Triangles near a vertex kept per vertex (:class:`NearFaces`: its own triangles and any other within the
+near-field distance); with more, every ray queries the BVH for them itself."""
+
+
+class vec_near(wp.types.vector(length=NEAR_FACES, dtype=wp.int32)):
+    pass
+
+
+@wp.struct
+class NearFaces:
+    """Triangles whose bounds come within ``eps`` of a receiver point, the only ones :func:`trace_surface_ray`
+    tests in the near field: ``f`` for another surface's, ``-1 - f`` for the receiver's own (:func:`own_surface`).
+    ``count`` > ``NEAR_FACES``: too many to keep. ``tilt``: sine of the largest angle between the receiver's
+    normal and its own triangles' (1 past 90°): a ray with ``d · n >= tilt`` points to the front of every one
+    of them, so none can block it."""
+
+    faces: vec_near
+    count: int
+    tilt: float
+
+
+@wp.func
+def near_faces(mesh: wp.uint64, vertex: int, p: wp.vec3, n: wp.vec3, eps: float) -> NearFaces:
+    """The :class:`NearFaces` of receiver point ``p`` with unit normal ``n`` (``vertex``: its index in ``mesh``,
+    or -1), gathered once for all its rays."""
+    out = NearFaces()
+    out.count = 0
+    out.tilt = 0.0
+    e = wp.vec3(eps, eps, eps)
+    query = wp.mesh_query_aabb(mesh, p - e, p + e)
+    f = int(0)
+    faces = vec_near()
+    while wp.mesh_query_aabb_next(query, f):
+        own = own_surface(mesh, f, vertex, p, n)
+        if own:
+            a = wp.mesh_get_point(mesh, f * 3)
+            nf = wp.cross(wp.mesh_get_point(mesh, f * 3 + 1) - a, wp.mesh_get_point(mesh, f * 3 + 2) - a)
+            lf = wp.length(nf)
+            if lf > 0.0:
+                c = wp.dot(nf, n) / lf
+                out.tilt = wp.max(out.tilt, wp.where(c > 0.0, wp.sqrt(wp.max(0.0, 1.0 - c * c)), 1.0))
+        if out.count < NEAR_FACES:
+            faces[out.count] = wp.where(own, -1 - f, f)
+        out.count += 1
+    out.faces = faces
+    return out
+
+
+@wp.func
+def near_crossing(mesh: wp.uint64, f: int, own: bool, p: wp.vec3, n: wp.vec3, d: wp.vec3, eps: float,
+                  max_t: float) -> wp.vec4:
+    """Where triangle ``f`` blocks the ray by the near-field rules of :func:`trace_surface_ray`: ``(t, u, v, side)``
+    as :func:`cross_triangle`, t = -1 when it does not."""
+    if own:
+        return cross_triangle(mesh, f, p + n * eps, d, max_t, False)
+    return cross_triangle(mesh, f, p - d * eps, d, 2.0 * eps, True)
+
+
+@wp.func
+def skip_own(near: NearFaces, n: wp.vec3, d: wp.vec3) -> bool:
+    """Whether no triangle of the receiver's own surface can block ``d`` (it points to the front of all)."""
+    return wp.dot(d, n) >= near.tilt
+
+
+@wp.func
+def trace_surface_ray(mesh: wp.uint64, vertex: int, p: wp.vec3, n: wp.vec3, d: wp.vec3, eps: float, max_t: float,
+                      near: NearFaces) -> SurfaceHit:
+    """The surface that blocks a ray leaving the surface point ``p`` (unit normal ``n``) along unit ``d``
+    within ``max_t``.
+
+    ``p`` lies on the mesh (``vertex``: its index in ``mesh``, or -1 when it is no vertex of it) and maybe
+    exactly on another surface too (an object resting on a ground). Pushing the ray origin ``eps`` off along
+    the normal, the usual cure for self-intersection, moves it through such a surface whenever the normal
+    leans into it (the rim of a box standing on the ground: its rays then start under the ground and see
+    the wrong half of the sky). So only the receiver's own surface at ``p`` (``vertex``'s triangles, and
+    triangles through a duplicate of it facing the side of ``n``, :func:`own_surface`) is tested from the
+    lifted origin ``p + eps n`` (it occludes where it folds up around the vertex: valleys, creases); another
+    surface within ``eps`` of ``p`` blocks if the ray enters its front there (the ground under a vertex, for
+    rays going down; a ray leaving a surface through its back started on it and is let go); and from
+    ``p + eps d`` on, the first hit blocks whichever side it meets (open meshes such as cloth block from
+    both). ``eps`` is a length, a small fraction of the scene's size; ``near`` comes from
+    :func:`near_faces` with the same ``mesh``, ``vertex``, ``p``, ``n`` and ``eps``.
+    """
+    best = wp.vec4(-1.0, 0.0, 0.0, 0.0)
+    face = int(-1)
+    if near.count <= NEAR_FACES:
+        for k in range(near.count):
+            f = near.faces[k]
+            own = f < 0
+            if own:
+                f = -1 - f
+            if not (own and skip_own(near, n, d)):
+                c = near_crossing(mesh, f, own, p, n, d, eps, max_t)
+                if c[0] >= 0.0 and (face < 0 or c[0] < best[0]):
+                    best = c
+                    face = f
+    else:
+        e = wp.vec3(eps, eps, eps)
+        query = wp.mesh_query_aabb(mesh, p - e, p + e)
+        f = int(0)
+        while wp.mesh_query_aabb_next(query, f):
+            c = near_crossing(mesh, f, own_surface(mesh, f, vertex, p, n), p, n, d, eps, max_t)
+            if c[0] >= 0.0 and (face < 0 or c[0] < best[0]):
+                best = c
+                face = f
+    hit = SurfaceHit()
+    hit.face = face
+    if face >= 0:
+        hit.t = best[0]
+        hit.u = best[1]
+        hit.v = best[2]
+        hit.sign = best[3]
+        return hit
+    q = wp.mesh_query_ray(mesh, p + d * eps, d, max_t)
+    if q.result:
+        hit.face = q.face
+        hit.t = q.t + eps
+        hit.u = q.u
+        hit.v = q.v
+        hit.sign = q.sign
+    return hit
+
+
 @wp.kernel
 def trace_transfer(
     mesh: wp.uint64,
@@ -65,9 +252,9 @@ def trace_transfer(
     v = wp.tid()
     n = normals[v]
     frame = orthonormal_basis(n)
-    origin = points[v] + n * offset
     rng = wp.rand_init(seed, v)
     weight = wp.pi / float(strata * strata)
+    near = near_faces(mesh, v, points[v], n, offset)
     for i in range(order * order):
         transfer[v, i] = 0.0
     for sx in range(strata):
@@ -75,6 +262,5 @@ def trace_transfer(
             u = (float(sx) + wp.randf(rng)) / float(strata)
             w = (float(sy) + wp.randf(rng)) / float(strata)
             d = cosine_direction(frame, u, w)
-            q = wp.mesh_query_ray(mesh, origin, d, max_t)
-            if not q.result:
+            if trace_surface_ray(mesh, v, points[v], n, d, offset, max_t, near).face < 0:
                 sh_accumulate(d, weight, order, k, transfer, v)

@@ -30,7 +30,8 @@ def reflected_irradiance_reference(points, normals, meshes: list[TriMesh], exit_
         exit_radiance: Per mesh, linear RGB exit radiance of each vertex, shape (V_o, 3).
         rays: Rays per receiver (rounded to a square for stratification).
         seed: Random seed.
-        offset: Ray origin offset along the normal, fraction of the scene's bounding-box diagonal.
+        offset: Near-field distance of the rays (:func:`~warpshade.visibility.reference_kernels.trace_surface_ray`),
+            fraction of the scene's bounding-box diagonal.
 
     Returns:
         Reflected irradiance, shape (R, 3), float32.
@@ -51,12 +52,18 @@ def reflected_irradiance_reference(points, normals, meshes: list[TriMesh], exit_
                   indices=wp.array(np.concatenate(faces).reshape(-1).astype(np.int32), dtype=wp.int32, device=device),
                   velocities=wp.array(np.concatenate(rad), dtype=wp.vec3, device=device))
     recv = np.asarray(points, dtype=np.float32)
+    # a receiver at a mesh vertex is that vertex: its own triangles meet its rays only at their origin
+    first = {}
+    for i, row in enumerate(map(bytes, allp)):
+        first.setdefault(row, i)
+    ids = np.array([first.get(bytes(row), -1) for row in recv], dtype=np.int32)
     diag = float(np.linalg.norm(np.ptp(np.concatenate([allp, recv]), axis=0))) or 1.0
     strata = max(1, int(round(math.sqrt(rays))))
     out = wp.zeros(len(recv), dtype=wp.vec3, device=device)
     wp.launch(trace_bounce, dim=len(recv),
               inputs=[bvh.id, wp.array(recv, dtype=wp.vec3, device=device),
-                      wp.array(np.asarray(normals, dtype=np.float32), dtype=wp.vec3, device=device), strata,
+                      wp.array(np.asarray(normals, dtype=np.float32), dtype=wp.vec3, device=device),
+                      wp.array(ids, dtype=int, device=device), strata,
                       offset * diag, 4.0 * diag, int(seed)],
               outputs=[out], device=device)
     return out.numpy()

@@ -350,7 +350,7 @@ def build_sphere_tree(points, faces, spheres: int = 30, levels: int = 3, branchi
     """Fit leaves, then parents by Lloyd clustering of child centres with a branching factor (thesis §4.1).
 
     Args:
-        points, faces: The mesh (rest pose).
+        points, faces: The mesh (rest pose). Vertices in no triangle belong to no sphere.
         spheres: Leaf spheres.
         levels: Hierarchy levels including the leaves (1 = leaves only).
         branching: Children per parent; default ``ceil(spheres ** (1/(levels-1)))`` so the top level has
@@ -360,6 +360,15 @@ def build_sphere_tree(points, faces, spheres: int = 30, levels: int = 3, branchi
     if levels < 1:
         raise ValueError(f"levels must be >= 1, got {levels}")
     points = np.asarray(points, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    used = np.unique(faces)
+    if len(used) < len(points):
+        # vertices in no triangle (receivers that cast no shadows, warpshade:castsShadows = false) are not
+        # bounded: fit the triangles' vertices only, then list the spheres' vertices in the caller's indices
+        tree = build_sphere_tree(points[used], np.searchsorted(used, faces), spheres, levels, branching, seed,
+                                 device, **fit_kwargs)
+        tree.vert_index = used[tree.vert_index]
+        return tree
     # fit and cluster in the unit frame (bounding-box diagonal 1) so the tree is scale invariant
     c, r, vlab, closed, e = fit_leaf_spheres(points, faces, spheres, seed=seed, device=device, **fit_kwargs)
     # cluster in the unit frame too (Nelder-Mead and k-means tolerances), then back to metres

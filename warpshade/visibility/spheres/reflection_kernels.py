@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ..reference_kernels import cosine_direction, orthonormal_basis
+from ..reference_kernels import cosine_direction, near_faces, orthonormal_basis, trace_surface_ray
 
 
 @wp.kernel
@@ -139,13 +139,15 @@ def trace_bounce(
     mesh: wp.uint64,
     points: wp.array[wp.vec3],
     normals: wp.array[wp.vec3],
+    vertex_ids: wp.array[int],
     strata: int,
     offset: float,
     max_t: float,
     seed: int,
     irradiance: wp.array[wp.vec3],
 ):
-    """Ray-traced reflected irradiance ``E_R(p) = ∫ L_o(hit(p, ω)) max(0, n·ω) dω`` at receiver ``v``.
+    """Ray-traced reflected irradiance ``E_R(p) = ∫ L_o(hit(p, ω)) max(0, n·ω) dω`` at receiver ``v``
+    (``vertex_ids[v]``: the mesh vertex at the receiver, whose own triangles do not block it, or -1).
 
     ``mesh`` carries the exit radiance of every vertex in its velocities (interpolated at the hit by
     ``mesh_eval_velocity``); back-face hits (the inside of a closed object) reflect nothing. Stratified
@@ -154,14 +156,17 @@ def trace_bounce(
     v = wp.tid()
     n = normals[v]
     frame = orthonormal_basis(n)
-    origin = points[v] + n * offset
+    near = near_faces(mesh, vertex_ids[v], points[v], n, offset)
     rng = wp.rand_init(seed, v)
     acc = wp.vec3(0.0)
     for sx in range(strata):
         for sy in range(strata):
             u = (float(sx) + wp.randf(rng)) / float(strata)
             w = (float(sy) + wp.randf(rng)) / float(strata)
-            q = wp.mesh_query_ray(mesh, origin, cosine_direction(frame, u, w), max_t)
-            if q.result and q.sign > 0.0:
+            # the same rays as the reference transfer (trace_surface_ray: no origin pushed through a surface
+            # the receiver rests on)
+            q = trace_surface_ray(mesh, vertex_ids[v], points[v], n, cosine_direction(frame, u, w), offset, max_t,
+                                  near)
+            if q.face >= 0 and q.sign > 0.0:
                 acc = acc + wp.mesh_eval_velocity(mesh, q.face, q.u, q.v)
     irradiance[v] = acc * (wp.pi / float(strata * strata))
