@@ -486,7 +486,6 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
             if g.method is None and chosen[name][0] is not None:
                 # no member of its group casts shadows (castsShadows false): the run shades it unoccluded
                 chosen[name] = (None, {}, None, "no object of its shading group casts shadows: unoccluded")
-    n_groups = len(run_groups)
     group_of = {name: i for i, g in enumerate(run_groups) for name in g.names}
     casting_groups = [i for i, g in enumerate(run_groups) if any(g.casts)]
     # sphere sets shadow a group by the casters of the other groups (pipeline.shading._between_group_shadows)
