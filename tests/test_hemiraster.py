@@ -109,7 +109,7 @@ def test_half_lut_reproduces_the_full_table(mask, res):
     full, _, _ = tables.build_lut(mask, res)
     half = tables.positive_half(full, mask, res)
     lut = hr_kernels.PlaneLut()
-    lut.rows = wp.array(half["rows"], dtype=wp.uint64)
+    lut.rows = wp.array(np.ascontiguousarray(half["rows"].T), dtype=wp.uint64)
     lut.code_occupancy = wp.array(tables.code_occupancy(half), dtype=wp.uint64)
     lut.valid = wp.array(half["valid"], dtype=wp.uint64)
     lut.res, lut.words = res, tables.words_per_mask(mask)

@@ -23,7 +23,9 @@ class PlaneLut:
     """The plane LUT and how triangles use it (see :mod:`.tables`)."""
 
     rows: wp.array2d[wp.uint64]
-    """Mask words above each quantised plane of the positive cube faces, shape (3R², W), dtype uint64.
+    """Mask words above each quantised plane of the positive cube faces, word-major: shape (W, 3R²),
+    dtype uint64 (word ``w`` of all cells contiguous: images cluster in a few words, so the words
+    a receiver reads of many planes share cache lines, where a cell-major row spans two lines).
     A negative face's row is the complement (within the valid pixels) of its mirror cell's row
     (:mod:`.tables`), so only half the table is stored: it stays in cache twice as well."""
     code_occupancy: wp.array[wp.uint64]
@@ -189,7 +191,7 @@ def lut_occupancy(lut: PlaneLut, code: int) -> wp.uint64:
 def lut_word(lut: PlaneLut, code: int, w: int) -> wp.uint64:
     """Word ``w`` of the row of ``code`` (:func:`cube_cell`): the stored row, complemented within the
     valid pixels for a negative face (XOR with all ones, no select; stored rows hold valid pixels only)."""
-    return (lut.rows[code >> 1, w] ^ (wp.uint64(0) - wp.uint64(code & 1))) & lut.valid[w]
+    return (lut.rows[w, code >> 1] ^ (wp.uint64(0) - wp.uint64(code & 1))) & lut.valid[w]
 
 
 @wp.func
@@ -350,7 +352,7 @@ def rasterize_codes(codes: wp.vec3i, lut: PlaneLut, mask: wp.array2d[wp.uint64],
         low = occ & (~occ + wp.uint64(1))
         w = lut.debruijn[int((low * wp.uint64(0x03F79D71B4CB0A89)) >> wp.uint64(58))]
         occ = occ ^ low
-        m = (lut.rows[r0, w] ^ f0) & (lut.rows[r1, w] ^ f1) & (lut.rows[r2, w] ^ f2) & lut.valid[w]
+        m = (lut.rows[w, r0] ^ f0) & (lut.rows[w, r1] ^ f1) & (lut.rows[w, r2] ^ f2) & lut.valid[w]
         hit = hit | m
         mask[row, w] = mask[row, w] | m
     return hit != wp.uint64(0)

@@ -149,7 +149,7 @@ class HemirasterTransfer(TransferMethod):
         self._words = tables.words_per_mask(self.mask_res)
         self._lut = PlaneLut()
         half = tables.positive_half(lut_np, self.mask_res, self.lut_res)
-        self._lut.rows = wp.array(half["rows"], dtype=wp.uint64, device=d)
+        self._lut.rows = wp.array(np.ascontiguousarray(half["rows"].T), dtype=wp.uint64, device=d)
         self._lut.code_occupancy = wp.array(tables.code_occupancy(half), dtype=wp.uint64, device=d)
         self._lut.valid = wp.array(half["valid"], dtype=wp.uint64, device=d)
         self._lut.debruijn = wp.array(tables.debruijn_table(), dtype=wp.int32, device=d)
