@@ -213,7 +213,7 @@ grazing slivers are what wastes the time (cloth). Measured: 0.25 keeps too many 
 (208 vs 144 triangles per vertex), 0.7 costs the bunny 0.13 % error."""
 
 
-@wp.func
+@wp.func(inline=True)
 def image_below(a: wp.vec3, b: wp.vec3, c: wp.vec3, nz: wp.vec3, min_area: float) -> bool:
     """True when the projected solid angle of triangle (a, b, c) (relative to the receiver) is below ``min_area``.
 
