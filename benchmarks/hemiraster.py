@@ -37,6 +37,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 
 from warpshade.geometry import TriMesh, load_mesh  # noqa: E402
+from warpshade.bench.reference_cache import TRUTH_VERSION  # noqa: E402
 from warpshade.metrics import transfer_errors  # noqa: E402
 from warpshade.sh import sh_eval  # noqa: E402
 from warpshade.visibility import get_method  # noqa: E402
@@ -93,7 +94,8 @@ def scene(name: str) -> tuple[TriMesh, list[np.ndarray]]:
 def reference(name: str, mesh: TriMesh, frames: list[np.ndarray]) -> list[np.ndarray]:
     """4096-ray reference transfer per frame, cached on disk."""
     os.makedirs(CACHE, exist_ok=True)
-    path = os.path.join(CACHE, f"hemiraster_ref_{name}_o{ORDER}_r{REF_RAYS}_f{len(frames)}.npz")
+    # tagged with the ray tracer's truth version: a change of how rays start recomputes the truth
+    path = os.path.join(CACHE, f"hemiraster_ref_{name}_o{ORDER}_r{REF_RAYS}_f{len(frames)}_{TRUTH_VERSION}.npz")
     if os.path.isfile(path):
         z = np.load(path)
         if all(np.array_equal(z[f"points{i}"], f) for i, f in enumerate(frames)):
