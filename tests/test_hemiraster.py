@@ -80,7 +80,7 @@ def test_lut_quantization_error_falls_with_resolution():
     errs = []
     for res in (8, 16, 32, 64, 128):
         table, _, _ = tables.build_lut(32, res)
-        bits = tables.unpack_bits(table[tables.cube_cell_np(planes, res), :-1], 32 * 32)
+        bits = tables.unpack_bits(table[tables.cube_cell_np(planes, res)], 32 * 32)
         errs.append((bits != exact).sum() / (valid.sum() * len(planes)))
     # each doubling of R halves the cell size; misclassified pixels sit in a band around the plane's
     # image whose width is proportional to the cell size, so the error must fall monotonically and
@@ -89,14 +89,12 @@ def test_lut_quantization_error_falls_with_resolution():
 
 
 @wp.kernel
-def _lut_rows_of_normals(normals: wp.array[wp.vec3], lut: hr_kernels.PlaneLut, words: wp.array2d[wp.uint64],
-                         occ: wp.array[wp.uint64]):
-    """The rasterizer's view of the half LUT: every word of the row of plane normal i, and its occupancy."""
+def _lut_rows_of_normals(normals: wp.array[wp.vec3], lut: hr_kernels.PlaneLut, words: wp.array2d[wp.uint64]):
+    """The rasterizer's view of the half LUT: every word of the row of plane normal i."""
     i = wp.tid()
     code = hr_kernels.cube_cell(normals[i], lut.res)
     for w in range(lut.words):
         words[i, w] = hr_kernels.lut_word(lut, code, w)
-    occ[i] = hr_kernels.lut_occupancy(lut, code)
 
 
 @pytest.mark.parametrize("mask, res", [(32, 48), (16, 7), (64, 12)])
@@ -109,24 +107,16 @@ def test_half_lut_reproduces_the_full_table(mask, res):
     full, _, _ = tables.build_lut(mask, res)
     half = tables.positive_half(full, mask, res)
     lut = hr_kernels.PlaneLut()
-    lut.rows = wp.array(np.ascontiguousarray(half["rows"].T), dtype=wp.uint64)
-    lut.code_occupancy = wp.array(tables.code_occupancy(half), dtype=wp.uint64)
-    lut.valid = wp.array(half["valid"], dtype=wp.uint64)
-    lut.res, lut.words = res, tables.words_per_mask(mask)
+    lut.rows = wp.array(tables.chunked_rows(half["rows"]), dtype=hr_kernels.MaskChunk)
+    lut.valid = wp.array(tables.chunked_rows(half["valid"][None])[0], dtype=hr_kernels.MaskChunk)
+    lut.res, lut.words, lut.chunks = res, tables.words_per_mask(mask), lut.rows.shape[1]
     words = wp.zeros((len(normals), lut.words), dtype=wp.uint64)
-    occ = wp.zeros(len(normals), dtype=wp.uint64)
-    wp.launch(_lut_rows_of_normals, dim=len(normals), inputs=[wp.array(normals, dtype=wp.vec3), lut], outputs=[words, occ])
+    wp.launch(_lut_rows_of_normals, dim=len(normals), inputs=[wp.array(normals, dtype=wp.vec3), lut], outputs=[words])
     want = full[tables.cube_cell_np(normals, res)]
-    np.testing.assert_array_equal(words.numpy(), want[:, :-1], err_msg=f"mask {mask} R {res}")
-    np.testing.assert_array_equal(occ.numpy(), want[:, -1], err_msg=f"mask {mask} R {res}")
-    assert tables.lut_bytes(mask, res) == 3 * res * res * (lut.words + 2) * 8 < full.nbytes
-
-
-def test_occupancy_column_marks_nonzero_words():
-    table, _, _ = tables.build_lut(16, 8)
-    nw = tables.words_per_mask(16)
-    occ = tables.unpack_bits(table[:, nw:], 64)[:, :nw]
-    np.testing.assert_array_equal(occ, table[:, :nw] != 0)
+    np.testing.assert_array_equal(words.numpy(), want, err_msg=f"mask {mask} R {res}")
+    # the rasterizer's table: half the cells, each row padded to whole 16-word chunks
+    chunks = -(-lut.words // 16)
+    assert tables.lut_bytes(mask, res) == 3 * res * res * chunks * 128 == lut.rows.numpy().nbytes
 
 
 def test_block_weights_integrate_to_unoccluded_transfer():
@@ -431,7 +421,7 @@ def test_scale_invariant(scale):
 def test_lut_disk_cache_round_trip(tmp_path):
     tables._LUT_CACHE.pop((8, 6), None)
     a, _, src = tables.build_lut(8, 6, str(tmp_path))
-    assert src == "built" and (tmp_path / "hemiraster_lut_v2_M8_R6.npy").is_file()
+    assert src == "built" and (tmp_path / "hemiraster_lut_v3_M8_R6.npy").is_file()
     tables._LUT_CACHE.pop((8, 6), None)
     b, _, src = tables.build_lut(8, 6, str(tmp_path))
     assert src == "disk"
@@ -460,7 +450,7 @@ def test_cli_contract(tmp_path):
     assert s["method"] == "hemiraster" and s["order"] == 3 and s["seconds"] > 0
     k = s["knobs"]
     assert (k["mask"], k["lut"], k["downsample"], k["ring"], k["coarse"], k["cull"]) == (16, 32, 4, 1, 200, False)
-    assert s["triangles_per_vertex"] > 0 and s["lut_bytes"] == 3 * 32 * 32 * 6 * 8
+    assert s["triangles_per_vertex"] > 0 and s["lut_bytes"] == 3 * 32 * 32 * 128
 
 
 def test_sweep_includes_defaults():

@@ -24,7 +24,7 @@ from ...geometry.mesh import TriMesh
 from ...sh.kernels import normalization_array
 from ..base import TransferMethod
 from . import hierarchy, tables
-from .kernels import (Batch, Blockers, FineMesh, PlaneLut, Refinement, follow_coarse_points, rasterize_transfer, refit_blocker_boxes,
+from .kernels import (Batch, Blockers, FineMesh, MaskChunk, PlaneLut, Refinement, follow_coarse_points, rasterize_transfer, refit_blocker_boxes,
                       triangle_bounds, union_boxes)
 
 
@@ -149,10 +149,9 @@ class HemirasterTransfer(TransferMethod):
         self._words = tables.words_per_mask(self.mask_res)
         self._lut = PlaneLut()
         half = tables.positive_half(lut_np, self.mask_res, self.lut_res)
-        self._lut.rows = wp.array(np.ascontiguousarray(half["rows"].T), dtype=wp.uint64, device=d)
-        self._lut.code_occupancy = wp.array(tables.code_occupancy(half), dtype=wp.uint64, device=d)
-        self._lut.valid = wp.array(half["valid"], dtype=wp.uint64, device=d)
-        self._lut.debruijn = wp.array(tables.debruijn_table(), dtype=wp.int32, device=d)
+        self._lut.rows = wp.array(tables.chunked_rows(half["rows"]), dtype=MaskChunk, device=d)
+        self._lut.valid = wp.array(tables.chunked_rows(half["valid"][None, :])[0], dtype=MaskChunk, device=d)
+        self._lut.chunks = self._lut.rows.shape[1]
         self._lut.res = self.lut_res
         self._lut.words = self._words
         pdirs, pvalid = tables.pixel_directions(self.mask_res)

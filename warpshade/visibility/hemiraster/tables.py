@@ -19,8 +19,8 @@ direction ``d`` has ``n·d > 0``. Normals are quantised with a cube map of ``6×
 ``u = n_{(a+1)%3}/|n_a|``, ``v = n_{(a+2)%3}/|n_a|``, cell ``(⌊(u+1)R/2⌋, ⌊(v+1)R/2⌋)`` clamped;
 a negative face uses the mirror ``(R-1-i, R-1-j)`` of the cell of ``-n``, so ``cell(-n)`` mirrors
 ``cell(n)`` exactly and the two triangles sharing an edge get exactly complementary masks.
-Each row has ``W + 1`` words: the ``W`` mask words and a bitmap of which of them are non-zero,
-so the rasterizer touches only words all three edge masks share.
+Each row has the ``W`` mask words; the rasterizer keeps the positive faces (:func:`positive_half`)
+in chunks of 16 words (:func:`chunked_rows`) and combines whole chunks.
 
 **SH weights.** Per ``D×D`` block intersecting the disk, ``W_b,i = ∫_{block ∩ disk} y_i dA`` in the
 tangent frame (supersampled, so ``Σ_b W_b`` is the analytic unoccluded transfer to ~1e-5). A block
@@ -159,17 +159,16 @@ def build_lut_np(mask: int, lut: int) -> np.ndarray:
     """Plane LUT by plain NumPy (the obviously-correct reference of :func:`build_lut`).
 
     Returns:
-        shape (6R², W+1) uint64: bit k of row r set when valid pixel k lies strictly above cell r's
-        plane; the last column is the bitmap of non-zero words.
+        shape (6R², W) uint64: bit k of row r set when valid pixel k lies strictly above cell r's
+        plane.
     """
     dirs, valid = pixel_directions(mask)
     normals = cube_cell_normals(lut)
     nw = words_per_mask(mask)
-    out = np.empty((len(normals), nw + 1), dtype=np.uint64)
+    out = np.empty((len(normals), nw), dtype=np.uint64)
     for s in range(0, len(normals), 4096):
         above = (normals[s:s + 4096] @ dirs.T > 0.0) & valid
-        out[s:s + 4096, :nw] = pack_bits(above)
-    out[:, nw] = pack_bits(out[:, :nw] != 0)[:, 0]
+        out[s:s + 4096] = pack_bits(above)
     return out
 
 
@@ -179,15 +178,13 @@ def fill_plane_lut(
     pixel_dirs: wp.array[wp.vec3],
     lut: wp.array2d[wp.uint64],
 ):
-    """One plane LUT row: bit k set when pixel direction k is above the cell's plane; last word = occupancy.
+    """One plane LUT row: bit k set when pixel direction k is above the cell's plane.
 
     Pixels outside the disk carry a zero direction, so ``n·d > 0`` never holds for them.
     """
     row = wp.tid()
     n = normals[row]
-    nw = lut.shape[1] - 1
-    occ = wp.uint64(0)
-    for word in range(nw):
+    for word in range(lut.shape[1]):
         bits = wp.uint64(0)
         for k in range(64):
             p = word * 64 + k
@@ -195,9 +192,6 @@ def fill_plane_lut(
                 if wp.dot(n, pixel_dirs[p]) > 0.0:
                     bits = bits | (wp.uint64(1) << wp.uint64(k))
         lut[row, word] = bits
-        if bits != wp.uint64(0):
-            occ = occ | (wp.uint64(1) << wp.uint64(word))
-    lut[row, nw] = occ
 
 
 _LUT_CACHE: dict[tuple[int, int], np.ndarray] = {}
@@ -210,7 +204,7 @@ def build_lut(mask: int, lut: int, cache_dir: str | None = None, device: str = "
     Args:
         mask: Mask resolution M.
         lut: Cube-map resolution R (>= 2).
-        cache_dir: Optional directory for ``hemiraster_lut_v2_M{M}_R{R}.npy`` files.
+        cache_dir: Optional directory for ``hemiraster_lut_v3_M{M}_R{R}.npy`` files.
         device: Warp device that builds it (the table is returned on the host either way).
 
     Returns:
@@ -223,16 +217,16 @@ def build_lut(mask: int, lut: int, cache_dir: str | None = None, device: str = "
     if key in _LUT_CACHE:
         return _LUT_CACHE[key], _LUT_BUILD_SECONDS[key], "memory"
     t0 = time.perf_counter()
-    path = os.path.join(cache_dir, f"hemiraster_lut_v2_M{mask}_R{lut}.npy") if cache_dir else None
+    path = os.path.join(cache_dir, f"hemiraster_lut_v3_M{mask}_R{lut}.npy") if cache_dir else None
     table, source = None, "built"
     if path and os.path.isfile(path):
         loaded = np.load(path)
-        if loaded.shape == (6 * lut * lut, words_per_mask(mask) + 1) and loaded.dtype == np.uint64:
+        if loaded.shape == (6 * lut * lut, words_per_mask(mask)) and loaded.dtype == np.uint64:
             table, source = loaded, "disk"
     if table is None:
         dirs, _ = pixel_directions(mask)
         normals = wp.array(cube_cell_normals(lut).astype(np.float32), dtype=wp.vec3, device=device)
-        out = wp.zeros((6 * lut * lut, words_per_mask(mask) + 1), dtype=wp.uint64, device=device)
+        out = wp.zeros((6 * lut * lut, words_per_mask(mask)), dtype=wp.uint64, device=device)
         wp.launch(fill_plane_lut, dim=out.shape[0],
                   inputs=[normals, wp.array(dirs.astype(np.float32), dtype=wp.vec3, device=device)],
                   outputs=[out], device=device)
@@ -340,14 +334,6 @@ def rotation_directions(order: int) -> tuple[np.ndarray, np.ndarray]:
     return best, pinv
 
 
-def debruijn_table() -> np.ndarray:
-    """Bit index of ``1 << k`` from ``((1 << k) * 0x03F79D71B4CB0A89 mod 2^64) >> 58``, shape (64,) int32."""
-    out = np.zeros(64, np.int32)
-    for k in range(64):
-        out[((1 << k) * 0x03F79D71B4CB0A89 % (1 << 64)) >> 58] = k
-    return out
-
-
 def positive_half(table: np.ndarray, mask: int, lut: int) -> dict:
     """The half of the plane LUT the rasterizer keeps: the rows of the positive cube faces.
 
@@ -356,36 +342,32 @@ def positive_half(table: np.ndarray, mask: int, lut: int) -> dict:
     so the kernel complements on the fly and the table it reads is half as large.
 
     Returns:
-        dict of ``rows`` (3R², W) uint64, ``occupancy`` (3R²,) uint64 (non-zero words), ``full``
-        (3R²,) uint64 (words holding every valid pixel), ``valid`` (W,) uint64 (valid pixels per
-        word), ``valid_occupancy`` int (words holding any valid pixel).
+        dict of ``rows`` (3R², W) uint64 and ``valid`` (W,) uint64 (valid pixels per word).
     """
     w = words_per_mask(mask)
-    pos = table.reshape(6, lut * lut, w + 1)[0::2].reshape(3 * lut * lut, w + 1)
-    valid = pack_bits(pixel_directions(mask)[1])
-    rows = np.ascontiguousarray(pos[:, :w])
-    full_words = (rows == valid[None, :]) & (valid[None, :] != 0)
-    weights = np.uint64(1) << np.arange(w, dtype=np.uint64)
-    return {"rows": rows, "occupancy": np.ascontiguousarray(pos[:, w]),
-            "full": (full_words.astype(np.uint64) * weights).sum(axis=1, dtype=np.uint64),
-            "valid": valid, "valid_occupancy": int(((valid != 0).astype(np.uint64) * weights).sum(dtype=np.uint64))}
+    rows = np.ascontiguousarray(table.reshape(6, lut * lut, w)[0::2].reshape(3 * lut * lut, w))
+    return {"rows": rows, "valid": pack_bits(pixel_directions(mask)[1])}
 
 
-def code_occupancy(half: dict) -> np.ndarray:
-    """Non-zero words of the row of every code ``2·cell + negative`` (the kernel's ``cube_cell``):
-    ``occupancy`` for a positive face, the words the complement leaves non-zero (``~full`` within
-    the valid words) for its mirror; shape (6R²,) uint64, the two faces of a cell side by side
-    (what ``lut_occupancy`` returns, one load instead of two and a select)."""
-    out = np.empty(2 * len(half["occupancy"]), dtype=np.uint64)
-    out[0::2] = half["occupancy"]
-    out[1::2] = ~half["full"] & np.uint64(half["valid_occupancy"])
-    return out
+CHUNK_WORDS = 16
+"""Words per chunk of the rasterizer's LUT rows (the kernels' ``MaskChunk``)."""
+
+
+def chunked_rows(rows: np.ndarray) -> np.ndarray:
+    """Rows of mask words (..., W) as chunks of :data:`CHUNK_WORDS` words, (..., C, 16) uint64 with
+    ``C = ceil(W/16)`` and words past W zero: the rasterizer fetches and combines whole chunks."""
+    rows = np.asarray(rows, dtype=np.uint64)
+    w = rows.shape[-1]
+    c = -(-w // CHUNK_WORDS)
+    out = np.zeros(rows.shape[:-1] + (c * CHUNK_WORDS,), dtype=np.uint64)
+    out[..., :w] = rows
+    return np.ascontiguousarray(out.reshape(rows.shape[:-1] + (c, CHUNK_WORDS)))
 
 
 def lut_bytes(mask: int, lut: int) -> int:
-    """Memory of the plane LUT the rasterizer reads [bytes]: rows of the positive cube faces
-    (:func:`positive_half`) and the occupancy bitmap of every code, both faces (:func:`code_occupancy`)."""
-    return 3 * lut * lut * (words_per_mask(mask) + 2) * 8
+    """Memory of the plane LUT the rasterizer reads [bytes]: the rows of the positive cube faces
+    (:func:`positive_half`) in whole chunks (:func:`chunked_rows`; M <= 32: one 128-byte chunk per row)."""
+    return 3 * lut * lut * (-(-words_per_mask(mask) // CHUNK_WORDS)) * CHUNK_WORDS * 8
 
 
 def projected_solid_angle_np(poly: np.ndarray) -> float:
