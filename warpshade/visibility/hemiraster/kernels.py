@@ -2,16 +2,15 @@
 
 Per frame: :func:`follow_coarse_points` (coarse vertices ride the fine mesh), :func:`refit_blocker_boxes`
 and :func:`union_boxes` (bounding boxes of blockers with their fine triangles, clusters, super-clusters), :func:`triangle_bounds` (per-triangle plane and
-bounding sphere, for pre-tests without vertex gathers), then one :func:`rasterize_transfer` launch
-that, per receiver vertex, rasterizes blockers into a bit mask and integrates it into SH transfer.
-Mask layout, LUT convention and block tables: :mod:`.tables`.
+bounding sphere, for pre-tests without vertex gathers), then one :func:`rasterize_masks` launch
+that, per receiver vertex, rasterizes blockers into a bit mask; :mod:`.integrate` turns the masks
+into SH transfer. Mask layout, LUT convention and block tables: :mod:`.tables`.
 """
 
 from __future__ import annotations
 
 import warp as wp
 
-from ...sh.kernels import sh_accumulate
 from ..reference_kernels import orthonormal_basis
 
 # forward only (nothing here is differentiated): half the generated code and compile time
@@ -823,47 +822,8 @@ def rasterize_far_chunk(
     return nb
 
 
-@wp.func
-def subtract_blocks(
-    nblk: int,
-    nn: int,
-    blk_index: wp.array2d[wp.int32],
-    blk_weight: wp.array2d[float],
-    block_weights: wp.array2d[float],
-    local: wp.array2d[float],
-    v: int,
-):
-    """``local[v, i] -= Σ_k blk_weight[v, k] · block_weights[blk_index[v, k], i]`` over the gathered blocks."""
-    for i in range(nn):
-        acc = float(0.0)
-        for k in range(nblk):
-            acc += blk_weight[v, k] * block_weights[blk_index[v, k], i]
-        local[v, i] = local[v, i] - acc
-
-
-@wp.func
-def push_block(
-    b: int,
-    wgt: float,
-    nblk: int,
-    nn: int,
-    blk_index: wp.array2d[wp.int32],
-    blk_weight: wp.array2d[float],
-    block_weights: wp.array2d[float],
-    local: wp.array2d[float],
-    v: int,
-) -> int:
-    """Append (block, weight) to receiver ``v``'s gather list, subtracting when it is full; returns the new length."""
-    blk_index[v, nblk] = b
-    blk_weight[v, nblk] = wgt
-    if nblk + 1 == blk_index.shape[1]:
-        subtract_blocks(nblk + 1, nn, blk_index, blk_weight, block_weights, local, v)
-        return 0
-    return nblk + 1
-
-
 @wp.kernel
-def rasterize_transfer(
+def rasterize_masks(
     fine: FineMesh,
     normals: wp.array[wp.vec3],
     ring_start: wp.array[wp.int32],
@@ -884,30 +844,11 @@ def rasterize_transfer(
     pvs_start: wp.array[wp.int32],
     pvs_tris: wp.array[wp.int32],
     lut: PlaneLut,
-    block_bits: int,
-    block_valid: wp.array[wp.int32],
-    valid_words: wp.array[wp.uint64],
-    block_weights: wp.array2d[float],
-    group_base: wp.array[wp.int32],
-    block_dirs: wp.array[wp.vec3],
-    unoccluded: wp.array[float],
-    glossy: int,
-    view: wp.vec3,
-    phong: float,
-    rot_dirs: wp.array[wp.vec3],
-    rot_pinv: wp.array2d[float],
-    order: int,
-    sh_norm: wp.array[float],
     bt: Batch,
     mask: wp.array2d[wp.uint64],
-    local: wp.array2d[float],
-    blk_index: wp.array2d[wp.int32],
-    blk_weight: wp.array2d[float],
-    scaled_norm: wp.array2d[float],
     refined: wp.array[wp.int32],
-    transfer: wp.array2d[float],
 ):
-    """Per receiver vertex: rasterize its blockers, integrate the mask into SH, rotate to world (paper eq. 3).
+    """Per receiver vertex: rasterize its blockers into its visibility mask (paper §3.1).
 
     Blockers: the receiver's full-resolution k-ring (``ring_*``) plus the blocker mesh (``b*``:
     coarse mesh, or the fine mesh itself when the hierarchy is off), traversed through the
@@ -915,17 +856,12 @@ def rasterize_transfer(
     ``refine > 0`` a coarse blocker near the receiver is replaced by the fine triangles it stands
     for (``group_*``, :func:`refine_here`), so contact and folds see the exact surface.
 
-    Integration: with ``f_b`` the blocked fraction of block b, diffuse transfer in the tangent frame
-    is ``Σ_b W_b - Σ_b f_b W_b`` (CONTRACTS.md §2 with ``dA = cos θ dω``); glossy (``glossy=1``)
-    weighs visible blocks by the normalised Phong lobe ``(e+2)/(2π) max(0, r·s_b)^e`` around the
-    mirrored view direction (eq. 3 with ``f_r`` Phong, constant over a block). The local vector is
-    rotated to world space band by band by sampling (:func:`.tables.rotation_directions`).
+    The masks are integrated into SH transfer by the per-order kernels of :mod:`.integrate`.
     """
     v = wp.tid()
     p = fine.points[v]
     n = normals[v]
     frame = orthonormal_basis(n)
-    nn = order * order
     for w in range(lut.words):
         mask[v, w] = wp.uint64(0)
     if groups.use_seen != 0:
@@ -969,75 +905,3 @@ def rasterize_transfer(
                                      mask, bt, nb, refined)
     if nb > 0:
         flush_batch(nb, v, frame, lut, mask, bt)
-
-    # integrate (tangent frame): unoccluded integral minus blocked fractions of blocks
-    lv = wp.transpose(frame) * view
-    refl = wp.vec3(-lv[0], -lv[1], lv[2])  # mirror of the view direction about the normal (+z)
-    lobe_norm = (phong + 2.0) / (2.0 * wp.pi)
-    if glossy == 0:
-        for i in range(nn):
-            local[v, i] = unoccluded[i]
-    else:
-        for i in range(nn):
-            local[v, i] = 0.0
-        for b in range(block_valid.shape[0]):
-            cosr = wp.dot(refl, block_dirs[b])
-            if cosr > 0.0:
-                lobe = lobe_norm * wp.pow(cosr, phong)
-                for i in range(nn):
-                    local[v, i] = local[v, i] + lobe * block_weights[b, i]
-    # blocked blocks are gathered first, then subtracted coefficient by coefficient with a register
-    # accumulator (a block-by-block update would load and store the whole SH row per block).
-    # Each word is walked top-down through its aligned groups of 64, 16, 4 and 1 bits (8×8, 4×4,
-    # 2×2 pixels and one pixel in Morton order): an empty group is skipped, a wholly blocked group
-    # larger than a block is one entry with the sum of its blocks' weights (``group_base`` rows;
-    # diffuse only: glossy weighs each block by its own lobe value), others are split.
-    nblk = int(0)
-    use_group = glossy == 0
-    for w in range(lut.words):
-        x = mask[v, w]
-        if x != wp.uint64(0):
-            vw = valid_words[w]
-            j = int(0)
-            while j < 64:
-                s = wp.where(j == 0, 64, wp.where(j % 16 == 0, 16, wp.where(j % 4 == 0, 4, 1)))
-                while s >= block_bits:
-                    ones = wp.uint64(0xFFFFFFFFFFFFFFFF)
-                    if s < 64:
-                        ones = (wp.uint64(1) << wp.uint64(s)) - wp.uint64(1)
-                    bits = (x >> wp.uint64(j)) & ones
-                    if bits == wp.uint64(0):
-                        break
-                    if s == block_bits:
-                        b = (w * 64 + j) // block_bits
-                        wgt = float(wp.bit_count(bits)) / float(block_valid[b])
-                        if glossy != 0:
-                            cosr = wp.dot(refl, block_dirs[b])
-                            if cosr > 0.0:
-                                wgt = wgt * lobe_norm * wp.pow(cosr, phong)
-                            else:
-                                wgt = 0.0
-                        nblk = push_block(b, wgt, nblk, nn, blk_index, blk_weight, block_weights, local, v)
-                        break
-                    level = wp.where(s == 4, 0, wp.where(s == 16, 1, 2))
-                    if use_group and group_base[level] >= 0 and bits == ((vw >> wp.uint64(j)) & ones):
-                        nblk = push_block(group_base[level] + (w * 64 + j) // s, 1.0, nblk, nn, blk_index, blk_weight,
-                                          block_weights, local, v)
-                        break
-                    s = s // 4
-                j += wp.max(s, block_bits)
-    subtract_blocks(nblk, nn, blk_index, blk_weight, block_weights, local, v)
-
-    # rotate to world, band by band: g_l = Σ_k y_l(Q s_k) (Y_l(S)^+ c_l)_k. The per-band factor of
-    # direction k is folded into the normalisation constants handed to sh_accumulate (one SH
-    # evaluation per direction, accumulated straight into the output row).
-    for i in range(nn):
-        transfer[v, i] = 0.0
-    for k in range(rot_dirs.shape[0]):
-        for l in range(order):
-            acc = float(0.0)
-            for i in range(l * l, (l + 1) * (l + 1)):
-                acc += rot_pinv[k, i] * local[v, i]
-            for i in range(l * l, (l + 1) * (l + 1)):
-                scaled_norm[v, i] = sh_norm[i] * acc
-        sh_accumulate(frame * rot_dirs[k], 1.0, order, scaled_norm[v], transfer, v)

@@ -21,10 +21,9 @@ import numpy as np
 import warp as wp
 
 from ...geometry.mesh import TriMesh
-from ...sh.kernels import normalization_array
 from ..base import TransferMethod
-from . import hierarchy, tables
-from .kernels import (Batch, Blockers, FineMesh, MaskChunk, PlaneLut, Refinement, follow_coarse_points, rasterize_transfer, refit_blocker_boxes,
+from . import hierarchy, integrate, tables
+from .kernels import (Batch, Blockers, FineMesh, MaskChunk, PlaneLut, Refinement, follow_coarse_points, rasterize_masks, refit_blocker_boxes,
                       triangle_bounds, union_boxes)
 
 
@@ -157,32 +156,23 @@ class HemirasterTransfer(TransferMethod):
         pdirs, pvalid = tables.pixel_directions(self.mask_res)
         # strictly below the lowest pixel centre (1e-4 relative: float32 rounding of the test)
         self._lut.rim = float(pdirs[pvalid, 2].min()) * (1.0 - 1e-4) if self.rim else 0.0
+        # integration (.integrate): per-pixel shares of the block integrals summed per nibble value
+        # (diffuse), or the block integrals and directions (glossy); rotation to world by sampling
+        self._integrate = integrate.integrate_kernels(self.order)
+        vec_sh = self._integrate.vec_sh
         blocks = tables.block_tables(self.mask_res, self.downsample, self.order)
-        self._block_valid = wp.array(blocks["valid"], dtype=wp.int32, device=d)
-        # rows after the B blocks: summed weights of each aligned group of 4, 16 or 64 mask bits
-        # (2×2, 4×4, 8×8 pixels in Morton order) larger than a block: a wholly blocked group is one
-        # gather entry (``group_base[k]``: first row of the groups of 4^(k+1) bits, -1 when unused)
-        weights = blocks["weights"]
-        bb = self.downsample * self.downsample
-        rows, group_base = [weights], []
-        for size in (4, 16, 64):
-            per = size // bb
-            if size > bb and len(weights) % per == 0:
-                group_base.append(sum(len(r) for r in rows))
-                rows.append(weights.reshape(-1, per, weights.shape[1]).sum(axis=1))
-            else:
-                group_base.append(-1)
-        weights = np.concatenate(rows)
-        self._group_base = wp.array(np.array(group_base, np.int32), dtype=wp.int32, device=d)
-        self._block_weights = wp.array(weights.astype(np.float32), dtype=float, device=d)
-        self._valid_words = wp.array(tables.pack_bits(tables.pixel_directions(self.mask_res)[1]), dtype=wp.uint64,
-                                     device=d)
-        self._block_dirs = wp.array(blocks["dirs"].astype(np.float32), dtype=wp.vec3, device=d)
-        self._unoccluded = wp.array(blocks["weights"].sum(axis=0).astype(np.float32), dtype=float, device=d)
+        if self.mode == "diffuse":
+            pix = integrate.pixel_weights(blocks["weights"], blocks["valid"], pvalid, self.downsample)
+            self._nibbles = wp.array(integrate.nibble_table(pix).astype(np.float32), dtype=vec_sh, device=d)
+        else:
+            self._block_weights = wp.array(blocks["weights"].astype(np.float32), dtype=vec_sh, device=d)
+            self._block_valid = wp.array(blocks["valid"], dtype=wp.int32, device=d)
+            self._block_dirs = wp.array(blocks["dirs"].astype(np.float32), dtype=wp.vec3, device=d)
+        self._unoccluded = vec_sh(*blocks["weights"].sum(axis=0).astype(np.float32).tolist())
         rot_dirs, rot_pinv = tables.rotation_directions(self.order)
         self._rot_dirs = wp.array(rot_dirs.astype(np.float32), dtype=wp.vec3, device=d)
-        self._rot_pinv = wp.array(rot_pinv.astype(np.float32), dtype=float, device=d)
-        self._sh_norm = normalization_array(self.order, d)
+        self._rot_pinv = wp.array(rot_pinv.astype(np.float32), dtype=vec_sh, device=d)
+        self._basis = self._integrate.basis_constants()
 
         # the blocker scene: the receiver mesh, then the static occluders (they block, never receive)
         occluders = list(occluders or [])
@@ -310,12 +300,7 @@ class HemirasterTransfer(TransferMethod):
         self._blockers.source, self._blockers.skip_incident = self._bsource, 0 if self.hierarchy else 1
 
         # per-vertex scratch (one row per receiver; rows are private to their thread)
-        nn = self.order * self.order
         self._mask = wp.zeros((nv, self._words), dtype=wp.uint64, device=d)
-        self._local = wp.zeros((nv, nn), dtype=float, device=d)
-        self._blk_index = wp.zeros((nv, 64), dtype=wp.int32, device=d)
-        self._blk_weight = wp.zeros((nv, 64), dtype=float, device=d)
-        self._scaled_norm = wp.zeros((nv, nn), dtype=float, device=d)
         self._counts = wp.zeros(nv, dtype=wp.int32, device=d)
         self._refined = wp.zeros(nv, dtype=wp.int32, device=d)
         self._hits = wp.zeros((1, 1), dtype=wp.uint32, device=d)
@@ -458,7 +443,7 @@ class HemirasterTransfer(TransferMethod):
         self._batch.record = record
         self._batch.hits = self._hits
         wp.launch(
-            rasterize_transfer,
+            rasterize_masks,
             dim=self.mesh.num_vertices,
             inputs=[self._fine, self.normals, self._ring_start, self._ring_tris,
                     self._blockers,
@@ -467,15 +452,21 @@ class HemirasterTransfer(TransferMethod):
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
                     self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
-                    self._lut,
-                    self.downsample * self.downsample, self._block_valid, self._valid_words, self._block_weights, self._group_base,
-                    self._block_dirs,
-                    self._unoccluded, 1 if self.mode == "glossy" else 0, wp.vec3(*self.view.astype(np.float32)),
-                    self.phong, self._rot_dirs, self._rot_pinv, self.order, self._sh_norm, self._batch],
-            outputs=[self._mask, self._local, self._blk_index, self._blk_weight, self._scaled_norm, self._refined,
-                     self.transfer],
+                    self._lut, self._batch],
+            outputs=[self._mask, self._refined],
             device=d,
         )
+        if self.mode == "diffuse":
+            wp.launch(self._integrate.diffuse, dim=self.mesh.num_vertices,
+                      inputs=[self._mask, self.normals, self._nibbles, self._unoccluded, self._rot_dirs, self._rot_pinv,
+                              self._basis],
+                      outputs=[self.transfer], device=d)
+        else:
+            wp.launch(self._integrate.glossy, dim=self.mesh.num_vertices,
+                      inputs=[self._mask, self.normals, self._block_weights, self._block_valid, self._block_dirs,
+                              self.downsample * self.downsample, wp.vec3(*self.view.astype(np.float32)), self.phong,
+                              self._rot_dirs, self._rot_pinv, self._basis],
+                      outputs=[self.transfer], device=d)
 
     def _compute(self) -> None:
         self._launch(record=0, use_pvs=1 if self._pvs_frames else 0)
