@@ -344,7 +344,7 @@ def chunk_any(x: MaskChunk) -> bool:
 
 
 @wp.func(inline=False)
-def flush_batch(nb: int, v: int, frame: wp.mat33, lut: PlaneLut, mask: wp.array2d[wp.uint64], bt: Batch) -> int:
+def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: wp.array2d[wp.uint64], bt: Batch) -> int:
     """Rasterize the ``nb`` queued triangles of receiver ``v`` (:class:`Batch`); returns 0 (the new
     queue length). First all their LUT codes (straight-line arithmetic), then their images.
 
@@ -357,25 +357,25 @@ def flush_batch(nb: int, v: int, frame: wp.mat33, lut: PlaneLut, mask: wp.array2
     ft = wp.transpose(frame)
     done = int(0)
     for k in range(nb):
-        q = bt.corners[v, k]
-        codes = triangle_codes(bt.a[v, k], bt.b[v, k], bt.c[v, k], q[0], q[1], q[2], ft, lut.backface, lut.res)
-        bt.codes[v, k] = codes
+        q = bt.corners[sl, k]
+        codes = triangle_codes(bt.a[sl, k], bt.b[sl, k], bt.c[sl, k], q[0], q[1], q[2], ft, lut.backface, lut.res)
+        bt.codes[sl, k] = codes
         done += wp.where(codes[0] >= 0, 1, 0)
     for ch in range(lut.chunks):
         acc = MaskChunk()
         if bt.record == 0:
             for k in range(nb):
-                codes = bt.codes[v, k]
+                codes = bt.codes[sl, k]
                 if codes[0] >= 0:
                     acc = acc | (lut_chunk(lut, codes[0], ch) & lut_chunk(lut, codes[1], ch) & lut_chunk(lut, codes[2], ch))
         else:
             # recording a PVS: which triangles set a bit
             for k in range(nb):
-                codes = bt.codes[v, k]
+                codes = bt.codes[sl, k]
                 if codes[0] >= 0:
                     m = lut_chunk(lut, codes[0], ch) & lut_chunk(lut, codes[1], ch) & lut_chunk(lut, codes[2], ch)
                     acc = acc | m
-                    src = bt.src[v, k]
+                    src = bt.src[sl, k]
                     if src >= 0 and chunk_any(m & lut.valid[ch]):
                         bt.hits[v, src >> 5] = bt.hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
         acc = acc & lut.valid[ch]
@@ -387,7 +387,7 @@ def flush_batch(nb: int, v: int, frame: wp.mat33, lut: PlaneLut, mask: wp.array2
 
 
 @wp.func(inline=True)
-def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, ia: int, ib: int, ic: int, src: int, nb: int, v: int,
+def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, ia: int, ib: int, ic: int, src: int, nb: int, v: int, sl: int,
                   frame: wp.mat33, lut: PlaneLut, mask: wp.array2d[wp.uint64], bt: Batch) -> int:
     """Queue triangle (a, b, c) (corners relative to the receiver) for receiver ``v`` unless it is
     wholly at or below the horizon; flushes a full queue. Returns the new queue length.
@@ -398,13 +398,13 @@ def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, ia: int, ib: int, ic: int,
     nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
     if wp.dot(nz, a) <= 0.0 and wp.dot(nz, b) <= 0.0 and wp.dot(nz, c) <= 0.0:
         return nb
-    bt.a[v, nb] = a
-    bt.b[v, nb] = b
-    bt.c[v, nb] = c
-    bt.corners[v, nb] = wp.vec3i(ia, ib, ic)
-    bt.src[v, nb] = src
+    bt.a[sl, nb] = a
+    bt.b[sl, nb] = b
+    bt.c[sl, nb] = c
+    bt.corners[sl, nb] = wp.vec3i(ia, ib, ic)
+    bt.src[sl, nb] = src
     if nb + 1 == bt.a.shape[1]:
-        return flush_batch(nb + 1, v, frame, lut, mask, bt)
+        return flush_batch(nb + 1, v, sl, frame, lut, mask, bt)
     return nb + 1
 
 
@@ -556,6 +556,7 @@ def refine_here(p: wp.vec3, lo: wp.vec3, hi: wp.vec3, deviation: float, refine: 
 def rasterize_group(
     t: int,
     v: int,
+    sl: int,
     p: wp.vec3,
     n: wp.vec3,
     fine: FineMesh,
@@ -613,17 +614,17 @@ def rasterize_group(
             continue
         if groups.use_seen != 0:
             bit = wp.uint64(1) << wp.uint64(f & 63)
-            word = groups.seen[v, f >> 6]
+            word = groups.seen[sl, f >> 6]
             if (word & bit) != wp.uint64(0):
                 continue
-            groups.seen[v, f >> 6] = word | bit
+            groups.seen[sl, f >> 6] = word | bit
         fa = fine.points[i] - p
         fb = fine.points[j] - p
         fc = fine.points[k] - p
         if lut.fine_area > 0.0:
             if image_below(fa, fb, fc, n, lut.fine_area):
                 continue
-        nb = push_triangle(fa, fb, fc, i, j, k, src, nb, v, frame, lut, mask, bt)
+        nb = push_triangle(fa, fb, fc, i, j, k, src, nb, v, sl, frame, lut, mask, bt)
         count += 1
     refined[v] = refined[v] + count
     return nb
@@ -639,6 +640,7 @@ def excluded(excl: wp.array2d[wp.uint32], v: int, t: int) -> bool:
 def rasterize_blocker(
     t: int,
     v: int,
+    sl: int,
     p: wp.vec3,
     blockers: Blockers,
     frame: wp.mat33,
@@ -674,7 +676,7 @@ def rasterize_blocker(
     if lut.min_area > 0.0:
         if image_below(a, b, c, nz, lut.min_area):
             return nb
-    return push_triangle(a, b, c, i, j, k, blockers.source[t], nb, v, frame, lut, mask, bt)
+    return push_triangle(a, b, c, i, j, k, blockers.source[t], nb, v, sl, frame, lut, mask, bt)
 
 
 @wp.func(inline=True)
@@ -682,6 +684,7 @@ def rasterize_far(
     t: int,
     near: bool,
     v: int,
+    sl: int,
     p: wp.vec3,
     n: wp.vec3,
     fine: FineMesh,
@@ -707,9 +710,9 @@ def rasterize_far(
     elif near:
         use_fine = refine_here(p, groups.lo[t], groups.hi[t], groups.dev[t], groups.refine)
     if use_fine:
-        return rasterize_group(t, v, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, bt, nb,
+        return rasterize_group(t, v, sl, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, bt, nb,
                                refined)
-    return rasterize_blocker(t, v, p, blockers, frame, lut, mask, bt, nb)
+    return rasterize_blocker(t, v, sl, p, blockers, frame, lut, mask, bt, nb)
 
 
 FAR_CHUNK = wp.constant(64)
@@ -728,6 +731,7 @@ def rasterize_far_chunk(
     t1: int,
     near: bool,
     v: int,
+    sl: int,
     p: wp.vec3,
     n: wp.vec3,
     fine: FineMesh,
@@ -800,7 +804,7 @@ def rasterize_far_chunk(
     while refine_bits != wp.uint64(0):
         k = lowest_bit(refine_bits)
         refine_bits = refine_bits & (refine_bits - wp.uint64(1))
-        nb = rasterize_group(t0 + k, v, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, bt, nb,
+        nb = rasterize_group(t0 + k, v, sl, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, bt, nb,
                              refined)
     while keep != wp.uint64(0):
         k = lowest_bit(keep)
@@ -818,7 +822,7 @@ def rasterize_far_chunk(
         if lut.min_area > 0.0:
             if image_below(a, b, c, nz, lut.min_area):
                 continue
-        nb = push_triangle(a, b, c, i, j, kk, blockers.source[t], nb, v, frame, lut, mask, bt)
+        nb = push_triangle(a, b, c, i, j, kk, blockers.source[t], nb, v, sl, frame, lut, mask, bt)
     return nb
 
 
@@ -845,10 +849,17 @@ def rasterize_masks(
     pvs_tris: wp.array[wp.int32],
     lut: PlaneLut,
     bt: Batch,
+    num_receivers: int,
+    num_slots: int,
     mask: wp.array2d[wp.uint64],
     refined: wp.array[wp.int32],
 ):
     """Per receiver vertex: rasterize its blockers into its visibility mask (paper §3.1).
+
+    Thread ``sl`` of ``num_slots`` handles receivers ``sl, sl + num_slots, ...`` with scratch row
+    ``sl`` of the :class:`Batch` queue and the rasterized-once table: on the CPU one slot (one
+    thread runs the launch anyway), so that scratch stays in the L1 cache from receiver to
+    receiver; on a GPU one slot per receiver.
 
     Blockers: the receiver's full-resolution k-ring (``ring_*``) plus the blocker mesh (``b*``:
     coarse mesh, or the fine mesh itself when the hierarchy is off), traversed through the
@@ -858,50 +869,53 @@ def rasterize_masks(
 
     The masks are integrated into SH transfer by the per-order kernels of :mod:`.integrate`.
     """
-    v = wp.tid()
-    p = fine.points[v]
-    n = normals[v]
-    frame = orthonormal_basis(n)
-    for w in range(lut.words):
-        mask[v, w] = wp.uint64(0)
-    if groups.use_seen != 0:
-        for w in range(groups.seen.shape[1]):
-            groups.seen[v, w] = wp.uint64(0)
-    bt.counts[v] = 0
-    refined[v] = 0
-    nb = int(0)
-    # near field at full resolution
-    for r in range(ring_start[v], ring_start[v + 1]):
-        t = ring_tris[r]
-        if skip_early(fine.plane[t], fine.sphere[t], p, n, lut.backface, lut.rim):
-            continue
-        i = fine.faces[t, 0]
-        j = fine.faces[t, 1]
-        k = fine.faces[t, 2]
-        nb = push_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, i, j, k, -1, nb, v, frame, lut,
-                           mask, bt)
-    # far field: coarse blockers, replaced by their fine triangles near the receiver
-    offset = wp.dot(n, p)
-    near_all = groups.refine > 0.0
-    if use_pvs != 0:
-        for r in range(pvs_start[v], pvs_start[v + 1]):
-            nb = rasterize_far(pvs_tris[r], near_all, v, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
-                               mask, bt, nb, refined)
-    elif use_cull != 0:
-        for s in range(super_start.shape[0] - 1):
-            if box_above_plane(super_lo[s], super_hi[s], n, offset):
-                for c in range(super_start[s], super_start[s + 1]):
-                    if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
-                        # per-blocker refinement tests only in clusters that come near enough
-                        near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], groups.refine * cluster_reach[c])
-                        for t0 in range(cluster_start[c], cluster_start[c + 1], FAR_CHUNK):
-                            t1 = wp.min(t0 + FAR_CHUNK, cluster_start[c + 1])
-                            nb = rasterize_far_chunk(t0, t1, near, v, p, n, fine, groups, blockers, use_excl, excl,
-                                                     frame, lut, mask, bt, nb, refined)
-    else:
-        for t0 in range(0, blockers.faces.shape[0], FAR_CHUNK):
-            t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
-            nb = rasterize_far_chunk(t0, t1, near_all, v, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
-                                     mask, bt, nb, refined)
-    if nb > 0:
-        flush_batch(nb, v, frame, lut, mask, bt)
+    sl = wp.tid()
+    v = sl
+    while v < num_receivers:
+        p = fine.points[v]
+        n = normals[v]
+        frame = orthonormal_basis(n)
+        for w in range(lut.words):
+            mask[v, w] = wp.uint64(0)
+        if groups.use_seen != 0:
+            for w in range(groups.seen.shape[1]):
+                groups.seen[sl, w] = wp.uint64(0)
+        bt.counts[v] = 0
+        refined[v] = 0
+        nb = int(0)
+        # near field at full resolution
+        for r in range(ring_start[v], ring_start[v + 1]):
+            t = ring_tris[r]
+            if skip_early(fine.plane[t], fine.sphere[t], p, n, lut.backface, lut.rim):
+                continue
+            i = fine.faces[t, 0]
+            j = fine.faces[t, 1]
+            k = fine.faces[t, 2]
+            nb = push_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, i, j, k, -1, nb, v, sl, frame, lut,
+                               mask, bt)
+        # far field: coarse blockers, replaced by their fine triangles near the receiver
+        offset = wp.dot(n, p)
+        near_all = groups.refine > 0.0
+        if use_pvs != 0:
+            for r in range(pvs_start[v], pvs_start[v + 1]):
+                nb = rasterize_far(pvs_tris[r], near_all, v, sl, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
+                                   mask, bt, nb, refined)
+        elif use_cull != 0:
+            for s in range(super_start.shape[0] - 1):
+                if box_above_plane(super_lo[s], super_hi[s], n, offset):
+                    for c in range(super_start[s], super_start[s + 1]):
+                        if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
+                            # per-blocker refinement tests only in clusters that come near enough
+                            near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], groups.refine * cluster_reach[c])
+                            for t0 in range(cluster_start[c], cluster_start[c + 1], FAR_CHUNK):
+                                t1 = wp.min(t0 + FAR_CHUNK, cluster_start[c + 1])
+                                nb = rasterize_far_chunk(t0, t1, near, v, sl, p, n, fine, groups, blockers, use_excl, excl,
+                                                         frame, lut, mask, bt, nb, refined)
+        else:
+            for t0 in range(0, blockers.faces.shape[0], FAR_CHUNK):
+                t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
+                nb = rasterize_far_chunk(t0, t1, near_all, v, sl, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
+                                         mask, bt, nb, refined)
+        if nb > 0:
+            flush_batch(nb, v, sl, frame, lut, mask, bt)
+        v += num_slots

@@ -28,15 +28,19 @@ from .kernels import (Batch, Blockers, FineMesh, MaskChunk, PlaneLut, Refinement
 
 
 SEEN_BYTES = 64 * 1024 * 1024
-"""Largest per-receiver rasterized-once table (V × ceil(F/64) uint64 words) the method allocates."""
+"""Largest rasterized-once table (slots × ceil(F/64) uint64 words) the method allocates."""
 
 BATCH = 32
-"""Triangles queued per receiver before they are rasterized together (kernels.Batch; 2 KiB per
-receiver). Measured on the Table 1 cloth (interleaved runs, ratios of CPU time): 1 -> 1.28, 4 -> 1.06,
-8 -> 1.03, 16 -> 1.00, 32 -> 0.94, 64 -> 0.95; without batching 1.06. Meshes above
-``BATCH_LARGE_MESH`` receivers queue ``BATCH // 4`` to bound the scratch memory."""
+"""Triangles queued per slot before they are rasterized together (kernels.Batch; 2 KiB per
+slot). Measured on the Table 1 cloth (interleaved runs, ratios of CPU time): 1 -> 1.28, 4 -> 1.06,
+8 -> 1.03, 16 -> 1.00, 32 -> 0.94, 64 -> 0.95; without batching 1.06."""
 
-BATCH_LARGE_MESH = 20000
+
+def scratch_slots(device, num_receivers: int) -> int:
+    """Threads of the rasterization launch, each with its own scratch row (:func:`.kernels.rasterize_masks`):
+    one on the CPU, where Warp runs a launch on one thread anyway and one row stays in the L1
+    cache; one per receiver on a GPU."""
+    return 1 if wp.get_device(device).is_cpu else max(1, int(num_receivers))
 
 
 def _parse_vec3(text: str) -> tuple[float, float, float]:
@@ -288,10 +292,12 @@ class HemirasterTransfer(TransferMethod):
         self._groups.tris, self._groups.owner = self._group_tris, self._group_owner
         self._groups.run_end = self._group_run_end
         # rasterized-once table: a seam triangle is listed by several coarse triangles; skip repeats
-        # (1 bit per fine triangle and receiver; off above SEEN_BYTES, where repeats are only slower)
+        # (1 bit per fine triangle and slot; off above SEEN_BYTES, where repeats are only slower)
+        self._slots = scratch_slots(d, nv)
         seen_words = (nsf + 63) // 64
-        self._groups.use_seen = 1 if (self._use_refine and nv * seen_words * 8 <= SEEN_BYTES) else 0
-        self._groups.seen = wp.zeros((nv, seen_words) if self._groups.use_seen else (1, 1), dtype=wp.uint64, device=d)
+        self._groups.use_seen = 1 if (self._use_refine and self._slots * seen_words * 8 <= SEEN_BYTES) else 0
+        self._groups.seen = wp.zeros((self._slots, seen_words) if self._groups.use_seen else (1, 1), dtype=wp.uint64,
+                                     device=d)
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._blockers = Blockers()
@@ -299,18 +305,18 @@ class HemirasterTransfer(TransferMethod):
         self._blockers.plane, self._blockers.sphere = self._bplane, self._bsphere
         self._blockers.source, self._blockers.skip_incident = self._bsource, 0 if self.hierarchy else 1
 
-        # per-vertex scratch (one row per receiver; rows are private to their thread)
+        # per-receiver results
         self._mask = wp.zeros((nv, self._words), dtype=wp.uint64, device=d)
         self._counts = wp.zeros(nv, dtype=wp.int32, device=d)
         self._refined = wp.zeros(nv, dtype=wp.int32, device=d)
         self._hits = wp.zeros((1, 1), dtype=wp.uint32, device=d)
-        # per receiver queue of triangles rasterized in batches (kernels.Batch)
+        # per slot queue of triangles rasterized in batches (kernels.Batch; rows private to their thread)
         self._batch = Batch()
-        nq = BATCH if nv <= BATCH_LARGE_MESH else max(1, BATCH // 4)
-        self._batch.a, self._batch.b, self._batch.c = (wp.zeros((nv, nq), dtype=wp.vec3, device=d) for _ in range(3))
-        self._batch.corners = wp.zeros((nv, nq), dtype=wp.vec3i, device=d)
-        self._batch.codes = wp.zeros((nv, nq), dtype=wp.vec3i, device=d)
-        self._batch.src = wp.zeros((nv, nq), dtype=wp.int32, device=d)
+        ns, nq = self._slots, BATCH
+        self._batch.a, self._batch.b, self._batch.c = (wp.zeros((ns, nq), dtype=wp.vec3, device=d) for _ in range(3))
+        self._batch.corners = wp.zeros((ns, nq), dtype=wp.vec3i, device=d)
+        self._batch.codes = wp.zeros((ns, nq), dtype=wp.vec3i, device=d)
+        self._batch.src = wp.zeros((ns, nq), dtype=wp.int32, device=d)
         self._batch.counts = self._counts
         self._pvs = None
         self._pvs_start = wp.zeros(nv + 1, dtype=wp.int32, device=d)
@@ -444,7 +450,7 @@ class HemirasterTransfer(TransferMethod):
         self._batch.hits = self._hits
         wp.launch(
             rasterize_masks,
-            dim=self.mesh.num_vertices,
+            dim=self._slots,
             inputs=[self._fine, self.normals, self._ring_start, self._ring_tris,
                     self._blockers,
                     self._near_mode, self._excl,
@@ -452,7 +458,7 @@ class HemirasterTransfer(TransferMethod):
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
                     self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
-                    self._lut, self._batch],
+                    self._lut, self._batch, self.mesh.num_vertices, self._slots],
             outputs=[self._mask, self._refined],
             device=d,
         )
