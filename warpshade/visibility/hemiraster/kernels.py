@@ -13,8 +13,11 @@ import warp as wp
 
 from ..reference_kernels import orthonormal_basis
 
-# forward only (nothing here is differentiated): half the generated code and compile time
-wp.set_module_options({"enable_backward": False, "optimization_level": 3})
+# forward only (nothing here is differentiated): half the generated code and compile time. No fused
+# multiply-adds: then ``b × a`` is exactly ``-(a × b)`` (both products of each component are computed
+# and rounded alike), so the two triangles sharing an edge get exactly opposite edge planes
+# (:func:`edge_plane`) and complementary masks without ordering the corners first.
+wp.set_module_options({"enable_backward": False, "optimization_level": 3, "fuse_fp": False})
 
 CHUNK_WORDS = 16
 """Mask words per LUT chunk (1024 bits: a whole 32×32 mask)."""
@@ -110,8 +113,8 @@ class Refinement:
     run_end: wp.array[wp.int32]
     """End of each entry's run of extras with the same owner (:func:`.hierarchy.groups_in_order`), dtype int32."""
     seen: wp.array2d[wp.uint64]
-    """Per receiver, bits of the fine triangles already rasterized this frame, shape (V, ceil(F/64));
-    one row per receiver thread, cleared at its start."""
+    """Per slot, bits of the fine triangles already rasterized for its current receiver, shape
+    (slots, ceil(F/64)); cleared at the start of each receiver."""
     use_seen: int
     """1: skip fine triangles already in ``seen`` (a seam triangle belongs to several refined coarse
     triangles; OR fusion makes the repeat harmless but not free); 0: no such table (large meshes)."""
@@ -119,23 +122,21 @@ class Refinement:
 
 @wp.struct
 class Batch:
-    """Per receiver queue of blocker triangles that passed the culls, rasterized in batches
+    """Per slot (:func:`rasterize_masks`) queue of blocker triangles that passed the culls, rasterized in batches
     (:func:`flush_batch`): the LUT codes of a whole batch are computed in one branch-free loop, so
     the core overlaps the triangles' divisions and loads instead of stalling on each after a
     mispredicted cull."""
 
     a: wp.array2d[wp.vec3]
-    """First corner relative to the receiver [m], world axes, shape (V, B), dtype vec3."""
+    """First corner relative to the receiver [m], world axes, shape (slots, B), dtype vec3."""
     b: wp.array2d[wp.vec3]
-    """Second corner, shape (V, B), dtype vec3."""
+    """Second corner, shape (slots, B), dtype vec3."""
     c: wp.array2d[wp.vec3]
-    """Third corner, shape (V, B), dtype vec3."""
-    corners: wp.array2d[wp.vec3i]
-    """Vertex indices of the corners (edge planes are taken from the lower index), shape (V, B)."""
+    """Third corner, shape (slots, B), dtype vec3."""
     src: wp.array2d[wp.int32]
-    """Blocker to mark in the receiver's PVS bits when the triangle sets a bit (-1: none), shape (V, B)."""
+    """Blocker to mark in the receiver's PVS bits when the triangle sets a bit (-1: none), shape (slots, B)."""
     codes: wp.array2d[wp.vec3i]
-    """Scratch: LUT codes of the three oriented edge planes (-1: culled), shape (V, B)."""
+    """Scratch: LUT codes of the three oriented edge planes (-1: culled), shape (slots, B)."""
     record: int
     """1 while recording a PVS (``hits``)."""
     hits: wp.array2d[wp.uint32]
@@ -201,14 +202,11 @@ def lut_word(lut: PlaneLut, code: int, w: int) -> wp.uint64:
 
 
 @wp.func
-def edge_plane(a: wp.vec3, b: wp.vec3, ia: int, ib: int) -> wp.vec3:
-    """``a × b``, always computed from the lower-indexed corner so the shared edge of two triangles
-    gives exactly opposite normals (a fused multiply-add would otherwise break ``b × a = -(a × b)``).
-    Branch-free: which corner comes first is unpredictable."""
-    swap = ib < ia
-    lo = wp.where(swap, b, a)
-    hi = wp.where(swap, a, b)
-    return wp.where(swap, -1.0, 1.0) * wp.cross(lo, hi)
+def edge_plane(a: wp.vec3, b: wp.vec3) -> wp.vec3:
+    """``a × b``: the plane through the receiver and the edge. The module compiles without fused
+    multiply-adds, so the neighbour across the edge, which computes ``b × a``, gets exactly the
+    opposite normal, hence the complementary LUT row (:func:`cube_cell`)."""
+    return wp.cross(a, b)
 
 
 EDGE_ON_SINE = wp.constant(0.5)
@@ -307,7 +305,7 @@ def triangle_bounds(
 
 
 @wp.func(inline=True)
-def triangle_codes(a: wp.vec3, b: wp.vec3, c: wp.vec3, ia: int, ib: int, ic: int, ft: wp.mat33, backface: float,
+def triangle_codes(a: wp.vec3, b: wp.vec3, c: wp.vec3, ft: wp.mat33, backface: float,
                    res: int) -> wp.vec3i:
     """LUT codes (:func:`cube_cell`) of the three oriented edge planes of triangle (a, b, c) (corners
     relative to the receiver, world axes; ``ft`` world -> tangent frame), or -1s when culled.
@@ -320,9 +318,9 @@ def triangle_codes(a: wp.vec3, b: wp.vec3, c: wp.vec3, ia: int, ib: int, ic: int
     la = ft * a
     lb = ft * b
     lc = ft * c
-    nab = edge_plane(la, lb, ia, ib)
-    nbc = edge_plane(lb, lc, ib, ic)
-    nca = edge_plane(lc, la, ic, ia)
+    nab = edge_plane(la, lb)
+    nbc = edge_plane(lb, lc)
+    nca = edge_plane(lc, la)
     det = wp.dot(la, nbc)
     # det = -(face normal)·(receiver - a): on a closed mesh every blocked direction leaves the solid
     # through a triangle facing away from the receiver, so the others add no bits (``backface`` = ±1
@@ -357,8 +355,7 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
     ft = wp.transpose(frame)
     done = int(0)
     for k in range(nb):
-        q = bt.corners[sl, k]
-        codes = triangle_codes(bt.a[sl, k], bt.b[sl, k], bt.c[sl, k], q[0], q[1], q[2], ft, lut.backface, lut.res)
+        codes = triangle_codes(bt.a[sl, k], bt.b[sl, k], bt.c[sl, k], ft, lut.backface, lut.res)
         bt.codes[sl, k] = codes
         done += wp.where(codes[0] >= 0, 1, 0)
     for ch in range(lut.chunks):
@@ -387,7 +384,7 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
 
 
 @wp.func(inline=True)
-def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, ia: int, ib: int, ic: int, src: int, nb: int, v: int, sl: int,
+def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, src: int, nb: int, v: int, sl: int,
                   frame: wp.mat33, lut: PlaneLut, mask: wp.array2d[wp.uint64], bt: Batch) -> int:
     """Queue triangle (a, b, c) (corners relative to the receiver) for receiver ``v`` unless it is
     wholly at or below the horizon; flushes a full queue. Returns the new queue length.
@@ -401,7 +398,6 @@ def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, ia: int, ib: int, ic: int,
     bt.a[sl, nb] = a
     bt.b[sl, nb] = b
     bt.c[sl, nb] = c
-    bt.corners[sl, nb] = wp.vec3i(ia, ib, ic)
     bt.src[sl, nb] = src
     if nb + 1 == bt.a.shape[1]:
         return flush_batch(nb + 1, v, sl, frame, lut, mask, bt)
@@ -624,7 +620,7 @@ def rasterize_group(
         if lut.fine_area > 0.0:
             if image_below(fa, fb, fc, n, lut.fine_area):
                 continue
-        nb = push_triangle(fa, fb, fc, i, j, k, src, nb, v, sl, frame, lut, mask, bt)
+        nb = push_triangle(fa, fb, fc, src, nb, v, sl, frame, lut, mask, bt)
         count += 1
     refined[v] = refined[v] + count
     return nb
@@ -676,7 +672,7 @@ def rasterize_blocker(
     if lut.min_area > 0.0:
         if image_below(a, b, c, nz, lut.min_area):
             return nb
-    return push_triangle(a, b, c, i, j, k, blockers.source[t], nb, v, sl, frame, lut, mask, bt)
+    return push_triangle(a, b, c, blockers.source[t], nb, v, sl, frame, lut, mask, bt)
 
 
 @wp.func(inline=True)
@@ -822,7 +818,7 @@ def rasterize_far_chunk(
         if lut.min_area > 0.0:
             if image_below(a, b, c, nz, lut.min_area):
                 continue
-        nb = push_triangle(a, b, c, i, j, kk, blockers.source[t], nb, v, sl, frame, lut, mask, bt)
+        nb = push_triangle(a, b, c, blockers.source[t], nb, v, sl, frame, lut, mask, bt)
     return nb
 
 
@@ -891,7 +887,7 @@ def rasterize_masks(
             i = fine.faces[t, 0]
             j = fine.faces[t, 1]
             k = fine.faces[t, 2]
-            nb = push_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, i, j, k, -1, nb, v, sl, frame, lut,
+            nb = push_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, -1, nb, v, sl, frame, lut,
                                mask, bt)
         # far field: coarse blockers, replaced by their fine triangles near the receiver
         offset = wp.dot(n, p)

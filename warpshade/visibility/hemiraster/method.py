@@ -314,7 +314,6 @@ class HemirasterTransfer(TransferMethod):
         self._batch = Batch()
         ns, nq = self._slots, BATCH
         self._batch.a, self._batch.b, self._batch.c = (wp.zeros((ns, nq), dtype=wp.vec3, device=d) for _ in range(3))
-        self._batch.corners = wp.zeros((ns, nq), dtype=wp.vec3i, device=d)
         self._batch.codes = wp.zeros((ns, nq), dtype=wp.vec3i, device=d)
         self._batch.src = wp.zeros((ns, nq), dtype=wp.int32, device=d)
         self._batch.counts = self._counts
