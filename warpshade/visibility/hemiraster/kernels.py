@@ -161,27 +161,27 @@ def cube_cell(n: wp.vec3, res: int) -> int:
     negative face uses the complement of the row of ``-n``'s cell, which is exactly its own row
     (the negative face is indexed as the mirror of the positive one).
 
-    Branch-free selects: the major axis changes from edge to edge, so branches would mispredict.
+    Branch-free: the major axis changes from edge to edge, so branches would mispredict. The axis
+    is chosen as an integer and the components indexed with it (three selects, where selecting
+    each component cost nine plus the sign flips: 9.1 -> 5.3 ns per call, same cells). The cell of a
+    negative face is the mirror cell of ``-n`` on the positive face: ``u / major`` with the signed
+    major component is ``(-u) / |major|`` exactly, so ``cell(-n)`` and ``cell(n)`` are exact
+    mirrors (also when u or v is exactly 0) and the two triangles sharing an edge get
+    complementary masks (no crack).
     """
     ax = wp.abs(n[0])
     ay = wp.abs(n[1])
     az = wp.abs(n[2])
-    use_x = ax >= ay and ax >= az
-    use_y = (not use_x) and ay >= az
-    major = wp.where(use_x, n[0], wp.where(use_y, n[1], n[2]))
-    u = wp.where(use_x, n[1], wp.where(use_y, n[2], n[0]))
-    v = wp.where(use_x, n[2], wp.where(use_y, n[0], n[1]))
-    neg = major < 0.0
-    # the cell of -n on the positive face: cell(-n) and cell(n) are then exact mirrors (also when u
-    # or v is exactly 0), so the two triangles sharing an edge get complementary masks (no crack)
-    u = wp.where(neg, -u, u)
-    v = wp.where(neg, -v, v)
-    axis = wp.where(use_x, 0, wp.where(use_y, 1, 2))
+    # ties go to the lower axis
+    axis = wp.where(ax >= ay, wp.where(ax >= az, 0, 2), wp.where(ay >= az, 1, 2))
+    a1 = wp.where(axis == 2, 0, axis + 1)
+    a2 = wp.where(axis == 0, 2, axis - 1)
+    major = n[axis]
     half = 0.5 * float(res)
-    inv = half / wp.abs(major)
-    iu = wp.clamp(int(u * inv + half), 0, res - 1)
-    iv = wp.clamp(int(v * inv + half), 0, res - 1)
-    return 2 * ((axis * res + iu) * res + iv) + wp.where(neg, 1, 0)
+    inv = half / major
+    iu = wp.clamp(int(n[a1] * inv + half), 0, res - 1)
+    iv = wp.clamp(int(n[a2] * inv + half), 0, res - 1)
+    return 2 * ((axis * res + iu) * res + iv) + wp.where(major < 0.0, 1, 0)
 
 
 @wp.func(inline=True)
@@ -393,7 +393,7 @@ def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, src: int, nb: int, v: int,
     would otherwise leak bits at the disk rim.
     """
     nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
-    if wp.dot(nz, a) <= 0.0 and wp.dot(nz, b) <= 0.0 and wp.dot(nz, c) <= 0.0:
+    if wp.max(wp.max(wp.dot(nz, a), wp.dot(nz, b)), wp.dot(nz, c)) <= 0.0:
         return nb
     bt.a[sl, nb] = a
     bt.b[sl, nb] = b
