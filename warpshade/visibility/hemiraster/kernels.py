@@ -224,18 +224,18 @@ def image_below(a: wp.vec3, b: wp.vec3, c: wp.vec3, nz: wp.vec3, min_area: float
     Tiny images (mostly far triangles seen almost edge-on: slivers between pixel centres) cost three
     cube cells and ~3 LUT words each but rarely cover a pixel centre. Van Oosterom–Strackee:
     tan(Ω/2) = |det| / d, so Ω <= 2|det|/d; the projected solid angle is at most Ω times the largest
-    corner cosine (an approximation for images whose cosine peaks inside an edge).
+    corner cosine (an approximation for images whose cosine peaks inside an edge). Branch-free (its
+    outcome is a coin flip on the cloth's far field).
     """
     ra = wp.length(a)
     rb = wp.length(b)
     rc = wp.length(c)
     det = wp.dot(a, wp.cross(b, c))
     # only triangles seen at a grazing angle: |n̂_t·â| = |det| / (|N| |a|) with N = (b-a)×(c-a)
-    if wp.abs(det) >= EDGE_ON_SINE * wp.length(wp.cross(b - a, c - a)) * ra:
-        return False
+    grazing = wp.abs(det) < EDGE_ON_SINE * wp.length(wp.cross(b - a, c - a)) * ra
     d = ra * rb * rc + wp.dot(a, b) * rc + wp.dot(a, c) * rb + wp.dot(b, c) * ra
     zmax = wp.max(wp.max(wp.dot(nz, a) * rb * rc, wp.dot(nz, b) * ra * rc), wp.dot(nz, c) * ra * rb)  # max cos · ra rb rc
-    return 2.0 * wp.abs(det) * zmax < min_area * d * ra * rb * rc
+    return wp.where(grazing, 2.0 * wp.abs(det) * zmax < min_area * d * ra * rb * rc, False)
 
 
 @wp.func
@@ -384,24 +384,25 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
 
 
 @wp.func(inline=True)
-def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, src: int, nb: int, v: int, sl: int,
+def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, src: int, skip: bool, nb: int, v: int, sl: int,
                   frame: wp.mat33, lut: PlaneLut, mask: wp.array2d[wp.uint64], bt: Batch) -> int:
-    """Queue triangle (a, b, c) (corners relative to the receiver) for receiver ``v`` unless it is
-    wholly at or below the horizon; flushes a full queue. Returns the new queue length.
+    """Queue triangle (a, b, c) (corners relative to the receiver) for receiver ``v`` unless ``skip``
+    or it is wholly at or below the horizon; flushes a full queue. Returns the new queue length.
 
-    The exact horizon cull (3 dots) comes first: such a triangle has no image, and quantised planes
-    would otherwise leak bits at the disk rim.
+    The exact horizon cull (3 dots): such a triangle has no image, and quantised planes would
+    otherwise leak bits at the disk rim. Branch-free: the triangle is always written to the next
+    free entry, which only a kept triangle takes.
     """
     nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
-    if wp.max(wp.max(wp.dot(nz, a), wp.dot(nz, b)), wp.dot(nz, c)) <= 0.0:
-        return nb
+    keep = wp.where(skip, False, wp.max(wp.max(wp.dot(nz, a), wp.dot(nz, b)), wp.dot(nz, c)) > 0.0)
     bt.a[sl, nb] = a
     bt.b[sl, nb] = b
     bt.c[sl, nb] = c
     bt.src[sl, nb] = src
-    if nb + 1 == bt.a.shape[1]:
-        return flush_batch(nb + 1, v, sl, frame, lut, mask, bt)
-    return nb + 1
+    nb = nb + wp.where(keep, 1, 0)
+    if nb == bt.a.shape[1]:
+        return flush_batch(nb, v, sl, frame, lut, mask, bt)
+    return nb
 
 
 @wp.func
@@ -617,11 +618,11 @@ def rasterize_group(
         fa = fine.points[i] - p
         fb = fine.points[j] - p
         fc = fine.points[k] - p
+        tiny = False
         if lut.fine_area > 0.0:
-            if image_below(fa, fb, fc, n, lut.fine_area):
-                continue
-        nb = push_triangle(fa, fb, fc, src, nb, v, sl, frame, lut, mask, bt)
-        count += 1
+            tiny = image_below(fa, fb, fc, n, lut.fine_area)
+        nb = push_triangle(fa, fb, fc, src, tiny, nb, v, sl, frame, lut, mask, bt)
+        count += wp.where(tiny, 0, 1)
     refined[v] = refined[v] + count
     return nb
 
@@ -669,10 +670,10 @@ def rasterize_blocker(
     a = blockers.points[i] - p
     b = blockers.points[j] - p
     c = blockers.points[k] - p
+    tiny = False
     if lut.min_area > 0.0:
-        if image_below(a, b, c, nz, lut.min_area):
-            return nb
-    return push_triangle(a, b, c, blockers.source[t], nb, v, sl, frame, lut, mask, bt)
+        tiny = image_below(a, b, c, nz, lut.min_area)
+    return push_triangle(a, b, c, blockers.source[t], tiny, nb, v, sl, frame, lut, mask, bt)
 
 
 @wp.func(inline=True)
@@ -815,10 +816,10 @@ def rasterize_far_chunk(
         a = blockers.points[i] - p
         b = blockers.points[j] - p
         c = blockers.points[kk] - p
+        below = False
         if lut.min_area > 0.0:
-            if image_below(a, b, c, nz, lut.min_area):
-                continue
-        nb = push_triangle(a, b, c, blockers.source[t], nb, v, sl, frame, lut, mask, bt)
+            below = image_below(a, b, c, nz, lut.min_area)
+        nb = push_triangle(a, b, c, blockers.source[t], below, nb, v, sl, frame, lut, mask, bt)
     return nb
 
 
@@ -887,7 +888,7 @@ def rasterize_masks(
             i = fine.faces[t, 0]
             j = fine.faces[t, 1]
             k = fine.faces[t, 2]
-            nb = push_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, -1, nb, v, sl, frame, lut,
+            nb = push_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, -1, False, nb, v, sl, frame, lut,
                                mask, bt)
         # far field: coarse blockers, replaced by their fine triangles near the receiver
         offset = wp.dot(n, p)
