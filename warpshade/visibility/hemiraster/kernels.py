@@ -238,30 +238,26 @@ def image_below(a: wp.vec3, b: wp.vec3, c: wp.vec3, nz: wp.vec3, min_area: float
     return wp.where(grazing, 2.0 * wp.abs(det) * zmax < min_area * d * ra * rb * rc, False)
 
 
-@wp.func
+@wp.func(inline=True)
 def skip_early(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, nz: wp.vec3, backface: float, rim: float) -> bool:
-    """Per-frame triangle data say: wholly at or below the tangent plane, or back-facing (``backface``).
+    """Per-frame triangle data say: wholly at or below the tangent plane, below the lowest pixel
+    centre, or back-facing (``backface``).
 
-    The sphere test is a subset of :func:`rasterize_triangle`'s exact horizon cull; ``N·a - N·p`` is
+    The sphere test is a subset of :func:`push_triangle`'s exact horizon cull; ``N·a - N·p`` is
     its determinant ``det[a-p, b-p, c-p]`` computed another way (signs can differ only for
-    triangles seen exactly edge-on, which have empty images).
+    triangles seen exactly edge-on, which have empty images). Branch-free (selects): on one CPU
+    thread, mispredicted cull branches cost more than computing every test.
     """
     q = wp.vec3(sphere[0], sphere[1], sphere[2]) - p
     h = wp.dot(nz, q) + sphere[3]
-    if h <= 0.0:
-        return True
     # below the lowest pixel centre: every point x of the sphere has sine of elevation
     # n·(x-p)/|x-p| <= h / (|q| - r) <= rim, i.e. (h + rim r)² <= rim² |q|² (no square root)
     hr = h + rim * sphere[3]
-    if hr * hr <= rim * rim * wp.dot(q, q):
-        return True
-    if backface != 0.0:
-        if (plane[3] - wp.dot(wp.vec3(plane[0], plane[1], plane[2]), p)) * backface > 0.0:
-            return True
-    return False
+    back = (plane[3] - wp.dot(wp.vec3(plane[0], plane[1], plane[2]), p)) * backface > 0.0
+    return wp.where(h <= 0.0, True, wp.where(hr * hr <= rim * rim * wp.dot(q, q), True, back))
 
 
-@wp.func
+@wp.func(inline=True)
 def bounds_below(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, n: wp.vec3, min_area: float) -> bool:
     """Cheap pre-test of :func:`image_below` from per-frame triangle data (no vertex gathers).
 
@@ -269,20 +265,18 @@ def bounds_below(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, n: wp.vec3, min_ar
     (centroid, radius). A triangle of area A whose plane is h from the receiver and whose points
     are at least d_min = |centroid - p| - radius away subtends Ω = ∫ h/|x|³ dA <= A h / d_min³
     = |N·p - N·a| / (2 d_min³); its largest cosine is at most (n·(centroid - p) + radius) / d_min.
+    Branch-free, as :func:`skip_early`.
     """
     q = wp.vec3(sphere[0], sphere[1], sphere[2]) - p
-    dc = wp.length(q)
-    dmin = dc - sphere[3]
-    if dmin <= 0.0:
-        return False
+    dmin = wp.length(q) - sphere[3]
     nrm = wp.vec3(plane[0], plane[1], plane[2])
     twice_ah = wp.abs(wp.dot(nrm, p) - plane[3])
     # only triangles seen at a grazing angle: h / d_min bounds the sine seen from any corner, so this
     # skips nothing that :func:`image_below` would keep
-    if twice_ah >= EDGE_ON_SINE * wp.length(nrm) * dmin:
-        return False
+    grazing = twice_ah < EDGE_ON_SINE * wp.length(nrm) * dmin
     cmax = wp.min(1.0, (wp.dot(n, q) + sphere[3]) / dmin)
-    return twice_ah * cmax < min_area * 2.0 * dmin * dmin * dmin
+    small = twice_ah * cmax < min_area * 2.0 * dmin * dmin * dmin
+    return wp.where(dmin > 0.0, wp.where(grazing, small, False), False)
 
 
 @wp.kernel
@@ -597,32 +591,30 @@ def rasterize_group(
                 continue
         f = groups.tris[r]
         r += 1
+        # branch-free culls (selects): skipped triangles are still written to the queue but take no entry
         fpl = fine.plane[f]
         fsp = fine.sphere[f]
-        if skip_early(fpl, fsp, p, n, lut.backface, lut.rim):
-            continue
+        drop = skip_early(fpl, fsp, p, n, lut.backface, lut.rim)
         if lut.fine_area > 0.0:
-            if bounds_below(fpl, fsp, p, n, lut.fine_area):
-                continue
+            drop = wp.where(drop, True, bounds_below(fpl, fsp, p, n, lut.fine_area))
         i = fine.faces[f, 0]
         j = fine.faces[f, 1]
         k = fine.faces[f, 2]
-        if i == v or j == v or k == v:
-            continue
+        drop = wp.where(drop, True, wp.where(i == v, True, wp.where(j == v, True, k == v)))
         if groups.use_seen != 0:
+            # marked even when culled: the culls depend only on the triangle and the receiver, so
+            # any other group listing it culls it too
             bit = wp.uint64(1) << wp.uint64(f & 63)
             word = groups.seen[sl, f >> 6]
-            if (word & bit) != wp.uint64(0):
-                continue
+            drop = wp.where(drop, True, (word & bit) != wp.uint64(0))
             groups.seen[sl, f >> 6] = word | bit
         fa = fine.points[i] - p
         fb = fine.points[j] - p
         fc = fine.points[k] - p
-        tiny = False
         if lut.fine_area > 0.0:
-            tiny = image_below(fa, fb, fc, n, lut.fine_area)
-        nb = push_triangle(fa, fb, fc, src, tiny, nb, v, sl, frame, lut, mask, bt)
-        count += wp.where(tiny, 0, 1)
+            drop = wp.where(drop, True, image_below(fa, fb, fc, n, lut.fine_area))
+        nb = push_triangle(fa, fb, fc, src, drop, nb, v, sl, frame, lut, mask, bt)
+        count += wp.where(drop, 0, 1)
     refined[v] = refined[v] + count
     return nb
 
@@ -755,7 +747,6 @@ def rasterize_far_chunk(
     tiny with similar odds), and their stalls cost more than the tests themselves.
     """
     nz = n
-    rim2 = lut.rim * lut.rim
     zero = wp.uint64(0)
     # (Python's ``and``/``or`` would become branches in the generated code: bits are combined with
     # ``wp.where`` selects and bitwise operators instead)
@@ -766,19 +757,8 @@ def rasterize_far_chunk(
         bit = wp.uint64(1) << wp.uint64(t - t0)
         sph = blockers.sphere[t]
         pln = blockers.plane[t]
-        q = wp.vec3(sph[0], sph[1], sph[2]) - p
-        h = wp.dot(nz, q) + sph[3]
-        hr = h + lut.rim * sph[3]
-        nrm = wp.vec3(pln[0], pln[1], pln[2])
-        # :func:`skip_early`: at or below the horizon, below the lowest pixel centre, back-facing
-        cull = cull | wp.where(h <= 0.0, bit, zero) | wp.where(hr * hr <= rim2 * wp.dot(q, q), bit, zero)
-        cull = cull | wp.where((pln[3] - wp.dot(nrm, p)) * lut.backface > 0.0, bit, zero)
-        # :func:`bounds_below`
-        dmin = wp.length(q) - sph[3]
-        twice_ah = wp.abs(wp.dot(nrm, p) - pln[3])
-        cmax = wp.min(1.0, (wp.dot(nz, q) + sph[3]) / dmin)
-        small = wp.where(dmin > 0.0, bit, zero) & wp.where(twice_ah < EDGE_ON_SINE * wp.length(nrm) * dmin, bit, zero)
-        tiny = tiny | (small & wp.where(twice_ah * cmax < lut.min_area * 2.0 * dmin * dmin * dmin, bit, zero))
+        cull = cull | wp.where(skip_early(pln, sph, p, nz, lut.backface, lut.rim), bit, zero)
+        tiny = tiny | wp.where(bounds_below(pln, sph, p, nz, lut.min_area), bit, zero)
     if near:
         # :func:`refine_here`
         for t in range(t0, t1):
