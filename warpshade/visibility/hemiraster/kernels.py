@@ -653,19 +653,37 @@ def rasterize_blocker(
     if lut.min_area > 0.0:
         if bounds_below(pln, sph, p, nz, lut.min_area):
             return nb
+    return queue_blocker(t, v, sl, p, blockers, frame, lut, mask, bt, nb)
+
+
+@wp.func(inline=True)
+def queue_blocker(
+    t: int,
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    blockers: Blockers,
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    bt: Batch,
+    nb: int,
+) -> int:
+    """Queue blocker triangle ``t`` that passed the per-frame culls, unless it is incident to the
+    receiver (full-mesh blockers only) or its exact image is tiny (:func:`image_below`); returns
+    the queue length. Branch-free (:func:`push_triangle`)."""
     i = blockers.faces[t, 0]
     j = blockers.faces[t, 1]
     k = blockers.faces[t, 2]
+    skip = False
     if blockers.skip_incident != 0:
-        if i == v or j == v or k == v:
-            return nb
+        skip = wp.where(i == v, True, wp.where(j == v, True, k == v))
     a = blockers.points[i] - p
     b = blockers.points[j] - p
     c = blockers.points[k] - p
-    tiny = False
     if lut.min_area > 0.0:
-        tiny = image_below(a, b, c, nz, lut.min_area)
-    return push_triangle(a, b, c, blockers.source[t], tiny, nb, v, sl, frame, lut, mask, bt)
+        skip = wp.where(skip, True, image_below(a, b, c, wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2]), lut.min_area))
+    return push_triangle(a, b, c, blockers.source[t], skip, nb, v, sl, frame, lut, mask, bt)
 
 
 @wp.func(inline=True)
@@ -786,20 +804,7 @@ def rasterize_far_chunk(
     while keep != wp.uint64(0):
         k = lowest_bit(keep)
         keep = keep & (keep - wp.uint64(1))
-        t = t0 + k
-        i = blockers.faces[t, 0]
-        j = blockers.faces[t, 1]
-        kk = blockers.faces[t, 2]
-        if blockers.skip_incident != 0:
-            if i == v or j == v or kk == v:
-                continue
-        a = blockers.points[i] - p
-        b = blockers.points[j] - p
-        c = blockers.points[kk] - p
-        below = False
-        if lut.min_area > 0.0:
-            below = image_below(a, b, c, nz, lut.min_area)
-        nb = push_triangle(a, b, c, blockers.source[t], below, nb, v, sl, frame, lut, mask, bt)
+        nb = queue_blocker(t0 + k, v, sl, p, blockers, frame, lut, mask, bt, nb)
     return nb
 
 
