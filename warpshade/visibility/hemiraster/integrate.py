@@ -38,9 +38,6 @@ from ..reference_kernels import orthonormal_basis
 
 wp.set_module_options({"enable_backward": False, "optimization_level": 3})
 
-NIBBLES_PER_WORD = 16
-
-
 def pixel_weights(weights: np.ndarray, valid_per_block: np.ndarray, valid_pixels: np.ndarray, downsample: int) -> np.ndarray:
     """Per mask bit (Morton order) its share ``W_b / n_b`` of its block's integral, 0 for invalid pixels.
 

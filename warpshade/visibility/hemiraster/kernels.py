@@ -12,16 +12,13 @@ from __future__ import annotations
 import warp as wp
 
 from ..reference_kernels import orthonormal_basis
+from .tables import CHUNK_WORDS
 
 # forward only (nothing here is differentiated): half the generated code and compile time. No fused
 # multiply-adds: then ``b × a`` is exactly ``-(a × b)`` (both products of each component are computed
 # and rounded alike), so the two triangles sharing an edge get exactly opposite edge planes
 # (:func:`edge_plane`) and complementary masks without ordering the corners first.
 wp.set_module_options({"enable_backward": False, "optimization_level": 3, "fuse_fp": False})
-
-CHUNK_WORDS = 16
-"""Mask words per LUT chunk (1024 bits: a whole 32×32 mask)."""
-
 
 class MaskChunk(wp.types.vector(length=CHUNK_WORDS, dtype=wp.uint64)):
     """16 mask words handled as one value: ``&``, ``|``, ``^`` of two chunks compile to two AVX-512
@@ -626,37 +623,6 @@ def excluded(excl: wp.array2d[wp.uint32], v: int, t: int) -> bool:
 
 
 @wp.func(inline=True)
-def rasterize_blocker(
-    t: int,
-    v: int,
-    sl: int,
-    p: wp.vec3,
-    blockers: Blockers,
-    frame: wp.mat33,
-    lut: PlaneLut,
-    mask: wp.array2d[wp.uint64],
-    bt: Batch,
-    nb: int,
-) -> int:
-    """Queue blocker triangle ``t`` for receiver ``v`` after the cheap skips; returns the queue length.
-    (The near-field exclusion is tested before, in :func:`rasterize_far`.)
-
-    Skips, cheapest first, all from per-frame data of ``t`` alone (no vertex gathers): the bounding
-    sphere wholly at or below the tangent plane (a subset of :func:`push_triangle`'s exact horizon
-    cull, so the mask is unchanged) or back-facing (:func:`skip_early`), the tiny-image bound.
-    """
-    sph = blockers.sphere[t]
-    pln = blockers.plane[t]
-    nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
-    if skip_early(pln, sph, p, nz, lut.backface, lut.rim):
-        return nb
-    if lut.min_area > 0.0:
-        if bounds_below(pln, sph, p, nz, lut.min_area):
-            return nb
-    return queue_blocker(t, v, sl, p, blockers, frame, lut, mask, bt, nb)
-
-
-@wp.func(inline=True)
 def queue_blocker(
     t: int,
     v: int,
@@ -684,42 +650,6 @@ def queue_blocker(
     if lut.min_area > 0.0:
         skip = wp.where(skip, True, image_below(a, b, c, wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2]), lut.min_area))
     return push_triangle(a, b, c, blockers.source[t], skip, nb, v, sl, frame, lut, mask, bt)
-
-
-@wp.func(inline=True)
-def rasterize_far(
-    t: int,
-    near: bool,
-    v: int,
-    sl: int,
-    p: wp.vec3,
-    n: wp.vec3,
-    fine: FineMesh,
-    groups: Refinement,
-    blockers: Blockers,
-    use_excl: int,
-    excl: wp.array2d[wp.uint32],
-    frame: wp.mat33,
-    lut: PlaneLut,
-    mask: wp.array2d[wp.uint64],
-    bt: Batch,
-    nb: int,
-    refined: wp.array[wp.int32],
-) -> int:
-    """One far-field blocker: its fine triangles when it is near the receiver (``near``: its cluster
-    may be, :func:`refine_here`), else the blocker itself (:func:`rasterize_blocker`). Returns the
-    receiver's queue length (:class:`Batch`)."""
-    use_fine = False
-    if use_excl != 0 and excluded(excl, v, blockers.source[t]):
-        if use_excl == 1:  # left to the k-ring (paper scheme)
-            return nb
-        use_fine = True  # stands for part of the receiver's k-ring: always its fine triangles
-    elif near:
-        use_fine = refine_here(p, groups.lo[t], groups.hi[t], groups.dev[t], groups.refine)
-    if use_fine:
-        return rasterize_group(t, v, sl, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, bt, nb,
-                               refined)
-    return rasterize_blocker(t, v, sl, p, blockers, frame, lut, mask, bt, nb)
 
 
 FAR_CHUNK = wp.constant(64)
@@ -753,18 +683,17 @@ def rasterize_far_chunk(
     nb: int,
     refined: wp.array[wp.int32],
 ) -> int:
-    """Far-field blockers ``t0 .. t1-1`` (at most :data:`FAR_CHUNK`, consecutive): what
-    :func:`rasterize_far` does for each, in two passes. Returns the receiver's queue length.
+    """Far-field blockers ``t0 .. t1-1`` (at most :data:`FAR_CHUNK`, consecutive; the PVS path passes
+    one at a time): each is rasterized itself, or replaced by its fine triangles near the receiver
+    (:func:`rasterize_group`). Returns the receiver's queue length.
 
     First a branch-free pass over all of them classifies each from per-frame data alone: dropped
     (near-field exclusion of the paper scheme), refined (:func:`refine_here`, or standing for the
-    receiver's k-ring), culled (the tests of :func:`skip_early` and :func:`bounds_below`, same
-    arithmetic), or kept; the outcome goes into two bit sets. Then only the refined and the kept
-    blockers are visited. On one CPU thread the per-blocker branches of :func:`rasterize_far`
-    mispredicted about as often as they were taken (a coarse cloth triangle is kept, culled or
-    tiny with similar odds), and their stalls cost more than the tests themselves.
+    receiver's k-ring), culled (:func:`skip_early`, :func:`bounds_below`), or kept; the outcome goes
+    into two bit sets. Then only the refined and the kept blockers are visited. On one CPU thread
+    per-blocker branches mispredicted about as often as they were taken (a coarse cloth triangle
+    is kept, culled or tiny with similar odds), and their stalls cost more than the tests themselves.
     """
-    nz = n
     zero = wp.uint64(0)
     # (Python's ``and``/``or`` would become branches in the generated code: bits are combined with
     # ``wp.where`` selects and bitwise operators instead)
@@ -775,8 +704,9 @@ def rasterize_far_chunk(
         bit = wp.uint64(1) << wp.uint64(t - t0)
         sph = blockers.sphere[t]
         pln = blockers.plane[t]
-        cull = cull | wp.where(skip_early(pln, sph, p, nz, lut.backface, lut.rim), bit, zero)
-        tiny = tiny | wp.where(bounds_below(pln, sph, p, nz, lut.min_area), bit, zero)
+        cull = cull | wp.where(skip_early(pln, sph, p, n, lut.backface, lut.rim), bit, zero)
+        if lut.min_area > 0.0:  # the same for every blocker: predicted
+            tiny = tiny | wp.where(bounds_below(pln, sph, p, n, lut.min_area), bit, zero)
     if near:
         # :func:`refine_here`
         for t in range(t0, t1):
@@ -791,8 +721,6 @@ def rasterize_far_chunk(
     refine_bits = near_bits & ~ex
     if use_excl == 2:
         refine_bits = refine_bits | ex
-    if lut.min_area <= 0.0:
-        tiny = zero
     keep = ~(ex | refine_bits | cull | tiny)
     if t1 - t0 < 64:
         keep = keep & ((wp.uint64(1) << wp.uint64(t1 - t0)) - wp.uint64(1))
@@ -880,8 +808,9 @@ def rasterize_masks(
         near_all = groups.refine > 0.0
         if use_pvs != 0:
             for r in range(pvs_start[v], pvs_start[v + 1]):
-                nb = rasterize_far(pvs_tris[r], near_all, v, sl, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
-                                   mask, bt, nb, refined)
+                t = pvs_tris[r]
+                nb = rasterize_far_chunk(t, t + 1, near_all, v, sl, p, n, fine, groups, blockers, use_excl, excl, frame,
+                                         lut, mask, bt, nb, refined)
         elif use_cull != 0:
             for s in range(super_start.shape[0] - 1):
                 if box_above_plane(super_lo[s], super_hi[s], n, offset):
