@@ -101,7 +101,7 @@ def markdown_table(records: list[dict]) -> str:
                    f"{r['radiance_error_sky']:.4f} / {r['radiance_error_studio']:.4f} | {peak} | "
                    f"{r['array_bytes'] / 2**20:.2f} |")
     if any(is_area(r) for r in records):
-        out.append("\n‡ gears / area-rays: absolute error of the visible fraction of a rect light (CONTRACTS.md §4) "
+        out.append("\n‡ gears / area-rays: absolute error of the visible fraction of a rect light (docs/conventions.md §4) "
                    "against 32×32 jittered shadow rays per vertex, not the transfer error.")
     return "\n".join(out)
 

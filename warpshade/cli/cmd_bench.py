@@ -1,4 +1,4 @@
-"""``warpshade bench``: speed/accuracy sweep of every visibility method (CONTRACTS.md §5)."""
+"""``warpshade bench``: speed/accuracy sweep of every visibility method (docs/conventions.md §5)."""
 
 from __future__ import annotations
 

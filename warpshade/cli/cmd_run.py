@@ -1,4 +1,4 @@
-"""``warpshade run``: simulate, shade and write a scene to USD (CONTRACTS.md §5, §6)."""
+"""``warpshade run``: simulate, shade and write a scene to USD (docs/conventions.md §5, §6)."""
 
 from __future__ import annotations
 

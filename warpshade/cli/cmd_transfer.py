@@ -1,4 +1,4 @@
-"""``warpshade transfer``: per-vertex SH diffuse transfer of a mesh (CONTRACTS.md §3)."""
+"""``warpshade transfer``: per-vertex SH diffuse transfer of a mesh (docs/conventions.md §3)."""
 
 from __future__ import annotations
 
@@ -57,7 +57,7 @@ def run(args) -> int:
 
 
 def method_stats(method, mesh, seconds: float, repeat: int, order: int | None, **extra) -> dict:
-    """The ``STATS.json`` of ``warpshade transfer`` and ``warpshade visibility`` (CONTRACTS.md §3, §4):
+    """The ``STATS.json`` of ``warpshade transfer`` and ``warpshade visibility`` (docs/conventions.md §3, §4):
     method name, order (None for area-light visibility), mesh size, timing, every knob as used, the
     method's counters, then ``extra`` keys."""
     return {"method": type(method).name, "order": order, "vertices": mesh.num_vertices, "triangles": mesh.num_faces,

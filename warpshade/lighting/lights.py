@@ -114,7 +114,7 @@ class SphereLight(Light):
     of half-angle ``asin(radius / r)``; inside the sphere it fills every direction.
 
     The cap's zonal coefficients are analytic (:func:`~warpshade.sh.zonal.cap_zh`) and rotated
-    with CONTRACTS.md §1's formula, so the SH is exact for every receiver.
+    with docs/conventions.md §1's formula, so the SH is exact for every receiver.
 
     Attributes:
         position: Centre [m], shape (3,).

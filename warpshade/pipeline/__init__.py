@@ -4,7 +4,7 @@ Data flows one way (STYLE.md): per frame each object's positions come from the s
 :mod:`.cloth`), from skinning or time samples (skinned, animated) or stay put (static); each
 *shading group* — the objects that share a visibility method and its knobs — is one receiver mesh,
 so its members shadow each other (with ``reference``: exactly, ray traced); the group's
-:class:`~warpshade.visibility.TransferMethod` updates the SH transfer (CONTRACTS.md §2); exit
+:class:`~warpshade.visibility.TransferMethod` updates the SH transfer (docs/conventions.md §2); exit
 radiance ``(ρ/π) Σ_i L_i T_i`` uses the lights' SH (world space); the writer streams the frame out.
 An object with ``casts_shadows`` False stays in its group as a receiver only: the method, the
 between-group sphere sets and the GEARS pass get the casters' triangles alone.
@@ -216,7 +216,7 @@ class Pipeline:
                 secs["shade"] += res.pop("_seconds")
                 secs["setup"] += res.pop("_build_seconds", 0.0)
                 for name, (points, normals, colors, transfer) in res.items():
-                    # CONTRACTS.md §6: every shaded mesh has points, normals and extent time-sampled
+                    # docs/conventions.md §6: every shaded mesh has points, normals and extent time-sampled
                     # per frame, static ones included
                     writer.write_frame(f, names[name], points, normals, colors, transfer)
                 secs["write"] += time.perf_counter() - t

@@ -1,4 +1,4 @@
-"""Streaming export of shaded, animated meshes to USD (CONTRACTS.md §6).
+"""Streaming export of shaded, animated meshes to USD (docs/conventions.md §6).
 
 Layout of an output ``OUT.usda``::
 
@@ -108,7 +108,7 @@ class AnimationWriter:
         data = {"generator": f"warpshade {__version__}", "warpshade:layout": "value clips"}
         data.update({f"warpshade:{k}": str(v) for k, v in (metadata or {}).items()})
         self.stage.GetRootLayer().customLayerData = data
-        self.stage.GetRootLayer().documentation = "Shaded animation written by warpshade (CONTRACTS.md §6)"
+        self.stage.GetRootLayer().documentation = "Shaded animation written by warpshade (docs/conventions.md §6)"
 
         self._meshes: dict[str, dict] = {}      # prim name -> info (path, vertex count, transfer size)
         self._lights: list[str] = []

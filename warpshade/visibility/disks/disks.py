@@ -5,7 +5,7 @@ over the rest pose (built once: median splits along the longest axis, the "bi-tr
 grouping nearby disks) gets parent disks averaged from their children every frame. Per receiver
 vertex the tree is walked with level of detail by distance, and each disk's coverage is binned into
 the paper's 16 hemisphere directions (eq. 5). Bunnell's two passes correct for overlapping occluders.
-The binned occlusion becomes the SH diffuse transfer of CONTRACTS.md §2, and gives visibility toward
+The binned occlusion becomes the SH diffuse transfer of docs/conventions.md §2, and gives visibility toward
 directional, point and spot lights.
 """
 

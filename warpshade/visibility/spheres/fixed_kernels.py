@@ -167,7 +167,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         visibility: wp.array2d(dtype=float),
         transfer: wp.array2d(dtype=float),
     ):
-        """Sphere-set visibility (eq. 4.7) and diffuse transfer ``V * cos`` (CONTRACTS.md §2) of receiver ``v``.
+        """Sphere-set visibility (eq. 4.7) and diffuse transfer ``V * cos`` (docs/conventions.md §2) of receiver ``v``.
 
         Receivers ``points``/``normals`` (R,) vec3 in cluster ``cluster[v]``, whose cut entries are
         ``cut_start[c]..cut_start[c+1]-1`` (sphere ``cut_sphere[e]``, ratio row ``cut_ratio[e]`` of eq. 4.9,
@@ -210,7 +210,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             vis[0] = sqrt_4pi * wp.exp(wp.min(logsum[0] / sqrt_4pi, 0.0))
             fb = 1
         fallback[v] = fb
-        # Transfer = V * clamped cosine (CONTRACTS.md §2); negative irradiance (ringing) -> 0.
+        # Transfer = V * clamped cosine (docs/conventions.md §2); negative irradiance (ringing) -> 0.
         t = product(vis, zh_rotate(n, cos_zh, kz), products)
         if t[0] < 0.0:
             t = vec_sh()

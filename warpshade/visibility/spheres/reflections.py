@@ -14,7 +14,7 @@ the Voronoi-cell SH sums of eq. 4.19. Per frame (:meth:`SphereReflections.update
    the sphere visibility of eq. 4.32 (optionally with the thesis' rule for intersecting spheres of one
    object, ``exclude_intersecting``) and, optionally, without the receiver's own object's spheres.
 
-Exit radiance including the bounce: ``(ρ/π) (L · T + E_R)`` (CONTRACTS.md §2 for the first term).
+Exit radiance including the bounce: ``(ρ/π) (L · T + E_R)`` (docs/conventions.md §2 for the first term).
 
 Hierarchy (``cuts=True``, §4.3.3 "Using sphere hierarchies with diffuse reflections"): every level of
 every reflecting object gets its own samples (ownership of eq. 4.10 among the spheres of that level,
