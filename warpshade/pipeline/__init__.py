@@ -1,6 +1,6 @@
 """The main job: simulate, shade and write a scene, one frame at a time (``warpshade run``).
 
-Data flows one way (STYLE.md): per frame each object's positions come from the simulation (cloth,
+Data flows one way: per frame each object's positions come from the simulation (cloth,
 :mod:`.cloth`), from skinning or time samples (skinned, animated) or stay put (static); each
 *shading group* — the objects that share a visibility method and its knobs — is one receiver mesh,
 so its members shadow each other (with ``reference``: exactly, ray traced); the group's
