@@ -2,9 +2,9 @@
 
 Rules (stated for writers in docs/index.md, "Writing these docs"):
 
-* every ```python block of README.md and docs/**/*.md runs; the blocks of one page run in order, in
-  one namespace, in a fresh temporary directory;
-* every ```bash / ```sh / ```shell block runs with ``bash -e`` in a fresh temporary directory;
+* every ```python and ```bash / ```sh / ```shell block of README.md and docs/**/*.md runs; the
+  blocks of one page run in page order in one fresh temporary directory, the Python blocks in one
+  namespace, each shell block with ``bash -e -o pipefail``;
 * that directory holds ``usd_scenes`` (a link to the shipped scenes), so commands are written as
   run from the root of a checkout and write their outputs where they run;
 * ``python``/``warpshade`` are this interpreter and the tree under test; a ``pip install ...``
@@ -77,19 +77,8 @@ def workdir(tmp_path, monkeypatch):
     return tmp_path
 
 
-PYTHON_PAGES = _pages_with(RUN_PYTHON)
-SHELL_PAGES = _pages_with(RUN_SHELL)
+RUN_PAGES = _pages_with(RUN_PYTHON | RUN_SHELL)
 CONSOLE_PAGES = _pages_with({"console"})
-
-
-@pytest.mark.parametrize("page", PYTHON_PAGES, ids=_ids(PYTHON_PAGES))
-def test_python_blocks_run(page, workdir):
-    """Every ```python block of the page runs, in order, in one namespace."""
-    namespace = {"__name__": "__main__"}
-    for lang, line, code in code_blocks(page):
-        if lang in RUN_PYTHON:
-            # Line numbers in a traceback are the page's own lines.
-            exec(compile("\n" * (line - 1) + code, str(page), "exec"), namespace)
 
 
 def shell_script(code: str) -> str:
@@ -112,24 +101,32 @@ def test_shell_script_rules():
     assert shell_script("warpshade run --frames 2\n") == "warpshade run --frames 2\n"
 
 
-@pytest.mark.parametrize("page", SHELL_PAGES, ids=_ids(SHELL_PAGES))
-def test_shell_blocks_run(page, workdir):
-    """Every ```bash / ```sh / ```shell block of the page runs with ``bash -e``."""
+def shell_env(workdir: Path) -> dict:
+    """Environment of the shell blocks: ``python`` and ``warpshade`` are this interpreter and this tree."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
-    # `python` and `warpshade` in a block are this interpreter and this tree (not whatever is on PATH).
-    shims = workdir / ".bin"
+    shims = workdir.parent / f"{workdir.name}-bin"
     shims.mkdir()
     for name, run in (("python", ""), ("python3", ""), ("warpshade", " -m warpshade")):
         (shims / name).write_text(f"#!/bin/sh\nexec {shlex.quote(sys.executable)}{run} \"$@\"\n")
         (shims / name).chmod(0o755)
     env["PATH"] = f"{shims}{os.pathsep}{env.get('PATH', '')}"
+    return env
+
+
+@pytest.mark.parametrize("page", RUN_PAGES, ids=_ids(RUN_PAGES))
+def test_page_examples_run(page, workdir):
+    """The page's ```python blocks (one namespace) and shell blocks (``bash -e``) run, in page order."""
+    namespace = {"__name__": "__main__"}
+    env = shell_env(workdir)
     for lang, line, code in code_blocks(page):
-        if lang not in RUN_SHELL:
-            continue
-        r = subprocess.run(["bash", "-e", "-o", "pipefail", "-c", shell_script(code)], cwd=workdir, env=env,
-                           capture_output=True, text=True, timeout=600)
-        assert r.returncode == 0, (f"{page.relative_to(ROOT)}:{line}: exit {r.returncode}\n{code}\n"
-                                   f"--- stdout\n{r.stdout[-3000:]}\n--- stderr\n{r.stderr[-3000:]}")
+        if lang in RUN_PYTHON:
+            # Line numbers in a traceback are the page's own lines.
+            exec(compile("\n" * (line - 1) + code, str(page), "exec"), namespace)
+        elif lang in RUN_SHELL:
+            r = subprocess.run(["bash", "-e", "-o", "pipefail", "-c", shell_script(code)], cwd=workdir, env=env,
+                               capture_output=True, text=True, timeout=600)
+            assert r.returncode == 0, (f"{page.relative_to(ROOT)}:{line}: exit {r.returncode}\n{code}\n"
+                                       f"--- stdout\n{r.stdout[-3000:]}\n--- stderr\n{r.stderr[-3000:]}")
 
 
 def _defined_options(source_files: list[Path]) -> str:
