@@ -5,8 +5,8 @@ Rules (stated for writers in docs/index.md, "Writing these docs"):
 * every ```python and ```bash / ```sh / ```shell block of README.md and docs/**/*.md runs; the
   blocks of one page run in page order in one fresh temporary directory, the Python blocks in one
   namespace, each shell block with ``bash -e -o pipefail``;
-* that directory holds ``usd_scenes`` (a link to the shipped scenes), so commands are written as
-  run from the root of a checkout and write their outputs where they run;
+* that directory holds ``usd_scenes``, ``sims`` and ``benchmarks`` (links into the checkout), so
+  commands are written as run from the root of a checkout and write their outputs where they run;
 * ``python``/``warpshade`` are this interpreter and the tree under test; a ``pip install ...``
   command is not run (the test environment is that install) and neither is ``python -m pytest``
   (this test is part of that suite);
@@ -31,6 +31,7 @@ ROOT = Path(__file__).resolve().parent.parent
 FENCE = re.compile(r"^(?P<indent>[ \t]*)(?P<fence>`{3,}|~{3,})(?P<info>[^\n`]*)$")
 RUN_PYTHON = {"python", "py"}
 RUN_SHELL = {"bash", "sh", "shell"}
+CHECKOUT_LINKS = ("usd_scenes", "sims", "benchmarks")
 
 
 def doc_pages() -> list[Path]:
@@ -70,8 +71,10 @@ def _ids(pages):
 
 @pytest.fixture
 def workdir(tmp_path, monkeypatch):
-    """A fresh directory holding ``usd_scenes`` (the shipped scenes), made the current directory."""
-    os.symlink(ROOT / "usd_scenes", tmp_path / "usd_scenes")
+    """A fresh directory holding ``usd_scenes``, ``sims`` and ``benchmarks`` (links into the checkout),
+    made the current directory."""
+    for name in CHECKOUT_LINKS:
+        os.symlink(ROOT / name, tmp_path / name)
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MPLBACKEND", "Agg")
     return tmp_path
@@ -129,36 +132,43 @@ def test_page_examples_run(page, workdir):
                                        f"--- stdout\n{r.stdout[-3000:]}\n--- stderr\n{r.stderr[-3000:]}")
 
 
-def _defined_options(source_files: list[Path]) -> str:
-    return "\n".join(f.read_text(encoding="utf-8") for f in source_files)
+def console_problems(cmd: str) -> list[str]:
+    """What is wrong with one ``$`` command of a ```console block: a script that does not exist, or
+    an ``--option`` that neither the script nor the warpshade package defines."""
+    words = shlex.split(cmd)
+    while words and re.match(r"^[A-Za-z_]+=", words[0]):  # VAR=value prefixes
+        words.pop(0)
+    if words[:1] != ["python"]:
+        return [f"console commands start with python: {cmd}"]
+    sources = sorted((ROOT / "warpshade").rglob("*.py"))
+    if words[1:3] != ["-m", "warpshade"]:
+        script = ROOT / words[1]
+        if not script.is_file():
+            return [f"no script {words[1]}"]
+        sources.insert(0, script)
+    text = "\n".join(f.read_text(encoding="utf-8") for f in sources)
+    return [f"option {opt} is defined nowhere" for opt in (w.split("=")[0] for w in words if w.startswith("--"))
+            if f'"{opt}"' not in text and f"'{opt}'" not in text]
+
+
+def test_console_check_finds_bad_commands():
+    """The console check fails on a missing script and on an option nobody defines."""
+    assert console_problems("python benchmarks/nowhere.py --json x") == ["no script benchmarks/nowhere.py"]
+    assert console_problems("python benchmarks/cloth.py --grid 8 --gird 8") == ["option --gird is defined nowhere"]
+    assert console_problems("OPENBLAS_NUM_THREADS=1 python -m warpshade bench --quick --out d") == []
 
 
 @pytest.mark.parametrize("page", CONSOLE_PAGES, ids=_ids(CONSOLE_PAGES))
 def test_console_commands_exist(page):
     """Each ``$`` command of a ```console block names an existing script and only options it defines."""
-    package = sorted((ROOT / "warpshade").rglob("*.py"))
+    problems = []
     for lang, line, code in code_blocks(page):
         if lang != "console":
             continue
         for k, cmd in enumerate(code.replace("\\\n", " ").split("\n")):
-            if not cmd.startswith("$ "):
-                continue
-            where = f"{page.relative_to(ROOT)}:{line + k}"
-            words = shlex.split(cmd[2:])
-            while words and re.match(r"^[A-Z_]+=", words[0]):  # VAR=value prefixes
-                words.pop(0)
-            assert words[:1] == ["python"], f"{where}: console commands start with python: {cmd}"
-            if words[1:3] == ["-m", "warpshade"]:
-                sources = package
-            else:
-                script = ROOT / words[1]
-                assert script.is_file(), f"{where}: no script {words[1]}"
-                sources = [script] + package
-            text = _defined_options(sources)
-            for w in words:
-                if w.startswith("--"):
-                    opt = w.split("=")[0]
-                    assert f'"{opt}"' in text or f"'{opt}'" in text, f"{where}: option {opt} is defined nowhere"
+            if cmd.startswith("$ "):
+                problems += [f"{page.relative_to(ROOT)}:{line + k}: {p}" for p in console_problems(cmd[2:])]
+    assert not problems, "\n".join(problems)
 
 
 def tracked_files() -> list[Path]:
