@@ -1,4 +1,4 @@
-"""Benchmark outputs: ``results.json``, ``results.csv``, ``pareto.png``, a text table, a README table and
+"""Benchmark outputs: ``results.json``, ``results.csv``, ``pareto.png``, a text table, a Markdown table (``results.md``) and
 the planner's frontier file."""
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def format_table(records: list[dict]) -> str:
 
 
 def markdown_table(records: list[dict]) -> str:
-    """README table (Pareto-optimal configurations marked ★)."""
+    """Markdown table of ``results.md`` (Pareto-optimal configurations marked ★)."""
     out = ["| mesh | method | config | ms/frame | error mean | error p95 | radiance err sky / studio | peak RSS MB | arrays MB |",
            "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for r in records:

@@ -57,7 +57,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
-    parser.epilog = "Method knobs (e.g. --rays for reference) follow --method; see README."
+    parser.epilog = "Method knobs (e.g. --rays for reference) follow --method; see docs/methods/ for each method's list."
 
 
 def _reclaim_knob_value(args, method_cls) -> None:

@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--save", required=True, metavar="OUT.npz", help="output arrays")
     parser.add_argument("--json", default=None, metavar="STATS.json", help="write timing and knobs")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
-    parser.epilog = "Method knobs (e.g. --rays for reference) follow; see README for each method's list."
+    parser.epilog = "Method knobs (e.g. --rays for reference) follow; see docs/methods/ for each method's list."
 
 
 def parse_knobs(method_cls, extra: list[str]) -> dict:

@@ -83,7 +83,7 @@ class DiskTransfer(TransferMethod):
         passes: 1 (single pass) or 2 (Bunnell's correction for overlapping occluders: mean of pass 1
             and a pass weighted by each occluder's own accessibility), or 0 = auto: 2 for two-sided
             disks (which double-count the front and back of a surface) and 1 for one-sided ones
-            (which already under-estimate occlusion); measured on Warp's bunny and bear (README).
+            (which already under-estimate occlusion); measured on Warp's bunny and bear (docs/methods/disks.md).
         sides: ``"one"`` (disks occlude only from their front: right for closed surfaces, whose back
             faces hide behind front faces), ``"two"`` (cloth, open sheets) or ``"auto"`` (one for
             a closed mesh, two if the mesh has boundary edges).

@@ -9,7 +9,7 @@ products are the SH core's :func:`~warpshade.sh.kernels.sh_product_vector_funcs`
 6; squarings use the Gaunt table's symmetry). Against the earlier runtime-order kernels with SH
 vectors in rows of 2D scratch arrays and a table-driven product loop this gives the same transfer
 (max difference 3e-6) 2-4x faster: at order 4 on the benchmark scene, hybrid 6.9 -> 20 frames/s
-(README, "Sphere-set soft shadows and reflections").
+(docs/methods/spheres.md).
 
 This module deliberately does not use postponed annotations: Warp reads the (closure-local) vector
 types from the annotations of the generated functions.

@@ -84,7 +84,7 @@ class SphereReflections:
             the equation as printed, for measurements only).
         exclude_intersecting: The thesis' rule for eq. 4.32 (below eq. 4.33): closer spheres of the same
             object that intersect sphere ``i`` are left out of its visibility. Off by default: measured
-            less accurate and 2.5x slower (README).
+            less accurate and 2.5x slower (docs/methods/spheres.md).
         self_reflection: Whether receivers get light from their own object's spheres; False needs
             ``receiver_objects``.
         receiver_objects: Object (index into ``method.scene``) of each receiver vertex, shape (V,), int;
