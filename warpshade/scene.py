@@ -139,7 +139,7 @@ class SceneObject:
         casts_shadows: Whether the object blocks light (``warpshade:castsShadows``). False: it receives
             shadows but blocks no light toward any vertex, its own included, in every pass of a run
             (its group's visibility method, sphere sets between groups, GEARS rect lights); it still
-            reflects light in the one-bounce pass (README, "Objects that cast no shadows").
+            reflects light in the one-bounce pass (docs/guide/quickstart.md, "Objects that cast no shadows").
         shaded: Whether the object is shaded and written with colours.
         params: Kind-specific settings (cloth material, pinned vertices, skinning data, animation
             samples...), as read from ``warpshade:`` attributes.

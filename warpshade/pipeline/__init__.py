@@ -44,7 +44,7 @@ a ground plane) are not. A method goes in front once it is measured close to the
 
 DEFAULT_KNOBS = {"reference": {"rays": 256}}
 """Knobs a run uses when the scene and the command line give none (reference: 256 rays, 3.5 %
-relative L2 error, measured in the README's reference section)."""
+relative L2 error, measured in docs/methods/reference.md)."""
 
 DEFAULT_ORDER = 4
 """SH order of a run unless the scene (``warpshade:order``) or ``--order`` says otherwise."""

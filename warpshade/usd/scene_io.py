@@ -1,6 +1,6 @@
 """Read a USD stage into a :class:`warpshade.scene.Scene` (the pipeline's pxr-free description).
 
-What is read (README "Running scenes (USD)" documents every attribute):
+What is read (docs/guide/quickstart.md, "Your own scene", documents every attribute):
 
 * ``UsdGeom.Mesh`` prims, world transform applied, n-gons fan-triangulated. Kind: ``warpshade:kind``
   if authored, else ``skinned`` for meshes bound to a UsdSkel skeleton, ``animated`` for meshes
