@@ -95,6 +95,7 @@ def parse_albedo(text: str | None):
 def run(args) -> int:
     from ..pipeline import Pipeline
     from ..usd import AnimationWriter, read_scene
+    from . import exit_code, interrupted_by
     from .cmd_transfer import parse_knobs
 
     knobs = {}
@@ -148,11 +149,15 @@ def run(args) -> int:
         print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
     try:
         report = pipe.run(writer, progress=not args.no_progress)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, OSError) as exc:
         kept = writer.frames_committed
-        where = f"{kept} complete frames kept in {writer.path}" if kept else "previous output (if any) left untouched"
-        print(f"warpshade run: interrupted; {where}", file=sys.stderr)
-        return 130
+        where = (f"{kept} complete frames kept in {writer.path} (--resume continues it)" if kept
+                 else "previous output (if any) left untouched")
+        if isinstance(exc, OSError):
+            print(f"warpshade run: error: {exc}\nwarpshade run: {where}", file=sys.stderr)
+            return 1
+        print(f"warpshade run: {interrupted_by(exc)}; {where}", file=sys.stderr)
+        return exit_code(exc)
     report.seconds["load"] = load
     s = report.seconds
     resumed = f" (resumed at frame {report.resumed_from})" if report.resumed_from else ""

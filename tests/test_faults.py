@@ -1,0 +1,163 @@
+"""Fault injection (issue 16): write errors and full disks, signals, concurrent runs, hostile
+scenes and outputs, non-finite values. Each test injects the fault and checks what is left behind,
+not only the exit code."""
+
+from __future__ import annotations
+
+import errno
+import glob
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from pxr import Sdf, Usd, UsdGeom
+
+from test_resume import COMMON, FRAMES, SCENE, assert_same_frames, frames_of, uninterrupted  # noqa: F401
+from warpshade.cli import main
+from warpshade.usd import AnimationWriter
+from warpshade.usd.writer import OutputLockedError, OutputWriteError
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ENV = dict(os.environ, PYTHONPATH=REPO + os.pathsep + os.environ.get("PYTHONPATH", ""))
+
+
+def litter(root) -> list[str]:
+    """Temporary and lock files a run may leave behind."""
+    return sorted(p for p in glob.glob(os.path.join(str(root), "**", "*"), recursive=True)
+                  if ".partial" in os.path.basename(p) or p.endswith(".lock"))
+
+
+class DiskFull:
+    """Patch ``Sdf.Layer.Export`` so that, from the ``after``-th call writing a file whose name ends
+    in ``suffix`` on, it writes half a file and fails with ENOSPC, as a full disk does."""
+
+    def __init__(self, monkeypatch, suffix: str, after: int = 0):
+        self.calls, self.suffix, self.after = 0, suffix, after
+        self.real = real = Sdf.Layer.Export
+
+        def export(layer, path, *a, **kw):
+            if not path.endswith(suffix):
+                return real(layer, path, *a, **kw)
+            self.calls += 1
+            if self.calls <= after:
+                return real(layer, path, *a, **kw)
+            with open(path, "wb") as f:
+                f.write(b"PXR-USDC" + b"\0" * 100)
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        monkeypatch.setattr(Sdf.Layer, "Export", export)
+
+
+def tri_frames(n):
+    return [np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32) + f for f in range(n)]
+
+
+# -- 1. write errors -------------------------------------------------------------------------------
+@pytest.mark.parametrize("failing", [".usdc", ".usda"], ids=["clip-file", "top-level-file"])
+def test_write_error_keeps_committed_frames_and_resume_completes(tmp_path, monkeypatch, failing):
+    out = tmp_path / "o.usda"
+    frames = tri_frames(8)
+    w = AnimationWriter(str(out), chunk=2)
+    name = w.add_mesh("tri", np.array([[0, 1, 2]]))
+    # the third clip file / the third top-level rewrite (frames 4-5) meets a full disk
+    fault = DiskFull(monkeypatch, failing, after=2)
+    with pytest.raises(OutputWriteError, match="No space left on device") as err:
+        for f, pts in enumerate(frames):
+            w.write_frame(f, name, pts)
+    assert err.value.errno == errno.ENOSPC
+    what = "chunk_000004.usdc" if failing == ".usdc" else str(out)
+    assert what in str(err.value), err.value
+    assert ".partial" not in str(err.value)  # the user's file name, not the temporary one
+    assert w.abort() == str(out)  # no second save of the failed layer, no crash
+    assert w.frames_committed == 4
+    assert litter(tmp_path) == []
+    assert Usd.Stage.Open(str(out)).GetEndTimeCode() == 3
+    monkeypatch.setattr(Sdf.Layer, "Export", fault.real)  # space freed
+    w = AnimationWriter(str(out), chunk=2, resume=True)
+    assert w.resume_frame == 4
+    name = w.add_mesh("tri", np.array([[0, 1, 2]]))
+    for f in range(4, 8):
+        w.write_frame(f, name, frames[f])
+    w.close()
+    stage = Usd.Stage.Open(str(out))
+    pts = UsdGeom.Mesh(stage.GetPrimAtPath("/World/tri")).GetPointsAttr()
+    assert [np.asarray(pts.Get(f)).tolist() for f in range(8)] == [p.tolist() for p in frames]
+    assert litter(tmp_path) == []
+
+
+def test_write_error_on_the_first_chunk_leaves_the_previous_output(tmp_path, monkeypatch):
+    out = tmp_path / "o.usda"
+    w = AnimationWriter(str(out), chunk=2)
+    name = w.add_mesh("tri", np.array([[0, 1, 2]]))
+    for f, pts in enumerate(tri_frames(3)):
+        w.write_frame(f, name, pts)
+    w.close()
+    before = out.read_bytes()
+    DiskFull(monkeypatch, ".usdc")
+    w = AnimationWriter(str(out), chunk=2)
+    name = w.add_mesh("tri", np.array([[0, 1, 2]]))
+    with pytest.raises(OutputWriteError):
+        for f, pts in enumerate(tri_frames(5)):
+            w.write_frame(f, name, pts + 10)
+    assert w.abort() is None
+    assert out.read_bytes() == before
+    assert len(os.listdir(tmp_path / "o_frames")) == 1  # this run's empty run folder is gone
+    assert litter(tmp_path) == []
+
+
+def test_run_out_of_space_one_message_then_resume(tmp_path, monkeypatch, capsys, uninterrupted):
+    """``warpshade run`` meets a full disk at its second clip file: one line naming the file and the
+    cause, exit code 1, committed frames kept; --resume (space freed) gives the uninterrupted result."""
+    out = tmp_path / "o.usda"
+    fault = DiskFull(monkeypatch, ".usdc", after=1)
+    args = ["run", SCENE, "--frames", str(FRAMES), "--out", str(out), "--workers", "0"] + COMMON
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    lines = [ln for ln in err.splitlines() if "error" in ln]
+    assert len(lines) == 1 and "chunk_000002.usdc" in lines[0] and "No space left on device" in lines[0], err
+    assert "2 complete frames kept" in err
+    assert litter(tmp_path) == []
+    monkeypatch.setattr(Sdf.Layer, "Export", fault.real)
+    assert main(args + ["--resume"]) == 0
+    assert_same_frames(frames_of(out), uninterrupted)
+    assert litter(tmp_path) == []
+
+
+@pytest.fixture
+def small_tmpfs(tmp_path):
+    """A 2 MB tmpfs (a disk that really fills up); needs root and mount(8)."""
+    mnt = tmp_path / "disk"
+    mnt.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({r.stderr.strip() or r.returncode}); "
+                    "test_run_out_of_space_one_message_then_resume covers this with a patched writer")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+def test_real_full_disk_no_crash_no_litter_then_resume(small_tmpfs, uninterrupted):
+    out = small_tmpfs / "o.usda"
+    fill = small_tmpfs / "fill"
+    # a 6-frame output of this scene takes ~0.5 MB (0.1 MB top file, ~0.13 MB per 2-frame clip file):
+    # leave room for the top file and a clip or two, not for all of it
+    free = os.statvfs(small_tmpfs).f_bavail * os.statvfs(small_tmpfs).f_frsize
+    fill.write_bytes(b"\0" * (free - 420_000))
+    cmd = [sys.executable, "-m", "warpshade", "run", SCENE, "--frames", str(FRAMES), "--out", str(out),
+           "--workers", "0"] + COMMON
+    r = subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=600)
+    assert r.returncode == 1, (r.returncode, r.stderr)  # not 139 (segfault)
+    assert "No space left on device" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert litter(small_tmpfs) == []
+    kept = Usd.Stage.Open(str(out)).GetEndTimeCode() if out.exists() else -1
+    assert 0 <= kept < FRAMES - 1, "the disk did not fill up: nothing was tested"
+    fill.unlink()
+    r = subprocess.run(cmd + ["--resume"], capture_output=True, text=True, env=ENV, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert_same_frames(frames_of(out), uninterrupted)
+    assert litter(small_tmpfs) == []
