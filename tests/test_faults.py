@@ -7,8 +7,10 @@ from __future__ import annotations
 import errno
 import glob
 import os
+import signal
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -161,3 +163,107 @@ def test_real_full_disk_no_crash_no_litter_then_resume(small_tmpfs, uninterrupte
     assert r.returncode == 0, r.stderr
     assert_same_frames(frames_of(out), uninterrupted)
     assert litter(small_tmpfs) == []
+
+
+# -- 2. signals and worker lifetime ----------------------------------------------------------------
+ORPHAN_SCRIPT = '''
+import os, sys, time
+from warpshade.parallel import shade_frames
+
+class Slow:
+    def build(self):
+        def shade(frame, geometry):
+            time.sleep(0.2)
+            return frame
+        return shade
+
+if __name__ == "__main__":
+    for f, r in shade_frames(Slow(), ((f, {}) for f in range(10**6)), workers=2):
+        if f == 2:
+            print("shading", flush=True)
+'''
+
+
+def children_of(pid: int) -> set[int]:
+    """Live child processes of ``pid`` (from /proc)."""
+    out = set()
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid and fields[0] != "Z":
+                out.add(int(d))
+    return out
+
+
+def alive(pids) -> set[int]:
+    out = set()
+    for p in pids:
+        try:
+            with open(f"/proc/{p}/stat") as f:
+                if f.read().rsplit(")", 1)[1].split()[0] != "Z":
+                    out.add(p)
+        except OSError:
+            pass
+    return out
+
+
+def wait_gone(pids, seconds: float) -> set[int]:
+    deadline = time.monotonic() + seconds
+    while alive(pids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return alive(pids)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
+def test_workers_and_resource_tracker_exit_when_the_parent_dies(tmp_path, sig):
+    script = tmp_path / "orphan.py"
+    script.write_text(ORPHAN_SCRIPT)
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                            env=ENV, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "shading"
+        kids = children_of(proc.pid)
+        # two spawn workers and multiprocessing's resource tracker
+        assert len(kids) >= 3, kids
+        proc.send_signal(sig)
+        proc.wait(30)
+        # the watchdog polls every 0.5 s; 5 s leaves room for a loaded machine
+        assert wait_gone(kids, 5.0) == set(), "processes outlived their parent"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        for p in alive(children_of(proc.pid)):
+            os.kill(p, signal.SIGKILL)
+
+
+def test_sigterm_commits_finished_frames_like_ctrl_c(tmp_path):
+    out = tmp_path / "o.usda"
+    cmd = [sys.executable, "-m", "warpshade", "run", SCENE, "--frames", "2000", "--out", str(out),
+           "--workers", "2"] + COMMON
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=ENV, text=True)
+    kids = set()
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and proc.poll() is None:
+            kids |= children_of(proc.pid)
+            if out.exists() and Usd.Stage.Open(str(out)).GetEndTimeCode() >= 3:
+                break
+            time.sleep(0.1)
+        assert proc.poll() is None, "the run ended before it could be terminated"
+        seen = Usd.Stage.Open(str(out)).GetEndTimeCode()
+        proc.send_signal(signal.SIGTERM)
+        err = proc.communicate(timeout=60)[1]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    assert "Traceback" not in err, err
+    end = Usd.Stage.Open(str(out)).GetEndTimeCode()
+    assert f"terminated (SIGTERM); {int(end) + 1} complete frames kept in {out}" in err, err
+    assert seen <= end < 2000 - 1
+    assert wait_gone(kids, 5.0) == set()
+    assert litter(tmp_path) == []
