@@ -267,3 +267,93 @@ def test_sigterm_commits_finished_frames_like_ctrl_c(tmp_path):
     assert seen <= end < 2000 - 1
     assert wait_gone(kids, 5.0) == set()
     assert litter(tmp_path) == []
+
+
+# -- 3. one run per output, outputs and inputs kept apart -------------------------------------------
+def scene_without_lights(tmp_path) -> str:
+    """cloth_sphere without its lights: a run then writes the default sky texture into its clip folder."""
+    text = open(SCENE).read()
+    cut = text.index('    def "Lights"')
+    path = tmp_path / "nolights.usda"
+    path.write_text(text[:cut].rstrip() + "\n}\n")
+    return str(path)
+
+
+def dome_texture(out) -> str:
+    stage = Usd.Stage.Open(str(out))
+    dome = next(p for p in stage.Traverse() if p.GetTypeName() == "DomeLight")
+    return dome.GetAttribute("inputs:texture:file").Get().resolvedPath
+
+
+def test_second_run_on_an_output_is_refused_and_other_formats_are_kept_apart(tmp_path, capsys):
+    scene = scene_without_lights(tmp_path)
+    out = tmp_path / "X.usda"
+    proc = subprocess.Popen([sys.executable, "-m", "warpshade", "run", scene, "--frames", "2000", "--out", str(out),
+                             "--workers", "0"] + COMMON, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            env=ENV, text=True)
+    try:
+        deadline = time.monotonic() + 300
+        while not out.exists() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.1)
+        assert proc.poll() is None, "the first run ended too early"
+        # a second run on the same output: refused, naming the owner
+        assert main(["run", scene, "--frames", "2", "--out", str(out), "--workers", "0"] + COMMON) == 1
+        err = capsys.readouterr().err
+        assert f"{out} is being written by another run (pid {proc.pid} " in err, err
+        # the same name in another format is another output with its own clip folder
+        other = tmp_path / "X.usdc"
+        assert main(["run", scene, "--frames", "3", "--out", str(other), "--workers", "0"] + COMMON) == 0
+        assert Usd.Stage.Open(str(other)).GetEndTimeCode() == 2
+        assert (tmp_path / "X_usdc_frames").is_dir()
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGTERM)
+        proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 128 + signal.SIGTERM
+    # each output's sky texture is still where its stage points
+    for o in (out, other):
+        tex = dome_texture(o)
+        assert tex and os.path.isfile(tex), (o, tex)
+        assert os.path.dirname(os.path.dirname(tex)) == str(tmp_path / ("X_frames" if o == out else "X_usdc_frames"))
+    assert litter(tmp_path) == []
+
+
+def test_stale_lock_of_a_dead_run_is_taken_over(tmp_path):
+    out = tmp_path / "o.usda"
+    lock = tmp_path / "o_frames.lock"
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    lock.write_text(f"pid {dead.pid} on {os.uname().nodename}\n")  # its flock died with it
+    assert main(["run", SCENE, "--frames", "2", "--out", str(out), "--workers", "0"] + COMMON) == 0
+    assert Usd.Stage.Open(str(out)).GetEndTimeCode() == 1
+    assert not lock.exists()
+
+
+def test_lock_held_by_another_process_refuses_the_writer(tmp_path):
+    out = tmp_path / "o.usda"
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time\n"
+                               "from warpshade.usd import AnimationWriter\n"
+                               f"w = AnimationWriter({str(out)!r})\nprint('held', flush=True)\ntime.sleep(60)"],
+                              stdout=subprocess.PIPE, env=ENV, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(OutputLockedError, match=f"pid {holder.pid} "):
+            AnimationWriter(str(out))
+        holder.kill()
+        holder.wait(30)
+        AnimationWriter(str(out)).close()  # the dead holder's lock is taken over
+    finally:
+        if holder.poll() is None:
+            holder.kill()
+
+
+def test_out_equal_to_the_input_scene_is_refused(tmp_path, capsys):
+    scene = tmp_path / "scene.usda"
+    scene.write_bytes(open(SCENE, "rb").read())
+    before = scene.read_bytes()
+    assert main(["run", str(scene), "--frames", "2", "--out", str(scene), "--workers", "0"] + COMMON) == 1
+    assert "is an input of the scene" in capsys.readouterr().err
+    assert scene.read_bytes() == before
+    assert sorted(os.listdir(tmp_path)) == ["scene.usda"]

@@ -93,7 +93,7 @@ def parse_albedo(text: str | None):
 
 
 def run(args) -> int:
-    from ..pipeline import Pipeline
+    from ..pipeline import Pipeline, check_output
     from ..usd import AnimationWriter, read_scene
     from . import exit_code, interrupted_by
     from .cmd_transfer import parse_knobs
@@ -124,6 +124,7 @@ def run(args) -> int:
         apply_plan(scene, plan)
         print(plan.describe(), file=sys.stderr)
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
+    check_output(scene, out)
     load = time.perf_counter() - t0
     from ..parallel import default_workers
 

@@ -83,6 +83,20 @@ class RunReport:
     area_lights: str = ""
 
 
+def check_output(scene: Scene, out: str) -> None:
+    """Refuse an output path that is one of the scene's input files (the scene, a texture it uses):
+    writing it would destroy the input.
+
+    Raises:
+        SceneError: naming both.
+    """
+    files = [scene.source] + [getattr(light, "texture", None) for light in scene.lights]
+    target = os.path.realpath(out)
+    for f in files:
+        if f and os.path.exists(f) and os.path.realpath(f) == target:
+            raise SceneError(f"output {out} is an input of the scene ({f}); choose another --out")
+
+
 class Pipeline:
     """Simulate, shade and write one scene.
 
@@ -182,6 +196,12 @@ class Pipeline:
         """
         from ..parallel import shade_frames
 
+        if getattr(writer, "path", None):
+            try:
+                check_output(self.scene, writer.path)
+            except SceneError:
+                writer.abort()
+                raise
         secs = dict.fromkeys(("setup", "simulate", "shade", "write"), 0.0)
         start = int(getattr(writer, "resume_frame", 0))
         t0 = time.perf_counter()
@@ -249,6 +269,6 @@ def _group_line(g: GroupSpec) -> str:
     return line + (f" (casting no shadows: {', '.join(quiet)})" if quiet else "")
 
 
-__all__ = ["DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
+__all__ = ["check_output", "DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
            "RunReport", "SceneShader", "default_method", "light_from_spec", "sky_light_specs",
            "unoccluded_transfer"]
