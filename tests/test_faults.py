@@ -357,3 +357,99 @@ def test_out_equal_to_the_input_scene_is_refused(tmp_path, capsys):
     assert "is an input of the scene" in capsys.readouterr().err
     assert scene.read_bytes() == before
     assert sorted(os.listdir(tmp_path)) == ["scene.usda"]
+
+
+# -- 4. nothing non-finite is written; lights that overflow are refused -----------------------------
+def test_a_frame_with_a_non_finite_value_is_not_committed(tmp_path):
+    out = tmp_path / "o.usda"
+    w = AnimationWriter(str(out), chunk=2)
+    name = w.add_mesh("tri", np.array([[0, 1, 2]]))
+    frames = tri_frames(6)
+    for f in range(4):
+        w.write_frame(f, name, frames[f], colors=np.ones((3, 3), np.float32))
+    bad = np.ones((3, 3), np.float32)
+    bad[1, 2] = np.inf
+    with pytest.raises(ValueError, match=r"mesh 'tri' frame 4: colors of vertex 1 are not finite"):
+        w.write_frame(4, name, frames[4], colors=bad)
+    w.abort()
+    stage = Usd.Stage.Open(str(out))
+    assert stage.GetEndTimeCode() == 3
+    col = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/World/tri")).GetPrimvar("displayColor")
+    assert all(np.isfinite(np.asarray(col.Get(f))).all() for f in range(4))
+
+
+def edited_scene(tmp_path, name: str, old: str, new: str) -> str:
+    text = open(SCENE).read()
+    assert old in text
+    path = tmp_path / name
+    path.write_text(text.replace(old, new, 1))
+    return str(path)
+
+
+@pytest.mark.parametrize("old,new,light", [
+    ("float inputs:intensity = 3", "float inputs:intensity = 1e38\n            float inputs:exposure = 200",
+     "/World/Lights/Sun: irradiance overflows float32"),
+    ("float inputs:intensity = 0.6", "float inputs:intensity = 3e38",
+     "/World/Lights/Sky: its SH radiance reaches 8.51e+38, beyond float32"),
+], ids=["DistantLight-1e38x2^200", "DomeLight-3e38"])
+def test_a_light_that_overflows_float32_is_refused_up_front(tmp_path, capsys, old, new, light):
+    scene = edited_scene(tmp_path, "hot.usda", old, new)
+    out = tmp_path / "o.usda"
+    assert main(["run", scene, "--frames", "2", "--out", str(out), "--workers", "0"] + COMMON) == 1
+    assert light in capsys.readouterr().err
+    assert sorted(os.listdir(tmp_path)) == ["hot.usda"]  # refused before anything was written
+
+
+def test_python_lights_refuse_negative_and_overflowing_emission():
+    from warpshade.lighting import ConstantEnvironment, DirectionalLight, PointLight
+
+    with pytest.raises(ValueError, match="sun: irradiance must not be negative"):
+        DirectionalLight(direction=(0, 1, 0), irradiance=-1, name="sun")
+    with pytest.raises(ValueError, match="bulb: intensity must not be negative"):
+        PointLight(position=(0, 1, 0), intensity=(1, -0.1, 1), name="bulb")
+    with pytest.raises(ValueError, match="sun: irradiance overflows float32"):
+        DirectionalLight(direction=(0, 1, 0), irradiance=1e38 * 2.0**200, name="sun")
+    # 3e38 fits in float32, its SH L00 = sqrt(4 pi) * 3e38 = 1.06e39 does not
+    with pytest.raises(ValueError, match="sky: its SH radiance reaches 1.06e\\+39"):
+        ConstantEnvironment(radiance=3e38, name="sky").sh(2)
+
+
+# -- 5. nothing read from a scene or an output chooses where files are written ----------------------
+def test_scene_knob_lut_dir_is_ignored_with_a_warning(tmp_path):
+    target = tmp_path / "elsewhere" / "lut"
+    scene = edited_scene(tmp_path, "steer.usda", '        custom token warpshade:kind = "cloth"',
+                         '        custom token warpshade:kind = "cloth"\n'
+                         f'        custom string warpshade:knobs:lut_dir = "{target}"')
+    from warpshade.scene import SceneWarning
+    from warpshade.usd import read_scene
+
+    with pytest.warns(SceneWarning, match="warpshade:knobs:lut_dir ignored: a scene cannot choose where files"):
+        sc = read_scene(scene)
+    assert all("lut_dir" not in o.knobs for o in sc.objects)
+    out = tmp_path / "o.usda"
+    with pytest.warns(SceneWarning):
+        assert main(["run", scene, "--frames", "1", "--out", str(out), "--workers", "0", "--method", "hemiraster",
+                     "--order", "2", "--no-progress"]) == 0
+    assert not (tmp_path / "elsewhere").exists()
+
+
+def test_resume_never_touches_files_outside_the_outputs_frame_folder(tmp_path, capsys):
+    out = tmp_path / "o.usda"
+    assert main(["run", SCENE, "--frames", "2", "--out", str(out), "--workers", "0"] + COMMON) == 0
+    # a decoy run folder elsewhere, with a file a resume would delete (a .partial chunk)
+    decoy = tmp_path / "precious" / "run-x"
+    decoy.mkdir(parents=True)
+    for f in ("chunk_000000.usdc", "manifest.usda", "keep.partial.usdc"):
+        (decoy / f).write_bytes(b"precious")
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    clips = dict(layer.GetPrimAtPath("/World").GetInfo("clips"))
+    d = dict(clips["default"])
+    d["manifestAssetPath"] = Sdf.AssetPath("./precious/run-x/manifest.usda")
+    d["assetPaths"] = Sdf.AssetPathArray([Sdf.AssetPath("./precious/run-x/chunk_000000.usdc")])
+    layer.GetPrimAtPath("/World").SetInfo("clips", {"default": d})
+    layer.Save()
+    del layer
+    assert main(["run", SCENE, "--frames", "4", "--out", str(out), "--workers", "0", "--resume"] + COMMON) == 1
+    assert "cannot resume: clip file ./precious/run-x/manifest.usda is not in a run folder of" in capsys.readouterr().err
+    assert sorted(os.listdir(decoy)) == ["chunk_000000.usdc", "keep.partial.usdc", "manifest.usda"]
+    assert all((decoy / f).read_bytes() == b"precious" for f in os.listdir(decoy))

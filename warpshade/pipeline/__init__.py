@@ -151,11 +151,25 @@ class Pipeline:
         self.shader = SceneShader(self.groups, self.order, scene.fps, list(scene.lights), scene.up_axis, lights,
                                   self.write_transfer, device, between, self.reflections, area_lights,
                                   dict(area_knobs or {}))
+        self._check_lights()
         from .area import area_lights_used
 
         self.area_lights, self.area_description = area_lights_used(self.shader)
         """How rect lights are shaded (``"gears"``, ``"sh"``; None without rect lights), and in words."""
         self.report = None
+
+    def _check_lights(self) -> None:
+        """Reject, before any work, a light whose emission or SH radiance does not fit in float32
+        (it would shade to inf), naming the light."""
+        if self.shader.lights is None and not self.shader.light_specs:
+            return  # the default sky
+        try:
+            lights = self.shader.build_lights()
+            from ..lighting import lights_sh
+
+            lights_sh([li for li in lights if not li.local], self.order)
+        except ValueError as exc:
+            raise SceneError(f"{self.scene.source}: {exc}") from exc
 
     def _geometry(self, sims, secs, failure: list, start: int = 0):
         """Yield ``(frame, {name: points})`` for every moving object from ``start`` on, timing the simulation.

@@ -490,9 +490,7 @@ class AnimationWriter:
                 bad = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
                 raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: vertex {bad} is not finite {pts[bad].tolist()}")
             values = {"points": Vt.Vec3fArray.FromNumpy(pts), "extent": Vt.Vec3fArray.FromNumpy(_extent(pts))}
-        if self._frame is None or frame > self._frame:
-            self._start_frame(frame)
-        self._frame_meshes.add(name)
+        # every value is checked before the frame is started: a frame with a bad value is not written
         if normals is not None:
             values["normals"] = Vt.Vec3fArray.FromNumpy(_check(normals, (v, 3), name, frame, "normals"))
         if colors is not None:
@@ -503,6 +501,9 @@ class AnimationWriter:
                 raise ValueError(f"{self.path}: mesh '{name}': transfer given but add_mesh had no transfer_order")
             values["primvars:warpshade:transfer"] = Vt.FloatArray.FromNumpy(
                 _check(transfer, (v, n2), name, frame, "transfer").reshape(-1))
+        if self._frame is None or frame > self._frame:
+            self._start_frame(frame)
+        self._frame_meshes.add(name)
         layer = self._chunk_layer
         prim = layer.GetPrimAtPath(info["path"]) or Sdf.CreatePrimInLayer(layer, info["path"])
         for attr, value in values.items():
