@@ -83,6 +83,20 @@ class RunReport:
     area_lights: str = ""
 
 
+def check_output(scene: Scene, out: str) -> None:
+    """Refuse an output path that is one of the scene's input files (the scene, a texture it uses):
+    writing it would destroy the input.
+
+    Raises:
+        SceneError: naming both.
+    """
+    files = [scene.source] + [getattr(light, "texture", None) for light in scene.lights]
+    target = os.path.realpath(out)
+    for f in files:
+        if f and os.path.exists(f) and os.path.realpath(f) == target:
+            raise SceneError(f"output {out} is an input of the scene ({f}); choose another --out")
+
+
 class Pipeline:
     """Simulate, shade and write one scene.
 
@@ -137,11 +151,25 @@ class Pipeline:
         self.shader = SceneShader(self.groups, self.order, scene.fps, list(scene.lights), scene.up_axis, lights,
                                   self.write_transfer, device, between, self.reflections, area_lights,
                                   dict(area_knobs or {}))
+        self._check_lights()
         from .area import area_lights_used
 
         self.area_lights, self.area_description = area_lights_used(self.shader)
         """How rect lights are shaded (``"gears"``, ``"sh"``; None without rect lights), and in words."""
         self.report = None
+
+    def _check_lights(self) -> None:
+        """Reject, before any work, a light whose emission or SH radiance does not fit in float32
+        (it would shade to inf), naming the light."""
+        if self.shader.lights is None and not self.shader.light_specs:
+            return  # the default sky
+        try:
+            lights = self.shader.build_lights()
+            from ..lighting import lights_sh
+
+            lights_sh([li for li in lights if not li.local], self.order)
+        except ValueError as exc:
+            raise SceneError(f"{self.scene.source}: {exc}") from exc
 
     def _geometry(self, sims, secs, failure: list, start: int = 0):
         """Yield ``(frame, {name: points})`` for every moving object from ``start`` on, timing the simulation.
@@ -182,6 +210,12 @@ class Pipeline:
         """
         from ..parallel import shade_frames
 
+        if getattr(writer, "path", None):
+            try:
+                check_output(self.scene, writer.path)
+            except SceneError:
+                writer.abort()
+                raise
         secs = dict.fromkeys(("setup", "simulate", "shade", "write"), 0.0)
         start = int(getattr(writer, "resume_frame", 0))
         t0 = time.perf_counter()
@@ -249,6 +283,6 @@ def _group_line(g: GroupSpec) -> str:
     return line + (f" (casting no shadows: {', '.join(quiet)})" if quiet else "")
 
 
-__all__ = ["DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
+__all__ = ["check_output", "DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
            "RunReport", "SceneShader", "default_method", "light_from_spec", "sky_light_specs",
            "unoccluded_transfer"]

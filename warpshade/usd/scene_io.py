@@ -201,6 +201,12 @@ def _read_sphere(prim, source: str, default_method) -> SceneObject:
 
 def _object(prim, where, tri, kind, settings, params, default_method, material) -> SceneObject:
     knobs = {k[len("knobs:"):]: v for k, v in settings.items() if k.startswith("knobs:")}
+    for k in [k for k in knobs if k.endswith(("_dir", "_path", "_file"))]:
+        # nothing read from a scene chooses where files are written
+        warnings.warn(f"{where}: warpshade:knobs:{k} ignored: a scene cannot choose where files are written "
+                      f"(give --{k.replace('_', '-')} on the command line or {k}= in Python)",
+                      SceneWarning, stacklevel=3)
+        del knobs[k]
     method = settings.pop("method", default_method)
     if method in ("none", ""):
         method = None
