@@ -181,8 +181,23 @@ class ColliderSet:
 
     # -- used by the solver -----------------------------------------------------------------
 
+    def end_pose_arrays(self) -> dict | None:
+        """The analytic shapes' device arrays (``kind``, ``a_end``, ``b_end``, ``rot_end``, ``size``...)
+        as posed at the end of the last step, or None without shapes."""
+        if self._kind and self._arrays is None:
+            self._upload_shapes()
+        return self._arrays
+
     def begin_step(self) -> None:
         """Upload the end-of-step poses (the start poses are the previous step's end poses)."""
+        self._upload_shapes()
+        self._dirty = False
+        for m in self.meshes:
+            if m._pending is not None:
+                m.points_end.assign(m._pending)
+                m._pending = None
+
+    def _upload_shapes(self) -> None:
         if self._kind:
             if self._arrays is None or len(self._arrays["kind"]) != len(self._kind):
                 d = self.device
@@ -206,11 +221,6 @@ class ColliderSet:
                 ar["a_end"].assign(np.array(self._a, dtype=np.float32))
                 ar["b_end"].assign(np.array(self._b, dtype=np.float32))
                 ar["rot_end"].assign(np.array(self._rot, dtype=np.float32))
-        self._dirty = False
-        for m in self.meshes:
-            if m._pending is not None:
-                m.points_end.assign(m._pending)
-                m._pending = None
 
     def end_step(self) -> None:
         """The end poses become the next step's start poses."""

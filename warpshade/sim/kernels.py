@@ -30,6 +30,44 @@ def edge_axis(xi: wp.vec3, xj: wp.vec3) -> wp.vec4:
 
 
 @wp.func
+def closest_on_triangle(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec3:
+    """Barycentric coordinates (u, v, w) of the point of triangle abc closest to p (Ericson 5.1.5)."""
+    ab = b - a
+    ac = c - a
+    ap = p - a
+    d1 = wp.dot(ab, ap)
+    d2 = wp.dot(ac, ap)
+    if d1 <= 0.0 and d2 <= 0.0:
+        return wp.vec3(1.0, 0.0, 0.0)
+    bp = p - b
+    d3 = wp.dot(ab, bp)
+    d4 = wp.dot(ac, bp)
+    if d3 >= 0.0 and d4 <= d3:
+        return wp.vec3(0.0, 1.0, 0.0)
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        t = d1 / (d1 - d3)
+        return wp.vec3(1.0 - t, t, 0.0)
+    cp = p - c
+    d5 = wp.dot(ab, cp)
+    d6 = wp.dot(ac, cp)
+    if d6 >= 0.0 and d5 <= d6:
+        return wp.vec3(0.0, 0.0, 1.0)
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        t = d2 / (d2 - d6)
+        return wp.vec3(1.0 - t, 0.0, t)
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return wp.vec3(0.0, 1.0 - t, t)
+    den = 1.0 / (va + vb + vc)
+    v = vb * den
+    w = vc * den
+    return wp.vec3(1.0 - v - w, v, w)
+
+
+@wp.func
 def dihedral_angle(x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, x4: wp.vec3) -> float:
     """Signed dihedral angle [rad] of the hinge with shared edge x3-x4 and wings x1, x2.
 
@@ -418,21 +456,23 @@ def compute_triangle_bounds(
     v: wp.array[wp.vec3],
     tris: wp.array2d[int],
     horizon: float,
-    pad: float,
+    pad: wp.array[float],
     lower: wp.array[wp.vec3],
     upper: wp.array[wp.vec3],
 ):
-    """Box around a triangle now and after `horizon` seconds of its current velocity, padded."""
+    """Box around a triangle now and after `horizon` seconds of its current velocity, each corner
+    padded by its own pad."""
     t = wp.tid()
     lo = wp.vec3(1.0e30)
     hi = wp.vec3(-1.0e30)
     for c in range(3):
         p = x[tris[t, c]]
         q = p + v[tris[t, c]] * horizon
-        lo = wp.min(lo, wp.min(p, q))
-        hi = wp.max(hi, wp.max(p, q))
-    lower[t] = lo - wp.vec3(pad)
-    upper[t] = hi + wp.vec3(pad)
+        r = wp.vec3(pad[tris[t, c]])
+        lo = wp.min(lo, wp.min(p, q) - r)
+        hi = wp.max(hi, wp.max(p, q) + r)
+    lower[t] = lo
+    upper[t] = hi
 
 
 @wp.func
@@ -450,13 +490,15 @@ def in_one_ring(i: int, j: int, ring_offsets: wp.array[int], ring: wp.array[int]
 def find_self_contacts(
     bvh: wp.uint64,
     x: wp.array[wp.vec3],
+    rest_x: wp.array[wp.vec3],
     v: wp.array[wp.vec3],
     tris: wp.array2d[int],
     ring_offsets: wp.array[int],
     ring: wp.array[int],
     horizon: float,
-    pad: float,
+    pad: wp.array[float],
     thickness: float,
+    keep_all: int,
     max_contacts: int,
     prev_tri: wp.array2d[int],
     prev_side: wp.array2d[float],
@@ -466,19 +508,22 @@ def find_self_contacts(
     contact_count: wp.array[int],
     overflow: wp.array[int],
 ):
-    """Vertex-triangle candidate pairs whose swept boxes overlap.
+    """Vertex-triangle candidate pairs whose swept boxes overlap and (unless ``keep_all``) that
+    are, or may come within one interval, closer than 1.5 thicknesses: distance <= 1.5 (thickness
+    + c), c = max |v_i - v_k| horizon the relative motion of the pair's vertices (a flat sheet's
+    own neighbours, a few edge lengths away, are not stored).
 
-    Triangles touching the vertex or its one-ring are skipped: they are neighbours in the cloth,
-    kept apart by stretch and bending, not by contact (a topological test, so it also holds for
-    garments whose rest shape is folded). The side of
+    Only the triangles of the vertex itself are skipped (a topological test, so it also holds for
+    garments whose rest shape is folded): a tight fold brings triangles of the one-ring's
+    neighbours against the vertex, and they must be kept apart too. The side of
     the triangle the vertex is on now is stored; the solve keeps it there, which is what stops
     folds from passing through (the cloth is assumed free of intersections at detection time).
     """
     i = wp.tid()
     p = x[i]
     q = p + v[i] * horizon
-    lo = wp.min(p, q) - wp.vec3(pad)
-    hi = wp.max(p, q) + wp.vec3(pad)
+    lo = wp.min(p, q) - wp.vec3(pad[i])
+    hi = wp.max(p, q) + wp.vec3(pad[i])
     count = int(0)
     query = wp.bvh_query_aabb(bvh, lo, hi)
     t = int(0)
@@ -486,9 +531,24 @@ def find_self_contacts(
         a = tris[t, 0]
         b = tris[t, 1]
         c = tris[t, 2]
-        if in_one_ring(i, a, ring_offsets, ring) or in_one_ring(i, b, ring_offsets, ring) or in_one_ring(
-                i, c, ring_offsets, ring):
+        if i == a or i == b or i == c:
             continue
+        if keep_all == 0 and (in_one_ring(i, a, ring_offsets, ring) or in_one_ring(i, b, ring_offsets, ring)
+                              or in_one_ring(i, c, ring_offsets, ring)):
+            # a triangle of a neighbour: skipped unless the pair is closer than a third of the
+            # distance its vertices have at rest (a fold)
+            mind = wp.min(wp.min(wp.length(p - x[a]), wp.length(p - x[b])), wp.length(p - x[c]))
+            rest = wp.min(wp.min(wp.length(rest_x[i] - rest_x[a]), wp.length(rest_x[i] - rest_x[b])),
+                          wp.length(rest_x[i] - rest_x[c]))
+            if mind > 0.33 * rest:
+                continue
+        if keep_all == 0:
+            vi = v[i]
+            close = wp.max(wp.max(wp.length(vi - v[a]), wp.length(vi - v[b])), wp.length(vi - v[c])) * horizon
+            bc = closest_on_triangle(p, x[a], x[b], x[c])
+            dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
+            if dist > 1.5 * (thickness + close):
+                continue
         if count < max_contacts:
             xa = x[a]
             nn = wp.cross(x[b] - xa, x[c] - xa)
@@ -517,19 +577,27 @@ def find_self_contacts(
 @wp.kernel
 def solve_self_contacts(
     x: wp.array[wp.vec3],
+    x_prev: wp.array[wp.vec3],
     inv_mass: wp.array[float],
     tris: wp.array2d[int],
     contact_tri: wp.array2d[int],
     contact_side: wp.array2d[float],
     contact_count: wp.array[int],
     thickness: float,
+    friction: float,
+    offset_mode: int,
     delta: wp.array[wp.vec3],
     delta_count: wp.array[float],
 ):
-    """Vertex-triangle separation C = s n.(p - q) - thickness >= 0 (q: projection of p).
+    """Vertex-triangle separation, with position-based Coulomb friction (Macklin et al. 2014,
+    eq. 24-25) on the relative tangential motion of p and its triangle point over the substep
+    (x_prev: positions at its start). Corrections are accumulated for averaging (eq. 11).
 
-    Only projections inside the triangle respond (near edges a neighbouring triangle holds the
-    projection); corrections are accumulated for averaging (Macklin et al. 2014, eq. 11).
+    ``offset_mode = 0``: C = s n.(p - q) - thickness >= 0 on the stored side s, q the projection of
+    p, only for projections inside the triangle (near edges a neighbouring triangle holds it).
+    ``offset_mode = 1`` (with motion bounds, which keep every pair from crossing): C = |p - q| -
+    thickness >= 0 with q the closest point of the triangle, faces, edges and corners alike (an
+    offset surface, as in Offset Geometric Contact).
     """
     i = wp.tid()
     wp_ = inv_mass[i]
@@ -547,43 +615,69 @@ def solve_self_contacts(
         if ln2 < 1.0e-24:
             continue
         n = nn / wp.sqrt(ln2)
-        s = contact_side[i, k]
-        dn = wp.dot(p - xa, n)
-        if s == 0.0:
-            s = wp.sign(dn)
-            if dn == 0.0:
-                s = 1.0
-            contact_side[i, k] = s
-        d = s * dn
-        # respond within the contact layer and a few thicknesses past it (fast layers overshoot
-        # within one substep); deeper "penetrations" are tangles or stale pairs whose huge
-        # corrections would only inject energy
-        if d >= thickness or d < -4.0 * thickness:
-            continue
-        # barycentric coordinates of the projection of p onto the triangle's plane
-        pp = p - n * dn
-        bw = wp.dot(wp.cross(xb - xa, pp - xa), n) / wp.sqrt(ln2)
-        bv = wp.dot(wp.cross(pp - xa, xc - xa), n) / wp.sqrt(ln2)
-        bu = 1.0 - bv - bw
-        # a small tolerance: a vertex right above a shared edge or corner (aligned layers) would
-        # otherwise fall between its triangles through round-off
-        if bu < -0.01 or bv < -0.01 or bw < -0.01:
-            continue
-        bu = wp.max(bu, 0.0)
-        bv = wp.max(bv, 0.0)
-        bw = wp.max(bw, 0.0)
-        bs = bu + bv + bw
-        bu = bu / bs
-        bv = bv / bs
-        bw = bw / bs
+        d = float(0.0)
+        bu = float(0.0)
+        bv = float(0.0)
+        bw = float(0.0)
+        if offset_mode != 0:
+            bc = closest_on_triangle(p, xa, xb, xc)
+            bu = bc[0]
+            bv = bc[1]
+            bw = bc[2]
+            dvec = p - (xa * bu + xb * bv + xc * bw)
+            d = wp.length(dvec)
+            if d >= thickness:
+                continue
+            if d > 1.0e-9:
+                n = dvec / d
+            elif wp.dot(p - xa, n) < 0.0:
+                n = -n
+        else:
+            s = contact_side[i, k]
+            dn = wp.dot(p - xa, n)
+            if s == 0.0:
+                s = wp.sign(dn)
+                if dn == 0.0:
+                    s = 1.0
+                contact_side[i, k] = s
+            d = s * dn
+            # respond within the contact layer and a few thicknesses past it (fast layers overshoot
+            # within one substep); deeper "penetrations" are tangles or stale pairs whose huge
+            # corrections would only inject energy
+            if d >= thickness or d < -4.0 * thickness:
+                continue
+            # barycentric coordinates of the projection of p onto the triangle's plane
+            pp = p - n * dn
+            bw = wp.dot(wp.cross(xb - xa, pp - xa), n) / wp.sqrt(ln2)
+            bv = wp.dot(wp.cross(pp - xa, xc - xa), n) / wp.sqrt(ln2)
+            bu = 1.0 - bv - bw
+            # a small tolerance: a vertex right above a shared edge or corner (aligned layers) would
+            # otherwise fall between its triangles through round-off
+            if bu < -0.01 or bv < -0.01 or bw < -0.01:
+                continue
+            bu = wp.max(bu, 0.0)
+            bv = wp.max(bv, 0.0)
+            bw = wp.max(bw, 0.0)
+            bs = bu + bv + bw
+            bu = bu / bs
+            bv = bv / bs
+            bw = bw / bs
+            n = n * s
         wa = inv_mass[a]
         wb = inv_mass[b]
         wc = inv_mass[c]
         denom = wp_ + bu * bu * wa + bv * bv * wb + bw * bw * wc
         if denom == 0.0:
             continue
-        lam = (thickness - d) / denom
-        g = n * (s * lam)
+        depth = thickness - d
+        lam = depth / denom
+        g = n * lam
+        if friction > 0.0:
+            rel = (p - x_prev[i]) - ((xa - x_prev[a]) * bu + (xb - x_prev[b]) * bv + (xc - x_prev[c]) * bw)
+            rt = rel - n * wp.dot(rel, n)
+            lt = wp.length(rt)
+            if lt > 0.0:
+                g = g - rt * (wp.min(1.0, friction * depth / lt) / denom)
         wp.atomic_add(delta, i, g * wp_)
         wp.atomic_add(delta_count, i, 1.0)
         wp.atomic_add(delta, a, -g * (bu * wa))

@@ -417,6 +417,8 @@ class ClothModel:
         hinge_colors: (offset, count) of each colour's hinges.
         tether_anchor: Nearest kinematic vertices per vertex, shape (V, T), dtype int32 (-1: none).
         tether_length: Upper bound of the rest geodesic distance to them [m], shape (V, T), dtype float32.
+        hinge_edge: Index into ``edges`` of every hinge's shared edge, shape (H,), dtype int32.
+        edge_border: 1 for edges on the cloth's border (one triangle), shape (E,), dtype int32.
         ring_offsets, ring: One-ring adjacency (CSR): the edge neighbours of vertex i are
             ``ring[ring_offsets[i]:ring_offsets[i + 1]]``, shapes (V + 1,) and (2E,), dtype int32.
         attachment_indices: Attached vertices, shape (A,), dtype int32 (slot k drives vertex [k]).
@@ -451,6 +453,16 @@ class ClothModel:
         hinges, hinge_k, hinge_rest = hinges[horder], hinge_k[horder], hinge_rest[horder]
         self.edges_np = edges
         self.hinges_np = hinges
+        # edge index of every hinge's shared edge, and the border edges (no hinge)
+        key = np.minimum(edges[:, 0], edges[:, 1]).astype(np.int64) * v + np.maximum(edges[:, 0], edges[:, 1])
+        order_k = np.argsort(key)
+        if len(hinges):
+            hk = np.minimum(hinges[:, 2], hinges[:, 3]).astype(np.int64) * v + np.maximum(hinges[:, 2], hinges[:, 3])
+            hinge_edge = order_k[np.searchsorted(key[order_k], hk)]
+        else:
+            hinge_edge = np.zeros(0, dtype=np.int64)
+        border = np.ones(len(edges), dtype=bool)
+        border[hinge_edge] = False
         piece = np.zeros(v, dtype=np.int64)
         convex_flat = np.zeros(len(builder._pieces), dtype=bool)
         start = 0
@@ -479,6 +491,8 @@ class ClothModel:
         self.tether_length = wp.array(tlen, dtype=wp.float32, device=d)
         self.attachment_indices = wp.array(attached.astype(np.int32), dtype=wp.int32, device=d)
         self.attachment_count = len(attached)
+        self.hinge_edge = wp.array(hinge_edge.astype(np.int32), dtype=wp.int32, device=d)
+        self.edge_border = wp.array(border.astype(np.int32), dtype=wp.int32, device=d)
 
     @property
     def edge_count(self) -> int:
@@ -487,6 +501,12 @@ class ClothModel:
     @property
     def hinge_count(self) -> int:
         return len(self.hinges_np)
+
+    def edge_strain(self, points) -> np.ndarray:
+        """Relative stretch |xi - xj| / L - 1 of every edge for positions (V, 3), shape (E,), float64."""
+        x = np.asarray(points, dtype=np.float64)
+        e = self.edges_np
+        return np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) / self.edge_rest_length.numpy().astype(np.float64) - 1.0
 
     def state(self) -> "ClothState":
         """A new state at the rest pose with zero velocity."""

@@ -68,3 +68,25 @@ def skin_points_np(rest: np.ndarray, indices: np.ndarray, weights: np.ndarray,
     m = np.asarray(transforms, dtype=np.float64)[np.asarray(indices)]  # (V, K, 4, 4)
     moved = np.einsum("vkij,vj->vki", m, h)[..., :3]
     return np.einsum("vk,vki->vi", np.asarray(weights, dtype=np.float64), moved)
+
+
+def triangles_meet_np(a, b, tol: float = 1e-12) -> bool:
+    """Whether closed triangles a and b (each shape (3, 3)) share a point, by linear programming.
+
+    They meet iff barycentric weights alpha, beta >= 0 with sum 1 exist such that
+    sum alpha_i a_i = sum beta_j b_j: a feasibility problem (no geometry case analysis), solved
+    with scipy's HiGHS; ``tol`` is the allowed residual of the equality [m].
+    """
+    from scipy.optimize import linprog
+
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    # variables: alpha (3), beta (3), slack s >= 0 bounding |A alpha - B beta| <= s; minimise s
+    a_eq = np.zeros((2, 7))
+    a_eq[0, :3] = 1.0
+    a_eq[1, 3:6] = 1.0
+    diff = np.concatenate([a.T, -b.T], axis=1)  # (3, 6)
+    a_ub = np.concatenate([np.concatenate([diff, -np.ones((3, 1))], 1), np.concatenate([-diff, -np.ones((3, 1))], 1)])
+    res = linprog(np.r_[np.zeros(6), 1.0], A_ub=a_ub, b_ub=np.zeros(6), A_eq=a_eq, b_eq=[1.0, 1.0],
+                  bounds=[(0, None)] * 7, method="highs")
+    return bool(res.status == 0 and res.fun <= tol)

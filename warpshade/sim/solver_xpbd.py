@@ -17,6 +17,7 @@ import math
 import numpy as np
 import warp as wp
 
+from . import contact_kernels as ck
 from . import kernels as k
 from .colliders import ColliderSet
 from .model import ClothModel, SimulationError, _check_param
@@ -35,7 +36,11 @@ class XPBDSolver:
         drag: Linear velocity damping [1/s] (>= 0), applied as an exact exponential decay.
         air_density: [kg/m^3] (>= 0) for aerodynamic drag and lift; 0 disables aerodynamics.
         drag_coefficient, lift_coefficient: Flat-plate coefficients (>= 0).
-        self_collision: Vertex-triangle self-contact on/off.
+        self_collision: Self-contact on/off (vertex-triangle, and edge-edge with ``edge_contact``).
+        edge_contact: Edge-edge self-contact beside vertex-triangle.
+        motion_bounds: Penetration-free self-contact: per-vertex motion bounds relative to the
+            inertial path after an inelastic velocity filter (see :mod:`warpshade.sim.contact_kernels`).
+        self_friction: Coulomb coefficient between cloth layers (>= 0).
         contact_interval: Substeps between self-contact detections (>= 1; default 3: longer
             intervals let candidate lists and contact sides go stale in fast folding cloth).
         max_contacts: Self-contact candidates kept per vertex (>= 1).
@@ -55,7 +60,8 @@ class XPBDSolver:
                  drag_coefficient: float = 0.8, lift_coefficient: float = 0.3, self_collision: bool = True,
                  contact_interval: int | None = None, max_contacts: int = 16,
                  tethers: bool = True, check_finite: bool = True, relaxation: float = 1.0,
-                 contact_iterations: int = 2, stretch_sweeps: int = 1):
+                 contact_iterations: int = 2, stretch_sweeps: int = 1, edge_contact: bool = True,
+                 motion_bounds: bool = False, self_friction: float = 0.3):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -74,6 +80,9 @@ class XPBDSolver:
         self.drag_coefficient = _check_param("drag_coefficient", drag_coefficient)
         self.lift_coefficient = _check_param("lift_coefficient", lift_coefficient)
         self.self_collision = bool(self_collision)
+        self.edge_contact = bool(edge_contact) and self.self_collision
+        self.motion_bounds = bool(motion_bounds) and self.self_collision
+        self.self_friction = _check_param("self_friction", self_friction)
         ci = min(self.substeps, 3) if contact_interval is None else contact_interval
         if int(ci) != ci or ci < 1:
             raise ValueError(f"contact_interval must be an integer >= 1, got {contact_interval}")
@@ -94,6 +103,8 @@ class XPBDSolver:
             raise ValueError(f"relaxation must be < 2 (successive over-relaxation diverges beyond), got {relaxation}")
         self.step_count = 0
         self.contact_overflow = 0
+        self.bound_fallbacks = 0
+        self._collide_after_clamp = True
 
         v, f, d = model.particle_count, model.tri_count, self.device
         self._x_prev = wp.zeros(v, dtype=wp.vec3, device=d)
@@ -119,6 +130,29 @@ class XPBDSolver:
             self._overflow = wp.zeros(1, dtype=wp.int32, device=d)
             self._delta = wp.zeros(v, dtype=wp.vec3, device=d)
             self._delta_count = wp.zeros(v, dtype=wp.float32, device=d)
+            self._pad = wp.full(v, 0.5 * model.thickness, dtype=wp.float32, device=d)
+        if self.edge_contact:
+            ne, mc = model.edge_count, self.max_contacts
+            self._elower = wp.zeros(ne, dtype=wp.vec3, device=d)
+            self._eupper = wp.zeros(ne, dtype=wp.vec3, device=d)
+            self._ebvh = None
+            self._contact_edge = wp.zeros((ne, mc), dtype=wp.int32, device=d)
+            self._contact_eside = wp.zeros((ne, mc), dtype=wp.float32, device=d)
+            self._contact_ecount = wp.zeros(ne, dtype=wp.int32, device=d)
+            self._prev_edge = wp.zeros((ne, mc), dtype=wp.int32, device=d)
+            self._prev_eside = wp.zeros((ne, mc), dtype=wp.float32, device=d)
+            self._prev_ecount = wp.zeros(ne, dtype=wp.int32, device=d)
+            self._eactive = wp.zeros(ne, dtype=wp.int32, device=d)
+        if self.motion_bounds:
+            self._x_start = wp.zeros(v, dtype=wp.vec3, device=d)
+            self._v_start = wp.zeros(v, dtype=wp.vec3, device=d)
+            self._vlower = wp.zeros(v, dtype=wp.vec3, device=d)
+            self._vupper = wp.zeros(v, dtype=wp.vec3, device=d)
+            self._bound = wp.zeros(v, dtype=wp.float32, device=d)
+            self._dv = wp.zeros(v, dtype=wp.vec3, device=d)
+            self._dv_count = wp.zeros(v, dtype=wp.float32, device=d)
+            self._unresolved = wp.zeros(1, dtype=wp.int32, device=d)
+            self._cut = wp.zeros(v, dtype=wp.float32, device=d)
 
     # ------------------------------------------------------------------------------------------
 
@@ -156,8 +190,10 @@ class XPBDSolver:
             wp.launch(k.gather_points, dim=m.attachment_count, inputs=[m.attachment_indices, x],
                       outputs=[self._attach_start], device=d)
 
+        s_det = 0
         for s in range(self.substeps):
             if self.self_collision and s % self.contact_interval == 0:
+                s_det = s
                 self._detect_self_contacts(x, v, h * min(self.contact_interval, self.substeps - s))
             if "aero" in cmds:
                 self._lift.zero_()
@@ -183,6 +219,13 @@ class XPBDSolver:
                         c.launch()
                     if self.colliders is not None:
                         self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+            if self.motion_bounds:
+                # the step ends on the bounded path (then the colliders have the last word)
+                wp.launch(ck.clamp_motion, dim=m.particle_count,
+                          inputs=[self._x_start, self._v_start, self._vlower, self._vupper, self._bound, m.inv_mass,
+                                  h * (s - s_det + 1)], outputs=[x, self._cut], device=d)
+                if self.colliders is not None and self._collide_after_clamp:
+                    self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             for c in cmds["velocities"]:
                 c.launch()
 
@@ -233,9 +276,16 @@ class XPBDSolver:
         contacts = []
         if self.self_collision:
             contacts.append(wp.launch(k.solve_self_contacts, dim=n,
-                                      inputs=[x, m.inv_mass, m.tris, self._contact_tri, self._contact_side,
-                                              self._contact_count, m.thickness],
+                                      inputs=[x, self._x_prev, m.inv_mass, m.tris, self._contact_tri, self._contact_side,
+                                              self._contact_count, m.thickness, self.self_friction,
+                                              int(self.motion_bounds)],
                                       outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
+            if self.edge_contact:
+                contacts.append(wp.launch(ck.solve_edge_contacts, dim=m.edge_count,
+                                          inputs=[x, self._x_prev, m.inv_mass, m.edges, self._contact_edge,
+                                                  self._contact_eside, self._contact_ecount, m.thickness,
+                                                  self.self_friction],
+                                          outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
             contacts.append(wp.launch(k.apply_averaged_deltas, dim=n, inputs=[],
                                       outputs=[self._delta, self._delta_count, x], device=d, record_cmd=True))
         cmds["contacts"] = contacts
@@ -257,7 +307,12 @@ class XPBDSolver:
 
     def _detect_self_contacts(self, x, v, horizon: float) -> None:
         m, d = self.model, self.device
-        pad = 0.5 * m.thickness  # boxes of both sides padded: overlap <=> gap < thickness
+        # boxes of both sides padded: overlap <=> gap < thickness; with motion bounds a vertex's
+        # pad also covers the deviation from its inertial path its last velocity change predicts
+        pad = self._pad
+        if self.motion_bounds:
+            wp.launch(ck.vertex_pads, dim=m.particle_count, inputs=[v, self._v_start, 0.5 * m.thickness, horizon],
+                      outputs=[pad, self._cut], device=d)
         wp.launch(k.compute_triangle_bounds, dim=m.tri_count, inputs=[x, v, m.tris, horizon, pad],
                   outputs=[self._lower, self._upper], device=d)
         if self._bvh is None:
@@ -268,9 +323,76 @@ class XPBDSolver:
         wp.copy(self._prev_side, self._contact_side)
         wp.copy(self._prev_count, self._contact_count)
         wp.launch(k.find_self_contacts, dim=m.particle_count,
-                  inputs=[self._bvh.id, x, v, m.tris, m.ring_offsets, m.ring, horizon, pad, m.thickness,
-                          self.max_contacts, self._prev_tri, self._prev_side, self._prev_count],
+                  inputs=[self._bvh.id, x, m.rest_points, v, m.tris, m.ring_offsets, m.ring, horizon, pad, m.thickness,
+                          int(self.motion_bounds), self.max_contacts, self._prev_tri, self._prev_side, self._prev_count],
                   outputs=[self._contact_tri, self._contact_side, self._contact_count, self._overflow], device=d)
+        if self.edge_contact:
+            ne = m.edge_count
+            wp.launch(ck.compute_edge_bounds, dim=ne, inputs=[x, v, m.edges, horizon, pad],
+                      outputs=[self._elower, self._eupper], device=d)
+            if self._ebvh is None:
+                self._ebvh = wp.Bvh(self._elower, self._eupper)
+            else:
+                self._ebvh.refit()
+            wp.copy(self._prev_edge, self._contact_edge)
+            wp.copy(self._prev_eside, self._contact_eside)
+            wp.copy(self._prev_ecount, self._contact_ecount)
+            wp.copy(self._eactive, m.edge_border)
+            if m.hinge_count:
+                wp.launch(ck.mark_crease_edges, dim=m.hinge_count,
+                          inputs=[x, m.hinges, m.hinge_edge, self.CREASE_ANGLE], outputs=[self._eactive], device=d)
+            wp.launch(ck.find_edge_contacts, dim=ne,
+                      inputs=[self._ebvh.id, x, v, horizon, m.edges, self._eactive, m.ring_offsets, m.ring, self._elower, self._eupper,
+                              m.thickness, int(self.motion_bounds), self.max_contacts, self._prev_edge, self._prev_eside, self._prev_ecount],
+                      outputs=[self._contact_edge, self._contact_eside, self._contact_ecount, self._overflow],
+                      device=d)
+        if self.motion_bounds:
+            self._bound_motion(x, v, horizon, pad)
+
+    CREASE_ANGLE = 0.5
+    """Hinges bent by more than this [rad] make their edge a crease: edge-edge contact is looked
+    for from border and crease edges (where two layers' edges can cross without a vertex
+    meeting a triangle first)."""
+    BOUND_GAMMA = 0.4
+    """Share of a pair's free distance each of its vertices may use (< 1/2)."""
+    FILTER_PASSES = 3
+    """Jacobi passes of the velocity filter per detection."""
+    FILTER_BETA = 0.5
+    """Largest share of a pair's distance its vertices may close in one detection interval before
+    the velocity filter removes the rest of their approach."""
+
+    def _bound_motion(self, x, v, horizon: float, pad) -> None:
+        m, d, n = self.model, self.device, self.model.particle_count
+        wp.launch(ck.start_bounds, dim=n, inputs=[x, v, horizon, pad],
+                  outputs=[self._x_start, self._v_start, self._vlower, self._vupper, self._bound], device=d)
+        vt = (self._contact_tri, self._contact_count)
+        ee = (self._contact_edge, self._contact_ecount) if self.edge_contact else None
+        for _ in range(self.FILTER_PASSES):
+            wp.launch(ck.filter_vertex_triangle, dim=n,
+                      inputs=[x, v, m.inv_mass, m.tris, *vt, self.FILTER_BETA, horizon],
+                      outputs=[self._dv, self._dv_count], device=d)
+            if ee is not None:
+                wp.launch(ck.filter_edge_edge, dim=m.edge_count,
+                          inputs=[x, v, m.inv_mass, m.edges, *ee, self.FILTER_BETA, horizon],
+                          outputs=[self._dv, self._dv_count], device=d)
+            wp.launch(ck.apply_velocity_filter, dim=n, inputs=[self._v_start, pad, horizon],
+                      outputs=[self._dv, self._dv_count, v], device=d)
+        wp.copy(self._v_start, v)
+        self._unresolved.zero_()
+        self._launch_bounds(x, v, vt, ee, horizon)
+        if int(self._unresolved.numpy()[0]) > 0:
+            # some pair still closes in: bound every vertex around its start instead (c = 0)
+            self.bound_fallbacks += 1
+            wp.launch(ck.reset_bounds, dim=n, inputs=[], outputs=[self._bound, self._v_start], device=d)
+            self._launch_bounds(x, v, vt, ee, 0.0)
+
+    def _launch_bounds(self, x, v, vt, ee, horizon: float) -> None:
+        m, d = self.model, self.device
+        wp.launch(ck.bound_vertex_triangle, dim=m.particle_count, inputs=[x, v, m.tris, *vt, self.BOUND_GAMMA, horizon],
+                  outputs=[self._bound, self._unresolved], device=d)
+        if ee is not None:
+            wp.launch(ck.bound_edge_edge, dim=m.edge_count, inputs=[x, v, m.edges, *ee, self.BOUND_GAMMA, horizon],
+                      outputs=[self._bound, self._unresolved], device=d)
 
     def _first_nonfinite(self, x, v) -> int:
         n = self.model.particle_count
@@ -296,6 +418,10 @@ class XPBDSolver:
         if self.self_collision:
             out["self_contact_candidates"] = int(self._contact_count.numpy().sum())
             out["self_contact_overflow"] = int(self._overflow.numpy()[0])
+        if self.edge_contact:
+            out["edge_contact_candidates"] = int(self._contact_ecount.numpy().sum())
+        if self.motion_bounds:
+            out["bound_fallbacks"] = self.bound_fallbacks
         return out
 
     def knobs(self) -> dict:
@@ -303,7 +429,8 @@ class XPBDSolver:
         return {"substeps": self.substeps, "iterations": self.iterations, "gravity": list(self.gravity),
                 "drag": self.drag, "air_density": self.air_density, "drag_coefficient": self.drag_coefficient,
                 "lift_coefficient": self.lift_coefficient, "self_collision": self.self_collision,
-                "contact_interval": self.contact_interval,
+                "contact_interval": self.contact_interval, "edge_contact": self.edge_contact,
+                "motion_bounds": self.motion_bounds, "self_friction": self.self_friction,
                 "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
                 "stretch_sweeps": self.stretch_sweeps,
                 "relaxation": self.relaxation, "tethers": self.tethers, "check_finite": self.check_finite,

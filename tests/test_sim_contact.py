@@ -1,0 +1,184 @@
+"""Intersection count (exact triangle-triangle tests against a linear-programming reference) and
+the solver's penetration-free contact (self, edge-edge, colliders) on hard cases."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import warp as wp
+
+from warpshade.sim import ClothBuilder, ColliderSet, IntersectionCounter, XPBDSolver, count_intersections
+from warpshade.sim.intersections import triangles_meet
+from warpshade.sim.reference import triangles_meet_np
+
+DT = 1.0 / 60.0
+
+
+@wp.kernel
+def _meet_kernel(a: wp.array2d[wp.vec3d], b: wp.array2d[wp.vec3d], out: wp.array[int]):
+    i = wp.tid()
+    out[i] = int(triangles_meet(a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2]))
+
+
+def _meet(a, b) -> np.ndarray:
+    a = np.asarray(a, dtype=np.float64).reshape(-1, 3, 3)
+    b = np.asarray(b, dtype=np.float64).reshape(-1, 3, 3)
+    out = wp.zeros(len(a), dtype=int)
+    wp.launch(_meet_kernel, dim=len(a), inputs=[wp.array(a, dtype=wp.vec3d), wp.array(b, dtype=wp.vec3d)],
+              outputs=[out])
+    return out.numpy().astype(bool)
+
+
+T0 = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]  # in the z = 0 plane
+HAND_MADE = {
+    # name: (triangle b, whether it meets T0)
+    "crossing": ([[0.2, 0.2, -1], [0.3, 0.2, 1], [0.2, 0.3, 1]], True),
+    "piercing edge through the interior": ([[0.25, 0.25, -0.5], [0.25, 0.25, 0.5], [2, 2, 0.2]], True),
+    "above": ([[0.2, 0.2, 0.1], [0.3, 0.2, 1], [0.2, 0.3, 1]], False),
+    "vertex touching the interior": ([[0.2, 0.2, 0.0], [0.3, 0.2, 1], [0.2, 0.3, 1]], True),
+    "edge touching an edge": ([[0.5, 0.5, 0.0], [1.0, 1.0, 0.0], [0.5, 0.5, 1.0]], True),
+    "near miss beside an edge": ([[0.51, 0.51, -1], [1, 1, 1], [0.51, 0.51, 1]], False),
+    "coplanar overlapping": ([[0.1, 0.1, 0], [0.9, 0.1, 0], [0.1, 0.5, 0]], True),
+    "coplanar containing": ([[-1, -1, 0], [3, -1, 0], [-1, 3, 0]], True),
+    "coplanar disjoint": ([[1, 1, 0], [2, 1, 0], [1, 2, 0]], False),
+    "coplanar edges crossing": ([[0.4, -0.2, 0], [0.4, 0.2, 0], [-0.5, -0.5, 0]], True),
+    "shared edge, folded": ([[0, 0, 0], [1, 0, 0], [0.3, -0.5, 0.5]], True),
+    "shared edge, coplanar": ([[0, 0, 0], [1, 0, 0], [0.5, -1, 0]], True),
+    "shared vertex only": ([[0, 0, 0], [-1, 0, 0.5], [0, -1, 0.5]], True),
+    "parallel planes": ([[0, 0, 1e-3], [1, 0, 1e-3], [0, 1, 1e-3]], False),
+}
+
+
+@pytest.mark.parametrize("name", list(HAND_MADE))
+def test_triangle_triangle_hand_made_pairs(name):
+    tri, expected = HAND_MADE[name]
+    assert triangles_meet_np(T0, tri) == expected, f"reference disagrees with the hand-made answer: {name}"
+    assert _meet(T0, tri)[0] == expected, name
+    assert _meet(tri, T0)[0] == expected, f"{name} (swapped)"
+
+
+def test_triangle_triangle_random_pairs_match_reference(rng):
+    """Random pairs in a unit cube (about a quarter meet): the exact predicate agrees with the LP
+    feasibility reference on every pair (a random pair is never within float64 rounding of touching)."""
+    a = rng.uniform(0, 1, size=(300, 3, 3))
+    b = rng.uniform(0, 1, size=(300, 3, 3))
+    got = _meet(a, b)
+    ref = np.array([triangles_meet_np(a[i], b[i]) for i in range(len(a))])
+    assert 0.1 < ref.mean() < 0.9  # both outcomes well represented
+    bad = np.flatnonzero(got != ref)
+    assert len(bad) == 0, f"pairs {bad[:5].tolist()} disagree: {a[bad[0]].tolist()} {b[bad[0]].tolist()}"
+
+
+def _grid(n, size, origin, u=(1, 0, 0), v=(0, 0, 1)):
+    b = ClothBuilder()
+    b.add_grid(n, n, size, size, origin=origin, u_axis=u, v_axis=v)
+    m = b.finalize()
+    return m.rest_points_np.astype(np.float64), m.faces
+
+
+def _brute_force_count(points, faces):
+    """Every non-adjacent pair by the LP reference."""
+    n = 0
+    tri = points[faces]
+    for t in range(len(faces)):
+        for u in range(t + 1, len(faces)):
+            if set(faces[t].tolist()) & set(faces[u].tolist()):
+                continue
+            lo = np.maximum(tri[t].min(0), tri[u].min(0))
+            hi = np.minimum(tri[t].max(0), tri[u].max(0))
+            if (lo > hi + 1e-12).any():
+                continue
+            n += triangles_meet_np(tri[t], tri[u])
+    return n
+
+
+def test_count_of_two_crossing_sheets_matches_brute_force():
+    """A horizontal and a vertical 5 x 5 sheet in one mesh, crossing along a line: the BVH count
+    equals the all-pairs reference; each sheet alone has none."""
+    p1, f1 = _grid(5, 1.0, (-0.5, 0.0, -0.5))
+    p2, f2 = _grid(5, 1.0, (-0.43, -0.37, -0.31), u=(1, 0, 0), v=(0, 1, 0.1))
+    pts = np.concatenate([p1, p2])
+    faces = np.concatenate([f1, f2 + len(p1)])
+    ref = _brute_force_count(pts, faces)
+    got = count_intersections(pts, faces)
+    assert ref > 4 and got["self"] == ref, (got["self"], ref)
+    assert got["collider"] == 0 and got["total"] == ref
+    assert count_intersections(p1, f1)["self"] == 0  # neighbours sharing a vertex are not counted
+    pairs = got["self_pairs"]
+    assert (pairs[:, 0] < len(f1)).all() and (pairs[:, 1] >= len(f1)).all()  # every pair is across sheets
+
+
+def test_count_against_colliders():
+    """A flat 8 x 8 sheet at y = 0.1 against solids placed to cut it or to miss it by 1 mm."""
+    pts, faces = _grid(8, 1.0, (-0.5, 0.1, -0.5))
+    cases = [
+        ("plane below", lambda c: c.add_plane((0, 1, 0), 0.099), 0),
+        ("plane through", lambda c: c.add_plane((0, 1, 0), 0.1001), 98),
+        ("sphere under", lambda c: c.add_sphere((0, 0, 0), 0.099), 0),
+        ("sphere cutting", lambda c: c.add_sphere((0.01, 0, 0.01), 0.12), None),
+        ("capsule under", lambda c: c.add_capsule((-0.3, 0.0, 0.0), (0.3, 0.0, 0.0), 0.099), 0),
+        ("capsule cutting", lambda c: c.add_capsule((-0.3, 0.0, 0.0), (0.3, 0.0, 0.0), 0.11), None),
+        ("box under", lambda c: c.add_box((0, 0, 0), (0.2, 0.099, 0.2)), 0),
+        # a box whose sharp top edge pokes up through the sheet between vertices
+        ("box edge poking", lambda c: c.add_box((0.07, 0.0, 0.0), (0.1, 0.1, 0.2),
+                                                 (np.sin(np.pi / 8), 0, 0, np.cos(np.pi / 8))), None),
+    ]
+    for name, add, expected in cases:
+        col = ColliderSet()
+        add(col)
+        n = count_intersections(pts, faces, col)["collider"]
+        if expected is None:
+            assert n > 0, name
+        else:
+            assert n == expected, (name, n)
+
+
+def test_box_edge_between_vertices_is_counted():
+    """A box edge rising 2 mm above a sheet whose vertices all stay outside the box: a vertex
+    signed distance sees nothing, the triangle test sees the crossing."""
+    pts, faces = _grid(5, 1.0, (-0.5, 0.0, -0.5))  # spacing 0.25 m
+    # a 45-degree-rotated box (about z) whose top edge runs along z at x = 0.125, y = 0.002
+    c = np.sqrt(0.5)
+    col = ColliderSet()
+    half = 0.1
+    col.add_box((0.125, 0.002 - half * np.sqrt(2), 0.0), (half, half, 0.6), (0, 0, np.sin(np.pi / 8), np.cos(np.pi / 8)))
+    ar = col.end_pose_arrays()
+    assert ar is not None
+    rot = np.array([[c, -c, 0], [c, c, 0], [0, 0, 1]])
+    lp = (pts - [0.125, 0.002 - half * np.sqrt(2), 0.0]) @ rot
+    q = np.abs(lp) - [half, half, 0.6]
+    sd = np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)
+    assert sd.min() > 0.0  # no vertex inside
+    assert count_intersections(pts, faces, col)["collider"] > 0
+
+
+def test_count_against_a_mesh_collider():
+    import trimesh
+
+    pts, faces = _grid(9, 1.0, (-0.5, 0.0, -0.5))
+    ico = trimesh.creation.icosphere(subdivisions=2, radius=0.2)
+    for centre, expect_hit in (((0, 0.1, 0), True), ((0, 0.25, 0), False), ((0, 0.0, 0), True)):
+        col = ColliderSet()
+        col.add_mesh(np.asarray(ico.vertices) + centre, np.asarray(ico.faces))
+        n = count_intersections(pts, faces, col)["collider"]
+        assert (n > 0) == expect_hit, (centre, n)
+    # a small sheet wholly inside the mesh: no crossing, every triangle counted as inside
+    p_in, f_in = _grid(3, 0.1, (-0.05, 0.3, -0.05))
+    col = ColliderSet()
+    col.add_mesh(np.asarray(ico.vertices) + (0, 0.3, 0), np.asarray(ico.faces))
+    res = count_intersections(p_in, f_in, col)
+    assert res["collider"] == len(f_in) and (res["collider_pairs"][:, 1] == -1).all()
+
+
+def test_counter_is_fast_on_a_64_grid():
+    """The counter is reused frame after frame: it refits its BVH."""
+    pts, faces = _grid(64, 1.0, (-0.5, 0.3, -0.5))
+    c = IntersectionCounter(faces)
+    assert c.self_pairs(pts)[0] == 0
+    folded = pts.copy()
+    folded[:, 1] += 0.2 * np.sin(6 * folded[:, 0])
+    assert c.self_pairs(folded)[0] == 0
+    with pytest.raises(ValueError, match="vertex 3 is not finite"):
+        bad = pts.copy()
+        bad[3, 0] = np.nan
+        c.self_pairs(bad)
