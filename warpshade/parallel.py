@@ -81,9 +81,9 @@ def _exit_with_parent(parent: int, interval: float = 0.5) -> None:
 def _init_worker(token: str, spec: FrameShaderSpec, parent: int | None = None) -> None:
     if parent is not None:
         _exit_with_parent(parent)
-    import warp as wp
+    from .runtime import init_warp
 
-    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
+    init_warp()
     _WORKER_SHADERS[token] = spec.build()
 
 

@@ -12,6 +12,8 @@ import signal
 import sys
 import threading
 
+from ..runtime import init_warp
+
 
 def _subcommands():
     pkg = sys.modules[__name__]
@@ -60,10 +62,7 @@ def exit_code(exc: BaseException) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``warpshade`` console script."""
-    import warp as wp
-
-    # stdout carries results (paths, tables, JSON): no Warp init banner or module-load lines
-    wp.config.log_level = wp.LOG_WARNING
+    init_warp()
     parser = build_parser()
     # Subcommands with ACCEPTS_EXTRA = True get unrecognised flags as ``args.extra`` (method knobs,
     # which depend on another flag's value); the rest reject them as usual.
