@@ -40,7 +40,7 @@ class Recorder:
         self.t0 = time.perf_counter()
 
     def add(self, name: str, faces, points) -> str:
-        n = self.writer.add_mesh(name, faces, points)
+        n = self.writer.add_mesh(name, faces, points, shaded=False)
         self.faces[n] = np.asarray(faces)
         return n
 

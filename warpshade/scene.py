@@ -27,6 +27,10 @@ OBJECT_KINDS = ("static", "cloth", "skinned", "animated")
 time-sampled points read from the file."""
 
 
+DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
+"""Albedo (linear RGB) of an object whose scene gives none."""
+
+
 @dataclass
 class Material:
     """UsdPreviewSurface subset used for shading.
@@ -47,7 +51,7 @@ class Material:
         if self.albedo_authored is None:
             self.albedo_authored = self.albedo is not None
         if self.albedo is None:
-            self.albedo = np.array([0.8, 0.8, 0.8])
+            self.albedo = np.array(DEFAULT_ALBEDO)
 
     @property
     def glossy(self) -> bool:

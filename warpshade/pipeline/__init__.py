@@ -21,11 +21,12 @@ from __future__ import annotations
 
 import os
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene import Scene, SceneError
+from ..scene import Scene, SceneError, SceneWarning
 from ..sh.basis import check_order
 from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
@@ -95,6 +96,18 @@ def check_output(scene: Scene, out: str) -> None:
     for f in files:
         if f and os.path.exists(f) and os.path.realpath(f) == target:
             raise SceneError(f"output {out} is an input of the scene ({f}); choose another --out")
+
+
+def warn_black_mesh(scene: Scene, name: str, frame: int) -> None:
+    """Warn that mesh ``name`` got zero exit radiance at every vertex of ``frame``, with the likely cause."""
+    obj = scene.object(name)
+    if not np.any(obj.material.albedo):
+        cause = ("its albedo is black (warpshade:albedo or the bound material's diffuseColor); "
+                 "set a non-black albedo, or warpshade run --albedo for objects without one")
+    else:
+        cause = ("no light reaches any of its vertices: every vertex is shadowed or faces away from every "
+                 "light (flipped normals or winding?), or the lights give no light (intensity, exposure)")
+    warnings.warn(f"{name}: frame {frame}: exit radiance is zero at every vertex: {cause}", SceneWarning, stacklevel=2)
 
 
 class Pipeline:
@@ -243,6 +256,7 @@ class Pipeline:
 
                 bar = tqdm(total=self.frames, initial=min(start, self.frames), desc="warpshade run", unit="frame")
             failure: list = []
+            warned_black: set[str] = set()
             results = shade_frames(self.shader, self._geometry(sims, secs, failure, start), workers=self.workers,
                                    scheduler=self.scheduler)
             for f, res in results:
@@ -253,6 +267,9 @@ class Pipeline:
                     # docs/conventions.md §6: every shaded mesh has points, normals and extent time-sampled
                     # per frame, static ones included
                     writer.write_frame(f, names[name], points, normals, colors, transfer)
+                    if name not in warned_black and colors is not None and not np.any(colors):
+                        warned_black.add(name)
+                        warn_black_mesh(self.scene, name, f)
                 secs["write"] += time.perf_counter() - t
                 if bar is not None:
                     bar.update(1)

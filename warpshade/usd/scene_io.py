@@ -30,6 +30,7 @@ from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel
 from ..geometry.mesh import MeshError, TriMesh
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
 from .mesh_io import triangulate
+from .writer import RADIANCE_MATERIAL_ATTR
 
 # Prim types that carry no geometry warpshade needs but are expected in scenes: skipped silently.
 _CONTAINERS = {"", "Xform", "Scope", "SkelRoot", "Skeleton", "SkelAnimation", "Material", "Shader",
@@ -279,29 +280,58 @@ def _skinned_points(prim, cache: UsdSkel.Cache, where):
     return points_at
 
 
+def _is_radiance_material(mat, shader) -> bool:
+    """Whether ``mat`` is the material warpshade binds to its shaded output meshes (emission =
+    exit radiance, black diffuse): marked by RADIANCE_MATERIAL_ATTR, or, in outputs written before
+    that mark, recognised by its emissiveColor read from the ``displayColor`` primvar."""
+    mark = mat.GetPrim().GetAttribute(RADIANCE_MATERIAL_ATTR)
+    if mark and mark.Get():
+        return True
+    emissive = shader.GetInput("emissiveColor")
+    if not emissive or not emissive.HasConnectedSource():
+        return False
+    source = emissive.GetConnectedSource()[0]
+    reader = UsdShade.Shader(source.GetPrim())
+    varname = reader.GetInput("varname") if reader else None
+    return bool(varname) and varname.Get() == "displayColor"
+
+
 def _material(prim, where) -> Material:
+    """The shading material of ``prim``: ``warpshade:albedo`` if authored (warpshade outputs carry
+    it), else the bound UsdPreviewSurface's diffuseColor (unless it is warpshade's own radiance
+    material, whose black diffuse is not an albedo), else a constant ``displayColor``."""
+    out = None
+    recorded = prim.GetAttribute("warpshade:albedo")
+    if recorded and recorded.HasAuthoredValue():
+        out = Material(albedo=np.asarray(recorded.Get(), dtype=np.float64))
     mat, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
     if mat:
         shader = mat.ComputeSurfaceSource()[0]
         if shader and shader.GetIdAttr().Get() == "UsdPreviewSurface":
-            out = Material()
-            dc = shader.GetInput("diffuseColor")
-            if dc:
-                if dc.HasConnectedSource():
-                    warnings.warn(f"{where}: diffuseColor of {shader.GetPath()} is connected (texture?); "
-                                  "using its fallback/default value", SceneWarning, stacklevel=4)
-                val = dc.Get()
-                if val is not None:
-                    out.albedo = np.asarray(val, dtype=np.float64)
-                    out.albedo_authored = True
+            ours = _is_radiance_material(mat, shader)
+            if out is None:
+                out = Material()
+                dc = shader.GetInput("diffuseColor")
+                if dc and not ours:
+                    if dc.HasConnectedSource():
+                        warnings.warn(f"{where}: diffuseColor of {shader.GetPath()} is connected (texture?); "
+                                      "using its fallback/default value", SceneWarning, stacklevel=4)
+                    val = dc.Get()
+                    if val is not None:
+                        out.albedo = np.asarray(val, dtype=np.float64)
+                        out.albedo_authored = True
             r = shader.GetInput("roughness")
             if r and r.Get() is not None:
                 out.roughness = float(r.Get())
             _check_material(out, where, shader.GetPath())
             return out
-        warnings.warn(f"{where}: bound material {mat.GetPath()} has no UsdPreviewSurface; default material used",
-                      SceneWarning, stacklevel=4)
-        return Material()
+        if out is None:
+            warnings.warn(f"{where}: bound material {mat.GetPath()} has no UsdPreviewSurface; default material used",
+                          SceneWarning, stacklevel=4)
+            return Material()
+    if out is not None:
+        _check_material(out, where, recorded.GetPath())
+        return out
     dc = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
     if dc and dc.HasAuthoredValue():
         v = np.asarray(dc.Get(), dtype=np.float64).reshape(-1, 3)

@@ -35,8 +35,12 @@ import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdLux, UsdShade, Vt
 
 from .. import __version__
+from ..scene import DEFAULT_ALBEDO
 
 #: Animated attributes: name -> (value type, USD interpolation or None).
+RADIANCE_MATERIAL_ATTR = "warpshade:radianceMaterial"
+"""Bool on the material prims this writer binds to shaded meshes (emission = exit radiance)."""
+
 _ANIMATED = {
     "points": Sdf.ValueTypeNames.Point3fArray,
     "normals": Sdf.ValueTypeNames.Normal3fArray,
@@ -328,7 +332,8 @@ class AnimationWriter:
 
     # -- declarations -----------------------------------------------------------------------
     def add_mesh(self, name: str, faces: np.ndarray, points: np.ndarray | None = None, *,
-                 normals: np.ndarray | None = None, albedo=None, roughness: float = 1.0, transfer_order: int | None = None) -> str:
+                 normals: np.ndarray | None = None, albedo=None, roughness: float = 1.0, transfer_order: int | None = None,
+                 shaded: bool = True) -> str:
         """Declare a mesh; its topology (and ``points`` if given) is written at the default time.
 
         Args:
@@ -341,6 +346,10 @@ class AnimationWriter:
             albedo: Diffuse reflectance, linear RGB, shape (3,), recorded as ``warpshade:albedo``.
             roughness: UsdPreviewSurface roughness of the output material.
             transfer_order: SH order N if :meth:`write_frame` will get ``transfer`` (V, N*N).
+            shaded: ``True`` if :meth:`write_frame` will get ``colors`` (exit radiance): the mesh is
+                bound to the radiance material (emission from ``displayColor``, black diffuse).
+                ``False`` for geometry only: a plain UsdPreviewSurface whose diffuse colour is the
+                albedo (:data:`DEFAULT_ALBEDO` without one), so no renderer shows it black.
 
         Returns:
             The prim name used.
@@ -378,7 +387,10 @@ class AnimationWriter:
         if albedo is not None:
             mesh.GetPrim().CreateAttribute("warpshade:albedo", Sdf.ValueTypeNames.Color3f, custom=True).Set(
                 Gf.Vec3f(*[float(a) for a in np.asarray(albedo).reshape(3)]))
-        self._bind_material(mesh, pname, roughness)
+        if shaded:
+            self._bind_radiance_material(mesh, pname, roughness)
+        else:
+            self._bind_albedo_material(mesh, pname, DEFAULT_ALBEDO if albedo is None else albedo, roughness)
         self._meshes[pname] = {"path": path, "vertices": nverts, "static": points is not None,
                                "transfer": None if transfer_order is None else int(transfer_order) ** 2}
         if self._resumed_attrs:
@@ -388,11 +400,25 @@ class AnimationWriter:
             self._attrs |= {(pname, a) for a in self._resumed_attrs[path]}
         return pname
 
-    def _bind_material(self, mesh: UsdGeom.Mesh, pname: str, roughness: float) -> None:
+    def _bind_albedo_material(self, mesh: UsdGeom.Mesh, pname: str, albedo, roughness: float) -> None:
+        looks = UsdGeom.Scope.Define(self.stage, "/World/Looks")
+        mat = UsdShade.Material.Define(self.stage, f"{looks.GetPath()}/{pname}_albedo")
+        surf = UsdShade.Shader.Define(self.stage, f"{mat.GetPath()}/PreviewSurface")
+        surf.CreateIdAttr("UsdPreviewSurface")
+        rgb = Gf.Vec3f(*[float(a) for a in np.asarray(albedo, dtype=np.float64).reshape(3)])
+        surf.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
+        surf.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(roughness))
+        mat.CreateSurfaceOutput().ConnectToSource(surf.ConnectableAPI(), "surface")
+        UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
+
+    def _bind_radiance_material(self, mesh: UsdGeom.Mesh, pname: str, roughness: float) -> None:
         # displayColor holds exit radiance (shading already done), so the material shows it as
         # emission with a black diffuse: a renderer that re-lights the scene does not light it twice.
+        # RADIANCE_MATERIAL_ATTR marks it, so a reader of this output does not take the black
+        # diffuse for the albedo (that is warpshade:albedo on the mesh).
         looks = UsdGeom.Scope.Define(self.stage, "/World/Looks")
         mat = UsdShade.Material.Define(self.stage, f"{looks.GetPath()}/{pname}_radiance")
+        mat.GetPrim().CreateAttribute(RADIANCE_MATERIAL_ATTR, Sdf.ValueTypeNames.Bool, custom=True).Set(True)
         surf = UsdShade.Shader.Define(self.stage, f"{mat.GetPath()}/PreviewSurface")
         surf.CreateIdAttr("UsdPreviewSurface")
         reader = UsdShade.Shader.Define(self.stage, f"{mat.GetPath()}/displayColorReader")
