@@ -165,11 +165,32 @@ class Pipeline:
                                   self.write_transfer, device, between, self.reflections, area_lights,
                                   dict(area_knobs or {}))
         self._check_lights()
+        self._warn_static_scene(lights)
         from .area import area_lights_used
 
         self.area_lights, self.area_description = area_lights_used(self.shader)
         """How rect lights are shaded (``"gears"``, ``"sh"``; None without rect lights), and in words."""
         self.report = None
+
+    def _warn_static_scene(self, lights) -> None:
+        """Warn about a scene whose frames will all be alike, and about cloth that can only fall."""
+        objects = self.scene.objects
+        moving_lights = any(getattr(light, "motion", None) is not None for light in (lights or []))
+        if self.frames > 1 and not moving_lights and all(o.kind == "static" for o in objects):
+            warnings.warn(
+                f"{self.scene.source}: nothing in the scene moves, so all {self.frames} frames are alike: "
+                'mark a mesh to simulate with warpshade:kind = "cloth", animate points or xforms, or use '
+                "--frames 1", SceneWarning, stacklevel=3)
+        has_colliders = any(o.params.get("collider") for o in objects if o.kind != "cloth")
+        for o in objects:
+            if o.kind != "cloth" or has_colliders:
+                continue
+            pinned = "pinned" in o.params and len(o.params["pinned"])
+            if not pinned and "attached" not in o.params:
+                warnings.warn(
+                    f"{o.name}: cloth with neither pins (warpshade:pinned) nor an attachment, and the scene has "
+                    "no collider (warpshade:collider on a prim): it falls freely; add a collider or pin vertices",
+                    SceneWarning, stacklevel=3)
 
     def _check_lights(self) -> None:
         """Reject, before any work, a light whose emission or SH radiance does not fit in float32

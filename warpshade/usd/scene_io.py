@@ -33,6 +33,9 @@ from .mesh_io import triangulate
 from .writer import RADIANCE_MATERIAL_ATTR
 
 # Prim types that carry no geometry warpshade needs but are expected in scenes: skipped silently.
+_UNRENDERED_PURPOSES = (UsdGeom.Tokens.guide, UsdGeom.Tokens.proxy)
+"""Purposes whose prims are not shaded (a renderer shows only default and render purpose)."""
+
 _CONTAINERS = {"", "Xform", "Scope", "SkelRoot", "Skeleton", "SkelAnimation", "Material", "Shader",
                "NodeGraph", "GeomSubset", "BlendShape"}
 _LIGHTS = {"DomeLight": "dome", "DistantLight": "distant", "SphereLight": "sphere", "RectLight": "rect"}
@@ -105,6 +108,9 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             continue
         if tname in ("Material", "Shader", "NodeGraph"):
             it.PruneChildren()
+            continue
+        if prim.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(prim).ComputePurpose() in _UNRENDERED_PURPOSES:
+            it.PruneChildren()  # guide / proxy geometry (collision twins, stand-ins) is not what renders
             continue
         if prim.IsA(UsdGeom.Mesh):
             scene.objects.append(_read_mesh(prim, source, cache, default_method))
