@@ -25,7 +25,7 @@ import os
 import warnings
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel
+from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 
 from ..geometry.mesh import MeshError, TriMesh
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
@@ -116,14 +116,16 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             scene.objects.append(_read_mesh(prim, source, cache, default_method))
         elif prim.IsA(UsdGeom.Sphere):
             scene.objects.append(_read_sphere(prim, source, default_method))
+        elif tname in _GPRIMS:
+            scene.objects.append(_read_gprim(prim, source, default_method))
         elif tname in _LIGHTS:
             scene.lights.append(_read_light(prim, _LIGHTS[tname], source))
         elif tname not in _CONTAINERS:
-            warnings.warn(f"{source}: skipping {prim.GetPath()} ({tname}): warpshade reads Mesh, Sphere, "
+            warnings.warn(f"{source}: skipping {prim.GetPath()} ({tname}): warpshade reads Mesh, Sphere, Cube, Cylinder, Capsule, Cone, Plane, "
                           "UsdLux Dome/Distant/Sphere/Rect lights and UsdSkel", SceneWarning, stacklevel=2)
             it.PruneChildren()
     if not scene.objects:
-        raise SceneError(f"{source}: no Mesh or Sphere prim to shade")
+        raise SceneError(f"{source}: no Mesh or gprim (Sphere, Cube, Cylinder, Capsule, Cone, Plane) to shade")
     return scene
 
 
@@ -206,7 +208,94 @@ def _read_sphere(prim, source: str, default_method) -> SceneObject:
     return _object(prim, where, tri, kind, settings, params, default_method, _material(prim, where))
 
 
+_GPRIMS = ("Cube", "Cylinder", "Capsule", "Cone", "Plane")
+"""UsdGeom gprims other than Sphere that are read: tessellated for shading, mesh colliders when marked."""
+
+_AXIS_FROM_Z = {"Z": np.eye(3), "Y": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),
+                "X": np.array([[0, 0, 1.0], [0, 1, 0], [-1, 0, 0]])}
+"""Rotations (acting on column vectors) taking a shape built along +Z to a gprim's ``axis``."""
+
+
+def _gprim_mesh(prim, where):
+    """Tessellation of a Cube/Cylinder/Capsule/Cone/Plane gprim in its local frame (trimesh)."""
+    import trimesh
+
+    tname = prim.GetTypeName()
+    get = lambda name: float(prim.GetAttribute(name).Get())  # noqa: E731 - schema attributes with fallbacks
+    dims = {"Cube": ("size",), "Cylinder": ("radius", "height"), "Capsule": ("radius", "height"),
+            "Cone": ("radius", "height"), "Plane": ("width", "length")}[tname]
+    for name in dims:
+        if not get(name) > 0 and not (tname == "Capsule" and name == "height" and get(name) == 0):
+            raise SceneError(f"{where}: {tname} {name} must be > 0, got {get(name)}")
+    if tname == "Cube":
+        m = trimesh.creation.box(extents=[get("size")] * 3)
+        # faces fine enough for shadows to land on (per-vertex shading): 16 edges a side
+        m = m.subdivide_to_size(get("size") / 16.0, max_iter=8)
+    elif tname == "Plane":
+        w, ln = get("width"), get("length")
+        verts = np.array([[-w / 2, -ln / 2, 0], [w / 2, -ln / 2, 0], [w / 2, ln / 2, 0], [-w / 2, ln / 2, 0]])
+        m = trimesh.Trimesh(verts, [[0, 1, 2], [0, 2, 3]], process=False).subdivide_to_size(max(w, ln) / 32.0,
+                                                                                            max_iter=8)
+    elif tname == "Cylinder":
+        m = trimesh.creation.cylinder(radius=get("radius"), height=get("height"), sections=48)
+    elif tname == "Capsule":
+        m = trimesh.creation.capsule(height=get("height"), radius=get("radius"), count=[48, 24])
+    else:  # Cone: USD centres it, apex at +height/2; trimesh puts the base at z = 0
+        m = trimesh.creation.cone(radius=get("radius"), height=get("height"), sections=48)
+        m.apply_translation([0.0, 0.0, -get("height") / 2])
+    axis = str(prim.GetAttribute("axis").Get() or "Z") if tname != "Cube" else "Z"
+    if axis not in _AXIS_FROM_Z:
+        raise SceneError(f"{where}: {tname} axis must be X, Y or Z, got {axis!r}")
+    return np.asarray(m.vertices) @ _AXIS_FROM_Z[axis].T, np.asarray(m.faces)
+
+
+def _read_gprim(prim, source: str, default_method) -> SceneObject:
+    where = f"{source}:{prim.GetPath()}"
+    settings = _namespace(prim, source)
+    verts, faces = _gprim_mesh(prim, where)
+    tri = TriMesh(_apply(_world(prim), verts), faces, name=where)
+    kind = settings.pop("kind", "static")
+    if kind not in ("static",):
+        raise SceneError(f"{where}: warpshade:kind '{kind}' on a {prim.GetTypeName()}: gprims are static "
+                         "(convert it to a Mesh to simulate or animate it)")
+    return _object(prim, where, tri, kind, settings, {}, default_method, _material(prim, where))
+
+
+def _physics_collider(prim) -> bool:
+    """Whether ``prim`` is a collider the UsdPhysics way: PhysicsCollisionAPI, collision enabled."""
+    if not prim.HasAPI(UsdPhysics.CollisionAPI):
+        return False
+    enabled = UsdPhysics.CollisionAPI(prim).GetCollisionEnabledAttr().Get()
+    return enabled is None or bool(enabled)
+
+
+def _physics_collider_shape(prim, tri) -> tuple[str, dict]:
+    """The ``warpshade:collider`` kind (and its exact shape) for a PhysicsCollisionAPI prim: the
+    analytic sphere of a Sphere, the oriented box of a Cube, a ground plane for a flat horizontal
+    mesh or Plane (its mean height), else the triangle mesh itself."""
+    if prim.IsA(UsdGeom.Sphere):
+        return "sphere", {}
+    if prim.IsA(UsdGeom.Cube):
+        from scipy.spatial.transform import Rotation
+
+        xf = _world(prim)
+        lin = xf[:3, :3]
+        scale = np.linalg.norm(lin, axis=0)
+        half = 0.5 * float(UsdGeom.Cube(prim).GetSizeAttr().Get()) * scale
+        quat = Rotation.from_matrix(lin / scale).as_quat()  # (x, y, z, w)
+        return "box", {"box": {"center": xf[:3, 3].copy(), "half_extents": half, "rotation": quat}}
+    up = 1 if str(UsdGeom.GetStageUpAxis(prim.GetStage())) == "Y" else 2
+    pts = tri.points
+    size = float(np.ptp(pts, axis=0).max())
+    if size > 0 and float(np.ptp(pts[:, up])) <= 1e-6 * size:
+        return "ground", {}
+    return "mesh", {}
+
+
 def _object(prim, where, tri, kind, settings, params, default_method, material) -> SceneObject:
+    if "collider" not in settings and kind != "cloth" and _physics_collider(prim):
+        settings["collider"], shape = _physics_collider_shape(prim, tri)
+        params.update(shape)
     knobs = {k[len("knobs:"):]: v for k, v in settings.items() if k.startswith("knobs:")}
     for k in [k for k in knobs if k.endswith(("_dir", "_path", "_file"))]:
         # nothing read from a scene chooses where files are written
