@@ -174,6 +174,8 @@ class Scene:
             :mod:`warpshade.lighting` objects.
         frames: Number of frames to produce.
         fps: Frames per second.
+        start_time: Time code of frame 0 (the input's ``startTimeCode``): frame ``f`` samples the
+            input's animation at time code ``start_time + f`` and is written at that time code.
         up_axis: ``"Y"`` or ``"Z"``.
         meters_per_unit: Stage units.
         settings: Scene-wide ``warpshade:`` settings (SH order, reflections, max error...).
@@ -184,6 +186,7 @@ class Scene:
     lights: list[LightSpec] = field(default_factory=list)
     frames: int = 120
     fps: float = 60.0
+    start_time: int = 0
     up_axis: str = "Y"
     meters_per_unit: float = 1.0
     settings: dict[str, Any] = field(default_factory=dict)

@@ -225,7 +225,8 @@ class Pipeline:
         driven = [o for o in self.scene.objects if o.kind in ("animated", "skinned")]
         for f in range(self.frames):
             t = time.perf_counter()
-            geo = {o.name: np.asarray(o.params["points_at"](f), dtype=np.float32) for o in driven}
+            code = self.scene.start_time + f  # points_at takes the input's time code
+            geo = {o.name: np.asarray(o.params["points_at"](code), dtype=np.float32) for o in driven}
             if sims is not None:  # cloth after the bodies it collides with and hangs from
                 geo.update(sims.advance(f, geo))
             for name, pts in geo.items():
@@ -251,7 +252,9 @@ class Pipeline:
                 writer.abort()
                 raise
         secs = dict.fromkeys(("setup", "simulate", "shade", "write"), 0.0)
-        start = int(getattr(writer, "resume_frame", 0))
+        time0 = self.scene.start_time  # frame f is written at time code time0 + f
+        resume = int(getattr(writer, "resume_frame", 0))  # a time code: first one not yet written
+        start = max(0, resume - time0) if resume else 0
         t0 = time.perf_counter()
         bar = None
         try:
@@ -287,7 +290,7 @@ class Pipeline:
                 for name, (points, normals, colors, transfer) in res.items():
                     # docs/conventions.md §6: every shaded mesh has points, normals and extent time-sampled
                     # per frame, static ones included
-                    writer.write_frame(f, names[name], points, normals, colors, transfer)
+                    writer.write_frame(time0 + f, names[name], points, normals, colors, transfer)
                     if name not in warned_black and colors is not None and not np.any(colors):
                         warned_black.add(name)
                         warn_black_mesh(self.scene, name, f)

@@ -74,6 +74,12 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
     scene.up_axis = str(UsdGeom.GetStageUpAxis(stage))
     scene.meters_per_unit = float(UsdGeom.GetStageMetersPerUnit(stage))
     scene.fps = float(stage.GetTimeCodesPerSecond())
+    if stage.HasAuthoredMetadata("startTimeCode"):
+        start = stage.GetStartTimeCode()
+        if start != round(start):
+            warnings.warn(f"{source}: startTimeCode {start} is not a whole frame; frame 0 is time code "
+                          f"{round(start)}", SceneWarning, stacklevel=2)
+        scene.start_time = int(round(start))
     if stage.HasAuthoredMetadata("endTimeCode"):
         scene.frames = int(round(stage.GetEndTimeCode() - stage.GetStartTimeCode())) + 1
     root = stage.GetDefaultPrim() or stage.GetPseudoRoot()
@@ -336,12 +342,13 @@ def _animated_points(prim, where):
 
     stage = prim.GetStage()  # the closure keeps the stage alive
 
-    def points_at(frame: float) -> np.ndarray:
+    def points_at(time: float) -> np.ndarray:
+        """World positions at time code ``time``."""
         assert stage
-        t = Usd.TimeCode(frame)
+        t = Usd.TimeCode(time)
         pts = attr.Get(t)
         if pts is None:
-            raise SceneError(f"{where}: no points at frame {frame}")
+            raise SceneError(f"{where}: no points at time code {time}")
         return _apply(_world(prim, t), np.asarray(pts, dtype=np.float64).reshape(-1, 3)).astype(np.float32)
 
     return points_at
@@ -362,13 +369,14 @@ def _skinned_points(prim, cache: UsdSkel.Cache, where):
 
     stage = prim.GetStage()  # the closure keeps the stage and the skel cache alive
 
-    def points_at(frame: float) -> np.ndarray:
+    def points_at(time: float) -> np.ndarray:
+        """Skinned world positions at time code ``time``."""
         assert stage and cache
-        t = Usd.TimeCode(frame)
+        t = Usd.TimeCode(time)
         xforms = skel_query.ComputeSkinningTransforms(t)
         pts = type(rest)(rest)
         if not query.ComputeSkinnedPoints(xforms, pts, t):
-            raise SceneError(f"{where}: UsdSkel skinning failed at frame {frame}")
+            raise SceneError(f"{where}: UsdSkel skinning failed at time code {time}")
         # Skinned points are in skeleton space (UsdSkel "Skinning" docs): apply the skeleton's transform.
         return _apply(_world(skel.GetPrim(), t), np.asarray(pts, dtype=np.float64).reshape(-1, 3)).astype(np.float32)
 
