@@ -9,7 +9,10 @@ HELP = "print the plan (passes, shared structures, reuse, method per object) and
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from .cmd_run import add_refine_argument
+
     parser.add_argument("scene", metavar="SCENE", help="scene file (.usd/.usda) read by warpshade.usd")
+    add_refine_argument(parser)
     parser.add_argument("--max-error", type=float, default=None,
                         help="error budget: per object, the fastest measured method within this mean error")
     parser.add_argument("--frontier", default=None, help="frontier.json or bench results.json (default: shipped)")
@@ -40,8 +43,12 @@ def run(args) -> int:
     from ..planner import make_plan, naive_seconds
 
     from ..pipeline import DEFAULT_ORDER
+    from ..pipeline.refine import describe as describe_refined, refine_receivers
 
     scene = load_scene(args.scene)
+    refined = refine_receivers(scene, args.refine_receivers)
+    if refined:
+        print(describe_refined(refined).strip())
     # the order warpshade run would use, so the plan costs what the run does
     scene.settings["order"] = args.order or scene.settings.get("order", DEFAULT_ORDER)
     if args.reflections:

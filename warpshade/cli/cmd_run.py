@@ -7,6 +7,8 @@ import os
 import sys
 import time
 
+from ..pipeline.refine import describe as describe_refined, refine_receivers
+
 HELP = "run a scene end to end (simulate, shade, write USD); no SCENE runs the shipped default scene"
 ACCEPTS_EXTRA = True  # method knobs, parsed once --method is known
 
@@ -17,7 +19,16 @@ def shipped_scene(name: str = "default.usda") -> str:
     return os.path.normpath(os.path.join(here, "..", "..", "usd_scenes", name))
 
 
+def add_refine_argument(parser: argparse.ArgumentParser) -> None:
+    """``--refine-receivers`` (shared by ``run`` and ``plan``, so the plan prices what the run shades)."""
+    parser.add_argument("--refine-receivers", default="auto", metavar="EDGE|auto|off",
+                        help="subdivide coarse static meshes to this edge length [scene units] so shadows have "
+                             "vertices to fall on (default auto: the scene's warpshade:refineEdge, else 1/12 of "
+                             "the scene's diagonal; off: never)")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_refine_argument(parser)
     from ..visibility import METHODS
 
     parser.add_argument("scene", nargs="?", default=None, metavar="SCENE",
@@ -111,6 +122,9 @@ def run(args) -> int:
     t0 = time.perf_counter()
     scene_path = args.scene or shipped_scene()
     scene = read_scene(scene_path)
+    refined = refine_receivers(scene, args.refine_receivers)  # before the plan, which prices it
+    if refined:
+        print(f"warpshade run: {describe_refined(refined)[2:]}", file=sys.stderr)
     if method == "none":
         method = None
         for o in scene.objects:  # unoccluded transfer for every object
@@ -139,7 +153,8 @@ def run(args) -> int:
                     scheduler=args.scheduler, device=args.device,
                     between=None if args.between == "none" else args.between,
                     reflections=reflections, albedo=parse_albedo(args.albedo), area_lights=args.area_lights,
-                    area_knobs={} if args.area_k is None else {"k": args.area_k})
+                    area_knobs={} if args.area_k is None else {"k": args.area_k},
+                    refine_receivers=args.refine_receivers)
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,

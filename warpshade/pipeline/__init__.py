@@ -30,6 +30,7 @@ from ..scene import Scene, SceneError, SceneWarning
 from ..sh.basis import check_order
 from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
+from .refine import refine_receivers as refine
 from .shading import GroupSpec, SceneShader, group_objects, unoccluded_transfer
 
 METHOD_PREFERENCE = ("hemiraster", "reference")
@@ -134,14 +135,19 @@ class Pipeline:
         area_lights: Rect lights: ``"gears"`` (default: exact irradiance, GEARS soft shadows,
             :mod:`.area`) or ``"sh"`` (projected to SH).
         area_knobs: GEARS knobs (``k``, ``grid``, ``weighting``) for ``area_lights="gears"``.
+        refine_receivers: Edge length [scene units] to which coarse static meshes are subdivided so
+            shadows have vertices to fall on; ``"auto"`` (the scene's ``warpshade:refineEdge``, else
+            1/12 of the scene's diagonal) or ``"off"``. The scene's objects are refined in place.
     """
 
     def __init__(self, scene: Scene, frames: int | None = None, method: str | None = None,
                  knobs: dict | None = None, order: int | None = None, write_transfer: bool | None = None,
                  lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu",
                  between: str | None = "spheres", reflections: bool | dict | None = None, albedo=None,
-                 area_lights: str = "gears", area_knobs: dict | None = None):
+                 area_lights: str = "gears", area_knobs: dict | None = None, refine_receivers="auto"):
         self.scene = scene
+        self.refined = refine(scene, refine_receivers)
+        """Static objects subdivided for shading (:mod:`warpshade.pipeline.refine`)."""
         self.frames = int(frames if frames is not None else scene.frames)
         if self.frames < 1:
             raise ValueError(f"frames must be >= 1, got {self.frames}")

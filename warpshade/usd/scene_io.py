@@ -41,7 +41,7 @@ _CONTAINERS = {"", "Xform", "Scope", "SkelRoot", "Skeleton", "SkelAnimation", "M
 _LIGHTS = {"DomeLight": "dome", "DistantLight": "distant", "SphereLight": "sphere", "RectLight": "rect"}
 #: Scene-wide ``warpshade:`` settings on the default prim and their Python types.
 SCENE_SETTINGS = {"frames": int, "fps": float, "order": int, "method": str, "writeTransfer": bool,
-                  "substeps": int, "reflections": bool}
+                  "substeps": int, "reflections": bool, "refineEdge": float}
 
 
 def read_scene(path: str) -> Scene:
