@@ -1,4 +1,4 @@
-"""Cloth benchmark (CONTRACTS.md §7): an N x N cloth hanging from two corners onto the ground.
+"""Cloth benchmark (docs/conventions.md §7): an N x N cloth hanging from two corners onto the ground.
 
 What it measures: frames per second of ``warpshade.sim.XPBDSolver`` on the CPU (1/60 s frames,
 default substeps, self-collision on, aerodynamics on, ground plane), after a warm-up that includes

@@ -5,7 +5,7 @@ What it shows: the scene is simulated once (frames 0, 40, 80, 120 kept); each re
 (default knobs, plus reference at 256 rays and unshadowed transfer) shades those frames through
 the pipeline's own :class:`warpshade.pipeline.SceneShader` (one shading group: every object
 shadows every other); the error is :func:`warpshade.metrics.radiance_error` of the exit radiance
-against reference transfer at 4096 rays (0.26 % transfer error, README).
+against reference transfer at 4096 rays (0.26 % transfer error, docs/methods/reference.md).
 
 Success criteria: the default method (``warpshade.pipeline.METHOD_PREFERENCE``) is the fastest one
 whose error is close to reference@256's.

@@ -18,7 +18,7 @@ FPS = 60.0
 
 
 def parse(doc: str, argv, frames: int, extra=None):
-    """CONTRACTS.md §5 arguments (--frames N --out PATH.usda) plus a script's own."""
+    """docs/conventions.md §5 arguments (--frames N --out PATH.usda) plus a script's own."""
     ap = argparse.ArgumentParser(description=doc.strip().split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=doc)
     ap.add_argument("--frames", type=int, default=frames, help=f"frames at {FPS:g} fps (default {frames})")
@@ -40,7 +40,7 @@ class Recorder:
         self.t0 = time.perf_counter()
 
     def add(self, name: str, faces, points) -> str:
-        n = self.writer.add_mesh(name, faces, points)
+        n = self.writer.add_mesh(name, faces, points, shaded=False)
         self.faces[n] = np.asarray(faces)
         return n
 

@@ -125,7 +125,7 @@ def test_between_groups_sphere_sets_skip_non_casters():
     assert res["ball"].min() < 0.5 * 0.8
     on, _ = shade(scene(ball_casts=True, ground_method=None))
     # the sphere set of a casting ball darkens the centre (measured 0.151, analytic 0.245: sphere sets
-    # over-shadow an open ground, README's spheres section)
+    # over-shadow an open ground, docs/methods/spheres.md)
     assert on["ground"][CENTRE] < 0.7 * UNSHADOWED
 
 
@@ -175,7 +175,7 @@ def test_plan_costs_what_the_run_executes():
     assert "sphere sets of shadow casters" in plan.structures
     nobody = scene(ball_casts=False, ground_casts=False, ground_method=None)
     assert "sphere sets of shadow casters" not in make_plan(nobody).structures
-    # an unshaded object is no shadow caster in the run (README: a collider only): nor in the plan
+    # an unshaded object is no shadow caster in the run (docs/guide/quickstart.md, warpshade:shaded): nor in the plan
     collider = scene(ground_method=None)
     collider.objects[1].shaded = False
     collider.objects[1].kind = "animated"  # a moving caster would make the static ground re-shade every frame

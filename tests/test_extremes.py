@@ -7,7 +7,7 @@ Method-specific extremes live with each method (SH exp ‖f̂‖ up to 100 in te
 blockers in test_spheres.py/test_disks.py, cloth stiffness/mass/time step in test_sim_cloth.py).
 
 Bounds used throughout: binary visibility times a clamped cosine gives ``0 <= T_0 <= y_0 π`` (the
-unoccluded DC, CONTRACTS.md §2). Approximate methods may overshoot slightly; the slack is stated where
+unoccluded DC, docs/conventions.md §2). Approximate methods may overshoot slightly; the slack is stated where
 used.
 """
 

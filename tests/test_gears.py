@@ -54,7 +54,7 @@ def test_half_covered_light(k):
 
 def test_fully_blocked_and_facing_away():
     # icosphere: a vertex whose tangent plane has the whole light below it is blocked by the sphere
-    # itself (geometric visibility 0, CONTRACTS.md §4); one with the whole light above sees all of it.
+    # itself (geometric visibility 0, docs/conventions.md §4); one with the whole light above sees all of it.
     # The faces around a vertex deviate from its tangent plane by about half an edge angle (~4° at
     # subdivision 3), so "whole light above/below" is required with a 10° margin.
     ico = trimesh.creation.icosphere(3)

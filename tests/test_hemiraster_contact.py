@@ -22,7 +22,7 @@ from warpshade.visibility import get_method
 from warpshade.visibility.hemiraster import hierarchy
 
 UNOCCLUDED_T0 = 0.5 / math.sqrt(math.pi) * math.pi
-"""T_0 of an unoccluded vertex (CONTRACTS.md §2): the scale the differences below are measured in."""
+"""T_0 of an unoccluded vertex (docs/conventions.md §2): the scale the differences below are measured in."""
 
 
 def hemiraster(mesh, **knobs):

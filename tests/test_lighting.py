@@ -14,7 +14,7 @@ from warpshade.sh import rotation_from_axis_angle, sh_eval
 from warpshade.sh.projection import latlong_directions, project_latlong_reference, sphere_quadrature
 
 SQRT_4PI = math.sqrt(4 * math.pi)
-K1 = math.sqrt(3 / (4 * math.pi))  # 0.488603, CONTRACTS.md §1
+K1 = math.sqrt(3 / (4 * math.pi))  # 0.488603, docs/conventions.md §1
 
 
 def random_rotation(rng):
@@ -23,7 +23,7 @@ def random_rotation(rng):
 
 
 def first_band(v):
-    """∫ (v·ω)-style band-1 coefficients of a vector moment v = ∫ ω f dω (CONTRACTS.md §1 signs)."""
+    """∫ (v·ω)-style band-1 coefficients of a vector moment v = ∫ ω f dω (docs/conventions.md §1 signs)."""
     return K1 * np.array([-v[1], v[2], -v[0]])
 
 
@@ -167,7 +167,7 @@ def test_sky_is_blue_overhead_and_brighter_towards_sun():
 
 def test_sky_normalization_gives_unit_upward_luminance():
     # normalize=True: a white, unoccluded, upward Lambertian surface has exit luminance `intensity`.
-    # Exit radiance from SH, (1/π) Σ L_i T_i with the unoccluded T of CONTRACTS.md §2. Without the
+    # Exit radiance from SH, (1/π) Σ L_i T_i with the unoccluded T of docs/conventions.md §2. Without the
     # sun the sky is smooth and order 8 is accurate (measured < 0.1%); with it, the sun's truncated
     # delta adds ringing (measured 0.9% at 40°, up to 1.7% at other elevations): tolerance 2.5%.
     from warpshade.sh.zonal import clamped_cosine_zh, zh_rotate

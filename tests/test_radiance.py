@@ -1,4 +1,4 @@
-"""Exit radiance: Warp kernel vs NumPy reference, and analytic Lambertian cases (CONTRACTS.md §2)."""
+"""Exit radiance: Warp kernel vs NumPy reference, and analytic Lambertian cases (docs/conventions.md §2)."""
 
 from __future__ import annotations
 
@@ -66,7 +66,7 @@ def test_unoccluded_vertex_under_constant_environment_is_albedo_times_L(sphere_t
 
 def test_directional_light_through_transfer_is_lambert(sphere_transfer):
     # Light E from +z, unoccluded vertex with normal n, order 3. With T_lm = sqrt(4π/(2l+1)) A_l y_lm(n)
-    # (CONTRACTS.md §2) and the addition theorem Σ_m y_lm(n) y_lm(z) = (2l+1)/(4π) P_l(n_z):
+    # (docs/conventions.md §2) and the addition theorem Σ_m y_lm(n) y_lm(z) = (2l+1)/(4π) P_l(n_z):
     # L_out/ρ = (E/π) Σ_l A_l sqrt((2l+1)/(4π)) P_l(n_z) = (E/π)(1/4 + n_z/2 + 5/16 P_2(n_z)),
     # the classic 3-band irradiance (Ramamoorthi & Hanrahan 2001).
     mesh, t = sphere_transfer

@@ -15,7 +15,7 @@ from warpshade.geometry import TriMesh, load_mesh
 from warpshade.sh import sh_eval
 from warpshade.visibility import get_method
 
-# Clamped-cosine zonal coefficients A_l (CONTRACTS.md §2), independently from the Legendre integral
+# Clamped-cosine zonal coefficients A_l (docs/conventions.md §2), independently from the Legendre integral
 # 2π ∫_0^1 P_l(x) x dx · sqrt((2l+1)/4π).
 def clamped_cosine_zh(order):
     out = []

@@ -43,7 +43,7 @@ def fibonacci_sphere(n: int) -> np.ndarray:
 
 
 def box_on_ground_truth(points, normals, half_box, half_ground, order, n_dirs=200_000):
-    """Exact-visibility transfer (CONTRACTS.md §2) of points on the surface of the box |x|,|z| <= half_box,
+    """Exact-visibility transfer (docs/conventions.md §2) of points on the surface of the box |x|,|z| <= half_box,
     0 <= y <= 2 half_box, standing on the ground square |x|,|z| <= half_ground at y = 0."""
     d = fibonacci_sphere(n_dirs)
     y = sh_eval(d, order)

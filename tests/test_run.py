@@ -24,7 +24,7 @@ SCENES = os.path.join(REPO, "usd_scenes")
 
 
 def test_unoccluded_transfer_matches_contract_constants():
-    # CONTRACTS.md §2: T_lm = sqrt(4π/(2l+1)) A_l y_lm(n); for n = +z only m = 0 terms survive and
+    # docs/conventions.md §2: T_lm = sqrt(4π/(2l+1)) A_l y_lm(n); for n = +z only m = 0 terms survive and
     # y_l0(+z) = sqrt((2l+1)/4π), so T_l0 = A_l.
     t = unoccluded_transfer(np.array([[0.0, 0.0, 1.0]]), 5)[0]
     a = [math.sqrt(math.pi) / 2, math.sqrt(math.pi / 3), math.sqrt(5 * math.pi) / 8, 0.0, -math.sqrt(math.pi) / 16]
@@ -56,7 +56,7 @@ def test_objects_in_one_group_shadow_each_other(tmp_path):
     report = Pipeline(scene, order=3, knobs=None).run(AnimationWriter(str(tmp_path / "o.usda")), progress=False)
     assert report.frames == 3 and len(report.groups) == 1
     stage = Usd.Stage.Open(str(tmp_path / "o.usda"))
-    for prim in ("/World/ground", "/World/lid"):  # CONTRACTS.md §6: every shaded mesh, static or not
+    for prim in ("/World/ground", "/World/lid"):  # docs/conventions.md §6: every shaded mesh, static or not
         m = UsdGeom.Mesh(stage.GetPrimAtPath(prim))
         for attr in (m.GetPointsAttr(), m.GetNormalsAttr(), m.GetExtentAttr()):
             assert attr.GetTimeSamples() == [0.0, 1.0, 2.0], (prim, attr.GetName())

@@ -1,4 +1,4 @@
-"""The SH basis against SciPy (CONTRACTS.md §1) and by quadrature, in float64 and in the Warp kernel."""
+"""The SH basis against SciPy (docs/conventions.md §1) and by quadrature, in float64 and in the Warp kernel."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from warpshade.sh.kernels import normalization_array, sh_accumulate
 
 
 def scipy_real_sh(l, m, dirs):
-    """CONTRACTS.md §1 conversion from SciPy's complex SH (Condon–Shortley phase included)."""
+    """docs/conventions.md §1 conversion from SciPy's complex SH (Condon–Shortley phase included)."""
     theta = np.arctan2(np.hypot(dirs[:, 0], dirs[:, 1]), dirs[:, 2])  # accurate near the poles
     phi = np.arctan2(dirs[:, 1], dirs[:, 0])
     y = ss.sph_harm_y(l, abs(m), theta, phi)
@@ -29,7 +29,7 @@ def random_dirs(rng, n):
 
 
 def test_first_band_signs():
-    # The values CONTRACTS.md §1 spells out.
+    # The values docs/conventions.md §1 spells out.
     x, y, z = 0.3, -0.5, np.sqrt(1 - 0.34)
     v = sh_eval(np.array([x, y, z]), 2)
     c = 0.4886025119029199

@@ -1,4 +1,4 @@
-"""SH rotation matrices (thesis §3.1.2; Ivanic–Ruedenberg) in the basis convention of CONTRACTS.md §1."""
+"""SH rotation matrices (thesis §3.1.2; Ivanic–Ruedenberg) in the basis convention of docs/conventions.md §1."""
 
 from __future__ import annotations
 

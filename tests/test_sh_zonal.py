@@ -27,7 +27,7 @@ def legendre_moment(f, lo, hi, order, nodes=64):
 
 
 def test_clamped_cosine_contract_values():
-    # CONTRACTS.md §2 spells these out.
+    # docs/conventions.md §2 spells these out.
     want = [np.sqrt(np.pi) / 2, np.sqrt(np.pi / 3), np.sqrt(5 * np.pi) / 8, 0.0, -np.sqrt(np.pi) / 16]
     np.testing.assert_allclose(clamped_cosine_zh(5), want, rtol=1e-13, atol=1e-15)
 

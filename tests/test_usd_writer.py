@@ -1,4 +1,4 @@
-"""Streaming USD export (CONTRACTS.md §6): round trip, compliance, crash safety, bad input."""
+"""Streaming USD export (docs/conventions.md §6): round trip, compliance, crash safety, bad input."""
 
 from __future__ import annotations
 

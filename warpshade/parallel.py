@@ -59,10 +59,31 @@ def default_workers() -> int:
 _WORKER_SHADERS: dict[str, ShadeFn] = {}
 
 
-def _init_worker(token: str, spec: FrameShaderSpec) -> None:
-    import warp as wp
+def _exit_with_parent(parent: int, interval: float = 0.5) -> None:
+    """Start a daemon thread that ends this process as soon as process ``parent`` is gone.
 
-    wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
+    A worker must never outlive the run, whatever killed the run (SIGKILL included, when no
+    clean-up code runs): once the parent dies this process is re-parented, ``os.getppid()``
+    changes, and the thread exits the process (``os._exit`` works while the main thread is
+    inside a kernel launch).
+    """
+    import threading
+    import time
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(interval)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="warpshade-parent-watchdog", daemon=True).start()
+
+
+def _init_worker(token: str, spec: FrameShaderSpec, parent: int | None = None) -> None:
+    if parent is not None:
+        _exit_with_parent(parent)
+    from .runtime import init_warp
+
+    init_warp()
     _WORKER_SHADERS[token] = spec.build()
 
 
@@ -90,7 +111,7 @@ class _InlineBackend:
     def recover(self) -> bool:
         return False
 
-    def close(self):
+    def close(self, abandon: bool = False):
         pass
 
 
@@ -103,7 +124,7 @@ class _ProcessBackend:
 
     def _new_pool(self):
         return ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=_init_worker,
-                                   initargs=(self.token, self.spec))
+                                   initargs=(self.token, self.spec, os.getpid()))
 
     def submit(self, frame, geometry):
         return self.pool.submit(_shade_in_worker, self.token, frame, geometry)
@@ -118,7 +139,10 @@ class _ProcessBackend:
         self.pool = self._new_pool()
         return True
 
-    def close(self):
+    def close(self, abandon: bool = False):
+        if abandon:  # interrupted: do not wait for the frames being shaded
+            for p in list((self.pool._processes or {}).values()):
+                p.terminate()
         self.pool.shutdown(wait=True, cancel_futures=True)
 
 
@@ -150,7 +174,7 @@ class _DaskBackend:
     def recover(self) -> bool:
         return False  # the scheduler keeps running tasks; only failed futures need resubmitting
 
-    def close(self):
+    def close(self, abandon: bool = False):
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
@@ -202,6 +226,7 @@ def shade_frames(
     it = iter(frames)
     order: deque[int] = deque()
     pending: dict[int, list] = {}  # frame -> [geometry, future, failures]
+    failed = False  # an error or interruption: close without waiting for frames being shaded
     try:
         while True:
             while len(order) < max_in_flight:
@@ -227,8 +252,11 @@ def shade_frames(
             order.popleft()
             del pending[frame]
             yield frame, result
+    except BaseException:
+        failed = True
+        raise
     finally:
-        backend.close()
+        backend.close(abandon=failed)
 
 
 def _resubmit_failed(backend, order, pending, retries, exc):

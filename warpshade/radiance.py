@@ -1,4 +1,4 @@
-"""Exit radiance of Lambertian vertices from transfer vectors and lights (CONTRACTS.md §2).
+"""Exit radiance of Lambertian vertices from transfer vectors and lights (docs/conventions.md §2).
 
 ``L_out[v] = (ρ_v / π) Σ_i L_i T_v,i`` per RGB channel, with ``L`` the SH radiance of all lights
 summed (distant lights: one vector; local lights: one vector per vertex, see

@@ -14,7 +14,7 @@ def shade_vertices(
     clamp: int,
     radiance: wp.array[wp.vec3],
 ):
-    """``radiance[v] = albedo[v]/π ⊙ Σ_i T[v,i] (L_i + L_local[v,i])`` (CONTRACTS.md §2), clamped
+    """``radiance[v] = albedo[v]/π ⊙ Σ_i T[v,i] (L_i + L_local[v,i])`` (docs/conventions.md §2), clamped
     at 0 per channel when ``clamp`` is non-zero (truncated SH ring slightly negative behind lights).
 
     ``local_light`` has 0 rows when no light is local; ``albedo`` has 1 row (shared) or V rows.

@@ -27,6 +27,10 @@ OBJECT_KINDS = ("static", "cloth", "skinned", "animated")
 time-sampled points read from the file."""
 
 
+DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
+"""Albedo (linear RGB) of an object whose scene gives none."""
+
+
 @dataclass
 class Material:
     """UsdPreviewSurface subset used for shading.
@@ -47,7 +51,7 @@ class Material:
         if self.albedo_authored is None:
             self.albedo_authored = self.albedo is not None
         if self.albedo is None:
-            self.albedo = np.array([0.8, 0.8, 0.8])
+            self.albedo = np.array(DEFAULT_ALBEDO)
 
     @property
     def glossy(self) -> bool:
@@ -139,7 +143,7 @@ class SceneObject:
         casts_shadows: Whether the object blocks light (``warpshade:castsShadows``). False: it receives
             shadows but blocks no light toward any vertex, its own included, in every pass of a run
             (its group's visibility method, sphere sets between groups, GEARS rect lights); it still
-            reflects light in the one-bounce pass (README, "Objects that cast no shadows").
+            reflects light in the one-bounce pass (docs/guide/quickstart.md, "Objects that cast no shadows").
         shaded: Whether the object is shaded and written with colours.
         params: Kind-specific settings (cloth material, pinned vertices, skinning data, animation
             samples...), as read from ``warpshade:`` attributes.
@@ -170,6 +174,8 @@ class Scene:
             :mod:`warpshade.lighting` objects.
         frames: Number of frames to produce.
         fps: Frames per second.
+        start_time: Time code of frame 0 (the input's ``startTimeCode``): frame ``f`` samples the
+            input's animation at time code ``start_time + f`` and is written at that time code.
         up_axis: ``"Y"`` or ``"Z"``.
         meters_per_unit: Stage units.
         settings: Scene-wide ``warpshade:`` settings (SH order, reflections, max error...).
@@ -180,6 +186,7 @@ class Scene:
     lights: list[LightSpec] = field(default_factory=list)
     frames: int = 120
     fps: float = 60.0
+    start_time: int = 0
     up_axis: str = "Y"
     meters_per_unit: float = 1.0
     settings: dict[str, Any] = field(default_factory=dict)

@@ -1,7 +1,7 @@
 """Area-light part of ``warpshade bench``: GEARS visibility (k, grid) against ray-traced area-light truth.
 
 GEARS (:class:`~warpshade.visibility.gears.GearsVisibility`) computes a different quantity from the SH
-transfer methods: the fraction of a rectangular light visible from each vertex (CONTRACTS.md §4), a
+transfer methods: the fraction of a rectangular light visible from each vertex (docs/conventions.md §4), a
 number in [0, 1]. Its records therefore carry ``quantity = "area_visibility"`` and their errors are
 **absolute visible-fraction errors** ``|V - V*|`` per vertex (mean, 95th percentile, max), not the
 relative L2 transfer error; they sit on their own Pareto panel.

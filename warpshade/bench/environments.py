@@ -69,7 +69,7 @@ def environments(order: int = ENV_ORDER, up: str = "Z") -> dict[str, np.ndarray]
 
 
 def radiance(transfer: np.ndarray, light: np.ndarray) -> np.ndarray:
-    """Exit radiance of a white Lambertian surface, ``(1/π) Σ_i L_i T_i`` (CONTRACTS.md §2), shape (V, 3).
+    """Exit radiance of a white Lambertian surface, ``(1/π) Σ_i L_i T_i`` (docs/conventions.md §2), shape (V, 3).
 
     Uses the first ``min(N*N, M*M)`` coefficients of transfer (V, N*N) and light (M*M, 3), which is
     exactly what an order-N renderer would do.

@@ -25,7 +25,7 @@ class BenchMesh:
         name: Short name used in results (``cloth``, ``bunny``...).
         rest: Topology and rest pose.
         frame: Vertex positions of the judged frame [m], shape (V, 3), dtype float32.
-        description: One line for the README and the printed table.
+        description: One line for ``results.md`` and the printed table.
         up: World up axis (``"Z"`` for the procedural meshes, ``"Y"`` for Warp's USD assets and the character), so the
             benchmark environments light every mesh from above.
         judged: Vertices whose errors are judged, bool shape (V,), or None for all. Methods still compute

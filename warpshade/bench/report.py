@@ -1,4 +1,4 @@
-"""Benchmark outputs: ``results.json``, ``results.csv``, ``pareto.png``, a text table, a README table and
+"""Benchmark outputs: ``results.json``, ``results.csv``, ``pareto.png``, a text table, a Markdown table (``results.md``) and
 the planner's frontier file."""
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def format_table(records: list[dict]) -> str:
 
 
 def markdown_table(records: list[dict]) -> str:
-    """README table (Pareto-optimal configurations marked ★)."""
+    """Markdown table of ``results.md`` (Pareto-optimal configurations marked ★)."""
     out = ["| mesh | method | config | ms/frame | error mean | error p95 | radiance err sky / studio | peak RSS MB | arrays MB |",
            "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for r in records:
@@ -101,7 +101,7 @@ def markdown_table(records: list[dict]) -> str:
                    f"{r['radiance_error_sky']:.4f} / {r['radiance_error_studio']:.4f} | {peak} | "
                    f"{r['array_bytes'] / 2**20:.2f} |")
     if any(is_area(r) for r in records):
-        out.append("\n‡ gears / area-rays: absolute error of the visible fraction of a rect light (CONTRACTS.md §4) "
+        out.append("\n‡ gears / area-rays: absolute error of the visible fraction of a rect light (docs/conventions.md §4) "
                    "against 32×32 jittered shadow rays per vertex, not the transfer error.")
     return "\n".join(out)
 

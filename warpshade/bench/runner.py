@@ -294,7 +294,7 @@ def _short(knobs: dict) -> str:
 
 
 def machine_note() -> str:
-    """One line on where the numbers were taken (the printed table and README quote it)."""
+    """One line on where the numbers were taken (the printed table and ``results.md`` quote it)."""
     import platform
 
     import warp as wp

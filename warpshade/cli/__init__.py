@@ -8,7 +8,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import signal
 import sys
+import threading
+
+from ..runtime import init_warp
 
 
 def _subcommands():
@@ -32,12 +36,33 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (or SIGHUP) arrived: handled like Ctrl-C, so finished work is kept."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(signum)
+
+
+def interrupted_by(exc: BaseException) -> str:
+    """``"interrupted"`` or ``"terminated (SIGTERM)"`` for a :class:`KeyboardInterrupt`."""
+    if isinstance(exc, Terminated):
+        return f"terminated ({signal.Signals(exc.signum).name})"
+    return "interrupted"
+
+
+def exit_code(exc: BaseException) -> int:
+    """Shell convention: 128 + the signal number (130 for Ctrl-C, 143 for SIGTERM)."""
+    return 128 + (exc.signum if isinstance(exc, Terminated) else signal.SIGINT)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``warpshade`` console script."""
-    import warp as wp
-
-    # stdout carries results (paths, tables, JSON): no Warp init banner or module-load lines
-    wp.config.log_level = wp.LOG_WARNING
+    init_warp()
     parser = build_parser()
     # Subcommands with ACCEPTS_EXTRA = True get unrecognised flags as ``args.extra`` (method knobs,
     # which depend on another flag's value); the rest reject them as usual.
@@ -48,11 +73,20 @@ def main(argv: list[str] | None = None) -> int:
     if extra and not args._extra_ok:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     args.extra = extra
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        previous = {sig: signal.signal(sig, _raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)}
     try:
         return int(args._run(args) or 0)
     except (ValueError, OSError) as exc:  # user errors: one clear line, no traceback
         print(f"warpshade {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM: one line, no traceback
+        print(f"warpshade {args.command}: {interrupted_by(exc)}", file=sys.stderr)
+        return exit_code(exc)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""``warpshade bench``: speed/accuracy sweep of every visibility method (CONTRACTS.md §5)."""
+"""``warpshade bench``: speed/accuracy sweep of every visibility method (docs/conventions.md §5)."""
 
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ def run(args) -> int:
     records = run_bench(settings)
     wall = time.perf_counter() - t0
     mode = ("QUICK sweep: small meshes, few configurations, ground truth at "
-            f"{settings.ground_truth_rays} rays — for smoke-testing, not for the README"
+            f"{settings.ground_truth_rays} rays — for smoke-testing, not for the committed results"
             if args.quick else f"full sweep, ground truth at {settings.ground_truth_rays} rays")
     note = f"{mode}; {machine_note()}; medians of up to {settings.repeat} runs after warm-up, compile excluded"
     write_json(os.path.join(args.out, "results.json"), records)

@@ -1,4 +1,4 @@
-"""``warpshade run``: simulate, shade and write a scene to USD (CONTRACTS.md §5, §6)."""
+"""``warpshade run``: simulate, shade and write a scene to USD (docs/conventions.md §5, §6)."""
 
 from __future__ import annotations
 
@@ -57,7 +57,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
-    parser.epilog = "Method knobs (e.g. --rays for reference) follow --method; see README."
+    parser.epilog = "Method knobs (e.g. --rays for reference) follow --method; see docs/methods/ for each method's list."
 
 
 def _reclaim_knob_value(args, method_cls) -> None:
@@ -93,8 +93,9 @@ def parse_albedo(text: str | None):
 
 
 def run(args) -> int:
-    from ..pipeline import Pipeline
+    from ..pipeline import Pipeline, check_output
     from ..usd import AnimationWriter, read_scene
+    from . import exit_code, interrupted_by
     from .cmd_transfer import parse_knobs
 
     knobs = {}
@@ -123,6 +124,7 @@ def run(args) -> int:
         apply_plan(scene, plan)
         print(plan.describe(), file=sys.stderr)
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
+    check_output(scene, out)
     load = time.perf_counter() - t0
     from ..parallel import default_workers
 
@@ -148,11 +150,15 @@ def run(args) -> int:
         print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
     try:
         report = pipe.run(writer, progress=not args.no_progress)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, OSError) as exc:
         kept = writer.frames_committed
-        where = f"{kept} complete frames kept in {writer.path}" if kept else "previous output (if any) left untouched"
-        print(f"warpshade run: interrupted; {where}", file=sys.stderr)
-        return 130
+        where = (f"{kept} complete frames kept in {writer.path} (--resume continues it)" if kept
+                 else "previous output (if any) left untouched")
+        if isinstance(exc, OSError):
+            print(f"warpshade run: error: {exc}\nwarpshade run: {where}", file=sys.stderr)
+            return 1
+        print(f"warpshade run: {interrupted_by(exc)}; {where}", file=sys.stderr)
+        return exit_code(exc)
     report.seconds["load"] = load
     s = report.seconds
     resumed = f" (resumed at frame {report.resumed_from})" if report.resumed_from else ""

@@ -1,4 +1,4 @@
-"""``warpshade transfer``: per-vertex SH diffuse transfer of a mesh (CONTRACTS.md §3)."""
+"""``warpshade transfer``: per-vertex SH diffuse transfer of a mesh (docs/conventions.md §3)."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--save", required=True, metavar="OUT.npz", help="output arrays")
     parser.add_argument("--json", default=None, metavar="STATS.json", help="write timing and knobs")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
-    parser.epilog = "Method knobs (e.g. --rays for reference) follow; see README for each method's list."
+    parser.epilog = "Method knobs (e.g. --rays for reference) follow; see docs/methods/ for each method's list."
 
 
 def parse_knobs(method_cls, extra: list[str]) -> dict:
@@ -57,7 +57,7 @@ def run(args) -> int:
 
 
 def method_stats(method, mesh, seconds: float, repeat: int, order: int | None, **extra) -> dict:
-    """The ``STATS.json`` of ``warpshade transfer`` and ``warpshade visibility`` (CONTRACTS.md §3, §4):
+    """The ``STATS.json`` of ``warpshade transfer`` and ``warpshade visibility`` (docs/conventions.md §3, §4):
     method name, order (None for area-light visibility), mesh size, timing, every knob as used, the
     method's counters, then ``extra`` keys."""
     return {"method": type(method).name, "order": order, "vertices": mesh.num_vertices, "triangles": mesh.num_faces,

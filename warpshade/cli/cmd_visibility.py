@@ -1,4 +1,4 @@
-"""``warpshade visibility``: per-vertex visibility of a rectangular area light (CONTRACTS.md §4)."""
+"""``warpshade visibility``: per-vertex visibility of a rectangular area light (docs/conventions.md §4)."""
 
 from __future__ import annotations
 

@@ -25,18 +25,37 @@ from ..sh.rotation import _check_rotation, rotation_from_axis_angle
 Motion = Callable[[float], np.ndarray]
 
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+"""Largest value shading can hold: kernels and the output file store float32."""
+
+
 def as_rgb(value, what: str) -> np.ndarray:
-    """A scalar or length-3 RGB value as a float64 array of shape (3,).
+    """A scalar or length-3 RGB value (an emission, a reflectance: never negative) as a float64
+    array of shape (3,).
 
     Raises:
-        ValueError: naming ``what`` if the value is not finite or has the wrong shape.
+        ValueError: naming ``what`` if the value is not finite, negative, beyond float32 or has the
+            wrong shape.
     """
     v = np.asarray(value, dtype=np.float64)
     if v.ndim == 0:
         v = np.full(3, float(v))
     if v.shape != (3,) or not np.isfinite(v).all():
         raise ValueError(f"{what} must be a finite scalar or RGB triple, got {value!r}")
+    if (v < 0).any():
+        raise ValueError(f"{what} must not be negative, got {v.tolist()}")
+    if (v > FLOAT32_MAX).any():
+        raise ValueError(f"{what} overflows float32 (max {FLOAT32_MAX:.3g}), got {v.tolist()}")
     return v
+
+
+def check_sh_range(light: "Light", sh: np.ndarray) -> np.ndarray:
+    """``sh`` (a light's SH radiance) if every coefficient fits in float32, else ValueError naming the light."""
+    peak = float(np.max(np.abs(sh))) if sh.size else 0.0
+    if not np.isfinite(peak) or peak > FLOAT32_MAX:
+        raise ValueError(f"{light.name}: its SH radiance reaches {peak:.3g}, beyond float32 "
+                         f"(max {FLOAT32_MAX:.3g}); lower its intensity")
+    return sh
 
 
 def unit_vector(value, what: str) -> np.ndarray:
@@ -112,8 +131,8 @@ class Light:
         if self.local:
             if point is None:
                 raise ValueError(f"{self.name}: {type(self).__name__} depends on the receiver; pass point= or use sh_at()")
-            return self._sh_at(np.asarray(point, dtype=np.float64).reshape(1, 3), order)[0]
-        return self._sh(order)
+            return check_sh_range(self, self._sh_at(np.asarray(point, dtype=np.float64).reshape(1, 3), order)[0])
+        return check_sh_range(self, self._sh(order))
 
     def sh_at(self, points, order: int) -> np.ndarray:
         """Per-receiver SH coefficients, shape (P, order*order, 3), float64.
@@ -124,8 +143,8 @@ class Light:
         """
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         if self.local:
-            return self._sh_at(pts, order)
-        return np.broadcast_to(self._sh(order), (pts.shape[0], order * order, 3)).copy()
+            return check_sh_range(self, self._sh_at(pts, order))
+        return np.broadcast_to(self.sh(order), (pts.shape[0], order * order, 3)).copy()
 
     def rotated(self, rotation) -> "Light":
         """A copy rotated by ``rotation`` (3×3, about the world origin); ``motion`` is kept."""
@@ -179,4 +198,7 @@ def lights_sh(lights, order: int, points=None) -> tuple[np.ndarray, np.ndarray |
             local = s if local is None else local + s
         else:
             distant += light.sh(order)
+    if np.max(np.abs(distant), initial=0.0) > FLOAT32_MAX:
+        raise ValueError(f"the distant lights ({', '.join(li.name for li in lights if not li.local)}) sum to "
+                         f"SH radiance beyond float32 (max {FLOAT32_MAX:.3g}); lower their intensities")
     return distant, local

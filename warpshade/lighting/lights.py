@@ -114,7 +114,7 @@ class SphereLight(Light):
     of half-angle ``asin(radius / r)``; inside the sphere it fills every direction.
 
     The cap's zonal coefficients are analytic (:func:`~warpshade.sh.zonal.cap_zh`) and rotated
-    with CONTRACTS.md §1's formula, so the SH is exact for every receiver.
+    with docs/conventions.md §1's formula, so the SH is exact for every receiver.
 
     Attributes:
         position: Centre [m], shape (3,).
@@ -158,7 +158,7 @@ class RectLight(Light):
 
     The SH seen from a receiver is integrated over the rectangle with a ``samples × samples``
     Gauss–Legendre rule: ``L_i(p) = L ∫ y_i(ω_q) cos θ_q / |q − p|² dA``. Accurate when the
-    receiver is farther from the light than about its half-size (see the README for measured
+    receiver is farther from the light than about its half-size (docs/guide/lighting.md has the measured
     errors); exact visibility of area lights is the GEARS method's job, this is the SH
     approximation used with environment-style shading.
 

@@ -1,10 +1,10 @@
 """The main job: simulate, shade and write a scene, one frame at a time (``warpshade run``).
 
-Data flows one way (STYLE.md): per frame each object's positions come from the simulation (cloth,
+Data flows one way: per frame each object's positions come from the simulation (cloth,
 :mod:`.cloth`), from skinning or time samples (skinned, animated) or stay put (static); each
 *shading group* — the objects that share a visibility method and its knobs — is one receiver mesh,
 so its members shadow each other (with ``reference``: exactly, ray traced); the group's
-:class:`~warpshade.visibility.TransferMethod` updates the SH transfer (CONTRACTS.md §2); exit
+:class:`~warpshade.visibility.TransferMethod` updates the SH transfer (docs/conventions.md §2); exit
 radiance ``(ρ/π) Σ_i L_i T_i`` uses the lights' SH (world space); the writer streams the frame out.
 An object with ``casts_shadows`` False stays in its group as a receiver only: the method, the
 between-group sphere sets and the GEARS pass get the casters' triangles alone.
@@ -21,11 +21,12 @@ from __future__ import annotations
 
 import os
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene import Scene, SceneError
+from ..scene import Scene, SceneError, SceneWarning
 from ..sh.basis import check_order
 from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
@@ -44,7 +45,7 @@ a ground plane) are not. A method goes in front once it is measured close to the
 
 DEFAULT_KNOBS = {"reference": {"rays": 256}}
 """Knobs a run uses when the scene and the command line give none (reference: 256 rays, 3.5 %
-relative L2 error, measured in the README's reference section)."""
+relative L2 error, measured in docs/methods/reference.md)."""
 
 DEFAULT_ORDER = 4
 """SH order of a run unless the scene (``warpshade:order``) or ``--order`` says otherwise."""
@@ -81,6 +82,32 @@ class RunReport:
     groups: list = field(default_factory=list)
     resumed_from: int = 0
     area_lights: str = ""
+
+
+def check_output(scene: Scene, out: str) -> None:
+    """Refuse an output path that is one of the scene's input files (the scene, a texture it uses):
+    writing it would destroy the input.
+
+    Raises:
+        SceneError: naming both.
+    """
+    files = [scene.source] + [getattr(light, "texture", None) for light in scene.lights]
+    target = os.path.realpath(out)
+    for f in files:
+        if f and os.path.exists(f) and os.path.realpath(f) == target:
+            raise SceneError(f"output {out} is an input of the scene ({f}); choose another --out")
+
+
+def warn_black_mesh(scene: Scene, name: str, frame: int) -> None:
+    """Warn that mesh ``name`` got zero exit radiance at every vertex of ``frame``, with the likely cause."""
+    obj = scene.object(name)
+    if not np.any(obj.material.albedo):
+        cause = ("its albedo is black (warpshade:albedo or the bound material's diffuseColor); "
+                 "set a non-black albedo, or warpshade run --albedo for objects without one")
+    else:
+        cause = ("no light reaches any of its vertices: every vertex is shadowed or faces away from every "
+                 "light (flipped normals or winding?), or the lights give no light (intensity, exposure)")
+    warnings.warn(f"{name}: frame {frame}: exit radiance is zero at every vertex: {cause}", SceneWarning, stacklevel=2)
 
 
 class Pipeline:
@@ -137,11 +164,46 @@ class Pipeline:
         self.shader = SceneShader(self.groups, self.order, scene.fps, list(scene.lights), scene.up_axis, lights,
                                   self.write_transfer, device, between, self.reflections, area_lights,
                                   dict(area_knobs or {}))
+        self._check_lights()
+        self._warn_static_scene(lights)
         from .area import area_lights_used
 
         self.area_lights, self.area_description = area_lights_used(self.shader)
         """How rect lights are shaded (``"gears"``, ``"sh"``; None without rect lights), and in words."""
         self.report = None
+
+    def _warn_static_scene(self, lights) -> None:
+        """Warn about a scene whose frames will all be alike, and about cloth that can only fall."""
+        objects = self.scene.objects
+        moving_lights = any(getattr(light, "motion", None) is not None for light in (lights or []))
+        if self.frames > 1 and not moving_lights and all(o.kind == "static" for o in objects):
+            warnings.warn(
+                f"{self.scene.source}: nothing in the scene moves, so all {self.frames} frames are alike: "
+                'mark a mesh to simulate with warpshade:kind = "cloth", animate points or xforms, or use '
+                "--frames 1", SceneWarning, stacklevel=3)
+        has_colliders = any(o.params.get("collider") for o in objects if o.kind != "cloth")
+        for o in objects:
+            if o.kind != "cloth" or has_colliders:
+                continue
+            pinned = "pinned" in o.params and len(o.params["pinned"])
+            if not pinned and "attached" not in o.params:
+                warnings.warn(
+                    f"{o.name}: cloth with neither pins (warpshade:pinned) nor an attachment, and the scene has "
+                    "no collider (warpshade:collider on a prim): it falls freely; add a collider or pin vertices",
+                    SceneWarning, stacklevel=3)
+
+    def _check_lights(self) -> None:
+        """Reject, before any work, a light whose emission or SH radiance does not fit in float32
+        (it would shade to inf), naming the light."""
+        if self.shader.lights is None and not self.shader.light_specs:
+            return  # the default sky
+        try:
+            lights = self.shader.build_lights()
+            from ..lighting import lights_sh
+
+            lights_sh([li for li in lights if not li.local], self.order)
+        except ValueError as exc:
+            raise SceneError(f"{self.scene.source}: {exc}") from exc
 
     def _geometry(self, sims, secs, failure: list, start: int = 0):
         """Yield ``(frame, {name: points})`` for every moving object from ``start`` on, timing the simulation.
@@ -163,7 +225,8 @@ class Pipeline:
         driven = [o for o in self.scene.objects if o.kind in ("animated", "skinned")]
         for f in range(self.frames):
             t = time.perf_counter()
-            geo = {o.name: np.asarray(o.params["points_at"](f), dtype=np.float32) for o in driven}
+            code = self.scene.start_time + f  # points_at takes the input's time code
+            geo = {o.name: np.asarray(o.params["points_at"](code), dtype=np.float32) for o in driven}
             if sims is not None:  # cloth after the bodies it collides with and hangs from
                 geo.update(sims.advance(f, geo))
             for name, pts in geo.items():
@@ -182,8 +245,16 @@ class Pipeline:
         """
         from ..parallel import shade_frames
 
+        if getattr(writer, "path", None):
+            try:
+                check_output(self.scene, writer.path)
+            except SceneError:
+                writer.abort()
+                raise
         secs = dict.fromkeys(("setup", "simulate", "shade", "write"), 0.0)
-        start = int(getattr(writer, "resume_frame", 0))
+        time0 = self.scene.start_time  # frame f is written at time code time0 + f
+        resume = int(getattr(writer, "resume_frame", 0))  # a time code: first one not yet written
+        start = max(0, resume - time0) if resume else 0
         t0 = time.perf_counter()
         bar = None
         try:
@@ -209,6 +280,7 @@ class Pipeline:
 
                 bar = tqdm(total=self.frames, initial=min(start, self.frames), desc="warpshade run", unit="frame")
             failure: list = []
+            warned_black: set[str] = set()
             results = shade_frames(self.shader, self._geometry(sims, secs, failure, start), workers=self.workers,
                                    scheduler=self.scheduler)
             for f, res in results:
@@ -216,9 +288,12 @@ class Pipeline:
                 secs["shade"] += res.pop("_seconds")
                 secs["setup"] += res.pop("_build_seconds", 0.0)
                 for name, (points, normals, colors, transfer) in res.items():
-                    # CONTRACTS.md §6: every shaded mesh has points, normals and extent time-sampled
+                    # docs/conventions.md §6: every shaded mesh has points, normals and extent time-sampled
                     # per frame, static ones included
-                    writer.write_frame(f, names[name], points, normals, colors, transfer)
+                    writer.write_frame(time0 + f, names[name], points, normals, colors, transfer)
+                    if name not in warned_black and colors is not None and not np.any(colors):
+                        warned_black.add(name)
+                        warn_black_mesh(self.scene, name, f)
                 secs["write"] += time.perf_counter() - t
                 if bar is not None:
                     bar.update(1)
@@ -249,6 +324,6 @@ def _group_line(g: GroupSpec) -> str:
     return line + (f" (casting no shadows: {', '.join(quiet)})" if quiet else "")
 
 
-__all__ = ["DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
+__all__ = ["check_output", "DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
            "RunReport", "SceneShader", "default_method", "light_from_spec", "sky_light_specs",
            "unoccluded_transfer"]

@@ -17,7 +17,8 @@ class ClothSimulation:
     """Every cloth object of a scene in one :mod:`warpshade.sim` model, with the scene's colliders.
 
     Colliders (``warpshade:collider``): ``ground`` -> a plane at the mesh's mean height facing up;
-    ``sphere`` -> the analytic sphere of a Sphere prim; ``mesh`` -> the triangle mesh, which may
+    ``sphere`` -> the analytic sphere of a Sphere prim; ``box`` -> the oriented box of a Cube prim
+    (UsdPhysics PhysicsCollisionAPI on a Cube); ``mesh`` -> the triangle mesh, which may
     move (a skinned or animated body: its pose is passed every frame). Pins (``warpshade:pinned``)
     are fixed; attachments (``warpshade:attached`` vertices, ``warpshade:attachTarget`` a moving
     object) follow the target's nearest rest vertex with their rest offset (a cape on shoulders);
@@ -57,6 +58,9 @@ class ClothSimulation:
                 continue
             if kind == "ground":
                 colliders.add_plane(normal=up, offset=float(np.mean(o.mesh.points @ up)), friction=friction)
+            elif kind == "box" and "box" in o.params:
+                b = o.params["box"]
+                colliders.add_box(b["center"], b["half_extents"], b["rotation"], friction=friction)
             elif kind == "sphere" and "sphere" in o.params:
                 colliders.add_sphere(o.params["sphere"]["center"], o.params["sphere"]["radius"], friction=friction)
             elif kind in ("mesh", "sphere"):
@@ -64,7 +68,7 @@ class ClothSimulation:
                 if o.kind != "static":
                     self.moving_colliders.append((o.name, mc))
             else:
-                raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, mesh")
+                raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, box, mesh")
         gravity = tuple(-9.81 / scene.meters_per_unit * up)  # [scene units/s²]
         self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
                                  gravity=gravity, self_collision=bool(first.get("selfCollision", True)))

@@ -19,7 +19,7 @@ from ..sh.zonal import clamped_cosine_zh, zh_rotate
 
 
 def unoccluded_transfer(normals: np.ndarray, order: int) -> np.ndarray:
-    """Transfer of an unshadowed vertex (CONTRACTS.md §2): the clamped-cosine lobe rotated to the
+    """Transfer of an unshadowed vertex (docs/conventions.md §2): the clamped-cosine lobe rotated to the
     normal, ``sqrt(4π/(2l+1)) A_l y_lm(n)``.
 
     Returns:

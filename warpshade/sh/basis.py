@@ -1,6 +1,6 @@
 """Real spherical-harmonic basis: the single place where warpshade's SH convention is defined.
 
-Convention (CONTRACTS.md §1, thesis appendix A, Green 2003, Sloan's generated code):
+Convention (docs/conventions.md §1, thesis appendix A, Green 2003, Sloan's generated code):
 
 * real, orthonormal SH on the unit sphere;
 * order ``n`` means bands ``l = 0..n-1`` and ``n*n`` coefficients, index ``i = l*(l+1) + m``;

@@ -270,7 +270,7 @@ def sh_product_vector_funcs(order: int) -> SimpleNamespace:
     ``table`` is :func:`product_table_arrays` of the same order. Up to :data:`UNROLL_MAX_ORDER` the
     Gaunt coefficients are written into generated source as float32 literals and ``table`` is not
     read, so the compiler keeps the operands in registers: with the square, what makes the sphere-set
-    kernels 2.8x faster than rows + :func:`sh_product_rows` (README, benchmarks/spheres.py). The
+    kernels 2.8x faster than rows + :func:`sh_product_rows` (docs/methods/sh-core.md, benchmarks/spheres.py). The
     generated source is registered with ``linecache`` so Warp can parse it. Above that order the
     functions loop over ``table`` (compile time).
     """

@@ -20,7 +20,7 @@ Two projections:
   exactly and a constant map projects to the DC term alone, even for a 2×1 map — centre sampling
   with ``sin θ Δθ Δφ`` weights does neither. The separable form costs ``O(H W order)`` (one matrix
   product), which is why no Warp kernel is needed here (a 2048×1024 map projects to order 8 in
-  well under a second in NumPy; see the README).
+  well under a second in NumPy; see docs/guide/lighting.md).
 
 Lat-long layout (the OpenEXR convention that UsdLux DomeLight adopts, +Y up): pixel column ``u``
 spans longitude ``π − 2π u/W .. π − 2π (u+1)/W``, row ``v`` spans latitude

@@ -9,7 +9,7 @@ Method: the Ivanic–Ruedenberg recurrences (J. Phys. Chem. 1996, 100, 6342; err
 9099), which build band ``l`` from band ``l-1`` and band 1 with only products and square roots of
 small integers; they are stable (the matrix stays orthogonal to 6e-15 at order 24, measured). They are
 written for real SH without the Condon–Shortley phase; warpshade's basis differs by
-``(-1)^m`` on ``m != 0`` (CONTRACTS.md §1), so each block is conjugated by that diagonal sign
+``(-1)^m`` on ``m != 0`` (docs/conventions.md §1), so each block is conjugated by that diagonal sign
 matrix, which is its own inverse.
 """
 

@@ -2,7 +2,7 @@
 
 A ZH vector ``g`` of order ``n`` has ``n`` entries ``g_l``, the coefficients of ``y_l0``
 (basis and convention: :mod:`warpshade.sh.basis`). Rotating the lobe from +z to a unit axis ``w``
-gives the SH vector (thesis eq. 3.17, CONTRACTS.md §1)::
+gives the SH vector (thesis eq. 3.17, docs/conventions.md §1)::
 
     f_lm = sqrt(4 pi / (2l + 1)) * g_l * y_lm(w)
 
@@ -101,7 +101,7 @@ def _power_cosine_moments(s: float, order: int) -> np.ndarray:
 
 
 def clamped_cosine_zh(order: int) -> np.ndarray:
-    """ZH coefficients of ``max(0, cos theta)`` (CONTRACTS.md §2 ``A_l``), any order.
+    """ZH coefficients of ``max(0, cos theta)`` (docs/conventions.md §2 ``A_l``), any order.
 
     ``A_0 = sqrt(pi)/2, A_1 = sqrt(pi/3), A_2 = sqrt(5 pi)/8, A_3 = 0, A_4 = -sqrt(pi)/16, ...``
 

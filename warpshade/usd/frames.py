@@ -44,7 +44,7 @@ class ShadedStage:
 
     def moving(self) -> set[str]:
         """Paths of the meshes whose points differ between the first, middle and last frames
-        (static meshes are time-sampled too, CONTRACTS.md §6, so sampling alone says nothing)."""
+        (static meshes are time-sampled too, docs/conventions.md §6, so sampling alone says nothing)."""
         out = set()
         times = [Usd.TimeCode(t) for t in (self.start, 0.5 * (self.start + self.end), self.end)]
         for prim, m, _ in self._meshes:

@@ -1,7 +1,7 @@
 """Generate the shipped scenes in ``usd_scenes/`` (reproducible: ``python -m warpshade.usd.make_scenes``).
 
 Each scene is plain ``.usda`` that a user can read and edit; this script only saves typing the
-grids. The ``warpshade:`` attributes used are documented in the README ("Running scenes (USD)").
+grids. The ``warpshade:`` attributes used are documented in docs/guide/quickstart.md ("Your own scene").
 """
 
 from __future__ import annotations

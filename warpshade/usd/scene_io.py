@@ -1,6 +1,6 @@
 """Read a USD stage into a :class:`warpshade.scene.Scene` (the pipeline's pxr-free description).
 
-What is read (README "Running scenes (USD)" documents every attribute):
+What is read (docs/guide/quickstart.md, "Your own scene", documents every attribute):
 
 * ``UsdGeom.Mesh`` prims, world transform applied, n-gons fan-triangulated. Kind: ``warpshade:kind``
   if authored, else ``skinned`` for meshes bound to a UsdSkel skeleton, ``animated`` for meshes
@@ -25,13 +25,17 @@ import os
 import warnings
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel
+from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 
 from ..geometry.mesh import MeshError, TriMesh
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
 from .mesh_io import triangulate
+from .writer import RADIANCE_MATERIAL_ATTR
 
 # Prim types that carry no geometry warpshade needs but are expected in scenes: skipped silently.
+_UNRENDERED_PURPOSES = (UsdGeom.Tokens.guide, UsdGeom.Tokens.proxy)
+"""Purposes whose prims are not shaded (a renderer shows only default and render purpose)."""
+
 _CONTAINERS = {"", "Xform", "Scope", "SkelRoot", "Skeleton", "SkelAnimation", "Material", "Shader",
                "NodeGraph", "GeomSubset", "BlendShape"}
 _LIGHTS = {"DomeLight": "dome", "DistantLight": "distant", "SphereLight": "sphere", "RectLight": "rect"}
@@ -70,6 +74,12 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
     scene.up_axis = str(UsdGeom.GetStageUpAxis(stage))
     scene.meters_per_unit = float(UsdGeom.GetStageMetersPerUnit(stage))
     scene.fps = float(stage.GetTimeCodesPerSecond())
+    if stage.HasAuthoredMetadata("startTimeCode"):
+        start = stage.GetStartTimeCode()
+        if start != round(start):
+            warnings.warn(f"{source}: startTimeCode {start} is not a whole frame; frame 0 is time code "
+                          f"{round(start)}", SceneWarning, stacklevel=2)
+        scene.start_time = int(round(start))
     if stage.HasAuthoredMetadata("endTimeCode"):
         scene.frames = int(round(stage.GetEndTimeCode() - stage.GetStartTimeCode())) + 1
     root = stage.GetDefaultPrim() or stage.GetPseudoRoot()
@@ -105,18 +115,23 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         if tname in ("Material", "Shader", "NodeGraph"):
             it.PruneChildren()
             continue
+        if prim.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(prim).ComputePurpose() in _UNRENDERED_PURPOSES:
+            it.PruneChildren()  # guide / proxy geometry (collision twins, stand-ins) is not what renders
+            continue
         if prim.IsA(UsdGeom.Mesh):
             scene.objects.append(_read_mesh(prim, source, cache, default_method))
         elif prim.IsA(UsdGeom.Sphere):
             scene.objects.append(_read_sphere(prim, source, default_method))
+        elif tname in _GPRIMS:
+            scene.objects.append(_read_gprim(prim, source, default_method))
         elif tname in _LIGHTS:
             scene.lights.append(_read_light(prim, _LIGHTS[tname], source))
         elif tname not in _CONTAINERS:
-            warnings.warn(f"{source}: skipping {prim.GetPath()} ({tname}): warpshade reads Mesh, Sphere, "
+            warnings.warn(f"{source}: skipping {prim.GetPath()} ({tname}): warpshade reads Mesh, Sphere, Cube, Cylinder, Capsule, Cone, Plane, "
                           "UsdLux Dome/Distant/Sphere/Rect lights and UsdSkel", SceneWarning, stacklevel=2)
             it.PruneChildren()
     if not scene.objects:
-        raise SceneError(f"{source}: no Mesh or Sphere prim to shade")
+        raise SceneError(f"{source}: no Mesh or gprim (Sphere, Cube, Cylinder, Capsule, Cone, Plane) to shade")
     return scene
 
 
@@ -199,8 +214,101 @@ def _read_sphere(prim, source: str, default_method) -> SceneObject:
     return _object(prim, where, tri, kind, settings, params, default_method, _material(prim, where))
 
 
+_GPRIMS = ("Cube", "Cylinder", "Capsule", "Cone", "Plane")
+"""UsdGeom gprims other than Sphere that are read: tessellated for shading, mesh colliders when marked."""
+
+_AXIS_FROM_Z = {"Z": np.eye(3), "Y": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),
+                "X": np.array([[0, 0, 1.0], [0, 1, 0], [-1, 0, 0]])}
+"""Rotations (acting on column vectors) taking a shape built along +Z to a gprim's ``axis``."""
+
+
+def _gprim_mesh(prim, where):
+    """Tessellation of a Cube/Cylinder/Capsule/Cone/Plane gprim in its local frame (trimesh)."""
+    import trimesh
+
+    tname = prim.GetTypeName()
+    get = lambda name: float(prim.GetAttribute(name).Get())  # noqa: E731 - schema attributes with fallbacks
+    dims = {"Cube": ("size",), "Cylinder": ("radius", "height"), "Capsule": ("radius", "height"),
+            "Cone": ("radius", "height"), "Plane": ("width", "length")}[tname]
+    for name in dims:
+        if not get(name) > 0 and not (tname == "Capsule" and name == "height" and get(name) == 0):
+            raise SceneError(f"{where}: {tname} {name} must be > 0, got {get(name)}")
+    if tname == "Cube":
+        m = trimesh.creation.box(extents=[get("size")] * 3)
+        # faces fine enough for shadows to land on (per-vertex shading): 16 edges a side
+        m = m.subdivide_to_size(get("size") / 16.0, max_iter=8)
+    elif tname == "Plane":
+        w, ln = get("width"), get("length")
+        verts = np.array([[-w / 2, -ln / 2, 0], [w / 2, -ln / 2, 0], [w / 2, ln / 2, 0], [-w / 2, ln / 2, 0]])
+        m = trimesh.Trimesh(verts, [[0, 1, 2], [0, 2, 3]], process=False).subdivide_to_size(max(w, ln) / 32.0,
+                                                                                            max_iter=8)
+    elif tname == "Cylinder":
+        m = trimesh.creation.cylinder(radius=get("radius"), height=get("height"), sections=48)
+    elif tname == "Capsule":
+        m = trimesh.creation.capsule(height=get("height"), radius=get("radius"), count=[48, 24])
+    else:  # Cone: USD centres it, apex at +height/2; trimesh puts the base at z = 0
+        m = trimesh.creation.cone(radius=get("radius"), height=get("height"), sections=48)
+        m.apply_translation([0.0, 0.0, -get("height") / 2])
+    axis = str(prim.GetAttribute("axis").Get() or "Z") if tname != "Cube" else "Z"
+    if axis not in _AXIS_FROM_Z:
+        raise SceneError(f"{where}: {tname} axis must be X, Y or Z, got {axis!r}")
+    return np.asarray(m.vertices) @ _AXIS_FROM_Z[axis].T, np.asarray(m.faces)
+
+
+def _read_gprim(prim, source: str, default_method) -> SceneObject:
+    where = f"{source}:{prim.GetPath()}"
+    settings = _namespace(prim, source)
+    verts, faces = _gprim_mesh(prim, where)
+    tri = TriMesh(_apply(_world(prim), verts), faces, name=where)
+    kind = settings.pop("kind", "static")
+    if kind not in ("static",):
+        raise SceneError(f"{where}: warpshade:kind '{kind}' on a {prim.GetTypeName()}: gprims are static "
+                         "(convert it to a Mesh to simulate or animate it)")
+    return _object(prim, where, tri, kind, settings, {}, default_method, _material(prim, where))
+
+
+def _physics_collider(prim) -> bool:
+    """Whether ``prim`` is a collider the UsdPhysics way: PhysicsCollisionAPI, collision enabled."""
+    if not prim.HasAPI(UsdPhysics.CollisionAPI):
+        return False
+    enabled = UsdPhysics.CollisionAPI(prim).GetCollisionEnabledAttr().Get()
+    return enabled is None or bool(enabled)
+
+
+def _physics_collider_shape(prim, tri) -> tuple[str, dict]:
+    """The ``warpshade:collider`` kind (and its exact shape) for a PhysicsCollisionAPI prim: the
+    analytic sphere of a Sphere, the oriented box of a Cube, a ground plane for a flat horizontal
+    mesh or Plane (its mean height), else the triangle mesh itself."""
+    if prim.IsA(UsdGeom.Sphere):
+        return "sphere", {}
+    if prim.IsA(UsdGeom.Cube):
+        from scipy.spatial.transform import Rotation
+
+        xf = _world(prim)
+        lin = xf[:3, :3]
+        scale = np.linalg.norm(lin, axis=0)
+        half = 0.5 * float(UsdGeom.Cube(prim).GetSizeAttr().Get()) * scale
+        quat = Rotation.from_matrix(lin / scale).as_quat()  # (x, y, z, w)
+        return "box", {"box": {"center": xf[:3, 3].copy(), "half_extents": half, "rotation": quat}}
+    up = 1 if str(UsdGeom.GetStageUpAxis(prim.GetStage())) == "Y" else 2
+    pts = tri.points
+    size = float(np.ptp(pts, axis=0).max())
+    if size > 0 and float(np.ptp(pts[:, up])) <= 1e-6 * size:
+        return "ground", {}
+    return "mesh", {}
+
+
 def _object(prim, where, tri, kind, settings, params, default_method, material) -> SceneObject:
+    if "collider" not in settings and kind != "cloth" and _physics_collider(prim):
+        settings["collider"], shape = _physics_collider_shape(prim, tri)
+        params.update(shape)
     knobs = {k[len("knobs:"):]: v for k, v in settings.items() if k.startswith("knobs:")}
+    for k in [k for k in knobs if k.endswith(("_dir", "_path", "_file"))]:
+        # nothing read from a scene chooses where files are written
+        warnings.warn(f"{where}: warpshade:knobs:{k} ignored: a scene cannot choose where files are written "
+                      f"(give --{k.replace('_', '-')} on the command line or {k}= in Python)",
+                      SceneWarning, stacklevel=3)
+        del knobs[k]
     method = settings.pop("method", default_method)
     if method in ("none", ""):
         method = None
@@ -234,12 +342,13 @@ def _animated_points(prim, where):
 
     stage = prim.GetStage()  # the closure keeps the stage alive
 
-    def points_at(frame: float) -> np.ndarray:
+    def points_at(time: float) -> np.ndarray:
+        """World positions at time code ``time``."""
         assert stage
-        t = Usd.TimeCode(frame)
+        t = Usd.TimeCode(time)
         pts = attr.Get(t)
         if pts is None:
-            raise SceneError(f"{where}: no points at frame {frame}")
+            raise SceneError(f"{where}: no points at time code {time}")
         return _apply(_world(prim, t), np.asarray(pts, dtype=np.float64).reshape(-1, 3)).astype(np.float32)
 
     return points_at
@@ -260,42 +369,72 @@ def _skinned_points(prim, cache: UsdSkel.Cache, where):
 
     stage = prim.GetStage()  # the closure keeps the stage and the skel cache alive
 
-    def points_at(frame: float) -> np.ndarray:
+    def points_at(time: float) -> np.ndarray:
+        """Skinned world positions at time code ``time``."""
         assert stage and cache
-        t = Usd.TimeCode(frame)
+        t = Usd.TimeCode(time)
         xforms = skel_query.ComputeSkinningTransforms(t)
         pts = type(rest)(rest)
         if not query.ComputeSkinnedPoints(xforms, pts, t):
-            raise SceneError(f"{where}: UsdSkel skinning failed at frame {frame}")
+            raise SceneError(f"{where}: UsdSkel skinning failed at time code {time}")
         # Skinned points are in skeleton space (UsdSkel "Skinning" docs): apply the skeleton's transform.
         return _apply(_world(skel.GetPrim(), t), np.asarray(pts, dtype=np.float64).reshape(-1, 3)).astype(np.float32)
 
     return points_at
 
 
+def _is_radiance_material(mat, shader) -> bool:
+    """Whether ``mat`` is the material warpshade binds to its shaded output meshes (emission =
+    exit radiance, black diffuse): marked by RADIANCE_MATERIAL_ATTR, or, in outputs written before
+    that mark, recognised by its emissiveColor read from the ``displayColor`` primvar."""
+    mark = mat.GetPrim().GetAttribute(RADIANCE_MATERIAL_ATTR)
+    if mark and mark.Get():
+        return True
+    emissive = shader.GetInput("emissiveColor")
+    if not emissive or not emissive.HasConnectedSource():
+        return False
+    source = emissive.GetConnectedSource()[0]
+    reader = UsdShade.Shader(source.GetPrim())
+    varname = reader.GetInput("varname") if reader else None
+    return bool(varname) and varname.Get() == "displayColor"
+
+
 def _material(prim, where) -> Material:
+    """The shading material of ``prim``: ``warpshade:albedo`` if authored (warpshade outputs carry
+    it), else the bound UsdPreviewSurface's diffuseColor (unless it is warpshade's own radiance
+    material, whose black diffuse is not an albedo), else a constant ``displayColor``."""
+    out = None
+    recorded = prim.GetAttribute("warpshade:albedo")
+    if recorded and recorded.HasAuthoredValue():
+        out = Material(albedo=np.asarray(recorded.Get(), dtype=np.float64))
     mat, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
     if mat:
         shader = mat.ComputeSurfaceSource()[0]
         if shader and shader.GetIdAttr().Get() == "UsdPreviewSurface":
-            out = Material()
-            dc = shader.GetInput("diffuseColor")
-            if dc:
-                if dc.HasConnectedSource():
-                    warnings.warn(f"{where}: diffuseColor of {shader.GetPath()} is connected (texture?); "
-                                  "using its fallback/default value", SceneWarning, stacklevel=4)
-                val = dc.Get()
-                if val is not None:
-                    out.albedo = np.asarray(val, dtype=np.float64)
-                    out.albedo_authored = True
+            ours = _is_radiance_material(mat, shader)
+            if out is None:
+                out = Material()
+                dc = shader.GetInput("diffuseColor")
+                if dc and not ours:
+                    if dc.HasConnectedSource():
+                        warnings.warn(f"{where}: diffuseColor of {shader.GetPath()} is connected (texture?); "
+                                      "using its fallback/default value", SceneWarning, stacklevel=4)
+                    val = dc.Get()
+                    if val is not None:
+                        out.albedo = np.asarray(val, dtype=np.float64)
+                        out.albedo_authored = True
             r = shader.GetInput("roughness")
             if r and r.Get() is not None:
                 out.roughness = float(r.Get())
             _check_material(out, where, shader.GetPath())
             return out
-        warnings.warn(f"{where}: bound material {mat.GetPath()} has no UsdPreviewSurface; default material used",
-                      SceneWarning, stacklevel=4)
-        return Material()
+        if out is None:
+            warnings.warn(f"{where}: bound material {mat.GetPath()} has no UsdPreviewSurface; default material used",
+                          SceneWarning, stacklevel=4)
+            return Material()
+    if out is not None:
+        _check_material(out, where, recorded.GetPath())
+        return out
     dc = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
     if dc and dc.HasAuthoredValue():
         v = np.asarray(dc.Get(), dtype=np.float64).reshape(-1, 3)

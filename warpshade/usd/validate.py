@@ -1,4 +1,4 @@
-"""Compliance check of USD outputs with every registered ``pxr.UsdValidation`` validator (CONTRACTS.md §6)."""
+"""Compliance check of USD outputs with every registered ``pxr.UsdValidation`` validator (docs/conventions.md §6)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Streaming export of shaded, animated meshes to USD (CONTRACTS.md §6).
+"""Streaming export of shaded, animated meshes to USD (docs/conventions.md §6).
 
 Layout of an output ``OUT.usda``::
 
@@ -22,18 +22,25 @@ committed frame.
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import os
 import re
 import shutil
+import socket
 import time
 import uuid
 
 import numpy as np
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, Vt
+from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdLux, UsdShade, Vt
 
 from .. import __version__
+from ..scene import DEFAULT_ALBEDO
 
 #: Animated attributes: name -> (value type, USD interpolation or None).
+RADIANCE_MATERIAL_ATTR = "warpshade:radianceMaterial"
+"""Bool on the material prims this writer binds to shaded meshes (emission = exit radiance)."""
+
 _ANIMATED = {
     "points": Sdf.ValueTypeNames.Point3fArray,
     "normals": Sdf.ValueTypeNames.Normal3fArray,
@@ -52,12 +59,132 @@ def prim_name(name: str) -> str:
 _prim_name = prim_name  # older name, kept for callers
 
 
-def _replace_atomically(write, path: str) -> None:
-    """Call ``write(tmp_path)`` then rename the temporary file onto ``path``."""
+class OutputWriteError(OSError):
+    """Writing a file of the output failed (disk full, permissions...); the message names the file
+    and the cause (``errno`` is set when known). Frames committed before the failure stay in the output."""
+
+    def __init__(self, code: int | None, message: str):
+        super().__init__(message)
+        self.errno = code
+
+    def __str__(self):
+        return self.args[0]
+
+
+class OutputLockedError(OutputWriteError):
+    """Another live run is writing the same output."""
+
+
+def _write_cause(exc: BaseException) -> tuple[int | None, str]:
+    """(errno, words) of a failed write: from an OSError, or from the text of a pxr error."""
+    if isinstance(exc, OSError) and exc.errno:
+        return exc.errno, exc.strerror or str(exc)
+    text = str(exc)
+    for code in (errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EROFS, errno.EIO, errno.EFBIG):
+        if os.strerror(code) in text:
+            return code, os.strerror(code)
+    quoted = re.findall(r"'([^'\n]+)'\s*$", text, flags=re.M)
+    return None, (quoted[-1] if quoted else text.strip().splitlines()[-1] if text.strip() else type(exc).__name__)
+
+
+def _write_file(write, path: str, what: str, final: str | None = None) -> None:
+    """Run ``write(path)`` (a pxr Save/Export or any writer); on failure remove whatever it left at
+    ``path`` and raise :class:`OutputWriteError` naming the file (``final``, the name ``path`` is
+    renamed to, if given) and the cause."""
+    try:
+        ok = write(path)
+    except (OSError, Tf.ErrorException) as exc:
+        ok, cause = False, exc
+    else:
+        cause = None
+    if ok is False:
+        try:
+            os.remove(path)
+        except OSError:
+            pass
+        code, words = _write_cause(cause) if cause is not None else (None, "the USD library reported a failed save")
+        hint = " (free some space; --resume then completes the output)" if code in (errno.ENOSPC, errno.EDQUOT) else ""
+        raise OutputWriteError(code, f"cannot write {what} {final or path}: {words}{hint}") from cause
+
+
+def _replace_atomically(write, path: str, what: str = "output file") -> None:
+    """Call ``write(tmp_path)`` then rename the temporary file onto ``path``; on failure nothing is
+    left behind and :class:`OutputWriteError` names ``path`` and the cause."""
     root, ext = os.path.splitext(path)
     tmp = f"{root}.partial{os.getpid()}{ext}"
-    write(tmp)
-    os.replace(tmp, path)
+    _write_file(write, tmp, what, path)
+    try:
+        os.replace(tmp, path)
+    except OSError as exc:
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
+        raise OutputWriteError(exc.errno, f"cannot write {what} {path}: {exc.strerror}") from exc
+
+
+def frames_dir_name(path: str) -> str:
+    """Name of the folder beside output ``path`` that holds its clip files: ``OUT_frames`` for
+    ``OUT.usda``, ``OUT_usdc_frames`` / ``OUT_usd_frames`` for the other formats, so outputs that
+    differ only in format never share files."""
+    stem, ext = os.path.splitext(os.path.basename(path))
+    ext = ext.lower()
+    return f"{stem}_frames" if ext == ".usda" else f"{stem}_{ext[1:]}_frames"
+
+
+def _outputs_of_frames_dir(folder: str) -> list[str]:
+    """Every output file name whose :func:`frames_dir_name` is ``folder``."""
+    names = [f"{folder[:-len('_frames')]}.usda"] if folder.endswith("_frames") else []
+    for ext in ("usdc", "usd"):
+        if folder.endswith(f"_{ext}_frames"):
+            names.append(f"{folder[:-len(f'_{ext}_frames')]}.{ext}")
+    return names
+
+
+class OutputLock:
+    """Exclusive ownership of an output by one run: ``OUT_frames.lock`` beside it (named after the
+    clip folder, the thing runs must not share), held with ``flock`` and holding the owner's pid and
+    host. A lock left by a dead process is taken over (the kernel drops ``flock`` locks when their
+    process dies); a live owner makes :class:`OutputLockedError`."""
+
+    def __init__(self, path: str, frames_dir: str):
+        self.path = f"{frames_dir}.lock"
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                owner = os.read(fd, 200).decode(errors="replace").strip() or "another process"
+                os.close(fd)
+                raise OutputLockedError(errno.EBUSY, f"{path} is being written by another run ({owner}); "
+                                        f"wait for it to finish or choose another --out "
+                                        f"(lock file {self.path})") from None
+            try:  # the file may have been removed by the previous owner between open and flock
+                same = os.path.samestat(os.fstat(fd), os.stat(self.path))
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode())
+        self._fd = fd
+
+    def release(self) -> None:
+        """Remove the lock file and give up the lock (idempotent)."""
+        if self._fd is None:
+            return
+        try:
+            os.remove(self.path)
+        except OSError:
+            pass
+        os.close(self._fd)
+        self._fd = None
+
+    def __del__(self):
+        fd = getattr(self, "_fd", None)
+        if fd is not None:
+            os.close(fd)
 
 
 class AnimationWriter:
@@ -91,11 +218,13 @@ class AnimationWriter:
         ext = os.path.splitext(self.path)[1].lower()
         if ext not in (".usda", ".usdc", ".usd"):
             raise ValueError(f"{path}: output must end in .usda, .usdc or .usd")
-        stem = os.path.splitext(os.path.basename(self.path))[0]
-        self._frames_dir = os.path.join(os.path.dirname(self.path), f"{stem}_frames")
+        frames = frames_dir_name(self.path)
+        self._frames_dir = os.path.join(os.path.dirname(self.path), frames)
         self._run = f"run-{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:6]}"
         self._run_dir = os.path.join(self._frames_dir, self._run)
-        self._rel_run = f"./{stem}_frames/{self._run}"
+        self._rel_run = f"./{frames}/{self._run}"
+        self._check_owner()
+        self._lock = OutputLock(self.path, self._frames_dir)
 
         # The top-level stage lives in memory; it is exported (temp + rename) at every commit.
         self.stage = Usd.Stage.CreateInMemory()
@@ -108,7 +237,7 @@ class AnimationWriter:
         data = {"generator": f"warpshade {__version__}", "warpshade:layout": "value clips"}
         data.update({f"warpshade:{k}": str(v) for k, v in (metadata or {}).items()})
         self.stage.GetRootLayer().customLayerData = data
-        self.stage.GetRootLayer().documentation = "Shaded animation written by warpshade (CONTRACTS.md §6)"
+        self.stage.GetRootLayer().documentation = "Shaded animation written by warpshade (docs/conventions.md §6)"
 
         self._meshes: dict[str, dict] = {}      # prim name -> info (path, vertex count, transfer size)
         self._lights: list[str] = []
@@ -127,7 +256,28 @@ class AnimationWriter:
         self.resume_frame = 0
         """First frame this writer still needs (> 0 when resuming an interrupted output)."""
         if resume and os.path.isfile(self.path):
-            self._load_existing(metadata or {})
+            try:
+                self._load_existing(metadata or {})
+            except BaseException:
+                self._lock.release()
+                raise
+
+    def _check_owner(self) -> None:
+        """Refuse a frame folder that another existing output (another name) also maps to, e.g.
+        ``X.usdc`` and ``X_usdc.usda``: never share or delete its files."""
+        folder = os.path.basename(self._frames_dir)
+        here = os.path.dirname(self.path)
+        for other in _outputs_of_frames_dir(folder):
+            other = os.path.join(here, other)
+            if other != self.path and os.path.exists(other):
+                raise ValueError(f"{self.path}: its clip folder {self._frames_dir} would be shared with the "
+                                 f"existing output {other}; choose another --out")
+
+    def _make_run_dir(self) -> None:
+        try:
+            os.makedirs(self._run_dir, exist_ok=True)
+        except OSError as exc:
+            raise OutputWriteError(exc.errno, f"cannot create {self._run_dir}: {exc.strerror}") from exc
 
     def _load_existing(self, metadata: dict) -> None:
         """Pick up the committed clips of an interrupted output (see ``resume``)."""
@@ -149,6 +299,15 @@ class AnimationWriter:
         rel_run = os.path.dirname(manifest)
         run_dir = os.path.normpath(os.path.join(os.path.dirname(self.path), rel_run))
         assets = [a.path for a in clips["assetPaths"]]
+        # whatever the file says, a resumed run writes and deletes only in one run folder of its own
+        # frame folder
+        for a in [manifest] + assets:
+            where = os.path.dirname(os.path.normpath(os.path.join(os.path.dirname(self.path), a)))
+            if (where != run_dir or os.path.dirname(where) != self._frames_dir
+                    or not os.path.basename(where).startswith("run-") or os.path.islink(where)):
+                raise ValueError(f"{self.path}: cannot resume: clip file {a} is not in a run folder of "
+                                 f"{self._frames_dir} (the output was moved, renamed or edited); "
+                                 f"run without --resume to start over")
         starts = [int(t[0]) for t in clips["active"]]
         missing = [a for a in assets if not os.path.isfile(os.path.join(os.path.dirname(self.path), a))]
         if missing:
@@ -167,12 +326,14 @@ class AnimationWriter:
                 if child.attributes:
                     self._resumed_attrs[str(child.path)] = {a.name for a in child.attributes}
         for entry in os.listdir(run_dir):  # a chunk that was being written when the run died
-            if entry.endswith(".partial.usdc"):
+            if ".partial" in entry:
                 os.remove(os.path.join(run_dir, entry))
+
 
     # -- declarations -----------------------------------------------------------------------
     def add_mesh(self, name: str, faces: np.ndarray, points: np.ndarray | None = None, *,
-                 normals: np.ndarray | None = None, albedo=None, roughness: float = 1.0, transfer_order: int | None = None) -> str:
+                 normals: np.ndarray | None = None, albedo=None, roughness: float = 1.0, transfer_order: int | None = None,
+                 shaded: bool = True) -> str:
         """Declare a mesh; its topology (and ``points`` if given) is written at the default time.
 
         Args:
@@ -185,6 +346,10 @@ class AnimationWriter:
             albedo: Diffuse reflectance, linear RGB, shape (3,), recorded as ``warpshade:albedo``.
             roughness: UsdPreviewSurface roughness of the output material.
             transfer_order: SH order N if :meth:`write_frame` will get ``transfer`` (V, N*N).
+            shaded: ``True`` if :meth:`write_frame` will get ``colors`` (exit radiance): the mesh is
+                bound to the radiance material (emission from ``displayColor``, black diffuse).
+                ``False`` for geometry only: a plain UsdPreviewSurface whose diffuse colour is the
+                albedo (:data:`DEFAULT_ALBEDO` without one), so no renderer shows it black.
 
         Returns:
             The prim name used.
@@ -222,7 +387,10 @@ class AnimationWriter:
         if albedo is not None:
             mesh.GetPrim().CreateAttribute("warpshade:albedo", Sdf.ValueTypeNames.Color3f, custom=True).Set(
                 Gf.Vec3f(*[float(a) for a in np.asarray(albedo).reshape(3)]))
-        self._bind_material(mesh, pname, roughness)
+        if shaded:
+            self._bind_radiance_material(mesh, pname, roughness)
+        else:
+            self._bind_albedo_material(mesh, pname, DEFAULT_ALBEDO if albedo is None else albedo, roughness)
         self._meshes[pname] = {"path": path, "vertices": nverts, "static": points is not None,
                                "transfer": None if transfer_order is None else int(transfer_order) ** 2}
         if self._resumed_attrs:
@@ -232,11 +400,25 @@ class AnimationWriter:
             self._attrs |= {(pname, a) for a in self._resumed_attrs[path]}
         return pname
 
-    def _bind_material(self, mesh: UsdGeom.Mesh, pname: str, roughness: float) -> None:
+    def _bind_albedo_material(self, mesh: UsdGeom.Mesh, pname: str, albedo, roughness: float) -> None:
+        looks = UsdGeom.Scope.Define(self.stage, "/World/Looks")
+        mat = UsdShade.Material.Define(self.stage, f"{looks.GetPath()}/{pname}_albedo")
+        surf = UsdShade.Shader.Define(self.stage, f"{mat.GetPath()}/PreviewSurface")
+        surf.CreateIdAttr("UsdPreviewSurface")
+        rgb = Gf.Vec3f(*[float(a) for a in np.asarray(albedo, dtype=np.float64).reshape(3)])
+        surf.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
+        surf.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(roughness))
+        mat.CreateSurfaceOutput().ConnectToSource(surf.ConnectableAPI(), "surface")
+        UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
+
+    def _bind_radiance_material(self, mesh: UsdGeom.Mesh, pname: str, roughness: float) -> None:
         # displayColor holds exit radiance (shading already done), so the material shows it as
         # emission with a black diffuse: a renderer that re-lights the scene does not light it twice.
+        # RADIANCE_MATERIAL_ATTR marks it, so a reader of this output does not take the black
+        # diffuse for the albedo (that is warpshade:albedo on the mesh).
         looks = UsdGeom.Scope.Define(self.stage, "/World/Looks")
         mat = UsdShade.Material.Define(self.stage, f"{looks.GetPath()}/{pname}_radiance")
+        mat.GetPrim().CreateAttribute(RADIANCE_MATERIAL_ATTR, Sdf.ValueTypeNames.Bool, custom=True).Set(True)
         surf = UsdShade.Shader.Define(self.stage, f"{mat.GetPath()}/PreviewSurface")
         surf.CreateIdAttr("UsdPreviewSurface")
         reader = UsdShade.Shader.Define(self.stage, f"{mat.GetPath()}/displayColorReader")
@@ -291,7 +473,7 @@ class AnimationWriter:
     def asset_dir(self) -> str:
         """A directory for files the output refers to (e.g. an environment image), kept with this
         run's clip files (and removed with them if the run commits nothing)."""
-        os.makedirs(self._run_dir, exist_ok=True)
+        self._make_run_dir()
         return self._run_dir
 
     def _asset_path(self, file: str) -> str:
@@ -334,9 +516,7 @@ class AnimationWriter:
                 bad = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
                 raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: vertex {bad} is not finite {pts[bad].tolist()}")
             values = {"points": Vt.Vec3fArray.FromNumpy(pts), "extent": Vt.Vec3fArray.FromNumpy(_extent(pts))}
-        if self._frame is None or frame > self._frame:
-            self._start_frame(frame)
-        self._frame_meshes.add(name)
+        # every value is checked before the frame is started: a frame with a bad value is not written
         if normals is not None:
             values["normals"] = Vt.Vec3fArray.FromNumpy(_check(normals, (v, 3), name, frame, "normals"))
         if colors is not None:
@@ -347,6 +527,9 @@ class AnimationWriter:
                 raise ValueError(f"{self.path}: mesh '{name}': transfer given but add_mesh had no transfer_order")
             values["primvars:warpshade:transfer"] = Vt.FloatArray.FromNumpy(
                 _check(transfer, (v, n2), name, frame, "transfer").reshape(-1))
+        if self._frame is None or frame > self._frame:
+            self._start_frame(frame)
+        self._frame_meshes.add(name)
         layer = self._chunk_layer
         prim = layer.GetPrimAtPath(info["path"]) or Sdf.CreatePrimInLayer(layer, info["path"])
         for attr, value in values.items():
@@ -362,18 +545,22 @@ class AnimationWriter:
         if self._chunk_layer is not None and frame >= self._chunk_start + self.chunk:
             self._commit(self._frame)
         if self._chunk_layer is None:
-            os.makedirs(self._run_dir, exist_ok=True)
+            self._make_run_dir()
             self._chunk_start = frame
             self._chunk_tmp = os.path.join(self._run_dir, f"chunk_{frame:06d}.partial.usdc")
-            self._chunk_layer = Sdf.Layer.CreateNew(self._chunk_tmp)
+            self._chunk_layer = Sdf.Layer.CreateAnonymous(".usdc")
         if self._first is None:
             self._first = frame
         self._frame = frame
         self._frame_meshes = set()
 
     def _commit(self, last: int) -> None:
-        """Save the open chunk and rewrite the top-level file to include frames up to ``last``."""
-        layer = self._chunk_layer
+        """Save the open chunk and rewrite the top-level file to include frames up to ``last``.
+
+        On a write error (:class:`OutputWriteError`) the chunk is dropped, its files removed, and the
+        output on disk still holds exactly the frames committed before.
+        """
+        layer, self._chunk_layer = self._chunk_layer, None  # never saved twice, whatever happens
         final = os.path.join(self._run_dir, f"chunk_{self._chunk_start:06d}.usdc")
         # Drop samples after ``last`` (an unfinished frame on abort) before saving.
         for prim in list(layer.rootPrims):
@@ -381,15 +568,24 @@ class AnimationWriter:
                 for t in layer.ListTimeSamplesForPath(spec.path):
                     if t > last:
                         layer.EraseTimeSample(spec.path, t)
-        layer.Save()
-        self._chunk_layer = None
+        _write_file(layer.Export, self._chunk_tmp, "clip file", final)
         del layer
-        os.replace(self._chunk_tmp, final)
-        self._clips.append((self._chunk_start, f"{self._rel_run}/chunk_{self._chunk_start:06d}.usdc"))
-        self._last_committed = last
-        if len(self._clips) == 1:
-            self._write_manifest()
-        self._write_top()
+        clips, committed = list(self._clips), self._last_committed
+        try:
+            os.replace(self._chunk_tmp, final)
+            self._clips.append((self._chunk_start, f"{self._rel_run}/chunk_{self._chunk_start:06d}.usdc"))
+            self._last_committed = last
+            if len(self._clips) == 1:
+                self._write_manifest()
+            self._write_top()
+        except BaseException:
+            self._clips, self._last_committed = clips, committed
+            for f in (self._chunk_tmp, final):
+                try:
+                    os.remove(f)
+                except OSError:
+                    pass
+            raise
         if len(self._clips) == 1:
             self._remove_old_runs()
 
@@ -401,9 +597,9 @@ class AnimationWriter:
                 prim = man.GetPrimAtPath(path) or Sdf.CreatePrimInLayer(man, path)
                 if attr not in prim.attributes:
                     Sdf.AttributeSpec(prim, attr, _ANIMATED[attr])
-            man.Save()
+            return man.Save()
 
-        _replace_atomically(write, os.path.join(self._run_dir, "manifest.usda"))
+        _replace_atomically(write, os.path.join(self._run_dir, "manifest.usda"), "clip manifest")
 
     def _write_top(self) -> None:
         root = self.stage.GetRootLayer()
@@ -424,7 +620,7 @@ class AnimationWriter:
         }})
         out.startTimeCode = float(self._first)
         out.endTimeCode = float(self._last_committed)
-        _replace_atomically(lambda tmp: out.Export(tmp), self.path)
+        _replace_atomically(out.Export, self.path)
 
     def _remove_old_runs(self) -> None:
         for entry in os.listdir(self._frames_dir):
@@ -436,41 +632,62 @@ class AnimationWriter:
         """Commit the remaining frames and finish the file. Returns the output path.
 
         A writer that received no frames writes a static stage (topology, lights, materials).
+        Raises :class:`OutputWriteError` if a file cannot be written (the frames committed before
+        stay in the output); the writer is then finished (:meth:`abort` does nothing more).
         """
         if self._closed:
             return self.path
-        if self._chunk_layer is not None:
-            self._commit(self._frame)
-        elif not self._clips:
-            out = Sdf.Layer.CreateAnonymous(".usda")
-            out.TransferContent(self.stage.GetRootLayer())
-            _replace_atomically(lambda tmp: out.Export(tmp), self.path)
+        try:
+            if self._chunk_layer is not None:
+                self._commit(self._frame)
+            elif not self._clips:
+                out = Sdf.Layer.CreateAnonymous(".usda")
+                out.TransferContent(self.stage.GetRootLayer())
+                _replace_atomically(out.Export, self.path)
+        except BaseException:
+            self._finish_failed()
+            raise
         self._closed = True
+        self._lock.release()
         return self.path
 
     def abort(self) -> str | None:
         """Stop after an error: keep every complete frame (a valid file) or, if none was committed
-        and none is complete, leave any previous output untouched. Returns the path if a file was
-        written by this run, else None."""
+        and none is complete, leave any previous output untouched. Never raises for a file it cannot
+        write (the error that made the run stop is the one to report): the frames it cannot commit
+        are dropped. Returns the path if a file was written by this run, else None."""
         if self._closed:
-            return self.path
-        self._closed = True
+            return self.path if self._clips else None
         if self._chunk_layer is not None:
             done = self._frame
             if not self._frame_meshes >= self._animated_meshes:
                 done = self._frame - 1  # the current frame is missing some meshes: drop it
             if done >= self._chunk_start:
-                self._commit(done)
-            else:
-                self._chunk_layer = None
                 try:
-                    os.remove(self._chunk_tmp)
-                except OSError:
-                    pass
+                    self._commit(done)
+                except OutputWriteError:
+                    pass  # _commit left the output as it was before this chunk
+            self._chunk_layer = None
+        self._finish_failed()
+        return self.path if self._clips else None
+
+    def _finish_failed(self) -> None:
+        """End a writer that cannot go on: no half-written chunk, no clip folder of a run that
+        committed nothing, the lock released."""
+        self._closed = True
+        self._chunk_layer = None
+        if self._chunk_tmp:
+            try:
+                os.remove(self._chunk_tmp)
+            except OSError:
+                pass
         if not self._clips:
             shutil.rmtree(self._run_dir, ignore_errors=True)
-            return None
-        return self.path
+            try:
+                os.rmdir(self._frames_dir)  # only if no other run of this output has files there
+            except OSError:
+                pass
+        self._lock.release()
 
     @property
     def frames_committed(self) -> int:
@@ -495,11 +712,17 @@ def _extent(pts: np.ndarray) -> np.ndarray:
 
 
 def _check(a, shape, name, frame, what) -> np.ndarray:
+    """``a`` as a native, C-contiguous float32 array of ``shape`` whose values are all finite."""
     a = np.ascontiguousarray(a, dtype=np.float32)
     if a.shape != shape:
-        if a.size == shape[0] * shape[1]:
-            return a.reshape(shape)
-        raise ValueError(f"mesh '{name}' frame {frame}: {what} must have shape {shape}, got {a.shape}")
+        if a.size != shape[0] * shape[1]:
+            raise ValueError(f"mesh '{name}' frame {frame}: {what} must have shape {shape}, got {a.shape}")
+        a = a.reshape(shape)
+    finite = np.isfinite(a)
+    if not finite.all():
+        v = int(np.flatnonzero(~finite.all(axis=1))[0])
+        raise ValueError(f"mesh '{name}' frame {frame}: {what} of vertex {v} are not finite {a[v].tolist()}; "
+                         f"the frame is not written")
     return a
 
 

@@ -1,4 +1,4 @@
-"""Visibility methods. Each produces the diffuse transfer of CONTRACTS.md §2 through :class:`TransferMethod`."""
+"""Visibility methods. Each produces the diffuse transfer of docs/conventions.md §2 through :class:`TransferMethod`."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """The interface every visibility method shares (build once, ``update(points)`` per frame, ``transfer``).
 
-Every method produces the diffuse transfer vector of CONTRACTS.md §2 in world space:
+Every method produces the diffuse transfer vector of docs/conventions.md §2 in world space:
 ``T_p,i = ∫ y_i(ω) V_p(ω) max(0, n_p·ω) dω`` (SH convention: :mod:`warpshade.sh.basis`), so the
 pipeline, the benchmark and the planner treat all methods alike and compare them one to one.
 """
@@ -27,7 +27,7 @@ class TransferMethod(ABC):
 
     Args:
         mesh: Mesh giving topology (fixed for the method's lifetime) and the rest pose.
-        order: SH order (CONTRACTS.md §1), 1..8.
+        order: SH order (docs/conventions.md §1), 1..8.
         device: Warp device.
         **knobs: Method-specific settings (see :meth:`add_arguments`).
     """
@@ -45,7 +45,7 @@ class TransferMethod(ABC):
         self.normals = wp.array(mesh.normals, dtype=wp.vec3, device=device)
         """Current unit vertex normals, shape (V,), dtype vec3."""
         self.transfer = wp.zeros((mesh.num_vertices, self.order * self.order), dtype=float, device=device)
-        """Diffuse transfer (CONTRACTS.md §2), shape (V, N*N), dtype float32, world space."""
+        """Diffuse transfer (docs/conventions.md §2), shape (V, N*N), dtype float32, world space."""
 
     # -- command line ------------------------------------------------------------------------
     @classmethod

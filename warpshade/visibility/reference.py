@@ -1,6 +1,6 @@
 """Ray-traced reference transfer: the ground truth every other method is measured against.
 
-Monte-Carlo integration of the diffuse transfer of CONTRACTS.md §2 with ``wp.Mesh`` BVH ray casts
+Monte-Carlo integration of the diffuse transfer of docs/conventions.md §2 with ``wp.Mesh`` BVH ray casts
 (``wp.mesh_query_ray``): per vertex ``strata²`` stratified cosine-weighted directions (Shirley–Chiu
 concentric map), fixed seed. Near the vertex, within a distance ``eps`` that scales with the receiver
 (so a mesh scaled by 1e-4 or 1e4 gives the same transfer), the vertex's own surface is tested from the

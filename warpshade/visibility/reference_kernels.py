@@ -245,7 +245,7 @@ def trace_transfer(
     k: wp.array[float],
     transfer: wp.array2d[float],
 ):
-    """Monte-Carlo diffuse transfer (CONTRACTS.md §2) by stratified cosine-weighted rays.
+    """Monte-Carlo diffuse transfer (docs/conventions.md §2) by stratified cosine-weighted rays.
 
     With pdf ``cos/pi`` the estimator of ``∫ y_i V cos dω`` is ``(pi/N) Σ y_i(ω_k) V(ω_k)``.
     """

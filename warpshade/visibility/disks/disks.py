@@ -5,7 +5,7 @@ over the rest pose (built once: median splits along the longest axis, the "bi-tr
 grouping nearby disks) gets parent disks averaged from their children every frame. Per receiver
 vertex the tree is walked with level of detail by distance, and each disk's coverage is binned into
 the paper's 16 hemisphere directions (eq. 5). Bunnell's two passes correct for overlapping occluders.
-The binned occlusion becomes the SH diffuse transfer of CONTRACTS.md §2, and gives visibility toward
+The binned occlusion becomes the SH diffuse transfer of docs/conventions.md §2, and gives visibility toward
 directional, point and spot lights.
 """
 
@@ -83,7 +83,7 @@ class DiskTransfer(TransferMethod):
         passes: 1 (single pass) or 2 (Bunnell's correction for overlapping occluders: mean of pass 1
             and a pass weighted by each occluder's own accessibility), or 0 = auto: 2 for two-sided
             disks (which double-count the front and back of a surface) and 1 for one-sided ones
-            (which already under-estimate occlusion); measured on Warp's bunny and bear (README).
+            (which already under-estimate occlusion); measured on Warp's bunny and bear (docs/methods/disks.md).
         sides: ``"one"`` (disks occlude only from their front: right for closed surfaces, whose back
             faces hide behind front faces), ``"two"`` (cloth, open sheets) or ``"auto"`` (one for
             a closed mesh, two if the mesh has boundary edges).

@@ -386,7 +386,7 @@ def integrate_disk_transfer(
     k: wp.array[float],
     transfer: wp.array2d[float],
 ):
-    """Diffuse transfer (CONTRACTS.md §2): analytic unoccluded transfer minus the occluded bins.
+    """Diffuse transfer (docs/conventions.md §2): analytic unoccluded transfer minus the occluded bins.
 
     ``T = sqrt(4π/(2l+1)) A_l y_lm(n) - Σ_b ∫_{occluded part of b} y cos dω``. The occluded part of
     bin b is modelled as a square of area ``O_b`` (in bin units) around the occluders' centroid,

@@ -1,4 +1,4 @@
-"""Area-light visibility: GEARS bitmasks (Popescu) and the ray-traced reference (CONTRACTS.md §4)."""
+"""Area-light visibility: GEARS bitmasks (Popescu) and the ray-traced reference (docs/conventions.md §4)."""
 
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 Mirrors :class:`~warpshade.visibility.base.TransferMethod`: build once in ``__init__(mesh, light,
 k, device, **knobs)``, ``update(points, normals=None)`` per frame, then read :attr:`visibility`
-(fraction of the light's area visible, CONTRACTS.md §4) and :attr:`form_factor` (the same with
+(fraction of the light's area visible, docs/conventions.md §4) and :attr:`form_factor` (the same with
 the light's cosine terms, for radiance).
 """
 
@@ -24,7 +24,7 @@ from ..base import TransferMethod
 @dataclass
 class LightRect(RectLight):
     """The rect light of area-light visibility: a :class:`warpshade.lighting.RectLight` that emits on both
-    sides (CONTRACTS.md §4) and whose half-axes must be orthogonal (the GEARS kernels recover light
+    sides (docs/conventions.md §4) and whose half-axes must be orthogonal (the GEARS kernels recover light
     coordinates with dual axes ``u/|u|²``, ``v/|v|²``). Positional ``LightRect(center, u, v)`` as before.
 
     Attributes:

@@ -1,7 +1,7 @@
 """Integration of hemiraster visibility masks into SH transfer, compiled per SH order (Kautz et al. 2004 §3.1, eq. 3).
 
 The rasterization kernel (:mod:`.kernels`) leaves one bit mask per receiver; :func:`integrate_kernels`
-builds, once per order, the kernels that turn masks into the transfer of CONTRACTS.md §2 (diffuse)
+builds, once per order, the kernels that turn masks into the transfer of docs/conventions.md §2 (diffuse)
 or the glossy Phong transfer of eq. 3, with every SH vector a fixed-length Warp vector held in
 registers (the ``vec_sh`` of :func:`~warpshade.sh.kernels.zh_vector_funcs`).
 

@@ -4,7 +4,7 @@ Per vertex, blocker triangles are projected onto the hemisphere of the vertex's 
 rasterized into a small bit mask on the unit disk (dropping z importance-samples the cosine, §3.1);
 each triangle's image is the AND of three plane masks from a cube-map LUT, occluders fuse by OR
 (§3.1.1). The mask is downsampled to coverage fractions and integrated against the SH basis into
-the diffuse transfer of CONTRACTS.md §2 (or the glossy Phong transfer of eq. 3 for a view
+the diffuse transfer of docs/conventions.md §2 (or the glossy Phong transfer of eq. 3 for a view
 direction). The optimizations of §3.2 (two-level hierarchy, hierarchical cluster culling, PVS) are
 each switchable. Beyond the paper, the coarse far field is refined back to the fine triangles it
 stands for wherever it comes near a receiver (relative to how far it deviates from them this
@@ -83,7 +83,7 @@ class HemirasterTransfer(TransferMethod):
         backface: Rasterize only triangles facing away from the receiver when the mesh (and the
             coarse mesh) is closed and consistently oriented: every blocked ray leaves the solid
             through one of them, so the mask is the same with about half the triangles.
-        mode: ``"diffuse"`` (CONTRACTS.md §2) or ``"glossy"`` (eq. 3 with a normalised Phong lobe).
+        mode: ``"diffuse"`` (docs/conventions.md §2) or ``"glossy"`` (eq. 3 with a normalised Phong lobe).
         view: Glossy mode: unit direction towards the viewer, world space (distant viewer).
         phong: Glossy mode: Phong exponent e of ``(e+2)/(2π) cos^e α``.
         lut_dir: Optional directory caching the LUT on disk between processes.
@@ -352,7 +352,7 @@ class HemirasterTransfer(TransferMethod):
         parser.add_argument("--no-backface", dest="backface", action="store_false",
                             help="rasterize back faces too (only matters on closed meshes)")
         parser.add_argument("--mode", choices=("diffuse", "glossy"), default="diffuse",
-                            help="diffuse transfer (CONTRACTS §2) or glossy Phong transfer for --view")
+                            help="diffuse transfer (docs/conventions.md §2) or glossy Phong transfer for --view")
         parser.add_argument("--view", type=_parse_vec3, default=(0.0, 0.0, 1.0),
                             help="glossy: direction towards the viewer x,y,z (world)")
         parser.add_argument("--phong", type=float, default=8.0, help="glossy: Phong exponent (default 8)")

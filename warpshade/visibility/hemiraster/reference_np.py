@@ -53,7 +53,7 @@ def rasterize_np(local_tris: np.ndarray, mask: int, lut: np.ndarray | None = Non
 def transfer_np(points: np.ndarray, faces: np.ndarray, normals: np.ndarray, order: int = 5, mask: int = 32,
                 downsample: int = 2, lut: np.ndarray | None = None, lut_res: int = 0,
                 vertices=None) -> np.ndarray:
-    """Diffuse transfer (CONTRACTS.md §2) by brute-force hemispherical rasterization of the full mesh.
+    """Diffuse transfer (docs/conventions.md §2) by brute-force hemispherical rasterization of the full mesh.
 
     Args:
         points: Positions, shape (V, 3). faces: shape (F, 3). normals: unit normals, shape (V, 3).

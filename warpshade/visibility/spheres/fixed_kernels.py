@@ -9,7 +9,7 @@ products are the SH core's :func:`~warpshade.sh.kernels.sh_product_vector_funcs`
 6; squarings use the Gaunt table's symmetry). Against the earlier runtime-order kernels with SH
 vectors in rows of 2D scratch arrays and a table-driven product loop this gives the same transfer
 (max difference 3e-6) 2-4x faster: at order 4 on the benchmark scene, hybrid 6.9 -> 20 frames/s
-(README, "Sphere-set soft shadows and reflections").
+(docs/methods/spheres.md).
 
 This module deliberately does not use postponed annotations: Warp reads the (closure-local) vector
 types from the annotations of the generated functions.
@@ -167,7 +167,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         visibility: wp.array2d(dtype=float),
         transfer: wp.array2d(dtype=float),
     ):
-        """Sphere-set visibility (eq. 4.7) and diffuse transfer ``V * cos`` (CONTRACTS.md §2) of receiver ``v``.
+        """Sphere-set visibility (eq. 4.7) and diffuse transfer ``V * cos`` (docs/conventions.md §2) of receiver ``v``.
 
         Receivers ``points``/``normals`` (R,) vec3 in cluster ``cluster[v]``, whose cut entries are
         ``cut_start[c]..cut_start[c+1]-1`` (sphere ``cut_sphere[e]``, ratio row ``cut_ratio[e]`` of eq. 4.9,
@@ -210,7 +210,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             vis[0] = sqrt_4pi * wp.exp(wp.min(logsum[0] / sqrt_4pi, 0.0))
             fb = 1
         fallback[v] = fb
-        # Transfer = V * clamped cosine (CONTRACTS.md §2); negative irradiance (ringing) -> 0.
+        # Transfer = V * clamped cosine (docs/conventions.md §2); negative irradiance (ringing) -> 0.
         t = product(vis, zh_rotate(n, cos_zh, kz), products)
         if t[0] < 0.0:
             t = vec_sh()

@@ -5,7 +5,7 @@ the receiver clusters, ``compute_cut_ratios`` evaluates eq. 4.9 at cluster centr
 of 2D scratch arrays, one compiled kernel for every order). The per-receiver work (tangent-plane
 adjustment ``adjust_sphere`` of §4.2, table lookup of the log blocker ZH vector, ZH rotation (eq.
 3.17), log accumulation (eq. 4.7), SH exponential (eqs. 3.30 / 3.32) and the product with the clamped
-cosine, CONTRACTS.md §2) is the kernel ``shade`` of :mod:`.fixed_kernels`, compiled per order with
+cosine, docs/conventions.md §2) is the kernel ``shade`` of :mod:`.fixed_kernels`, compiled per order with
 the SH vectors in registers; the one-bounce reflections are in :mod:`.reflection_kernels`. SH
 products, the optimal-linear/hybrid exponentials and ZH rotation are the SH core's
 (:mod:`warpshade.sh.kernels`); SH convention: :mod:`warpshade.sh.basis`.

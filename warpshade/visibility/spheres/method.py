@@ -4,7 +4,7 @@ Build once: fit a bounding sphere hierarchy to every blocker object (its own mes
 plus ``blockers`` for shadows from other objects), cluster the receiver vertices, load the tables.
 Per frame (:meth:`SpheresTransfer.update`): refit spheres to the current vertices, bound the clusters,
 choose cuts (eq. 4.8), ratio vectors (eq. 4.9), then per vertex the visibility and the diffuse transfer
-of CONTRACTS.md §2. Between objects, :meth:`SpheresTransfer.shadow` multiplies another method's
+of docs/conventions.md §2. Between objects, :meth:`SpheresTransfer.shadow` multiplies another method's
 self-shadowed transfer by this visibility (visibilities multiply, eq. 4.5).
 """
 

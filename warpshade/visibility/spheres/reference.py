@@ -47,7 +47,7 @@ def log_blocker_np(theta, order, mode="hyb", tau=0.5):
 
 
 def cosine_np(n, order):
-    """Clamped cosine about ``n``: the unoccluded transfer (CONTRACTS.md §2)."""
+    """Clamped cosine about ``n``: the unoccluded transfer (docs/conventions.md §2)."""
     return zh_rotate(clamped_cosine_zh(order), np.asarray(n, dtype=np.float64))
 
 

@@ -14,7 +14,7 @@ the Voronoi-cell SH sums of eq. 4.19. Per frame (:meth:`SphereReflections.update
    the sphere visibility of eq. 4.32 (optionally with the thesis' rule for intersecting spheres of one
    object, ``exclude_intersecting``) and, optionally, without the receiver's own object's spheres.
 
-Exit radiance including the bounce: ``(ρ/π) (L · T + E_R)`` (CONTRACTS.md §2 for the first term).
+Exit radiance including the bounce: ``(ρ/π) (L · T + E_R)`` (docs/conventions.md §2 for the first term).
 
 Hierarchy (``cuts=True``, §4.3.3 "Using sphere hierarchies with diffuse reflections"): every level of
 every reflecting object gets its own samples (ownership of eq. 4.10 among the spheres of that level,
@@ -84,7 +84,7 @@ class SphereReflections:
             the equation as printed, for measurements only).
         exclude_intersecting: The thesis' rule for eq. 4.32 (below eq. 4.33): closer spheres of the same
             object that intersect sphere ``i`` are left out of its visibility. Off by default: measured
-            less accurate and 2.5x slower (README).
+            less accurate and 2.5x slower (docs/methods/spheres.md).
         self_reflection: Whether receivers get light from their own object's spheres; False needs
             ``receiver_objects``.
         receiver_objects: Object (index into ``method.scene``) of each receiver vertex, shape (V,), int;

@@ -3,7 +3,7 @@
 Everything a sphere contributes is circularly symmetric about the direction of its centre, so it is a
 zonal-harmonic (ZH) vector ``g_l`` that depends on one number, the sphere's angular radius θ. The
 run-time kernels interpolate these tables and rotate the result with ``f_lm = sqrt(4π/(2l+1)) g_l
-y_lm(w)`` (CONTRACTS.md §1). The SH algebra (caps, logarithm, exponential tables, products) is the
+y_lm(w)`` (docs/conventions.md §1). The SH algebra (caps, logarithm, exponential tables, products) is the
 SH core's (:mod:`warpshade.sh`); this module only tabulates it by angular radius.
 
 SH convention: :mod:`warpshade.sh.basis`.

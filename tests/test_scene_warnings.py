@@ -1,0 +1,83 @@
+"""Scenes as users write them: warnings that name the prim and the fix; guide/proxy purpose not shaded."""
+
+import warnings
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom
+
+from warpshade.pipeline import Pipeline
+from warpshade.scene import SceneWarning
+from warpshade.usd import read_scene
+
+
+def _grid(stage, path, n=6, y=0.0, size=2.0):
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    xs = np.linspace(-size / 2, size / 2, n)
+    mesh.CreatePointsAttr([Gf.Vec3f(float(x), y, float(z)) for z in xs for x in xs])
+    faces = []
+    for j in range(n - 1):
+        for i in range(n - 1):
+            a = j * n + i
+            faces += [a, a + n, a + 1, a + 1, a + n, a + n + 1]
+    mesh.CreateFaceVertexCountsAttr([3] * (len(faces) // 3))
+    mesh.CreateFaceVertexIndicesAttr(faces)
+    return mesh
+
+
+def _scene(tmp_path, build):
+    path = tmp_path / "scene.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    build(stage)
+    stage.GetRootLayer().Save()
+    return read_scene(str(path))
+
+
+def _warnings_of(scene, frames):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        Pipeline(scene, frames=frames, workers=1)
+    return [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
+
+
+def test_nothing_moves_warns(tmp_path):
+    scene = _scene(tmp_path, lambda st: _grid(st, "/World/Floor"))
+    msgs = _warnings_of(scene, frames=4)
+    assert any("nothing in the scene moves" in m and "warpshade:kind" in m for m in msgs), msgs
+    assert not any("nothing in the scene moves" in m for m in _warnings_of(scene, frames=1))
+
+
+def _cloth(stage):
+    cloth = _grid(stage, "/World/Cloth", y=1.0)
+    cloth.GetPrim().CreateAttribute("warpshade:kind", Sdf.ValueTypeNames.String, custom=True).Set("cloth")
+    return cloth
+
+
+def test_cloth_without_pins_or_colliders_warns(tmp_path):
+    scene = _scene(tmp_path, _cloth)
+    msgs = _warnings_of(scene, frames=3)
+    assert any(m.startswith("/World/Cloth") and "falls freely" in m for m in msgs), msgs
+    assert not any("nothing in the scene moves" in m for m in msgs)
+
+
+def test_cloth_with_a_collider_does_not_warn(tmp_path):
+    def build(stage):
+        _cloth(stage)
+        floor = _grid(stage, "/World/Floor")
+        floor.GetPrim().CreateAttribute("warpshade:collider", Sdf.ValueTypeNames.String, custom=True).Set("ground")
+
+    msgs = _warnings_of(_scene(tmp_path, build), frames=3)
+    assert not any("falls freely" in m for m in msgs), msgs
+
+
+@pytest.mark.parametrize("purpose", ["guide", "proxy"])
+def test_guide_and_proxy_prims_are_not_shaded(tmp_path, purpose):
+    def build(stage):
+        _grid(stage, "/World/Body/visuals/Floor")
+        twin = _grid(stage, "/World/Body/collisions/Floor", y=0.01)
+        UsdGeom.Imageable(stage.DefinePrim("/World/Body/collisions", "Xform")).CreatePurposeAttr(purpose)
+        assert UsdGeom.Imageable(twin).ComputePurpose() == purpose
+
+    scene = _scene(tmp_path, build)
+    assert [o.name for o in scene.objects] == ["/World/Body/visuals/Floor"]
