@@ -11,6 +11,7 @@ import numpy as np
 import warp as wp
 
 from . import collision_kernels as ck
+from .kernels import apply_averaged_deltas
 
 
 def _vec(name: str, value, n: int = 3) -> np.ndarray:
@@ -59,6 +60,24 @@ class MeshCollider:
         self.indices = wp.array(self.faces.reshape(-1), dtype=wp.int32, device=device)
         self.mesh = wp.Mesh(points=wp.array(pts, dtype=wp.vec3, device=device), indices=self.indices)
         self._pending = None
+        # edge topology for edge-edge contact: each triangle's edges, their ends and faces (-1: border)
+        f = self.faces.astype(np.int64)
+        directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        und = np.sort(directed, axis=1)
+        key = und[:, 0] * len(pts) + und[:, 1]
+        uniq, inv = np.unique(key, return_inverse=True)
+        tri_of = np.tile(np.arange(len(f)), 3)
+        edge_faces = np.full((len(uniq), 2), -1, dtype=np.int64)
+        order = np.argsort(inv, kind="stable")
+        first = np.ones(len(order), dtype=bool)
+        first[1:] = inv[order][1:] != inv[order][:-1]
+        edge_faces[inv[order][first], 0] = tri_of[order][first]
+        second = ~first
+        edge_faces[inv[order][second], 1] = tri_of[order][second]
+        self.tri_edges = wp.array(inv.reshape(3, -1).T.astype(np.int32), dtype=wp.int32, device=device)
+        self.edge_verts = wp.array(np.stack([uniq // len(pts), uniq % len(pts)], 1).astype(np.int32),
+                                   dtype=wp.int32, device=device)
+        self.edge_faces = wp.array(edge_faces.astype(np.int32), dtype=wp.int32, device=device)
 
     def _check(self, pts):
         if pts.ndim != 2 or pts.shape[1] != 3:
@@ -246,6 +265,29 @@ class ColliderSet:
             wp.launch(ck.interpolate_points, dim=m.points_start.shape[0],
                       inputs=[m.points_start, m.points_end, alpha1], outputs=[m.mesh.points], device=self.device)
             m.mesh.refit()
+
+    def collide_edges(self, thickness: float, inv_mass, edges, x) -> None:
+        """Push cloth edges out of the mesh colliders' edges (sharp edges cutting between two cloth
+        vertices), corrections averaged per vertex.
+
+        Args:
+            thickness: Distance to keep [m].
+            inv_mass: Inverse masses, shape (V,), dtype float32.
+            edges: Cloth edges, shape (E, 2), dtype int32.
+            x: Positions [m], shape (V,), dtype vec3, corrected in place.
+        """
+        if not self.meshes:
+            return
+        n = x.shape[0]
+        if getattr(self, "_edge_delta", None) is None or self._edge_delta.shape[0] != n:
+            self._edge_delta = wp.zeros(n, dtype=wp.vec3, device=self.device)
+            self._edge_count = wp.zeros(n, dtype=wp.float32, device=self.device)
+        for m in self.meshes:
+            wp.launch(ck.collide_mesh_edges, dim=edges.shape[0],
+                      inputs=[m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x, edges,
+                              inv_mass, thickness], outputs=[self._edge_delta, self._edge_count], device=self.device)
+        wp.launch(apply_averaged_deltas, dim=n, inputs=[], outputs=[self._edge_delta, self._edge_count, x],
+                  device=self.device)
 
     def collide(self, thickness: float, inv_mass, x_prev, x) -> None:
         """Project the vertices x out of every collider as posed by :meth:`pose_substep`.

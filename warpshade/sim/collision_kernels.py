@@ -215,3 +215,106 @@ def collide_mesh(
     w = 1.0 - q.u - q.v
     cp0 = points_prev[tris[3 * f]] * q.u + points_prev[tris[3 * f + 1]] * q.v + points_prev[tris[3 * f + 2]] * w
     x[i] = p + apply_friction((p - x_prev[i]) - (cp - cp0), n, depth, friction)
+
+
+@wp.func
+def closest_segment_params(p1: wp.vec3, q1: wp.vec3, p2: wp.vec3, q2: wp.vec3) -> wp.vec2:
+    """Parameters (s, t) in [0, 1] of the closest points of segments p1-q1 and p2-q2 (Ericson 5.1.9)."""
+    d1 = q1 - p1
+    d2 = q2 - p2
+    r = p1 - p2
+    a = wp.dot(d1, d1)
+    e = wp.dot(d2, d2)
+    f = wp.dot(d2, r)
+    s = float(0.0)
+    t = float(0.0)
+    if a <= 1.0e-20 or e <= 1.0e-20:
+        return wp.vec2(0.0, 0.0)
+    c = wp.dot(d1, r)
+    b = wp.dot(d1, d2)
+    den = a * e - b * b
+    if den > 1.0e-12 * a * e:
+        s = wp.clamp((b * f - c * e) / den, 0.0, 1.0)
+    t = (b * s + f) / e
+    if t < 0.0:
+        t = 0.0
+        s = wp.clamp(-c / a, 0.0, 1.0)
+    elif t > 1.0:
+        t = 1.0
+        s = wp.clamp((b - c) / a, 0.0, 1.0)
+    return wp.vec2(s, t)
+
+
+@wp.kernel
+def collide_mesh_edges(
+    mesh: wp.uint64,
+    mesh_points: wp.array[wp.vec3],
+    mesh_tris: wp.array[int],
+    tri_edges: wp.array2d[int],
+    edge_verts: wp.array2d[int],
+    edge_faces: wp.array2d[int],
+    x: wp.array[wp.vec3],
+    edges: wp.array2d[int],
+    inv_mass: wp.array[float],
+    thickness: float,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Cloth edges against a mesh collider's edges: a cloth edge whose inner point dips into the
+    thickness layer around a collider edge (below both adjacent faces' offset planes, within 4
+    thicknesses of the edge) is pushed out along the face it is least deep under. This is what
+    keeps a sharp box edge from cutting through a cloth edge whose two vertices are outside."""
+    k = wp.tid()
+    i0 = edges[k, 0]
+    i1 = edges[k, 1]
+    w0 = inv_mass[i0]
+    w1 = inv_mass[i1]
+    if w0 + w1 == 0.0:
+        return
+    a = x[i0]
+    b = x[i1]
+    lo = wp.min(a, b) - wp.vec3(thickness)
+    hi = wp.max(a, b) + wp.vec3(thickness)
+    query = wp.mesh_query_aabb(mesh, lo, hi)
+    f = int(0)
+    while wp.mesh_query_aabb_next(query, f):
+        for c in range(3):
+            e = tri_edges[f, c]
+            if edge_faces[e, 0] != f:
+                continue  # each collider edge once, from its first face
+            m0 = mesh_points[edge_verts[e, 0]]
+            m1 = mesh_points[edge_verts[e, 1]]
+            st = closest_segment_params(a, b, m0, m1)
+            s = st[0]
+            if s <= 0.0 or s >= 1.0:
+                continue  # a cloth vertex is closest: the vertex projection holds it
+            p = a + (b - a) * s
+            q = m0 + (m1 - m0) * st[1]
+            if wp.length(p - q) > 4.0 * thickness:
+                continue
+            fa = edge_faces[e, 0]
+            na = wp.normalize(wp.cross(mesh_points[mesh_tris[3 * fa + 1]] - mesh_points[mesh_tris[3 * fa]],
+                                       mesh_points[mesh_tris[3 * fa + 2]] - mesh_points[mesh_tris[3 * fa]]))
+            n = na
+            da = wp.dot(p - q, na)
+            d = da
+            fb = edge_faces[e, 1]
+            if fb >= 0:
+                nb = wp.normalize(wp.cross(mesh_points[mesh_tris[3 * fb + 1]] - mesh_points[mesh_tris[3 * fb]],
+                                           mesh_points[mesh_tris[3 * fb + 2]] - mesh_points[mesh_tris[3 * fb]]))
+                db = wp.dot(p - q, nb)
+                if db >= thickness:
+                    continue
+                if db > da:
+                    n = nb
+                    d = db
+            if da >= thickness:
+                continue
+            denom = (1.0 - s) * (1.0 - s) * w0 + s * s * w1
+            if denom == 0.0:
+                continue
+            g = n * ((thickness - d) / denom)
+            wp.atomic_add(delta, i0, g * ((1.0 - s) * w0))
+            wp.atomic_add(delta, i1, g * (s * w1))
+            wp.atomic_add(delta_count, i0, 1.0)
+            wp.atomic_add(delta_count, i1, 1.0)

@@ -219,6 +219,10 @@ class XPBDSolver:
                         c.launch()
                     if self.colliders is not None:
                         self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+            if self.colliders is not None and self.colliders.meshes:
+                # once per substep: sharp collider edges against cloth edges, then the vertices again
+                self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x)
+                self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             if self.motion_bounds:
                 # the step ends on the bounded path (then the colliders have the last word)
                 wp.launch(ck.clamp_motion, dim=m.particle_count,
