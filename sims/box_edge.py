@@ -11,6 +11,8 @@ Success criteria (checked every frame, printed at the end): 0 intersecting trian
 the edge (full run: its free end moved at least 0.15 m toward the edge); 99th-percentile edge
 strain below 5 %.
 
+Status: not met yet: 38 intersecting pairs, the strip slides off the box, p99 strain 3.6 %.
+
 Run:  python sims/box_edge.py --frames 90 --out box_edge.usda
 """
 
