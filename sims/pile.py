@@ -11,7 +11,7 @@ Success criteria (checked every frame, printed at the end): 0 intersecting trian
 pile's centre); 99th-percentile edge strain below 5 %.
 
 Status: not met yet. Measured at the default 6 substeps: 11-35 intersecting pairs in the worst frame
-(547 before edge-edge self-contact); see docs/benchmarks/history.md.
+(547 before edge-edge self-contact).
 
 Run:  python sims/pile.py --frames 180 --out pile.usda
 """
