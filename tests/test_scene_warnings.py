@@ -4,7 +4,7 @@ import warnings
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, Usd, UsdGeom
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux
 
 from warpshade.pipeline import Pipeline
 from warpshade.scene import SceneWarning
@@ -81,3 +81,14 @@ def test_guide_and_proxy_prims_are_not_shaded(tmp_path, purpose):
 
     scene = _scene(tmp_path, build)
     assert [o.name for o in scene.objects] == ["/World/Body/visuals/Floor"]
+
+
+def test_dark_light_warns_with_its_name(tmp_path):
+    def build(stage):
+        _grid(stage, "/World/Floor")
+        UsdLux.DistantLight.Define(stage, "/World/Sun").CreateIntensityAttr(0.0)
+        UsdLux.DomeLight.Define(stage, "/World/Sky").CreateIntensityAttr(1.0)
+
+    msgs = _warnings_of(_scene(tmp_path, build), frames=1)
+    assert any(m.startswith("/World/Sun") and "gives no light" in m for m in msgs), msgs
+    assert not any(m.startswith("/World/Sky") for m in msgs), msgs

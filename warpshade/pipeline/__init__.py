@@ -179,7 +179,7 @@ class Pipeline:
         self.report = None
 
     def _warn_static_scene(self, lights) -> None:
-        """Warn about a scene whose frames will all be alike, and about cloth that can only fall."""
+        """Warn about a scene whose frames will all be alike, lights that give no light, and cloth that can only fall."""
         objects = self.scene.objects
         moving_lights = any(getattr(light, "motion", None) is not None for light in (lights or []))
         if self.frames > 1 and not moving_lights and all(o.kind == "static" for o in objects):
@@ -187,6 +187,11 @@ class Pipeline:
                 f"{self.scene.source}: nothing in the scene moves, so all {self.frames} frames are alike: "
                 'mark a mesh to simulate with warpshade:kind = "cloth", animate points or xforms, or use '
                 "--frames 1", SceneWarning, stacklevel=3)
+        for spec in self.scene.lights:
+            if not np.any(np.asarray(spec.color, dtype=np.float64) * spec.intensity * 2.0 ** spec.exposure):
+                warnings.warn(
+                    f"{spec.name}: this light gives no light (color x intensity x 2^exposure = 0): set "
+                    "inputs:intensity and inputs:color above zero, or remove it", SceneWarning, stacklevel=3)
         has_colliders = any(o.params.get("collider") for o in objects if o.kind != "cloth")
         for o in objects:
             if o.kind != "cloth" or has_colliders:
