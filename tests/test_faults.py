@@ -269,6 +269,42 @@ def test_sigterm_commits_finished_frames_like_ctrl_c(tmp_path):
     assert litter(tmp_path) == []
 
 
+def test_a_signal_during_a_commit_waits_until_the_commit_is_in_place(tmp_path, monkeypatch):
+    """The CI flake this replaces: SIGTERM landing between a top-level file's write and its rename
+    left ``o.partialPID.usda`` behind. Here the signal is sent from inside every write of a commit
+    (the worst moment); the commit must finish, leave no temporary file, and only then raise."""
+    out = tmp_path / "o.usda"
+    w = AnimationWriter(str(out), chunk=2)
+    name = w.add_mesh("tri", np.array([[0, 1, 2]]))
+    real = Sdf.Layer.Export
+    sent = []
+
+    def export(layer, path, *a, **kw):
+        ok = real(layer, path, *a, **kw)
+        if ".partial" in path and w.frames_committed == 0:
+            sent.append(path)
+            os.kill(os.getpid(), signal.SIGTERM)
+        return ok
+
+    def on_term(signum, frame):
+        raise KeyboardInterrupt(signum)
+
+    monkeypatch.setattr(Sdf.Layer, "Export", export)
+    previous = signal.signal(signal.SIGTERM, on_term)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            for f, pts in enumerate(tri_frames(4)):
+                w.write_frame(f, name, pts)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert sent, "no commit wrote a temporary file"
+    assert w.frames_committed == 2  # frames 0-1, the commit the signal interrupted, are in the file
+    assert all(p.endswith(".lock") for p in litter(tmp_path))  # only the live run's lock
+    assert w.abort() == str(out)
+    assert litter(tmp_path) == []
+    assert Usd.Stage.Open(str(out)).GetEndTimeCode() == 1
+
+
 # -- 3. one run per output, outputs and inputs kept apart -------------------------------------------
 def scene_without_lights(tmp_path) -> str:
     """cloth_sphere without its lights: a run then writes the default sky texture into its clip folder."""

@@ -22,12 +22,15 @@ committed frame.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import os
 import re
 import shutil
+import signal
 import socket
+import threading
 import time
 import uuid
 
@@ -107,20 +110,51 @@ def _write_file(write, path: str, what: str, final: str | None = None) -> None:
         raise OutputWriteError(code, f"cannot write {what} {final or path}: {words}{hint}") from cause
 
 
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """Hold Ctrl-C, SIGTERM and SIGHUP while a commit runs: their Python handlers are swapped for one
+    that notes the signal, and the first one noted is handed to its own handler on leaving the block,
+    so a commit, once begun, ends with its files renamed into place rather than half-way. (A signal
+    mask would not do: pxr's threads would take the signal and Python would still run the handler.)
+    Signals left to the operating system (no Python handler) are not touched."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    previous = {}
+    for sig in _STOP_SIGNALS:
+        handler = signal.getsignal(sig)
+        if callable(handler):
+            previous[sig] = signal.signal(sig, lambda signum, frame: pending.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if pending:
+            previous[pending[0]](pending[0], None)
+
+
 def _replace_atomically(write, path: str, what: str = "output file") -> None:
-    """Call ``write(tmp_path)`` then rename the temporary file onto ``path``; on failure nothing is
-    left behind and :class:`OutputWriteError` names ``path`` and the cause."""
+    """Call ``write(tmp_path)`` then rename the temporary file onto ``path``; on failure (or any
+    exception, an interrupt included) nothing is left behind, and a write failure raises
+    :class:`OutputWriteError` naming ``path`` and the cause."""
     root, ext = os.path.splitext(path)
     tmp = f"{root}.partial{os.getpid()}{ext}"
-    _write_file(write, tmp, what, path)
     try:
+        _write_file(write, tmp, what, path)
         os.replace(tmp, path)
-    except OSError as exc:
+    except BaseException as exc:
         try:
             os.remove(tmp)
         except OSError:
             pass
-        raise OutputWriteError(exc.errno, f"cannot write {what} {path}: {exc.strerror}") from exc
+        if isinstance(exc, OSError) and not isinstance(exc, OutputWriteError):
+            raise OutputWriteError(exc.errno, f"cannot write {what} {path}: {exc.strerror}") from exc
+        raise
 
 
 def frames_dir_name(path: str) -> str:
@@ -558,8 +592,13 @@ class AnimationWriter:
         """Save the open chunk and rewrite the top-level file to include frames up to ``last``.
 
         On a write error (:class:`OutputWriteError`) the chunk is dropped, its files removed, and the
-        output on disk still holds exactly the frames committed before.
+        output on disk still holds exactly the frames committed before. Stop signals wait until the
+        commit is done.
         """
+        with _signals_held():
+            self._commit_chunk(last)
+
+    def _commit_chunk(self, last: int) -> None:
         layer, self._chunk_layer = self._chunk_layer, None  # never saved twice, whatever happens
         final = os.path.join(self._run_dir, f"chunk_{self._chunk_start:06d}.usdc")
         # Drop samples after ``last`` (an unfinished frame on abort) before saving.
