@@ -99,12 +99,13 @@ def check_output(scene: Scene, out: str) -> None:
             raise SceneError(f"output {out} is an input of the scene ({f}); choose another --out")
 
 
-def warn_black_mesh(scene: Scene, name: str, frame: int) -> None:
-    """Warn that mesh ``name`` got zero exit radiance at every vertex of ``frame``, with the likely cause."""
+def warn_black_mesh(scene: Scene, name: str, frame: int, albedo=None) -> None:
+    """Warn that mesh ``name`` got zero exit radiance at every vertex of ``frame``, with the likely cause.
+    ``albedo`` is the albedo it was shaded with (default: its material's)."""
     obj = scene.object(name)
-    if not np.any(obj.material.albedo):
-        cause = ("its albedo is black (warpshade:albedo or the bound material's diffuseColor); "
-                 "set a non-black albedo, or warpshade run --albedo for objects without one")
+    if not np.any(obj.material.albedo if albedo is None else albedo):
+        cause = ("its albedo is black (warpshade:albedo, the bound material's diffuseColor, or --albedo for "
+                 "objects without one); set a non-black albedo")
     else:
         cause = ("no light reaches any of its vertices: every vertex is shadowed or faces away from every "
                  "light (flipped normals or winding?), or the lights give no light (intensity, exposure)")
@@ -202,6 +203,10 @@ class Pipeline:
                     f"{o.name}: cloth with neither pins (warpshade:pinned) nor an attachment, and the scene has "
                     "no collider (warpshade:collider on a prim): it falls freely; add a collider or pin vertices",
                     SceneWarning, stacklevel=3)
+
+    def _albedo_of(self, name: str) -> np.ndarray:
+        """The albedo object ``name`` is shaded with (its material's, or the run's ``albedo``)."""
+        return next(a for g in self.groups for n, a in zip(g.names, g.albedos) if n == name)
 
     def _check_lights(self) -> None:
         """Reject, before any work, a light whose emission or SH radiance does not fit in float32
@@ -304,7 +309,7 @@ class Pipeline:
                     writer.write_frame(time0 + f, names[name], points, normals, colors, transfer)
                     if name not in warned_black and colors is not None and not np.any(colors):
                         warned_black.add(name)
-                        warn_black_mesh(self.scene, name, f)
+                        warn_black_mesh(self.scene, name, f, self._albedo_of(name))
                 secs["write"] += time.perf_counter() - t
                 if bar is not None:
                     bar.update(1)
