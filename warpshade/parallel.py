@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import time
 import uuid
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
@@ -140,10 +141,26 @@ class _ProcessBackend:
         return True
 
     def close(self, abandon: bool = False):
-        if abandon:  # interrupted: do not wait for the frames being shaded
-            for p in list((self.pool._processes or {}).values()):
-                p.terminate()
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        if not abandon:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            return
+        # Interrupted: do not wait for the frames being shaded. The workers are killed, so nothing
+        # reads the task queue any more: its feeder thread must not be joined (with the pipe full it
+        # would block forever, in shutdown or at interpreter exit), and the workers are reaped with a
+        # bound, SIGKILL after SIGTERM.
+        procs = list((self.pool._processes or {}).values())
+        for p in procs:
+            p.terminate()
+        call_queue = getattr(self.pool, "_call_queue", None)
+        if call_queue is not None:
+            call_queue.cancel_join_thread()
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        deadline = time.monotonic() + 5.0
+        for p in procs:
+            p.join(timeout=max(0.0, deadline - time.monotonic()))
+            if p.is_alive():
+                p.kill()
+                p.join(timeout=1.0)
 
 
 class _DaskBackend:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import signal
 import sys
@@ -89,5 +90,21 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(sig, handler)
 
 
+def entry() -> None:
+    """The ``warpshade`` console script and ``python -m warpshade``: :func:`main`, then exit.
+
+    A run stopped by a signal (exit code >= 128) has committed its frames, stopped its workers and
+    said so; it then exits at once, skipping the interpreter's shutdown: ``concurrent.futures`` joins
+    its pool's manager thread at exit, and that thread can block forever reading a result a killed
+    worker had half written.
+    """
+    code = main()
+    if code >= 128:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()
