@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from warpshade.bench.environments import project, radiance
-from warpshade.bench.runner import pareto_mask
+from warpshade.bench.records import pareto_mask
 from warpshade.cli import main as cli_main
 
 

@@ -118,8 +118,7 @@ def plot_pareto(path: str, records: list[dict], title: str = "") -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .runner import pareto_mask
-
+    from .records import pareto_mask
     from .runner import DEFAULT_ORDER
 
     ok = [r for r in records if "failed" not in r and r["order"] == DEFAULT_ORDER and not is_area(r)]

@@ -20,7 +20,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
-from ..sh.rotation import _check_rotation, rotation_from_axis_angle
+from ..sh.rotation import check_rotation, rotation_from_axis_angle
 
 Motion = Callable[[float], np.ndarray]
 
@@ -78,7 +78,7 @@ def check_rotation(rotation, what: str = "rotation") -> np.ndarray:
         ValueError: naming ``what`` if it is not orthonormal with determinant +1 (to 1e-6).
     """
     try:
-        return _check_rotation(rotation)
+        return check_rotation(rotation)
     except ValueError as exc:
         raise ValueError(f"{what}: {exc}") from None
 

@@ -584,12 +584,12 @@ def sh_exp_warp(f, method: str = "hybrid", threshold: float | None = None, devic
         Shape (V, n*n), dtype float32.
     """
     from .exp import DEFAULT_HYBRID_THRESHOLD
-    from .products import _order_of
+    from .products import order_of
 
     f = np.asarray(f, dtype=np.float32)
     if f.ndim != 2:
         raise ValueError(f"sh_exp_warp: f must have shape (V, n*n), got {f.shape}")
-    order = _order_of(f.shape[1], "f")
+    order = order_of(f.shape[1], "f")
     fa = wp.array(f, dtype=float, device=device)
     out = wp.zeros_like(fa)
     table = ol_table_arrays(order, device)
