@@ -20,18 +20,20 @@ import math
 import numpy as np
 
 
-def check_rotation(r) -> np.ndarray:
+def check_rotation(r, what: str | None = None) -> np.ndarray:
     """``r`` as a float64 (3, 3) proper rotation (finite, orthonormal to 1e-6, det +1).
 
     Raises:
-        ValueError: naming the shape, the orthonormality error or the determinant.
+        ValueError: naming the shape, the orthonormality error or the determinant, after ``what: `` when given.
     """
+    prefix = f"{what}: " if what else ""
     r = np.asarray(r, dtype=np.float64)
     if r.shape != (3, 3) or not np.all(np.isfinite(r)):
-        raise ValueError(f"rotation must be a finite 3x3 matrix, got shape {r.shape}")
+        raise ValueError(f"{prefix}rotation must be a finite 3x3 matrix, got shape {r.shape}")
     err = np.abs(r @ r.T - np.eye(3)).max()
     if err > 1e-6 or np.linalg.det(r) < 0:
-        raise ValueError(f"rotation must be orthonormal with det +1 (|R R^T - I| = {err:.2e}, det = {np.linalg.det(r):.3f})")
+        raise ValueError(f"{prefix}rotation must be orthonormal with det +1 (|R R^T - I| = {err:.2e}, "
+                         f"det = {np.linalg.det(r):.3f})")
     return r
 
 
