@@ -59,7 +59,7 @@ def run(args) -> int:
     print(plan.describe())
     print(f"  without reuse (every object every frame): {naive_seconds(plan):.2f} s")
     if args.json:
-        from .cmd_transfer import write_json
+        from ..bench.report import write_json
 
-        write_json(args.json, plan.to_dict())
+        write_json(args.json, plan.to_dict(), indent=2)
     return 0

@@ -14,9 +14,10 @@ ACCEPTS_EXTRA = True  # method knobs, parsed once --method is known
 
 
 def shipped_scene(name: str = "default.usda") -> str:
-    """Path of a scene in the repository's ``usd_scenes/``."""
-    here = os.path.dirname(os.path.abspath(__file__))
-    return os.path.normpath(os.path.join(here, "..", "..", "usd_scenes", name))
+    """Path of a shipped scene (``usd_scenes/``, installed as package data)."""
+    from ..usd.shipped import shipped_scene as locate
+
+    return locate(name)
 
 
 def add_refine_argument(parser: argparse.ArgumentParser) -> None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 
@@ -36,6 +35,7 @@ def parse_knobs(method_cls, extra: list[str]) -> dict:
 
 
 def run(args) -> int:
+    from ..bench.report import write_json
     from ..geometry import load_mesh
     from ..timing import time_transfer
     from ..visibility import get_method
@@ -50,7 +50,7 @@ def run(args) -> int:
              transfer=transfer)
     stats = method_stats(method, mesh, seconds, args.repeat, order=method.order)
     if args.json:
-        write_json(args.json, stats)
+        write_json(args.json, stats, indent=2)
     print(f"{cls.name}: {mesh.num_vertices} vertices, {mesh.num_faces} triangles, order {method.order}: "
           f"{seconds * 1e3:.2f} ms per frame (median of {args.repeat}) -> {args.save}", file=sys.stderr)
     return 0
@@ -71,12 +71,4 @@ def save_npz(path: str, **arrays) -> None:
 
     tmp = f"{path}.partial{os.getpid()}.npz"
     np.savez(tmp, **{k: np.asarray(v, dtype=np.int32 if k == "faces" else np.float32) for k, v in arrays.items()})
-    os.replace(tmp, path)
-
-
-def write_json(path: str, data: dict) -> None:
-    """Write JSON atomically (temporary file, then rename)."""
-    tmp = f"{path}.partial{os.getpid()}"
-    with open(tmp, "w") as f:
-        json.dump(data, f, indent=2)
     os.replace(tmp, path)
