@@ -7,15 +7,28 @@ import warp as wp
 from ..sh.kernels import sh_accumulate
 
 
+FRAME_AXIS = wp.constant(wp.vec3(0.4472136, 0.5477226, 0.7071068))
+"""``(√2, √3, √5) / √10``: the direction the tangent frames of :func:`orthonormal_basis` turn about, at least
+2.8° from every axis, face and body diagonal, 2:1 lattice direction and icosphere vertex or face normal (subdivisions
+0-3), so that no normal a mesh is likely to have lies near it."""
+
+
 @wp.func
 def orthonormal_basis(n: wp.vec3) -> wp.mat33:
-    """Columns (t, b, n): a right-handed frame around unit ``n`` (Duff et al. 2017, no branch on |n_z|)."""
-    sign = wp.where(n[2] >= 0.0, 1.0, -1.0)
-    a = -1.0 / (sign + n[2])
-    b = n[0] * n[1] * a
-    t = wp.vec3(1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0])
-    bb = wp.vec3(b, sign + n[1] * n[1] * a, -n[1])
-    return wp.matrix_from_cols(t, bb, n)
+    """Columns (t, b, n): a right-handed frame around unit ``n`` that turns continuously with ``n``.
+
+    ``t`` is ``FRAME_AXIS × n`` normalised: continuous everywhere but at ``n = ±FRAME_AXIS``, so a normal that
+    moves by float rounding (a mesh scaled, or shifted by an ulp) moves its frame, its ray pattern and its
+    raster by as little; a frame with a jump at a common normal (Duff et al. 2017 flips at ``n_z = 0``,
+    every horizontal normal) there re-draws every sample direction of a vertex. Within 0.006° of the axis
+    the frame turns about the x axis instead (a jump, only there)."""
+    t = wp.cross(FRAME_AXIS, n)
+    lt = wp.length(t)
+    if lt < 1.0e-4:
+        t = wp.cross(wp.vec3(1.0, 0.0, 0.0), n)
+        lt = wp.length(t)
+    t = t / lt
+    return wp.matrix_from_cols(t, wp.cross(n, t), n)
 
 
 @wp.func
