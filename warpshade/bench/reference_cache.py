@@ -23,7 +23,7 @@ from ..geometry.mesh import TriMesh
 GROUND_TRUTH_SEED = 982451653
 """Seed of the ground-truth rays (independent of the ``reference`` method's default seed 0)."""
 
-TRUTH_VERSION = "t2"
+TRUTH_VERSION = "t3"
 """Version of the reference's ray tracing in the cache file names: bumped when it changes what it computes
 (t2: rays leave the vertex itself, ``trace_surface_ray``; files without it came from origins pushed along the
 normal, wrong for vertices resting on another surface), so stale files are not reused."""
