@@ -29,6 +29,8 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
 
+import numpy as np
+
 FrameGeometry = dict  # object name -> positions (V, 3) float32, plus optional extra arrays
 ShadeFn = Callable[[int, FrameGeometry], Any]
 
@@ -251,12 +253,28 @@ def shade_frames(
                 raise FrameShadingError(f"frame {frame}: shading failed: {type(exc).__name__}: {exc}") from exc
             order.popleft()
             del pending[frame]
-            yield frame, result
+            yield frame, _aligned(result)
     except BaseException:
         failed = True
         raise
     finally:
         backend.close(abandon=failed)
+
+
+def _aligned(result):
+    """``result`` with every NumPy array in it (through dicts, lists and tuples) aligned and C-contiguous.
+
+    Dask deserialises arrays as views into its receive buffers, at offsets that need not be aligned;
+    such an array exports the buffer format ``'=f'`` instead of ``'f'``, which pxr's ``Vt`` refuses
+    ("Unsupported format '=f'"). Aligned contiguous arrays are returned as they are (no copy).
+    """
+    if isinstance(result, np.ndarray):
+        return np.require(result, requirements=("C", "A"))
+    if isinstance(result, dict):
+        return {k: _aligned(v) for k, v in result.items()}
+    if type(result) in (list, tuple):
+        return type(result)(_aligned(v) for v in result)
+    return result
 
 
 def _resubmit_failed(backend, order, pending, retries, exc):
