@@ -15,7 +15,8 @@ same order while worker processes shade ahead:
 
 Backends: ``workers=0`` shades inline (no processes); ``workers>=1`` uses a pool of spawned worker
 processes; ``scheduler="local"`` starts a local ``dask.distributed`` cluster with ``workers``
-single-threaded worker processes, and ``scheduler="tcp://HOST:PORT"`` uses a running cluster.
+single-threaded worker processes, and ``scheduler="tcp://HOST:PORT"`` (``tls://`` with a
+``security``) uses a running cluster.
 """
 
 from __future__ import annotations
@@ -148,25 +149,40 @@ class _ProcessBackend:
         self.pool.shutdown(wait=True, cancel_futures=True)
 
 
+class ClusterWarning(UserWarning):
+    """A Dask scheduler is reached in a way that exposes the run (see :mod:`warpshade.cluster`)."""
+
+
 class _DaskBackend:
-    def __init__(self, spec: FrameShaderSpec, token: str, workers: int, scheduler: str, retries: int):
+    def __init__(self, spec: FrameShaderSpec, token: str, workers: int, scheduler: str, retries: int,
+                 security=None):
+        import warnings
+
         from distributed import Client, LocalCluster
         from distributed.client import FutureCancelledError
         from distributed.scheduler import KilledWorker
 
+        from .cluster import unencrypted_remote
+
         self.worker_errors = (KilledWorker, FutureCancelledError)
         self.cluster = None
+        self.plugin = f"warpshade-{token}"
         if scheduler == "local":
             self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                         dashboard_address=None)
             self.client = Client(self.cluster)
         else:
-            self.client = Client(scheduler)
+            if unencrypted_remote(scheduler):
+                warnings.warn(f"scheduler {scheduler} is not on this machine and the connection is not "
+                              "encrypted: Dask sends pickles, which run code, so anyone on the network path "
+                              "can read frames or run code here; use tls:// (--tls-ca-file, --tls-cert, "
+                              "--tls-key)", ClusterWarning, stacklevel=4)
+            self.client = Client(scheduler, security=security)
         self.token = token
         self.retries = retries
         from ._dask_plugin import ShaderPlugin
 
-        self.client.register_plugin(ShaderPlugin(token, spec), name=f"warpshade-{token}")
+        self.client.register_plugin(ShaderPlugin(token, spec), name=self.plugin)
 
     def submit(self, frame, geometry):
         # Dask reschedules a task whose worker died by itself; retries covers exceptions on top.
@@ -177,14 +193,20 @@ class _DaskBackend:
         return False  # the scheduler keeps running tasks; only failed futures need resubmitting
 
     def close(self, abandon: bool = False):
-        self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
+        try:
+            if self.cluster is None:  # a shared cluster: workers drop this run's shader (teardown)
+                self.client.unregister_worker_plugin(self.plugin)
+        except Exception:  # noqa: BLE001 - the scheduler may be gone already; closing must go on
+            pass
+        finally:
+            self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
 
 
-def _make_backend(spec, token, workers, scheduler, retries):
+def _make_backend(spec, token, workers, scheduler, retries, security=None):
     if scheduler:
-        return _DaskBackend(spec, token, workers, scheduler, retries)
+        return _DaskBackend(spec, token, workers, scheduler, retries, security)
     if workers == 0:
         return _InlineBackend(spec, token)
     return _ProcessBackend(spec, token, workers)
@@ -199,6 +221,7 @@ def shade_frames(
     max_in_flight: int | None = None,
     retries: int = 2,
     on_backend: Callable[[Any], None] | None = None,
+    security=None,
 ) -> Iterator[tuple[int, Any]]:
     """Shade frames in parallel and yield ``(frame, result)`` in input order.
 
@@ -207,10 +230,14 @@ def shade_frames(
         frames: ``(frame, geometry)`` pairs, consumed lazily (at most ``max_in_flight`` ahead).
         workers: Worker processes; None means all cores; 0 shades inline in this process.
         scheduler: None for local processes, ``"local"`` for a local Dask cluster, or a Dask
-            scheduler address ``tcp://HOST:PORT``.
+            scheduler address ``tcp://HOST:PORT`` / ``tls://HOST:PORT``. An unencrypted address that
+            is not loopback gives a :class:`ClusterWarning` (Dask's pickles run code; see
+            :mod:`warpshade.cluster`).
         max_in_flight: Frames submitted but not yet yielded (default ``2 * workers``, at least 2).
         retries: How often a frame is resubmitted after its worker died.
         on_backend: Called with the backend once it is up (tests use it to kill a worker).
+        security: ``distributed.Security`` for a scheduler address (TLS certificates,
+            :func:`warpshade.cluster.scheduler_security`); None uses Dask's configuration.
 
     Raises:
         FrameShadingError: naming the frame, when shading raised or workers died too often.
@@ -222,7 +249,7 @@ def shade_frames(
         workers = default_workers()
     max_in_flight = max(2, 2 * max(workers, 1)) if max_in_flight is None else int(max_in_flight)
     token = uuid.uuid4().hex[:12]
-    backend = _make_backend(spec, token, workers, scheduler, retries)
+    backend = _make_backend(spec, token, workers, scheduler, retries, security)
     if on_backend is not None:
         on_backend(backend)
     it = iter(frames)

@@ -11,6 +11,7 @@ import pkgutil
 import signal
 import sys
 import threading
+import warnings
 
 from ..runtime import init_warp
 
@@ -73,6 +74,9 @@ def main(argv: list[str] | None = None) -> int:
     if extra and not args._extra_ok:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     args.extra = extra
+    # warnings as one line naming the command (replacing formatwarning keeps pytest's recording)
+    formatwarning = warnings.formatwarning
+    warnings.formatwarning = lambda message, *_a, **_k: f"warpshade {args.command}: warning: {message}\n"
     previous = {}
     if threading.current_thread() is threading.main_thread():
         previous = {sig: signal.signal(sig, _raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)}
@@ -85,6 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"warpshade {args.command}: {interrupted_by(exc)}", file=sys.stderr)
         return exit_code(exc)
     finally:
+        warnings.formatwarning = formatwarning
         for sig, handler in previous.items():
             signal.signal(sig, handler)
 

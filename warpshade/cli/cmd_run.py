@@ -48,7 +48,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=None,
                         help="shading worker processes while this one simulates (default: all cores; 0 shades inline)")
     parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                        help="shade on a Dask cluster ('local' starts one) instead of local processes")
+                        help="shade on a Dask cluster ('local' starts one; tls://HOST:PORT with --tls-*) instead "
+                             "of local processes; Dask sends pickles, which run code: only connect to a "
+                             "scheduler you trust")
+    for flag, what in (("--tls-ca-file", "CA certificate that signed the cluster's certificates"),
+                       ("--tls-cert", "this client's certificate (may hold the key too)"),
+                       ("--tls-key", "this client's private key")):
+        parser.add_argument(flag, default=None, metavar="PEM", help=f"TLS to a tls:// --scheduler: {what}")
     parser.add_argument("--between", choices=["spheres", "none"], default="spheres",
                         help="shadows between objects shaded by different methods: sphere sets (default) or none")
     parser.add_argument("--reflections", action="store_true", default=None,
@@ -119,6 +125,13 @@ def run(args) -> int:
         knobs = parse_knobs(cls, args.extra)
     elif args.extra:
         raise ValueError(f"unknown option(s) {' '.join(args.extra)} (method knobs need --method)")
+    security = None
+    if args.scheduler and args.scheduler != "local":
+        from ..cluster import scheduler_security
+
+        security = scheduler_security(args.scheduler, args.tls_ca_file, args.tls_cert, args.tls_key)
+    elif args.tls_ca_file or args.tls_cert or args.tls_key:
+        raise ValueError("--tls-ca-file/--tls-cert/--tls-key need --scheduler tls://HOST:PORT")
     t0 = time.perf_counter()
     scene_path = args.scene or shipped_scene()
     scene = read_scene(scene_path)
@@ -154,7 +167,7 @@ def run(args) -> int:
                     between=None if args.between == "none" else args.between,
                     reflections=reflections, albedo=parse_albedo(args.albedo), area_lights=args.area_lights,
                     area_knobs={} if args.area_k is None else {"k": args.area_k},
-                    refine_receivers=args.refine_receivers)
+                    refine_receivers=args.refine_receivers, security=security)
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,
