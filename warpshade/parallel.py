@@ -60,6 +60,11 @@ def default_workers() -> int:
 
 # -- worker side -------------------------------------------------------------------------------
 _WORKER_SHADERS: dict[str, ShadeFn] = {}
+_WORKER_BUILD_ERRORS: dict[str, Exception] = {}
+
+
+class _BuildFailed(Exception):
+    """``spec.build()`` raised in a worker; ``args[0]`` is that exception (raised again in the caller)."""
 
 
 def _exit_with_parent(parent: int, interval: float = 0.5) -> None:
@@ -87,10 +92,15 @@ def _init_worker(token: str, spec: FrameShaderSpec, parent: int | None = None) -
     from .runtime import init_warp
 
     init_warp()
-    _WORKER_SHADERS[token] = spec.build()
+    try:
+        _WORKER_SHADERS[token] = spec.build()
+    except Exception as exc:  # noqa: BLE001 - kept for the first frame: an initializer that raises
+        _WORKER_BUILD_ERRORS[token] = exc  # breaks the pool, and the cause would read as a dead worker
 
 
 def _shade_in_worker(token: str, frame: int, geometry: FrameGeometry):
+    if token in _WORKER_BUILD_ERRORS:
+        raise _BuildFailed(_WORKER_BUILD_ERRORS[token])
     return _WORKER_SHADERS[token](frame, geometry)
 
 
@@ -276,6 +286,8 @@ def shade_frames(
             except backend.worker_errors as exc:
                 _resubmit_failed(backend, order, pending, retries, exc)
                 continue
+            except _BuildFailed as exc:  # the spec is wrong (e.g. a knob out of range): no retry helps
+                raise exc.args[0] from None
             except Exception as exc:
                 raise FrameShadingError(f"frame {frame}: shading failed: {type(exc).__name__}: {exc}") from exc
             order.popleft()

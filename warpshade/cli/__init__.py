@@ -33,7 +33,8 @@ def build_parser() -> argparse.ArgumentParser:
         mod = importlib.import_module(modname)
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
-        p.set_defaults(_run=mod.run, _extra_ok=getattr(mod, "ACCEPTS_EXTRA", False))
+        p.set_defaults(_run=mod.run, _extra_ok=getattr(mod, "ACCEPTS_EXTRA", False),
+                       _knob_class=getattr(mod, "knob_class", None), _parser=p)
     return parser
 
 
@@ -65,12 +66,20 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``warpshade`` console script."""
     init_warp()
     parser = build_parser()
-    # Subcommands with ACCEPTS_EXTRA = True get unrecognised flags as ``args.extra`` (method knobs,
-    # which depend on another flag's value); the rest reject them as usual.
+    # Subcommands with ACCEPTS_EXTRA = True get unrecognised flags as ``args.extra``; the rest
+    # reject them as usual. Method knobs depend on --method: once it is known, the method's flags
+    # join the subcommand's parser and the command line is parsed again, so argparse checks the
+    # knobs, names them and the command in errors, and never takes a knob's value for a positional.
+    argv = sys.argv[1:] if argv is None else list(argv)
     args, extra = parser.parse_known_args(argv)
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2
+    knob_class = args._knob_class(args.method) if args._knob_class and getattr(args, "method", None) else None
+    if knob_class is not None:
+        knob_class.add_arguments(args._parser)
+        args, extra = parser.parse_known_args(argv)
+    args.knob_class = knob_class
     if extra and not args._extra_ok:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     args.extra = extra

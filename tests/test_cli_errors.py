@@ -1,0 +1,106 @@
+"""CLI errors name the command that was run and the argument at fault, in one line (issue 16, item 7):
+knob errors in ``run`` said ``warpshade transfer``; ``--rays -5 MESH`` read ``-5`` as the mesh and
+reported the mesh path as an invalid int; a knob out of range in a worker read as a dead worker."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from warpshade.cli import main
+from warpshade.parallel import shade_frames
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCENE = os.path.join(REPO, "usd_scenes", "cloth_sphere.usda")
+
+
+def usage_error(capsys, argv) -> str:
+    """The last stderr line of an argparse usage error (exit code 2)."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    return capsys.readouterr().err.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize("flag, value, message", [
+    ("--frames", "-2", "argument --frames: must be an integer >= 1, got -2"),
+    ("--frames", "two", "argument --frames: invalid int value: 'two'"),
+    ("--chunk", "0", "argument --chunk: must be an integer >= 1, got 0"),
+    ("--workers", "-1", "argument --workers: must be an integer >= 0, got -1"),
+    ("--area-k", "0", "argument --area-k: must be an integer >= 1, got 0"),
+    ("--reflection-spheres", "-3", "argument --reflection-spheres: must be an integer >= 1, got -3"),
+])
+def test_run_options_are_checked_by_argparse(tmp_path, capsys, flag, value, message):
+    out = tmp_path / "o.usda"
+    assert usage_error(capsys, ["run", SCENE, "--out", str(out), flag, value]) == f"warpshade run: error: {message}"
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("value, message", [
+    ("-5", "argument --rays: must be an integer >= 1, got -5"),
+    ("0", "argument --rays: must be an integer >= 1, got 0"),
+    ("abc", "argument --rays: invalid int value: 'abc'"),
+])
+def test_knob_errors_in_run_name_run_and_the_knob(tmp_path, capsys, value, message):
+    out = tmp_path / "o.usda"
+    # the scene given before and after the knob: a negative value must not be taken for the scene
+    for argv in (["run", SCENE, "--method", "reference", "--rays", value, "--out", str(out)],
+                 ["run", "--method", "reference", "--rays", value, SCENE, "--out", str(out)]):
+        assert usage_error(capsys, argv) == f"warpshade run: error: {message}", argv
+    assert os.listdir(tmp_path) == []
+
+
+def test_negative_knob_before_the_mesh_is_not_read_as_the_mesh(tmp_path, capsys):
+    mesh = tmp_path / "tri.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    save = tmp_path / "t.npz"
+    assert usage_error(capsys, ["transfer", "--method", "reference", "--rays", "-5", str(mesh), "--save", str(save)]) \
+        == "warpshade transfer: error: argument --rays: must be an integer >= 1, got -5"
+    assert not save.exists()
+    # a valid negative value of a knob that takes one still reaches the knob, and the mesh stays the mesh
+    assert main(["transfer", "--method", "reference", "--rays", "4", "--seed", "-3", str(mesh), "--save", str(save),
+                 "--repeat", "1", "--order", "2"]) == 0
+    assert save.exists()
+
+
+def test_knob_errors_in_visibility_name_visibility(tmp_path, capsys):
+    mesh = tmp_path / "tri.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    assert main(["visibility", str(mesh), "--rect-light", "0,0,1,1,0,0,0,1,0", "--method", "reference",
+                 "--bogus", "1", "--save", str(tmp_path / "v.npz")]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("warpshade visibility: error: ") and "--bogus" in err[0], err
+
+
+class BadSpec:
+    """A spec whose ``build()`` refuses its settings, as a method constructor refuses a knob."""
+
+    def build(self):
+        raise ValueError("rays must be >= 1, got -5")
+
+
+def test_a_worker_that_cannot_build_its_shader_reports_why_instead_of_dying(capsys):
+    # before: the initializer raised, the pool broke, the frame was retried 3 times and the run
+    # ended with "worker died 3 times" and a traceback
+    with pytest.raises(ValueError, match=r"^rays must be >= 1, got -5$"):
+        list(shade_frames(BadSpec(), ((f, {}) for f in range(4)), workers=2))
+
+
+def test_shading_errors_are_one_line_in_run(tmp_path, capsys, monkeypatch):
+    from warpshade.pipeline import SceneShader
+
+    def fail(self):
+        def shade(frame, geometry):
+            raise RuntimeError("boom")
+        return shade
+
+    monkeypatch.setattr(SceneShader, "build", fail)
+    out = tmp_path / "o.usda"
+    assert main(["run", SCENE, "--frames", "2", "--out", str(out), "--workers", "0", "--method", "reference",
+                 "--rays", "4", "--order", "2", "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert err.splitlines() == ["warpshade run: error: frame 0: shading failed: RuntimeError: boom",
+                                "warpshade run: previous output (if any) left untouched"], err
+    assert not out.exists()
