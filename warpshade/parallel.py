@@ -21,8 +21,10 @@ single-threaded worker processes, and ``scheduler="tcp://HOST:PORT"`` (``tls://`
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import os
+import signal
 import uuid
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
@@ -105,6 +107,22 @@ def _shade_in_worker(token: str, frame: int, geometry: FrameGeometry):
 
 
 # -- backends ----------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _sigint_blocked():
+    """Block SIGINT in the calling thread for the duration.
+
+    A process spawned meanwhile inherits the blocked mask, so Ctrl-C (sent to the terminal's whole
+    process group) never reaches it: the run ends its workers itself, instead of each printing a
+    KeyboardInterrupt traceback. This process loses nothing: a SIGINT is taken by another thread or
+    stays pending until the mask is restored.
+    """
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 class _InlineBackend:
     worker_errors: tuple = ()
 
@@ -140,7 +158,10 @@ class _ProcessBackend:
                                    initargs=(self.token, self.spec, os.getpid()))
 
     def submit(self, frame, geometry):
-        return self.pool.submit(_shade_in_worker, self.token, frame, geometry)
+        if len(self.pool._processes or {}) >= self.workers:
+            return self.pool.submit(_shade_in_worker, self.token, frame, geometry)
+        with _sigint_blocked():  # this submit may spawn a worker
+            return self.pool.submit(_shade_in_worker, self.token, frame, geometry)
 
     def worker_pids(self) -> list[int]:
         """PIDs of the live worker processes (for tests and monitoring)."""
