@@ -150,3 +150,23 @@ def test_ctrl_c_during_setup_is_one_line_and_ends_the_workers(tmp_path):
         time.sleep(0.1)
     assert alive(kids) == set()
     assert not out.exists()
+
+
+def test_a_long_setup_is_announced_with_the_planners_estimate(tmp_path, capsys, monkeypatch):
+    from warpshade.cli import cmd_run
+    from warpshade.pipeline.refine import refine_receivers
+    from warpshade.planner import make_plan
+    from warpshade.usd import read_scene
+
+    argv = ["run", SCENE, "--frames", "1", "--order", "2", "--workers", "0", "--no-progress"]
+    assert main(argv + ["--out", str(tmp_path / "a.usda")]) == 0
+    assert "setup estimated" not in capsys.readouterr().err  # a small scene: below the notice threshold
+    scene = read_scene(SCENE)
+    refine_receivers(scene, "auto")  # as the run does before planning
+    scene.settings["order"] = 2
+    expected = make_plan(scene).run_seconds_setup
+    monkeypatch.setattr(cmd_run, "SETUP_NOTICE_SECONDS", 0.0)  # announce any setup
+    assert main(argv + ["--out", str(tmp_path / "b.usda")]) == 0
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if "setup estimated" in ln]
+    assert lines == [f"warpshade run: setup estimated at {expected:.1f} s (warpshade plan prices it) before the "
+                     "first frame; Ctrl-C stops it"], lines

@@ -79,6 +79,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.epilog = "Method knobs (e.g. --rays for reference) follow --method; see docs/methods/ for each method's list."
 
 
+SETUP_NOTICE_SECONDS = 10.0
+"""An estimated setup at least this long [s] is announced before it starts."""
+
+
+def setup_estimate(scene, method: str | None, knobs: dict, order: int, args) -> float | None:
+    """The planner's estimate of the run's one-off setup [s] for these settings (None if it cannot price them).
+
+    The plan is made on a copy of the scene whose objects carry the run's method, so ``--method``
+    is priced rather than the scene's own choice.
+    """
+    import dataclasses
+
+    from ..planner import make_plan
+
+    objects = [dataclasses.replace(o, method=method, knobs=dict(knobs)) if method else o for o in scene.objects]
+    settings = dict(scene.settings, order=order)
+    if method:
+        settings.pop("max_error", None)  # a method on the command line is not the planner's to choose
+    priced = dataclasses.replace(scene, objects=objects, settings=settings)
+    try:
+        plan = make_plan(priced, between=None if args.between == "none" else args.between,
+                         area_lights=args.area_lights, area_k=args.area_k or 16)
+    except (ValueError, KeyError, OSError):  # no frontier record for these settings: no estimate
+        return None
+    return plan.run_seconds_setup
+
+
 def parse_albedo(text: str | None):
     """``--albedo`` value: ``A`` or ``R,G,B`` in [0, 1] -> float or (3,) list; None stays None."""
     if text is None:
@@ -151,6 +178,10 @@ def run(args) -> int:
                                        "groups": "; ".join(f"{g.method} {g.knobs}" for g in pipe.groups),
                                        "between": args.between, "area_lights": args.area_lights,
                                        "reflections": str(bool(pipe.reflections is not None))})
+    estimate = setup_estimate(scene, method, knobs, pipe.order, args)
+    if estimate is not None and estimate >= SETUP_NOTICE_SECONDS:
+        print(f"warpshade run: setup estimated at {estimate:.1f} s (warpshade plan prices it) before the first "
+              f"frame; Ctrl-C stops it", file=sys.stderr)
     if writer.resume_frame:
         print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
     try:
