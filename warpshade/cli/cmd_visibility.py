@@ -27,6 +27,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.epilog = "Method knobs: gears --grid G; reference --no-jitter --seed S."
 
 
+def knob_class(method: str):
+    """The area-light visibility class whose ``add_arguments`` defines ``--method``'s knobs."""
+    from ..visibility.gears import AREA_METHODS, get_area_method
+
+    return get_area_method(method) if method in AREA_METHODS else None
+
+
 def run(args) -> int:
     from ..geometry import load_mesh
     from ..timing import median_seconds
@@ -36,7 +43,7 @@ def run(args) -> int:
 
     light = LightRect.parse(args.rect_light)
     cls = get_area_method(args.method)
-    knobs = parse_knobs(cls, args.extra)
+    knobs = parse_knobs(args)
     mesh = load_mesh(args.mesh, prim=args.prim)
     method = cls(mesh, light, k=args.k, device=args.device, offset=args.offset, **knobs)
     seconds = median_seconds(method.update, repeat=args.repeat, warmup=1)

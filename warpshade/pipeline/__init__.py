@@ -124,7 +124,8 @@ class Pipeline:
         write_transfer: Also write ``primvars:warpshade:transfer`` (V × N*N floats per frame).
         lights: :mod:`warpshade.lighting` objects to use instead of the scene's.
         workers: Shading worker processes (0: shade in this process).
-        scheduler: Dask scheduler (``"local"`` or ``tcp://HOST:PORT``) instead of local processes.
+        scheduler: Dask scheduler (``"local"``, ``tcp://HOST:PORT`` or ``tls://HOST:PORT``) instead of
+            local processes.
         device: Warp device.
         between: Shadows between shading groups (objects with different methods or knobs):
             ``"spheres"`` (sphere sets, default) or None.
@@ -139,13 +140,15 @@ class Pipeline:
         refine_receivers: Edge length [scene units] to which coarse static meshes are subdivided so
             shadows have vertices to fall on; ``"auto"`` (the scene's ``warpshade:refineEdge``, else
             1/12 of the scene's diagonal) or ``"off"``. The scene's objects are refined in place.
+        security: ``distributed.Security`` for ``scheduler`` (TLS, :func:`warpshade.cluster.scheduler_security`).
     """
 
     def __init__(self, scene: Scene, frames: int | None = None, method: str | None = None,
                  knobs: dict | None = None, order: int | None = None, write_transfer: bool | None = None,
                  lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu",
                  between: str | None = "spheres", reflections: bool | dict | None = None, albedo=None,
-                 area_lights: str = "gears", area_knobs: dict | None = None, refine_receivers="auto"):
+                 area_lights: str = "gears", area_knobs: dict | None = None, refine_receivers="auto",
+                 security=None):
         self.scene = scene
         self.refined = refine(scene, refine_receivers)
         """Static objects subdivided for shading (:mod:`warpshade.pipeline.refine`)."""
@@ -156,6 +159,7 @@ class Pipeline:
         self.write_transfer = bool(write_transfer if write_transfer is not None
                                    else scene.settings.get("writeTransfer", False))
         self.workers, self.scheduler, self.device = int(workers), scheduler, device
+        self.security = security
         if albedo is not None:
             a = np.asarray(albedo, dtype=np.float64)
             if a.shape not in ((), (3,)) or not np.all((a >= 0) & (a <= 1)):
@@ -298,7 +302,7 @@ class Pipeline:
             failure: list = []
             warned_black: set[str] = set()
             results = shade_frames(self.shader, self._geometry(sims, secs, failure, start), workers=self.workers,
-                                   scheduler=self.scheduler)
+                                   scheduler=self.scheduler, security=self.security)
             for f, res in results:
                 t = time.perf_counter()
                 secs["shade"] += res.pop("_seconds")

@@ -26,7 +26,7 @@ import warp as wp
 
 from ..geometry.mesh import TriMesh
 from ..sh.kernels import normalization_array
-from .base import TransferMethod
+from .base import TransferMethod, positive_int
 from .reference_kernels import trace_transfer
 
 
@@ -70,7 +70,7 @@ class ReferenceTransfer(TransferMethod):
 
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--rays", type=int, default=1024, help="rays per vertex (rounded to a square)")
+        parser.add_argument("--rays", type=positive_int, default=1024, help="rays per vertex (rounded to a square)")
         parser.add_argument("--seed", type=int, default=0, help="random seed")
         parser.add_argument("--offset", type=float, default=1e-5,
                             help="near-field distance of the rays (other surfaces this close block where "
