@@ -393,15 +393,15 @@ class AnimationWriter:
     def _define_parents(self, path: str, prim_xforms: tuple) -> np.ndarray:
         """Write the ancestors of the mesh at ``path`` (from ``prim_xforms``, see
         :attr:`warpshade.scene.SceneObject.prim_xforms`; missing ones as plain Xforms) and return
-        the mesh prim's local-to-world matrix in the output (column vectors, shape (4, 4))."""
+        the parent's local-to-world matrix in the output (column vectors, shape (4, 4))."""
         world = np.eye(4)
         given = {p: (t, local, resets) for p, t, local, resets in prim_xforms}
-        for prefix in Sdf.Path(path).GetPrefixes():
+        for prefix in Sdf.Path(path).GetPrefixes()[:-1]:
             p = str(prefix)
             tname, local, resets = given.get(p, ("Xform", None, False))
             if local is not None:
                 world = local if resets else world @ local
-            if p == path or p in self._parents or any(i["path"] == p for i in self._meshes.values()):
+            if p in self._parents or any(i["path"] == p for i in self._meshes.values()):
                 continue
             self._parents.add(p)
             if p in given and local is None:  # a Scope or typeless prim carries no transform
@@ -418,7 +418,8 @@ class AnimationWriter:
         """Declare a mesh; its topology (and ``points`` if given) is written at the default time.
 
         Points and normals are given in world space; a mesh with an input hierarchy is written in
-        its prim's local space under the input's transforms (see :meth:`mesh_path`).
+        its parent's space under the input's ancestor transforms, its own transform baked into its
+        points (see :meth:`mesh_path`).
 
         Args:
             name: Object name; the returned handle is it sanitised to a valid identifier (its leaf
@@ -438,7 +439,8 @@ class AnimationWriter:
             prim_path: The input prim path to write the mesh at, or None for ``/World/<handle>``.
             prim_xforms: The input hierarchy of ``prim_path``
                 (:attr:`warpshade.scene.SceneObject.prim_xforms`): its ancestors are written with
-                their types and transforms (as one ``xformOp:transform``), the mesh with its own.
+                their types and transforms (as one ``xformOp:transform``), the mesh with an identity
+                ``xformOp:transform``.
 
         Returns:
             The handle for :meth:`write_frame`.
@@ -455,8 +457,13 @@ class AnimationWriter:
         to_world = self._define_parents(path, prim_xforms)
         mesh = UsdGeom.Mesh.Define(self.stage, path)
         own = [x for x in prim_xforms if x[0] == path]
-        if own and own[0][2] is not None:
-            _set_transform(mesh, own[0][2], own[0][3])
+        if own:
+            # the mesh's own transform is baked into its points (exact world points under identity
+            # parents); the identity op still overrides the source's ops when layered over it
+            resets = own[0][3]
+            _set_transform(mesh, np.eye(4), resets)
+            if resets:
+                to_world = np.eye(4)
         to_local = None if np.allclose(to_world, np.eye(4)) else _LocalFrame(to_world, path)
         faces = np.asarray(faces, dtype=np.int32).reshape(-1, 3)
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, dtype=np.int32)))
