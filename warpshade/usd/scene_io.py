@@ -128,7 +128,8 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             scene.objects.append(_read_gprim(prim, source, default_method))
         elif tname in _LIGHTS:
             scene.lights.append(_read_light(prim, _LIGHTS[tname], source))
-        elif tname not in _CONTAINERS:
+        elif tname not in _CONTAINERS and prim.IsA(UsdGeom.Imageable) and not prim.IsA(UsdPhysics.Joint):
+            # non-imageable prims (UsdPhysics scene, collision groups...) and joints draw nothing: not worth a word
             warnings.warn(f"{source}: skipping {prim.GetPath()} ({tname}): warpshade reads Mesh, Sphere, Cube, Cylinder, Capsule, Cone, Plane, "
                           "UsdLux Dome/Distant/Sphere/Rect lights and UsdSkel", SceneWarning, stacklevel=2)
             it.PruneChildren()
