@@ -147,6 +147,12 @@ class SceneObject:
         shaded: Whether the object is shaded and written with colours.
         params: Kind-specific settings (cloth material, pinned vertices, skinning data, animation
             samples...), as read from ``warpshade:`` attributes.
+        prim_path: Path of the input prim the object was read from (the output writes the shaded
+            mesh at that path), or None for an object built in Python (written at ``/World/<name>``).
+        prim_xforms: With ``prim_path``: the prim and its ancestors, root first, as tuples
+            ``(path, type name, local, resets)`` (``local``: local-to-parent matrix acting on column
+            vectors, shape (4, 4), float64, or None for a prim without a transform such as a Scope;
+            ``resets``: the prim resets the transform stack). The output rebuilds this hierarchy.
     """
 
     name: str
@@ -158,6 +164,8 @@ class SceneObject:
     casts_shadows: bool = True
     shaded: bool = True
     params: dict[str, Any] = field(default_factory=dict)
+    prim_path: str | None = None
+    prim_xforms: tuple = ()
 
     def __post_init__(self):
         if self.kind not in OBJECT_KINDS:
@@ -180,6 +188,7 @@ class Scene:
         meters_per_unit: Stage units.
         settings: Scene-wide ``warpshade:`` settings (SH order, reflections, max error...).
         source: File the scene came from, for messages.
+        default_prim: The input's default prim path (the output's default prim), or None (``/World``).
     """
 
     objects: list[SceneObject] = field(default_factory=list)
@@ -191,6 +200,7 @@ class Scene:
     meters_per_unit: float = 1.0
     settings: dict[str, Any] = field(default_factory=dict)
     source: str = "<scene>"
+    default_prim: str | None = None
 
     def object(self, name: str) -> SceneObject:
         for o in self.objects:

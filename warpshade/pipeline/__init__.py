@@ -281,13 +281,16 @@ class Pipeline:
             sims = ClothSimulation(self.scene, self.device) if any(o.kind == "cloth" for o in self.scene.objects) else None
             static = {o.name for o in self.scene.objects if o.kind == "static"}
             names = {}
+            if self.scene.default_prim:
+                writer.set_default_prim(self.scene.default_prim)
             for g in self.groups:
                 for name, mesh, albedo in zip(g.names, g.meshes, g.albedos):
                     obj = self.scene.object(name)
                     names[name] = writer.add_mesh(
                         name, mesh.faces, points=mesh.points if name in static else None,
                         normals=mesh.normals if name in static else None, albedo=albedo,
-                        roughness=obj.material.roughness, transfer_order=self.order if self.write_transfer else None)
+                        roughness=obj.material.roughness, transfer_order=self.order if self.write_transfer else None,
+                        prim_path=obj.prim_path, prim_xforms=obj.prim_xforms)
             specs = list(self.scene.lights)
             if not specs and self.shader.lights is None:
                 sky = default_lights(self.scene.up_axis)[0]

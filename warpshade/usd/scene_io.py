@@ -83,6 +83,8 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
     if stage.HasAuthoredMetadata("endTimeCode"):
         scene.frames = int(round(stage.GetEndTimeCode() - stage.GetStartTimeCode())) + 1
     root = stage.GetDefaultPrim() or stage.GetPseudoRoot()
+    if not root.IsPseudoRoot() and not root.IsA(UsdGeom.Gprim):
+        scene.default_prim = str(root.GetPath())
     scene.settings = _namespace(root, source, skip=())
     for key, value in list(scene.settings.items()):
         if key in SCENE_SETTINGS:
@@ -126,7 +128,8 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             scene.objects.append(_read_gprim(prim, source, default_method))
         elif tname in _LIGHTS:
             scene.lights.append(_read_light(prim, _LIGHTS[tname], source))
-        elif tname not in _CONTAINERS:
+        elif tname not in _CONTAINERS and prim.IsA(UsdGeom.Imageable) and not prim.IsA(UsdPhysics.Joint):
+            # non-imageable prims (UsdPhysics scene, collision groups...) and joints draw nothing: not worth a word
             warnings.warn(f"{source}: skipping {prim.GetPath()} ({tname}): warpshade reads Mesh, Sphere, Cube, Cylinder, Capsule, Cone, Plane, "
                           "UsdLux Dome/Distant/Sphere/Rect lights and UsdSkel", SceneWarning, stacklevel=2)
             it.PruneChildren()
@@ -143,6 +146,23 @@ def _world(prim, t=Usd.TimeCode.Default()) -> np.ndarray:
 
 def _apply(xf: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return pts @ xf[:3, :3].T + xf[:3, 3]
+
+
+def _hierarchy(prim) -> tuple:
+    """:attr:`SceneObject.prim_xforms` of ``prim``: it and its ancestors, root first, each
+    ``(path, type name, local matrix or None, resets the xform stack)``, transforms at the earliest
+    time (the first time sample, else the default value)."""
+    chain = []
+    t = Usd.TimeCode.EarliestTime()
+    while prim and not prim.IsPseudoRoot():
+        local, resets = None, False
+        if prim.IsA(UsdGeom.Xformable):
+            xf = UsdGeom.Xformable(prim)
+            local = np.asarray(xf.GetLocalTransformation(t), dtype=np.float64).T
+            resets = bool(xf.GetResetXformStack())
+        chain.append((str(prim.GetPath()), str(prim.GetTypeName()), local, resets))
+        prim = prim.GetParent()
+    return tuple(reversed(chain))
 
 
 def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> SceneObject:
@@ -322,7 +342,8 @@ def _object(prim, where, tri, kind, settings, params, default_method, material) 
     try:
         return SceneObject(name=str(prim.GetPath()), mesh=tri, kind=kind, material=material, method=method,
                            knobs=knobs, casts_shadows=bool(settings.get("castsShadows", True)),
-                           shaded=bool(settings.get("shaded", True)), params=params)
+                           shaded=bool(settings.get("shaded", True)), params=params,
+                           prim_path=str(prim.GetPath()), prim_xforms=_hierarchy(prim))
     except ValueError as exc:
         raise SceneError(f"{where}: {exc}") from None
 

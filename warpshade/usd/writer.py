@@ -268,6 +268,8 @@ class AnimationWriter:
         self.stage.SetFramesPerSecond(fps)
         world = UsdGeom.Xform.Define(self.stage, "/World")
         self.stage.SetDefaultPrim(world.GetPrim())
+        self._root = "/World"                    # default prim: holds Looks and Lights
+        self._parents: set[str] = set()          # prims written from an input hierarchy
         data = {"generator": f"warpshade {__version__}", "warpshade:layout": "value clips"}
         data.update({f"warpshade:{k}": str(v) for k, v in (metadata or {}).items()})
         self.stage.GetRootLayer().customLayerData = data
@@ -319,8 +321,8 @@ class AnimationWriter:
             layer = Sdf.Layer.FindOrOpen(self.path)
         except Exception as exc:  # pxr raises Tf.ErrorException
             raise ValueError(f"{self.path}: cannot resume: not a readable USD layer ({exc})") from exc
-        world = layer.GetPrimAtPath("/World") if layer else None
-        clips = world.GetInfo("clips").get("default") if world and world.HasInfo("clips") else None
+        anchors = [p for p in (layer.rootPrims if layer else []) if p.HasInfo("clips")]
+        clips = anchors[0].GetInfo("clips").get("default") if anchors else None
         if not clips:
             return  # a static output or one with no committed frame: start over
         old = layer.customLayerData or {}
@@ -355,23 +357,73 @@ class AnimationWriter:
         self._last_committed = int(times[-1][0])
         self.resume_frame = self._last_committed + 1
         man = Sdf.Layer.FindOrOpen(os.path.join(run_dir, "manifest.usda"))
-        for prim in man.rootPrims:
-            for child in [prim] + list(prim.nameChildren):
-                if child.attributes:
-                    self._resumed_attrs[str(child.path)] = {a.name for a in child.attributes}
+        todo = list(man.rootPrims)
+        while todo:
+            spec = todo.pop()
+            todo.extend(spec.nameChildren)
+            if spec.attributes:
+                self._resumed_attrs[str(spec.path)] = {a.name for a in spec.attributes}
         for entry in os.listdir(run_dir):  # a chunk that was being written when the run died
             if ".partial" in entry:
                 os.remove(os.path.join(run_dir, entry))
 
 
     # -- declarations -----------------------------------------------------------------------
+    def set_default_prim(self, path: str) -> None:
+        """Make the root prim ``path`` (an Xform) the output's default prim, which holds ``Looks``
+        and ``Lights`` (``/World`` unless set); call it before :meth:`add_mesh` and :meth:`add_light`."""
+        if self._meshes or self._lights:
+            raise ValueError(f"{self.path}: set_default_prim('{path}') after meshes or lights were added")
+        sdf = Sdf.Path(path) if Sdf.Path.IsValidPathString(path) else None
+        if sdf is None or not sdf.IsRootPrimPath():
+            raise ValueError(f"{self.path}: default prim '{path}' is not a root prim path such as /World")
+        if path == self._root:
+            return
+        self.stage.RemovePrim(self._root)
+        self.stage.SetDefaultPrim(UsdGeom.Xform.Define(self.stage, path).GetPrim())
+        self._root = path
+
+    @staticmethod
+    def mesh_path(pname: str, prim_path: str | None) -> str:
+        """Where the output holds a mesh: at its input prim path if it has one (the input's
+        hierarchy is kept, so the output can be layered over the source asset), else at
+        ``/World/<pname>``."""
+        return prim_path or f"/World/{pname}"
+
+    def _define_parents(self, path: str, prim_xforms: tuple) -> np.ndarray:
+        """Write the ancestors of the mesh at ``path`` (from ``prim_xforms``, see
+        :attr:`warpshade.scene.SceneObject.prim_xforms`; missing ones as plain Xforms) and return
+        the parent's local-to-world matrix in the output (column vectors, shape (4, 4))."""
+        world = np.eye(4)
+        given = {p: (t, local, resets) for p, t, local, resets in prim_xforms}
+        for prefix in Sdf.Path(path).GetPrefixes()[:-1]:
+            p = str(prefix)
+            tname, local, resets = given.get(p, ("Xform", None, False))
+            if local is not None:
+                world = local if resets else world @ local
+            if p in self._parents or any(i["path"] == p for i in self._meshes.values()):
+                continue
+            self._parents.add(p)
+            if p in given and local is None:  # a Scope or typeless prim carries no transform
+                self.stage.DefinePrim(p, "Scope" if tname == "Scope" else "")
+                continue
+            prim = UsdGeom.Xform.Define(self.stage, p)
+            if local is not None:
+                _set_transform(prim, local, resets)
+        return world
+
     def add_mesh(self, name: str, faces: np.ndarray, points: np.ndarray | None = None, *,
                  normals: np.ndarray | None = None, albedo=None, roughness: float = 1.0, transfer_order: int | None = None,
-                 shaded: bool = True) -> str:
+                 shaded: bool = True, prim_path: str | None = None, prim_xforms: tuple = ()) -> str:
         """Declare a mesh; its topology (and ``points`` if given) is written at the default time.
 
+        Points and normals are given in world space; a mesh with an input hierarchy is written in
+        its parent's space under the input's ancestor transforms, its own transform baked into its
+        points (see :meth:`mesh_path`).
+
         Args:
-            name: Prim name under ``/World`` (sanitised to a valid identifier).
+            name: Object name; the returned handle is it sanitised to a valid identifier (its leaf
+                for a path), suffixed ``_1``, ``_2``... when taken.
             faces: Triangle indices, shape (F, 3), int.
             points: Rest positions, shape (V, 3). Give them for meshes that never move (they are
                 then written at the default time and :meth:`write_frame` may pass ``points=None``);
@@ -384,9 +436,14 @@ class AnimationWriter:
                 bound to the radiance material (emission from ``displayColor``, black diffuse).
                 ``False`` for geometry only: a plain UsdPreviewSurface whose diffuse colour is the
                 albedo (:data:`DEFAULT_ALBEDO` without one), so no renderer shows it black.
+            prim_path: The input prim path to write the mesh at, or None for ``/World/<handle>``.
+            prim_xforms: The input hierarchy of ``prim_path``
+                (:attr:`warpshade.scene.SceneObject.prim_xforms`): its ancestors are written with
+                their types and transforms (as one ``xformOp:transform``), the mesh with an identity
+                ``xformOp:transform``.
 
         Returns:
-            The prim name used.
+            The handle for :meth:`write_frame`.
         """
         if self._frame is not None:
             raise ValueError(f"{self.path}: add_mesh('{name}') after frames were written; declare every mesh first")
@@ -394,8 +451,20 @@ class AnimationWriter:
         k = 1
         while pname in self._meshes:  # two prims with the same leaf name (/A/Mesh, /B/Mesh)
             pname, k = f"{base}_{k}", k + 1
-        path = f"/World/{pname}"
+        path = self.mesh_path(pname, prim_path)
+        if any(info["path"] == path for info in self._meshes.values()):
+            raise ValueError(f"{self.path}: two meshes at {path} ('{name}' and an earlier one)")
+        to_world = self._define_parents(path, prim_xforms)
         mesh = UsdGeom.Mesh.Define(self.stage, path)
+        own = [x for x in prim_xforms if x[0] == path]
+        if own:
+            # the mesh's own transform is baked into its points (exact world points under identity
+            # parents); the identity op still overrides the source's ops when layered over it
+            resets = own[0][3]
+            _set_transform(mesh, np.eye(4), resets)
+            if resets:
+                to_world = np.eye(4)
+        to_local = None if np.allclose(to_world, np.eye(4)) else _LocalFrame(to_world, path)
         faces = np.asarray(faces, dtype=np.int32).reshape(-1, 3)
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, dtype=np.int32)))
         mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(faces.reshape(-1))))
@@ -407,10 +476,13 @@ class AnimationWriter:
         if points is not None:
             pts = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
             nverts = len(pts)
+            if to_local is not None:
+                pts = to_local.points(pts)
             mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pts))
             mesh.CreateExtentAttr(Vt.Vec3fArray.FromNumpy(_extent(pts)))
             if normals is not None:
-                mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(_check(normals, pts.shape, pname, "default", "normals")))
+                nrm = _check(normals, pts.shape, pname, "default", "normals")
+                mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(nrm if to_local is None else to_local.normals(nrm)))
         pv = UsdGeom.PrimvarsAPI(mesh)
         pv.CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
         if transfer_order is not None:
@@ -425,7 +497,7 @@ class AnimationWriter:
             self._bind_radiance_material(mesh, pname, roughness)
         else:
             self._bind_albedo_material(mesh, pname, DEFAULT_ALBEDO if albedo is None else albedo, roughness)
-        self._meshes[pname] = {"path": path, "vertices": nverts, "static": points is not None,
+        self._meshes[pname] = {"path": path, "vertices": nverts, "static": points is not None, "to_local": to_local,
                                "transfer": None if transfer_order is None else int(transfer_order) ** 2}
         if self._resumed_attrs:
             if path not in self._resumed_attrs:
@@ -435,7 +507,7 @@ class AnimationWriter:
         return pname
 
     def _bind_albedo_material(self, mesh: UsdGeom.Mesh, pname: str, albedo, roughness: float) -> None:
-        looks = UsdGeom.Scope.Define(self.stage, "/World/Looks")
+        looks = UsdGeom.Scope.Define(self.stage, f"{self._root}/Looks")
         mat = UsdShade.Material.Define(self.stage, f"{looks.GetPath()}/{pname}_albedo")
         surf = UsdShade.Shader.Define(self.stage, f"{mat.GetPath()}/PreviewSurface")
         surf.CreateIdAttr("UsdPreviewSurface")
@@ -450,7 +522,7 @@ class AnimationWriter:
         # emission with a black diffuse: a renderer that re-lights the scene does not light it twice.
         # RADIANCE_MATERIAL_ATTR marks it, so a reader of this output does not take the black
         # diffuse for the albedo (that is warpshade:albedo on the mesh).
-        looks = UsdGeom.Scope.Define(self.stage, "/World/Looks")
+        looks = UsdGeom.Scope.Define(self.stage, f"{self._root}/Looks")
         mat = UsdShade.Material.Define(self.stage, f"{looks.GetPath()}/{pname}_radiance")
         mat.GetPrim().CreateAttribute(RADIANCE_MATERIAL_ATTR, Sdf.ValueTypeNames.Bool, custom=True).Set(True)
         surf = UsdShade.Shader.Define(self.stage, f"{mat.GetPath()}/PreviewSurface")
@@ -467,14 +539,15 @@ class AnimationWriter:
         UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
 
     def add_light(self, light) -> str:
-        """Write a light (a :class:`warpshade.scene.LightSpec`) under ``/World/Lights``.
+        """Write a light (a :class:`warpshade.scene.LightSpec`) under ``Lights`` of the default
+        prim (``/World/Lights`` unless :meth:`set_default_prim` chose another).
 
         Returns:
             The light's prim path.
         """
-        UsdGeom.Scope.Define(self.stage, "/World/Lights")
+        UsdGeom.Scope.Define(self.stage, f"{self._root}/Lights")
         pname = prim_name(light.name)
-        path = f"/World/Lights/{pname}"
+        path = f"{self._root}/Lights/{pname}"
         if self.stage.GetPrimAtPath(path):
             path = f"{path}_{len(self._lights)}"
         cls = {"dome": UsdLux.DomeLight, "distant": UsdLux.DistantLight, "sphere": UsdLux.SphereLight,
@@ -549,10 +622,13 @@ class AnimationWriter:
             if not np.isfinite(pts).all():
                 bad = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
                 raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: vertex {bad} is not finite {pts[bad].tolist()}")
+            if info["to_local"] is not None:
+                pts = info["to_local"].points(pts)
             values = {"points": Vt.Vec3fArray.FromNumpy(pts), "extent": Vt.Vec3fArray.FromNumpy(_extent(pts))}
         # every value is checked before the frame is started: a frame with a bad value is not written
         if normals is not None:
-            values["normals"] = Vt.Vec3fArray.FromNumpy(_check(normals, (v, 3), name, frame, "normals"))
+            nrm = _check(normals, (v, 3), name, frame, "normals")
+            values["normals"] = Vt.Vec3fArray.FromNumpy(nrm if info["to_local"] is None else info["to_local"].normals(nrm))
         if colors is not None:
             values["primvars:displayColor"] = Vt.Vec3fArray.FromNumpy(_check(colors, (v, 3), name, frame, "colors"))
         if transfer is not None:
@@ -644,19 +720,21 @@ class AnimationWriter:
         root = self.stage.GetRootLayer()
         out = Sdf.Layer.CreateAnonymous(".usda")
         out.TransferContent(root)
-        world = out.GetPrimAtPath("/World")
+        anchors = set()
         for name, attr in self._attrs:  # animated values come from the clips: no default may hide them
             spec = out.GetPropertyAtPath(f"{self._meshes[name]['path']}.{attr}")
             if spec is not None and spec.HasDefaultValue():
                 spec.ClearDefaultValue()
-        world.SetInfo("clips", {"default": {
-            "assetPaths": Sdf.AssetPathArray([Sdf.AssetPath(p) for _, p in self._clips]),
-            "active": Vt.Vec2dArray([Gf.Vec2d(s, i) for i, (s, _) in enumerate(self._clips)]),
-            "times": Vt.Vec2dArray([Gf.Vec2d(self._first, self._first),
-                                    Gf.Vec2d(self._last_committed, self._last_committed)]),
-            "primPath": "/World",
-            "manifestAssetPath": Sdf.AssetPath(f"{self._rel_run}/manifest.usda"),
-        }})
+            anchors.add(Sdf.Path(self._meshes[name]["path"]).GetPrefixes()[0])
+        for root in sorted(anchors):  # one clip set per root prim holding meshes, same files
+            out.GetPrimAtPath(root).SetInfo("clips", {"default": {
+                "assetPaths": Sdf.AssetPathArray([Sdf.AssetPath(p) for _, p in self._clips]),
+                "active": Vt.Vec2dArray([Gf.Vec2d(s, i) for i, (s, _) in enumerate(self._clips)]),
+                "times": Vt.Vec2dArray([Gf.Vec2d(self._first, self._first),
+                                        Gf.Vec2d(self._last_committed, self._last_committed)]),
+                "primPath": str(root),
+                "manifestAssetPath": Sdf.AssetPath(f"{self._rel_run}/manifest.usda"),
+            }})
         out.startTimeCode = float(self._first)
         out.endTimeCode = float(self._last_committed)
         _replace_atomically(out.Export, self.path)
@@ -742,6 +820,37 @@ class AnimationWriter:
         else:
             self.abort()
         return False
+
+
+def _set_transform(xformable, local: np.ndarray, resets: bool) -> None:
+    """Author ``local`` (column vectors, shape (4, 4)) as the prim's only op, ``xformOp:transform``."""
+    xf = UsdGeom.Xformable(xformable)
+    # USD matrices act on row vectors, ours on column vectors: transpose.
+    xf.MakeMatrixXform().Set(Gf.Matrix4d(*np.asarray(local, dtype=np.float64).T.reshape(-1).tolist()))
+    if resets:
+        xf.SetResetXformStack(True)
+
+
+class _LocalFrame:
+    """World-to-local conversion of a mesh written under transforms (points, and normals by the
+    transpose of the local-to-world linear part)."""
+
+    def __init__(self, to_world: np.ndarray, path: str):
+        lin = to_world[:3, :3]
+        if abs(np.linalg.det(lin)) < 1e-300:
+            raise ValueError(f"{path}: its input transform is singular (a zero scale?); it cannot be written "
+                             "in its prim's local space")
+        self._inv, self._lin, self._t = np.linalg.inv(lin), lin, to_world[:3, 3].copy()
+
+    def points(self, pts: np.ndarray) -> np.ndarray:
+        """Local positions of world ``pts``, shape (V, 3), float32."""
+        return np.ascontiguousarray((pts.astype(np.float64) - self._t) @ self._inv.T, dtype=np.float32)
+
+    def normals(self, nrm: np.ndarray) -> np.ndarray:
+        """Unit local normals of world normals ``nrm``, shape (V, 3), float32."""
+        n = nrm.astype(np.float64) @ self._lin
+        length = np.linalg.norm(n, axis=1, keepdims=True)
+        return np.ascontiguousarray(n / np.where(length > 0, length, 1.0), dtype=np.float32)
 
 
 def _extent(pts: np.ndarray) -> np.ndarray:

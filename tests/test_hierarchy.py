@@ -1,0 +1,170 @@
+"""The output keeps the input's prim paths, hierarchy, transforms and default prim (issue 15, item 3),
+so it can be layered over the source asset; ``--resume`` and ``warpshade export`` work on it."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom
+
+from warpshade.cli import main
+from warpshade.pipeline import Pipeline
+from warpshade.usd import AnimationWriter, read_scene
+from warpshade.usd.validate import validation_errors
+
+QUICK = dict(method="reference", knobs={"rays": 4}, order=2, refine_receivers="off")
+CLI_QUICK = ["--method", "reference", "--rays", "4", "--order", "2", "--refine-receivers", "off", "--no-progress"]
+MESHES = {"/Asset/Body/Geo/Box", "/Asset/Body/Geo/Sheet"}
+
+
+def make_asset(path):
+    """A Z-up, centimetre asset: /Asset (rotated, moved) > Body (scaled) > Geo (typeless) > a Cube
+    gprim and a moving Mesh, a guide-purpose collision twin of the Cube and an invisible Sphere."""
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(3)
+    asset = UsdGeom.Xform.Define(stage, "/Asset")
+    asset.AddTranslateOp().Set(Gf.Vec3d(10.0, -5.0, 2.0))
+    asset.AddRotateZOp().Set(30.0)
+    stage.SetDefaultPrim(asset.GetPrim())
+    body = UsdGeom.Xform.Define(stage, "/Asset/Body")
+    body.AddScaleOp().Set(Gf.Vec3f(2.0, 2.0, 2.0))
+    stage.DefinePrim("/Asset/Body/Geo")  # typeless, as Newton's "visuals" scopes
+    cube = UsdGeom.Cube.Define(stage, "/Asset/Body/Geo/Box")
+    cube.CreateSizeAttr(4.0)
+    cube.AddTranslateOp().Set(Gf.Vec3d(0.0, 0.0, 2.0))
+    guide = UsdGeom.Cube.Define(stage, "/Asset/Body/Collision/Box")
+    guide.CreatePurposeAttr(UsdGeom.Tokens.guide)
+    hidden = UsdGeom.Sphere.Define(stage, "/Asset/Body/Geo/Hidden")
+    hidden.CreateVisibilityAttr(UsdGeom.Tokens.invisible)
+    sheet = UsdGeom.Mesh.Define(stage, "/Asset/Body/Geo/Sheet")
+    n = 6
+    u = np.linspace(-5.0, 5.0, n)
+    grid = np.array([(x, y, 0.0) for y in u for x in u])
+    quads = [(j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i) for j in range(n - 1) for i in range(n - 1)]
+    sheet.CreateFaceVertexCountsAttr([4] * len(quads))
+    sheet.CreateFaceVertexIndicesAttr(np.ravel(quads).tolist())
+    for t in (1, 2, 3):  # time-sampled points: an "animated" mesh
+        sheet.GetPointsAttr().Set([Gf.Vec3f(*p) for p in grid + (0.0, 0.0, 0.5 * t)], t)
+    sheet.AddTranslateOp().Set(Gf.Vec3d(0.0, 0.0, 6.0))
+    stage.GetRootLayer().Save()
+    return stage
+
+
+def world_points(stage, path, t):
+    prim = stage.GetPrimAtPath(path)
+    pts = np.asarray(UsdGeom.Mesh(prim).GetPointsAttr().Get(t), dtype=np.float64)
+    xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t), dtype=np.float64)
+    return pts @ xf[:3, :3] + xf[3, :3]
+
+
+@pytest.fixture(scope="module")
+def shaded(tmp_path_factory):
+    d = tmp_path_factory.mktemp("hier")
+    src = d / "asset.usda"
+    make_asset(src)
+    out = d / "out.usda"
+    assert main(["run", str(src), "--out", str(out)] + CLI_QUICK) == 0
+    return src, out
+
+
+def test_meshes_keep_their_input_paths_and_default_prim(shaded):
+    src, out = shaded
+    stage = Usd.Stage.Open(str(out))
+    meshes = {str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)}
+    assert meshes == MESHES  # no guide twin, no invisible sphere, nothing flattened to /World/<leaf>
+    assert str(stage.GetDefaultPrim().GetPath()) == "/Asset"
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z and UsdGeom.GetStageMetersPerUnit(stage) == 0.01
+    assert stage.GetPrimAtPath("/Asset/Body").GetTypeName() == "Xform"
+    assert stage.GetPrimAtPath("/Asset/Body/Geo").GetTypeName() == ""  # typeless stays typeless
+    assert not stage.GetPrimAtPath("/World")  # nothing was built in Python: no /World
+    assert stage.GetPrimAtPath("/Asset/Looks") and stage.GetPrimAtPath("/Asset/Lights")
+    assert validation_errors(out) == []
+
+
+def test_output_world_positions_match_the_input(shaded):
+    src, out = shaded
+    a, b = Usd.Stage.Open(str(src)), Usd.Stage.Open(str(out))
+    for t in (1, 2, 3):
+        # float32 points through a float64 transform chain of scale ~2 and offsets ~10: 1e-5 [cm]
+        np.testing.assert_allclose(world_points(b, "/Asset/Body/Geo/Sheet", t),
+                                   world_points(a, "/Asset/Body/Geo/Sheet", t), atol=1e-5)
+    box_in = UsdGeom.Imageable(a.GetPrimAtPath("/Asset/Body/Geo/Box")).ComputeWorldBound(1, "default").ComputeAlignedRange()
+    box_out = UsdGeom.Imageable(b.GetPrimAtPath("/Asset/Body/Geo/Box")).ComputeWorldBound(1, "default").ComputeAlignedRange()
+    np.testing.assert_allclose(box_out.GetMin(), box_in.GetMin(), atol=1e-5)
+    np.testing.assert_allclose(box_out.GetMax(), box_in.GetMax(), atol=1e-5)
+    # the ancestors' transforms are the input's (the mesh's own one is baked into its points)
+    for path in ("/Asset", "/Asset/Body"):
+        np.testing.assert_allclose(
+            np.asarray(UsdGeom.Xformable(b.GetPrimAtPath(path)).GetLocalTransformation(1)),
+            np.asarray(UsdGeom.Xformable(a.GetPrimAtPath(path)).GetLocalTransformation(1)), atol=1e-12)
+
+
+def test_output_layered_over_the_source_shows_the_output(shaded, tmp_path):
+    """Layered over the source (stronger), each mesh is where the output alone puts it, with the
+    output's colours; the source's own prims (the guide twin) are still there."""
+    src, out = shaded
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    layer.subLayerPaths = [str(out), str(src)]
+    both, alone = Usd.Stage.Open(layer), Usd.Stage.Open(str(out))
+    for path in MESHES:
+        for t in (1, 3):
+            np.testing.assert_allclose(world_points(both, path, t), world_points(alone, path, t), atol=1e-6)
+        colors = UsdGeom.PrimvarsAPI(both.GetPrimAtPath(path)).GetPrimvar("displayColor").Get(2)
+        assert colors is not None and np.asarray(colors).max() > 0, path
+    assert both.GetPrimAtPath("/Asset/Body/Collision/Box").GetTypeName() == "Cube"
+
+
+def test_python_objects_keep_world_paths_beside_input_hierarchy(tmp_path):
+    src = tmp_path / "asset.usda"
+    make_asset(src)
+    scene = read_scene(str(src))
+    extra = read_scene(str(src)).object("/Asset/Body/Geo/Box")
+    extra.name, extra.prim_path, extra.prim_xforms = "Extra", None, ()  # as if built in Python
+    extra.mesh.points[:] += (0.0, 0.0, 50.0)
+    scene.objects.append(extra)
+    out = tmp_path / "o.usda"
+    Pipeline(scene, frames=1, **QUICK).run(AnimationWriter(str(out), fps=scene.fps, up_axis="Z"), progress=False)
+    stage = Usd.Stage.Open(str(out))
+    assert {str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)} == MESHES | {"/World/Extra"}
+    assert str(stage.GetDefaultPrim().GetPath()) == "/Asset"
+
+
+class _InterruptingWriter(AnimationWriter):
+    """Stands in for Ctrl-C arriving while frame ``at`` is being written."""
+
+    def __init__(self, *a, at: int, **kw):
+        super().__init__(*a, **kw)
+        self.at = at
+
+    def write_frame(self, frame, *a, **kw):
+        if frame == self.at:
+            raise KeyboardInterrupt
+        super().write_frame(frame, *a, **kw)
+
+
+def test_resume_and_export_keep_the_hierarchy(shaded, tmp_path):
+    src, full = shaded
+    out = tmp_path / "o.usda"
+    scene = read_scene(str(src))
+    with pytest.raises(KeyboardInterrupt):
+        Pipeline(scene, **QUICK).run(_InterruptingWriter(str(out), chunk=1, at=3, fps=scene.fps, up_axis="Z",
+                                                         meters_per_unit=0.01,
+                                                         metadata={"scene": os.path.abspath(src), "order": 2}),
+                                     progress=False)
+    assert Usd.Stage.Open(str(out)).GetEndTimeCode() == 2
+    assert main(["run", str(src), "--out", str(out), "--resume"] + CLI_QUICK) == 0
+    a, b = Usd.Stage.Open(str(full)), Usd.Stage.Open(str(out))
+    assert b.GetEndTimeCode() == 3
+    for t in (1, 2, 3):  # same deterministic run: the same points (reference rays are seeded)
+        np.testing.assert_array_equal(world_points(b, "/Asset/Body/Geo/Sheet", t), world_points(a, "/Asset/Body/Geo/Sheet", t))
+    flat = tmp_path / "flat.usdc"
+    assert main(["export", str(out), "-o", str(flat)]) == 0
+    f = Usd.Stage.Open(str(flat))
+    assert {str(p.GetPath()) for p in f.Traverse() if p.IsA(UsdGeom.Mesh)} == MESHES
+    np.testing.assert_allclose(world_points(f, "/Asset/Body/Geo/Sheet", 3), world_points(a, "/Asset/Body/Geo/Sheet", 3),
+                               atol=1e-6)
