@@ -145,6 +145,8 @@ class SceneObject:
             (its group's visibility method, sphere sets between groups, GEARS rect lights); it still
             reflects light in the one-bounce pass (docs/guide/quickstart.md, "Objects that cast no shadows").
         shaded: Whether the object is shaded and written with colours.
+        two_sided: Shade and write each side with its own transfer (``warpshade:twoSided``, docs/conventions.md
+            §6); None: the run decides (on for cloth).
         params: Kind-specific settings (cloth material, pinned vertices, skinning data, animation
             samples...), as read from ``warpshade:`` attributes.
     """
@@ -157,6 +159,7 @@ class SceneObject:
     knobs: dict[str, Any] = field(default_factory=dict)
     casts_shadows: bool = True
     shaded: bool = True
+    two_sided: bool | None = None
     params: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self):

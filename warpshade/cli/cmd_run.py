@@ -64,6 +64,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--area-lights", choices=["gears", "sh"], default="gears",
                         help="rect lights: exact irradiance with GEARS soft shadows (default) or projected to SH")
     parser.add_argument("--area-k", type=int, default=None, help="GEARS light samples per side (default 16)")
+    parser.add_argument("--two-sided", choices=["auto", "on", "off"], default="auto",
+                        help="shade each side of thin surfaces with its own transfer and write a back-side mesh "
+                             "(default auto: objects with warpshade:twoSided, else cloth; on: every object; off: none)")
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -154,7 +157,7 @@ def run(args) -> int:
                     between=None if args.between == "none" else args.between,
                     reflections=reflections, albedo=parse_albedo(args.albedo), area_lights=args.area_lights,
                     area_knobs={} if args.area_k is None else {"k": args.area_k},
-                    refine_receivers=args.refine_receivers)
+                    refine_receivers=args.refine_receivers, two_sided=args.two_sided)
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,
