@@ -121,18 +121,22 @@ def test_flag_lit_from_one_side_is_bright_on_that_side_and_dark_on_the_other(tmp
     assert np.allclose(_mesh_attr(stage, "/World/flag_back", "normals", 0), (0.0, 0.0, -1.0), atol=1e-5)
 
 
-def _sheet_over_ground():
-    """A bumpy sheet above a ground plane (static, both occlude), as one reference-shaded group."""
+def _sheet_over_ground(ground_moves=False):
+    """A bumpy sheet above a ground plane (static, or "animated" in place), both occluding, as one
+    reference-shaded group."""
     pts, faces = grid(9)
     pts = (pts - (0.5, 0.0, 0.5)) * 2.0
     bumpy = pts + np.stack([0 * pts[:, 0], 0.6 + 0.15 * np.sin(3 * pts[:, 0]) * np.cos(2 * pts[:, 2]), 0 * pts[:, 0]], 1)
     sheet = SceneObject("sheet", TriMesh(bumpy, faces), method="reference", knobs={"rays": 64}, two_sided=True)
     ground = SceneObject("ground", TriMesh(pts * 2.0, faces), method="reference", knobs={"rays": 64})
+    if ground_moves:  # a moving member that is not two-sided: the back pass runs on the whole group
+        ground.kind, ground.params = "animated", {"points_at": lambda t: (pts * 2.0).astype(np.float32)}
     return Scene(objects=[sheet, ground], frames=1, lights=[LightSpec("dome", "sky", color=(1.0, 1.0, 1.0))])
 
 
-def test_back_side_transfer_is_the_front_transfer_of_the_flipped_surface(tmp_path):
-    scene = _sheet_over_ground()
+@pytest.mark.parametrize("ground_moves", [False, True], ids=["occluder-pass", "whole-group-pass"])
+def test_back_side_transfer_is_the_front_transfer_of_the_flipped_surface(tmp_path, ground_moves):
+    scene = _sheet_over_ground(ground_moves)
     sheet, ground = scene.objects
     out = str(tmp_path / "sheet.usda")
     Pipeline(scene, order=4, write_transfer=True, between=None).run(AnimationWriter(out), progress=False)
@@ -145,10 +149,13 @@ def test_back_side_transfer_is_the_front_transfer_of_the_flipped_surface(tmp_pat
     faces = np.concatenate([sheet.mesh.faces, ground.mesh.faces + sheet.mesh.num_vertices])[:, ::-1]
     flipped = TriMesh(pts, faces)
     expected = ReferenceTransfer(flipped, order=4, rays=64).update().numpy()[:sheet.mesh.num_vertices]
-    # Same rays (same seed, normals equal to float rounding): equal up to float32 rounding, except where a
-    # rounding moves a ray across a visibility edge (one ray of 64 changes T by at most pi/64 * |y| < 0.02).
-    diff = np.abs(back - expected)
-    assert np.quantile(diff, 0.99) < 1e-4, np.quantile(diff, 0.99)
+    # Same rays (same seed and vertex order, normals equal to float rounding). With a static ground the run's
+    # back pass receives at the sheet alone with the ground as an occluder, so its near-field distance (which
+    # scales with the receiver) differs and a ray grazing an edge can fall the other way: measured, one vertex
+    # of 81 differs, by one ray (pi/64 * |y_lm| < 0.05 at order 4); every other entry agrees to float32
+    # rounding. With a moving ground the back pass runs on the whole flipped group, as here.
+    diff = np.abs(back - expected).max(axis=1)
+    assert np.sum(diff > 1e-4) <= 2, np.flatnonzero(diff > 1e-4)
     assert diff.max() < 0.05, diff.max()
     # and it is not the front's: the underside sees the ground, the top the sky
     assert back[:, 0].mean() < 0.5 * front[:, 0].mean()
@@ -227,7 +234,12 @@ def test_plan_prices_the_back_sides():
     g_on, g_off = on.groups[0], off.groups[0]
     assert g_on.two_sided == ["/World/Cloth"] and g_off.two_sided == []
     assert g_off.seconds_back == 0.0
-    # the back pass reruns the group's method: its estimate is at least the front's transfer estimate
-    assert g_on.seconds_back >= g_on.seconds_transfer > 0
+    # ground and ball are static: the back pass receives at the cloth's 1089 of the group's 2820 vertices
+    assert 0 < g_on.seconds_back < g_on.seconds_transfer
     assert on.run_seconds_per_frame > off.run_seconds_per_frame
     assert "back sides" in on.describe()
+    # the cape's walker moves: the back pass runs on the whole group, at least the front's transfer cost
+    scene = read_scene(os.path.join(REPO, "usd_scenes", "cape_walker.usda"))
+    scene.settings["order"] = 4
+    g = next(g for g in make_plan(scene).groups if g.two_sided)
+    assert g.seconds_back >= g.seconds_transfer > 0

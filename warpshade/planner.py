@@ -209,8 +209,9 @@ class GroupPlan:
             ``castsShadows`` false only receive); None: all ``triangles``.
         two_sided: Members shaded on both sides (:func:`warpshade.pipeline.shading.is_two_sided`).
         seconds_back: Estimated per-frame back-side pass [s]: the group's method a second time on the
-            group seen from the back (its transfer time; its build is added to ``seconds_build``), the
-            between-group shadows again, and the two-sided members' exit radiance.
+            group seen from the back, receiving at every vertex or only at the two-sided members'
+            (:func:`warpshade.pipeline.shading.back_side_receivers`; its build is added to
+            ``seconds_build``), the between-group shadows again, and the two-sided members' exit radiance.
     """
 
     method: str | None
@@ -663,6 +664,7 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
         f = sum(m.num_faces for m in spec.meshes)
         g = GroupPlan(spec.method, dict(spec.knobs), list(spec.names), v, f, any(spec.moving),
                       caster_triangles=caster_tris[k])
+        cfg = None
         if spec.method is None:
             g.seconds_transfer = pc["unoccluded_seconds_per_vertex"] * v
             g.cost_source = "measured constant"
@@ -693,11 +695,18 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
         if any(spec.two_sided):
             # the back side: the method again on the same merged mesh (or the unoccluded lobe), the between-group
             # shadows again, exit radiance of the two-sided members' vertices
+            from .pipeline.shading import back_side_receivers
+
             g.two_sided = [name for name, t in zip(spec.names, spec.two_sided) if t]
             v_two = sum(m.num_vertices for m, t in zip(spec.meshes, spec.two_sided) if t)
-            g.seconds_back = ((g.seconds_transfer if g.moves else 0.0) + g.seconds_between
+            alone = back_side_receivers(spec)  # the back pass receives at the two-sided members only
+            back_transfer, back_build = g.seconds_transfer, g.seconds_build
+            if alone is not None and cfg is not None:
+                back_transfer = estimate_seconds(cfg, v_two, triangles=caster_tris[k])
+                back_build = estimate_seconds(cfg, v_two, "build_seconds", triangles=caster_tris[k])
+            g.seconds_back = ((back_transfer if g.moves else 0.0) + g.seconds_between
                               + pc["radiance_seconds_per_vertex_coeff"] * v_two * n)
-            g.seconds_build *= 2.0
+            g.seconds_build += back_build
         plan.groups.append(g)
     if between and sum(1 for t in caster_tris if t) and len(specs) > 1:
         # a sphere tree per group with shadow casters, fitted to their triangles

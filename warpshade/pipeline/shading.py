@@ -79,6 +79,35 @@ def is_two_sided(obj, mode: str = "auto") -> bool:
     return bool(obj.two_sided) if obj.two_sided is not None else obj.kind == "cloth"
 
 
+def back_side_receivers(spec: GroupSpec, cls=None) -> list[int] | None:
+    """Members the back-side pass of a group receives at when it need not run on the whole group, else None.
+
+    When every member that is not two-sided is static and casts shadows or not as it likes, every two-sided
+    member casts shadows, and the method takes static ``occluders`` (reference, hemiraster), the back pass
+    receives at the two-sided members only, the others blocking as occluders: it then costs in proportion
+    to the two-sided vertices.
+
+    Args:
+        spec: The group.
+        cls: Its method's class (default: looked up from ``spec.method``).
+    """
+    import inspect
+
+    if spec.method is None or not any(spec.two_sided):
+        return None
+    if cls is None:
+        from ..visibility import get_method
+
+        cls = get_method(spec.method)
+    casts = spec.casts or [True] * len(spec.meshes)
+    two = [k for k, t in enumerate(spec.two_sided) if t]
+    others_static = all(not mv for mv, t in zip(spec.moving, spec.two_sided) if not t)
+    if (others_static and len(two) < len(spec.meshes) and all(casts[k] for k in two)
+            and "occluders" in inspect.signature(cls).parameters):
+        return two
+    return None
+
+
 def flipped(mesh: TriMesh) -> TriMesh:
     """``mesh`` seen from its back: the same points, reversed winding, negated normals."""
     return TriMesh(mesh.points, mesh.faces[:, ::-1].copy(), normals=-mesh.normals, name=f"{mesh.name} back")
@@ -90,7 +119,8 @@ class _Group:
     With two-sided members, a second instance of the method is built on the group mesh seen from its back
     (:func:`flipped`: every member's winding reversed, so the method's notion of front, near field and
     self-occlusion is the back's): its transfer is the hemisphere around the flipped normal, occluded by
-    the same blockers. Only the two-sided members' rows of it are used.
+    the same blockers. Only the two-sided members' rows of it are used (and, where the method allows, only
+    they are computed: :meth:`_build_back_method`).
     """
 
     def __init__(self, spec: GroupSpec, order: int, device: str):
@@ -116,14 +146,36 @@ class _Group:
                 self.rest, self.blocker_faces, normals=self.mesh.normals, name=f"{self.mesh.name} casters")
             self.method = get_method(spec.method)(mesh, order=order, device=device, **spec.knobs)
         self.back_method = None
+        self.back_rows = None
+        """Group rows the back method receives at (None: all of them)."""
         self.two_sided = any(spec.two_sided)
         if self.two_sided and self.method is not None:
-            self.back_method = type(self.method)(flipped(self.method.mesh), order=order, device=device, **spec.knobs)
+            self._build_back_method(type(self.method), order, device)
         self._faces = None
         if self.method is None or receivers_only:
             self._faces = wp.array(faces, dtype=wp.int32, device=device)
             self._points = wp.array(self.rest, dtype=wp.vec3, device=device)
             self._normals = wp.zeros(len(self.rest), dtype=wp.vec3, device=device)
+
+    def _build_back_method(self, cls, order: int, device: str) -> None:
+        """The back-side method: on the two-sided members alone with the others as static occluders where
+        :func:`back_side_receivers` allows it, else on the whole group."""
+        spec = self.spec
+        casts = spec.casts or [True] * len(spec.meshes)
+        two = back_side_receivers(spec, cls)
+        if two is not None:
+            def merged(ks, name):
+                offs = np.cumsum([0] + [spec.meshes[k].num_vertices for k in ks])
+                return TriMesh(np.concatenate([spec.meshes[k].points for k in ks]),
+                               np.concatenate([spec.meshes[k].faces + o for k, o in zip(ks, offs[:-1])]), name=name)
+
+            blockers = [k for k in range(len(spec.meshes)) if k not in two and casts[k]]
+            self.back_rows = np.concatenate([np.arange(self.offsets[k], self.offsets[k + 1]) for k in two])
+            occluders = [flipped(merged(blockers, f"{self.mesh.name} blockers"))] if blockers else []
+            self.back_method = cls(flipped(merged(two, f"{self.mesh.name} two-sided")), order=order, device=device,
+                                   occluders=occluders, **spec.knobs)
+        else:
+            self.back_method = cls(flipped(self.method.mesh), order=order, device=device, **spec.knobs)
 
     def update(self, geometry: dict) -> tuple:
         """Points (V, 3), transfer (V, N*N), unit normals (V, 3) and back-side transfer (V, N*N; None
@@ -144,7 +196,11 @@ class _Group:
             normals = normals.numpy().copy()
             transfer = unoccluded_transfer(normals, self.order)
         back = None
-        if self.back_method is not None:
+        if self.back_method is not None and self.back_rows is not None:
+            back = np.zeros_like(transfer)  # rows of members shaded on one side stay unused
+            rows = self.back_rows
+            back[rows] = self.back_method.update(pts[rows], -normals[rows]).numpy()
+        elif self.back_method is not None:
             back = self.back_method.update(pts, -normals).numpy().copy()
         elif self.two_sided:
             back = unoccluded_transfer(-normals, self.order)
@@ -388,5 +444,5 @@ def group_objects(objects, method: str | None = None, knobs: dict | None = None,
     return list(by_key.values())
 
 
-__all__ = ["TWO_SIDED_MODES", "GroupSpec", "SceneShader", "back_key", "flipped", "group_objects", "is_two_sided",
+__all__ = ["TWO_SIDED_MODES", "GroupSpec", "SceneShader", "back_key", "back_side_receivers", "flipped", "group_objects", "is_two_sided",
            "unoccluded_transfer"]
