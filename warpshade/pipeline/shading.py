@@ -79,31 +79,28 @@ def is_two_sided(obj, mode: str = "auto") -> bool:
     return bool(obj.two_sided) if obj.two_sided is not None else obj.kind == "cloth"
 
 
-def back_side_receivers(spec: GroupSpec, cls=None) -> list[int] | None:
+BACK_PASS_WITH_OCCLUDERS = ("reference",)
+"""Methods whose back-side pass may receive at the two-sided members alone, the other members blocking as
+static ``occluders`` (:func:`back_side_receivers`)."""
+# reference casts the same rays either way. hemiraster also takes occluders, but decimates and refines them
+# apart from the receiver: on the default drape (frame 30, order 4, against reference at 1024 rays) its back
+# side's mean |dT| was 1.1 % of the unoccluded T_0 that way and 0.63 % on the whole group (front: 0.47 %),
+# for 30 % less time; it runs on the whole group.
+
+
+def back_side_receivers(spec: GroupSpec) -> list[int] | None:
     """Members the back-side pass of a group receives at when it need not run on the whole group, else None.
 
-    When every member that is not two-sided is static and casts shadows or not as it likes, every two-sided
-    member casts shadows, and the method takes static ``occluders`` (reference, hemiraster), the back pass
-    receives at the two-sided members only, the others blocking as occluders: it then costs in proportion
-    to the two-sided vertices.
-
-    Args:
-        spec: The group.
-        cls: Its method's class (default: looked up from ``spec.method``).
+    When the method is one of :data:`BACK_PASS_WITH_OCCLUDERS`, every member that is not two-sided is static
+    and every two-sided member casts shadows, the back pass receives at the two-sided members only, the
+    others blocking as occluders: it then costs in proportion to the two-sided vertices.
     """
-    import inspect
-
-    if spec.method is None or not any(spec.two_sided):
+    if spec.method not in BACK_PASS_WITH_OCCLUDERS or not any(spec.two_sided):
         return None
-    if cls is None:
-        from ..visibility import get_method
-
-        cls = get_method(spec.method)
     casts = spec.casts or [True] * len(spec.meshes)
     two = [k for k, t in enumerate(spec.two_sided) if t]
     others_static = all(not mv for mv, t in zip(spec.moving, spec.two_sided) if not t)
-    if (others_static and len(two) < len(spec.meshes) and all(casts[k] for k in two)
-            and "occluders" in inspect.signature(cls).parameters):
+    if others_static and len(two) < len(spec.meshes) and all(casts[k] for k in two):
         return two
     return None
 
@@ -162,7 +159,7 @@ class _Group:
         :func:`back_side_receivers` allows it, else on the whole group."""
         spec = self.spec
         casts = spec.casts or [True] * len(spec.meshes)
-        two = back_side_receivers(spec, cls)
+        two = back_side_receivers(spec)
         if two is not None:
             def merged(ks, name):
                 offs = np.cumsum([0] + [spec.meshes[k].num_vertices for k in ks])
@@ -444,5 +441,5 @@ def group_objects(objects, method: str | None = None, knobs: dict | None = None,
     return list(by_key.values())
 
 
-__all__ = ["TWO_SIDED_MODES", "GroupSpec", "SceneShader", "back_key", "back_side_receivers", "flipped", "group_objects", "is_two_sided",
+__all__ = ["BACK_PASS_WITH_OCCLUDERS", "TWO_SIDED_MODES", "GroupSpec", "SceneShader", "back_key", "back_side_receivers", "flipped", "group_objects", "is_two_sided",
            "unoccluded_transfer"]
