@@ -29,6 +29,15 @@ def add_refine_argument(parser: argparse.ArgumentParser) -> None:
                              "the scene's diagonal; off: never)")
 
 
+def add_two_sided_argument(parser: argparse.ArgumentParser) -> None:
+    """``--two-sided`` (shared by ``run`` and ``plan``, so the plan prices the back sides the run shades)."""
+    from ..pipeline.shading import TWO_SIDED_MODES
+
+    parser.add_argument("--two-sided", choices=TWO_SIDED_MODES, default="auto",
+                        help="shade each side of thin surfaces with its own transfer and write a back-side mesh "
+                             "(default auto: objects with warpshade:twoSided, else cloth; on: every object; off: none)")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_refine_argument(parser)
     from ..visibility import METHODS
@@ -73,6 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--area-lights", choices=["gears", "sh"], default="gears",
                         help="rect lights: exact irradiance with GEARS soft shadows (default) or projected to SH")
     parser.add_argument("--area-k", type=positive_int, default=None, help="GEARS light samples per side (default 16)")
+    add_two_sided_argument(parser)
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -152,7 +162,7 @@ def run(args) -> int:
 
         scene.settings["order"] = args.order or scene.settings.get("order", 4)
         plan = make_plan(scene, max_error=args.max_error, between=None if args.between == "none" else args.between,
-                         area_lights=args.area_lights, area_k=args.area_k or 16)
+                         area_lights=args.area_lights, area_k=args.area_k or 16, two_sided=args.two_sided)
         apply_plan(scene, plan)
         print(plan.describe(), file=sys.stderr)
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
@@ -172,7 +182,7 @@ def run(args) -> int:
                     between=None if args.between == "none" else args.between,
                     reflections=reflections, albedo=parse_albedo(args.albedo), area_lights=args.area_lights,
                     area_knobs={} if args.area_k is None else {"k": args.area_k},
-                    refine_receivers=args.refine_receivers, security=security)
+                    refine_receivers=args.refine_receivers, security=security, two_sided=args.two_sided)
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,

@@ -31,7 +31,7 @@ from ..sh.basis import check_order
 from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
 from .refine import refine_receivers as refine
-from .shading import GroupSpec, SceneShader, group_objects, unoccluded_transfer
+from .shading import TWO_SIDED_MODES, GroupSpec, SceneShader, back_key, group_objects, unoccluded_transfer
 
 METHOD_PREFERENCE = ("hemiraster", "reference")
 """Default visibility method: the first of these that is registered (fastest accurate first).
@@ -141,6 +141,10 @@ class Pipeline:
             shadows have vertices to fall on; ``"auto"`` (the scene's ``warpshade:refineEdge``, else
             1/12 of the scene's diagonal) or ``"off"``. The scene's objects are refined in place.
         security: ``distributed.Security`` for ``scheduler`` (TLS, :func:`warpshade.cluster.scheduler_security`).
+        two_sided: Shade both sides of thin surfaces, each with its own transfer, and write each side as
+            its own single-sided mesh (docs/conventions.md §6): ``"auto"`` (default: objects with
+            ``warpshade:twoSided``, else cloth), ``"on"`` (every shaded object) or ``"off"``. A group with a
+            two-sided member runs its visibility method a second time, on the group seen from the back.
     """
 
     def __init__(self, scene: Scene, frames: int | None = None, method: str | None = None,
@@ -148,7 +152,7 @@ class Pipeline:
                  lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu",
                  between: str | None = "spheres", reflections: bool | dict | None = None, albedo=None,
                  area_lights: str = "gears", area_knobs: dict | None = None, refine_receivers="auto",
-                 security=None):
+                 security=None, two_sided: str = "auto"):
         self.scene = scene
         self.refined = refine(scene, refine_receivers)
         """Static objects subdivided for shading (:mod:`warpshade.pipeline.refine`)."""
@@ -164,7 +168,10 @@ class Pipeline:
             a = np.asarray(albedo, dtype=np.float64)
             if a.shape not in ((), (3,)) or not np.all((a >= 0) & (a <= 1)):
                 raise ValueError(f"albedo must be a scalar or RGB in [0, 1], got {a.tolist()}")
-        self.groups = group_objects(scene.objects, method, knobs, DEFAULT_KNOBS, default_albedo=albedo)
+        if two_sided not in TWO_SIDED_MODES:
+            raise ValueError(f"two_sided must be one of {', '.join(TWO_SIDED_MODES)}, got {two_sided!r}")
+        self.groups = group_objects(scene.objects, method, knobs, DEFAULT_KNOBS, default_albedo=albedo,
+                                    two_sided=two_sided)
         if not self.groups:
             raise SceneError(f"{scene.source}: no shaded object")
         if reflections is None:
@@ -284,13 +291,15 @@ class Pipeline:
             if self.scene.default_prim:
                 writer.set_default_prim(self.scene.default_prim)
             for g in self.groups:
-                for name, mesh, albedo in zip(g.names, g.meshes, g.albedos):
+                for k, (name, mesh, albedo) in enumerate(zip(g.names, g.meshes, g.albedos)):
                     obj = self.scene.object(name)
                     names[name] = writer.add_mesh(
                         name, mesh.faces, points=mesh.points if name in static else None,
                         normals=mesh.normals if name in static else None, albedo=albedo,
                         roughness=obj.material.roughness, transfer_order=self.order if self.write_transfer else None,
                         prim_path=obj.prim_path, prim_xforms=obj.prim_xforms)
+                    if g.two_sided and g.two_sided[k]:
+                        names[back_key(name)] = writer.add_back_side(names[name])
             specs = list(self.scene.lights)
             if not specs and self.shader.lights is None:
                 sky = default_lights(self.scene.up_axis)[0]
@@ -314,7 +323,8 @@ class Pipeline:
                     # docs/conventions.md §6: every shaded mesh has points, normals and extent time-sampled
                     # per frame, static ones included
                     writer.write_frame(time0 + f, names[name], points, normals, colors, transfer)
-                    if name not in warned_black and colors is not None and not np.any(colors):
+                    # a back side may be dark by right (cloth lying on a ground): only fronts are checked
+                    if isinstance(name, str) and name not in warned_black and colors is not None and not np.any(colors):
                         warned_black.add(name)
                         warn_black_mesh(self.scene, name, f, self._albedo_of(name))
                 secs["write"] += time.perf_counter() - t
@@ -344,7 +354,9 @@ def _group_line(g: GroupSpec) -> str:
     """One :attr:`RunReport.groups` line: method, knobs, objects, and which of them cast no shadows."""
     line = f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
     quiet = [n for n, c in zip(g.names, g.casts) if not c]
-    return line + (f" (casting no shadows: {', '.join(quiet)})" if quiet else "")
+    both = [n for n, t in zip(g.names, g.two_sided) if t]
+    return (line + (f" (casting no shadows: {', '.join(quiet)})" if quiet else "")
+            + (f" (two-sided: {', '.join(both)})" if both else ""))
 
 
 __all__ = ["check_output", "DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
