@@ -50,6 +50,13 @@ def _material(albedo, what: str) -> Material:
     return Material(albedo=a)
 
 
+def _object(name: str, tri: TriMesh, **kwargs) -> SceneObject:
+    """A scene object shaded with the default visibility method (as the USD reader's objects are)."""
+    from .pipeline import default_method
+
+    return SceneObject(name, tri, method=default_method(), **kwargs)
+
+
 def _mesh(name: str, points, faces) -> TriMesh:
     return TriMesh(np.asarray(points, dtype=np.float64).reshape(-1, 3), np.asarray(faces).reshape(-1, 3), name=name)
 
@@ -96,7 +103,7 @@ def cloth(name: str, points, faces, pinned=None, albedo=None, **material) -> Sce
         if len(bad):
             raise ValueError(f"cloth '{name}': pinned vertex {int(bad[0])} out of range 0..{tri.num_vertices - 1}")
         params["pinned"] = p.astype(np.int32)
-    return SceneObject(name, tri, kind="cloth", material=_material(albedo, f"cloth '{name}'"), params=params)
+    return _object(name, tri, kind="cloth", material=_material(albedo, f"cloth '{name}'"), params=params)
 
 
 def ground(name: str = "Ground", size: float = 4.0, height: float = 0.0, resolution: int = 49,
@@ -112,7 +119,7 @@ def ground(name: str = "Ground", size: float = 4.0, height: float = 0.0, resolut
     builder.add_grid(int(resolution), int(resolution), s, s, origin=(-s / 2, float(height), s / 2),
                      u_axis=(1, 0, 0), v_axis=(0, 0, -1), name=name)
     piece = builder._pieces[-1]
-    return SceneObject(name, _mesh(name, piece.points, piece.faces), material=_material(albedo, f"ground '{name}'"),
+    return _object(name, _mesh(name, piece.points, piece.faces), material=_material(albedo, f"ground '{name}'"),
                        params={"collider": "ground"})
 
 
@@ -129,7 +136,7 @@ def box(name: str = "Box", center=None, size=1.0, collider: bool = True, albedo=
     c = np.array([0.0, ext[1] / 2, 0.0]) if center is None else _vec3(center, f"box '{name}': center")
     m = trimesh.creation.box(extents=ext).subdivide_to_size(float(ext.max()) / 16.0, max_iter=8)
     params = {"collider": "box", "box": {"center": c, "half_extents": ext / 2, "rotation": np.array([0.0, 0, 0, 1])}}
-    return SceneObject(name, _mesh(name, np.asarray(m.vertices) + c, m.faces),
+    return _object(name, _mesh(name, np.asarray(m.vertices) + c, m.faces),
                        material=_material(albedo, f"box '{name}'"), params=params if collider else {})
 
 
@@ -142,7 +149,7 @@ def sphere(name: str = "Sphere", center=(0.0, 0.5, 0.0), radius: float = 0.5, co
     c = _vec3(center, f"sphere '{name}': center")
     m = trimesh.creation.icosphere(subdivisions=3, radius=r)
     params = {"collider": "sphere", "sphere": {"center": c, "radius": r}}
-    return SceneObject(name, _mesh(name, np.asarray(m.vertices) + c, m.faces),
+    return _object(name, _mesh(name, np.asarray(m.vertices) + c, m.faces),
                        material=_material(albedo, f"sphere '{name}'"), params=params if collider else {})
 
 
@@ -165,7 +172,7 @@ def mesh(name: str, points, faces, collider: bool = False, moving: bool = False,
             raise ValueError(f"mesh '{name}': points_at must be callable (time code -> points), got {points_at!r}")
         params["points_at"] = points_at
     moves = moving or points_at is not None
-    return SceneObject(name, tri, kind="animated" if moves else "static",
+    return _object(name, tri, kind="animated" if moves else "static",
                        material=_material(albedo, f"mesh '{name}'"), params=params)
 
 
