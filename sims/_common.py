@@ -54,7 +54,7 @@ class Recorder:
 
     def close(self) -> str:
         moving = set().union(*self.frames) if self.frames else set()
-        scene = ws.scene(*[ws.mesh(name, pts, faces, moving=name in moving)
+        scene = ws.make_scene(*[ws.mesh(name, pts, faces, moving=name in moving)
                            for name, (faces, pts) in self.meshes.items()], fps=FPS)
         report = ws.run(scene, self.path, frames=max(1, len(self.frames)), shade=self.shade, geometry=self.frames)
         what = "shaded" if self.shade else "geometry only"

@@ -19,7 +19,7 @@ FRAMES = 30  # the cloth falls 0.3 m onto the box in ~15 frames (sqrt(2 * 0.3 / 
 
 
 def _cloth_over_box():
-    return ws.scene(
+    return ws.make_scene(
         ws.ground(size=2.0, resolution=33),
         ws.box(size=0.5),
         ws.cloth_grid(size=1.0, resolution=24, height=0.8),
@@ -67,7 +67,7 @@ def test_cloth_over_box_is_lit_with_contact_shadows(draped):
 
 def test_no_shade_writes_geometry_with_albedo(tmp_path):
     out = str(tmp_path / "geo.usda")
-    scene = ws.scene(ws.ground(size=2.0, resolution=9, albedo=(0.2, 0.5, 0.3)),
+    scene = ws.make_scene(ws.ground(size=2.0, resolution=9, albedo=(0.2, 0.5, 0.3)),
                      ws.cloth_grid(size=0.5, resolution=6, height=0.3, albedo=0.6))
     ws.run(scene, out, frames=3, shade=False)
     stage = Usd.Stage.Open(out)
@@ -94,7 +94,7 @@ def test_moving_mesh_from_a_generator(tmp_path):
     pts = np.array([[0, 0.2, 0], [1, 0.2, 0], [0, 0.2, -1.0]])
     frames = ({"Tri": pts + [0, 0.1 * f, 0]} for f in range(3))
     out = str(tmp_path / "gen.usda")
-    ws.run(ws.scene(ws.ground(size=3.0, resolution=9), ws.mesh("Tri", pts, [[0, 1, 2]], moving=True)), out,
+    ws.run(ws.make_scene(ws.ground(size=3.0, resolution=9), ws.mesh("Tri", pts, [[0, 1, 2]], moving=True)), out,
            frames=3, geometry=frames)
     p, c = _colors(Usd.Stage.Open(out), "Tri", 2)
     np.testing.assert_allclose(p, pts + [0, 0.2, 0], atol=1e-6)
@@ -123,10 +123,10 @@ def test_sims_script_writes_shaded_output_by_default(tmp_path):
     (lambda: ws.sphere(radius=-2), "radius"),
     (lambda: ws.ground(albedo=2.0), "albedo"),
     (lambda: ws.distant(direction=(0, 0, 0)), "direction"),
-    (lambda: ws.scene(ws.box(), ws.box()), "two objects are named 'Box'"),
-    (lambda: ws.run(ws.scene(ws.mesh("M", np.eye(3), [[0, 1, 2]], moving=True)), "x.usda", frames=1),
+    (lambda: ws.make_scene(ws.box(), ws.box()), "two objects are named 'Box'"),
+    (lambda: ws.run(ws.make_scene(ws.mesh("M", np.eye(3), [[0, 1, 2]], moving=True)), "x.usda", frames=1),
      "no geometry generator"),
-    (lambda: ws.run(ws.scene(ws.sky(up="Z")), "x.usda", frames=1), "up axis"),
+    (lambda: ws.run(ws.make_scene(ws.sky(up="Z")), "x.usda", frames=1), "up axis"),
 ])
 def test_bad_input_names_the_argument(tmp_path, monkeypatch, make, match):
     monkeypatch.chdir(tmp_path)
@@ -136,11 +136,11 @@ def test_bad_input_names_the_argument(tmp_path, monkeypatch, make, match):
 
 def test_scene_rejects_other_items():
     with pytest.raises(TypeError, match="item 1 is a str"):
-        ws.scene(ws.box(), "sky")
+        ws.make_scene(ws.box(), "sky")
 
 
 def test_short_generator_names_the_frame(tmp_path):
     pts = np.array([[0, 0.2, 0], [1, 0.2, 0], [0, 0.2, -1.0]])
     with pytest.raises(ValueError, match="ended after 1 frames; the run needs frame 1"):
-        ws.run(ws.scene(ws.mesh("Tri", pts, [[0, 1, 2]], moving=True)), str(tmp_path / "s.usda"), frames=3,
+        ws.run(ws.make_scene(ws.mesh("Tri", pts, [[0, 1, 2]], moving=True)), str(tmp_path / "s.usda"), frames=3,
                geometry=[{"Tri": pts}])

@@ -32,6 +32,6 @@ from .pipeline.area import AreaLightShading
 __all__ += ["AreaLightShading"]
 
 from . import script
-from .script import box, cloth, cloth_grid, distant, dome, ground, mesh, run, scene, sky, sphere
+from .script import box, cloth, cloth_grid, distant, dome, ground, make_scene, mesh, run, sky, sphere
 
-__all__ += ["box", "cloth", "cloth_grid", "distant", "dome", "ground", "mesh", "run", "scene", "script", "sky", "sphere"]
+__all__ += ["box", "cloth", "cloth_grid", "distant", "dome", "ground", "make_scene", "mesh", "run", "script", "sky", "sphere"]

@@ -4,9 +4,9 @@
 Each helper returns the object the USD reader would make from the equivalent prim: a
 :class:`~warpshade.scene.SceneObject` with the same ``kind`` and ``params`` keys (``collider``,
 ``box``, ``sphere``, ``pinned``, ``cloth``, ``points_at``), a :class:`~warpshade.scene.LightSpec`,
-or an analytic :class:`~warpshade.lighting.Sky`. :func:`scene` collects them; :func:`run` runs them::
+or an analytic :class:`~warpshade.lighting.Sky`. :func:`make_scene` collects them; :func:`run` runs them::
 
-    scene = ws.scene(ws.ground(), ws.box(size=0.5), ws.cloth_grid(height=0.8), ws.sky())
+    scene = ws.make_scene(ws.ground(), ws.box(size=0.5), ws.cloth_grid(height=0.8), ws.sky())
     ws.run(scene, "out.usda", frames=60)
 
 A script that simulates by itself (its own solver, its own loop) declares its moving meshes with
@@ -212,7 +212,7 @@ def dome(color=(1.0, 1.0, 1.0), intensity: float = 1.0, texture: str | None = No
                      texture=texture)
 
 
-def scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", **settings) -> Scene:
+def make_scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", **settings) -> Scene:
     """A :class:`~warpshade.scene.Scene` of objects and lights (in any order).
 
     Args:
@@ -232,12 +232,12 @@ def scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", **setting
         elif isinstance(item, (LightSpec, Light)):
             out.lights.append(item)
         else:
-            raise TypeError(f"scene: item {i} is a {type(item).__name__}, not an object (cloth_grid, box, ...) "
+            raise TypeError(f"make_scene: item {i} is a {type(item).__name__}, not an object (cloth_grid, box, ...) "
                             "or a light (sky, distant, dome)")
     names = [o.name for o in out.objects]
     dup = next((n for n in names if names.count(n) > 1), None)
     if dup is not None:
-        raise ValueError(f"scene: two objects are named '{dup}'; give each a name")
+        raise ValueError(f"make_scene: two objects are named '{dup}'; give each a name")
     return out
 
 
@@ -291,7 +291,7 @@ def run(scene: Scene, out: str, frames: int | None = None, shade: bool = True, g
     """Simulate, shade and write ``scene`` to ``out`` (.usda/.usdc/.usd), as ``warpshade run`` does.
 
     Args:
-        scene: From :func:`scene` (or :func:`warpshade.usd.read_scene`).
+        scene: From :func:`make_scene` (or :func:`warpshade.usd.read_scene`).
         out: Output USD path.
         frames: Frames to produce (default: the scene's).
         shade: False writes geometry only: the same simulation, each mesh bound to its albedo.
@@ -343,5 +343,5 @@ def _write_geometry(pipe, writer, report_type):
                        vertices=sum(o.mesh.num_vertices for o in objs))
 
 
-__all__ = ["box", "cloth", "cloth_grid", "distant", "dome", "ground", "mesh", "pipeline", "run", "scene", "sky",
+__all__ = ["box", "cloth", "cloth_grid", "distant", "dome", "ground", "mesh", "pipeline", "make_scene", "run", "sky",
            "sphere"]
