@@ -46,10 +46,10 @@ def test_geometry_only_output_shows_the_albedo(tmp_path):
 
 
 def test_flag_sim_output_is_not_black(tmp_path):
-    """sims/flag.py (geometry only) binds materials whose diffuse is the flag's albedo, not black."""
+    """sims/flag.py --no-shade (geometry only) binds materials whose diffuse is the flag's albedo, not black."""
     out = tmp_path / "flag.usda"
     script = REPO / "sims" / "flag.py"
-    proc = subprocess.run([sys.executable, str(script), "--out", str(out), "--frames", "2"],
+    proc = subprocess.run([sys.executable, str(script), "--out", str(out), "--frames", "2", "--no-shade"],
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     stage = Usd.Stage.Open(str(out))

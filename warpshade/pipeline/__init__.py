@@ -263,6 +263,12 @@ class Pipeline:
             secs["simulate"] += time.perf_counter() - t
             yield f, geo
 
+    def simulate(self):
+        """Yield ``(frame, {name: points (V, 3) float32})`` for every moving object, frame by frame:
+        the run's simulation and animation without shading (geometry-only output, stepping)."""
+        sims = ClothSimulation(self.scene, self.device) if any(o.kind == "cloth" for o in self.scene.objects) else None
+        yield from self._geometry_frames(sims, dict.fromkeys(("simulate",), 0.0))
+
     def run(self, writer, progress: bool = True) -> RunReport:
         """Produce every frame into ``writer`` (an :class:`warpshade.usd.AnimationWriter`-like object).
 
@@ -301,9 +307,14 @@ class Pipeline:
                     if g.two_sided and g.two_sided[k]:
                         names[back_key(name)] = writer.add_back_side(names[name])
             specs = list(self.scene.lights)
-            if not specs and self.shader.lights is None:
-                sky = default_lights(self.scene.up_axis)[0]
-                specs = sky_light_specs(sky, os.path.join(writer.asset_dir(), "default_sky.exr"), self.scene.up_axis)
+            if not specs:  # the analytic skies it shades with (the default one, or given as lights) as DomeLights
+                from ..lighting import Sky
+
+                skies = [li for li in (self.shader.lights if self.shader.lights is not None
+                                       else default_lights(self.scene.up_axis)) if isinstance(li, Sky)]
+                for i, sky in enumerate(skies):
+                    specs += sky_light_specs(sky, os.path.join(writer.asset_dir(), f"default_sky{i or ''}.exr"),
+                                             self.scene.up_axis)
             for spec in specs:
                 writer.add_light(spec)
             secs["setup"] = time.perf_counter() - t0
