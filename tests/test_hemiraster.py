@@ -528,3 +528,49 @@ def test_min_image_culls_far_field_only():
     full = hemiraster(m, order=3, coarse=0, min_image=0.5)
     assert not full.stats()["min_image_active"]
     np.testing.assert_array_equal(full.update().numpy(), hemiraster(m, order=3, coarse=0, min_image=0.0).update().numpy())
+
+
+# ------------------------------------------------------------------------------- the receiver's own fan
+def valley(k=1.0, n=9):
+    """Open sheet folded into a V along the x axis, z = k |y|; the crease is the middle row of vertices."""
+    x, y = np.meshgrid(np.linspace(-1, 1, n), np.linspace(-1, 1, n), indexing="ij")
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return TriMesh(np.stack([x, y, k * np.abs(y)], -1).reshape(-1, 3), faces), int(idx[n // 2, n // 2])
+
+
+def valley_transfer(k, order, samples=800):
+    """Transfer of the crease vertex (normal +z) by quadrature: seen from just above it, a direction
+    is open iff it leaves above both flanks, d_z >= k |d_y| (independent of the method under test)."""
+    u = (np.arange(samples) + 0.5) / samples
+    x, y = np.meshgrid(2 * u - 1, 2 * u - 1, indexing="ij")  # the unit disk: cosine-weighted directions
+    inside = x * x + y * y < 1
+    d = np.stack([x[inside], y[inside], np.sqrt(1 - x[inside] ** 2 - y[inside] ** 2)], -1)
+    open_ = d[:, 2] >= k * np.abs(d[:, 1])
+    return (sh_eval(d, order) * open_[:, None]).sum(0) * (2 / samples) ** 2
+
+
+@pytest.mark.parametrize("k", [0.5, 1.0, 2.0])
+def test_fan_blocks_directions_under_a_crease(k):
+    mesh, v = valley(k)
+    assert np.allclose(mesh.normals[v], [0, 0, 1], atol=1e-6)
+    truth = valley_transfer(k, 3)
+    got = hemiraster(mesh, order=3, coarse=0, mask=32, downsample=1).update().numpy()[v]
+    # every other triangle lies in a plane through the crease vertex (no solid angle): only the fan
+    # blocks. Mask discretisation + LUT quantisation at M=32, R=48 measured 1.0-1.5 % of |truth|
+    assert np.linalg.norm(got - truth) < 0.025 * np.linalg.norm(truth), (k, got, truth)
+    # without it the vertex sees the whole hemisphere (measured 11-80 % off: the test can fail)
+    off = hemiraster(mesh, order=3, coarse=0, mask=32, downsample=1, fan=False).update().numpy()[v]
+    assert np.linalg.norm(off - truth) > 0.05 * np.linalg.norm(truth)
+    # the ray-traced reference sees the same (its rays test the vertex's own triangles from just above it);
+    # 4096 stratified rays: noise measured < 1 % of |truth|
+    ref = get_method("reference")(mesh, order=3, rays=4096).update().numpy()[v]
+    assert np.linalg.norm(ref - truth) < 0.02 * np.linalg.norm(truth), (k, ref, truth)
+
+
+def test_fan_on_open_meshes_only():
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    closed = TriMesh(np.asarray(sphere.vertices), np.asarray(sphere.faces))
+    assert not hemiraster(closed, order=3, coarse=0).stats()["fan"]
+    assert hemiraster(valley()[0], order=3, coarse=0).stats()["fan"]

@@ -100,6 +100,10 @@ class HemirasterTransfer(TransferMethod):
         rim: Skip blockers whose bounding sphere lies wholly below the elevation of the lowest pixel
             centre of the mask (their exact images hold no pixel; the LUT could only leak rim bits
             there). On by default; off only to measure it.
+        fan: On a mesh that is not closed, rasterize each receiver's own triangles as seen from
+            just above it, as the ray-traced reference does: where the surface folds up around the
+            vertex (valleys, creases) the directions under its fan pass through the surface
+            (:func:`.kernels.rasterize_fan`). On by default; off only to measure it.
     """
 
     name = "hemiraster"
@@ -108,7 +112,8 @@ class HemirasterTransfer(TransferMethod):
                  downsample: int = 1, ring: int = 1, coarse: int = 512, cull: bool = True, cluster: int = 16,
                  exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
-                 refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0):
+                 refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
+                 fan: bool = True):
         super().__init__(mesh, order, device)
         tables.check_mask(int(mask), int(downsample))
         if ring not in (0, 1, 2, 3, 4):
@@ -141,6 +146,7 @@ class HemirasterTransfer(TransferMethod):
             raise ValueError(f"hemiraster: fine_image must be >= 0 pixels, got {fine_image}")
         self.fine_image = float(fine_image)
         self.rim = bool(rim)
+        self.fan = bool(fan)
         self.phong, self.lut_dir = float(phong), lut_dir
         t_start = time.perf_counter()
         d = device
@@ -246,6 +252,7 @@ class HemirasterTransfer(TransferMethod):
         # back-face culling needs closed, consistently oriented fine and blocker meshes; the sign
         # of the enclosed volume says which side faces out
         side = hierarchy.closed_orientation(scene_pts, scene_faces)
+        fine_closed = side != 0
         if self.hierarchy:
             cside = hierarchy.closed_orientation(rest_blockers, block_faces)
             side = side if side == cside else 0
@@ -284,6 +291,15 @@ class HemirasterTransfer(TransferMethod):
         self._fine.points, self._fine.faces = self._spoints, self._sfaces
         self._fine.plane = wp.zeros(nsf, dtype=wp.vec4, device=d)
         self._fine.sphere = wp.zeros(nsf, dtype=wp.vec4, device=d)
+        # the receiver's own fan seen from just above it (kernels.rasterize_fan): on open surfaces;
+        # on a closed one every direction under the fan leaves the solid through a back face
+        self._fan_on = self.fan and not fine_closed
+        fan_lists = hierarchy.vertex_faces(faces, nv) if self._fan_on else []
+        fan_start = np.concatenate([[0], np.cumsum([len(x) for x in fan_lists])]) if self._fan_on else np.zeros(nv + 1)
+        self._fine.fan_start = wp.array(fan_start.astype(np.int32), dtype=wp.int32, device=d)
+        self._fine.fan_tris = wp.array(np.concatenate(fan_lists).astype(np.int32) if self._fan_on else np.zeros(1, np.int32),
+                                       dtype=wp.int32, device=d)
+        self._fine.fan = 1 if self._fan_on else 0
         self._groups = Refinement()
         self._groups.refine = self.refine if self._use_refine else 0.0
         self._groups.lo, self._groups.hi = self._blocker_box
@@ -392,7 +408,7 @@ class HemirasterTransfer(TransferMethod):
                 "coarse": self.coarse_target, "cull": self.cull, "cluster": self.cluster, "exclude": self.exclude,
                 "backface": self.backface, "mode": self.mode, "view": self.view.tolist(), "phong": self.phong, "lut_dir": self.lut_dir,
                 "pvs_frames": self._pvs_frames, "min_image": self.min_image, "refine": self.refine,
-                "fine_image": self.fine_image, "rim": self.rim,
+                "fine_image": self.fine_image, "rim": self.rim, "fan": self.fan,
                 "occluders": [o.name for o in self.occluders]}
 
     def stats(self) -> dict:
@@ -405,6 +421,7 @@ class HemirasterTransfer(TransferMethod):
             "blocker_triangles": self.num_blockers,
             "hierarchy": self.hierarchy,
             "backface_culled": self._backface_side != 0.0,
+            "fan": self._fan_on,
             "min_image_active": self._lut.min_area > 0.0,
             "ring_triangles_per_vertex": self._ring_avg,
             "clusters": int(self._cluster_start.shape[0] - 1),
