@@ -104,6 +104,10 @@ class HemirasterTransfer(TransferMethod):
             just above it, as the ray-traced reference does: where the surface folds up around the
             vertex (valleys, creases) the directions under its fan pass through the surface
             (:func:`.kernels.rasterize_fan`). On by default; off only to measure it.
+        redecimate: Rebuild the coarse far field from the current pose (:meth:`rebuild`) when the
+            coarse mesh's mean deviation from the fine surface, over its mean triangle radius, has
+            grown by more than this since the pose it was built on (0: never, the paper's scheme:
+            decimated once at rest). A flat sheet decimated flat and crumpled departs by ~0.3.
     """
 
     name = "hemiraster"
@@ -113,8 +117,18 @@ class HemirasterTransfer(TransferMethod):
                  exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
                  refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
-                 fan: bool = True):
+                 fan: bool = True, redecimate: float = 0.0):
         super().__init__(mesh, order, device)
+        # every knob but the PVS, to rebuild the far field from another pose (:meth:`rebuild`)
+        self._init_knobs = dict(mask=mask, lut=lut, downsample=downsample, ring=ring, coarse=coarse, cull=cull,
+                                cluster=cluster, exclude=exclude, backface=backface, mode=mode, view=view, phong=phong,
+                                lut_dir=lut_dir, min_image=min_image, refine=refine, occluders=occluders, rim=rim,
+                                fine_image=fine_image, fan=fan, redecimate=redecimate)
+        if not (float(redecimate) >= 0.0 and np.isfinite(float(redecimate))):
+            raise ValueError(f"hemiraster: redecimate must be a finite number >= 0, got {redecimate}")
+        if float(redecimate) > 0.0 and pvs_frames is not None:
+            raise ValueError("hemiraster: redecimate needs no PVS (a PVS lists the blockers of the coarse mesh it was recorded with)")
+        self.redecimate = float(redecimate)
         tables.check_mask(int(mask), int(downsample))
         if ring not in (0, 1, 2, 3, 4):
             raise ValueError(f"hemiraster: ring must be 0, 1, 2, 3 or 4, got {ring}")
@@ -338,6 +352,8 @@ class HemirasterTransfer(TransferMethod):
         self._pvs_tris = wp.zeros(1, dtype=wp.int32, device=d)
         self._pvs_frames = 0
         self._static_seconds = time.perf_counter() - t_start
+        self._rebuilds, self._rebuild_seconds = 0, 0.0
+        self._built_departure = self._departure() if self.redecimate > 0.0 and self._use_refine else 0.0
         if pvs_frames is not None:
             self.build_pvs(pvs_frames)
 
@@ -376,6 +392,9 @@ class HemirasterTransfer(TransferMethod):
         parser.add_argument("--min-image", type=float, default=0.5,
                             help="skip far-field triangles whose image is smaller than this many mask pixels "
                                  "(default 0.5; 0: exact)")
+        parser.add_argument("--redecimate", type=float, default=0.0,
+                            help="rebuild the coarse far field from the current pose when its deviation from the fine "
+                                 "surface per triangle radius grew by more than this (default 0: never)")
         parser.add_argument("--fine-image", type=float, default=0.0,
                             help="the same cull for the fine triangles of refined blockers near a receiver "
                                  "(default 0: exact near field)")
@@ -386,7 +405,7 @@ class HemirasterTransfer(TransferMethod):
                 "coarse": args.coarse, "cull": args.cull, "cluster": args.cluster, "exclude": args.exclude,
                 "backface": args.backface, "mode": args.mode,
                 "view": tuple(args.view), "phong": args.phong, "lut_dir": args.lut_dir, "min_image": args.min_image,
-                "fine_image": args.fine_image,
+                "fine_image": args.fine_image, "redecimate": args.redecimate,
                 "refine": args.refine}
 
     @classmethod
@@ -400,6 +419,7 @@ class HemirasterTransfer(TransferMethod):
         out += [{"lut": r} for r in (32, 64, 128)]
         out += [{"downsample": s} for s in (2, 4)]
         out += [{"refine": x} for x in (1.0, 4.0)]
+        out += [{"redecimate": 0.1}]
         out += [{"ring": 0}, {"ring": 2}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 0}, {"cull": False}]
         return out
 
@@ -408,7 +428,7 @@ class HemirasterTransfer(TransferMethod):
                 "coarse": self.coarse_target, "cull": self.cull, "cluster": self.cluster, "exclude": self.exclude,
                 "backface": self.backface, "mode": self.mode, "view": self.view.tolist(), "phong": self.phong, "lut_dir": self.lut_dir,
                 "pvs_frames": self._pvs_frames, "min_image": self.min_image, "refine": self.refine,
-                "fine_image": self.fine_image, "rim": self.rim, "fan": self.fan,
+                "fine_image": self.fine_image, "rim": self.rim, "fan": self.fan, "redecimate": self.redecimate,
                 "occluders": [o.name for o in self.occluders]}
 
     def stats(self) -> dict:
@@ -429,6 +449,8 @@ class HemirasterTransfer(TransferMethod):
             "lut_seconds": self._lut_seconds,
             "lut_source": self._lut_source,
             "static_seconds": self._static_seconds,
+            "rebuilds": self._rebuilds,
+            "rebuild_seconds": self._rebuild_seconds,
             "pvs_triangles_per_vertex": (float(self._pvs_start.numpy()[-1]) / self.mesh.num_vertices
                                          if self._pvs_frames else None),
         }
@@ -491,7 +513,41 @@ class HemirasterTransfer(TransferMethod):
                       outputs=[self.transfer], device=d)
 
     def _compute(self) -> None:
+        if self.redecimate > 0.0 and self._use_refine and self._departure() - self._built_departure > self.redecimate:
+            self.rebuild()
         self._launch(record=0, use_pvs=1 if self._pvs_frames else 0)
+
+    def _departure(self) -> float:
+        """How far the coarse mesh is from the fine surface this frame: mean blocker deviation over mean
+        blocker radius (dimensionless; ~0.002 for a flat sheet decimated flat, ~0.3 for that coarse
+        mesh riding a crumpled pose, ~0.15 for one decimated from the crumpled pose itself)."""
+        self._follow()
+        wp.launch(refit_blocker_boxes, dim=self.num_blockers,
+                  inputs=[self._bpoints, self._bfaces, self._spoints, self._sfaces, 1,
+                          self._group_start, self._group_mid, self._group_tris, self._bind_offset_abs],
+                  outputs=[*self._blocker_box, self._blocker_dev], device=self.device)
+        wp.launch(triangle_bounds, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
+                  outputs=[self._bplane, self._bsphere], device=self.device)
+        radius = float(self._bsphere.numpy()[:, 3].mean())
+        return float(self._blocker_dev.numpy().mean()) / radius if radius > 0.0 else 0.0
+
+    def rebuild(self) -> None:
+        """Rebuild every static structure (coarse far field, bindings, clusters) from the current pose.
+
+        With ``redecimate`` > 0, :meth:`update` calls it when the coarse mesh has departed from the
+        fine surface by more than ``redecimate`` (:meth:`_departure`, relative to the pose it was
+        built on), so a crumpled or draped pose gets a coarse mesh that follows its folds instead of
+        the flat sheet's; the cost (``stats()["rebuild_seconds"]``) is paid once per departure and
+        amortised over the frames that follow. :attr:`points`, :attr:`normals` and :attr:`transfer`
+        are new arrays afterwards (what :meth:`update` returns).
+        """
+        t0 = time.perf_counter()
+        pts, nrm = self.points.numpy().copy(), self.normals.numpy().copy()
+        done = (self._rebuilds + 1, self._rebuild_seconds)
+        self.__init__(TriMesh(pts, self.mesh.faces, name=self.mesh.name), order=self.order, device=self.device,
+                      **self._init_knobs)
+        self.set_points(pts, nrm)
+        self._rebuilds, self._rebuild_seconds = done[0], done[1] + time.perf_counter() - t0
 
     def build_pvs(self, frames) -> None:
         """Potentially-visible sets from a recorded animation (paper §3.2, "PVS").
