@@ -793,6 +793,7 @@ def rasterize_masks(
     pvs_tris: wp.array[wp.int32],
     lut: PlaneLut,
     bt: Batch,
+    receivers: wp.array[wp.int32],
     num_receivers: int,
     num_slots: int,
     mask: wp.array2d[wp.uint64],
@@ -800,7 +801,8 @@ def rasterize_masks(
 ):
     """Per receiver vertex: rasterize its blockers into its visibility mask (paper §3.1).
 
-    Thread ``sl`` of ``num_slots`` handles receivers ``sl, sl + num_slots, ...`` with scratch row
+    Thread ``sl`` of ``num_slots`` handles receivers ``receivers[sl], receivers[sl + num_slots], ...``
+    (the first ``num_receivers``) with scratch row
     ``sl`` of the :class:`Batch` queue and the rasterized-once table: on the CPU one slot (one
     thread runs the launch anyway), so that scratch stays in the L1 cache from receiver to
     receiver; on a GPU one slot per receiver.
@@ -814,8 +816,9 @@ def rasterize_masks(
     The masks are integrated into SH transfer by the per-order kernels of :mod:`.integrate`.
     """
     sl = wp.tid()
-    v = sl
-    while v < num_receivers:
+    row = sl
+    while row < num_receivers:
+        v = receivers[row]
         p = fine.points[v]
         n = normals[v]
         frame = orthonormal_basis(n)
@@ -865,4 +868,4 @@ def rasterize_masks(
                                          mask, bt, nb, refined)
         if nb > 0:
             flush_batch(nb, v, sl, frame, lut, mask, bt)
-        v += num_slots
+        row += num_slots
