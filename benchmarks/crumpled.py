@@ -51,6 +51,7 @@ CRUMPLED = {"defaults": {}, "redecimate": {"redecimate": 0.1},
             "redecimate+interpolate": {"redecimate": 0.1, "interpolate": 0.1},
             "fan off (main)": {"fan": False}}
 TABLE1 = {"defaults": {}, "tuned": TUNED["cloth"], "tuned+interpolate": {**TUNED["cloth"], "interpolate": 0.08},
+          "tuned, refine 1.25, interpolate": {**TUNED["cloth"], "refine": 1.25, "interpolate": 0.08},
           "tuned, fan off (main)": {**TUNED["cloth"], "fan": False}}
 
 

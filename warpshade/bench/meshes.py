@@ -93,11 +93,10 @@ def draped_cloth(n: int = 64, frames: int = 60, cache_dir: str | None = ".warpsh
     thread); the frame is cached in ``cache_dir`` (None: not cached). Y up; the ball and the floor
     are colliders only (not in the mesh).
     """
-    path = os.path.join(cache_dir, f"draped_cloth_n{n}_f{frames}.npy") if cache_dir else None
-    b_pts, faces = grid(n)
-    rest = np.stack([b_pts[:, 0], np.full(len(b_pts), 0.6), b_pts[:, 1]], axis=1).astype(np.float32)
+    path = os.path.join(cache_dir, f"draped_cloth_n{n}_f{frames}.npz") if cache_dir else None
     if path and os.path.isfile(path):
-        frame = np.load(path)
+        z = np.load(path)
+        rest, faces, frame = z["rest"], z["faces"], z["frame"]
     else:
         from ..sim import ClothBuilder, ColliderSet, XPBDSolver
 
@@ -111,13 +110,14 @@ def draped_cloth(n: int = 64, frames: int = 60, cache_dir: str | None = ".warpsh
         state = model.state()
         for _ in range(frames):
             solver.step(state, state, 1.0 / 60.0)
-        frame = state.points.numpy().astype(np.float32)
         rest = model.rest_points_np.astype(np.float32)
-        faces = model.faces
+        faces = np.asarray(model.faces, dtype=np.int32)
+        frame = state.points.numpy().astype(np.float32)
         if path:
             os.makedirs(cache_dir, exist_ok=True)
-            np.save(path + f".partial{os.getpid()}.npy", frame)
-            os.replace(path + f".partial{os.getpid()}.npy", path)
+            tmp = f"{path}.partial{os.getpid()}.npz"
+            np.savez(tmp, rest=rest, faces=faces, frame=frame)
+            os.replace(tmp, path)
     return BenchMesh("draped", TriMesh(rest, faces, name="draped-cloth"), frame,
                      f"{n}x{n} cloth dropped on a ball, {frames} simulated frames (rest: flat)", up="Y")
 
