@@ -149,3 +149,17 @@ def test_merge_results_replaces_only_the_remeasured_method_mesh_blocks():
            {"method": "b", "mesh": "x", "v": 3}, {"method": "a", "mesh": "y", "v": 4}]
     new = [{"method": "b", "mesh": "x", "v": 20}, {"method": "b", "mesh": "y", "v": 30}]
     assert [r["v"] for r in mod.merge_records(old, new)] == [1, 20, 4, 30]
+
+
+def test_draped_pose_is_simulated_deterministically_and_cached(tmp_path):
+    from warpshade.bench.meshes import draped_cloth
+
+    a = draped_cloth(n=10, frames=12, cache_dir=str(tmp_path))
+    assert len(list(tmp_path.iterdir())) == 1
+    b = draped_cloth(n=10, frames=12, cache_dir=str(tmp_path))  # from the cache
+    c = draped_cloth(n=10, frames=12, cache_dir=None)  # simulated again
+    for m in (b, c):
+        assert np.array_equal(m.rest.faces, a.rest.faces) and np.array_equal(m.rest.points, a.rest.points)
+        assert np.array_equal(m.frame, a.frame)
+    # it fell from 0.6 m onto the ball (top at 0.5 m; 12 frames of free fall would be 0.2 m)
+    assert a.frame[:, 1].max() < 0.6 - 0.09
