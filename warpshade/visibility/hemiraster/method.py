@@ -108,6 +108,7 @@ class HemirasterTransfer(TransferMethod):
             coarse mesh's mean deviation from the fine surface, over its mean triangle radius, has
             grown by more than this since the pose it was built on (0: never, the paper's scheme:
             decimated once at rest). A flat sheet decimated flat and crumpled departs by ~0.3.
+            Needs the refinement (``refine`` > 0 with the hierarchy), whose deviations it reads.
         interpolate: Compute the transfer at a subset of receivers only (about every other one,
             :func:`.hierarchy.interpolation_subset`) and give each other receiver the unoccluded
             transfer of its own normal minus the mean blocked part of its computed neighbours, unless
