@@ -155,6 +155,8 @@ class XPBDSolver:
             self._mark = wp.zeros(v, dtype=wp.int32, device=d)
             self._mark2 = wp.zeros(v, dtype=wp.int32, device=d)
             self._reverted = wp.zeros(v, dtype=wp.int32, device=d)
+            self._x_grown = wp.zeros(v, dtype=wp.vec3, device=d)
+            self._reverted_grown = wp.zeros(v, dtype=wp.int32, device=d)
 
     # ------------------------------------------------------------------------------------------
 
@@ -359,7 +361,9 @@ class XPBDSolver:
     def _guard_intersections(self, x, v, dt: float) -> None:
         """Send the vertices of intersecting triangles back to their start-of-step positions
         (colliders then push them out again), growing the region a ring per round, all free
-        vertices in the last round, until the exact count is 0."""
+        vertices in the last round, until the exact count is 0. When even the last round leaves
+        intersections (made by kinematic vertices or colliders), the grown-region result is kept
+        and the step is counted in ``stats()["guard_unresolved"]``."""
         m, d, n = self.model, self.device, self.model.particle_count
         c, col = self._counter, self.colliders
         self._reverted.zero_()
@@ -375,9 +379,15 @@ class XPBDSolver:
                 self.guard_steps += 1
                 self.guard_vertices = -1
             if r == self.GUARD_ROUNDS + 1:
+                # kinematic vertices or colliders made the intersection: reverting everything did
+                # not help, so keep the grown-region result rather than freeze the whole cloth
                 self.guard_unresolved += 1
+                wp.copy(x, self._x_grown)
+                wp.copy(self._reverted, self._reverted_grown)
                 break
             if r == self.GUARD_ROUNDS:
+                wp.copy(self._x_grown, x)
+                wp.copy(self._reverted_grown, self._reverted)
                 self._mark.fill_(1)
             for _ in range(r):
                 wp.copy(self._mark2, self._mark)
