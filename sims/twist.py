@@ -9,8 +9,9 @@ Success criteria (checked every frame, printed at the end): 0 intersecting cloth
 pairs at the end of every frame; the attached edges are on their targets (1e-5 m); 99th-
 percentile edge strain below 5 %.
 
-Status: not met yet: a 180 degree relative twist lengthens the borders by over 100 %, so the
-scene itself needs redesigning before its contact can be judged.
+Status: not met yet: up to 3 intersecting pairs next to the turning (kinematic) edges; a 180
+degree relative twist lengthens the borders by over 100 % (p99 strain 560 %), so the scene itself
+needs redesigning before its contact can be judged.
 
 Run:  python sims/twist.py --frames 120 --out twist.usda
       (shaded under the default sky; --no-shade writes geometry only)

@@ -310,8 +310,8 @@ class ColliderSet:
                               ar["friction"], thickness, inv_mass, x_prev], outputs=[x], device=self.device)
         for m in self.meshes:
             wp.launch(ck.collide_mesh, dim=n,
-                      inputs=[m.mesh.id, m.points_prev, m.indices, int(m.closed), thickness + self.mesh_query_distance, thickness,
-                              m.friction, inv_mass, x_prev],
+                      inputs=[m.mesh.id, m.points_prev, m.indices, int(m.closed), thickness + self.mesh_query_distance,
+                              thickness, m.friction, inv_mass, x_prev],
                       outputs=[x], device=self.device)
 
     mesh_query_distance = 0.25

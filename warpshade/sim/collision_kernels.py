@@ -205,7 +205,9 @@ def collide_mesh(
     face = int(0)
     u = float(0.0)
     v = float(0.0)
-    sign = float(1.0)
+    cp = wp.vec3(0.0)
+    n = wp.vec3(0.0)
+    sd = float(0.0)
     if closed != 0:
         q = wp.mesh_query_point_sign_winding_number(mesh, p, max_distance, 2.0, 0.5)
         if not q.result:
@@ -213,7 +215,14 @@ def collide_mesh(
         face = q.face
         u = q.u
         v = q.v
-        sign = q.sign
+        cp = wp.mesh_eval_position(mesh, face, u, v)
+        d = p - cp
+        ld = wp.length(d)
+        if ld > 1.0e-9:
+            n = d * (q.sign / ld)
+        else:
+            n = wp.normalize(wp.mesh_eval_face_normal(mesh, face))
+        sd = q.sign * ld
     else:
         q = wp.mesh_query_point_no_sign(mesh, p, max_distance)
         if not q.result:
@@ -229,26 +238,10 @@ def collide_mesh(
             if wp.dot(x_prev[i] - c0, wp.mesh_eval_face_normal(mesh, q0.face)) < 0.0:
                 side = -1.0
         n = wp.mesh_eval_face_normal(mesh, face) * side
-        cq = wp.mesh_eval_position(mesh, face, u, v)
-        sd = wp.length(p - cq)
-        if wp.dot(p - cq, n) < 0.0:
+        cp = wp.mesh_eval_position(mesh, face, u, v)
+        sd = wp.length(p - cp)
+        if wp.dot(p - cp, n) < 0.0:
             sd = -sd
-        if sd >= thickness:
-            return
-        pn = cq + n * thickness
-        w0 = 1.0 - u - v
-        cp0 = points_prev[tris[3 * face]] * u + points_prev[tris[3 * face + 1]] * v + points_prev[tris[3 * face + 2]] * w0
-        x[i] = pn + apply_friction((pn - x_prev[i]) - (cq - cp0), n, thickness - sd, friction)
-        return
-    cp = wp.mesh_eval_position(mesh, face, u, v)
-    d = p - cp
-    ld = wp.length(d)
-    n = wp.vec3(0.0)
-    if ld > 1.0e-9:
-        n = d * (sign / ld)
-    else:
-        n = wp.normalize(wp.mesh_eval_face_normal(mesh, face))
-    sd = sign * ld
     depth = thickness - sd
     if depth <= 0.0:
         return

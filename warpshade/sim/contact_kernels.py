@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from .kernels import closest_segments, dihedral_angle, stored_side
+from .kernels import closest_segments, dihedral_angle, push_candidate, stored_side
 
 # ---------------------------------------------------------------------------------------------
 # Geometry
@@ -103,7 +103,6 @@ def find_edge_contacts(
     lower: wp.array[wp.vec3],
     upper: wp.array[wp.vec3],
     thickness: float,
-    max_contacts: int,
     prev_edge: wp.array2d[int],
     prev_side: wp.array2d[float],
     prev_count: wp.array[int],
@@ -142,15 +141,10 @@ def find_edge_contacts(
         close = wp.max(pair_closure(v, i0, j0, j1, -1, horizon), pair_closure(v, i1, j0, j1, -1, horizon))
         if dist > 1.5 * (thickness + close):
             continue
-        if count < max_contacts:
-            side = edge_orientation(a, b, c, d)
-            if dist < thickness:
-                side = stored_side(prev_edge, prev_side, prev_count, e, f, side)
-            contact_edge[e, count] = f
-            contact_side[e, count] = side
-            count += 1
-        else:
-            wp.atomic_add(overflow, 0, 1)
+        side = edge_orientation(a, b, c, d)
+        if dist < thickness:
+            side = stored_side(prev_edge, prev_side, prev_count, e, f, side)
+        count = push_candidate(contact_edge, contact_side, e, count, f, side, overflow)
     contact_count[e] = count
 
 

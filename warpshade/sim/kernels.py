@@ -115,6 +115,19 @@ def stored_side(prev_id: wp.array2d[int], prev_side: wp.array2d[float], prev_cou
 
 
 @wp.func
+def push_candidate(ids: wp.array2d[int], sides: wp.array2d[float], row: int, count: int, other: int, side: float,
+                   overflow: wp.array[int]) -> int:
+    """Store contact candidate `other` with its side in slot `count` of `row`; returns the new
+    count (a full row counts the candidate in overflow[0] instead)."""
+    if count < ids.shape[1]:
+        ids[row, count] = other
+        sides[row, count] = side
+        return count + 1
+    wp.atomic_add(overflow, 0, 1)
+    return count
+
+
+@wp.func
 def dihedral_angle(x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, x4: wp.vec3) -> float:
     """Signed dihedral angle [rad] of the hinge with shared edge x3-x4 and wings x1, x2.
 
@@ -545,7 +558,6 @@ def find_self_contacts(
     horizon: float,
     pad: wp.array[float],
     thickness: float,
-    max_contacts: int,
     prev_tri: wp.array2d[int],
     prev_side: wp.array2d[float],
     prev_count: wp.array[int],
@@ -594,23 +606,18 @@ def find_self_contacts(
         dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
         if dist > 1.5 * (thickness + close):
             continue
-        if count < max_contacts:
-            xa = x[a]
-            nn = wp.cross(x[b] - xa, x[c] - xa)
-            d = wp.dot(p - xa, nn)
-            side = float(0.0)
-            # an in-plane vertex has no side yet: the solve decides at first contact
-            if d > 1.0e-9 * wp.length_sq(nn):
-                side = 1.0
-            elif d < -1.0e-9 * wp.length_sq(nn):
-                side = -1.0
-            if wp.abs(d) < thickness * wp.sqrt(wp.length_sq(nn)):
-                side = stored_side(prev_tri, prev_side, prev_count, i, t, side)
-            contact_tri[i, count] = t
-            contact_side[i, count] = side
-            count += 1
-        else:
-            wp.atomic_add(overflow, 0, 1)
+        xa = x[a]
+        nn = wp.cross(x[b] - xa, x[c] - xa)
+        d = wp.dot(p - xa, nn)
+        side = float(0.0)
+        # an in-plane vertex has no side yet: the solve decides at first contact
+        if d > 1.0e-9 * wp.length_sq(nn):
+            side = 1.0
+        elif d < -1.0e-9 * wp.length_sq(nn):
+            side = -1.0
+        if wp.abs(d) < thickness * wp.sqrt(wp.length_sq(nn)):
+            side = stored_side(prev_tri, prev_side, prev_count, i, t, side)
+        count = push_candidate(contact_tri, contact_side, i, count, t, side, overflow)
     contact_count[i] = count
 
 

@@ -327,7 +327,7 @@ class XPBDSolver:
         wp.copy(self._prev_count, self._contact_count)
         wp.launch(k.find_self_contacts, dim=m.particle_count,
                   inputs=[self._bvh.id, x, m.rest_points, v, m.tris, m.ring_offsets, m.ring, horizon, pad, m.thickness,
-                          self.max_contacts, self._prev_tri, self._prev_side, self._prev_count],
+                          self._prev_tri, self._prev_side, self._prev_count],
                   outputs=[self._contact_tri, self._contact_side, self._contact_count, self._overflow], device=d)
         if self.edge_contact:
             ne = m.edge_count
@@ -346,7 +346,7 @@ class XPBDSolver:
                           inputs=[x, m.hinges, m.hinge_edge, self.CREASE_ANGLE], outputs=[self._eactive], device=d)
             wp.launch(ck.find_edge_contacts, dim=ne,
                       inputs=[self._ebvh.id, x, v, horizon, m.edges, self._eactive, m.ring_offsets, m.ring, self._elower, self._eupper,
-                              m.thickness, self.max_contacts, self._prev_edge, self._prev_eside, self._prev_ecount],
+                              m.thickness, self._prev_edge, self._prev_eside, self._prev_ecount],
                       outputs=[self._contact_edge, self._contact_eside, self._contact_ecount, self._overflow],
                       device=d)
 
