@@ -170,3 +170,12 @@ def test_a_long_setup_is_announced_with_the_planners_estimate(tmp_path, capsys, 
     lines = [ln for ln in capsys.readouterr().err.splitlines() if "setup estimated" in ln]
     assert lines == [f"warpshade run: setup estimated at {expected:.1f} s (warpshade plan prices it) before the "
                      "first frame; Ctrl-C stops it"], lines
+
+
+def test_the_progress_bar_says_setting_up_until_the_first_frame(tmp_path, capsys):
+    assert main(["run", SCENE, "--frames", "2", "--order", "2", "--workers", "0", "--method", "reference",
+                 "--rays", "4", "--out", str(tmp_path / "o.usda")]) == 0
+    err = capsys.readouterr().err
+    # tqdm redraws with carriage returns: the setup state comes first, then frames counted
+    setup, frames = err.find("warpshade run: setting up:   0%"), err.find("warpshade run: 100%")
+    assert 0 <= setup < frames, err

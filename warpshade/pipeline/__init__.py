@@ -291,6 +291,11 @@ class Pipeline:
         t0 = time.perf_counter()
         bar = None
         try:
+            if progress:  # the bar says "setting up" until the first frame (workers build their structures)
+                from tqdm import tqdm
+
+                bar = tqdm(total=self.frames, initial=min(start, self.frames), desc="warpshade run: setting up",
+                           unit="frame")
             sims = ClothSimulation(self.scene, self.device) if any(o.kind == "cloth" for o in self.scene.objects) else None
             static = {o.name for o in self.scene.objects if o.kind == "static"}
             names = {}
@@ -318,10 +323,6 @@ class Pipeline:
             for spec in specs:
                 writer.add_light(spec)
             secs["setup"] = time.perf_counter() - t0
-            if progress:
-                from tqdm import tqdm
-
-                bar = tqdm(total=self.frames, initial=min(start, self.frames), desc="warpshade run", unit="frame")
             failure: list = []
             warned_black: set[str] = set()
             results = shade_frames(self.shader, self._geometry(sims, secs, failure, start), workers=self.workers,
@@ -340,6 +341,8 @@ class Pipeline:
                         warn_black_mesh(self.scene, name, f, self._albedo_of(name))
                 secs["write"] += time.perf_counter() - t
                 if bar is not None:
+                    if bar.n == min(start, self.frames):
+                        bar.set_description_str("warpshade run", refresh=False)
                     bar.update(1)
             if failure:
                 raise failure[0]
