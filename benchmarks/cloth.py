@@ -8,7 +8,9 @@ kernel compilation (excluded from timing). Reported next to it, on the same grid
   no contact, no self-collision), when the installed warp ships that file;
 * Newton's ``SolverXPBD`` when newton is installed (it is not a warpshade dependency).
 
-The cloth's maximum edge strain at the end of the run is printed as a quality check.
+The cloth's maximum edge strain at the end of the run is printed as a quality check, the same
+cloth is timed with the intersection guard off (its cost), and ``--scenes`` also runs the hard
+contact scenes of ``sims/`` and prints each one's criteria (worst frame's intersecting pairs).
 Numbers from a shared, loaded machine (2 cores, several concurrent jobs) are noisy: each figure is
 the median of ``--repeats`` runs of ``--frames`` frames; ``frames/cpu-s`` divides by the process's
 CPU time instead of wall time, which is what one unshared core would give (Warp's CPU backend runs
@@ -43,7 +45,8 @@ NEWTON_FIGURES = [
 """Figures quoted in the issue, printed beside ours (they come from other runs, not this script)."""
 
 
-def hanging_cloth(n: int, self_collision: bool = True, substeps: int | None = None, device: str = "cpu"):
+def hanging_cloth(n: int, self_collision: bool = True, substeps: int | None = None, device: str = "cpu",
+                  guard: bool = True):
     """The benchmark scene: 1 m x 1 m cloth, horizontal at 0.8 m, pinned at two corners, ground at 0
     (the cloth swings down and its lower part piles up on the ground)."""
     b = ClothBuilder()
@@ -53,12 +56,12 @@ def hanging_cloth(n: int, self_collision: bool = True, substeps: int | None = No
     col = ColliderSet(device)
     col.add_plane((0.0, 1.0, 0.0), 0.0)
     kw = {} if substeps is None else {"substeps": substeps}
-    solver = XPBDSolver(model, col, self_collision=self_collision, **kw)
+    solver = XPBDSolver(model, col, self_collision=self_collision, guard=guard, **kw)
     return model, solver
 
 
-def run_warpshade(n: int, frames: int, repeats: int, self_collision: bool):
-    model, solver = hanging_cloth(n, self_collision)
+def run_warpshade(n: int, frames: int, repeats: int, self_collision: bool, guard: bool = True):
+    model, solver = hanging_cloth(n, self_collision, guard=guard)
     counter = IntersectionCounter(model.faces)
     s0, s1 = model.state(), model.state()
     solver.step(s0, s1, 1.0 / FPS)  # warm-up: compiles and loads the kernels
@@ -91,9 +94,26 @@ def run_warpshade(n: int, frames: int, repeats: int, self_collision: bool):
     return {"frames_per_second": frames / med, "seconds_per_frame": med / frames,
             "frames_per_cpu_second": frames / statistics.median(cpu), "vertices": model.particle_count,
             "triangles": model.tri_count, "substeps": solver.substeps, "iterations": solver.iterations,
-            "self_collision": self_collision, "max_edge_strain": float(strain.max()),
+            "self_collision": self_collision, "guard": guard, "max_edge_strain": float(strain.max()),
             "min_height": float(x[:, 1].min()), "stats": solver.stats(),
             "max_intersecting_pairs": worst}
+
+
+def run_scenes() -> dict:
+    """The sims' hard contact scenes at their default sizes and lengths, each script's own criteria."""
+    import contextlib
+    import io
+    import tempfile
+
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "sims"))
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in ("pile", "twist", "box_edge", "cape"):
+            mod = importlib.import_module(name)
+            with contextlib.redirect_stdout(io.StringIO()):
+                r = mod.main(["--out", os.path.join(tmp, f"{name}.usda")])
+            out[name] = {k: (bool(v) if isinstance(v, (bool, np.bool_)) else v) for k, v in r.items()}
+    return out
 
 
 def _warp_cloth_class(path: str):
@@ -190,11 +210,14 @@ def main(argv=None) -> int:
     ap.add_argument("--no-self-collision", action="store_true")
     ap.add_argument("--skip-baselines", action="store_true", help="only time warpshade")
     ap.add_argument("--json", help="write the numbers to this file")
+    ap.add_argument("--scenes", action="store_true",
+                    help="also run the hard contact scenes (sims/pile, twist, box_edge, cape) and report their criteria")
     args = ap.parse_args(argv)
     wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     wp.init()
 
     res = run_warpshade(args.grid, args.frames, args.repeats, not args.no_self_collision)
+    res["guard_off"] = run_warpshade(args.grid, args.frames, args.repeats, not args.no_self_collision, guard=False)
     res.update({"grid": args.grid, "frames": args.frames, "repeats": args.repeats, "frame_dt": 1.0 / FPS,
                 "device": "cpu", "warp": wp.__version__,
                 "note": "median of repeats after a warm-up step (kernel compilation excluded); shared, loaded machine"})
@@ -211,6 +234,10 @@ def main(argv=None) -> int:
     w = res["max_intersecting_pairs"]
     print(f"{'':<34}intersecting triangle pairs, worst frame: {w['self']} cloth-cloth, {w['collider']} "
           f"cloth-ground; frames with any: {w['frames_with_intersections']} of {args.frames * args.repeats}")
+    g = res["guard_off"]
+    print(f"{'  same, intersection guard off':<34}{g['frames_per_second']:>10.1f}{g['frames_per_cpu_second']:>13.1f}"
+          f"{g['vertices']:>10}{g['substeps']:>10}  worst frame: {g['max_intersecting_pairs']['self']} cloth-cloth, "
+          f"{g['max_intersecting_pairs']['collider']} cloth-ground")
     for key, label in (("warp_example_cloth", "warp benchmark_cloth_warp (springs)"), ("newton_xpbd", "newton SolverXPBD")):
         r = res.get(key)
         if r is None:
@@ -220,6 +247,11 @@ def main(argv=None) -> int:
                   f"{r['vertices']:>10}{r['substeps']:>10}  none")
         else:
             print(f"{label:<34}{'n/a':>10}  ({r['reason']})")
+    if args.scenes:
+        res["scenes"] = run_scenes()
+        print("hard contact scenes (full default runs; max_intersections = worst frame's intersecting pairs):")
+        for name, r in res["scenes"].items():
+            print(f"  {name:<10}" + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in r.items()))
     print("published figures (issue 19, not re-measured here):")
     for label, fig in NEWTON_FIGURES:
         print(f"  {label:<76}{fig}")

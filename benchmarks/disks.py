@@ -19,36 +19,20 @@ import json
 import os
 import sys
 
-import numpy as np
 import warp as wp
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+from warpshade.bench.reference_cache import ground_truth  # noqa: E402
 from warpshade.geometry import load_mesh  # noqa: E402
 from warpshade.metrics import error_summary  # noqa: E402
-from warpshade.sh import clamped_cosine_zh, zh_rotate  # noqa: E402
+from warpshade.sh import unoccluded_transfer  # noqa: E402
 from warpshade.timing import time_transfer  # noqa: E402
 from warpshade.visibility import METHODS, get_method  # noqa: E402
 
 ASSETS = os.path.join(os.path.dirname(wp.__file__), "examples", "assets")
 CACHE = os.path.join(os.path.dirname(__file__), "cache")
 TRUTH_RAYS = 4096
-
-
-def ground_truth(name: str, mesh, order: int) -> np.ndarray:
-    """4096-ray reference transfer, cached on disk."""
-    os.makedirs(CACHE, exist_ok=True)
-    path = os.path.join(CACHE, f"{os.path.splitext(name)[0]}_order{order}_rays{TRUTH_RAYS}.npy")
-    if os.path.isfile(path):
-        return np.load(path)
-    print(f"  computing the {TRUTH_RAYS}-ray reference for {name} (cached in {path})", flush=True)
-    t = get_method("reference")(mesh, order=order, rays=TRUTH_RAYS, seed=12345).update().numpy()
-    np.save(path, t)
-    return t
-
-
-def unoccluded(mesh, order: int) -> np.ndarray:
-    return zh_rotate(clamped_cosine_zh(order), mesh.normals)
 
 
 def main() -> int:
@@ -70,8 +54,8 @@ def main() -> int:
     for name in meshes:
         mesh = load_mesh(os.path.join(ASSETS, name))
         print(f"\n{name}: {mesh.num_vertices} vertices, {mesh.num_faces} triangles, order {args.order}")
-        truth = ground_truth(name, mesh, args.order)
-        e0 = error_summary(unoccluded(mesh, args.order), truth)
+        truth = ground_truth(mesh, args.order, TRUTH_RAYS, cache_dir=CACHE, log=print)
+        e0 = error_summary(unoccluded_transfer(mesh.normals, args.order), truth)
         print(f"{'method':11} {'knobs':52} {'ms':>8} {'err mean':>9} {'err p95':>8} {'err max':>8}")
         print(f"{'unoccluded':11} {'(no visibility)':52} {'':8} {e0['error_mean']:9.4f} {e0['error_p95']:8.4f} "
               f"{e0['error_max']:8.4f}")

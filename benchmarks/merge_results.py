@@ -41,7 +41,6 @@ def merge_records(old: list[dict], new: list[dict]) -> list[dict]:
 def main(argv=None) -> int:
     from warpshade.bench.report import frontier_from_results, markdown_table, plot_pareto, write_csv, write_json
     from warpshade.bench.runner import mark_pareto
-    from warpshade.cli.cmd_transfer import write_json as write_plain_json
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("new", help="results.json of the partial re-measurement")
@@ -75,7 +74,7 @@ def main(argv=None) -> int:
         machine = json.load(f).get("machine", "")
     if args.note:
         machine += "; " + args.note
-    write_plain_json(args.frontier, {**frontier_from_results(merged), "machine": machine})
+    write_json(args.frontier, {**frontier_from_results(merged), "machine": machine}, indent=2)
     plot_pareto(os.path.join(args.into, "pareto.png"), merged, title=machine)
     print(f"merge_results: {len(old)} -> {len(merged)} records; replaced {len({(r['method'], r['mesh']) for r in new})} "
           f"(method, mesh) blocks with {len(new)} records")

@@ -35,10 +35,11 @@ import warp as wp
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
 
+from warpshade.bench.reference_cache import ground_truth  # noqa: E402
 from warpshade.geometry import TriMesh, load_mesh  # noqa: E402
 from warpshade.metrics import error_summary  # noqa: E402
 from warpshade.sh import sh_eval  # noqa: E402
-from warpshade.sh.zonal import clamped_cosine_zh, zh_rotate  # noqa: E402
+from warpshade.sh.zonal import clamped_cosine_zh, unoccluded_transfer, zh_rotate  # noqa: E402
 from warpshade.timing import median_seconds  # noqa: E402
 from warpshade.visibility import METHODS, get_method  # noqa: E402
 from warpshade.visibility.spheres import SpheresTransfer, build_sphere_tree, halfspace_blocker  # noqa: E402
@@ -71,24 +72,8 @@ def scene(ground_n: int):
 
 
 def reference(mesh: TriMesh, occluders: list[TriMesh], order: int, rays: int) -> np.ndarray:
-    """Ray-traced transfer, cached on disk by the geometry's hash."""
-    h = hashlib.sha1()
-    for m in [mesh, *occluders]:
-        h.update(m.points.tobytes())
-        h.update(m.faces.tobytes())
-    h.update(f"{order}-{rays}".encode())
-    tag = "".join(ch if ch.isalnum() else "_" for ch in os.path.basename(mesh.name.split(":")[0]))
-    path = os.path.join(CACHE, f"spheres_ref_{tag}_{h.hexdigest()[:12]}.npz")
-    if os.path.isfile(path):
-        return np.load(path)["transfer"]
-    t = get_method("reference")(mesh, order=order, rays=rays, occluders=occluders).update().numpy()
-    os.makedirs(CACHE, exist_ok=True)
-    np.savez(path, transfer=t)
-    return t
-
-
-def unoccluded(mesh: TriMesh, order: int) -> np.ndarray:
-    return zh_rotate(clamped_cosine_zh(order), mesh.normals)
+    """Ray-traced transfer of ``mesh`` shadowed by itself and ``occluders``, cached in ``CACHE``."""
+    return ground_truth(mesh, order, rays, cache_dir=CACHE, occluders=occluders)
 
 
 def sky(order: int) -> np.ndarray:
@@ -312,7 +297,7 @@ def self_shadowing(order: int, rays: int, repeat: int) -> list[dict]:
     for name in ("bunny", "bear"):
         mesh = load_mesh(os.path.join(ASSETS, f"{name}.usd"))
         ref = reference(mesh, [], order, rays)
-        rows.append({"mesh": name, "method": "unoccluded", **error_summary(unoccluded(mesh, order), ref)})
+        rows.append({"mesh": name, "method": "unoccluded", **error_summary(unoccluded_transfer(mesh.normals, order), ref)})
         for spheres in (15, 30, 60):
             m = SpheresTransfer(mesh, order=order, spheres=spheres, levels=3)
             sec = median_seconds(m.update, repeat=repeat)
@@ -380,10 +365,10 @@ def main(argv=None) -> int:
         rows.append(run_scene(objs, order, "hyb", 15, args.repeat, args.rays, True, trees))
     for order in orders:
         r = np.concatenate([reference(objs[n], [objs[o] for o in objs if o != n], order, args.rays) for n in objs])
-        u = np.concatenate([unoccluded(objs[n], order) for n in objs])
+        u = np.concatenate([unoccluded_transfer(objs[n].normals, order) for n in objs])
         row = {"order": order, "exp": "unoccluded", **error_summary(u, r)}
         for n in objs:
-            row[f"error_mean_{n}"] = error_summary(unoccluded(objs[n], order), reference(
+            row[f"error_mean_{n}"] = error_summary(unoccluded_transfer(objs[n].normals, order), reference(
                 objs[n], [objs[o] for o in objs if o != n], order, args.rays))["error_mean"]
         rows.append(row)
     single = self_shadowing(4, args.rays, args.repeat)

@@ -1,4 +1,5 @@
-"""Shared plumbing of the sims/ scripts: argument parsing and USD output (not a sim itself)."""
+"""Shared plumbing of the sims/ scripts: argument parsing and shaded USD output through
+:func:`warpshade.run` (not a sim itself)."""
 
 from __future__ import annotations
 
@@ -11,8 +12,7 @@ sys.path.insert(0, os.path.abspath(os.path.join(os.path.dirname(__file__), "..")
 
 import numpy as np  # noqa: E402
 
-from warpshade.geometry import vertex_normals_np  # noqa: E402
-from warpshade.usd import AnimationWriter  # noqa: E402
+import warpshade as ws  # noqa: E402
 
 FPS = 60.0
 
@@ -23,6 +23,8 @@ def parse(doc: str, argv, frames: int, extra=None):
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=doc)
     ap.add_argument("--frames", type=int, default=frames, help=f"frames at {FPS:g} fps (default {frames})")
     ap.add_argument("--out", required=True, help="output USD animation (.usda/.usdc/.usd)")
+    ap.add_argument("--no-shade", action="store_true",
+                    help="write geometry only (each mesh bound to its albedo), not the shaded colours")
     if extra is not None:
         extra(ap)
     args = ap.parse_args(argv)
@@ -32,23 +34,29 @@ def parse(doc: str, argv, frames: int, extra=None):
 
 
 class Recorder:
-    """Writes meshes frame by frame with angle-weighted vertex normals."""
+    """Collects a script's meshes and their per-frame points, then shades and writes them with
+    :func:`warpshade.run` (the script's own simulation gives the points; a mesh given no frame is static)."""
 
-    def __init__(self, path: str):
-        self.writer = AnimationWriter(path, fps=FPS, up_axis="Y")
-        self.faces: dict[str, np.ndarray] = {}
+    def __init__(self, args):
+        self.path, self.shade = args.out, not args.no_shade
+        self.meshes: dict[str, tuple] = {}  # name -> (faces, rest points)
+        self.frames: list[dict] = []
         self.t0 = time.perf_counter()
 
     def add(self, name: str, faces, points) -> str:
-        n = self.writer.add_mesh(name, faces, points, shaded=False)
-        self.faces[n] = np.asarray(faces)
-        return n
+        self.meshes[name] = (np.asarray(faces), np.array(points, dtype=np.float64))
+        return name
 
     def frame(self, frame: int, name: str, points) -> None:
-        pts = np.asarray(points, dtype=np.float64)
-        self.writer.write_frame(frame, name, pts, vertex_normals_np(pts, self.faces[name]))
+        while len(self.frames) <= frame:
+            self.frames.append({})
+        self.frames[frame][name] = np.array(points, dtype=np.float32)
 
     def close(self) -> str:
-        path = self.writer.close()
-        print(f"wrote {path} ({time.perf_counter() - self.t0:.1f} s)")
-        return path
+        moving = set().union(*self.frames) if self.frames else set()
+        scene = ws.make_scene(*[ws.mesh(name, pts, faces, moving=name in moving)
+                           for name, (faces, pts) in self.meshes.items()], fps=FPS)
+        report = ws.run(scene, self.path, frames=max(1, len(self.frames)), shade=self.shade, geometry=self.frames)
+        what = "shaded" if self.shade else "geometry only"
+        print(f"wrote {report.path} ({what}, {time.perf_counter() - self.t0:.1f} s)")
+        return report.path

@@ -14,6 +14,7 @@ strain below 5 %.
 Status: not met yet: 38 intersecting pairs, the strip slides off the box, p99 strain 3.6 %.
 
 Run:  python sims/box_edge.py --frames 90 --out box_edge.usda
+      (shaded under the default sky; --no-shade writes geometry only)
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ def main(argv=None) -> dict:
     end_start = x0[end]
     counter = IntersectionCounter(model.faces)
 
-    rec = Recorder(args.out)
+    rec = Recorder(args)
     cloth = rec.add("cloth", model.faces, x0)
     rec.add("box", box.faces, box_pts)
     worst = 0

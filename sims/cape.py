@@ -12,6 +12,7 @@ vertices are exactly on their targets; the cape trails behind the figure (mean z
 below the torso's z).
 
 Run:  python sims/cape.py --frames 180 --out cape.usda
+      (shaded under the default sky; --no-shade writes geometry only)
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ def main(argv=None) -> dict:
     solver = XPBDSolver(model, col)
     state, control = model.state(), model.control()
 
-    rec = Recorder(args.out)
+    rec = Recorder(args)
     cape = rec.add("cape", model.faces, model.rest_points_np)
     figure = rec.add("figure", fig.faces, fig.rest_points)
     worst, drift = np.inf, 0.0

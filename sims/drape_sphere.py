@@ -10,6 +10,7 @@ the sphere or the ground (1e-4 m float tolerance); after 3 s the cloth is at res
 friction holds the cloth, is reported too: about 11 %).
 
 Run:  python sims/drape_sphere.py --frames 180 --out drape.usda
+      (shaded under the default sky; --no-shade writes geometry only)
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ def main(argv=None) -> dict:
     state = model.state()
     sphere = trimesh.creation.icosphere(subdivisions=3, radius=RADIUS)
 
-    rec = Recorder(args.out)
+    rec = Recorder(args)
     cloth = rec.add("cloth", model.faces, model.rest_points_np)
     ball = rec.add("sphere", sphere.faces, np.asarray(sphere.vertices) + CENTER)
     for f in range(args.frames):

@@ -11,6 +11,7 @@ load is ~40 g and the sweeps' residual stretch scales with the substep squared: 
 substeps and one sweep).
 
 Run:  python sims/flag.py --frames 240 --out flag.usda
+      (shaded under the default sky; --no-shade writes geometry only)
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ def main(argv=None) -> dict:
     state, control = model.state(), model.control()
     pole_pts, pole_faces, _ = capsule_mesh((0.0, 0.0, 0.0), (0.0, TOP + 0.1, 0.0), POLE_R)
 
-    rec = Recorder(args.out)
+    rec = Recorder(args)
     flag = rec.add("flag", model.faces, model.rest_points_np)
     pole = rec.add("pole", pole_faces, pole_pts)
     for f in range(args.frames):

@@ -14,6 +14,7 @@ Status: not met yet. Measured at the default 6 substeps: 11-35 intersecting pair
 (547 before edge-edge self-contact).
 
 Run:  python sims/pile.py --frames 180 --out pile.usda
+      (shaded under the default sky; --no-shade writes geometry only)
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ def main(argv=None) -> dict:
     counter = IntersectionCounter(model.faces)
     top_rest = model.rest_points_np[ids[0]].astype(np.float64)
 
-    rec = Recorder(args.out)
+    rec = Recorder(args)
     cloth = rec.add("cloth", model.faces, model.rest_points_np)
     worst, lowest = 0, np.inf
     for f in range(args.frames):

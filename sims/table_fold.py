@@ -10,6 +10,7 @@ Success criteria (checked at the end and printed): no vertex inside the table or
 folded onto itself); the final state is finite.
 
 Run:  python sims/table_fold.py --frames 240 --out table_fold.usda
+      (shaded under the default sky; --no-shade writes geometry only)
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ def main(argv=None) -> dict:
     state = model.state()
     table = trimesh.creation.box(extents=2 * HALF)
 
-    rec = Recorder(args.out)
+    rec = Recorder(args)
     cloth = rec.add("cloth", model.faces, model.rest_points_np)
     tab = rec.add("table", table.faces, np.asarray(table.vertices) + table_center(0.0))
     worst, active = np.inf, 0

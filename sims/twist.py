@@ -13,6 +13,7 @@ Status: not met yet: a 180 degree relative twist lengthens the borders by over 1
 scene itself needs redesigning before its contact can be judged.
 
 Run:  python sims/twist.py --frames 120 --out twist.usda
+      (shaded under the default sky; --no-shade writes geometry only)
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ def main(argv=None) -> dict:
     counter = IntersectionCounter(model.faces)
     rest_l, rest_r = model.rest_points_np[left].astype(np.float64), model.rest_points_np[right].astype(np.float64)
 
-    rec = Recorder(args.out)
+    rec = Recorder(args)
     cloth = rec.add("cloth", model.faces, model.rest_points_np)
     worst, drift = 0, 0.0
     for f in range(args.frames):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from warpshade.bench.environments import project, radiance
-from warpshade.bench.runner import pareto_mask
+from warpshade.bench.records import pareto_mask
 from warpshade.cli import main as cli_main
 
 
@@ -149,3 +149,35 @@ def test_merge_results_replaces_only_the_remeasured_method_mesh_blocks():
            {"method": "b", "mesh": "x", "v": 3}, {"method": "a", "mesh": "y", "v": 4}]
     new = [{"method": "b", "mesh": "x", "v": 20}, {"method": "b", "mesh": "y", "v": 30}]
     assert [r["v"] for r in mod.merge_records(old, new)] == [1, 20, 4, 30]
+
+
+def test_ground_truth_cache_keys_on_the_occluders(tmp_path):
+    from warpshade.bench.reference_cache import ground_truth
+    from warpshade.geometry import TriMesh
+
+    # a unit quad (normal +z) under a larger quad floating 1 above it: the occluder must darken it
+    quad = TriMesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float), np.array([[0, 1, 2], [0, 2, 3]]))
+    lid = TriMesh(np.array([[-2, -2, 1], [3, -2, 1], [3, 3, 1], [-2, 3, 1]], float), np.array([[0, 2, 1], [0, 3, 2]]))
+    alone = ground_truth(quad, 2, rays=64, cache_dir=str(tmp_path))
+    covered = ground_truth(quad, 2, rays=64, cache_dir=str(tmp_path), occluders=[lid])
+    assert len(list(tmp_path.glob("*.npy"))) == 2, "one cache file per occluder set"
+    # the lid covers at least a disk of radius 2 at height 1 above every vertex: a cosine-weighted
+    # fraction 2²/(2² + 1²) = 0.8 of the hemisphere, so at most 0.2 of the DC term is left (64 rays: ±few %)
+    assert (covered[:, 0] < 0.5 * alone[:, 0]).all(), (alone[:, 0], covered[:, 0])
+    again = ground_truth(quad, 2, rays=64, cache_dir=str(tmp_path), occluders=[lid])
+    assert np.array_equal(again, covered)
+    assert len(list(tmp_path.glob("*.npy"))) == 2
+
+
+def test_draped_pose_is_simulated_deterministically_and_cached(tmp_path):
+    from warpshade.bench.meshes import draped_cloth
+
+    a = draped_cloth(n=10, frames=12, cache_dir=str(tmp_path))
+    assert len(list(tmp_path.iterdir())) == 1
+    b = draped_cloth(n=10, frames=12, cache_dir=str(tmp_path))  # from the cache
+    c = draped_cloth(n=10, frames=12, cache_dir=None)  # simulated again
+    for m in (b, c):
+        assert np.array_equal(m.rest.faces, a.rest.faces) and np.array_equal(m.rest.points, a.rest.points)
+        assert np.array_equal(m.frame, a.frame)
+    # it fell from 0.6 m onto the ball (top at 0.5 m; 12 frames of free fall would be 0.2 m)
+    assert a.frame[:, 1].max() < 0.6 - 0.09

@@ -46,10 +46,10 @@ def test_geometry_only_output_shows_the_albedo(tmp_path):
 
 
 def test_flag_sim_output_is_not_black(tmp_path):
-    """sims/flag.py (geometry only) binds materials whose diffuse is the flag's albedo, not black."""
+    """sims/flag.py --no-shade (geometry only) binds materials whose diffuse is the flag's albedo, not black."""
     out = tmp_path / "flag.usda"
     script = REPO / "sims" / "flag.py"
-    proc = subprocess.run([sys.executable, str(script), "--out", str(out), "--frames", "2"],
+    proc = subprocess.run([sys.executable, str(script), "--out", str(out), "--frames", "2", "--no-shade"],
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     stage = Usd.Stage.Open(str(out))
@@ -113,3 +113,23 @@ def test_black_albedo_mesh_warns_with_cause(tmp_path):
                                                  progress=False)
     msgs = [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
     assert any("Floor" in m and "zero at every vertex" in m and "albedo is black" in m for m in msgs), msgs
+
+
+def test_black_run_albedo_is_named_as_the_cause(tmp_path):
+    """``albedo=0`` (``--albedo 0``) blackens objects without an authored albedo: the warning must blame
+    the albedo, not missing light (the scene's own material is the default grey)."""
+    scene_path = tmp_path / "grey.usda"
+    stage = Usd.Stage.CreateNew(str(scene_path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Floor")
+    mesh.CreatePointsAttr([Gf.Vec3f(-1, 0, -1), Gf.Vec3f(1, 0, -1), Gf.Vec3f(-1, 0, 1), Gf.Vec3f(1, 0, 1)])
+    mesh.CreateFaceVertexCountsAttr([3, 3])
+    mesh.CreateFaceVertexIndicesAttr([0, 2, 1, 1, 2, 3])
+    stage.GetRootLayer().Save()
+    scene = read_scene(str(scene_path))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        Pipeline(scene, frames=1, workers=1, albedo=0.0).run(
+            AnimationWriter(str(tmp_path / "o.usda"), fps=scene.fps), progress=False)
+    msgs = [str(w.message) for w in caught if "zero at every vertex" in str(w.message)]
+    assert msgs and all("albedo is black" in m and "--albedo" in m for m in msgs), msgs

@@ -30,3 +30,8 @@ __all__ += ["Plan", "apply_plan", "make_plan"]
 from .pipeline.area import AreaLightShading
 
 __all__ += ["AreaLightShading"]
+
+from . import script
+from .script import box, cloth, cloth_grid, distant, dome, ground, make_scene, mesh, run, sky, sphere
+
+__all__ += ["box", "cloth", "cloth_grid", "distant", "dome", "ground", "make_scene", "mesh", "run", "script", "sky", "sphere"]

@@ -1,7 +1,5 @@
 """``python -m warpshade ...`` is the same as the ``warpshade`` console script."""
 
-import sys
+from .cli import entry
 
-from .cli import main
-
-sys.exit(main())
+entry()

@@ -2,7 +2,7 @@
 
 from distributed import WorkerPlugin
 
-from .parallel import _WORKER_SHADERS, _init_worker
+from .parallel import _WORKER_BUILD_ERRORS, _WORKER_SHADERS, _init_worker
 
 
 class ShaderPlugin(WorkerPlugin):
@@ -19,3 +19,4 @@ class ShaderPlugin(WorkerPlugin):
 
     def teardown(self, worker):
         _WORKER_SHADERS.pop(self.token, None)
+        _WORKER_BUILD_ERRORS.pop(self.token, None)

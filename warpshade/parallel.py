@@ -15,19 +15,25 @@ same order while worker processes shade ahead:
 
 Backends: ``workers=0`` shades inline (no processes); ``workers>=1`` uses a pool of spawned worker
 processes; ``scheduler="local"`` starts a local ``dask.distributed`` cluster with ``workers``
-single-threaded worker processes, and ``scheduler="tcp://HOST:PORT"`` uses a running cluster.
+single-threaded worker processes, and ``scheduler="tcp://HOST:PORT"`` (``tls://`` with a
+``security``) uses a running cluster.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import os
+import signal
+import time
 import uuid
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
+
+import numpy as np
 
 FrameGeometry = dict  # object name -> positions (V, 3) float32, plus optional extra arrays
 ShadeFn = Callable[[int, FrameGeometry], Any]
@@ -57,6 +63,11 @@ def default_workers() -> int:
 
 # -- worker side -------------------------------------------------------------------------------
 _WORKER_SHADERS: dict[str, ShadeFn] = {}
+_WORKER_BUILD_ERRORS: dict[str, Exception] = {}
+
+
+class _BuildFailed(Exception):
+    """``spec.build()`` raised in a worker; ``args[0]`` is that exception (raised again in the caller)."""
 
 
 def _exit_with_parent(parent: int, interval: float = 0.5) -> None:
@@ -84,14 +95,35 @@ def _init_worker(token: str, spec: FrameShaderSpec, parent: int | None = None) -
     from .runtime import init_warp
 
     init_warp()
-    _WORKER_SHADERS[token] = spec.build()
+    try:
+        _WORKER_SHADERS[token] = spec.build()
+    except Exception as exc:  # noqa: BLE001 - kept for the first frame: an initializer that raises
+        _WORKER_BUILD_ERRORS[token] = exc  # breaks the pool, and the cause would read as a dead worker
 
 
 def _shade_in_worker(token: str, frame: int, geometry: FrameGeometry):
+    if token in _WORKER_BUILD_ERRORS:
+        raise _BuildFailed(_WORKER_BUILD_ERRORS[token])
     return _WORKER_SHADERS[token](frame, geometry)
 
 
 # -- backends ----------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _sigint_blocked():
+    """Block SIGINT in the calling thread for the duration.
+
+    A process spawned meanwhile inherits the blocked mask, so Ctrl-C (sent to the terminal's whole
+    process group) never reaches it: the run ends its workers itself, instead of each printing a
+    KeyboardInterrupt traceback. This process loses nothing: a SIGINT is taken by another thread or
+    stays pending until the mask is restored.
+    """
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 class _InlineBackend:
     worker_errors: tuple = ()
 
@@ -127,7 +159,10 @@ class _ProcessBackend:
                                    initargs=(self.token, self.spec, os.getpid()))
 
     def submit(self, frame, geometry):
-        return self.pool.submit(_shade_in_worker, self.token, frame, geometry)
+        if len(self.pool._processes or {}) >= self.workers:
+            return self.pool.submit(_shade_in_worker, self.token, frame, geometry)
+        with _sigint_blocked():  # this submit may spawn a worker
+            return self.pool.submit(_shade_in_worker, self.token, frame, geometry)
 
     def worker_pids(self) -> list[int]:
         """PIDs of the live worker processes (for tests and monitoring)."""
@@ -140,31 +175,62 @@ class _ProcessBackend:
         return True
 
     def close(self, abandon: bool = False):
-        if abandon:  # interrupted: do not wait for the frames being shaded
-            for p in list((self.pool._processes or {}).values()):
-                p.terminate()
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        if not abandon:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            return
+        # Interrupted: do not wait for the frames being shaded. The workers are killed, so nothing
+        # reads the task queue any more: its feeder thread must not be joined (with the pipe full it
+        # would block forever, in shutdown or at interpreter exit), and the workers are reaped with a
+        # bound, SIGKILL after SIGTERM.
+        procs = list((self.pool._processes or {}).values())
+        for p in procs:
+            p.terminate()
+        call_queue = getattr(self.pool, "_call_queue", None)
+        if call_queue is not None:
+            call_queue.cancel_join_thread()
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        deadline = time.monotonic() + 5.0
+        for p in procs:
+            p.join(timeout=max(0.0, deadline - time.monotonic()))
+            if p.is_alive():
+                p.kill()
+                p.join(timeout=1.0)
+
+
+class ClusterWarning(UserWarning):
+    """A Dask scheduler is reached in a way that exposes the run (see :mod:`warpshade.cluster`)."""
 
 
 class _DaskBackend:
-    def __init__(self, spec: FrameShaderSpec, token: str, workers: int, scheduler: str, retries: int):
+    def __init__(self, spec: FrameShaderSpec, token: str, workers: int, scheduler: str, retries: int,
+                 security=None):
+        import warnings
+
         from distributed import Client, LocalCluster
         from distributed.client import FutureCancelledError
         from distributed.scheduler import KilledWorker
 
+        from .cluster import unencrypted_remote
+
         self.worker_errors = (KilledWorker, FutureCancelledError)
         self.cluster = None
+        self.plugin = f"warpshade-{token}"
         if scheduler == "local":
             self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                         dashboard_address=None)
             self.client = Client(self.cluster)
         else:
-            self.client = Client(scheduler)
+            if unencrypted_remote(scheduler):
+                warnings.warn(f"scheduler {scheduler} is not on this machine and the connection is not "
+                              "encrypted: Dask sends pickles, which run code, so anyone on the network path "
+                              "can read frames or run code here; use tls:// (--tls-ca-file, --tls-cert, "
+                              "--tls-key)", ClusterWarning, stacklevel=4)
+            self.client = Client(scheduler, security=security)
         self.token = token
         self.retries = retries
         from ._dask_plugin import ShaderPlugin
 
-        self.client.register_plugin(ShaderPlugin(token, spec), name=f"warpshade-{token}")
+        self.client.register_plugin(ShaderPlugin(token, spec), name=self.plugin)
 
     def submit(self, frame, geometry):
         # Dask reschedules a task whose worker died by itself; retries covers exceptions on top.
@@ -175,14 +241,20 @@ class _DaskBackend:
         return False  # the scheduler keeps running tasks; only failed futures need resubmitting
 
     def close(self, abandon: bool = False):
-        self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
+        try:
+            if self.cluster is None:  # a shared cluster: workers drop this run's shader (teardown)
+                self.client.unregister_worker_plugin(self.plugin)
+        except Exception:  # noqa: BLE001 - the scheduler may be gone already; closing must go on
+            pass
+        finally:
+            self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
 
 
-def _make_backend(spec, token, workers, scheduler, retries):
+def _make_backend(spec, token, workers, scheduler, retries, security=None):
     if scheduler:
-        return _DaskBackend(spec, token, workers, scheduler, retries)
+        return _DaskBackend(spec, token, workers, scheduler, retries, security)
     if workers == 0:
         return _InlineBackend(spec, token)
     return _ProcessBackend(spec, token, workers)
@@ -197,6 +269,7 @@ def shade_frames(
     max_in_flight: int | None = None,
     retries: int = 2,
     on_backend: Callable[[Any], None] | None = None,
+    security=None,
 ) -> Iterator[tuple[int, Any]]:
     """Shade frames in parallel and yield ``(frame, result)`` in input order.
 
@@ -205,10 +278,14 @@ def shade_frames(
         frames: ``(frame, geometry)`` pairs, consumed lazily (at most ``max_in_flight`` ahead).
         workers: Worker processes; None means all cores; 0 shades inline in this process.
         scheduler: None for local processes, ``"local"`` for a local Dask cluster, or a Dask
-            scheduler address ``tcp://HOST:PORT``.
+            scheduler address ``tcp://HOST:PORT`` / ``tls://HOST:PORT``. An unencrypted address that
+            is not loopback gives a :class:`ClusterWarning` (Dask's pickles run code; see
+            :mod:`warpshade.cluster`).
         max_in_flight: Frames submitted but not yet yielded (default ``2 * workers``, at least 2).
         retries: How often a frame is resubmitted after its worker died.
         on_backend: Called with the backend once it is up (tests use it to kill a worker).
+        security: ``distributed.Security`` for a scheduler address (TLS certificates,
+            :func:`warpshade.cluster.scheduler_security`); None uses Dask's configuration.
 
     Raises:
         FrameShadingError: naming the frame, when shading raised or workers died too often.
@@ -220,7 +297,7 @@ def shade_frames(
         workers = default_workers()
     max_in_flight = max(2, 2 * max(workers, 1)) if max_in_flight is None else int(max_in_flight)
     token = uuid.uuid4().hex[:12]
-    backend = _make_backend(spec, token, workers, scheduler, retries)
+    backend = _make_backend(spec, token, workers, scheduler, retries, security)
     if on_backend is not None:
         on_backend(backend)
     it = iter(frames)
@@ -247,16 +324,34 @@ def shade_frames(
             except backend.worker_errors as exc:
                 _resubmit_failed(backend, order, pending, retries, exc)
                 continue
+            except _BuildFailed as exc:  # the spec is wrong (e.g. a knob out of range): no retry helps
+                raise exc.args[0] from None
             except Exception as exc:
                 raise FrameShadingError(f"frame {frame}: shading failed: {type(exc).__name__}: {exc}") from exc
             order.popleft()
             del pending[frame]
-            yield frame, result
+            yield frame, _aligned(result)
     except BaseException:
         failed = True
         raise
     finally:
         backend.close(abandon=failed)
+
+
+def _aligned(result):
+    """``result`` with every NumPy array in it (through dicts, lists and tuples) aligned and C-contiguous.
+
+    Dask deserialises arrays as views into its receive buffers, at offsets that need not be aligned;
+    such an array exports the buffer format ``'=f'`` instead of ``'f'``, which pxr's ``Vt`` refuses
+    ("Unsupported format '=f'"). Aligned contiguous arrays are returned as they are (no copy).
+    """
+    if isinstance(result, np.ndarray):
+        return np.require(result, requirements=("C", "A"))
+    if isinstance(result, dict):
+        return {k: _aligned(v) for k, v in result.items()}
+    if type(result) in (list, tuple):
+        return type(result)(_aligned(v) for v in result)
+    return result
 
 
 def _resubmit_failed(backend, order, pending, retries, exc):

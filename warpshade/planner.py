@@ -207,6 +207,11 @@ class GroupPlan:
         cost_source: Where the transfer estimate comes from (frontier configuration, fit or nearest mesh).
         caster_triangles: Triangles of the members that cast shadows (the method's blockers; objects with
             ``castsShadows`` false only receive); None: all ``triangles``.
+        two_sided: Members shaded on both sides (:func:`warpshade.pipeline.shading.is_two_sided`).
+        seconds_back: Estimated per-frame back-side pass [s]: the group's method a second time on the
+            group seen from the back, receiving at every vertex or only at the two-sided members'
+            (:func:`warpshade.pipeline.shading.back_side_receivers`; its build is added to
+            ``seconds_build``), the between-group shadows again, and the two-sided members' exit radiance.
     """
 
     method: str | None
@@ -223,6 +228,8 @@ class GroupPlan:
     seconds_reflections: float = 0.0
     cost_source: str = ""
     caster_triangles: int | None = None
+    two_sided: list[str] = field(default_factory=list)
+    seconds_back: float = 0.0
 
     def __post_init__(self):
         if self.caster_triangles is None:
@@ -232,7 +239,7 @@ class GroupPlan:
     def seconds_frame(self) -> float:
         """Estimated shading time of this group per frame [s] (what the run's ``shade`` time sums)."""
         return ((self.seconds_transfer if self.moves else 0.0) + self.seconds_between + self.seconds_lights
-                + self.seconds_radiance + self.seconds_reflections)
+                + self.seconds_radiance + self.seconds_reflections + self.seconds_back)
 
 
 @dataclass
@@ -330,6 +337,8 @@ class Plan:
                              f"{g.seconds_between * 1e3:.1f} + lights {g.seconds_lights * 1e3:.1f} + radiance "
                              f"{g.seconds_radiance * 1e3:.2f}"
                              + (f" + reflections {g.seconds_reflections * 1e3:.1f}" if g.seconds_reflections else "")
+                             + (f" + back sides {g.seconds_back * 1e3:.1f} (two-sided: {', '.join(g.two_sided)})"
+                                if g.two_sided else "")
                              + f"; build {g.seconds_build * 1e3:.0f} ms"
                              + (f" ({g.cost_source})" if g.cost_source else ""))
             if self.area_lights == "gears":
@@ -433,7 +442,8 @@ def find_config(frontier: dict, method: str, order: int, knobs: dict) -> tuple[d
 
 
 def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str | None = None,
-              between: str | None = "spheres", area_lights: str = "gears", area_k: int = 16) -> Plan:
+              between: str | None = "spheres", area_lights: str = "gears", area_k: int = 16,
+              two_sided: str = "auto") -> Plan:
     """Build the :class:`Plan` of ``scene``.
 
     Args:
@@ -448,6 +458,8 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
             or ``"sh"`` (projected to SH, costed as a local light).
         area_k: GEARS light samples per side (``warpshade run --area-k``), costed from the frontier's GEARS
             record at this k (the nearest measured k otherwise).
+        two_sided: Which objects the run shades on both sides (``warpshade run --two-sided``,
+            :func:`warpshade.pipeline.shading.is_two_sided`), costed in :attr:`GroupPlan.seconds_back`.
 
     Raises:
         ValueError: an empty scene, or no configuration within ``max_error``.
@@ -480,7 +492,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     chosen = {o.name: _choose(o, order, max_error, fr) for o in shaded}
     # objects sharing a method and knobs are one mesh in the run and shadow each other through it; sphere
     # sets carry shadows only between the run's shading groups (--between spheres)
-    run_groups = _run_groups(scene, {n: (c[0], c[1]) for n, c in chosen.items()})
+    run_groups = _run_groups(scene, {n: (c[0], c[1]) for n, c in chosen.items()}, two_sided)
     for g in run_groups:
         for name in g.names:
             if g.method is None and chosen[name][0] is not None:
@@ -625,7 +637,7 @@ def _area_seconds(frontier: dict, pc: dict, vertices: int, triangles: int, k: in
             + pc.get("area_shading_seconds_per_vertex", 0.0) * vertices * (k / 16) ** 2)
 
 
-def _run_groups(scene: Scene, methods: dict) -> list:
+def _run_groups(scene: Scene, methods: dict, two_sided: str = "auto") -> list:
     """The shading groups ``warpshade run`` forms (:func:`warpshade.pipeline.shading.group_objects`) when
     each shaded object uses ``methods[name] = (method, knobs)``."""
     import dataclasses
@@ -635,7 +647,7 @@ def _run_groups(scene: Scene, methods: dict) -> list:
 
     objs = [dataclasses.replace(o, method=methods[o.name][0], knobs=dict(methods[o.name][1]))
             for o in scene.objects if o.shaded]
-    return group_objects(objs, None, None, DEFAULT_KNOBS)
+    return group_objects(objs, None, None, DEFAULT_KNOBS, two_sided=two_sided)
 
 
 def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: int, between: str | None,
@@ -652,6 +664,7 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
         f = sum(m.num_faces for m in spec.meshes)
         g = GroupPlan(spec.method, dict(spec.knobs), list(spec.names), v, f, any(spec.moving),
                       caster_triangles=caster_tris[k])
+        cfg = None
         if spec.method is None:
             g.seconds_transfer = pc["unoccluded_seconds_per_vertex"] * v
             g.cost_source = "measured constant"
@@ -679,6 +692,21 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
                 g.seconds_reflections = t_refl
             else:  # the run computes the bounce of a frozen scene once
                 plan.seconds_setup_structures += t_refl
+        if any(spec.two_sided):
+            # the back side: the method again on the same merged mesh (or the unoccluded lobe), the between-group
+            # shadows again, exit radiance of the two-sided members' vertices
+            from .pipeline.shading import back_side_receivers
+
+            g.two_sided = [name for name, t in zip(spec.names, spec.two_sided) if t]
+            v_two = sum(m.num_vertices for m, t in zip(spec.meshes, spec.two_sided) if t)
+            alone = back_side_receivers(spec)  # the back pass receives at the two-sided members only
+            back_transfer, back_build = g.seconds_transfer, g.seconds_build
+            if alone is not None and cfg is not None:
+                back_transfer = estimate_seconds(cfg, v_two, triangles=caster_tris[k])
+                back_build = estimate_seconds(cfg, v_two, "build_seconds", triangles=caster_tris[k])
+            g.seconds_back = ((back_transfer if g.moves else 0.0) + g.seconds_between
+                              + pc["radiance_seconds_per_vertex_coeff"] * v_two * n)
+            g.seconds_build += back_build
         plan.groups.append(g)
     if between and sum(1 for t in caster_tris if t) and len(specs) > 1:
         # a sphere tree per group with shadow casters, fitted to their triangles

@@ -145,6 +145,8 @@ class SceneObject:
             (its group's visibility method, sphere sets between groups, GEARS rect lights); it still
             reflects light in the one-bounce pass (docs/guide/quickstart.md, "Objects that cast no shadows").
         shaded: Whether the object is shaded and written with colours.
+        two_sided: Shade and write each side with its own transfer (``warpshade:twoSided``, docs/conventions.md
+            §6); None: the run decides (on for cloth).
         params: Kind-specific settings (cloth material, pinned vertices, skinning data, animation
             samples...), as read from ``warpshade:`` attributes.
         prim_path: Path of the input prim the object was read from (the output writes the shaded
@@ -163,6 +165,7 @@ class SceneObject:
     knobs: dict[str, Any] = field(default_factory=dict)
     casts_shadows: bool = True
     shaded: bool = True
+    two_sided: bool | None = None
     params: dict[str, Any] = field(default_factory=dict)
     prim_path: str | None = None
     prim_xforms: tuple = ()

@@ -11,7 +11,8 @@ from .environments import ENV_ORDER, environments, radiance
 from .meshes import BenchMesh, character, standard_meshes, two_objects, wrinkled_cloth
 from .reference_cache import ground_truth, mesh_hash
 from .report import frontier_from_results, markdown_table, plot_pareto, write_csv, write_json
-from .runner import BenchSettings, method_configs, pareto_mask, run_bench
+from .records import pareto_mask
+from .runner import BenchSettings, method_configs, run_bench
 
 __all__ = ["AREA_METHODS", "area_errors", "bench_light", "run_area", "ENV_ORDER", "BenchMesh", "BenchSettings", "character", "environments", "frontier_from_results",
            "ground_truth", "markdown_table", "mesh_hash", "method_configs", "pareto_mask", "plot_pareto",

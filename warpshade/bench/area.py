@@ -22,6 +22,7 @@ import time
 import numpy as np
 
 from ..timing import median_seconds
+from .records import knobs_text
 
 AREA_TRUTH_K = 32
 """Light samples per side of the ground truth (k = 32 is the kernels' maximum: 1024 rays per vertex)."""
@@ -127,8 +128,6 @@ def measure_area(method: str, kwargs: dict, bm, light, truth: np.ndarray, repeat
 
 def run_area(meshes, settings, log) -> list[dict]:
     """GEARS and ray-traced area-light records for every benchmark mesh (see the module doc)."""
-    from .runner import _short
-
     configs = area_configs(settings.quick)
     records = []
     warmed = set()
@@ -154,7 +153,7 @@ def run_area(meshes, settings, log) -> list[dict]:
                 continue
             rec["quick"] = settings.quick
             records.append(rec)
-            log(f"  {method:<11} {_short(rec['knobs'])}: {rec['seconds'] * 1e3:9.2f} ms  "
+            log(f"  {method:<11} {knobs_text(rec['knobs'])}: {rec['seconds'] * 1e3:9.2f} ms  "
                 f"|dV| {rec['error_mean']:.4f} (p95 {rec['error_p95']:.4f})")
     return records
 

@@ -61,12 +61,12 @@ def grid(n: int, size: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     return pts.astype(np.float32), faces.astype(np.int32)
 
 
-def wrinkled_cloth(n: int = 64, seed: int = 7) -> BenchMesh:
+def wrinkled_cloth(n: int = 64, seed: int = 7, compress: float = 0.85, name: str = "cloth") -> BenchMesh:
     """A 1 m square of cloth (rest: flat) crumpled into deep folds plus fine wrinkles (frame).
 
     Folds: three sinusoids of 9-17 cm wavelength and up to 6 cm amplitude with seeded directions
-    and phases, modulated so some regions are nearly flat; the frame also compresses the sheet in x by
-    15 % (as a draped cloth would), which deepens the folds' self-occlusion.
+    and phases, modulated so some regions are nearly flat; the frame also compresses the sheet in x to
+    ``compress`` of its width (as a draped cloth would), which deepens the folds' self-occlusion.
     """
     rng = np.random.default_rng(seed)
     pts, faces = grid(n)
@@ -80,9 +80,46 @@ def wrinkled_cloth(n: int = 64, seed: int = 7) -> BenchMesh:
         env = 0.6 + 0.4 * np.cos(2 * np.pi * (x * rng.uniform(0.5, 1.5) + y * rng.uniform(0.5, 1.5)) + ph)
         z += amp * env * np.sin(2 * np.pi * (np.cos(ang) * x + np.sin(ang) * y) / wl + ph)
     z += 0.004 * np.sin(2 * np.pi * 25 * x + 1.3) * np.cos(2 * np.pi * 19 * y)
-    frame = np.stack([0.85 * x, y, z], axis=1).astype(np.float32)
-    return BenchMesh("cloth", TriMesh(pts, faces, name="wrinkled-cloth"), frame,
-                     f"{n}x{n} cloth crumpled into 3 seeded folds + fine wrinkles (rest: flat)")
+    frame = np.stack([compress * x, y, z], axis=1).astype(np.float32)
+    return BenchMesh(name, TriMesh(pts, faces, name="wrinkled-cloth"), frame,
+                     f"{n}x{n} cloth crumpled into 3 seeded folds + fine wrinkles, seed {seed}, "
+                     f"{compress:g} compression (rest: flat)")
+
+
+def draped_cloth(n: int = 64, frames: int = 60, cache_dir: str | None = ".warpshade-cache/bench") -> BenchMesh:
+    """A 1 m square of cloth (rest: flat, 0.6 m up) dropped onto a 0.25 m ball on the floor and
+    simulated for ``frames`` frames (:class:`~warpshade.sim.XPBDSolver`, 16 substeps at 60 frames/s):
+    a dome over the ball with a skirt hanging in folds onto the floor. Deterministic (one CPU
+    thread); the frame is cached in ``cache_dir`` (None: not cached). Y up; the ball and the floor
+    are colliders only (not in the mesh).
+    """
+    path = os.path.join(cache_dir, f"draped_cloth_n{n}_f{frames}.npz") if cache_dir else None
+    if path and os.path.isfile(path):
+        z = np.load(path)
+        rest, faces, frame = z["rest"], z["faces"], z["frame"]
+    else:
+        from ..sim import ClothBuilder, ColliderSet, XPBDSolver
+
+        b = ClothBuilder(bend_stiffness=2e-5)
+        b.add_grid(n, n, 1.0, 1.0, origin=(-0.5, 0.6, -0.5))
+        model = b.finalize()
+        col = ColliderSet()
+        col.add_plane((0.0, 1.0, 0.0), 0.0, friction=0.6)
+        col.add_sphere(np.array([0.0, 0.25, 0.0]), 0.25, friction=0.4)
+        solver = XPBDSolver(model, col, substeps=16)
+        state = model.state()
+        for _ in range(frames):
+            solver.step(state, state, 1.0 / 60.0)
+        rest = model.rest_points_np.astype(np.float32)
+        faces = np.asarray(model.faces, dtype=np.int32)
+        frame = state.points.numpy().astype(np.float32)
+        if path:
+            os.makedirs(cache_dir, exist_ok=True)
+            tmp = f"{path}.partial{os.getpid()}.npz"
+            np.savez(tmp, rest=rest, faces=faces, frame=frame)
+            os.replace(tmp, path)
+    return BenchMesh("draped", TriMesh(rest, faces, name="draped-cloth"), frame,
+                     f"{n}x{n} cloth dropped on a ball, {frames} simulated frames (rest: flat)", up="Y")
 
 
 def _rotation(axis, angle: float) -> np.ndarray:

@@ -5,7 +5,7 @@ default, so the ``reference`` entries of the sweep are judged against independen
 than against themselves.
 
 Cache files are ``<cache_dir>/<content hash>-<TRUTH_VERSION>-o<order>-r<rays>-s<seed>.npy`` where the hash
-covers the points and faces (float32/int32 bytes); the reference's other knobs stay at their defaults. A cached result of a higher order
+covers the points and faces (float32/int32 bytes; with occluders, one hash per mesh joined by ``+``); the reference's other knobs stay at their defaults. A cached result of a higher order
 serves lower orders (SH coefficients nest: order N is the first N*N of any higher order).
 """
 
@@ -23,7 +23,7 @@ from ..geometry.mesh import TriMesh
 GROUND_TRUTH_SEED = 982451653
 """Seed of the ground-truth rays (independent of the ``reference`` method's default seed 0)."""
 
-TRUTH_VERSION = "t2"
+TRUTH_VERSION = "t3"
 """Version of the reference's ray tracing in the cache file names: bumped when it changes what it computes
 (t2: rays leave the vertex itself, ``trace_surface_ray``; files without it came from origins pushed along the
 normal, wrong for vertices resting on another surface), so stale files are not reused."""
@@ -41,11 +41,12 @@ def mesh_hash(mesh: TriMesh) -> str:
 
 
 def ground_truth(mesh: TriMesh, order: int, rays: int = 4096, cache_dir: str | None = DEFAULT_CACHE_DIR,
-                 device: str = "cpu", log=None) -> np.ndarray:
-    """Reference transfer of ``mesh`` (it shadows itself), shape (V, order*order), float32.
+                 device: str = "cpu", log=None, occluders: tuple[TriMesh, ...] | list[TriMesh] = ()) -> np.ndarray:
+    """Reference transfer of ``mesh`` (it shadows itself, and ``occluders`` shadow it), shape (V, order*order), float32.
 
     Args:
         mesh: Mesh in the judged pose.
+        occluders: Other meshes that cast shadows on ``mesh`` (their hashes join the cache key).
         order: SH order needed.
         rays: Rays per vertex (rounded to a square by :class:`ReferenceTransfer`).
         cache_dir: Directory of cached results; None disables caching.
@@ -56,7 +57,7 @@ def ground_truth(mesh: TriMesh, order: int, rays: int = 4096, cache_dir: str | N
 
     from ..visibility.reference import ReferenceTransfer
 
-    key = f"{mesh_hash(mesh)}-{TRUTH_VERSION}"
+    key = "+".join(mesh_hash(m) for m in (mesh, *occluders)) + f"-{TRUTH_VERSION}"
     if cache_dir:
         for path in glob.glob(os.path.join(cache_dir, f"{key}-o*-r{rays}-s{GROUND_TRUTH_SEED}.npy")):
             m = re.search(r"-o(\d+)-r", os.path.basename(path))
@@ -65,7 +66,8 @@ def ground_truth(mesh: TriMesh, order: int, rays: int = 4096, cache_dir: str | N
                 if t.shape == (mesh.num_vertices, int(m.group(1)) ** 2):
                     return t[:, : order * order]
     t0 = time.perf_counter()
-    ref = ReferenceTransfer(mesh, order=order, device=device, rays=rays, seed=GROUND_TRUTH_SEED)
+    ref = ReferenceTransfer(mesh, order=order, device=device, rays=rays, seed=GROUND_TRUTH_SEED,
+                            occluders=list(occluders) or None)
     t = ref.update().numpy()
     if log:
         log(f"  ground truth {mesh.name}: {mesh.num_vertices} vertices x {rays} rays, order {order}: "

@@ -21,9 +21,11 @@ def _atomic_write(path: str, write) -> None:
     os.replace(tmp, path)
 
 
-def write_json(path: str, records: list[dict]) -> None:
-    """``results.json``: the list of records."""
-    _atomic_write(path, lambda f: json.dump(records, f, indent=1, default=_jsonable))
+def write_json(path: str, data, indent: int = 1) -> None:
+    """JSON written atomically (temporary file, then rename): ``results.json`` (the list of records,
+    ``indent=1``), the frontier file and the CLI's ``--json`` outputs (``indent=2``). NumPy scalars
+    and arrays are written as numbers and lists."""
+    _atomic_write(path, lambda f: json.dump(data, f, indent=indent, default=_jsonable))
 
 
 def _jsonable(x):
@@ -118,8 +120,7 @@ def plot_pareto(path: str, records: list[dict], title: str = "") -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .runner import pareto_mask
-
+    from .records import pareto_mask
     from .runner import DEFAULT_ORDER
 
     ok = [r for r in records if "failed" not in r and r["order"] == DEFAULT_ORDER and not is_area(r)]

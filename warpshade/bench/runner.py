@@ -42,6 +42,7 @@ from ..metrics import error_summary, radiance_error
 from ..timing import median_seconds
 from .environments import ENV_ORDER, environments, radiance
 from .meshes import BenchMesh, standard_meshes
+from .records import knobs_text, pareto_mask
 from .reference_cache import DEFAULT_CACHE_DIR, GROUND_TRUTH_SEED, ground_truth
 
 QUICK_BUILD_LIMIT = 5.0
@@ -214,17 +215,6 @@ def measure(cls, config: dict, bm: BenchMesh, truth: np.ndarray, lights: dict, s
     return rec
 
 
-def pareto_mask(seconds, errors) -> np.ndarray:
-    """True where no other point is at least as fast and as accurate and strictly better in one."""
-    s = np.asarray(seconds, dtype=float)
-    e = np.asarray(errors, dtype=float)
-    out = np.ones(len(s), dtype=bool)
-    for i in range(len(s)):
-        dominated = (s <= s[i]) & (e <= e[i]) & ((s < s[i]) | (e < e[i]))
-        out[i] = not dominated.any()
-    return out
-
-
 def run_bench(settings: BenchSettings) -> list[dict]:
     """Run the sweep; returns the records (each also carries ``pareto``: on its mesh's frontier)."""
     from ..visibility import METHODS, get_method
@@ -267,7 +257,7 @@ def run_bench(settings: BenchSettings) -> list[dict]:
                                        "seed": GROUND_TRUTH_SEED}
                 rec["quick"] = settings.quick
                 records.append(rec)
-                log(f"  {cls.name:<11} order {rec['order']} {_short(rec['knobs'])}: {rec['seconds'] * 1e3:9.2f} ms  "
+                log(f"  {cls.name:<11} order {rec['order']} {knobs_text(rec['knobs'])}: {rec['seconds'] * 1e3:9.2f} ms  "
                     f"err {rec['error_mean']:.4f} (p95 {rec['error_p95']:.4f})")
     if area:
         records += run_area(meshes, settings, log)
@@ -287,10 +277,6 @@ def mark_pareto(records: list[dict]) -> None:
         mask = pareto_mask([r["seconds"] for r in recs], [r["error_mean"] for r in recs])
         for r, m in zip(recs, mask):
             r["pareto"] = bool(m)
-
-
-def _short(knobs: dict) -> str:
-    return " ".join(f"{k}={v}" for k, v in knobs.items() if k not in ("seed",))
 
 
 def machine_note() -> str:

@@ -7,10 +7,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import signal
 import sys
 import threading
+import warnings
 
 from ..runtime import init_warp
 
@@ -32,7 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
         mod = importlib.import_module(modname)
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
-        p.set_defaults(_run=mod.run, _extra_ok=getattr(mod, "ACCEPTS_EXTRA", False))
+        p.set_defaults(_run=mod.run, _extra_ok=getattr(mod, "ACCEPTS_EXTRA", False),
+                       _knob_class=getattr(mod, "knob_class", None), _parser=p)
     return parser
 
 
@@ -60,19 +63,43 @@ def exit_code(exc: BaseException) -> int:
     return 128 + (exc.signum if isinstance(exc, Terminated) else signal.SIGINT)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``warpshade`` console script."""
-    init_warp()
-    parser = build_parser()
-    # Subcommands with ACCEPTS_EXTRA = True get unrecognised flags as ``args.extra`` (method knobs,
-    # which depend on another flag's value); the rest reject them as usual.
+def _parse(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespace | None:
+    """Parsed arguments (None without a subcommand), with ``extra`` and ``knob_class`` set.
+
+    Subcommands with ACCEPTS_EXTRA = True get unrecognised flags as ``args.extra``; the rest
+    reject them as usual. Method knobs depend on --method: once it is known, the method's flags
+    join the subcommand's parser and the command line is parsed again, so argparse checks the
+    knobs, names them and the command in errors, and never takes a knob's value for a positional.
+    """
     args, extra = parser.parse_known_args(argv)
     if not getattr(args, "_run", None):
-        parser.print_help()
-        return 2
+        return None
+    knob_class = args._knob_class(args.method) if args._knob_class and getattr(args, "method", None) else None
+    if knob_class is not None:
+        knob_class.add_arguments(args._parser)
+        args, extra = parser.parse_known_args(argv)
+    args.knob_class = knob_class
     if extra and not args._extra_ok:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     args.extra = extra
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``warpshade`` console script."""
+    try:
+        init_warp()
+        parser = build_parser()
+        args = _parse(parser, sys.argv[1:] if argv is None else list(argv))
+    except KeyboardInterrupt as exc:  # Ctrl-C while the kernels load or the flags are read
+        print("warpshade: interrupted", file=sys.stderr)
+        return exit_code(exc)
+    if args is None:
+        parser.print_help()
+        return 2
+    # warnings as one line naming the command (replacing formatwarning keeps pytest's recording)
+    formatwarning = warnings.formatwarning
+    warnings.formatwarning = lambda message, *_a, **_k: f"warpshade {args.command}: warning: {message}\n"
     previous = {}
     if threading.current_thread() is threading.main_thread():
         previous = {sig: signal.signal(sig, _raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)}
@@ -85,9 +112,26 @@ def main(argv: list[str] | None = None) -> int:
         print(f"warpshade {args.command}: {interrupted_by(exc)}", file=sys.stderr)
         return exit_code(exc)
     finally:
+        warnings.formatwarning = formatwarning
         for sig, handler in previous.items():
             signal.signal(sig, handler)
 
 
+def entry() -> None:
+    """The ``warpshade`` console script and ``python -m warpshade``: :func:`main`, then exit.
+
+    A run stopped by a signal (exit code >= 128) has committed its frames, stopped its workers and
+    said so; it then exits at once, skipping the interpreter's shutdown: ``concurrent.futures`` joins
+    its pool's manager thread at exit, and that thread can block forever reading a result a killed
+    worker had half written.
+    """
+    code = main()
+    if code >= 128:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

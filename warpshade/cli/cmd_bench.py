@@ -57,10 +57,8 @@ def run(args) -> int:
     write_csv(os.path.join(args.out, "results.csv"), records)
     plot_pareto(os.path.join(args.out, "pareto.png"), records, title=note)
     if args.frontier:
-        from .cmd_transfer import write_json as write_plain_json
-
         os.makedirs(os.path.dirname(os.path.abspath(args.frontier)), exist_ok=True)
-        write_plain_json(args.frontier, {**frontier_from_results(records), "machine": note})
+        write_json(args.frontier, {**frontier_from_results(records), "machine": note}, indent=2)
     print(format_table(records))
     print(f"\n{note}\n{len(records)} configurations in {wall:.1f} s -> {args.out}/results.json, results.csv, pareto.png"
           + (f", {args.frontier}" if args.frontier else ""))

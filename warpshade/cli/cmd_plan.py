@@ -9,10 +9,11 @@ HELP = "print the plan (passes, shared structures, reuse, method per object) and
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from .cmd_run import add_refine_argument
+    from .cmd_run import add_refine_argument, add_two_sided_argument
 
     parser.add_argument("scene", metavar="SCENE", help="scene file (.usd/.usda) read by warpshade.usd")
     add_refine_argument(parser)
+    add_two_sided_argument(parser)
     parser.add_argument("--max-error", type=float, default=None,
                         help="error budget: per object, the fastest measured method within this mean error")
     parser.add_argument("--frontier", default=None, help="frontier.json or bench results.json (default: shipped)")
@@ -55,11 +56,11 @@ def run(args) -> int:
         scene.settings["reflections"] = True
     plan = make_plan(scene, max_error=args.max_error, frontier=args.frontier,
                      between=None if args.between == "none" else args.between, area_lights=args.area_lights,
-                     area_k=args.area_k)
+                     area_k=args.area_k, two_sided=args.two_sided)
     print(plan.describe())
     print(f"  without reuse (every object every frame): {naive_seconds(plan):.2f} s")
     if args.json:
-        from .cmd_transfer import write_json
+        from ..bench.report import write_json
 
-        write_json(args.json, plan.to_dict())
+        write_json(args.json, plan.to_dict(), indent=2)
     return 0

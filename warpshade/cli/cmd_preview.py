@@ -42,6 +42,14 @@ def _frames(spec: str | None, single, start: float, end: float) -> list[float]:
     return out
 
 
+def _with_back_sides(shot: list, backs: dict) -> list:
+    """Render tuples of a frame: a back-side mesh is not drawn itself, its colours are its front's back colours
+    (both are single-sided: each side shows its own mesh's colours, as in a DCC)."""
+    back_colors = {backs[name]: c for name, _, _, c in shot if backs.get(name)}
+    fronts = {name for name, _, _, _ in shot}
+    return [(p, f, c, back_colors.get(name)) for name, p, f, c in shot if not (name in backs and backs[name] in fronts)]
+
+
 def run(args) -> int:
     import imageio.v3 as iio
     import numpy as np
@@ -61,7 +69,7 @@ def run(args) -> int:
     moving = stage.moving()
     allpts = np.concatenate([m[1] for shot in shots for m in shot if not moving or m[0] in moving])
     cam = frame_camera(allpts, stage.up_axis, args.azimuth, args.elevation, aspect=w / h)
-    images = [render([(p, f, c) for _, p, f, c in shot], cam, w, h) for shot in shots]
+    images = [render(_with_back_sides(shot, stage.back_sides()), cam, w, h) for shot in shots]
     exposure = args.exposure
     if exposure is None:
         cols = np.concatenate([m[3] for shot in shots for m in shot])

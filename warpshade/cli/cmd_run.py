@@ -8,15 +8,17 @@ import sys
 import time
 
 from ..pipeline.refine import describe as describe_refined, refine_receivers
+from .cmd_transfer import knob_class  # noqa: F401 - --method's knobs, which warpshade.cli.main adds
 
 HELP = "run a scene end to end (simulate, shade, write USD); no SCENE runs the shipped default scene"
 ACCEPTS_EXTRA = True  # method knobs, parsed once --method is known
 
 
 def shipped_scene(name: str = "default.usda") -> str:
-    """Path of a scene in the repository's ``usd_scenes/``."""
-    here = os.path.dirname(os.path.abspath(__file__))
-    return os.path.normpath(os.path.join(here, "..", "..", "usd_scenes", name))
+    """Path of a shipped scene (``usd_scenes/``, installed as package data)."""
+    from ..usd.shipped import shipped_scene as locate
+
+    return locate(name)
 
 
 def add_refine_argument(parser: argparse.ArgumentParser) -> None:
@@ -27,15 +29,25 @@ def add_refine_argument(parser: argparse.ArgumentParser) -> None:
                              "the scene's diagonal; off: never)")
 
 
+def add_two_sided_argument(parser: argparse.ArgumentParser) -> None:
+    """``--two-sided`` (shared by ``run`` and ``plan``, so the plan prices the back sides the run shades)."""
+    from ..pipeline.shading import TWO_SIDED_MODES
+
+    parser.add_argument("--two-sided", choices=TWO_SIDED_MODES, default="auto",
+                        help="shade each side of thin surfaces with its own transfer and write a back-side mesh "
+                             "(default auto: objects with warpshade:twoSided, else cloth; on: every object; off: none)")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_refine_argument(parser)
     from ..visibility import METHODS
+    from ..visibility.base import nonnegative_int, positive_int
 
     parser.add_argument("scene", nargs="?", default=None, metavar="SCENE",
                         help="USD scene (default: usd_scenes/default.usda)")
     parser.add_argument("--out", default=None, metavar="OUT.usda",
                         help="output (default: <scene name>_shaded.usda in the current directory)")
-    parser.add_argument("--frames", type=int, default=None, help="frames to produce (default: the scene's)")
+    parser.add_argument("--frames", type=positive_int, default=None, help="frames to produce (default: the scene's)")
     parser.add_argument("--method", default=None, choices=sorted(METHODS) + ["none"],
                         help="visibility method for every object (default: the scene's, else the fastest accurate one)")
     parser.add_argument("--order", type=int, default=None, help="SH order (default: the scene's warpshade:order, else 4)")
@@ -44,11 +56,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(warpshade.planner; ignored with --method)")
     parser.add_argument("--write-transfer", action="store_true",
                         help="also write primvars:warpshade:transfer (N*N floats per vertex per frame) for relighting")
-    parser.add_argument("--chunk", type=int, default=64, help="frames per clip file (also the commit interval)")
-    parser.add_argument("--workers", type=int, default=None,
+    parser.add_argument("--chunk", type=positive_int, default=64, help="frames per clip file (also the commit interval)")
+    parser.add_argument("--workers", type=nonnegative_int, default=None,
                         help="shading worker processes while this one simulates (default: all cores; 0 shades inline)")
     parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                        help="shade on a Dask cluster ('local' starts one) instead of local processes")
+                        help="shade on a Dask cluster ('local' starts one; tls://HOST:PORT with --tls-*) instead "
+                             "of local processes; Dask sends pickles, which run code: only connect to a "
+                             "scheduler you trust")
+    for flag, what in (("--tls-ca-file", "CA certificate that signed the cluster's certificates"),
+                       ("--tls-cert", "this client's certificate (may hold the key too)"),
+                       ("--tls-key", "this client's private key")):
+        parser.add_argument(flag, default=None, metavar="PEM", help=f"TLS to a tls:// --scheduler: {what}")
     parser.add_argument("--between", choices=["spheres", "none"], default="spheres",
                         help="shadows between objects shaded by different methods: sphere sets (default) or none")
     parser.add_argument("--reflections", action="store_true", default=None,
@@ -56,14 +74,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "thesis §4.3; default: the scene's warpshade:reflections, else off)")
     parser.add_argument("--no-reflections", dest="reflections", action="store_false",
                         help="no reflection bounce even if the scene asks for it")
-    parser.add_argument("--reflection-spheres", type=int, default=15, metavar="N",
+    parser.add_argument("--reflection-spheres", type=positive_int, default=15, metavar="N",
                         help="leaf spheres per object for the reflection bounce (default 15)")
     parser.add_argument("--albedo", default=None, metavar="A|R,G,B",
                         help="albedo of objects whose scene gives none (no material diffuseColor, no constant "
                              "displayColor); default 0.8")
     parser.add_argument("--area-lights", choices=["gears", "sh"], default="gears",
                         help="rect lights: exact irradiance with GEARS soft shadows (default) or projected to SH")
-    parser.add_argument("--area-k", type=int, default=None, help="GEARS light samples per side (default 16)")
+    parser.add_argument("--area-k", type=positive_int, default=None, help="GEARS light samples per side (default 16)")
+    add_two_sided_argument(parser)
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -71,23 +90,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.epilog = "Method knobs (e.g. --rays for reference) follow --method; see docs/methods/ for each method's list."
 
 
-def _reclaim_knob_value(args, method_cls) -> None:
-    """Undo argparse giving a knob's value to the optional SCENE positional.
+SETUP_NOTICE_SECONDS = 10.0
+"""An estimated setup at least this long [s] is announced before it starts."""
 
-    Knobs are unknown to the main parser, so in ``warpshade run --method reference --rays 64`` the
-    ``64`` looks like SCENE. The first knob flag in ``args.extra`` that lacks its value gets it back.
+
+def setup_estimate(scene, method: str | None, knobs: dict, order: int, args) -> float | None:
+    """The planner's estimate of the run's one-off setup [s] for these settings (None if it cannot price them).
+
+    The plan is made on a copy of the scene whose objects carry the run's method, so ``--method``
+    is priced rather than the scene's own choice.
     """
-    if args.scene is None or not args.extra:
-        return
-    p = argparse.ArgumentParser(add_help=False)
-    method_cls.add_arguments(p)
-    takes_value = {opt for a in p._actions if a.nargs != 0 for opt in a.option_strings}
-    for k, tok in enumerate(args.extra):
-        flag = tok.split("=", 1)[0]
-        if flag in takes_value and "=" not in tok and (k + 1 == len(args.extra) or args.extra[k + 1].startswith("-")):
-            args.extra.insert(k + 1, args.scene)
-            args.scene = None
-            return
+    import dataclasses
+
+    from ..planner import make_plan
+
+    objects = [dataclasses.replace(o, method=method, knobs=dict(knobs)) if method else o for o in scene.objects]
+    settings = dict(scene.settings, order=order)
+    if method:
+        settings.pop("max_error", None)  # a method on the command line is not the planner's to choose
+    priced = dataclasses.replace(scene, objects=objects, settings=settings)
+    try:
+        plan = make_plan(priced, between=None if args.between == "none" else args.between,
+                         area_lights=args.area_lights, area_k=args.area_k or 16)
+    except (ValueError, KeyError, OSError):  # no frontier record for these settings: no estimate
+        return None
+    return plan.run_seconds_setup
 
 
 def parse_albedo(text: str | None):
@@ -109,16 +136,17 @@ def run(args) -> int:
     from . import exit_code, interrupted_by
     from .cmd_transfer import parse_knobs
 
-    knobs = {}
     method = args.method
-    if method not in (None, "none"):
-        from ..visibility import get_method
-
-        cls = get_method(method)
-        _reclaim_knob_value(args, cls)
-        knobs = parse_knobs(cls, args.extra)
-    elif args.extra:
+    if args.extra and args.knob_class is None:
         raise ValueError(f"unknown option(s) {' '.join(args.extra)} (method knobs need --method)")
+    knobs = parse_knobs(args)
+    security = None
+    if args.scheduler and args.scheduler != "local":
+        from ..cluster import scheduler_security
+
+        security = scheduler_security(args.scheduler, args.tls_ca_file, args.tls_cert, args.tls_key)
+    elif args.tls_ca_file or args.tls_cert or args.tls_key:
+        raise ValueError("--tls-ca-file/--tls-cert/--tls-key need --scheduler tls://HOST:PORT")
     t0 = time.perf_counter()
     scene_path = args.scene or shipped_scene()
     scene = read_scene(scene_path)
@@ -134,13 +162,13 @@ def run(args) -> int:
 
         scene.settings["order"] = args.order or scene.settings.get("order", 4)
         plan = make_plan(scene, max_error=args.max_error, between=None if args.between == "none" else args.between,
-                         area_lights=args.area_lights, area_k=args.area_k or 16)
+                         area_lights=args.area_lights, area_k=args.area_k or 16, two_sided=args.two_sided)
         apply_plan(scene, plan)
         print(plan.describe(), file=sys.stderr)
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
     check_output(scene, out)
     load = time.perf_counter() - t0
-    from ..parallel import default_workers
+    from ..parallel import FrameShadingError, default_workers
 
     workers = default_workers() if args.workers is None else args.workers
     reflections = args.reflections
@@ -154,22 +182,26 @@ def run(args) -> int:
                     between=None if args.between == "none" else args.between,
                     reflections=reflections, albedo=parse_albedo(args.albedo), area_lights=args.area_lights,
                     area_knobs={} if args.area_k is None else {"k": args.area_k},
-                    refine_receivers=args.refine_receivers)
+                    refine_receivers=args.refine_receivers, security=security, two_sided=args.two_sided)
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,
                                        "groups": "; ".join(f"{g.method} {g.knobs}" for g in pipe.groups),
                                        "between": args.between, "area_lights": args.area_lights,
                                        "reflections": str(bool(pipe.reflections is not None))})
+    estimate = setup_estimate(scene, method, knobs, pipe.order, args)
+    if estimate is not None and estimate >= SETUP_NOTICE_SECONDS:
+        print(f"warpshade run: setup estimated at {estimate:.1f} s (warpshade plan prices it) before the first "
+              f"frame; Ctrl-C stops it", file=sys.stderr)
     if writer.resume_frame:
         print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
     try:
         report = pipe.run(writer, progress=not args.no_progress)
-    except (KeyboardInterrupt, OSError) as exc:
+    except (KeyboardInterrupt, OSError, FrameShadingError) as exc:
         kept = writer.frames_committed
         where = (f"{kept} complete frames kept in {writer.path} (--resume continues it)" if kept
                  else "previous output (if any) left untouched")
-        if isinstance(exc, OSError):
+        if not isinstance(exc, KeyboardInterrupt):
             print(f"warpshade run: error: {exc}\nwarpshade run: {where}", file=sys.stderr)
             return 1
         print(f"warpshade run: {interrupted_by(exc)}; {where}", file=sys.stderr)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 
@@ -25,23 +24,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.epilog = "Method knobs (e.g. --rays for reference) follow; see docs/methods/ for each method's list."
 
 
-def parse_knobs(method_cls, extra: list[str]) -> dict:
-    """Parse the method's own ``--knob`` flags; unknown flags are an error naming them."""
-    p = argparse.ArgumentParser(prog=f"warpshade transfer --method {method_cls.name}", add_help=False)
-    method_cls.add_arguments(p)
-    ns, unknown = p.parse_known_args(extra)
-    if unknown:
-        raise ValueError(f"unknown option(s) for method '{method_cls.name}': {' '.join(unknown)}")
-    return method_cls.knobs_from_args(ns)
+def knob_class(method: str):
+    """The class whose ``add_arguments`` defines ``--method``'s knobs (None for an unknown name)."""
+    from ..visibility import METHODS, get_method
+
+    return get_method(method) if method in METHODS else None
+
+
+def parse_knobs(args) -> dict:
+    """The method's knobs from arguments parsed with them (:func:`warpshade.cli.main` adds the
+    flags of ``args.knob_class``).
+
+    Raises:
+        ValueError: naming the method and the flags, for flags the method does not know.
+    """
+    if args.extra:
+        name = args.knob_class.name if args.knob_class is not None else args.method
+        raise ValueError(f"unknown option(s) for method '{name}': {' '.join(args.extra)}")
+    return args.knob_class.knobs_from_args(args) if args.knob_class is not None else {}
 
 
 def run(args) -> int:
+    from ..bench.report import write_json
     from ..geometry import load_mesh
     from ..timing import time_transfer
     from ..visibility import get_method
 
     cls = get_method(args.method)
-    knobs = parse_knobs(cls, args.extra)
+    knobs = parse_knobs(args)
     mesh = load_mesh(args.mesh, prim=args.prim)
     method = cls(mesh, order=args.order, device=args.device, **knobs)
     seconds = time_transfer(method, repeat=args.repeat)
@@ -50,7 +60,7 @@ def run(args) -> int:
              transfer=transfer)
     stats = method_stats(method, mesh, seconds, args.repeat, order=method.order)
     if args.json:
-        write_json(args.json, stats)
+        write_json(args.json, stats, indent=2)
     print(f"{cls.name}: {mesh.num_vertices} vertices, {mesh.num_faces} triangles, order {method.order}: "
           f"{seconds * 1e3:.2f} ms per frame (median of {args.repeat}) -> {args.save}", file=sys.stderr)
     return 0
@@ -71,12 +81,4 @@ def save_npz(path: str, **arrays) -> None:
 
     tmp = f"{path}.partial{os.getpid()}.npz"
     np.savez(tmp, **{k: np.asarray(v, dtype=np.int32 if k == "faces" else np.float32) for k, v in arrays.items()})
-    os.replace(tmp, path)
-
-
-def write_json(path: str, data: dict) -> None:
-    """Write JSON atomically (temporary file, then rename)."""
-    tmp = f"{path}.partial{os.getpid()}"
-    with open(tmp, "w") as f:
-        json.dump(data, f, indent=2)
     os.replace(tmp, path)

@@ -27,15 +27,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.epilog = "Method knobs: gears --grid G; reference --no-jitter --seed S."
 
 
+def knob_class(method: str):
+    """The area-light visibility class whose ``add_arguments`` defines ``--method``'s knobs."""
+    from ..visibility.gears import AREA_METHODS, get_area_method
+
+    return get_area_method(method) if method in AREA_METHODS else None
+
+
 def run(args) -> int:
     from ..geometry import load_mesh
     from ..timing import median_seconds
     from ..visibility.gears import LightRect, get_area_method
-    from .cmd_transfer import method_stats, parse_knobs, save_npz, write_json
+    from ..bench.report import write_json
+    from .cmd_transfer import method_stats, parse_knobs, save_npz
 
     light = LightRect.parse(args.rect_light)
     cls = get_area_method(args.method)
-    knobs = parse_knobs(cls, args.extra)
+    knobs = parse_knobs(args)
     mesh = load_mesh(args.mesh, prim=args.prim)
     method = cls(mesh, light, k=args.k, device=args.device, offset=args.offset, **knobs)
     seconds = median_seconds(method.update, repeat=args.repeat, warmup=1)
@@ -44,7 +52,7 @@ def run(args) -> int:
     stats = method_stats(method, mesh, seconds, args.repeat, order=None,
                          light={"center": list(light.center), "u": list(light.u), "v": list(light.v)})
     if args.json:
-        write_json(args.json, stats)
+        write_json(args.json, stats, indent=2)
     print(f"{cls.name}: {mesh.num_vertices} vertices, {mesh.num_faces} triangles, k={method.k}: "
           f"{seconds * 1e3:.2f} ms per frame (median of {args.repeat}) -> {args.save}", file=sys.stderr)
     return 0

@@ -20,7 +20,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
-from ..sh.rotation import _check_rotation, rotation_from_axis_angle
+from ..sh.rotation import check_rotation, rotation_from_axis_angle  # check_rotation re-exported
 
 Motion = Callable[[float], np.ndarray]
 
@@ -69,18 +69,6 @@ def unit_vector(value, what: str) -> np.ndarray:
     if v.shape != (3,) or not np.isfinite(n) or n == 0.0:
         raise ValueError(f"{what} must be a finite non-zero 3-vector, got {value!r}")
     return v / n
-
-
-def check_rotation(rotation, what: str = "rotation") -> np.ndarray:
-    """Validate a proper rotation matrix; returns it as float64 (3, 3).
-
-    Raises:
-        ValueError: naming ``what`` if it is not orthonormal with determinant +1 (to 1e-6).
-    """
-    try:
-        return _check_rotation(rotation)
-    except ValueError as exc:
-        raise ValueError(f"{what}: {exc}") from None
 
 
 @dataclasses.dataclass(frozen=True)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import warp as wp
 
 from ..sh.kernels import sh_accumulate
-from ..visibility.gears.kernels import clip_polygon, mat63
+from ..geometry.kernels import clip_polygon, mat63
 
 
 @wp.func

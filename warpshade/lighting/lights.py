@@ -361,8 +361,8 @@ class RectLight(Light):
     def irradiance_at_reference(self, points, normals) -> np.ndarray:
         """NumPy reference of :meth:`irradiance_at` (float64, one receiver at a time): the rectangle
         clipped to the receiver's upper hemisphere, then Lambert's formula
-        (:func:`~warpshade.visibility.hemiraster.tables.projected_solid_angle_np`). Shape (P, 3)."""
-        from ..visibility.hemiraster.tables import projected_solid_angle_np
+        (:func:`~warpshade.geometry.polygons.projected_solid_angle_np`). Shape (P, 3)."""
+        from ..geometry.polygons import projected_solid_angle_np
 
         pts = np.asarray(points, np.float64).reshape(-1, 3)
         nrm = np.asarray(normals, np.float64).reshape(-1, 3)

@@ -31,7 +31,7 @@ from ..sh.basis import check_order
 from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
 from .refine import refine_receivers as refine
-from .shading import GroupSpec, SceneShader, group_objects, unoccluded_transfer
+from .shading import TWO_SIDED_MODES, GroupSpec, SceneShader, back_key, group_objects, unoccluded_transfer
 
 METHOD_PREFERENCE = ("hemiraster", "reference")
 """Default visibility method: the first of these that is registered (fastest accurate first).
@@ -99,12 +99,13 @@ def check_output(scene: Scene, out: str) -> None:
             raise SceneError(f"output {out} is an input of the scene ({f}); choose another --out")
 
 
-def warn_black_mesh(scene: Scene, name: str, frame: int) -> None:
-    """Warn that mesh ``name`` got zero exit radiance at every vertex of ``frame``, with the likely cause."""
+def warn_black_mesh(scene: Scene, name: str, frame: int, albedo=None) -> None:
+    """Warn that mesh ``name`` got zero exit radiance at every vertex of ``frame``, with the likely cause.
+    ``albedo`` is the albedo it was shaded with (default: its material's)."""
     obj = scene.object(name)
-    if not np.any(obj.material.albedo):
-        cause = ("its albedo is black (warpshade:albedo or the bound material's diffuseColor); "
-                 "set a non-black albedo, or warpshade run --albedo for objects without one")
+    if not np.any(obj.material.albedo if albedo is None else albedo):
+        cause = ("its albedo is black (warpshade:albedo, the bound material's diffuseColor, or --albedo for "
+                 "objects without one); set a non-black albedo")
     else:
         cause = ("no light reaches any of its vertices: every vertex is shadowed or faces away from every "
                  "light (flipped normals or winding?), or the lights give no light (intensity, exposure)")
@@ -123,7 +124,8 @@ class Pipeline:
         write_transfer: Also write ``primvars:warpshade:transfer`` (V × N*N floats per frame).
         lights: :mod:`warpshade.lighting` objects to use instead of the scene's.
         workers: Shading worker processes (0: shade in this process).
-        scheduler: Dask scheduler (``"local"`` or ``tcp://HOST:PORT``) instead of local processes.
+        scheduler: Dask scheduler (``"local"``, ``tcp://HOST:PORT`` or ``tls://HOST:PORT``) instead of
+            local processes.
         device: Warp device.
         between: Shadows between shading groups (objects with different methods or knobs):
             ``"spheres"`` (sphere sets, default) or None.
@@ -138,13 +140,19 @@ class Pipeline:
         refine_receivers: Edge length [scene units] to which coarse static meshes are subdivided so
             shadows have vertices to fall on; ``"auto"`` (the scene's ``warpshade:refineEdge``, else
             1/12 of the scene's diagonal) or ``"off"``. The scene's objects are refined in place.
+        security: ``distributed.Security`` for ``scheduler`` (TLS, :func:`warpshade.cluster.scheduler_security`).
+        two_sided: Shade both sides of thin surfaces, each with its own transfer, and write each side as
+            its own single-sided mesh (docs/conventions.md §6): ``"auto"`` (default: objects with
+            ``warpshade:twoSided``, else cloth), ``"on"`` (every shaded object) or ``"off"``. A group with a
+            two-sided member runs its visibility method a second time, on the group seen from the back.
     """
 
     def __init__(self, scene: Scene, frames: int | None = None, method: str | None = None,
                  knobs: dict | None = None, order: int | None = None, write_transfer: bool | None = None,
                  lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu",
                  between: str | None = "spheres", reflections: bool | dict | None = None, albedo=None,
-                 area_lights: str = "gears", area_knobs: dict | None = None, refine_receivers="auto"):
+                 area_lights: str = "gears", area_knobs: dict | None = None, refine_receivers="auto",
+                 security=None, two_sided: str = "auto"):
         self.scene = scene
         self.refined = refine(scene, refine_receivers)
         """Static objects subdivided for shading (:mod:`warpshade.pipeline.refine`)."""
@@ -155,11 +163,15 @@ class Pipeline:
         self.write_transfer = bool(write_transfer if write_transfer is not None
                                    else scene.settings.get("writeTransfer", False))
         self.workers, self.scheduler, self.device = int(workers), scheduler, device
+        self.security = security
         if albedo is not None:
             a = np.asarray(albedo, dtype=np.float64)
             if a.shape not in ((), (3,)) or not np.all((a >= 0) & (a <= 1)):
                 raise ValueError(f"albedo must be a scalar or RGB in [0, 1], got {a.tolist()}")
-        self.groups = group_objects(scene.objects, method, knobs, DEFAULT_KNOBS, default_albedo=albedo)
+        if two_sided not in TWO_SIDED_MODES:
+            raise ValueError(f"two_sided must be one of {', '.join(TWO_SIDED_MODES)}, got {two_sided!r}")
+        self.groups = group_objects(scene.objects, method, knobs, DEFAULT_KNOBS, default_albedo=albedo,
+                                    two_sided=two_sided)
         if not self.groups:
             raise SceneError(f"{scene.source}: no shaded object")
         if reflections is None:
@@ -202,6 +214,10 @@ class Pipeline:
                     f"{o.name}: cloth with neither pins (warpshade:pinned) nor an attachment, and the scene has "
                     "no collider (warpshade:collider on a prim): it falls freely; add a collider or pin vertices",
                     SceneWarning, stacklevel=3)
+
+    def _albedo_of(self, name: str) -> np.ndarray:
+        """The albedo object ``name`` is shaded with (its material's, or the run's ``albedo``)."""
+        return next(a for g in self.groups for n, a in zip(g.names, g.albedos) if n == name)
 
     def _check_lights(self) -> None:
         """Reject, before any work, a light whose emission or SH radiance does not fit in float32
@@ -247,6 +263,12 @@ class Pipeline:
             secs["simulate"] += time.perf_counter() - t
             yield f, geo
 
+    def simulate(self):
+        """Yield ``(frame, {name: points (V, 3) float32})`` for every moving object, frame by frame:
+        the run's simulation and animation without shading (geometry-only output, stepping)."""
+        sims = ClothSimulation(self.scene, self.device) if any(o.kind == "cloth" for o in self.scene.objects) else None
+        yield from self._geometry_frames(sims, dict.fromkeys(("simulate",), 0.0))
+
     def run(self, writer, progress: bool = True) -> RunReport:
         """Produce every frame into ``writer`` (an :class:`warpshade.usd.AnimationWriter`-like object).
 
@@ -275,17 +297,24 @@ class Pipeline:
             if self.scene.default_prim:
                 writer.set_default_prim(self.scene.default_prim)
             for g in self.groups:
-                for name, mesh, albedo in zip(g.names, g.meshes, g.albedos):
+                for k, (name, mesh, albedo) in enumerate(zip(g.names, g.meshes, g.albedos)):
                     obj = self.scene.object(name)
                     names[name] = writer.add_mesh(
                         name, mesh.faces, points=mesh.points if name in static else None,
                         normals=mesh.normals if name in static else None, albedo=albedo,
                         roughness=obj.material.roughness, transfer_order=self.order if self.write_transfer else None,
                         prim_path=obj.prim_path, prim_xforms=obj.prim_xforms)
+                    if g.two_sided and g.two_sided[k]:
+                        names[back_key(name)] = writer.add_back_side(names[name])
             specs = list(self.scene.lights)
-            if not specs and self.shader.lights is None:
-                sky = default_lights(self.scene.up_axis)[0]
-                specs = sky_light_specs(sky, os.path.join(writer.asset_dir(), "default_sky.exr"), self.scene.up_axis)
+            if not specs:  # the analytic skies it shades with (the default one, or given as lights) as DomeLights
+                from ..lighting import Sky
+
+                skies = [li for li in (self.shader.lights if self.shader.lights is not None
+                                       else default_lights(self.scene.up_axis)) if isinstance(li, Sky)]
+                for i, sky in enumerate(skies):
+                    specs += sky_light_specs(sky, os.path.join(writer.asset_dir(), f"default_sky{i or ''}.exr"),
+                                             self.scene.up_axis)
             for spec in specs:
                 writer.add_light(spec)
             secs["setup"] = time.perf_counter() - t0
@@ -296,7 +325,7 @@ class Pipeline:
             failure: list = []
             warned_black: set[str] = set()
             results = shade_frames(self.shader, self._geometry(sims, secs, failure, start), workers=self.workers,
-                                   scheduler=self.scheduler)
+                                   scheduler=self.scheduler, security=self.security)
             for f, res in results:
                 t = time.perf_counter()
                 secs["shade"] += res.pop("_seconds")
@@ -305,9 +334,10 @@ class Pipeline:
                     # docs/conventions.md §6: every shaded mesh has points, normals and extent time-sampled
                     # per frame, static ones included
                     writer.write_frame(time0 + f, names[name], points, normals, colors, transfer)
-                    if name not in warned_black and colors is not None and not np.any(colors):
+                    # a back side may be dark by right (cloth lying on a ground): only fronts are checked
+                    if isinstance(name, str) and name not in warned_black and colors is not None and not np.any(colors):
                         warned_black.add(name)
-                        warn_black_mesh(self.scene, name, f)
+                        warn_black_mesh(self.scene, name, f, self._albedo_of(name))
                 secs["write"] += time.perf_counter() - t
                 if bar is not None:
                     bar.update(1)
@@ -335,7 +365,9 @@ def _group_line(g: GroupSpec) -> str:
     """One :attr:`RunReport.groups` line: method, knobs, objects, and which of them cast no shadows."""
     line = f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
     quiet = [n for n, c in zip(g.names, g.casts) if not c]
-    return line + (f" (casting no shadows: {', '.join(quiet)})" if quiet else "")
+    both = [n for n, t in zip(g.names, g.two_sided) if t]
+    return (line + (f" (casting no shadows: {', '.join(quiet)})" if quiet else "")
+            + (f" (two-sided: {', '.join(both)})" if both else ""))
 
 
 __all__ = ["check_output", "DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",

@@ -55,7 +55,9 @@ def render(meshes: list[tuple[np.ndarray, np.ndarray, np.ndarray]], camera: Came
     """Ray-cast meshes with per-vertex colours.
 
     Args:
-        meshes: ``(points (V, 3), faces (F, 3), colors (V, 3))`` per mesh, world space, linear RGB.
+        meshes: ``(points (V, 3), faces (F, 3), colors (V, 3))`` per mesh, world space, linear RGB, optionally
+            with a fourth item, the colours seen from the back of its triangles (V, 3) (a two-sided
+            output's back-side mesh, docs/conventions.md §6); without it both sides show ``colors``.
         camera: View.
         width, height: Image size [pixels].
         ground_height: Height of the ground plane along ``camera.up`` (default: just below the
@@ -69,6 +71,7 @@ def render(meshes: list[tuple[np.ndarray, np.ndarray, np.ndarray]], camera: Came
     offs = np.cumsum([0] + [len(m[0]) for m in meshes])[:-1]
     faces = np.concatenate([m[1] + o for m, o in zip(meshes, offs)]).astype(np.int32)
     cols = np.concatenate([m[2] for m in meshes]).astype(np.float32)
+    back = np.concatenate([m[3] if len(m) > 3 and m[3] is not None else m[2] for m in meshes]).astype(np.float32)
     up = np.asarray(camera.up, dtype=np.float64)
     if ground_height is None:
         h = pts @ up
@@ -87,7 +90,8 @@ def render(meshes: list[tuple[np.ndarray, np.ndarray, np.ndarray]], camera: Came
     sky = wp.vec3(0.55 * bright, 0.65 * bright, 0.8 * bright)
     diag = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) + float(np.linalg.norm(camera.eye - camera.target))
     wp.launch(cast_primary_rays, dim=(height, width),
-              inputs=[mesh.id, wfaces, wp.array(cols, dtype=wp.vec3, device=device), wp.vec3(*camera.eye),
+              inputs=[mesh.id, wfaces, wp.array(cols, dtype=wp.vec3, device=device),
+                      wp.array(back, dtype=wp.vec3, device=device), wp.vec3(*camera.eye),
                       wp.vec3(*fwd), wp.vec3(*right), wp.vec3(*cup), float(np.tan(np.radians(camera.fov) / 2)),
                       width, height, wp.vec3(*up), ground_height, ground, sky, 4.0 * diag],
               outputs=[image], device=device)

@@ -10,6 +10,7 @@ def cast_primary_rays(
     mesh: wp.uint64,
     faces: wp.array2d[wp.int32],
     colors: wp.array[wp.vec3],
+    back_colors: wp.array[wp.vec3],
     eye: wp.vec3,
     forward: wp.vec3,
     right: wp.vec3,
@@ -24,7 +25,8 @@ def cast_primary_rays(
     max_t: float,
     image: wp.array2d[wp.vec3],
 ):
-    """Per pixel: the hit triangle's barycentric blend of per-vertex ``colors``, else the ground
+    """Per pixel: the hit triangle's barycentric blend of per-vertex ``colors`` (``back_colors`` where the ray
+    meets the triangle's back), else the ground
     plane (``dot(p, world_up) = ground_height``, a faint checker so motion reads), else the sky.
 
     ``image`` has shape (height, width), row 0 at the top, linear RGB.
@@ -40,7 +42,10 @@ def cast_primary_rays(
         j = faces[q.face, 1]
         k = faces[q.face, 2]
         w = 1.0 - q.u - q.v
-        image[y, x] = colors[i] * q.u + colors[j] * q.v + colors[k] * w
+        if q.sign >= 0.0:
+            image[y, x] = colors[i] * q.u + colors[j] * q.v + colors[k] * w
+        else:
+            image[y, x] = back_colors[i] * q.u + back_colors[j] * q.v + back_colors[k] * w
         return
     dn = wp.dot(d, world_up)
     if dn < -1.0e-6:

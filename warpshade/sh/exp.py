@@ -48,7 +48,7 @@ from functools import lru_cache
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .products import _order_of, gaunt_tensor, product_matrix, sh_product
+from .products import order_of, gaunt_tensor, product_matrix, sh_product
 from .zonal import sphere_visibility_zh, zh_rotate
 
 SQRT_4PI = math.sqrt(4.0 * math.pi)
@@ -113,7 +113,7 @@ def sh_log(g, eps: float = DEFAULT_LOG_EPS, refine: int = 0, exp_method: str = "
     if not eps > 0:
         raise ValueError(f"sh_log: eps must be > 0, got {eps!r}")
     g = np.asarray(g, dtype=np.float64)
-    order = _order_of(g.shape[-1], "g")
+    order = order_of(g.shape[-1], "g")
     lam, vec = _eigh(product_matrix(g))
     lam = np.maximum(lam, eps)
     r = g - unit_vector(order)
@@ -308,7 +308,7 @@ def _exp_exact(f0, fh):
 
 
 def _exp_series(f0, fh, tol, max_terms):
-    order = _order_of(fh.shape[-1], "f")
+    order = order_of(fh.shape[-1], "f")
     m = product_matrix(fh)
     term = np.broadcast_to(unit_vector(order), fh.shape).copy()
     total = term.copy()
@@ -330,7 +330,7 @@ def _ol_parts(fh, table: OLTable):
 
 
 def _hybrid_parts(f0, fh, table: OLTable, threshold: float):
-    order = _order_of(fh.shape[-1], "f")
+    order = order_of(fh.shape[-1], "f")
     lead = fh.shape[:-1]
     fh = fh.reshape(-1, order * order)
     f0 = np.asarray(f0).reshape(-1)
@@ -363,7 +363,7 @@ def hybrid_exp_parts(f, table: OLTable | None = None, threshold: float = DEFAULT
         ``(log_scale, unit)``: shapes (...,) and (..., n*n), float64; ``unit`` has norm 1 (or 0).
     """
     f = np.asarray(f, dtype=np.float64)
-    order = _order_of(f.shape[-1], "f")
+    order = order_of(f.shape[-1], "f")
     table = ol_table(order) if table is None else table
     f0, fh = _split_dc(f)
     return _hybrid_parts(f0, fh, table, threshold)
@@ -390,7 +390,7 @@ def sh_exp(f, method: str = "hybrid", *, table: OLTable | None = None,
         Shape (..., n*n), dtype float64.
     """
     f = np.asarray(f, dtype=np.float64)
-    order = _order_of(f.shape[-1], "f")
+    order = order_of(f.shape[-1], "f")
     if method not in METHODS:
         raise ValueError(f"sh_exp: method must be one of {METHODS}, got {method!r}")
     if not np.all(np.isfinite(f)):

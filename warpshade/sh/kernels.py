@@ -34,6 +34,19 @@ def normalization_array(order: int, device: str = "cpu") -> wp.array:
 
 
 @wp.func
+def legendre_q(l: int, m: int, z: float, pmm: float, q1: float, q2: float) -> float:
+    """``Q_l^m(z)`` for ``l >= m`` from ``pmm = Q_m^m`` and the two previous bands ``q1 = Q_{l-1}^m``,
+    ``q2 = Q_{l-2}^m`` (thesis eqs. A.1, A.3 without the ``sin^m`` factor; the NumPy form is
+    :func:`warpshade.sh.basis.sh_eval`). The one Warp copy of the recurrence."""
+    q = pmm
+    if l == m + 1:
+        q = z * float(2 * m + 1) * pmm
+    elif l > m + 1:
+        q = (float(2 * l - 1) * z * q1 - float(l + m - 1) * q2) / float(l - m)
+    return q
+
+
+@wp.func
 def sh_accumulate_banded(
     d: wp.vec3,
     zh: wp.array2d[float],
@@ -50,8 +63,8 @@ def sh_accumulate_banded(
     """Add ``w_l * k[i] * Q_l^m(d) * (cos | sin)(m phi)`` to ``out[row, i]`` for all ``i < order*order``.
 
     ``w_l = weight`` when ``use_bands == 0`` (``zh`` is then not read), else
-    ``weight * lerp(zh[zh_row_a, l], zh[zh_row_b, l], t)``. The one implementation of the Cartesian
-    recurrences (thesis eqs. A.1–A.3 without the ``sin^m`` factor), so the poles are exact.
+    ``weight * lerp(zh[zh_row_a, l], zh[zh_row_b, l], t)``. Cartesian recurrences (:func:`legendre_q`),
+    so the poles are exact.
     ``d`` is normalised here; a zero vector contributes nothing.
     """
     len_d = wp.length(d)
@@ -73,11 +86,7 @@ def sh_accumulate_banded(
         q2 = float(0.0)
         q1 = float(0.0)
         for l in range(m, order):
-            q = pmm
-            if l == m + 1:
-                q = z * float(2 * m + 1) * pmm
-            elif l > m + 1:
-                q = (float(2 * l - 1) * z * q1 - float(l + m - 1) * q2) / float(l - m)
+            q = legendre_q(l, m, z, pmm, q1, q2)
             q2 = q1
             q1 = q
             g = weight
@@ -212,11 +221,7 @@ def zh_vector_funcs(order: int) -> SimpleNamespace:
             q2 = float(0.0)
             q1 = float(0.0)
             for l in range(m, bands):
-                q = pmm
-                if l == m + 1:
-                    q = z * float(2 * m + 1) * pmm
-                elif l > m + 1:
-                    q = (float(2 * l - 1) * z * q1 - float(l + m - 1) * q2) / float(l - m)
+                q = legendre_q(l, m, z, pmm, q1, q2)
                 q2 = q1
                 q1 = q
                 base = l * (l + 1)
@@ -584,12 +589,12 @@ def sh_exp_warp(f, method: str = "hybrid", threshold: float | None = None, devic
         Shape (V, n*n), dtype float32.
     """
     from .exp import DEFAULT_HYBRID_THRESHOLD
-    from .products import _order_of
+    from .products import order_of
 
     f = np.asarray(f, dtype=np.float32)
     if f.ndim != 2:
         raise ValueError(f"sh_exp_warp: f must have shape (V, n*n), got {f.shape}")
-    order = _order_of(f.shape[1], "f")
+    order = order_of(f.shape[1], "f")
     fa = wp.array(f, dtype=float, device=device)
     out = wp.zeros_like(fa)
     table = ol_table_arrays(order, device)

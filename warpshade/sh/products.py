@@ -29,7 +29,12 @@ from .projection import sphere_quadrature
 _DROP = 1e-13
 
 
-def _order_of(n: int, what: str) -> int:
+def order_of(n: int, what: str) -> int:
+    """SH order ``N`` of ``n = N*N`` coefficients.
+
+    Raises:
+        ValueError: ``n`` is not a positive square (the message names ``what``).
+    """
     order = math.isqrt(n)
     if order * order != n or order < 1:
         raise ValueError(f"{what} must have a square number of SH coefficients on its last axis, got {n}")
@@ -129,8 +134,8 @@ def sh_product(f, g, order: int | None = None) -> np.ndarray:
     """
     f = np.asarray(f, dtype=np.float64)
     g = np.asarray(g, dtype=np.float64)
-    of = _order_of(f.shape[-1], "f")
-    og = _order_of(g.shape[-1], "g")
+    of = order_of(f.shape[-1], "f")
+    og = order_of(g.shape[-1], "g")
     order = max(of, og) if order is None else order
     t = gaunt_tensor(order, of, og)
     lead = np.broadcast_shapes(f.shape[:-1], g.shape[:-1])
@@ -152,7 +157,7 @@ def product_matrix(f, order: int | None = None) -> np.ndarray:
         ``(M_f)_ij = sum_k f_k Gamma_ijk``, shape (..., order**2, order**2), dtype float64.
     """
     f = np.asarray(f, dtype=np.float64)
-    of = _order_of(f.shape[-1], "f")
+    of = order_of(f.shape[-1], "f")
     order = of if order is None else order
     t = gaunt_tensor(order, order, of)
     n = order * order

@@ -20,13 +20,20 @@ import math
 import numpy as np
 
 
-def _check_rotation(r) -> np.ndarray:
+def check_rotation(r, what: str | None = None) -> np.ndarray:
+    """``r`` as a float64 (3, 3) proper rotation (finite, orthonormal to 1e-6, det +1).
+
+    Raises:
+        ValueError: naming the shape, the orthonormality error or the determinant, after ``what: `` when given.
+    """
+    prefix = f"{what}: " if what else ""
     r = np.asarray(r, dtype=np.float64)
     if r.shape != (3, 3) or not np.all(np.isfinite(r)):
-        raise ValueError(f"rotation must be a finite 3x3 matrix, got shape {r.shape}")
+        raise ValueError(f"{prefix}rotation must be a finite 3x3 matrix, got shape {r.shape}")
     err = np.abs(r @ r.T - np.eye(3)).max()
     if err > 1e-6 or np.linalg.det(r) < 0:
-        raise ValueError(f"rotation must be orthonormal with det +1 (|R R^T - I| = {err:.2e}, det = {np.linalg.det(r):.3f})")
+        raise ValueError(f"{prefix}rotation must be orthonormal with det +1 (|R R^T - I| = {err:.2e}, "
+                         f"det = {np.linalg.det(r):.3f})")
     return r
 
 
@@ -93,7 +100,7 @@ def rotation_blocks(r, order: int) -> list[np.ndarray]:
     """Per-band rotation blocks in warpshade's convention: ``blocks[l]`` has shape (2l+1, 2l+1), float64."""
     if int(order) != order or order < 1:
         raise ValueError(f"SH order must be a positive integer, got {order!r}")
-    r = _check_rotation(r)
+    r = check_rotation(r)
     out = []
     for l, b in enumerate(_band_blocks(r, int(order))):
         s = np.where(np.arange(-l, l + 1) % 2 == 0, 1.0, -1.0)  # (-1)^m: Condon–Shortley phase

@@ -111,6 +111,20 @@ def clamped_cosine_zh(order: int) -> np.ndarray:
     return phong_zh(1.0, order, normalize=False)
 
 
+def unoccluded_transfer(normals, order: int) -> np.ndarray:
+    """Transfer of an unshadowed vertex (docs/conventions.md §2): the clamped-cosine lobe
+    (:func:`clamped_cosine_zh`) rotated to the normal, ``sqrt(4π/(2l+1)) A_l y_lm(n)``.
+
+    Args:
+        normals: Vertex normals, shape (..., 3) (normalised here).
+        order: SH order N.
+
+    Returns:
+        Shape (..., N*N), dtype float64.
+    """
+    return zh_rotate(clamped_cosine_zh(order), normals)
+
+
 def phong_zh(exponent: float, order: int, normalize: bool = True) -> np.ndarray:
     """ZH coefficients of the Phong lobe ``c * max(0, cos theta)^s`` about +z.
 

@@ -36,7 +36,7 @@ def _friction(value) -> float:
 
 
 class MeshCollider:
-    """An animated closed triangle mesh (or a union of overlapping closed parts).
+    """An animated triangle mesh: closed (or a union of overlapping closed parts), or an open sheet.
 
     Attributes:
         mesh: The Warp BVH mesh, points at the current substep.
@@ -45,6 +45,9 @@ class MeshCollider:
         points_prev: Points at the previous substep [m], shape (V,), dtype vec3.
         faces: Triangles on the host, shape (F, 3), int32.
         friction: Coulomb coefficient.
+        closed: Whether every edge has two faces. A closed mesh is a solid (winding-number
+            inside test); an open one (a ground sheet) is a two-sided shell that vertices stay
+            on their side of.
     """
 
     def __init__(self, points: np.ndarray, faces: np.ndarray, friction: float, device):
@@ -78,6 +81,7 @@ class MeshCollider:
         self.edge_verts = wp.array(np.stack([uniq // len(pts), uniq % len(pts)], 1).astype(np.int32),
                                    dtype=wp.int32, device=device)
         self.edge_faces = wp.array(edge_faces.astype(np.int32), dtype=wp.int32, device=device)
+        self.closed = bool(len(edge_faces)) and bool((edge_faces[:, 1] >= 0).all())
 
     def _check(self, pts):
         if pts.ndim != 2 or pts.shape[1] != 3:
@@ -306,7 +310,7 @@ class ColliderSet:
                               ar["friction"], thickness, inv_mass, x_prev], outputs=[x], device=self.device)
         for m in self.meshes:
             wp.launch(ck.collide_mesh, dim=n,
-                      inputs=[m.mesh.id, m.points_prev, m.indices, thickness + self.mesh_query_distance, thickness,
+                      inputs=[m.mesh.id, m.points_prev, m.indices, int(m.closed), thickness + self.mesh_query_distance, thickness,
                               m.friction, inv_mass, x_prev],
                       outputs=[x], device=self.device)
 

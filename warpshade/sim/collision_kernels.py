@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import warp as wp
 
+from .kernels import closest_segments
+
 SHAPE_PLANE = wp.constant(0)
 SHAPE_SPHERE = wp.constant(1)
 SHAPE_CAPSULE = wp.constant(2)
@@ -177,6 +179,7 @@ def collide_mesh(
     mesh: wp.uint64,
     points_prev: wp.array[wp.vec3],
     tris: wp.array[int],
+    closed: int,
     max_distance: float,
     thickness: float,
     friction: float,
@@ -184,65 +187,75 @@ def collide_mesh(
     x_prev: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
 ):
-    """Push each free vertex out of a (closed or overlapping-closed) triangle mesh.
+    """Push each free vertex out of a triangle mesh.
 
-    Inside/outside comes from the generalised winding number (Barill et al. 2018), which stays
-    right for unions of overlapping closed parts such as a character built from limbs, where the
-    normal-based sign is wrong near the overlaps. `points_prev` is the mesh at the previous
-    substep, to move the contact point with the surface for friction.
+    A closed mesh (or a union of overlapping closed parts) is a solid: inside/outside comes from
+    the generalised winding number (Barill et al. 2018), which stays right for unions of
+    overlapping closed parts such as a character built from limbs, where the normal-based sign is
+    wrong near the overlaps. An open mesh (a ground sheet, a wall) has no inside: it is a
+    two-sided shell, and each vertex is kept `thickness` away on the side of the closest face it
+    was on at the start of the substep (x_prev). The winding number of an open sheet is only
+    +-1/2 on its two sides, so the solid test would let a vertex through. `points_prev` is the
+    mesh at the previous substep, to move the contact point with the surface for friction.
     """
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
     p = x[i]
-    q = wp.mesh_query_point_sign_winding_number(mesh, p, max_distance, 2.0, 0.5)
-    if not q.result:
+    face = int(0)
+    u = float(0.0)
+    v = float(0.0)
+    sign = float(1.0)
+    if closed != 0:
+        q = wp.mesh_query_point_sign_winding_number(mesh, p, max_distance, 2.0, 0.5)
+        if not q.result:
+            return
+        face = q.face
+        u = q.u
+        v = q.v
+        sign = q.sign
+    else:
+        q = wp.mesh_query_point_no_sign(mesh, p, max_distance)
+        if not q.result:
+            return
+        face = q.face
+        u = q.u
+        v = q.v
+        # the side: where the vertex was at the start of the substep, against its closest face then
+        side = float(1.0)
+        q0 = wp.mesh_query_point_no_sign(mesh, x_prev[i], max_distance + wp.length(p - x_prev[i]))
+        if q0.result:
+            c0 = wp.mesh_eval_position(mesh, q0.face, q0.u, q0.v)
+            if wp.dot(x_prev[i] - c0, wp.mesh_eval_face_normal(mesh, q0.face)) < 0.0:
+                side = -1.0
+        n = wp.mesh_eval_face_normal(mesh, face) * side
+        cq = wp.mesh_eval_position(mesh, face, u, v)
+        sd = wp.length(p - cq)
+        if wp.dot(p - cq, n) < 0.0:
+            sd = -sd
+        if sd >= thickness:
+            return
+        pn = cq + n * thickness
+        w0 = 1.0 - u - v
+        cp0 = points_prev[tris[3 * face]] * u + points_prev[tris[3 * face + 1]] * v + points_prev[tris[3 * face + 2]] * w0
+        x[i] = pn + apply_friction((pn - x_prev[i]) - (cq - cp0), n, thickness - sd, friction)
         return
-    cp = wp.mesh_eval_position(mesh, q.face, q.u, q.v)
+    cp = wp.mesh_eval_position(mesh, face, u, v)
     d = p - cp
     ld = wp.length(d)
     n = wp.vec3(0.0)
     if ld > 1.0e-9:
-        n = d * (q.sign / ld)
+        n = d * (sign / ld)
     else:
-        n = wp.normalize(wp.mesh_eval_face_normal(mesh, q.face))
-    sd = q.sign * ld
+        n = wp.normalize(wp.mesh_eval_face_normal(mesh, face))
+    sd = sign * ld
     depth = thickness - sd
     if depth <= 0.0:
         return
     p = cp + n * thickness
-    f = q.face
-    w = 1.0 - q.u - q.v
-    cp0 = points_prev[tris[3 * f]] * q.u + points_prev[tris[3 * f + 1]] * q.v + points_prev[tris[3 * f + 2]] * w
+    w = 1.0 - u - v
+    cp0 = points_prev[tris[3 * face]] * u + points_prev[tris[3 * face + 1]] * v + points_prev[tris[3 * face + 2]] * w
     x[i] = p + apply_friction((p - x_prev[i]) - (cp - cp0), n, depth, friction)
-
-
-@wp.func
-def closest_segment_params(p1: wp.vec3, q1: wp.vec3, p2: wp.vec3, q2: wp.vec3) -> wp.vec2:
-    """Parameters (s, t) in [0, 1] of the closest points of segments p1-q1 and p2-q2 (Ericson 5.1.9)."""
-    d1 = q1 - p1
-    d2 = q2 - p2
-    r = p1 - p2
-    a = wp.dot(d1, d1)
-    e = wp.dot(d2, d2)
-    f = wp.dot(d2, r)
-    s = float(0.0)
-    t = float(0.0)
-    if a <= 1.0e-20 or e <= 1.0e-20:
-        return wp.vec2(0.0, 0.0)
-    c = wp.dot(d1, r)
-    b = wp.dot(d1, d2)
-    den = a * e - b * b
-    if den > 1.0e-12 * a * e:
-        s = wp.clamp((b * f - c * e) / den, 0.0, 1.0)
-    t = (b * s + f) / e
-    if t < 0.0:
-        t = 0.0
-        s = wp.clamp(-c / a, 0.0, 1.0)
-    elif t > 1.0:
-        t = 1.0
-        s = wp.clamp((b - c) / a, 0.0, 1.0)
-    return wp.vec2(s, t)
 
 
 @wp.kernel
@@ -284,7 +297,7 @@ def collide_mesh_edges(
                 continue  # each collider edge once, from its first face
             m0 = mesh_points[edge_verts[e, 0]]
             m1 = mesh_points[edge_verts[e, 1]]
-            st = closest_segment_params(a, b, m0, m1)
+            st = closest_segments(a, b, m0, m1)
             s = st[0]
             if s <= 0.0 or s >= 1.0:
                 continue  # a cloth vertex is closest: the vertex projection holds it

@@ -2,8 +2,8 @@
 
 A cloth-cloth pair is two cloth triangles without a shared vertex whose closed triangles share a
 point (touching counts); a cloth-collider pair is a cloth triangle and a mesh collider's triangle
-that do, plus cloth triangles lying wholly inside a mesh collider (generalised winding number
-> 1/2 at the centroid, no crossing); against an analytic shape a cloth triangle counts when its
+that do, plus cloth triangles lying wholly inside a closed mesh collider (generalised winding
+number > 1/2 at the centroid, no crossing); against an analytic shape a cloth triangle counts when its
 distance to the solid is <= 0 (exact for planes, spheres, capsules and boxes; other kinds are
 tested at the triangle's corners and 12 interior points).
 
@@ -153,6 +153,24 @@ def triangles_meet(a0: wp.vec3d, a1: wp.vec3d, a2: wp.vec3d, b0: wp.vec3d, b1: w
 
 
 @wp.func
+def plane_separates(a0: wp.vec3, a1: wp.vec3, a2: wp.vec3, b0: wp.vec3, b1: wp.vec3, b2: wp.vec3) -> bool:
+    """The plane of triangle a has triangle b strictly on one side, by a margin far above float32
+    rounding (1e-5 of the points' spread; the float32 error of these dot products is ~1e-6 of
+    it): a cheap certain rejection before the float64 test."""
+    n = wp.cross(a1 - a0, a2 - a0)
+    ln = wp.length(n)
+    if ln == 0.0:
+        return False
+    n = n / ln
+    d0 = wp.dot(b0 - a0, n)
+    d1 = wp.dot(b1 - a0, n)
+    d2 = wp.dot(b2 - a0, n)
+    spread = wp.length(b0 - a0) + wp.length(a1 - a0) + wp.length(a2 - a0) + wp.length(b1 - b0) + wp.length(b2 - b0)
+    eps = 1.0e-5 * spread
+    return (d0 > eps and d1 > eps and d2 > eps) or (d0 < -eps and d1 < -eps and d2 < -eps)
+
+
+@wp.func
 def v3d(p: wp.vec3) -> wp.vec3d:
     return wp.vec3d(wp.float64(p[0]), wp.float64(p[1]), wp.float64(p[2]))
 
@@ -162,6 +180,15 @@ def v3d(p: wp.vec3) -> wp.vec3d:
 # ---------------------------------------------------------------------------------------------
 
 
+@wp.func
+def mark_triangle(mark: wp.array[int], tris: wp.array2d[int], t: int):
+    """mark[v] = 1 for the three vertices of cloth triangle t (no-op for an empty mark)."""
+    if mark.shape[0] > 0:
+        mark[tris[t, 0]] = 1
+        mark[tris[t, 1]] = 1
+        mark[tris[t, 2]] = 1
+
+
 @wp.kernel
 def count_self_pairs(
     mesh: wp.uint64,
@@ -169,8 +196,10 @@ def count_self_pairs(
     tris: wp.array2d[int],
     count: wp.array[int],
     pairs: wp.array2d[int],
+    mark: wp.array[int],
 ):
-    """Cloth-cloth intersecting pairs (t, u), t < u, no shared vertex; the first pairs are kept."""
+    """Cloth-cloth intersecting pairs (t, u), t < u, no shared vertex; the first pairs are kept,
+    and the vertices of both triangles marked."""
     t = wp.tid()
     a = tris[t, 0]
     b = tris[t, 1]
@@ -190,11 +219,18 @@ def count_self_pairs(
         f = tris[u, 2]
         if a == d or a == e or a == f or b == d or b == e or b == f or c == d or c == e or c == f:
             continue
-        if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(x[d]), v3d(x[e]), v3d(x[f])):
+        pd = x[d]
+        pe = x[e]
+        pf = x[f]
+        if plane_separates(pa, pb, pc, pd, pe, pf) or plane_separates(pd, pe, pf, pa, pb, pc):
+            continue
+        if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(pd), v3d(pe), v3d(pf)):
             k = wp.atomic_add(count, 0, 1)
             if k < pairs.shape[0]:
                 pairs[k, 0] = t
                 pairs[k, 1] = u
+            mark_triangle(mark, tris, t)
+            mark_triangle(mark, tris, u)
 
 
 @wp.kernel
@@ -202,13 +238,16 @@ def count_mesh_pairs(
     mesh: wp.uint64,
     mesh_points: wp.array[wp.vec3],
     mesh_tris: wp.array[int],
+    closed: int,
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
     count: wp.array[int],
     pairs: wp.array2d[int],
+    mark: wp.array[int],
 ):
     """Cloth triangle t against a collider mesh: crossing triangle pairs (t, collider triangle),
-    or (t, -1) once for a cloth triangle wholly inside the collider."""
+    or, for a closed mesh, (t, -1) once for a cloth triangle wholly inside it; t's vertices are
+    marked."""
     t = wp.tid()
     pa = x[tris[t, 0]]
     pb = x[tris[t, 1]]
@@ -228,7 +267,9 @@ def count_mesh_pairs(
             if k < pairs.shape[0]:
                 pairs[k, 0] = t
                 pairs[k, 1] = u
-    if crossed == 0:
+    if crossed > 0:
+        mark_triangle(mark, tris, t)
+    elif closed != 0:
         centroid = (pa + pb + pc) / 3.0
         q = wp.mesh_query_point_sign_winding_number(mesh, centroid, 1.0e6, 2.0, 0.5)
         if q.result and q.sign < 0.0:
@@ -236,6 +277,7 @@ def count_mesh_pairs(
             if k < pairs.shape[0]:
                 pairs[k, 0] = t
                 pairs[k, 1] = -1
+            mark_triangle(mark, tris, t)
 
 
 @wp.func
@@ -368,8 +410,10 @@ def count_shape_triangles(
     tris: wp.array2d[int],
     count: wp.array[int],
     pairs: wp.array2d[int],
+    mark: wp.array[int],
 ):
-    """Cloth triangles meeting an analytic solid: pairs (cloth triangle, shape index)."""
+    """Cloth triangles meeting an analytic solid: pairs (cloth triangle, shape index); t's
+    vertices are marked."""
     t = wp.tid()
     pa = x[tris[t, 0]]
     pb = x[tris[t, 1]]
@@ -406,6 +450,7 @@ def count_shape_triangles(
             if q < pairs.shape[0]:
                 pairs[q, 0] = t
                 pairs[q, 1] = s
+            mark_triangle(mark, tris, t)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -434,6 +479,7 @@ class IntersectionCounter:
         self._mesh = None
         self._count = wp.zeros(1, dtype=wp.int32, device=self.device)
         self._pairs = wp.zeros((max(keep, 1), 2), dtype=wp.int32, device=self.device)
+        self._no_mark = wp.zeros(0, dtype=wp.int32, device=self.device)
 
     def _points(self, points) -> wp.array:
         if isinstance(points, wp.array):
@@ -455,31 +501,38 @@ class IntersectionCounter:
             self._mesh.refit()
         return self._x
 
-    def _run(self, kernel, inputs) -> tuple[int, np.ndarray]:
+    def _run(self, kernel, inputs, mark) -> tuple[int, np.ndarray]:
         self._count.zero_()
-        wp.launch(kernel, dim=len(self.faces), inputs=inputs, outputs=[self._count, self._pairs], device=self.device)
+        wp.launch(kernel, dim=len(self.faces), inputs=inputs, outputs=[self._count, self._pairs,
+                                                                        self._no_mark if mark is None else mark],
+                  device=self.device)
         n = int(self._count.numpy()[0])
         return n, self._pairs.numpy()[:min(n, self._pairs.shape[0])].copy()
 
-    def self_pairs(self, points) -> tuple[int, np.ndarray]:
-        """(count, first pairs (K, 2) of triangle indices) of cloth-cloth intersections."""
-        x = self._points(points)
-        return self._run(count_self_pairs, [self._mesh.id, x, self.tris])
+    def self_pairs(self, points, mark=None) -> tuple[int, np.ndarray]:
+        """(count, first pairs (K, 2) of triangle indices) of cloth-cloth intersections.
 
-    def collider_pairs(self, points, colliders) -> tuple[int, np.ndarray]:
+        Args:
+            points: Cloth vertex positions [m], shape (V, 3) (array or ``wp.array`` of vec3).
+            mark: Optional, shape (V,), dtype int32: set to 1 at every vertex of an intersecting triangle.
+        """
+        x = self._points(points)
+        return self._run(count_self_pairs, [self._mesh.id, x, self.tris], mark)
+
+    def collider_pairs(self, points, colliders, mark=None) -> tuple[int, np.ndarray]:
         """(count, first pairs) against a :class:`~warpshade.sim.ColliderSet` as posed at the end
         of the last step: (cloth triangle, shape index) for analytic shapes, then (cloth triangle,
-        collider triangle or -1 for wholly inside) per mesh collider."""
+        collider triangle or -1 for wholly inside) per mesh collider; ``mark`` as in :meth:`self_pairs`."""
         x = self._points(points)
         total, kept = 0, []
         ar = colliders.end_pose_arrays()
         if ar is not None:
             n, p = self._run(count_shape_triangles, [ar["kind"], ar["a_end"], ar["b_end"], ar["rot_end"], ar["size"],
-                                                     x, self.tris])
+                                                     x, self.tris], mark)
             total += n
             kept.append(p)
         for m in colliders.meshes:
-            n, p = self._run(count_mesh_pairs, [m.mesh.id, m.mesh.points, m.indices, x, self.tris])
+            n, p = self._run(count_mesh_pairs, [m.mesh.id, m.mesh.points, m.indices, int(m.closed), x, self.tris], mark)
             total += n
             kept.append(p)
         return total, (np.concatenate(kept) if kept else np.zeros((0, 2), np.int32))

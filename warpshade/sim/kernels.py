@@ -68,6 +68,53 @@ def closest_on_triangle(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.ve
 
 
 @wp.func
+def closest_segments(p1: wp.vec3, q1: wp.vec3, p2: wp.vec3, q2: wp.vec3) -> wp.vec2:
+    """Parameters (s, t) in [0, 1] of the closest points p1 + s (q1 - p1), p2 + t (q2 - p2) (Ericson 5.1.9)."""
+    d1 = q1 - p1
+    d2 = q2 - p2
+    r = p1 - p2
+    a = wp.dot(d1, d1)
+    e = wp.dot(d2, d2)
+    f = wp.dot(d2, r)
+    s = float(0.0)
+    t = float(0.0)
+    if a <= 1.0e-20 and e <= 1.0e-20:
+        return wp.vec2(0.0, 0.0)
+    if a <= 1.0e-20:
+        t = wp.clamp(f / e, 0.0, 1.0)
+    else:
+        c = wp.dot(d1, r)
+        if e <= 1.0e-20:
+            s = wp.clamp(-c / a, 0.0, 1.0)
+        else:
+            b = wp.dot(d1, d2)
+            den = a * e - b * b
+            if den > 1.0e-12 * a * e:
+                s = wp.clamp((b * f - c * e) / den, 0.0, 1.0)
+            t = (b * s + f) / e
+            if t < 0.0:
+                t = 0.0
+                s = wp.clamp(-c / a, 0.0, 1.0)
+            elif t > 1.0:
+                t = 1.0
+                s = wp.clamp((b - c) / a, 0.0, 1.0)
+    return wp.vec2(s, t)
+
+
+@wp.func
+def stored_side(prev_id: wp.array2d[int], prev_side: wp.array2d[float], prev_count: wp.array[int], row: int,
+                other: int, side: float) -> float:
+    """The side a contact pair (row, other) had at the previous detection, else `side`: a pair
+    already in contact keeps its side (inside the contact layer the current one may be wrong, a
+    correction left unfinished, and re-reading it would lock a crossing in)."""
+    out = side
+    for r in range(prev_count[row]):
+        if prev_id[row, r] == other and prev_side[row, r] != 0.0:
+            out = prev_side[row, r]
+    return out
+
+
+@wp.func
 def dihedral_angle(x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, x4: wp.vec3) -> float:
     """Signed dihedral angle [rad] of the hinge with shared edge x3-x4 and wings x1, x2.
 
@@ -498,7 +545,6 @@ def find_self_contacts(
     horizon: float,
     pad: wp.array[float],
     thickness: float,
-    keep_all: int,
     max_contacts: int,
     prev_tri: wp.array2d[int],
     prev_side: wp.array2d[float],
@@ -508,7 +554,7 @@ def find_self_contacts(
     contact_count: wp.array[int],
     overflow: wp.array[int],
 ):
-    """Vertex-triangle candidate pairs whose swept boxes overlap and (unless ``keep_all``) that
+    """Vertex-triangle candidate pairs whose swept boxes overlap and that
     are, or may come within one interval, closer than 1.5 thicknesses: distance <= 1.5 (thickness
     + c), c = max |v_i - v_k| horizon the relative motion of the pair's vertices (a flat sheet's
     own neighbours, a few edge lengths away, are not stored).
@@ -533,7 +579,7 @@ def find_self_contacts(
         c = tris[t, 2]
         if i == a or i == b or i == c:
             continue
-        if keep_all == 0 and (in_one_ring(i, a, ring_offsets, ring) or in_one_ring(i, b, ring_offsets, ring)
+        if (in_one_ring(i, a, ring_offsets, ring) or in_one_ring(i, b, ring_offsets, ring)
                               or in_one_ring(i, c, ring_offsets, ring)):
             # a triangle of a neighbour: skipped unless the pair is closer than a third of the
             # distance its vertices have at rest (a fold)
@@ -542,13 +588,12 @@ def find_self_contacts(
                           wp.length(rest_x[i] - rest_x[c]))
             if mind > 0.33 * rest:
                 continue
-        if keep_all == 0:
-            vi = v[i]
-            close = wp.max(wp.max(wp.length(vi - v[a]), wp.length(vi - v[b])), wp.length(vi - v[c])) * horizon
-            bc = closest_on_triangle(p, x[a], x[b], x[c])
-            dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
-            if dist > 1.5 * (thickness + close):
-                continue
+        vi = v[i]
+        close = wp.max(wp.max(wp.length(vi - v[a]), wp.length(vi - v[b])), wp.length(vi - v[c])) * horizon
+        bc = closest_on_triangle(p, x[a], x[b], x[c])
+        dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
+        if dist > 1.5 * (thickness + close):
+            continue
         if count < max_contacts:
             xa = x[a]
             nn = wp.cross(x[b] - xa, x[c] - xa)
@@ -559,13 +604,8 @@ def find_self_contacts(
                 side = 1.0
             elif d < -1.0e-9 * wp.length_sq(nn):
                 side = -1.0
-            # a pair already in contact keeps the side it had: inside the contact layer the
-            # current side may be the wrong one (a correction left unfinished), and re-reading it
-            # would lock a crossing in
             if wp.abs(d) < thickness * wp.sqrt(wp.length_sq(nn)):
-                for r in range(prev_count[i]):
-                    if prev_tri[i, r] == t and prev_side[i, r] != 0.0:
-                        side = prev_side[i, r]
+                side = stored_side(prev_tri, prev_side, prev_count, i, t, side)
             contact_tri[i, count] = t
             contact_side[i, count] = side
             count += 1
@@ -585,7 +625,6 @@ def solve_self_contacts(
     contact_count: wp.array[int],
     thickness: float,
     friction: float,
-    offset_mode: int,
     delta: wp.array[wp.vec3],
     delta_count: wp.array[float],
 ):
@@ -593,11 +632,8 @@ def solve_self_contacts(
     eq. 24-25) on the relative tangential motion of p and its triangle point over the substep
     (x_prev: positions at its start). Corrections are accumulated for averaging (eq. 11).
 
-    ``offset_mode = 0``: C = s n.(p - q) - thickness >= 0 on the stored side s, q the projection of
-    p, only for projections inside the triangle (near edges a neighbouring triangle holds it).
-    ``offset_mode = 1`` (with motion bounds, which keep every pair from crossing): C = |p - q| -
-    thickness >= 0 with q the closest point of the triangle, faces, edges and corners alike (an
-    offset surface, as in Offset Geometric Contact).
+    C = s n.(p - q) - thickness >= 0 on the stored side s, q the projection of p, only for
+    projections inside the triangle (near edges a neighbouring triangle holds it).
     """
     i = wp.tid()
     wp_ = inv_mass[i]
@@ -615,54 +651,36 @@ def solve_self_contacts(
         if ln2 < 1.0e-24:
             continue
         n = nn / wp.sqrt(ln2)
-        d = float(0.0)
-        bu = float(0.0)
-        bv = float(0.0)
-        bw = float(0.0)
-        if offset_mode != 0:
-            bc = closest_on_triangle(p, xa, xb, xc)
-            bu = bc[0]
-            bv = bc[1]
-            bw = bc[2]
-            dvec = p - (xa * bu + xb * bv + xc * bw)
-            d = wp.length(dvec)
-            if d >= thickness:
-                continue
-            if d > 1.0e-9:
-                n = dvec / d
-            elif wp.dot(p - xa, n) < 0.0:
-                n = -n
-        else:
-            s = contact_side[i, k]
-            dn = wp.dot(p - xa, n)
-            if s == 0.0:
-                s = wp.sign(dn)
-                if dn == 0.0:
-                    s = 1.0
-                contact_side[i, k] = s
-            d = s * dn
-            # respond within the contact layer and a few thicknesses past it (fast layers overshoot
-            # within one substep); deeper "penetrations" are tangles or stale pairs whose huge
-            # corrections would only inject energy
-            if d >= thickness or d < -4.0 * thickness:
-                continue
-            # barycentric coordinates of the projection of p onto the triangle's plane
-            pp = p - n * dn
-            bw = wp.dot(wp.cross(xb - xa, pp - xa), n) / wp.sqrt(ln2)
-            bv = wp.dot(wp.cross(pp - xa, xc - xa), n) / wp.sqrt(ln2)
-            bu = 1.0 - bv - bw
-            # a small tolerance: a vertex right above a shared edge or corner (aligned layers) would
-            # otherwise fall between its triangles through round-off
-            if bu < -0.01 or bv < -0.01 or bw < -0.01:
-                continue
-            bu = wp.max(bu, 0.0)
-            bv = wp.max(bv, 0.0)
-            bw = wp.max(bw, 0.0)
-            bs = bu + bv + bw
-            bu = bu / bs
-            bv = bv / bs
-            bw = bw / bs
-            n = n * s
+        s = contact_side[i, k]
+        dn = wp.dot(p - xa, n)
+        if s == 0.0:
+            s = wp.sign(dn)
+            if dn == 0.0:
+                s = 1.0
+            contact_side[i, k] = s
+        d = s * dn
+        # respond within the contact layer and a few thicknesses past it (fast layers overshoot
+        # within one substep); deeper "penetrations" are tangles or stale pairs whose huge
+        # corrections would only inject energy
+        if d >= thickness or d < -4.0 * thickness:
+            continue
+        # barycentric coordinates of the projection of p onto the triangle's plane
+        pp = p - n * dn
+        bw = wp.dot(wp.cross(xb - xa, pp - xa), n) / wp.sqrt(ln2)
+        bv = wp.dot(wp.cross(pp - xa, xc - xa), n) / wp.sqrt(ln2)
+        bu = 1.0 - bv - bw
+        # a small tolerance: a vertex right above a shared edge or corner (aligned layers) would
+        # otherwise fall between its triangles through round-off
+        if bu < -0.01 or bv < -0.01 or bw < -0.01:
+            continue
+        bu = wp.max(bu, 0.0)
+        bv = wp.max(bv, 0.0)
+        bw = wp.max(bw, 0.0)
+        bs = bu + bv + bw
+        bu = bu / bs
+        bv = bv / bs
+        bw = bw / bs
+        n = n * s
         wa = inv_mass[a]
         wb = inv_mass[b]
         wc = inv_mass[c]

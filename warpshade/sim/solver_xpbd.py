@@ -7,7 +7,11 @@ iterations). Per substep: aerodynamic forces, symplectic-Euler prediction, attac
 their interpolated targets, then per iteration: coloured stretch and bending sweeps, long-range
 tethers, self-contacts, colliders (last, so collider contacts hold at the end of every substep);
 finally velocities from positions. Self-contact candidates are found every ``contact_interval``
-substeps with a swept-box BVH query.
+substeps with a swept-box BVH query. After the last substep the intersection guard
+(``guard=True``) counts intersecting triangle pairs exactly and sends the vertices of offending
+triangles back to their start-of-step positions, growing the region until none is left, so
+every step ends free of intersections when it started free of them (see
+:mod:`warpshade.sim.contact_kernels`).
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ import warp as wp
 from . import contact_kernels as ck
 from . import kernels as k
 from .colliders import ColliderSet
+from .intersections import IntersectionCounter
 from .model import ClothModel, SimulationError, _check_param
 from .state import ClothControl, ClothState
 
@@ -38,8 +43,8 @@ class XPBDSolver:
         drag_coefficient, lift_coefficient: Flat-plate coefficients (>= 0).
         self_collision: Self-contact on/off (vertex-triangle, and edge-edge with ``edge_contact``).
         edge_contact: Edge-edge self-contact beside vertex-triangle.
-        motion_bounds: Penetration-free self-contact: per-vertex motion bounds relative to the
-            inertial path after an inelastic velocity filter (see :mod:`warpshade.sim.contact_kernels`).
+        guard: The intersection guard: no step ends with intersecting triangle pairs (cloth-cloth
+            and cloth-collider) that the reverts can remove (see :meth:`step`).
         self_friction: Coulomb coefficient between cloth layers (>= 0).
         contact_interval: Substeps between self-contact detections (>= 1; default 3: longer
             intervals let candidate lists and contact sides go stale in fast folding cloth).
@@ -61,7 +66,7 @@ class XPBDSolver:
                  contact_interval: int | None = None, max_contacts: int = 16,
                  tethers: bool = True, check_finite: bool = True, relaxation: float = 1.0,
                  contact_iterations: int = 2, stretch_sweeps: int = 1, edge_contact: bool = True,
-                 motion_bounds: bool = False, self_friction: float = 0.3):
+                 guard: bool = True, self_friction: float = 0.3):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -81,7 +86,7 @@ class XPBDSolver:
         self.lift_coefficient = _check_param("lift_coefficient", lift_coefficient)
         self.self_collision = bool(self_collision)
         self.edge_contact = bool(edge_contact) and self.self_collision
-        self.motion_bounds = bool(motion_bounds) and self.self_collision
+        self.guard = bool(guard)
         self.self_friction = _check_param("self_friction", self_friction)
         ci = min(self.substeps, 3) if contact_interval is None else contact_interval
         if int(ci) != ci or ci < 1:
@@ -103,8 +108,9 @@ class XPBDSolver:
             raise ValueError(f"relaxation must be < 2 (successive over-relaxation diverges beyond), got {relaxation}")
         self.step_count = 0
         self.contact_overflow = 0
-        self.bound_fallbacks = 0
-        self._collide_after_clamp = True
+        self.guard_steps = 0
+        self.guard_unresolved = 0
+        self.guard_vertices = 0
 
         v, f, d = model.particle_count, model.tri_count, self.device
         self._x_prev = wp.zeros(v, dtype=wp.vec3, device=d)
@@ -143,16 +149,14 @@ class XPBDSolver:
             self._prev_eside = wp.zeros((ne, mc), dtype=wp.float32, device=d)
             self._prev_ecount = wp.zeros(ne, dtype=wp.int32, device=d)
             self._eactive = wp.zeros(ne, dtype=wp.int32, device=d)
-        if self.motion_bounds:
+        if self.guard:
+            self._counter = IntersectionCounter(model.faces, d, keep=1)
             self._x_start = wp.zeros(v, dtype=wp.vec3, device=d)
-            self._v_start = wp.zeros(v, dtype=wp.vec3, device=d)
-            self._vlower = wp.zeros(v, dtype=wp.vec3, device=d)
-            self._vupper = wp.zeros(v, dtype=wp.vec3, device=d)
-            self._bound = wp.zeros(v, dtype=wp.float32, device=d)
-            self._dv = wp.zeros(v, dtype=wp.vec3, device=d)
-            self._dv_count = wp.zeros(v, dtype=wp.float32, device=d)
-            self._unresolved = wp.zeros(1, dtype=wp.int32, device=d)
-            self._cut = wp.zeros(v, dtype=wp.float32, device=d)
+            self._mark = wp.zeros(v, dtype=wp.int32, device=d)
+            self._mark2 = wp.zeros(v, dtype=wp.int32, device=d)
+            self._reverted = wp.zeros(v, dtype=wp.int32, device=d)
+            self._x_grown = wp.zeros(v, dtype=wp.vec3, device=d)
+            self._reverted_grown = wp.zeros(v, dtype=wp.int32, device=d)
 
     # ------------------------------------------------------------------------------------------
 
@@ -169,6 +173,11 @@ class XPBDSolver:
         Raises:
             ValueError: for a bad ``dt``.
             SimulationError: when the state turns non-finite, naming the step and the vertex.
+
+        With ``guard``, the step ends free of intersecting triangle pairs whenever ``state_in`` was
+        free of them and the kinematic vertices and colliders alone do not make any (a vertex
+        sent back to its start can only be in an intersection that moving kinematic geometry
+        made); :meth:`stats` counts the steps where that failed.
         """
         dt = float(dt)
         if not math.isfinite(dt) or dt <= 0:
@@ -177,6 +186,8 @@ class XPBDSolver:
         x, v = self._x, self._v
         wp.copy(x, state_in.points)
         wp.copy(v, state_in.velocities)
+        if self.guard:
+            wp.copy(self._x_start, x)
         h = dt / self.substeps
         cmds = self._commands(h)
         wind = wp.vec3(*(control.wind if control is not None else (0.0, 0.0, 0.0)))
@@ -190,10 +201,8 @@ class XPBDSolver:
             wp.launch(k.gather_points, dim=m.attachment_count, inputs=[m.attachment_indices, x],
                       outputs=[self._attach_start], device=d)
 
-        s_det = 0
         for s in range(self.substeps):
             if self.self_collision and s % self.contact_interval == 0:
-                s_det = s
                 self._detect_self_contacts(x, v, h * min(self.contact_interval, self.substeps - s))
             if "aero" in cmds:
                 self._lift.zero_()
@@ -223,16 +232,11 @@ class XPBDSolver:
                 # once per substep: sharp collider edges against cloth edges, then the vertices again
                 self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x)
                 self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
-            if self.motion_bounds:
-                # the step ends on the bounded path (then the colliders have the last word)
-                wp.launch(ck.clamp_motion, dim=m.particle_count,
-                          inputs=[self._x_start, self._v_start, self._vlower, self._vupper, self._bound, m.inv_mass,
-                                  h * (s - s_det + 1)], outputs=[x, self._cut], device=d)
-                if self.colliders is not None and self._collide_after_clamp:
-                    self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             for c in cmds["velocities"]:
                 c.launch()
 
+        if self.guard:
+            self._guard_intersections(x, v, dt)
         if self.colliders is not None:
             self.colliders.end_step()
         if self.check_finite:
@@ -281,8 +285,7 @@ class XPBDSolver:
         if self.self_collision:
             contacts.append(wp.launch(k.solve_self_contacts, dim=n,
                                       inputs=[x, self._x_prev, m.inv_mass, m.tris, self._contact_tri, self._contact_side,
-                                              self._contact_count, m.thickness, self.self_friction,
-                                              int(self.motion_bounds)],
+                                              self._contact_count, m.thickness, self.self_friction],
                                       outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
             if self.edge_contact:
                 contacts.append(wp.launch(ck.solve_edge_contacts, dim=m.edge_count,
@@ -311,12 +314,8 @@ class XPBDSolver:
 
     def _detect_self_contacts(self, x, v, horizon: float) -> None:
         m, d = self.model, self.device
-        # boxes of both sides padded: overlap <=> gap < thickness; with motion bounds a vertex's
-        # pad also covers the deviation from its inertial path its last velocity change predicts
+        # boxes of both sides padded: overlap <=> gap < thickness
         pad = self._pad
-        if self.motion_bounds:
-            wp.launch(ck.vertex_pads, dim=m.particle_count, inputs=[v, self._v_start, 0.5 * m.thickness, horizon],
-                      outputs=[pad, self._cut], device=d)
         wp.launch(k.compute_triangle_bounds, dim=m.tri_count, inputs=[x, v, m.tris, horizon, pad],
                   outputs=[self._lower, self._upper], device=d)
         if self._bvh is None:
@@ -328,7 +327,7 @@ class XPBDSolver:
         wp.copy(self._prev_count, self._contact_count)
         wp.launch(k.find_self_contacts, dim=m.particle_count,
                   inputs=[self._bvh.id, x, m.rest_points, v, m.tris, m.ring_offsets, m.ring, horizon, pad, m.thickness,
-                          int(self.motion_bounds), self.max_contacts, self._prev_tri, self._prev_side, self._prev_count],
+                          self.max_contacts, self._prev_tri, self._prev_side, self._prev_count],
                   outputs=[self._contact_tri, self._contact_side, self._contact_count, self._overflow], device=d)
         if self.edge_contact:
             ne = m.edge_count
@@ -347,56 +346,61 @@ class XPBDSolver:
                           inputs=[x, m.hinges, m.hinge_edge, self.CREASE_ANGLE], outputs=[self._eactive], device=d)
             wp.launch(ck.find_edge_contacts, dim=ne,
                       inputs=[self._ebvh.id, x, v, horizon, m.edges, self._eactive, m.ring_offsets, m.ring, self._elower, self._eupper,
-                              m.thickness, int(self.motion_bounds), self.max_contacts, self._prev_edge, self._prev_eside, self._prev_ecount],
+                              m.thickness, self.max_contacts, self._prev_edge, self._prev_eside, self._prev_ecount],
                       outputs=[self._contact_edge, self._contact_eside, self._contact_ecount, self._overflow],
                       device=d)
-        if self.motion_bounds:
-            self._bound_motion(x, v, horizon, pad)
 
     CREASE_ANGLE = 0.5
     """Hinges bent by more than this [rad] make their edge a crease: edge-edge contact is looked
     for from border and crease edges (where two layers' edges can cross without a vertex
     meeting a triangle first)."""
-    BOUND_GAMMA = 0.4
-    """Share of a pair's free distance each of its vertices may use (< 1/2)."""
-    FILTER_PASSES = 3
-    """Jacobi passes of the velocity filter per detection."""
-    FILTER_BETA = 0.5
-    """Largest share of a pair's distance its vertices may close in one detection interval before
-    the velocity filter removes the rest of their approach."""
+    GUARD_ROUNDS = 6
+    """Rounds of the intersection guard that grow the reverted region by one ring each; the round
+    after them reverts every free vertex."""
 
-    def _bound_motion(self, x, v, horizon: float, pad) -> None:
+    def _guard_intersections(self, x, v, dt: float) -> None:
+        """Send the vertices of intersecting triangles back to their start-of-step positions
+        (colliders then push them out again), growing the region a ring per round, all free
+        vertices in the last round, until the exact count is 0. When even the last round leaves
+        intersections (made by kinematic vertices or colliders), the grown-region result is kept
+        and the step is counted in ``stats()["guard_unresolved"]``."""
         m, d, n = self.model, self.device, self.model.particle_count
-        wp.launch(ck.start_bounds, dim=n, inputs=[x, v, horizon, pad],
-                  outputs=[self._x_start, self._v_start, self._vlower, self._vupper, self._bound], device=d)
-        vt = (self._contact_tri, self._contact_count)
-        ee = (self._contact_edge, self._contact_ecount) if self.edge_contact else None
-        for _ in range(self.FILTER_PASSES):
-            wp.launch(ck.filter_vertex_triangle, dim=n,
-                      inputs=[x, v, m.inv_mass, m.tris, *vt, self.FILTER_BETA, horizon],
-                      outputs=[self._dv, self._dv_count], device=d)
-            if ee is not None:
-                wp.launch(ck.filter_edge_edge, dim=m.edge_count,
-                          inputs=[x, v, m.inv_mass, m.edges, *ee, self.FILTER_BETA, horizon],
-                          outputs=[self._dv, self._dv_count], device=d)
-            wp.launch(ck.apply_velocity_filter, dim=n, inputs=[self._v_start, pad, horizon],
-                      outputs=[self._dv, self._dv_count, v], device=d)
-        wp.copy(self._v_start, v)
-        self._unresolved.zero_()
-        self._launch_bounds(x, v, vt, ee, horizon)
-        if int(self._unresolved.numpy()[0]) > 0:
-            # some pair still closes in: bound every vertex around its start instead (c = 0)
-            self.bound_fallbacks += 1
-            wp.launch(ck.reset_bounds, dim=n, inputs=[], outputs=[self._bound, self._v_start], device=d)
-            self._launch_bounds(x, v, vt, ee, 0.0)
-
-    def _launch_bounds(self, x, v, vt, ee, horizon: float) -> None:
-        m, d = self.model, self.device
-        wp.launch(ck.bound_vertex_triangle, dim=m.particle_count, inputs=[x, v, m.tris, *vt, self.BOUND_GAMMA, horizon],
-                  outputs=[self._bound, self._unresolved], device=d)
-        if ee is not None:
-            wp.launch(ck.bound_edge_edge, dim=m.edge_count, inputs=[x, v, m.edges, *ee, self.BOUND_GAMMA, horizon],
-                      outputs=[self._bound, self._unresolved], device=d)
+        c, col = self._counter, self.colliders
+        self._reverted.zero_()
+        self.guard_vertices = 0
+        for r in range(self.GUARD_ROUNDS + 2):
+            self._mark.zero_()
+            found = c.self_pairs(x, self._mark)[0]
+            if col is not None:
+                found += c.collider_pairs(x, col, self._mark)[0]
+            if found == 0:
+                break
+            if r == 0:
+                self.guard_steps += 1
+                self.guard_vertices = -1
+            if r == self.GUARD_ROUNDS + 1:
+                # kinematic vertices or colliders made the intersection: reverting everything did
+                # not help, so keep the grown-region result rather than freeze the whole cloth
+                self.guard_unresolved += 1
+                wp.copy(x, self._x_grown)
+                wp.copy(self._reverted, self._reverted_grown)
+                break
+            if r == self.GUARD_ROUNDS:
+                wp.copy(self._x_grown, x)
+                wp.copy(self._reverted_grown, self._reverted)
+                self._mark.fill_(1)
+            for _ in range(r):
+                wp.copy(self._mark2, self._mark)
+                wp.launch(ck.grow_mark, dim=m.edge_count, inputs=[m.edges, self._mark], outputs=[self._mark2], device=d)
+                self._mark, self._mark2 = self._mark2, self._mark
+            wp.launch(ck.revert_marked, dim=n, inputs=[self._mark, m.inv_mass, self._x_start],
+                      outputs=[x, self._reverted], device=d)
+            if col is not None:
+                col.collide(m.thickness, m.inv_mass, self._x_start, x)
+        if self.guard_vertices:
+            wp.launch(ck.reverted_velocities, dim=n, inputs=[self._reverted, self._x_start, x, dt], outputs=[v],
+                      device=d)
+            self.guard_vertices = int(self._reverted.numpy().sum())
 
     def _first_nonfinite(self, x, v) -> int:
         n = self.model.particle_count
@@ -424,8 +428,9 @@ class XPBDSolver:
             out["self_contact_overflow"] = int(self._overflow.numpy()[0])
         if self.edge_contact:
             out["edge_contact_candidates"] = int(self._contact_ecount.numpy().sum())
-        if self.motion_bounds:
-            out["bound_fallbacks"] = self.bound_fallbacks
+        if self.guard:
+            out["guard_steps"] = self.guard_steps
+            out["guard_unresolved"] = self.guard_unresolved
         return out
 
     def knobs(self) -> dict:
@@ -434,7 +439,7 @@ class XPBDSolver:
                 "drag": self.drag, "air_density": self.air_density, "drag_coefficient": self.drag_coefficient,
                 "lift_coefficient": self.lift_coefficient, "self_collision": self.self_collision,
                 "contact_interval": self.contact_interval, "edge_contact": self.edge_contact,
-                "motion_bounds": self.motion_bounds, "self_friction": self.self_friction,
+                "guard": self.guard, "self_friction": self.self_friction,
                 "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
                 "stretch_sweeps": self.stretch_sweeps,
                 "relaxation": self.relaxation, "tethers": self.tethers, "check_finite": self.check_finite,

@@ -7,6 +7,7 @@ from pxr import Usd, UsdGeom
 
 from ..scene import SceneError
 from .mesh_io import triangulate
+from .writer import BACK_SIDE_OF
 
 
 class ShadedStage:
@@ -54,6 +55,16 @@ class ShadedStage:
             first = np.asarray(attr.Get(times[0]))
             if any(not np.array_equal(first, np.asarray(attr.Get(t))) for t in times[1:]):
                 out.add(str(prim.GetPath()))
+        return out
+
+    def back_sides(self) -> dict[str, str]:
+        """Back-side meshes of a two-sided output (docs/conventions.md §6): back prim path -> front prim path."""
+        out = {}
+        for prim, _, _ in self._meshes:
+            rel = prim.GetRelationship(BACK_SIDE_OF)
+            targets = rel.GetTargets() if rel else []
+            if targets:
+                out[str(prim.GetPath())] = str(targets[0])
         return out
 
     def frame(self, frame: float) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:

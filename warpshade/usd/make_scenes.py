@@ -12,8 +12,9 @@ import os
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdSkel, Vt
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-SCENES_DIR = os.path.normpath(os.path.join(HERE, "..", "..", "usd_scenes"))
+from .shipped import shipped_scenes_dir
+
+SCENES_DIR = shipped_scenes_dir()
 
 CLOTH = {"density": 0.2, "stretchStiffness": 5.0e4, "bendStiffness": 5.0e-5, "damping": 1.0e-3,
          "thickness": 0.01, "friction": 0.5, "selfCollision": True}

@@ -30,7 +30,7 @@ from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 from ..geometry.mesh import MeshError, TriMesh
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
 from .mesh_io import triangulate
-from .writer import RADIANCE_MATERIAL_ATTR
+from .writer import BACK_SIDE_OF, RADIANCE_MATERIAL_ATTR
 
 # Prim types that carry no geometry warpshade needs but are expected in scenes: skipped silently.
 _UNRENDERED_PURPOSES = (UsdGeom.Tokens.guide, UsdGeom.Tokens.proxy)
@@ -121,6 +121,8 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         if prim.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(prim).ComputePurpose() in _UNRENDERED_PURPOSES:
             it.PruneChildren()  # guide / proxy geometry (collision twins, stand-ins) is not what renders
             continue
+        if prim.HasRelationship(BACK_SIDE_OF):
+            continue  # the back side of a two-sided warpshade output: the front carries warpshade:twoSided
         if prim.IsA(UsdGeom.Mesh):
             scene.objects.append(_read_mesh(prim, source, cache, default_method))
             if not prim.HasAttribute("warpshade:kind"):
@@ -378,12 +380,16 @@ def _object(prim, where, tri, kind, settings, params, default_method, material) 
     if knobs and method is not None:
         _check_knobs(where, method, knobs)
     params.update({k: v for k, v in settings.items()
-                   if not k.startswith("knobs:") and k not in ("shaded", "castsShadows")})
+                   if not k.startswith("knobs:") and k not in ("shaded", "castsShadows", "twoSided")})
+    two_sided = settings.get("twoSided")
+    if two_sided is not None and not isinstance(two_sided, (bool, np.bool_)):
+        raise SceneError(f"{where}: warpshade:twoSided must be a bool, got {two_sided!r}")
     try:
         return SceneObject(name=str(prim.GetPath()), mesh=tri, kind=kind, material=material, method=method,
                            knobs=knobs, casts_shadows=bool(settings.get("castsShadows", True)),
                            shaded=bool(settings.get("shaded", True)), params=params,
-                           prim_path=str(prim.GetPath()), prim_xforms=_hierarchy(prim))
+                           prim_path=str(prim.GetPath()), prim_xforms=_hierarchy(prim),
+                           two_sided=None if two_sided is None else bool(two_sided))
     except ValueError as exc:
         raise SceneError(f"{where}: {exc}") from None
 

@@ -44,6 +44,12 @@ from ..scene import DEFAULT_ALBEDO
 RADIANCE_MATERIAL_ATTR = "warpshade:radianceMaterial"
 """Bool on the material prims this writer binds to shaded meshes (emission = exit radiance)."""
 
+BACK_SIDE_OF = "warpshade:backSideOf"
+"""Relationship on a back-side mesh (:meth:`AnimationWriter.add_back_side`) targeting its front mesh."""
+
+BACK_SIDE_SUFFIX = "_back"
+"""Appended to a front mesh's prim path to name its back-side sibling (:func:`back_side_path`)."""
+
 _ANIMATED = {
     "points": Sdf.ValueTypeNames.Point3fArray,
     "normals": Sdf.ValueTypeNames.Normal3fArray,
@@ -60,6 +66,12 @@ def prim_name(name: str) -> str:
 
 
 _prim_name = prim_name  # older name, kept for callers
+
+
+def back_side_path(front_path: str) -> str:
+    """Prim path of the back-side mesh of the mesh at ``front_path``: a sibling, so it shares its parent's
+    transform (``/World/Drape`` -> ``/World/Drape_back``)."""
+    return str(front_path).rstrip("/") + BACK_SIDE_SUFFIX
 
 
 class OutputWriteError(OSError):
@@ -505,6 +517,49 @@ class AnimationWriter:
                                  f"(it has {', '.join(sorted(self._resumed_attrs))})")
             self._attrs |= {(pname, a) for a in self._resumed_attrs[path]}
         return pname
+
+    def add_back_side(self, name: str) -> str:
+        """Declare the back side of mesh ``name`` (from :meth:`add_mesh`), for surfaces shaded on both sides.
+
+        The back is a sibling mesh at :func:`back_side_path`: same points, reversed winding (so its geometric
+        normal is the front's flipped), the same material, its own ``displayColor`` and normals (the
+        front's negated, given to :meth:`write_frame`). Both meshes become ``doubleSided = false``, so a
+        renderer shows each side's own colour and culls the other. The back carries the relationship
+        :data:`BACK_SIDE_OF` to the front and the front ``warpshade:twoSided = true``
+        (docs/conventions.md §6).
+
+        Returns:
+            The name to pass to :meth:`write_frame` for the back side.
+        """
+        if self._frame is not None:
+            raise ValueError(f"{self.path}: add_back_side('{name}') after frames were written; declare every mesh first")
+        if name not in self._meshes:
+            raise KeyError(f"{self.path}: no mesh '{name}' (declared: {', '.join(self._meshes)})")
+        info = self._meshes[name]
+        path = back_side_path(info["path"])
+        key = name + BACK_SIDE_SUFFIX
+        if key in self._meshes or self.stage.GetPrimAtPath(path):
+            raise ValueError(f"{self.path}: back side of '{name}': prim {path} already exists")
+        layer = self.stage.GetRootLayer()
+        Sdf.CopySpec(layer, info["path"], layer, path)
+        front = UsdGeom.Mesh(self.stage.GetPrimAtPath(info["path"]))
+        back = UsdGeom.Mesh(self.stage.GetPrimAtPath(path))
+        faces = np.asarray(front.GetFaceVertexIndicesAttr().Get(), dtype=np.int32).reshape(-1, 3)
+        back.GetFaceVertexIndicesAttr().Set(Vt.IntArray.FromNumpy(np.ascontiguousarray(faces[:, ::-1].reshape(-1))))
+        normals = back.GetNormalsAttr().Get()
+        if normals is not None:  # static mesh: normals at the default time
+            back.GetNormalsAttr().Set(Vt.Vec3fArray.FromNumpy(-np.asarray(normals, dtype=np.float32)))
+        for m in (front, back):
+            m.GetDoubleSidedAttr().Set(False)
+        front.GetPrim().CreateAttribute("warpshade:twoSided", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+        back.GetPrim().CreateRelationship(BACK_SIDE_OF, custom=True).SetTargets([Sdf.Path(info["path"])])
+        self._meshes[key] = dict(info, path=path)
+        if self._resumed_attrs:
+            if path not in self._resumed_attrs:
+                raise ValueError(f"{self.path}: cannot resume: mesh {path} is not in the interrupted output "
+                                 f"(it has {', '.join(sorted(self._resumed_attrs))})")
+            self._attrs |= {(key, a) for a in self._resumed_attrs[path]}
+        return key
 
     def _bind_albedo_material(self, mesh: UsdGeom.Mesh, pname: str, albedo, roughness: float) -> None:
         looks = UsdGeom.Scope.Define(self.stage, f"{self._root}/Looks")

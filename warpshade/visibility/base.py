@@ -19,6 +19,26 @@ from ..geometry.normals import vertex_normals
 from ..sh.basis import check_order
 
 
+def int_at_least(minimum: int):
+    """argparse ``type=``: an integer >= ``minimum``; argparse names the flag in the error."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"invalid int value: {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {value}")
+        return value
+
+    parse.__name__ = f"int >= {minimum}"
+    return parse
+
+
+positive_int = int_at_least(1)
+nonnegative_int = int_at_least(0)
+
+
 class TransferMethod(ABC):
     """Base class of visibility methods that produce per-vertex SH transfer.
 

@@ -3,9 +3,10 @@
 Monte-Carlo integration of the diffuse transfer of docs/conventions.md §2 with ``wp.Mesh`` BVH ray casts
 (``wp.mesh_query_ray``): per vertex ``strata²`` stratified cosine-weighted directions (Shirley–Chiu
 concentric map), fixed seed. Near the vertex, within a distance ``eps`` that scales with the receiver
-(so a mesh scaled by 1e-4 or 1e4 gives the same transfer), the vertex's own surface is tested from the
-point lifted ``eps`` along the normal (it shadows the vertex where it folds up around it) and any other
-surface blocks where the ray enters its front; beyond that any hit blocks
+(so a mesh scaled by 1e-4 or 1e4 gives the same transfer), the vertex's own surface blocks the rays that
+start under it (it shadows the vertex where it folds up around it; a test on directions only, unchanged by
+scale or rounding) and any other surface blocks where the ray enters its front; beyond that any hit but
+one on the vertex's own surface blocks
 (:func:`~.reference_kernels.trace_surface_ray`). Pushing the whole ray origin off along the normal
 instead went through any surface the vertex rests on when the normal leans into it (a box standing on
 a ground: its bottom vertices saw the sky below the ground and lost the sky above).
@@ -25,7 +26,7 @@ import warp as wp
 
 from ..geometry.mesh import TriMesh
 from ..sh.kernels import normalization_array
-from .base import TransferMethod
+from .base import TransferMethod, positive_int
 from .reference_kernels import trace_transfer
 
 
@@ -40,8 +41,7 @@ class ReferenceTransfer(TransferMethod):
             reports the count used).
         seed: Random seed (results are deterministic for a given seed).
         offset: Near-field distance ``eps`` of the rays, as a fraction of the receiver's bounding-box
-            diagonal (default 1e-5): the vertex's own surface is seen from ``eps`` along the normal, other
-            surfaces within ``eps`` block where the ray enters their front
+            diagonal (default 1e-5): other surfaces within ``eps`` block where the ray enters their front
             (:func:`~.reference_kernels.trace_surface_ray`).
         occluders: Extra static meshes that cast shadows on ``mesh`` (they receive nothing).
     """
@@ -70,12 +70,11 @@ class ReferenceTransfer(TransferMethod):
 
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--rays", type=int, default=1024, help="rays per vertex (rounded to a square)")
+        parser.add_argument("--rays", type=positive_int, default=1024, help="rays per vertex (rounded to a square)")
         parser.add_argument("--seed", type=int, default=0, help="random seed")
         parser.add_argument("--offset", type=float, default=1e-5,
-                            help="near-field distance of the rays (own surface seen from this far along the "
-                                 "normal, other surfaces this close block where entered from the front), "
-                                 "fraction of the receiver's bbox diagonal")
+                            help="near-field distance of the rays (other surfaces this close block where "
+                                 "entered from the front), fraction of the receiver's bbox diagonal")
 
     @classmethod
     def knobs_from_args(cls, args) -> dict:

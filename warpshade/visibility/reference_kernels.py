@@ -7,15 +7,28 @@ import warp as wp
 from ..sh.kernels import sh_accumulate
 
 
+FRAME_AXIS = wp.constant(wp.vec3(0.4472136, 0.5477226, 0.7071068))
+"""``(√2, √3, √5) / √10``: the direction the tangent frames of :func:`orthonormal_basis` turn about, at least
+2.8° from every axis, face and body diagonal, 2:1 lattice direction and icosphere vertex or face normal (subdivisions
+0-3), so that no normal a mesh is likely to have lies near it."""
+
+
 @wp.func
 def orthonormal_basis(n: wp.vec3) -> wp.mat33:
-    """Columns (t, b, n): a right-handed frame around unit ``n`` (Duff et al. 2017, no branch on |n_z|)."""
-    sign = wp.where(n[2] >= 0.0, 1.0, -1.0)
-    a = -1.0 / (sign + n[2])
-    b = n[0] * n[1] * a
-    t = wp.vec3(1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0])
-    bb = wp.vec3(b, sign + n[1] * n[1] * a, -n[1])
-    return wp.matrix_from_cols(t, bb, n)
+    """Columns (t, b, n): a right-handed frame around unit ``n`` that turns continuously with ``n``.
+
+    ``t`` is ``FRAME_AXIS × n`` normalised: continuous everywhere but at ``n = ±FRAME_AXIS``, so a normal that
+    moves by float rounding (a mesh scaled, or shifted by an ulp) moves its frame, its ray pattern and its
+    raster by as little; a frame with a jump at a common normal (Duff et al. 2017 flips at ``n_z = 0``,
+    every horizontal normal) there re-draws every sample direction of a vertex. Within 0.006° of the axis
+    the frame turns about the x axis instead (a jump, only there)."""
+    t = wp.cross(FRAME_AXIS, n)
+    lt = wp.length(t)
+    if lt < 1.0e-4:
+        t = wp.cross(wp.vec3(1.0, 0.0, 0.0), n)
+        lt = wp.length(t)
+    t = t / lt
+    return wp.matrix_from_cols(t, wp.cross(n, t), n)
 
 
 @wp.func
@@ -86,6 +99,41 @@ def cross_triangle(mesh: wp.uint64, face: int, start: wp.vec3, d: wp.vec3, lengt
     if u < -tol or v < -tol or u + v > 1.0 + tol or t < 0.0 or t > length:
         return wp.vec4(-1.0, 0.0, 0.0, 0.0)
     return wp.vec4(t, u, v, wp.where(det > 0.0, 1.0, -1.0))
+
+
+@wp.func
+def under_corner(mesh: wp.uint64, f: int, p: wp.vec3, d: wp.vec3) -> wp.vec4:
+    """Whether the ray from ``p``, a corner of triangle ``f``, along ``d`` starts under ``f``: ``d`` points to its
+    back side of the plane (``d · nf < 0``) and lies in the triangle's angle at ``p`` (edges inclusive). Then the
+    triangle blocks it at the start, ``(0, u, v, +1)`` with ``(u, v)`` the corner's barycentrics as
+    :func:`cross_triangle` gives them (the ray meets the front, from the side ``nf`` points to); else t = -1.
+
+    This is the limit, as the lift goes to zero, of testing ``f`` from ``p`` lifted off the surface: it depends
+    on directions only, so it does not change when the mesh is scaled or rounded (a finite lift made rays
+    nearly in ``f``'s plane flip with the rounding of ``p``, which is a sizeable fraction of the lift)."""
+    a = wp.mesh_get_point(mesh, f * 3)
+    b = wp.mesh_get_point(mesh, f * 3 + 1)
+    c = wp.mesh_get_point(mesh, f * 3 + 2)
+    # the corner at p (the nearest one), with the other two in the triangle's cyclic order
+    e1 = b - a
+    e2 = c - a
+    cu = float(0.0)
+    cv = float(0.0)
+    da = wp.length_sq(a - p)
+    db = wp.length_sq(b - p)
+    dc = wp.length_sq(c - p)
+    if db < da and db <= dc:
+        e1 = c - b
+        e2 = a - b
+        cu = 1.0
+    elif dc < da and dc < db:
+        e1 = a - c
+        e2 = b - c
+        cv = 1.0
+    nf = wp.cross(e1, e2)
+    if wp.dot(d, nf) < 0.0 and wp.dot(wp.cross(e1, d), nf) >= 0.0 and wp.dot(wp.cross(d, e2), nf) >= 0.0:
+        return wp.vec4(0.0, cu, cv, 1.0)
+    return wp.vec4(-1.0, 0.0, 0.0, 0.0)
 
 
 @wp.func
@@ -163,8 +211,12 @@ def near_crossing(mesh: wp.uint64, f: int, own: bool, p: wp.vec3, n: wp.vec3, d:
     """Where triangle ``f`` blocks the ray by the near-field rules of :func:`trace_surface_ray`: ``(t, u, v, side)``
     as :func:`cross_triangle`, t = -1 when it does not."""
     if own:
-        return cross_triangle(mesh, f, p + n * eps, d, max_t, False)
+        return under_corner(mesh, f, p, d)
     return cross_triangle(mesh, f, p - d * eps, d, 2.0 * eps, True)
+
+
+OWN_GRAZES = 4
+"""Far hits on the receiver's own surface a ray passes (:func:`trace_surface_ray`) before it counts as open."""
 
 
 @wp.func
@@ -183,9 +235,10 @@ def trace_surface_ray(mesh: wp.uint64, vertex: int, p: wp.vec3, n: wp.vec3, d: w
     exactly on another surface too (an object resting on a ground). Pushing the ray origin ``eps`` off along
     the normal, the usual cure for self-intersection, moves it through such a surface whenever the normal
     leans into it (the rim of a box standing on the ground: its rays then start under the ground and see
-    the wrong half of the sky). So only the receiver's own surface at ``p`` (``vertex``'s triangles, and
-    triangles through a duplicate of it facing the side of ``n``, :func:`own_surface`) is tested from the
-    lifted origin ``p + eps n`` (it occludes where it folds up around the vertex: valleys, creases); another
+    the wrong half of the sky). So the receiver's own surface at ``p`` (``vertex``'s triangles, and triangles
+    through a duplicate of it facing the side of ``n``, :func:`own_surface`) blocks exactly the rays that start
+    under it (:func:`under_corner`: it folds up around the vertex, valleys, creases) and is passed further
+    on (a ray from a triangle's corner meets its plane nowhere else; a far hit on it is rounding); another
     surface within ``eps`` of ``p`` blocks if the ray enters its front there (the ground under a vertex, for
     rays going down; a ray leaving a surface through its back started on it and is let go); and from
     ``p + eps d`` on, the first hit blocks whichever side it meets (open meshes such as cloth block from
@@ -222,13 +275,21 @@ def trace_surface_ray(mesh: wp.uint64, vertex: int, p: wp.vec3, n: wp.vec3, d: w
         hit.v = best[2]
         hit.sign = best[3]
         return hit
-    q = wp.mesh_query_ray(mesh, p + d * eps, d, max_t)
-    if q.result:
-        hit.face = q.face
-        hit.t = q.t + eps
-        hit.u = q.u
-        hit.v = q.v
-        hit.sign = q.sign
+    # A ray from a corner of a triangle meets its plane only at the start (:func:`under_corner`), so a far hit
+    # on the receiver's own surface is a ray grazing that triangle's plane, decided by rounding: pass it.
+    start = eps
+    for _ in range(OWN_GRAZES):
+        q = wp.mesh_query_ray(mesh, p + d * start, d, max_t)
+        if not q.result:
+            return hit
+        if not own_surface(mesh, q.face, vertex, p, n):
+            hit.face = q.face
+            hit.t = q.t + start
+            hit.u = q.u
+            hit.v = q.v
+            hit.sign = q.sign
+            return hit
+        start = start + q.t + eps
     return hit
 
 

@@ -25,6 +25,15 @@ from .kernels import (BINS, STACK, accumulate_disk_areas, accumulate_occlusion, 
                       set_leaf_access, set_leaf_disks)
 
 
+def tie_groups(x: np.ndarray, tol: float) -> np.ndarray:
+    """Rank of each value of ``x`` among its distinct values, values closer than ``tol`` to a neighbour counting
+    as one (chains of such neighbours too), shape (len(x),) int64."""
+    order = np.argsort(x, kind="stable")
+    out = np.empty(len(x), np.int64)
+    out[order] = np.concatenate([[0], np.cumsum(np.diff(x[order]) > tol)])
+    return out
+
+
 def build_disk_tree(points: np.ndarray) -> dict:
     """Binary tree over points by median splits along the longest bounding-box axis.
 
@@ -52,7 +61,11 @@ def build_disk_tree(points: np.ndarray) -> dict:
         # ties (common on grid-like meshes) go to the lowest axis, with a tolerance so that float
         # rounding of a scaled copy of the mesh builds the same tree
         axis = int(np.flatnonzero(ext >= ext.max() * (1.0 - 1e-5))[0])
-        order = idx[np.argsort(p[idx, axis], kind="stable")]
+        # order along the axis, then the other two; coordinates equal up to rounding tie (exactly equal ones
+        # on grid-like meshes stay tied when rounded differently), then the vertex index decides
+        tol = 1e-6 * max(float(ext.max()), float(np.abs(p[idx]).max()))
+        keys = [tie_groups(p[idx, (axis + k) % 3], tol) for k in (2, 1, 0)]
+        order = idx[np.lexsort([idx] + keys)]
         half = len(order) // 2
         left[node], right[node] = next_id, next_id + 1
         depth[next_id] = depth[next_id + 1] = depth[node] + 1

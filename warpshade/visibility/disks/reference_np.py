@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..reference_kernels import FRAME_AXIS
+
 GRID = 4
+_FRAME_AXIS = np.array(FRAME_AXIS, np.float64)
 
 
 def disk_areas_np(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -23,13 +26,14 @@ def disk_areas_np(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def frame_np(n: np.ndarray) -> np.ndarray:
-    """Columns (t, b, n) around unit n (Duff et al. 2017, as the kernels), shape (3, 3)."""
-    sign = 1.0 if n[2] >= 0.0 else -1.0
-    a = -1.0 / (sign + n[2])
-    b = n[0] * n[1] * a
-    t = np.array([1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]])
-    bb = np.array([b, sign + n[1] * n[1] * a, -n[1]])
-    return np.stack([t, bb, n], axis=1)
+    """Columns (t, b, n) around unit n, as the kernels' :func:`~warpshade.visibility.reference_kernels.orthonormal_basis`
+    (``t`` along ``FRAME_AXIS × n``), shape (3, 3)."""
+    n = np.asarray(n, np.float64)
+    t = np.cross(_FRAME_AXIS, n)
+    if np.linalg.norm(t) < 1e-4:
+        t = np.cross((1.0, 0.0, 0.0), n)
+    t = t / np.linalg.norm(t)
+    return np.stack([t, np.cross(n, t), n], axis=1)
 
 
 def concentric_inverse_np(x: float, y: float) -> tuple[float, float]:

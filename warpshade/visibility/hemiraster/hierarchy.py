@@ -36,6 +36,41 @@ def vertex_faces(faces: np.ndarray, num_vertices: int) -> list[np.ndarray]:
     return [tri[starts[v]:starts[v + 1]] for v in range(num_vertices)]
 
 
+def interpolation_subset(faces: np.ndarray, num_vertices: int):
+    """Receivers to compute and receivers to interpolate from their computed neighbours.
+
+    A greedy maximal independent set of the vertex graph (in index order) is computed; every other
+    vertex is interpolated from its computed 1-ring neighbours, or computed itself when fewer than
+    two of them are (boundaries, irregular spots).
+
+    Returns:
+        ``(selected, targets, start, nbrs)`` int32: computed receivers, interpolated ones, and per
+        vertex (CSR, ``start`` shape (V+1,)) the computed neighbours of each target (empty rows for the others).
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    e = np.unique(np.sort(np.concatenate([e, e[:, ::-1]]), axis=1), axis=0)
+    both = np.concatenate([e, e[:, ::-1]])
+    both = both[np.lexsort((both[:, 1], both[:, 0]))]
+    start = np.searchsorted(both[:, 0], np.arange(num_vertices + 1))
+    adj = both[:, 1]
+    chosen = np.zeros(num_vertices, dtype=bool)
+    blocked = np.zeros(num_vertices, dtype=bool)
+    for v in range(num_vertices):
+        if not blocked[v]:
+            chosen[v] = True
+            blocked[adj[start[v]:start[v + 1]]] = True
+    lists = [adj[start[v]:start[v + 1]][chosen[adj[start[v]:start[v + 1]]]] if not chosen[v] else np.zeros(0, np.int64)
+             for v in range(num_vertices)]
+    few = np.array([not chosen[v] and len(lists[v]) < 2 for v in range(num_vertices)], dtype=bool)
+    chosen |= few
+    lists = [np.zeros(0, np.int64) if chosen[v] else x for v, x in enumerate(lists)]
+    nstart = np.concatenate([[0], np.cumsum([len(x) for x in lists])])
+    nbrs = np.concatenate(lists) if nstart[-1] else np.zeros(1, np.int64)
+    return (np.flatnonzero(chosen).astype(np.int32), np.flatnonzero(~chosen).astype(np.int32), nstart.astype(np.int32),
+            nbrs.astype(np.int32))
+
+
 def ring_triangles(faces: np.ndarray, num_vertices: int, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-vertex k-ring blocker triangles (CSR) and k-ring vertex sets.
 

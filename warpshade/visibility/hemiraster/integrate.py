@@ -73,7 +73,8 @@ def nibble_table(pix: np.ndarray) -> np.ndarray:
 def integrate_kernels(order: int) -> SimpleNamespace:
     """Kernels ``diffuse`` and ``glossy`` (and ``vec_sh``) for one SH order; built and cached on first use.
 
-    ``diffuse(mask, normals, nibbles, unoccluded, rot_dirs, rot_pinv, basis) -> transfer``:
+    ``diffuse(mask, normals, nibbles, unoccluded, rot_dirs, rot_pinv, basis, receivers) -> transfer``
+    (the rows of ``receivers`` only, one per thread):
     ``mask`` (V, W) uint64, ``normals`` (V,) vec3 (the tangent frame is
     :func:`~warpshade.visibility.reference_kernels.orthonormal_basis` of the normal, as in the
     rasterizer), ``nibbles`` (16·W·16,) vec_sh (:func:`nibble_table`), ``unoccluded`` vec_sh
@@ -84,6 +85,13 @@ def integrate_kernels(order: int) -> SimpleNamespace:
     rot_pinv, basis) -> transfer``: ``block_weights`` (B,) vec_sh, ``block_valid`` (B,) int32,
     ``block_dirs`` (B,) vec3 (tangent frame), ``block_bits`` = D², ``view`` world vec3 towards the
     viewer, ``phong`` exponent.
+
+    ``blocked_part(receivers, normals, unoccluded, rot_dirs, rot_pinv, basis, transfer) -> blocked``:
+    per receiver, the unoccluded transfer of its normal minus its transfer, (V,) vec_sh.
+    ``interpolate(targets, nbr_start, nbrs, normals, unoccluded, rot_dirs, rot_pinv, basis, blocked,
+    tolerance) -> transfer, redo``: per target vertex, the unoccluded transfer of its normal minus the
+    mean blocked part of its computed neighbours (CSR ``nbr_start`` (V+1,), ``nbrs``); ``redo[v]`` = 1
+    where a neighbour's blocked part is farther than ``tolerance`` (L2) from that mean.
     """
     zf = zh_vector_funcs(order)
     vec_sh, vec_zh, zh_rotate = zf.vec_sh, zf.vec_zh, zf.zh_rotate
@@ -110,8 +118,8 @@ def integrate_kernels(order: int) -> SimpleNamespace:
 
     def diffuse(mask: wp.array2d(dtype=wp.uint64), normals: wp.array(dtype=wp.vec3), nibbles: wp.array(dtype=vec_sh),
                 unoccluded: vec_sh, rot_dirs: wp.array(dtype=wp.vec3), rot_pinv: wp.array(dtype=vec_sh),
-                basis: vec_sh, transfer: wp.array2d(dtype=float)):
-        v = wp.tid()
+                basis: vec_sh, receivers: wp.array(dtype=wp.int32), transfer: wp.array2d(dtype=float)):
+        v = receivers[wp.tid()]
         blocked = vec_sh()
         for w in range(mask.shape[1]):
             x = mask[v, w]
@@ -147,11 +155,55 @@ def integrate_kernels(order: int) -> SimpleNamespace:
         for i in range(bands * bands):
             transfer[v, i] = out[i]
 
+    def blocked_part(receivers: wp.array(dtype=wp.int32), normals: wp.array(dtype=wp.vec3), unoccluded: vec_sh,
+                     rot_dirs: wp.array(dtype=wp.vec3), rot_pinv: wp.array(dtype=vec_sh), basis: vec_sh,
+                     transfer: wp.array2d(dtype=float), blocked: wp.array(dtype=vec_sh)):
+        # the unoccluded transfer of the receiver's normal minus its transfer: what varies slowly
+        # along a surface (the unoccluded part is exact at every normal)
+        v = receivers[wp.tid()]
+        b = to_world(unoccluded, orthonormal_basis(normals[v]), rot_dirs, rot_pinv, basis)
+        for i in range(bands * bands):
+            b[i] = b[i] - transfer[v, i]
+        blocked[v] = b
+
+    def interpolate(targets: wp.array(dtype=wp.int32), nbr_start: wp.array(dtype=wp.int32),
+                    nbrs: wp.array(dtype=wp.int32), normals: wp.array(dtype=wp.vec3), unoccluded: vec_sh,
+                    rot_dirs: wp.array(dtype=wp.vec3), rot_pinv: wp.array(dtype=vec_sh), basis: vec_sh,
+                    blocked: wp.array(dtype=vec_sh), tolerance: float, transfer: wp.array2d(dtype=float),
+                    redo: wp.array(dtype=wp.int32)):
+        v = targets[wp.tid()]
+        mean = vec_sh()
+        count = float(0.0)
+        for r in range(nbr_start[v], nbr_start[v + 1]):
+            mean = mean + blocked[nbrs[r]]
+            count += 1.0
+        mean = mean / wp.max(count, 1.0)
+        spread = float(0.0)
+        for r in range(nbr_start[v], nbr_start[v + 1]):
+            spread = wp.max(spread, wp.length(blocked[nbrs[r]] - mean))
+        out = to_world(unoccluded, orthonormal_basis(normals[v]), rot_dirs, rot_pinv, basis) - mean
+        for i in range(bands * bands):
+            transfer[v, i] = out[i]
+        redo[v] = wp.where(spread > tolerance, 1, 0)
+
+    blocked_part.__annotations__ = {"receivers": wp.array(dtype=wp.int32), "normals": wp.array(dtype=wp.vec3),
+                                    "unoccluded": vec_sh, "rot_dirs": wp.array(dtype=wp.vec3),
+                                    "rot_pinv": wp.array(dtype=vec_sh), "basis": vec_sh,
+                                    "transfer": wp.array2d(dtype=float), "blocked": wp.array(dtype=vec_sh)}
+    blocked_part.__name__ = f"hemiraster_blocked_part_order{order}"
+    interpolate.__annotations__ = {"targets": wp.array(dtype=wp.int32), "nbr_start": wp.array(dtype=wp.int32),
+                                   "nbrs": wp.array(dtype=wp.int32), "normals": wp.array(dtype=wp.vec3),
+                                   "unoccluded": vec_sh, "rot_dirs": wp.array(dtype=wp.vec3),
+                                   "rot_pinv": wp.array(dtype=vec_sh), "basis": vec_sh,
+                                   "blocked": wp.array(dtype=vec_sh), "tolerance": float,
+                                   "transfer": wp.array2d(dtype=float), "redo": wp.array(dtype=wp.int32)}
+    interpolate.__name__ = f"hemiraster_interpolate_order{order}"
+
     arr_u64 = wp.array2d(dtype=wp.uint64)
     diffuse.__annotations__ = {"mask": arr_u64, "normals": wp.array(dtype=wp.vec3), "nibbles": wp.array(dtype=vec_sh),
                                "unoccluded": vec_sh, "rot_dirs": wp.array(dtype=wp.vec3),
                                "rot_pinv": wp.array(dtype=vec_sh), "basis": vec_sh,
-                               "transfer": wp.array2d(dtype=float)}
+                               "receivers": wp.array(dtype=wp.int32), "transfer": wp.array2d(dtype=float)}
     glossy.__annotations__ = {"mask": arr_u64, "normals": wp.array(dtype=wp.vec3),
                               "block_weights": wp.array(dtype=vec_sh), "block_valid": wp.array(dtype=wp.int32),
                               "block_dirs": wp.array(dtype=wp.vec3), "block_bits": int, "view": wp.vec3,
@@ -165,4 +217,6 @@ def integrate_kernels(order: int) -> SimpleNamespace:
         return vec_sh(*normalization(order).astype(np.float32).tolist())
 
     return SimpleNamespace(order=order, vec_sh=vec_sh, basis_constants=basis_constants,
-                           diffuse=wp.kernel(diffuse, enable_backward=False), glossy=wp.kernel(glossy, enable_backward=False))
+                           diffuse=wp.kernel(diffuse, enable_backward=False), glossy=wp.kernel(glossy, enable_backward=False),
+                           interpolate=wp.kernel(interpolate, enable_backward=False),
+                           blocked_part=wp.kernel(blocked_part, enable_backward=False))

@@ -65,6 +65,13 @@ class FineMesh:
     """Per triangle (N, N·a) with N = (b-a)×(c-a) (:func:`triangle_bounds`), dtype vec4."""
     sphere: wp.array[wp.vec4]
     """Per triangle bounding sphere (centroid [m], radius [m]), dtype vec4."""
+    fan_start: wp.array[wp.int32]
+    """CSR offsets into ``fan_tris`` per receiver, shape (V+1,), dtype int32."""
+    fan_tris: wp.array[wp.int32]
+    """Triangles incident to each receiver, dtype int32 (:func:`rasterize_fan`)."""
+    fan: int
+    """1: rasterize the receiver's own fan as seen from just above it (:func:`rasterize_fan`); 0: off
+    (closed meshes, where the back faces already block those directions)."""
 
 
 @wp.struct
@@ -393,6 +400,33 @@ def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, src: int, skip: bool, nb: 
     nb = nb + wp.where(keep, 1, 0)
     if nb == bt.a.shape[1]:
         return flush_batch(nb, v, sl, frame, lut, mask, bt)
+    return nb
+
+
+@wp.func(inline=True)
+def rasterize_fan(v: int, sl: int, p: wp.vec3, n: wp.vec3, fine: FineMesh, frame: wp.mat33, lut: PlaneLut,
+                  mask: wp.array2d[wp.uint64], bt: Batch, nb: int) -> int:
+    """Queue the receiver's own triangles as seen from just above it; returns the queue length.
+
+    Seen from the vertex itself, a triangle through it subtends no solid angle; but where the surface
+    folds up around the vertex (valleys, creases), the directions under its fan pass through the
+    surface right at the receiver. The ray-traced reference sees that fan from ``p + eps n``
+    (:func:`~warpshade.visibility.reference_kernels.trace_surface_ray`); as ``eps -> 0`` the image of
+    triangle (p, b, c) from there is the spherical triangle (nadir, b - p, c - p), whose part above
+    the horizon is the region between the horizon and the fan's arc b -> c. Neighbouring fan
+    triangles share their nadir edge exactly (same corners, no fused multiply-adds: complementary
+    planes, no crack), and the arc's plane is the one of the real triangle across edge bc.
+    """
+    down = -n
+    for r in range(fine.fan_start[v], fine.fan_start[v + 1]):
+        t = fine.fan_tris[r]
+        i = fine.faces[t, 0]
+        j = fine.faces[t, 1]
+        k = fine.faces[t, 2]
+        # the two corners other than the receiver, in winding order
+        b = wp.where(i == v, j, wp.where(j == v, k, i))
+        c = wp.where(i == v, k, wp.where(j == v, i, j))
+        nb = push_triangle(down, fine.points[b] - p, fine.points[c] - p, -1, False, nb, v, sl, frame, lut, mask, bt)
     return nb
 
 
@@ -759,6 +793,7 @@ def rasterize_masks(
     pvs_tris: wp.array[wp.int32],
     lut: PlaneLut,
     bt: Batch,
+    receivers: wp.array[wp.int32],
     num_receivers: int,
     num_slots: int,
     mask: wp.array2d[wp.uint64],
@@ -766,7 +801,8 @@ def rasterize_masks(
 ):
     """Per receiver vertex: rasterize its blockers into its visibility mask (paper §3.1).
 
-    Thread ``sl`` of ``num_slots`` handles receivers ``sl, sl + num_slots, ...`` with scratch row
+    Thread ``sl`` of ``num_slots`` handles receivers ``receivers[sl], receivers[sl + num_slots], ...``
+    (the first ``num_receivers``) with scratch row
     ``sl`` of the :class:`Batch` queue and the rasterized-once table: on the CPU one slot (one
     thread runs the launch anyway), so that scratch stays in the L1 cache from receiver to
     receiver; on a GPU one slot per receiver.
@@ -780,8 +816,9 @@ def rasterize_masks(
     The masks are integrated into SH transfer by the per-order kernels of :mod:`.integrate`.
     """
     sl = wp.tid()
-    v = sl
-    while v < num_receivers:
+    row = sl
+    while row < num_receivers:
+        v = receivers[row]
         p = fine.points[v]
         n = normals[v]
         frame = orthonormal_basis(n)
@@ -793,6 +830,8 @@ def rasterize_masks(
         bt.counts[v] = 0
         refined[v] = 0
         nb = int(0)
+        if fine.fan != 0:
+            nb = rasterize_fan(v, sl, p, n, fine, frame, lut, mask, bt, nb)
         # near field at full resolution
         for r in range(ring_start[v], ring_start[v + 1]):
             t = ring_tris[r]
@@ -829,4 +868,4 @@ def rasterize_masks(
                                          mask, bt, nb, refined)
         if nb > 0:
             flush_batch(nb, v, sl, frame, lut, mask, bt)
-        v += num_slots
+        row += num_slots

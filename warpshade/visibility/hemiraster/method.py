@@ -100,6 +100,20 @@ class HemirasterTransfer(TransferMethod):
         rim: Skip blockers whose bounding sphere lies wholly below the elevation of the lowest pixel
             centre of the mask (their exact images hold no pixel; the LUT could only leak rim bits
             there). On by default; off only to measure it.
+        fan: On a mesh that is not closed, rasterize each receiver's own triangles as seen from
+            just above it, as the ray-traced reference does: where the surface folds up around the
+            vertex (valleys, creases) the directions under its fan pass through the surface
+            (:func:`.kernels.rasterize_fan`). On by default; off only to measure it.
+        redecimate: Rebuild the coarse far field from the current pose (:meth:`rebuild`) when the
+            coarse mesh's mean deviation from the fine surface, over its mean triangle radius, has
+            grown by more than this since the pose it was built on (0: never, the paper's scheme:
+            decimated once at rest). A flat sheet decimated flat and crumpled departs by ~0.3.
+            Needs the refinement (``refine`` > 0 with the hierarchy), whose deviations it reads.
+        interpolate: Compute the transfer at a subset of receivers only (about every other one,
+            :func:`.hierarchy.interpolation_subset`) and give each other receiver the unoccluded
+            transfer of its own normal minus the mean blocked part of its computed neighbours, unless
+            their blocked parts differ from that mean by more than ``interpolate`` times the
+            unoccluded transfer's norm: then it is computed too (0: every receiver computed, exact).
     """
 
     name = "hemiraster"
@@ -108,8 +122,25 @@ class HemirasterTransfer(TransferMethod):
                  downsample: int = 1, ring: int = 1, coarse: int = 512, cull: bool = True, cluster: int = 16,
                  exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
-                 refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0):
+                 refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
+                 fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0):
         super().__init__(mesh, order, device)
+        # every knob but the PVS, to rebuild the far field from another pose (:meth:`rebuild`)
+        self._init_knobs = dict(mask=mask, lut=lut, downsample=downsample, ring=ring, coarse=coarse, cull=cull,
+                                cluster=cluster, exclude=exclude, backface=backface, mode=mode, view=view, phong=phong,
+                                lut_dir=lut_dir, min_image=min_image, refine=refine, occluders=occluders, rim=rim,
+                                fine_image=fine_image, fan=fan, redecimate=redecimate,
+                                interpolate=interpolate)
+        if not (float(redecimate) >= 0.0 and np.isfinite(float(redecimate))):
+            raise ValueError(f"hemiraster: redecimate must be a finite number >= 0, got {redecimate}")
+        if float(redecimate) > 0.0 and pvs_frames is not None:
+            raise ValueError("hemiraster: redecimate needs no PVS (a PVS lists the blockers of the coarse mesh it was recorded with)")
+        self.redecimate = float(redecimate)
+        if not (float(interpolate) >= 0.0 and np.isfinite(float(interpolate))):
+            raise ValueError(f"hemiraster: interpolate must be a finite number >= 0, got {interpolate}")
+        if float(interpolate) > 0.0 and (mode != "diffuse" or pvs_frames is not None):
+            raise ValueError("hemiraster: interpolate works in diffuse mode without a PVS only")
+        self.interpolate = float(interpolate)
         tables.check_mask(int(mask), int(downsample))
         if ring not in (0, 1, 2, 3, 4):
             raise ValueError(f"hemiraster: ring must be 0, 1, 2, 3 or 4, got {ring}")
@@ -141,6 +172,7 @@ class HemirasterTransfer(TransferMethod):
             raise ValueError(f"hemiraster: fine_image must be >= 0 pixels, got {fine_image}")
         self.fine_image = float(fine_image)
         self.rim = bool(rim)
+        self.fan = bool(fan)
         self.phong, self.lut_dir = float(phong), lut_dir
         t_start = time.perf_counter()
         d = device
@@ -246,6 +278,7 @@ class HemirasterTransfer(TransferMethod):
         # back-face culling needs closed, consistently oriented fine and blocker meshes; the sign
         # of the enclosed volume says which side faces out
         side = hierarchy.closed_orientation(scene_pts, scene_faces)
+        fine_closed = side != 0
         if self.hierarchy:
             cside = hierarchy.closed_orientation(rest_blockers, block_faces)
             side = side if side == cside else 0
@@ -284,6 +317,15 @@ class HemirasterTransfer(TransferMethod):
         self._fine.points, self._fine.faces = self._spoints, self._sfaces
         self._fine.plane = wp.zeros(nsf, dtype=wp.vec4, device=d)
         self._fine.sphere = wp.zeros(nsf, dtype=wp.vec4, device=d)
+        # the receiver's own fan seen from just above it (kernels.rasterize_fan): on open surfaces;
+        # on a closed one every direction under the fan leaves the solid through a back face
+        self._fan_on = self.fan and not fine_closed
+        fan_lists = hierarchy.vertex_faces(faces, nv) if self._fan_on else []
+        fan_start = np.concatenate([[0], np.cumsum([len(x) for x in fan_lists])]) if self._fan_on else np.zeros(nv + 1)
+        self._fine.fan_start = wp.array(fan_start.astype(np.int32), dtype=wp.int32, device=d)
+        self._fine.fan_tris = wp.array(np.concatenate(fan_lists).astype(np.int32) if self._fan_on else np.zeros(1, np.int32),
+                                       dtype=wp.int32, device=d)
+        self._fine.fan = 1 if self._fan_on else 0
         self._groups = Refinement()
         self._groups.refine = self.refine if self._use_refine else 0.0
         self._groups.lo, self._groups.hi = self._blocker_box
@@ -317,11 +359,22 @@ class HemirasterTransfer(TransferMethod):
         self._batch.codes = wp.zeros((ns, nq), dtype=wp.vec3i, device=d)
         self._batch.src = wp.zeros((ns, nq), dtype=wp.int32, device=d)
         self._batch.counts = self._counts
+        self._all = wp.array(np.arange(nv, dtype=np.int32), dtype=wp.int32, device=d)
+        self._interp, self._redone = None, 0
+        if self.interpolate > 0.0:
+            sel, targets, start, nbrs = hierarchy.interpolation_subset(faces, nv)
+            self._interp = tuple(wp.array(x, dtype=wp.int32, device=d) for x in (sel, targets, start, nbrs))
+            self._redo = wp.zeros(nv, dtype=wp.int32, device=d)
+            self._blocked = wp.zeros(nv, dtype=vec_sh, device=d)
+            # relative to the unoccluded transfer's norm (the same for every normal: rotations keep it)
+            self._interp_tolerance = self.interpolate * float(np.linalg.norm(np.array(self._unoccluded, dtype=np.float64)))
         self._pvs = None
         self._pvs_start = wp.zeros(nv + 1, dtype=wp.int32, device=d)
         self._pvs_tris = wp.zeros(1, dtype=wp.int32, device=d)
         self._pvs_frames = 0
         self._static_seconds = time.perf_counter() - t_start
+        self._rebuilds, self._rebuild_seconds = 0, 0.0
+        self._built_departure = self._departure() if self.redecimate > 0.0 and self._use_refine else 0.0
         if pvs_frames is not None:
             self.build_pvs(pvs_frames)
 
@@ -360,6 +413,12 @@ class HemirasterTransfer(TransferMethod):
         parser.add_argument("--min-image", type=float, default=0.5,
                             help="skip far-field triangles whose image is smaller than this many mask pixels "
                                  "(default 0.5; 0: exact)")
+        parser.add_argument("--redecimate", type=float, default=0.0,
+                            help="rebuild the coarse far field from the current pose when its deviation from the fine "
+                                 "surface per triangle radius grew by more than this (default 0: never)")
+        parser.add_argument("--interpolate", type=float, default=0.0,
+                            help="compute a subset of receivers, interpolate the others where their neighbours agree "
+                                 "within this fraction of the unoccluded transfer (default 0: compute all)")
         parser.add_argument("--fine-image", type=float, default=0.0,
                             help="the same cull for the fine triangles of refined blockers near a receiver "
                                  "(default 0: exact near field)")
@@ -370,8 +429,8 @@ class HemirasterTransfer(TransferMethod):
                 "coarse": args.coarse, "cull": args.cull, "cluster": args.cluster, "exclude": args.exclude,
                 "backface": args.backface, "mode": args.mode,
                 "view": tuple(args.view), "phong": args.phong, "lut_dir": args.lut_dir, "min_image": args.min_image,
-                "fine_image": args.fine_image,
-                "refine": args.refine}
+                "fine_image": args.fine_image, "redecimate": args.redecimate,
+                "interpolate": args.interpolate, "refine": args.refine}
 
     @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
@@ -384,6 +443,7 @@ class HemirasterTransfer(TransferMethod):
         out += [{"lut": r} for r in (32, 64, 128)]
         out += [{"downsample": s} for s in (2, 4)]
         out += [{"refine": x} for x in (1.0, 4.0)]
+        out += [{"redecimate": 0.1}, {"interpolate": 0.02}, {"interpolate": 0.05}]
         out += [{"ring": 0}, {"ring": 2}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 0}, {"cull": False}]
         return out
 
@@ -392,7 +452,8 @@ class HemirasterTransfer(TransferMethod):
                 "coarse": self.coarse_target, "cull": self.cull, "cluster": self.cluster, "exclude": self.exclude,
                 "backface": self.backface, "mode": self.mode, "view": self.view.tolist(), "phong": self.phong, "lut_dir": self.lut_dir,
                 "pvs_frames": self._pvs_frames, "min_image": self.min_image, "refine": self.refine,
-                "fine_image": self.fine_image, "rim": self.rim,
+                "fine_image": self.fine_image, "rim": self.rim, "fan": self.fan, "redecimate": self.redecimate,
+                "interpolate": self.interpolate,
                 "occluders": [o.name for o in self.occluders]}
 
     def stats(self) -> dict:
@@ -405,6 +466,7 @@ class HemirasterTransfer(TransferMethod):
             "blocker_triangles": self.num_blockers,
             "hierarchy": self.hierarchy,
             "backface_culled": self._backface_side != 0.0,
+            "fan": self._fan_on,
             "min_image_active": self._lut.min_area > 0.0,
             "ring_triangles_per_vertex": self._ring_avg,
             "clusters": int(self._cluster_start.shape[0] - 1),
@@ -412,6 +474,10 @@ class HemirasterTransfer(TransferMethod):
             "lut_seconds": self._lut_seconds,
             "lut_source": self._lut_source,
             "static_seconds": self._static_seconds,
+            "rebuilds": self._rebuilds,
+            "computed_fraction": (1.0 if self._interp is None else
+                                  (self._interp[0].shape[0] + self._redone) / self.mesh.num_vertices),
+            "rebuild_seconds": self._rebuild_seconds,
             "pvs_triangles_per_vertex": (float(self._pvs_start.numpy()[-1]) / self.mesh.num_vertices
                                          if self._pvs_frames else None),
         }
@@ -447,9 +513,39 @@ class HemirasterTransfer(TransferMethod):
                       outputs=[self._fine.plane, self._fine.sphere], device=d)
         self._batch.record = record
         self._batch.hits = self._hits
+        if self._interp is None:
+            self._rasterize(self._all, self.mesh.num_vertices, use_pvs)
+            if self.mode == "diffuse":
+                self._integrate_diffuse(self._all, self.mesh.num_vertices)
+            else:
+                self._integrate_glossy()
+            return
+        # a subset of receivers, the others interpolated where their computed neighbours agree
+        # within ``interpolate``, computed themselves where not
+        sel, targets, start, nbrs = self._interp
+        self._counts.zero_()
+        self._refined.zero_()
+        self._rasterize(sel, sel.shape[0], use_pvs)
+        self._integrate_diffuse(sel, sel.shape[0])
+        if targets.shape[0]:
+            wp.launch(self._integrate.blocked_part, dim=sel.shape[0],
+                      inputs=[sel, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv, self._basis,
+                              self.transfer], outputs=[self._blocked], device=d)
+            wp.launch(self._integrate.interpolate, dim=targets.shape[0],
+                      inputs=[targets, start, nbrs, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv,
+                              self._basis, self._blocked, self._interp_tolerance],
+                      outputs=[self.transfer, self._redo], device=d)
+            redo = np.flatnonzero(self._redo.numpy()).astype(np.int32)
+            self._redone = len(redo)
+            if len(redo):
+                redo = wp.array(redo, dtype=wp.int32, device=d)
+                self._rasterize(redo, redo.shape[0], use_pvs)
+                self._integrate_diffuse(redo, redo.shape[0])
+
+    def _rasterize(self, receivers: wp.array, count: int, use_pvs: int) -> None:
         wp.launch(
             rasterize_masks,
-            dim=self._slots,
+            dim=min(self._slots, max(1, count)),
             inputs=[self._fine, self.normals, self._ring_start, self._ring_tris,
                     self._blockers,
                     self._near_mode, self._excl,
@@ -457,24 +553,60 @@ class HemirasterTransfer(TransferMethod):
                     1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
                     self._super_start, *self._super_box,
                     use_pvs, self._pvs_start, self._pvs_tris,
-                    self._lut, self._batch, self.mesh.num_vertices, self._slots],
+                    self._lut, self._batch, receivers, count, self._slots],
             outputs=[self._mask, self._refined],
-            device=d,
+            device=self.device,
         )
-        if self.mode == "diffuse":
-            wp.launch(self._integrate.diffuse, dim=self.mesh.num_vertices,
-                      inputs=[self._mask, self.normals, self._nibbles, self._unoccluded, self._rot_dirs, self._rot_pinv,
-                              self._basis],
-                      outputs=[self.transfer], device=d)
-        else:
-            wp.launch(self._integrate.glossy, dim=self.mesh.num_vertices,
-                      inputs=[self._mask, self.normals, self._block_weights, self._block_valid, self._block_dirs,
-                              self.downsample * self.downsample, wp.vec3(*self.view.astype(np.float32)), self.phong,
-                              self._rot_dirs, self._rot_pinv, self._basis],
-                      outputs=[self.transfer], device=d)
+
+    def _integrate_diffuse(self, receivers: wp.array, count: int) -> None:
+        wp.launch(self._integrate.diffuse, dim=count,
+                  inputs=[self._mask, self.normals, self._nibbles, self._unoccluded, self._rot_dirs, self._rot_pinv,
+                          self._basis, receivers],
+                  outputs=[self.transfer], device=self.device)
+
+    def _integrate_glossy(self) -> None:
+        wp.launch(self._integrate.glossy, dim=self.mesh.num_vertices,
+                  inputs=[self._mask, self.normals, self._block_weights, self._block_valid, self._block_dirs,
+                          self.downsample * self.downsample, wp.vec3(*self.view.astype(np.float32)), self.phong,
+                          self._rot_dirs, self._rot_pinv, self._basis],
+                  outputs=[self.transfer], device=self.device)
 
     def _compute(self) -> None:
+        if self.redecimate > 0.0 and self._use_refine and self._departure() - self._built_departure > self.redecimate:
+            self.rebuild()
         self._launch(record=0, use_pvs=1 if self._pvs_frames else 0)
+
+    def _departure(self) -> float:
+        """How far the coarse mesh is from the fine surface this frame: mean blocker deviation over mean
+        blocker radius (dimensionless; ~0.002 for a flat sheet decimated flat, ~0.3 for that coarse
+        mesh riding a crumpled pose, ~0.15 for one decimated from the crumpled pose itself)."""
+        self._follow()
+        wp.launch(refit_blocker_boxes, dim=self.num_blockers,
+                  inputs=[self._bpoints, self._bfaces, self._spoints, self._sfaces, 1,
+                          self._group_start, self._group_mid, self._group_tris, self._bind_offset_abs],
+                  outputs=[*self._blocker_box, self._blocker_dev], device=self.device)
+        wp.launch(triangle_bounds, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
+                  outputs=[self._bplane, self._bsphere], device=self.device)
+        radius = float(self._bsphere.numpy()[:, 3].mean())
+        return float(self._blocker_dev.numpy().mean()) / radius if radius > 0.0 else 0.0
+
+    def rebuild(self) -> None:
+        """Rebuild every static structure (coarse far field, bindings, clusters) from the current pose.
+
+        With ``redecimate`` > 0, :meth:`update` calls it when the coarse mesh has departed from the
+        fine surface by more than ``redecimate`` (:meth:`_departure`, relative to the pose it was
+        built on), so a crumpled or draped pose gets a coarse mesh that follows its folds instead of
+        the flat sheet's; the cost (``stats()["rebuild_seconds"]``) is paid once per departure and
+        amortised over the frames that follow. :attr:`points`, :attr:`normals` and :attr:`transfer`
+        are new arrays afterwards (what :meth:`update` returns).
+        """
+        t0 = time.perf_counter()
+        pts, nrm = self.points.numpy().copy(), self.normals.numpy().copy()
+        done = (self._rebuilds + 1, self._rebuild_seconds)
+        self.__init__(TriMesh(pts, self.mesh.faces, name=self.mesh.name), order=self.order, device=self.device,
+                      **self._init_knobs)
+        self.set_points(pts, nrm)
+        self._rebuilds, self._rebuild_seconds = done[0], done[1] + time.perf_counter() - t0
 
     def build_pvs(self, frames) -> None:
         """Potentially-visible sets from a recorded animation (paper §3.2, "PVS").

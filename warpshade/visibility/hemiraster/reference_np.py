@@ -52,7 +52,7 @@ def rasterize_np(local_tris: np.ndarray, mask: int, lut: np.ndarray | None = Non
 
 def transfer_np(points: np.ndarray, faces: np.ndarray, normals: np.ndarray, order: int = 5, mask: int = 32,
                 downsample: int = 2, lut: np.ndarray | None = None, lut_res: int = 0,
-                vertices=None) -> np.ndarray:
+                vertices=None, fan: bool = True) -> np.ndarray:
     """Diffuse transfer (docs/conventions.md §2) by brute-force hemispherical rasterization of the full mesh.
 
     Args:
@@ -60,6 +60,9 @@ def transfer_np(points: np.ndarray, faces: np.ndarray, normals: np.ndarray, orde
         order, mask, downsample: As the method's knobs.
         lut, lut_res: Optional LUT (else exact planes).
         vertices: Receivers to compute (default all).
+        fan: Also block what the receiver's own triangles hide seen from just above it: triangle
+            (v, b, c) as the spherical triangle (nadir, b, c) (the method's ``fan`` knob; the
+            caller decides whether the mesh is open).
 
     Returns:
         shape (len(vertices), N*N) float64, world space.
@@ -74,6 +77,14 @@ def transfer_np(points: np.ndarray, faces: np.ndarray, normals: np.ndarray, orde
         frame = tangent_frame_np(np.asarray(normals[v], dtype=np.float64))
         keep = (faces != v).all(axis=1)
         local = (points[faces[keep]] - points[v]) @ frame
+        if fan:
+            own = faces[~keep]
+            # the two other corners in winding order: rotate each triangle so v comes first
+            first = np.argmax(own == v, axis=1)
+            rolled = np.stack([np.roll(f, -k) for f, k in zip(own, first)]) if len(own) else own.reshape(0, 3)
+            virt = (points[rolled] - points[v]) @ frame
+            virt[:, 0] = (0.0, 0.0, -1.0)
+            local = np.concatenate([local, virt])
         blocked = rasterize_np(local, mask, lut, lut_res)
         counts = blocked.reshape(-1, bb).sum(axis=1)
         frac = np.where(blocks["valid"] > 0, counts / np.maximum(blocks["valid"], 1), 0.0)

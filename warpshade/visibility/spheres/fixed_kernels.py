@@ -6,10 +6,8 @@ log table lookup, ratio vectors, log accumulation, SH exponential, divergence gu
 clamped cosine) and ``reflect`` (one-bounce reflections). Every SH vector is a fixed-length Warp vector
 (``vec_sh`` of the SH core's :func:`~warpshade.sh.kernels.zh_vector_funcs`) held in registers, and
 products are the SH core's :func:`~warpshade.sh.kernels.sh_product_vector_funcs` (unrolled up to order
-6; squarings use the Gaunt table's symmetry). Against the earlier runtime-order kernels with SH
-vectors in rows of 2D scratch arrays and a table-driven product loop this gives the same transfer
-(max difference 3e-6) 2-4x faster: at order 4 on the benchmark scene, hybrid 6.9 -> 20 frames/s
-(docs/methods/spheres.md).
+6; squarings use the Gaunt table's symmetry). How they compare with the runtime-order kernels
+they replaced: docs/benchmarks/history.md ("spheres").
 
 This module deliberately does not use postponed annotations: Warp reads the (closure-local) vector
 types from the annotations of the generated functions.

@@ -23,7 +23,7 @@ from ..base import TransferMethod
 from .fitting import SphereTree, build_sphere_tree, cluster_receivers
 from .fixed_kernels import shade_kernel_fixed
 from .kernels import EXP_HYBRID, EXP_OL, EXP_SERIES, compute_cut_ratios, fit_clusters, multiply_transfer
-from .sets import SphereScene, _csr
+from .sets import SphereScene, csr
 from .tables import sphere_tables
 
 EXP_MODES = {"ol": EXP_OL, "hyb": EXP_HYBRID, "series": EXP_SERIES}
@@ -95,7 +95,7 @@ class SpheresTransfer(TransferMethod):
         lab = cluster_receivers(mesh.points, self.clusters, seed=seed)
         self.clusters = int(lab.max()) + 1
         self.cluster = wp.array(lab.astype(np.int32), dtype=wp.int32, device=device)
-        ms, mi = _csr([np.flatnonzero(lab == k) for k in range(self.clusters)])
+        ms, mi = csr([np.flatnonzero(lab == k) for k in range(self.clusters)])
         self._members = (wp.array(ms, dtype=wp.int32, device=device), wp.array(mi, dtype=wp.int32, device=device))
         self.cluster_centers = wp.zeros(self.clusters, dtype=wp.vec3, device=device)
         self.cluster_radii = wp.zeros(self.clusters, dtype=float, device=device)

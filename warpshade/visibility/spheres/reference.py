@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from ...sh.products import sh_product
-from ...sh.zonal import clamped_cosine_zh, zh_rotate
+from ...sh.zonal import unoccluded_transfer, zh_rotate
 from .tables import sh_exp_np, sphere_tables
 
 SQRT_4PI = math.sqrt(4 * math.pi)
@@ -46,11 +46,6 @@ def log_blocker_np(theta, order, mode="hyb", tau=0.5):
     return _lerp_table_np(t.log_blocker, theta, t.theta_step)
 
 
-def cosine_np(n, order):
-    """Clamped cosine about ``n``: the unoccluded transfer (docs/conventions.md §2)."""
-    return zh_rotate(clamped_cosine_zh(order), np.asarray(n, dtype=np.float64))
-
-
 def shade_np(p, n, centers, radii, order, mode="hyb", tau=0.5, ratios=None):
     """Visibility and transfer of one receiver under blocker spheres (kernel ``shade`` of :mod:`.fixed_kernels`).
 
@@ -80,7 +75,7 @@ def shade_np(p, n, centers, radii, order, mode="hyb", tau=0.5, ratios=None):
     if not (0 <= vis[0] <= bound and vis @ vis <= bound * bound):
         vis = np.zeros_like(vis)
         vis[0] = SQRT_4PI * math.exp(min(logsum[0] / SQRT_4PI, 0.0))
-    tr = sh_product(vis, cosine_np(n, order), order)
+    tr = sh_product(vis, unoccluded_transfer(n, order), order)
     if tr[0] < 0:
         tr = np.zeros_like(tr)
     return vis, tr, logsum
@@ -130,7 +125,7 @@ def reflect_np(p, n, centers, radii, rotations, radiance, objects, order, mode="
         theta = math.asin(min(rho / max(np.linalg.norm(d), 1e-30), 1.0))
         return zh_rotate(log_blocker_np(theta, order, mode, tau), d), theta
 
-    cosine = cosine_np(n, order)
+    cosine = unoccluded_transfer(n, order)
     logsum = np.zeros(order * order)
     total = np.zeros(3)
     done = []

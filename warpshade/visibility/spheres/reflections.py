@@ -44,7 +44,7 @@ from ...sh.basis import sh_eval
 from .kernels import fit_clusters
 from .method import EXP_MODES, SpheresTransfer
 from .reflection_kernels import project_sphere_radiance, resample_surface, trace_sphere_samples
-from .sets import _csr
+from .sets import csr
 from .tables import sphere_tables
 
 
@@ -171,7 +171,7 @@ class SphereReflections:
         self._recv_obj = wp.array(receiver_objects, dtype=wp.int32, device=d)
         self.irradiance = wp.zeros(V, dtype=wp.vec3, device=d)
         """Reflected irradiance at each receiver vertex (eq. 4.22, no albedo, no 1/π), shape (V,), vec3."""
-        ms, mi = _csr([np.arange(i * m, (i + 1) * m) for i in range(max(L, 1))])
+        ms, mi = csr([np.arange(i * m, (i + 1) * m) for i in range(max(L, 1))])
         self._s_members = (wp.array(ms, dtype=wp.int32, device=d), wp.array(mi, dtype=wp.int32, device=d))
         self._stats = {}
         self._scratch = {}
@@ -453,18 +453,3 @@ class SphereReflections:
     def stats(self) -> dict:
         """Counters of the last :meth:`gather` at the method's receivers (spheres per cluster cut...)."""
         return dict(self._stats)
-
-    def exit_radiance(self, light, albedo_receiver) -> np.ndarray:
-        """``(ρ/π)(L · T + E_R)`` at the receiver vertices: shadowed direct plus one bounce, shape (V, 3).
-
-        The direct part is :func:`warpshade.radiance.exit_radiance` of the method's transfer.
-
-        Args:
-            light: SH radiance per colour, shape (N*N, 3).
-            albedo_receiver: Receiver albedo: scalar, RGB (3,) or per vertex (V, 3).
-        """
-        from ...radiance import exit_radiance
-
-        direct = exit_radiance(self.method.transfer, light, albedo_receiver, clamp=False, device=self.device).numpy()
-        rho = np.broadcast_to(np.asarray(albedo_receiver, dtype=np.float64), direct.shape)
-        return direct + rho / math.pi * self.irradiance.numpy()

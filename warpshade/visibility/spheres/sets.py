@@ -16,7 +16,9 @@ from .fitting import SphereTree
 from .kernels import bound_parents, refit_spheres, refit_spheres_bones
 
 
-def _csr(lists):
+def csr(lists):
+    """Lists of indices in compressed rows: ``(start, index)``, int32, list ``i`` being
+    ``index[start[i]:start[i + 1]]``; shapes (len(lists) + 1,) and (total,)."""
     start = np.zeros(len(lists) + 1, dtype=np.int32)
     start[1:] = np.cumsum([len(x) for x in lists])
     index = np.concatenate([np.asarray(x, dtype=np.int32) for x in lists]) if lists else np.zeros(0, np.int32)
@@ -48,13 +50,13 @@ class SphereScene:
         for s, p in enumerate(self.parent):
             if p >= 0:
                 self.children[p].append(s)
-        self.child_start, self.child_index = _csr(self.children)
+        self.child_start, self.child_index = csr(self.children)
         self.has_children = np.diff(self.child_start) > 0
         self.roots = np.flatnonzero(self.parent < 0)
         leaves = []
         for t, o in zip(trees, self.offsets):
             leaves += [(t.leaf_descendants(s) + o).tolist() for s in range(t.num_spheres)]
-        self.leaf_start, self.leaf_index = _csr(leaves)
+        self.leaf_start, self.leaf_index = csr(leaves)
         self.centers = wp.zeros(S, dtype=wp.vec3, device=device)
         """Current sphere centres [m], shape (S,), dtype vec3 (all objects, all levels)."""
         self.radii = wp.zeros(S, dtype=float, device=device)
@@ -67,7 +69,7 @@ class SphereScene:
             cent = np.array([rp[t.vertices_of(s)].mean(axis=0) for s in range(t.num_spheres)])
             spread = np.array([np.linalg.norm(rp[t.vertices_of(s)] - t.centers[s], axis=1).max()
                                for s in range(t.num_spheres)])
-            tc, ti = _csr([np.asarray(t.children(s)) for s in range(t.num_spheres)])
+            tc, ti = csr([np.asarray(t.children(s)) for s in range(t.num_spheres)])
             levels = [wp.array(np.flatnonzero(t.level == lev).astype(np.int32), dtype=wp.int32, device=device)
                       for lev in range(1, t.num_levels)]
             self._obj.append(dict(

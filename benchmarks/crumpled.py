@@ -1,0 +1,135 @@
+"""Hemispherical rasterization on crumpled and draped 64x64 cloths, and Kautz's Table 1 cloth (issue 18).
+
+What it shows: per mesh, the transfer error (mean relative L2 of the order-5 transfer,
+:mod:`warpshade.metrics`, against the ray-traced reference at 4096 rays,
+:func:`warpshade.bench.reference_cache.ground_truth`) and the process CPU time per frame (median of
+``--repeat`` round-robin rounds after a warm-up round, compile excluded, one Warp CPU thread) of
+hemiraster configurations, beside the ray-traced reference at 256 rays measured in the same run.
+The warm-up round pays the one-off far-field rebuild of ``redecimate`` (reported separately as
+``rebuild_seconds``); the timed rounds are frames that follow on the same pose.
+
+Meshes (``warpshade.bench.meshes``): ``cloth``, the benchmark's crumpled 64² cloth (rest: flat);
+``crumpled2``, another seed crumpled harder (0.75 compression); ``draped``, a 64² cloth dropped
+onto a ball and simulated for 60 frames (cached); ``table1``, the 1378-vertex travelling-wrinkle
+cloth of ``benchmarks/hemiraster.py`` (3 frames, rest = frame 0).
+
+Success criteria (issue 18): crumpled and draped cloths <= 3.0 % at <= 50 ms per frame; Table 1
+cloth >= 60 frames/s at <= 2.5 %.
+
+How to run::
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/crumpled.py [--repeat 3] [--meshes cloth,draped] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.dirname(HERE))
+sys.path.insert(0, HERE)
+
+import warp as wp  # noqa: E402
+
+from hemiraster import TUNED, scene  # noqa: E402
+from warpshade.bench.meshes import draped_cloth, wrinkled_cloth  # noqa: E402
+from warpshade.bench.reference_cache import ground_truth  # noqa: E402
+from warpshade.geometry import TriMesh  # noqa: E402
+from warpshade.metrics import transfer_errors  # noqa: E402
+from warpshade.visibility import get_method  # noqa: E402
+
+ORDER = 5
+PEER_RAYS = 256
+CRUMPLED = {"defaults": {}, "redecimate": {"redecimate": 0.1},
+            "redecimate+refine1": {"redecimate": 0.1, "refine": 1.0},
+            "redecimate+interpolate": {"redecimate": 0.1, "interpolate": 0.1},
+            "fan off (main)": {"fan": False}}
+TABLE1 = {"defaults": {}, "tuned": TUNED["cloth"], "tuned+interpolate": {**TUNED["cloth"], "interpolate": 0.08},
+          "tuned, refine 1.25, interpolate": {**TUNED["cloth"], "refine": 1.25, "interpolate": 0.08},
+          "tuned, fan off (main)": {**TUNED["cloth"], "fan": False}}
+
+
+def inputs(name: str):
+    """Rest mesh, judged frames and their 4096-ray truths."""
+    if name == "table1":
+        mesh, frames = scene("cloth")
+    else:
+        bm = {"cloth": lambda: wrinkled_cloth(64), "crumpled2": lambda: wrinkled_cloth(64, seed=3, compress=0.75),
+              "draped": lambda: draped_cloth(64)}[name]()
+        mesh, frames = bm.rest, [bm.frame]
+    truths = [ground_truth(TriMesh(f, mesh.faces, name=f"{name}-frame"), ORDER, log=print) for f in frames]
+    return mesh, frames, truths
+
+
+def run(methods: list, frames, truths, repeat: int) -> list[dict]:
+    """Round-robin CPU time per frame (median of rounds, median over frames) and mean error over frames."""
+    for m in methods:
+        for f in frames:
+            m.update(f)
+    cpu = np.zeros((len(methods), len(frames), max(1, repeat)))
+    for rnd in range(max(1, repeat)):
+        for i, m in enumerate(methods):
+            for j, f in enumerate(frames):
+                m.set_points(f)
+                wp.synchronize()
+                c0 = time.process_time()
+                m._compute()
+                wp.synchronize()
+                cpu[i, j, rnd] = time.process_time() - c0
+    rows = []
+    for i, m in enumerate(methods):
+        errs = []
+        for f, t in zip(frames, truths):
+            m.update(f)
+            errs.append(transfer_errors(m.transfer_numpy(), t).mean())
+        st = m.stats()
+        rows.append({"cpu_seconds": float(np.median(np.median(cpu[i], axis=1))), "error_mean": float(np.mean(errs)),
+                     "triangles_per_vertex": st.get("triangles_per_vertex"), "rebuilds": st.get("rebuilds"),
+                     "rebuild_seconds": st.get("rebuild_seconds"), "computed_fraction": st.get("computed_fraction")})
+    return rows
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--meshes", default="cloth,crumpled2,draped,table1")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--json", default=None, metavar="PATH")
+    args = ap.parse_args(argv)
+    wp.config.log_level = wp.LOG_WARNING
+    cls, ref = get_method("hemiraster"), get_method("reference")
+    out = {"order": ORDER, "truth_rays": 4096, "peer_rays": PEER_RAYS, "meshes": {}}
+    for name in args.meshes.split(","):
+        mesh, frames, truths = inputs(name)
+        configs = TABLE1 if name == "table1" else CRUMPLED
+        methods = [cls(mesh, order=ORDER, **k) for k in configs.values()]
+        methods.append(ref(mesh, order=ORDER, rays=PEER_RAYS, seed=1))
+        rows = run(methods, frames, truths, args.repeat)
+        labels = list(configs) + [f"reference {PEER_RAYS} rays"]
+        knobs = list(configs.values()) + [{"rays": PEER_RAYS}]
+        out["meshes"][name] = {"vertices": mesh.num_vertices, "frames": len(frames),
+                               "rows": [{"label": lb, "knobs": k, **r} for lb, k, r in zip(labels, knobs, rows)]}
+        del methods
+    print("\nOrder 5, one Warp CPU thread; CPU ms per frame (median after warm-up, round-robin), mean error vs 4096 rays")
+    print("| mesh | configuration | ms | frames/s | error | tris/vertex | computed | rebuild |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, e in out["meshes"].items():
+        for r in e["rows"]:
+            tv = f"{r['triangles_per_vertex']:.0f}" if r["triangles_per_vertex"] is not None else "-"
+            cf = f"{r['computed_fraction']:.2f}" if r["computed_fraction"] is not None else "-"
+            rb = f"{r['rebuild_seconds']:.2f} s" if r["rebuilds"] else "-"
+            print(f"| {name} ({e['vertices']}) | {r['label']} | {r['cpu_seconds'] * 1e3:.1f} | {1 / r['cpu_seconds']:.1f} | "
+                  f"{r['error_mean'] * 100:.2f} % | {tv} | {cf} | {rb} |")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(out, f, indent=2, default=float)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,347 @@
+"""A scene built in Python, then simulated, shaded and written by the same :class:`~warpshade.Pipeline`
+``warpshade run`` uses (docs/guide/script.md).
+
+Each helper returns the object the USD reader would make from the equivalent prim: a
+:class:`~warpshade.scene.SceneObject` with the same ``kind`` and ``params`` keys (``collider``,
+``box``, ``sphere``, ``pinned``, ``cloth``, ``points_at``), a :class:`~warpshade.scene.LightSpec`,
+or an analytic :class:`~warpshade.lighting.Sky`. :func:`make_scene` collects them; :func:`run` runs them::
+
+    scene = ws.make_scene(ws.ground(), ws.box(size=0.5), ws.cloth_grid(height=0.8), ws.sky())
+    ws.run(scene, "out.usda", frames=60)
+
+A script that simulates by itself (its own solver, its own loop) declares its moving meshes with
+:func:`mesh` (``moving=True``) and gives :func:`run` a generator yielding ``{name: points}`` per frame.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .geometry.mesh import TriMesh
+from .lighting import Sky
+from .lighting.base import Light
+from .scene import LightSpec, Material, Scene, SceneObject
+
+
+def _vec3(value, what: str) -> np.ndarray:
+    a = np.asarray(value, dtype=np.float64)
+    if a.shape != (3,) or not np.isfinite(a).all():
+        raise ValueError(f"{what} must be 3 finite numbers, got {value!r}")
+    return a
+
+
+def _positive(value, what: str, n: int = 1) -> np.ndarray:
+    a = np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)).copy() if np.ndim(value) == 0 else \
+        np.asarray(value, dtype=np.float64)
+    if a.shape != (n,) or not (np.isfinite(a).all() and (a > 0).all()):
+        raise ValueError(f"{what} must be {'a number' if n == 1 else f'a number or {n} numbers'} > 0, got {value!r}")
+    return a
+
+
+def _material(albedo, what: str) -> Material:
+    if albedo is None:
+        return Material()
+    a = np.broadcast_to(np.asarray(albedo, dtype=np.float64), (3,)).copy() if np.ndim(albedo) == 0 else \
+        np.asarray(albedo, dtype=np.float64)
+    if a.shape != (3,) or not ((a >= 0) & (a <= 1)).all():
+        raise ValueError(f"{what}: albedo must be a number or RGB in [0, 1], got {albedo!r}")
+    return Material(albedo=a)
+
+
+def _object(name: str, tri: TriMesh, **kwargs) -> SceneObject:
+    """A scene object shaded with the default visibility method (as the USD reader's objects are)."""
+    from .pipeline import default_method
+
+    return SceneObject(name, tri, method=default_method(), **kwargs)
+
+
+def _mesh(name: str, points, faces) -> TriMesh:
+    return TriMesh(np.asarray(points, dtype=np.float64).reshape(-1, 3), np.asarray(faces).reshape(-1, 3), name=name)
+
+
+def cloth_grid(name: str = "Cloth", size=1.0, resolution=32, height: float = 1.0, center=(0.0, 0.0),
+               pinned=None, albedo=None, **material) -> SceneObject:
+    """A horizontal square (or rectangular) cloth facing up (+Y), to be simulated.
+
+    Args:
+        name: Object name (output prim name).
+        size: Width along X and depth along Z [m]: a number or two.
+        resolution: Vertices along X and Z: an int >= 2 or two.
+        height: Y of the cloth [m].
+        center: X and Z of its centre [m].
+        pinned: Indices of vertices held fixed (vertex ``(i, j)`` is ``j * nx + i``), or None.
+        albedo: Diffuse reflectance, a number or RGB in [0, 1] (default 0.8 grey).
+        **material: Cloth material (``density`` [kg/m²], ``stretchStiffness``, ``bendStiffness``,
+            ``damping``, ``thickness``, ``friction``, ``selfCollision``), as the ``warpshade:cloth:*``
+            attributes of a USD cloth.
+    """
+    w, d = _positive(size, f"cloth_grid '{name}': size", 2)
+    res = np.broadcast_to(np.asarray(resolution), (2,)) if np.ndim(resolution) == 0 else np.asarray(resolution)
+    if res.shape != (2,) or not all(float(r).is_integer() and r >= 2 for r in res):
+        raise ValueError(f"cloth_grid '{name}': resolution must be an int >= 2 or two, got {resolution!r}")
+    nx, nz = int(res[0]), int(res[1])
+    cx, cz = np.asarray(center, dtype=np.float64).reshape(2)
+    from .sim import ClothBuilder
+
+    builder = ClothBuilder()  # its grid: alternating diagonals, triangles facing u x v = +Y
+    builder.add_grid(nx, nz, w, d, origin=(cx - w / 2, float(height), cz + d / 2), u_axis=(1, 0, 0),
+                     v_axis=(0, 0, -1), name=name)
+    piece = builder._pieces[-1]
+    return cloth(name, piece.points, piece.faces, pinned=pinned, albedo=albedo, **material)
+
+
+def cloth(name: str, points, faces, pinned=None, albedo=None, **material) -> SceneObject:
+    """A cloth from a given mesh (points (V, 3) [m], triangles (F, 3)), to be simulated; the other
+    arguments as :func:`cloth_grid`."""
+    tri = _mesh(name, points, faces)
+    params: dict = {"cloth": dict(material)}
+    if pinned is not None:
+        p = np.asarray(pinned, dtype=np.int64).reshape(-1)
+        bad = p[(p < 0) | (p >= tri.num_vertices)]
+        if len(bad):
+            raise ValueError(f"cloth '{name}': pinned vertex {int(bad[0])} out of range 0..{tri.num_vertices - 1}")
+        params["pinned"] = p.astype(np.int32)
+    return _object(name, tri, kind="cloth", material=_material(albedo, f"cloth '{name}'"), params=params)
+
+
+def ground(name: str = "Ground", size: float = 4.0, height: float = 0.0, resolution: int = 49,
+           albedo=None) -> SceneObject:
+    """A horizontal square ground (a collider, a plane at ``height``) of ``resolution`` x
+    ``resolution`` vertices, fine enough for contact shadows to fall on vertices."""
+    s = float(_positive(size, f"ground '{name}': size")[0])
+    if not (float(resolution).is_integer() and resolution >= 2):
+        raise ValueError(f"ground '{name}': resolution must be an int >= 2, got {resolution!r}")
+    from .sim import ClothBuilder
+
+    builder = ClothBuilder()
+    builder.add_grid(int(resolution), int(resolution), s, s, origin=(-s / 2, float(height), s / 2),
+                     u_axis=(1, 0, 0), v_axis=(0, 0, -1), name=name)
+    piece = builder._pieces[-1]
+    return _object(name, _mesh(name, piece.points, piece.faces), material=_material(albedo, f"ground '{name}'"),
+                       params={"collider": "ground"})
+
+
+def box(name: str = "Box", center=None, size=1.0, collider: bool = True, albedo=None) -> SceneObject:
+    """An axis-aligned box (an exact box collider unless ``collider=False``), 16 edges a side.
+
+    Args:
+        center: Centre [m]; default: standing on y = 0 at the origin.
+        size: Edge lengths [m], a number or three.
+    """
+    import trimesh
+
+    ext = _positive(size, f"box '{name}': size", 3)
+    c = np.array([0.0, ext[1] / 2, 0.0]) if center is None else _vec3(center, f"box '{name}': center")
+    m = trimesh.creation.box(extents=ext).subdivide_to_size(float(ext.max()) / 16.0, max_iter=8)
+    params = {"collider": "box", "box": {"center": c, "half_extents": ext / 2, "rotation": np.array([0.0, 0, 0, 1])}}
+    return _object(name, _mesh(name, np.asarray(m.vertices) + c, m.faces),
+                       material=_material(albedo, f"box '{name}'"), params=params if collider else {})
+
+
+def sphere(name: str = "Sphere", center=(0.0, 0.5, 0.0), radius: float = 0.5, collider: bool = True,
+           albedo=None) -> SceneObject:
+    """A sphere (an exact sphere collider unless ``collider=False``), an icosphere for shading."""
+    import trimesh
+
+    r = float(_positive(radius, f"sphere '{name}': radius")[0])
+    c = _vec3(center, f"sphere '{name}': center")
+    m = trimesh.creation.icosphere(subdivisions=3, radius=r)
+    params = {"collider": "sphere", "sphere": {"center": c, "radius": r}}
+    return _object(name, _mesh(name, np.asarray(m.vertices) + c, m.faces),
+                       material=_material(albedo, f"sphere '{name}'"), params=params if collider else {})
+
+
+def mesh(name: str, points, faces, collider: bool = False, moving: bool = False, points_at=None,
+         albedo=None) -> SceneObject:
+    """A triangle mesh: static, or moving (animated) when ``moving`` or ``points_at`` is given.
+
+    Args:
+        points: Rest positions [m], shape (V, 3).
+        faces: Triangles, shape (F, 3), int.
+        collider: Cloth collides with it (a triangle-mesh collider, which follows a moving mesh).
+        moving: Its points come per frame from the ``geometry`` generator given to :func:`run`.
+        points_at: ``points_at(time_code) -> (V, 3)``: its points per frame (as an animated or
+            skinned USD mesh provides them), instead of ``moving``.
+    """
+    tri = _mesh(name, points, faces)
+    params: dict = {"collider": "mesh"} if collider else {}
+    if points_at is not None:
+        if not callable(points_at):
+            raise ValueError(f"mesh '{name}': points_at must be callable (time code -> points), got {points_at!r}")
+        params["points_at"] = points_at
+    moves = moving or points_at is not None
+    return _object(name, tri, kind="animated" if moves else "static",
+                       material=_material(albedo, f"mesh '{name}'"), params=params)
+
+
+def sky(sun_elevation: float = 45.0, sun_azimuth: float = 30.0, turbidity: float = 3.0, intensity=1.0,
+        up: str = "Y") -> Sky:
+    """The analytic daylight (:class:`~warpshade.lighting.Sky`; its defaults are warpshade's default
+    sky), written to the output as a DomeLight with its texture."""
+    return Sky(sun_elevation=sun_elevation, sun_azimuth=sun_azimuth, turbidity=turbidity, intensity=intensity,
+               up=up, name="sky")
+
+
+def _frame_along(direction, what: str) -> np.ndarray:
+    """Light-to-world matrix whose ``-Z`` is ``direction`` (UsdLux: a distant light shines along its -Z)."""
+    d = _vec3(direction, what)
+    n = np.linalg.norm(d)
+    if n == 0:
+        raise ValueError(f"{what} must not be zero")
+    z = -d / n
+    x = np.cross([0.0, 1.0, 0.0], z) if abs(z[1]) < 0.99 else np.cross([1.0, 0.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    xf = np.eye(4)
+    xf[:3, :3] = np.stack([x, np.cross(z, x), z], axis=1)
+    return xf
+
+
+def distant(direction=(-0.3, -1.0, -0.2), intensity: float = 1.0, color=(1.0, 1.0, 1.0), angle: float = 0.53,
+            name: str = "Sun") -> LightSpec:
+    """A UsdLux DistantLight shining along ``direction`` (radiance ``color * intensity``, angular
+    diameter ``angle`` [degrees])."""
+    return LightSpec("distant", name, color=_vec3(color, f"distant '{name}': color"), intensity=float(intensity),
+                     angle=float(angle), transform=_frame_along(direction, f"distant '{name}': direction"))
+
+
+def dome(color=(1.0, 1.0, 1.0), intensity: float = 1.0, texture: str | None = None, name: str = "Dome") -> LightSpec:
+    """A UsdLux DomeLight: uniform ``color * intensity``, or a lat-long ``texture`` file (+Y at the top row)."""
+    return LightSpec("dome", name, color=_vec3(color, f"dome '{name}': color"), intensity=float(intensity),
+                     texture=texture)
+
+
+def make_scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", **settings) -> Scene:
+    """A :class:`~warpshade.scene.Scene` of objects and lights (in any order).
+
+    Args:
+        *items: :class:`SceneObject` (from :func:`cloth_grid`, :func:`box`...), :class:`LightSpec`
+            (:func:`distant`, :func:`dome`) or :mod:`warpshade.lighting` lights (:func:`sky`).
+            Without lights the scene is lit by the default sky.
+        fps: Frames per second (one simulation step of ``1/fps`` per frame).
+        frames: Default number of frames of :func:`run`.
+        up: Up axis, ``"Y"`` or ``"Z"``.
+        **settings: Scene-wide settings, as the ``warpshade:`` attributes of a USD scene's default
+            prim (``order``, ``substeps``, ``wind``, ``reflections``...).
+    """
+    out = Scene(frames=int(frames), fps=float(fps), up_axis=str(up).upper(), settings=dict(settings), source="<script>")
+    for i, item in enumerate(items):
+        if isinstance(item, SceneObject):
+            out.objects.append(item)
+        elif isinstance(item, (LightSpec, Light)):
+            out.lights.append(item)
+        else:
+            raise TypeError(f"make_scene: item {i} is a {type(item).__name__}, not an object (cloth_grid, box, ...) "
+                            "or a light (sky, distant, dome)")
+    names = [o.name for o in out.objects]
+    dup = next((n for n in names if names.count(n) > 1), None)
+    if dup is not None:
+        raise ValueError(f"make_scene: two objects are named '{dup}'; give each a name")
+    return out
+
+
+class _Stream:
+    """Frames of a user's generator, pulled in order by the moving objects' ``points_at``."""
+
+    def __init__(self, frames, start: int):
+        self.frames, self.start, self.index, self.current = iter(frames), start, -1, None
+
+    def points(self, name: str, code: int) -> np.ndarray:
+        f = int(code) - self.start
+        while self.index < f:
+            try:
+                self.current = next(self.frames)
+            except StopIteration:
+                raise ValueError(f"geometry: the generator ended after {self.index + 1} frames; "
+                                 f"the run needs frame {f}") from None
+            self.index += 1
+        if name not in self.current:
+            raise ValueError(f"geometry: frame {f} gives no points for moving mesh '{name}' "
+                             f"(it gives {', '.join(map(str, self.current)) or 'nothing'})")
+        return self.current[name]
+
+
+def pipeline(scene: Scene, frames: int | None = None, geometry=None, **kwargs):
+    """The :class:`~warpshade.Pipeline` of a scene built here: analytic skies among its lights are
+    passed as the run's lights, and the moving meshes read their points from ``geometry`` (an
+    iterable of ``{name: points (V, 3)}``, one per frame). Other keyword arguments go to the Pipeline."""
+    from .pipeline import Pipeline, light_from_spec
+
+    objects = [dataclasses.replace(o, params=dict(o.params)) for o in scene.objects]
+    stream = _Stream(geometry, scene.start_time) if geometry is not None else None
+    for o in objects:
+        if o.kind == "animated" and "points_at" not in o.params:
+            if stream is None:
+                raise ValueError(f"mesh '{o.name}' is moving but run() got no geometry generator to move it")
+            o.params["points_at"] = lambda code, name=o.name: stream.points(name, code)
+    specs = [li for li in scene.lights if isinstance(li, LightSpec)]
+    objs = [li for li in scene.lights if not isinstance(li, LightSpec)]
+    for li in objs:
+        if isinstance(li, Sky) and li.up.upper() != scene.up_axis:
+            raise ValueError(f"sky: up='{li.up}' but the scene's up axis is '{scene.up_axis}'; give sky(up=...)")
+    if objs and "lights" not in kwargs:
+        kwargs["lights"] = objs + [light_from_spec(s, scene.up_axis) for s in specs]
+        specs = []
+    return Pipeline(dataclasses.replace(scene, objects=objects, lights=specs), frames=frames, **kwargs)
+
+
+def run(scene: Scene, out: str, frames: int | None = None, shade: bool = True, geometry=None,
+        progress: bool = False, **kwargs):
+    """Simulate, shade and write ``scene`` to ``out`` (.usda/.usdc/.usd), as ``warpshade run`` does.
+
+    Args:
+        scene: From :func:`make_scene` (or :func:`warpshade.usd.read_scene`).
+        out: Output USD path.
+        frames: Frames to produce (default: the scene's).
+        shade: False writes geometry only: the same simulation, each mesh bound to its albedo.
+        geometry: Per-frame points of the meshes declared ``moving`` (see :func:`pipeline`).
+        progress: Show a progress bar.
+        **kwargs: :class:`~warpshade.Pipeline` options (``method``, ``knobs``, ``order``, ``workers``...).
+
+    Returns:
+        The :class:`~warpshade.RunReport` (``path``, ``frames``, ``seconds``...).
+    """
+    from .pipeline import RunReport
+    from .usd import AnimationWriter
+
+    if not shade:
+        kwargs.setdefault("refine_receivers", "off")
+    pipe = pipeline(scene, frames, geometry, **kwargs)
+    writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit)
+    if shade:
+        return pipe.run(writer, progress=progress)
+    return _write_geometry(pipe, writer, RunReport)
+
+
+def _write_geometry(pipe, writer, report_type):
+    """Geometry-only output of a pipeline's simulation: points, normals, albedo as displayColor."""
+    import time
+
+    from .geometry import vertex_normals_np
+
+    t0 = time.perf_counter()
+    objs = pipe.scene.objects
+    try:
+        names = {o.name: writer.add_mesh(o.name, o.mesh.faces, o.mesh.points if o.kind == "static" else None,
+                                         normals=o.mesh.normals if o.kind == "static" else None,
+                                         albedo=o.material.albedo, roughness=o.material.roughness, shaded=False)
+                 for o in objs}
+        for f, geo in pipe.simulate():
+            for o in objs:
+                pts = geo.get(o.name, o.mesh.points)
+                colors = np.broadcast_to(np.asarray(o.material.albedo, dtype=np.float32), (len(pts), 3))
+                writer.write_frame(pipe.scene.start_time + f, names[o.name], pts,
+                                   vertex_normals_np(np.asarray(pts, dtype=np.float64), o.mesh.faces), colors)
+            if f + 1 >= pipe.frames:
+                break
+        path = writer.close()
+    except BaseException:
+        writer.abort()
+        raise
+    return report_type(path=path, frames=pipe.frames, seconds={"total": time.perf_counter() - t0},
+                       vertices=sum(o.mesh.num_vertices for o in objs))
+
+
+__all__ = ["box", "cloth", "cloth_grid", "distant", "dome", "ground", "mesh", "pipeline", "make_scene", "run", "sky",
+           "sphere"]
