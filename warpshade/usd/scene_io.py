@@ -407,7 +407,6 @@ def _check_knobs(where: str, method: str, knobs: dict) -> None:
     if key not in _PROBED:
         import inspect
 
-        from ..geometry.mesh import TriMesh as _Tri
         from ..visibility import get_method
 
         cls = get_method(method)
@@ -420,7 +419,7 @@ def _check_knobs(where: str, method: str, knobs: dict) -> None:
             _PROBED[key] = (f"warpshade:knobs:{unknown[0]}: {method} has no knob '{unknown[0]}' "
                             f"(its knobs: {', '.join(n for n in accepted if n not in ('order', 'device'))})")
         else:
-            probe = _Tri(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), np.array([[0, 1, 2]]),
+            probe = TriMesh(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), np.array([[0, 1, 2]]),
                          name="knob probe")
             try:
                 cls(probe, **{k: (v.item() if isinstance(v, np.generic) else v) for k, v in knobs.items()})
