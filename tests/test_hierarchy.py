@@ -168,3 +168,35 @@ def test_resume_and_export_keep_the_hierarchy(shaded, tmp_path):
     assert {str(p.GetPath()) for p in f.Traverse() if p.IsA(UsdGeom.Mesh)} == MESHES
     np.testing.assert_allclose(world_points(f, "/Asset/Body/Geo/Sheet", 3), world_points(a, "/Asset/Body/Geo/Sheet", 3),
                                atol=1e-6)
+
+
+def test_two_sided_cloth_under_a_transformed_parent(tmp_path):
+    """A cloth under a moved, scaled parent: front at its input path, back beside it, both in the
+    parent's space, on the same world points."""
+    src = tmp_path / "rig.usda"
+    stage = Usd.Stage.CreateNew(str(src))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    rig = UsdGeom.Xform.Define(stage, "/Rig")
+    rig.AddTranslateOp().Set(Gf.Vec3d(0.5, 1.0, 0.0))
+    rig.AddScaleOp().Set(Gf.Vec3f(2.0, 2.0, 2.0))
+    stage.SetDefaultPrim(rig.GetPrim())
+    drape = UsdGeom.Mesh.Define(stage, "/Rig/Drape")
+    n = 5
+    u = np.linspace(-0.25, 0.25, n)
+    drape.CreatePointsAttr([Gf.Vec3f(float(x), 0.0, float(z)) for z in u for x in u])
+    quads = [(j * n + i, (j + 1) * n + i, (j + 1) * n + i + 1, j * n + i + 1) for j in range(n - 1) for i in range(n - 1)]
+    drape.CreateFaceVertexCountsAttr([4] * len(quads))
+    drape.CreateFaceVertexIndicesAttr(np.ravel(quads).tolist())
+    prim = drape.GetPrim()
+    prim.CreateAttribute("warpshade:kind", Sdf.ValueTypeNames.String, custom=True).Set("cloth")
+    prim.CreateAttribute("warpshade:pinned", Sdf.ValueTypeNames.IntArray, custom=True).Set([0, n - 1])
+    stage.GetRootLayer().Save()
+    out = tmp_path / "o.usda"
+    assert main(["run", str(src), "--out", str(out), "--frames", "3"] + CLI_QUICK) == 0
+    res = Usd.Stage.Open(str(out))
+    assert {str(p.GetPath()) for p in res.Traverse() if p.IsA(UsdGeom.Mesh)} == {"/Rig/Drape", "/Rig/Drape_back"}
+    for t in (0, 2):
+        np.testing.assert_allclose(world_points(res, "/Rig/Drape_back", t), world_points(res, "/Rig/Drape", t), atol=1e-6)
+    # pinned corners stay where the input puts them in world space: (0.5, 1, 0) + 2 * (+-0.25, 0, -0.25)
+    np.testing.assert_allclose(world_points(res, "/Rig/Drape", 2)[[0, n - 1]], [[0.0, 1.0, -0.5], [1.0, 1.0, -0.5]],
+                               atol=1e-5)

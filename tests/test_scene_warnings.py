@@ -92,3 +92,51 @@ def test_dark_light_warns_with_its_name(tmp_path):
     msgs = _warnings_of(_scene(tmp_path, build), frames=1)
     assert any(m.startswith("/World/Sun") and "gives no light" in m for m in msgs), msgs
     assert not any(m.startswith("/World/Sky") for m in msgs), msgs
+
+
+def _read_warnings(tmp_path, build):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _scene(tmp_path, build)
+    return [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
+
+
+def test_unmarked_sheet_that_looks_like_cloth_warns(tmp_path):
+    def build(stage, kind=None, n=9):
+        _grid(stage, "/World/Floor", n=2, size=4.0)
+        sheet = _grid(stage, "/World/Sheet", n=n, y=1.0)
+        if kind:
+            sheet.GetPrim().CreateAttribute("warpshade:kind", Sdf.ValueTypeNames.String, custom=True).Set(kind)
+
+    msgs = _read_warnings(tmp_path, build)
+    cloth_like = [m for m in msgs if "looks like cloth" in m]
+    assert len(cloth_like) == 1 and cloth_like[0].split(": ")[0].endswith(":/World/Sheet"), msgs
+    assert 'warpshade:kind = "cloth"' in cloth_like[0] and "81 vertices" in cloth_like[0]
+    # marked static on purpose, or too coarse to be a cloth (a 3 x 3 grid): no warning
+    assert not any("looks like cloth" in m for m in _read_warnings(tmp_path, lambda st: build(st, kind="static")))
+    assert not any("looks like cloth" in m for m in _read_warnings(tmp_path, lambda st: build(st, n=3)))
+
+
+def test_fine_floor_below_everything_does_not_look_like_cloth(tmp_path):
+    def build(stage):
+        _grid(stage, "/World/Floor", n=20, size=4.0)  # 400 vertices, open and flat, but the lowest
+        UsdGeom.Cube.Define(stage, "/World/Box").AddTranslateOp().Set(Gf.Vec3d(0.0, 1.0, 0.0))
+
+    assert not any("looks like cloth" in m for m in _read_warnings(tmp_path, build))
+
+
+@pytest.mark.parametrize("name, value, message", [
+    ("rays", -5, "warpshade:knobs:rays: must be >= 1, got -5"),
+    ("bogus", 3, "warpshade:knobs:bogus: reference has no knob 'bogus'"),
+])
+def test_invalid_scene_knob_names_the_prim_and_attribute(tmp_path, name, value, message):
+    from warpshade.scene import SceneError
+
+    def build(stage):
+        prim = _cloth(stage).GetPrim()
+        prim.CreateAttribute("warpshade:method", Sdf.ValueTypeNames.String, custom=True).Set("reference")
+        prim.CreateAttribute(f"warpshade:knobs:{name}", Sdf.ValueTypeNames.Int, custom=True).Set(value)
+
+    with pytest.raises(SceneError) as err:
+        _scene(tmp_path, build)
+    assert f"scene.usda:/World/Cloth: {message}" in str(err.value)

@@ -150,7 +150,7 @@ def test_run_reflections_follow_a_skinned_arm(tmp_path):
     sums, ref_sums = [], []
     for f in (0, 12):
         g0, gp, gn = get("plain", "/World/Ground", f)
-        t0, tp, _ = get("plain", "/World/Tube", f)
+        t0, tp, _ = get("plain", "/World/Arm/Tube", f)
         g1 = get("bounce", "/World/Ground", f)[0]
         assert not np.array_equal(tp, arm.mesh.points) or f == 0
         meshes = [TriMesh(gp, ground.mesh.faces), TriMesh(tp, arm.mesh.faces)]

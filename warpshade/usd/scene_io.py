@@ -105,6 +105,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         from ..pipeline import default_method as fastest
 
         default_method = fastest()
+    unmarked = []  # meshes whose kind was not authored
     it = iter(Usd.PrimRange(stage.GetPseudoRoot()))
     for prim in it:
         if prim.IsPseudoRoot():
@@ -124,6 +125,8 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             continue  # the back side of a two-sided warpshade output: the front carries warpshade:twoSided
         if prim.IsA(UsdGeom.Mesh):
             scene.objects.append(_read_mesh(prim, source, cache, default_method))
+            if not prim.HasAttribute("warpshade:kind"):
+                unmarked.append(scene.objects[-1])
         elif prim.IsA(UsdGeom.Sphere):
             scene.objects.append(_read_sphere(prim, source, default_method))
         elif tname in _GPRIMS:
@@ -137,7 +140,42 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             it.PruneChildren()
     if not scene.objects:
         raise SceneError(f"{source}: no Mesh or gprim (Sphere, Cube, Cylinder, Capsule, Cone, Plane) to shade")
+    for obj in unmarked:
+        if _looks_like_cloth(obj, scene):
+            warnings.warn(f"{source}:{obj.prim_path}: looks like cloth (an open, flat sheet of {obj.mesh.num_vertices} "
+                          'vertices, above the lowest object, not a collider) but has no warpshade:kind, so it stays '
+                          'static: add custom token warpshade:kind = "cloth" to simulate it, or "static" to keep it '
+                          "still", SceneWarning, stacklevel=2)
     return scene
+
+
+CLOTH_LIKE_MIN_VERTICES = 64
+"""A static, unmarked mesh needs at least this many vertices (an 8 x 8 grid) to look like cloth;
+a 2-triangle ground or a quad has 4."""
+
+
+def _looks_like_cloth(obj, scene) -> bool:
+    """Whether a static mesh whose kind was not authored looks like a sheet meant to be simulated:
+    open (it has boundary edges), flat (its thinnest extent at most 5 % of its widest), at least
+    :data:`CLOTH_LIKE_MIN_VERTICES` vertices, no collider mark, and not the scene's floor (its lowest
+    point above the lowest point of the other objects by 1 % of the scene's size)."""
+    if obj.kind != "static" or obj.params.get("collider") or obj.mesh.num_vertices < CLOTH_LIKE_MIN_VERTICES:
+        return False
+    pts = obj.mesh.points
+    ext = np.ptp(pts, axis=0)
+    if not ext.max() > 0 or ext.min() > 0.05 * ext.max():
+        return False
+    edges = np.sort(obj.mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    if not np.any(counts == 1):
+        return False
+    others = [o.mesh.points for o in scene.objects if o is not obj]
+    if not others:
+        return False
+    up = {"X": 0, "Y": 1, "Z": 2}.get(scene.up_axis, 1)
+    allpts = np.concatenate(others + [pts])
+    size = float(np.linalg.norm(np.ptp(allpts, axis=0)))
+    return float(pts[:, up].min()) > float(np.concatenate(others)[:, up].min()) + 0.01 * size
 
 
 # -- meshes -------------------------------------------------------------------------------------
@@ -339,6 +377,8 @@ def _object(prim, where, tri, kind, settings, params, default_method, material) 
 
         if method not in METHODS:
             raise SceneError(f"{where}: warpshade:method '{method}' is unknown (known: {', '.join(sorted(METHODS))}, none)")
+    if knobs and method is not None:
+        _check_knobs(where, method, knobs)
     params.update({k: v for k, v in settings.items()
                    if not k.startswith("knobs:") and k not in ("shaded", "castsShadows", "twoSided")})
     two_sided = settings.get("twoSided")
@@ -352,6 +392,44 @@ def _object(prim, where, tri, kind, settings, params, default_method, material) 
                            two_sided=None if two_sided is None else bool(two_sided))
     except ValueError as exc:
         raise SceneError(f"{where}: {exc}") from None
+
+
+_PROBED: dict = {}
+"""(method, knobs) -> error message or None: knob sets already probed by :func:`_check_knobs`."""
+
+
+def _check_knobs(where: str, method: str, knobs: dict) -> None:
+    """Refuse, when the scene is read, a ``warpshade:knobs:*`` value the method rejects, naming the
+    prim and the attribute: the method is built once on a one-triangle probe mesh with the knobs
+    (the method's own checks, no copy of them; once per distinct method and knobs). Errors that
+    name no knob (a limit of the probe mesh) are left to the real build."""
+    key = (method, tuple(sorted((k, repr(v)) for k, v in knobs.items())))
+    if key not in _PROBED:
+        import inspect
+
+        from ..visibility import get_method
+
+        cls = get_method(method)
+        accepted = [n for n, p in inspect.signature(cls.__init__).parameters.items()
+                    if p.kind is p.KEYWORD_ONLY or (p.kind is p.POSITIONAL_OR_KEYWORD and n not in ("self", "mesh"))]
+        takes_any = any(p.kind is p.VAR_KEYWORD for p in inspect.signature(cls.__init__).parameters.values())
+        _PROBED[key] = None
+        unknown = [k for k in knobs if k not in accepted and not takes_any]
+        if unknown:
+            _PROBED[key] = (f"warpshade:knobs:{unknown[0]}: {method} has no knob '{unknown[0]}' "
+                            f"(its knobs: {', '.join(n for n in accepted if n not in ('order', 'device'))})")
+        else:
+            probe = TriMesh(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), np.array([[0, 1, 2]]),
+                         name="knob probe")
+            try:
+                cls(probe, **{k: (v.item() if isinstance(v, np.generic) else v) for k, v in knobs.items()})
+            except (TypeError, ValueError) as exc:
+                msg = str(exc)
+                named = msg.split(" ", 1)[0]
+                if named in knobs:
+                    _PROBED[key] = f"warpshade:knobs:{named}: {msg[len(named):].strip()}"
+    if _PROBED[key]:
+        raise SceneError(f"{where}: {_PROBED[key]}")
 
 
 def _xform_varies(prim) -> bool:
