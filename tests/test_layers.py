@@ -35,7 +35,7 @@ LAYERS = [
     {"radiance", "radiance_kernels", "parallel", "_dask_plugin", "preview"},
     {"pipeline", "planner"},
     {"usd", "bench"},
-    {"cli", "__main__", "warpshade"},
+    {"cli", "__main__", "warpshade", "script"},
 ]
 
 # Imports forbidden although the layer order allows them: the USD boundary converts files to and

@@ -253,15 +253,30 @@ def grow_mark(
 def revert_marked(
     mark: wp.array[int],
     inv_mass: wp.array[float],
+    streak: wp.array[int],
+    max_streak: int,
     x_start: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
     reverted: wp.array[int],
 ):
-    """Free marked vertices go back to their start-of-step positions."""
+    """Free marked vertices go back to their start-of-step positions, unless they were sent back
+    in each of the last ``max_streak`` steps (then reverting cannot resolve their intersection and
+    would hold them in place for ever: they are released)."""
     i = wp.tid()
-    if mark[i] != 0 and inv_mass[i] > 0.0:
+    if mark[i] != 0 and inv_mass[i] > 0.0 and streak[i] < max_streak:
         x[i] = x_start[i]
         reverted[i] = 1
+
+
+@wp.kernel
+def update_streaks(reverted: wp.array[int], streak: wp.array[int]):
+    """Consecutive steps in which each vertex was sent back (0 after a step it was not; a released
+    vertex starts again from 0)."""
+    i = wp.tid()
+    if reverted[i] != 0:
+        streak[i] = streak[i] + 1
+    else:
+        streak[i] = 0
 
 
 @wp.kernel

@@ -155,6 +155,7 @@ class XPBDSolver:
             self._mark = wp.zeros(v, dtype=wp.int32, device=d)
             self._mark2 = wp.zeros(v, dtype=wp.int32, device=d)
             self._reverted = wp.zeros(v, dtype=wp.int32, device=d)
+            self._streak = wp.zeros(v, dtype=wp.int32, device=d)
             self._x_grown = wp.zeros(v, dtype=wp.vec3, device=d)
             self._reverted_grown = wp.zeros(v, dtype=wp.int32, device=d)
 
@@ -357,6 +358,11 @@ class XPBDSolver:
     GUARD_ROUNDS = 6
     """Rounds of the intersection guard that grow the reverted region by one ring each; the round
     after them reverts every free vertex."""
+    GUARD_STREAK = 3
+    """A vertex sent back in this many consecutive steps is released (not sent back) in the next:
+    its intersection is one reverting cannot resolve (a triangle draped over an analytic box's edge,
+    which only vertex contacts hold), and reverting it for ever would hang it in the air. The step
+    is then counted in ``stats()["guard_unresolved"]``."""
 
     def _guard_intersections(self, x, v, dt: float) -> None:
         """Send the vertices of intersecting triangles back to their start-of-step positions
@@ -393,14 +399,15 @@ class XPBDSolver:
                 wp.copy(self._mark2, self._mark)
                 wp.launch(ck.grow_mark, dim=m.edge_count, inputs=[m.edges, self._mark], outputs=[self._mark2], device=d)
                 self._mark, self._mark2 = self._mark2, self._mark
-            wp.launch(ck.revert_marked, dim=n, inputs=[self._mark, m.inv_mass, self._x_start],
-                      outputs=[x, self._reverted], device=d)
+            wp.launch(ck.revert_marked, dim=n, inputs=[self._mark, m.inv_mass, self._streak, self.GUARD_STREAK,
+                                                        self._x_start], outputs=[x, self._reverted], device=d)
             if col is not None:
                 col.collide(m.thickness, m.inv_mass, self._x_start, x)
         if self.guard_vertices:
             wp.launch(ck.reverted_velocities, dim=n, inputs=[self._reverted, self._x_start, x, dt], outputs=[v],
                       device=d)
             self.guard_vertices = int(self._reverted.numpy().sum())
+        wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
 
     def _first_nonfinite(self, x, v) -> int:
         n = self.model.particle_count
