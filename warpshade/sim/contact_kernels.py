@@ -253,19 +253,31 @@ def grow_mark(
 def revert_marked(
     mark: wp.array[int],
     inv_mass: wp.array[float],
-    streak: wp.array[int],
-    max_streak: int,
     x_start: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
     reverted: wp.array[int],
 ):
-    """Free marked vertices go back to their start-of-step positions, unless they were sent back
-    in each of the last ``max_streak`` steps (then reverting cannot resolve their intersection and
-    would hold them in place for ever: they are released)."""
+    """Free marked vertices go back to their start-of-step positions."""
     i = wp.tid()
-    if mark[i] != 0 and inv_mass[i] > 0.0 and streak[i] < max_streak:
+    if mark[i] != 0 and inv_mass[i] > 0.0:
         x[i] = x_start[i]
         reverted[i] = 1
+
+
+@wp.kernel
+def drop_released(streak: wp.array[int], max_streak: int, mark: wp.array[int], held: wp.array[int],
+                  released: wp.array[int]):
+    """Unmark the vertices sent back in each of the last ``max_streak`` steps (released: an
+    intersection reverting has not resolved in that many steps would otherwise hold them in place
+    for ever, a cloth hung in the air); ``held[0]`` counts the vertices left marked, ``released[0]``
+    those unmarked."""
+    i = wp.tid()
+    if mark[i] != 0:
+        if streak[i] < max_streak:
+            wp.atomic_add(held, 0, 1)
+        else:
+            mark[i] = 0
+            wp.atomic_add(released, 0, 1)
 
 
 @wp.kernel

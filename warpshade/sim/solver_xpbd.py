@@ -110,6 +110,7 @@ class XPBDSolver:
         self.contact_overflow = 0
         self.guard_steps = 0
         self.guard_unresolved = 0
+        self.guard_released = 0
         self.guard_vertices = 0
 
         v, f, d = model.particle_count, model.tri_count, self.device
@@ -156,6 +157,8 @@ class XPBDSolver:
             self._mark2 = wp.zeros(v, dtype=wp.int32, device=d)
             self._reverted = wp.zeros(v, dtype=wp.int32, device=d)
             self._streak = wp.zeros(v, dtype=wp.int32, device=d)
+            self._held = wp.zeros(1, dtype=wp.int32, device=d)
+            self._released = wp.zeros(1, dtype=wp.int32, device=d)
             self._x_grown = wp.zeros(v, dtype=wp.vec3, device=d)
             self._reverted_grown = wp.zeros(v, dtype=wp.int32, device=d)
 
@@ -359,10 +362,11 @@ class XPBDSolver:
     """Rounds of the intersection guard that grow the reverted region by one ring each; the round
     after them reverts every free vertex."""
     GUARD_STREAK = 3
-    """A vertex sent back in this many consecutive steps is released (not sent back) in the next:
-    its intersection is one reverting cannot resolve (a triangle draped over an analytic box's edge,
-    which only vertex contacts hold), and reverting it for ever would hang it in the air. The step
-    is then counted in ``stats()["guard_unresolved"]``."""
+    """A vertex sent back in this many consecutive steps is released (no longer sent back) until a
+    step where it is not: the guard is a safety net on top of the contacts, and an intersection the
+    contacts keep re-making (cloth crumpling at high speed onto a box's edge, which only vertex
+    contacts hold) would otherwise hang the cloth in the air for ever. Released vertices are counted
+    in ``stats()["guard_released"]``."""
 
     def _guard_intersections(self, x, v, dt: float) -> None:
         """Send the vertices of intersecting triangles back to their start-of-step positions
@@ -379,6 +383,14 @@ class XPBDSolver:
             found = c.self_pairs(x, self._mark)[0]
             if col is not None:
                 found += c.collider_pairs(x, col, self._mark)[0]
+            if found:
+                self._held.zero_()
+                self._released.zero_()
+                wp.launch(ck.drop_released, dim=n, inputs=[self._streak, self.GUARD_STREAK],
+                          outputs=[self._mark, self._held, self._released], device=d)
+                found = int(self._held.numpy()[0])
+                if r == 0:
+                    self.guard_released += int(self._released.numpy()[0])
             if found == 0:
                 break
             if r == 0:
@@ -395,12 +407,14 @@ class XPBDSolver:
                 wp.copy(self._x_grown, x)
                 wp.copy(self._reverted_grown, self._reverted)
                 self._mark.fill_(1)
+                wp.launch(ck.drop_released, dim=n, inputs=[self._streak, self.GUARD_STREAK],
+                          outputs=[self._mark, self._held, self._released], device=d)
             for _ in range(r):
                 wp.copy(self._mark2, self._mark)
                 wp.launch(ck.grow_mark, dim=m.edge_count, inputs=[m.edges, self._mark], outputs=[self._mark2], device=d)
                 self._mark, self._mark2 = self._mark2, self._mark
-            wp.launch(ck.revert_marked, dim=n, inputs=[self._mark, m.inv_mass, self._streak, self.GUARD_STREAK,
-                                                        self._x_start], outputs=[x, self._reverted], device=d)
+            wp.launch(ck.revert_marked, dim=n, inputs=[self._mark, m.inv_mass, self._x_start],
+                      outputs=[x, self._reverted], device=d)
             if col is not None:
                 col.collide(m.thickness, m.inv_mass, self._x_start, x)
         if self.guard_vertices:
@@ -438,6 +452,7 @@ class XPBDSolver:
         if self.guard:
             out["guard_steps"] = self.guard_steps
             out["guard_unresolved"] = self.guard_unresolved
+            out["guard_released"] = self.guard_released
         return out
 
     def knobs(self) -> dict:
