@@ -179,5 +179,6 @@ def test_draped_pose_is_simulated_deterministically_and_cached(tmp_path):
     for m in (b, c):
         assert np.array_equal(m.rest.faces, a.rest.faces) and np.array_equal(m.rest.points, a.rest.points)
         assert np.array_equal(m.frame, a.frame)
-    # it fell from 0.6 m onto the ball (top at 0.5 m; 12 frames of free fall would be 0.2 m)
-    assert a.frame[:, 1].max() < 0.6 - 0.09
+    # it fell from 0.6 m onto the ball (top at 0.5 m; 12 frames of free fall would be 0.2 m): no
+    # vertex is left more than 3 cm above the ball's top (measured 1.8 cm with the intersection guard)
+    assert a.frame[:, 1].max() < 0.5 + 0.03
