@@ -184,9 +184,10 @@ if __name__ == "__main__":
 '''
 
 
-def children_of(pid: int) -> set[int]:
-    """Live child processes of ``pid`` (from /proc)."""
-    out = set()
+def live_processes() -> dict[int, list[str]]:
+    """``{pid: /proc/PID/stat fields after the command name}`` of every live (not zombie) process:
+    fields[0] state, [1] ppid, [2] pgrp, [3] session."""
+    out = {}
     for d in os.listdir("/proc"):
         if d.isdigit():
             try:
@@ -194,9 +195,14 @@ def children_of(pid: int) -> set[int]:
                     fields = f.read().rsplit(")", 1)[1].split()
             except OSError:
                 continue
-            if int(fields[1]) == pid and fields[0] != "Z":
-                out.add(int(d))
+            if fields[0] != "Z":
+                out[int(d)] = fields
     return out
+
+
+def children_of(pid: int) -> set[int]:
+    """Live child processes of ``pid`` (from /proc)."""
+    return {p for p, fields in live_processes().items() if int(fields[1]) == pid}
 
 
 def alive(pids) -> set[int]:

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom
 
+from test_resume import _InterruptingWriter
 from warpshade.cli import main
 from warpshade.pipeline import Pipeline
 from warpshade.usd import AnimationWriter, read_scene
@@ -132,19 +133,6 @@ def test_python_objects_keep_world_paths_beside_input_hierarchy(tmp_path):
     stage = Usd.Stage.Open(str(out))
     assert {str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)} == MESHES | {"/World/Extra"}
     assert str(stage.GetDefaultPrim().GetPath()) == "/Asset"
-
-
-class _InterruptingWriter(AnimationWriter):
-    """Stands in for Ctrl-C arriving while frame ``at`` is being written."""
-
-    def __init__(self, *a, at: int, **kw):
-        super().__init__(*a, **kw)
-        self.at = at
-
-    def write_frame(self, frame, *a, **kw):
-        if frame == self.at:
-            raise KeyboardInterrupt
-        super().write_frame(frame, *a, **kw)
 
 
 def test_resume_and_export_keep_the_hierarchy(shaded, tmp_path):

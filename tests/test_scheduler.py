@@ -16,6 +16,7 @@ import time
 
 import pytest
 
+from test_faults import live_processes
 from test_resume import COMMON, FRAMES, SCENE, assert_same_frames, frames_of
 from warpshade.cli import main
 from warpshade.cluster import is_loopback, scheduler_security, stop_sessions, unencrypted_remote
@@ -31,17 +32,7 @@ RUN_TIMEOUT = 300  # s: a cold Warp kernel cache compiles for about a minute on 
 
 def session_members(leaders: list[int]) -> set[int]:
     """Live processes whose session is led by one of ``leaders`` (from /proc)."""
-    out = set()
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                with open(f"/proc/{d}/stat") as f:
-                    fields = f.read().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if fields[0] != "Z" and int(fields[3]) in leaders:  # state, ppid, pgrp, session
-                out.add(int(d))
-    return out
+    return {p for p, fields in live_processes().items() if int(fields[3]) in leaders}
 
 
 def alive(pids) -> set[int]:
