@@ -108,7 +108,8 @@ def main(argv=None) -> int:
         [m for g in pipe.groups for m in g.meshes],
         np.cumsum([0] + [m.num_vertices for g in pipe.groups for m in g.meshes])[:-1])])
     print(f"rect-light term on {os.path.basename(args.scene)}: {len(albedo)} vertices, {len(faces)} triangles; "
-          f"SH order {pipe.order}, transfer {pipe.groups[0].method} {pipe.groups[0].knobs}, GEARS k=16 grid=16; "
+          f"SH order {pipe.order}, transfer {pipe.groups[0].method} {pipe.groups[0].label}, GEARS "
+          f"k={pipe.config.area_knobs['k']} grid={pipe.config.area_knobs['grid']}; "
           f"reference {args.seeds}x32x32 jittered rays per vertex")
     print(f"{'frame':>5} {'shadowed':>8} {'ref noise':>9} {'sh err':>7} {'gears err':>9} {'gears-area':>10}   "
           f"{'sh err (shadow)':>15} {'gears (shadow)':>14} {'gears-area (shadow)':>19}")

@@ -83,7 +83,7 @@ def main(argv=None) -> int:
         # one group per object, no visibility method: isolates the passes measured here
         groups = [_Group(GroupSpec(None, {}, [o.name], [o.mesh], [np.ones(3)], [False]), order, "cpu") for o in objs]
         geo = {}
-        updated = [g.update(geo) for g in groups]
+        updated = [g.update(geo)[1] for g in groups]  # (points, transfer, normals) per group
         v_all = sum(g.mesh.num_vertices for g in groups)
 
         def log(kind, features, sec):
@@ -92,7 +92,7 @@ def main(argv=None) -> int:
 
         def fresh(g):
             g.cached = None  # a group whose members do not move caches its transfer
-            return g.update(geo)
+            return g.update(geo)[1]
 
         for g in groups:
             log("unoccluded", [1, g.mesh.num_vertices], median_seconds(lambda g=g: fresh(g), repeat=rep))
@@ -102,7 +102,9 @@ def main(argv=None) -> int:
             between = between[-1]
             log("between_build", [len(groups), sum(g.mesh.num_faces for g in groups)], sec)
             for i, g in enumerate(groups):
-                sec = median_seconds(lambda i=i: _shadow_by_others(between[i], i, updated, "cpu"), repeat=rep)
+                pts, tr, nrm = updated[i]
+                sec = median_seconds(lambda i=i, pts=pts, tr=tr, nrm=nrm: _shadow_by_others(
+                    between[i], i, pts, tr, nrm, updated, "cpu"), repeat=rep)
                 log("between_frame", [1, g.mesh.num_vertices * (len(groups) - 1)], sec)
         lights = [light_from_spec(s, scene.up_axis) for s in scene.lights]
         pts = np.concatenate([u[0] for u in updated])
@@ -117,7 +119,7 @@ def main(argv=None) -> int:
             log("lights_local", [v_all * len(local)], median_seconds(lambda: lights_sh(local, order, pts), repeat=rep))
         rect = [li for li in lights if is_area_light(li)]
         if rect:
-            area = AreaLightShading([g.mesh for g in groups], rect)
+            area = AreaLightShading([g.mesh for g in groups], rect)  # the run's GEARS knobs (DEFAULT_AREA_KNOBS)
             area.irradiance(0.0, [u[0] for u in updated], [u[2] for u in updated])  # masks for the weighting
 
             def weigh():  # what AreaLightShading.irradiance adds to the GEARS masks

@@ -12,16 +12,17 @@ from warpshade.lighting import RectLight, default_environment, spin
 from warpshade.planner import estimate_seconds, make_plan, naive_seconds
 from warpshade.scene import Material, Scene, SceneObject
 
-# Hand-built frontier (numbers invented for the test, not measured): two methods at order 5.
+# Hand-built frontier (numbers invented for the test, not measured): four methods at order 4, the
+# order `warpshade run` and make_plan default to (pipeline.config.DEFAULT_ORDER).
 FRONTIER = {"configs": [
-    {"method": "reference", "order": 5, "knobs": {"rays": 1024}, "error": 0.015, "error_p95": 0.02,
+    {"method": "reference", "order": 4, "knobs": {"rays": 1024}, "error": 0.015, "error_p95": 0.02,
      "timings": [{"mesh": "a", "vertices": 1000, "triangles": 2000, "seconds": 0.5, "build_seconds": 0.01}]},
-    # what `warpshade run` uses for "reference" without knobs (pipeline.DEFAULT_KNOBS)
-    {"method": "reference", "order": 5, "knobs": {"rays": 256}, "error": 0.035, "error_p95": 0.05,
+    # what `warpshade run` uses for "reference" without knobs (pipeline.config.RUN_KNOBS)
+    {"method": "reference", "order": 4, "knobs": {"rays": 256}, "error": 0.035, "error_p95": 0.05,
      "timings": [{"mesh": "a", "vertices": 1000, "triangles": 2000, "seconds": 0.125, "build_seconds": 0.01}]},
-    {"method": "hemiraster", "order": 5, "knobs": {"mask": 32}, "error": 0.04, "error_p95": 0.1,
+    {"method": "hemiraster", "order": 4, "knobs": {"mask": 32}, "error": 0.04, "error_p95": 0.1,
      "timings": [{"mesh": "a", "vertices": 1000, "triangles": 2000, "seconds": 0.1, "build_seconds": 0.2}]},
-    {"method": "disks", "order": 5, "knobs": {"lod": 2.0}, "error": 0.2, "error_p95": 0.3,
+    {"method": "disks", "order": 4, "knobs": {"lod": 2.0}, "error": 0.2, "error_p95": 0.3,
      "timings": [{"mesh": "a", "vertices": 1000, "triangles": 2000, "seconds": 0.01, "build_seconds": 0.0}]},
 ]}
 

@@ -148,7 +148,7 @@ def test_scene_shader_pickles_for_worker_processes():
     shade = clone.build()
     tube = scene.object("/World/Arm/Tube")
     out = shade(3, {tube.name: tube.params["points_at"](3)})
-    assert set(out) == {"/World/Ground", "/World/Arm/Tube", "_seconds", "_build_seconds"}
+    assert set(out) == {"/World/Ground", "/World/Arm/Tube", "_seconds", "_build_seconds", "_passes"}
     assert np.allclose(out[tube.name][0], tube.params["points_at"](3))
 
 

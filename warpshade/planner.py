@@ -266,20 +266,23 @@ class Plan:
     """The area-light pass reruns every frame (something moves, or a rect light does)."""
     area_k: int = 16
     """GEARS light samples per side the area-light pass is costed at."""
+    passes: list = field(default_factory=list)
+    """The run's pass graph (:meth:`warpshade.pipeline.shading.SceneShader.passes`), in execution order, each
+    ``{"pass": key, "every_frame": bool, "seconds": estimate}``: what the run computes every frame, and what
+    only on the first (nothing it depends on moves)."""
 
     @property
     def run_seconds_per_frame(self) -> float:
-        """Estimated ``shade`` time per frame of ``warpshade run`` on this scene [s] (every group and the
-        area-light pass; the first frame's transfer of static groups and area pass of a static scene
-        excluded, they are counted in :attr:`run_seconds_setup`)."""
-        return sum(g.seconds_frame for g in self.groups) + (self.seconds_area if self.area_moves else 0.0)
+        """Estimated ``shade`` time per frame of ``warpshade run`` on this scene [s]: the passes of the pass graph
+        the run recomputes every frame (the first frame's other passes are in :attr:`run_seconds_setup`)."""
+        return sum(p["seconds"] for p in self.passes if p["every_frame"])
 
     @property
     def run_seconds_setup(self) -> float:
-        """Estimated one-off cost of a run [s]: method structures, sphere trees, LUT, static groups' transfer."""
-        return (sum(g.seconds_build + (0.0 if g.moves else g.seconds_transfer) for g in self.groups)
-                + self.seconds_setup_between + self.seconds_setup_structures
-                + (0.0 if self.area_moves else self.seconds_area))
+        """Estimated one-off cost of a run [s]: method structures, sphere trees, LUT, and the passes computed
+        on the first frame only."""
+        return (sum(g.seconds_build for g in self.groups) + self.seconds_setup_between + self.seconds_setup_structures
+                + sum(p["seconds"] for p in self.passes if not p["every_frame"]))
 
     def object(self, name: str) -> ObjectPlan:
         for o in self.objects:
@@ -377,15 +380,10 @@ def _is_local(light) -> bool:
 
 
 def default_knobs(method: str) -> dict:
-    """A method's default knobs, from its own command-line defaults (``add_arguments``)."""
-    import argparse
-
+    """A method's default knobs (its knob schema, :attr:`warpshade.visibility.VisibilityMethod.SCHEMA`)."""
     from .visibility import get_method
 
-    cls = get_method(method)
-    p = argparse.ArgumentParser(add_help=False)
-    cls.add_arguments(p)
-    return cls.knobs_from_args(p.parse_args([]))
+    return get_method(method).default_knobs()
 
 
 def _choose(obj: SceneObject, order: int, max_error: float | None, frontier: dict) -> tuple:
@@ -404,16 +402,18 @@ def _choose(obj: SceneObject, order: int, max_error: float | None, frontier: dic
         return best["method"], knobs, best, f"fastest measured within error {max_error}"
     if obj.method is None:
         return None, {}, None, ""
-    knobs = dict(obj.knobs) or _run_default_knobs(obj.method)
+    from .pipeline.config import knob_label, resolve_knobs
+
+    knobs = knob_label(obj.method, resolve_knobs(obj.method, obj.knobs))
     cfg, _ = find_config(frontier, obj.method, order, knobs)
     return obj.method, knobs, cfg, "as the scene asks"
 
 
 def _run_default_knobs(method: str) -> dict:
-    """Knobs ``warpshade run`` gives a method the scene names without knobs (``pipeline.DEFAULT_KNOBS``)."""
-    from .pipeline import DEFAULT_KNOBS
+    """Knobs ``warpshade run`` gives a method the scene names without knobs (:data:`warpshade.pipeline.config.RUN_KNOBS`)."""
+    from .pipeline.config import RUN_KNOBS
 
-    return dict(DEFAULT_KNOBS.get(method, {}))
+    return dict(RUN_KNOBS.get(method, {}))
 
 
 def find_config(frontier: dict, method: str, order: int, knobs: dict) -> tuple[dict | None, str]:
@@ -442,35 +442,46 @@ def find_config(frontier: dict, method: str, order: int, knobs: dict) -> tuple[d
 
 
 def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str | None = None,
-              between: str | None = "spheres", area_lights: str = "gears", area_k: int = 16,
-              two_sided: str = "auto") -> Plan:
-    """Build the :class:`Plan` of ``scene``.
+              between: str | None = "spheres", area_lights: str = "gears", area_k: int | None = None,
+              two_sided: str = "auto", order: int | None = None, reflections=None, config=None) -> Plan:
+    """Build the :class:`Plan` of ``scene``: the run configuration ``warpshade run`` resolves for it
+    (:func:`warpshade.pipeline.config.resolve_run`, the same defaults), its shading groups, and the
+    per-frame passes of its pass graph (:meth:`warpshade.pipeline.shading.SceneShader.passes`) costed.
 
     Args:
         scene: The scene.
         max_error: Error budget (mean relative L2 transfer error, :mod:`warpshade.metrics`); when set,
             each object's method is chosen from the frontier, overriding the scene's choice.
         frontier: Frontier dict, a path (frontier or ``results.json``), or None for the shipped one.
-        between: The run's between-group shadows (``"spheres"`` or None, as ``warpshade run --between``),
-            for :attr:`Plan.groups`.
+        between: The run's between-group shadows (``"spheres"`` or None, as ``warpshade run --between``).
         area_lights: How the run shades rect lights (``warpshade run --area-lights``): ``"gears"``
             (exact irradiance with GEARS visibility over all shaded objects, :mod:`warpshade.pipeline.area`)
             or ``"sh"`` (projected to SH, costed as a local light).
-        area_k: GEARS light samples per side (``warpshade run --area-k``), costed from the frontier's GEARS
-            record at this k (the nearest measured k otherwise).
+        area_k: GEARS light samples per side (``warpshade run --area-k``; None: the run's default),
+            costed from the frontier's GEARS record at this k (the nearest measured k otherwise).
         two_sided: Which objects the run shades on both sides (``warpshade run --two-sided``,
             :func:`warpshade.pipeline.shading.is_two_sided`), costed in :attr:`GroupPlan.seconds_back`.
+        order: SH order (None: the scene's ``warpshade:order``, else the run's default).
+        reflections: As ``warpshade run --reflections`` (None: the scene's ``warpshade:reflections``).
+        config: A resolved :class:`~warpshade.pipeline.config.RunConfig` instead of the options above.
 
     Raises:
-        ValueError: an empty scene, or no configuration within ``max_error``.
+        ValueError: an empty scene, a bad option, or no configuration within ``max_error``.
     """
+    from .pipeline.config import resolve_run
+
+    if config is None:
+        config = resolve_run(scene, order=order, between=between, reflections=reflections, area_lights=area_lights,
+                             area_knobs=None if area_k is None else {"k": area_k}, two_sided=two_sided)
+    between, area_lights, two_sided = config.between, config.area_lights, config.two_sided
+    area_k = config.area_knobs["k"]
     if not scene.objects:
         raise ValueError(f"{scene.source}: scene has no objects")
     if max_error is None:
         max_error = scene.settings.get("max_error")
     fr = frontier if isinstance(frontier, dict) else load_frontier(frontier)
-    order = int(scene.settings.get("order", 5))
-    reflections = bool(scene.settings.get("reflections", False))
+    order = config.order
+    reflections = config.reflections is not None
     lighting_changes = any(_light_moves(li) for li in scene.lights)
     moving = {o.name for o in scene.objects if o.kind != "static"}
     # what blocks light in the run: shaded objects that cast shadows (an unshaded one, warpshade:shaded false,
@@ -479,10 +490,6 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     shaded = [o for o in scene.objects if o.shaded]
     inter = len(scene.objects) >= 2 and any(c.name != r.name for c in casters for r in shaded)
     structures, notes, plans = [], [], []
-    from .pipeline.area import AREA_MODES
-
-    if area_lights not in AREA_MODES:
-        raise ValueError(f"area lights must be one of {', '.join(AREA_MODES)}, got {area_lights!r}")
     # with --area-lights gears the run takes rect lights out of the SH sum and runs GEARS instead
     n_rect = sum(1 for li in scene.lights if _is_rect(li)) if area_lights == "gears" else 0
     rect = n_rect > 0
@@ -492,7 +499,8 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     chosen = {o.name: _choose(o, order, max_error, fr) for o in shaded}
     # objects sharing a method and knobs are one mesh in the run and shadow each other through it; sphere
     # sets carry shadows only between the run's shading groups (--between spheres)
-    run_groups = _run_groups(scene, {n: (c[0], c[1]) for n, c in chosen.items()}, two_sided)
+    run_groups = (config.groups if max_error is None else
+                  _run_groups(scene, {n: (c[0], c[1]) for n, c in chosen.items()}, two_sided))
     for g in run_groups:
         for name in g.names:
             if g.method is None and chosen[name][0] is not None:
@@ -570,15 +578,9 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
                      "(hemiraster mode='glossy', eq. 3)")
     plan = Plan(order, scene.frames, plans, structures, lighting_changes, bool(moving), max_error, notes,
                 area_lights=area_lights if any(_is_rect(li) for li in scene.lights) else None)
-    _plan_groups(plan, scene, fr, pc, n_local, between, run_groups)
+    plan.area_k = area_k
+    _plan_groups(plan, scene, fr, pc, n_local, config, run_groups)
     _static_in_moving_groups(plan)
-    if rect:
-        # one GEARS pass per rect light over every shading group merged (blockers: all shaded objects)
-        plan.area_moves = any(g.moves for g in plan.groups) or rect_moves
-        plan.area_k = area_k
-        # blockers: the triangles of objects that cast shadows (pipeline.area.AreaLightShading)
-        plan.seconds_area = n_rect * _area_seconds(fr, pc, sum(g.vertices for g in plan.groups),
-                                                   sum(g.caster_triangles for g in plan.groups), area_k)
     return plan
 
 
@@ -642,37 +644,43 @@ def _run_groups(scene: Scene, methods: dict, two_sided: str = "auto") -> list:
     each shaded object uses ``methods[name] = (method, knobs)``."""
     import dataclasses
 
-    from .pipeline import DEFAULT_KNOBS
     from .pipeline.shading import group_objects
 
     objs = [dataclasses.replace(o, method=methods[o.name][0], knobs=dict(methods[o.name][1]))
             for o in scene.objects if o.shaded]
-    return group_objects(objs, None, None, DEFAULT_KNOBS, two_sided=two_sided)
+    return group_objects(objs, None, None, two_sided=two_sided)
 
 
-def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: int, between: str | None,
-                 specs: list) -> None:
-    """Fill ``plan.groups`` with the shading groups ``warpshade run`` forms (``specs``, from :func:`_run_groups`
-    with the plan's methods), and cost them."""
+def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: int, config, specs: list) -> None:
+    """Fill ``plan.groups`` and ``plan.passes``: the shading groups ``warpshade run`` forms (``specs``: the
+    run configuration's, or :func:`_run_groups` with the plan's methods) and every pass of the run's pass
+    graph (:meth:`warpshade.pipeline.shading.SceneShader.passes`), each costed; the groups' totals are
+    sums of their passes."""
+    import dataclasses
+
+    from .pipeline.shading import SceneShader, back_side_receivers
+
     n = plan.order * plan.order
-    reflections = bool(scene.settings.get("reflections", False))
+    shader = SceneShader.from_config(dataclasses.replace(config, groups=specs), scene)
+    graph = shader.passes()
     n_objects = sum(len(spec.names) for spec in specs)  # every shaded object gets its own sphere tree
     tris = sum(m.num_faces for spec in specs for m in spec.meshes)
     caster_tris = [len(spec.blocker_faces()) for spec in specs]
+    back_transfer = []
     for k, spec in enumerate(specs):
         v = sum(m.num_vertices for m in spec.meshes)
         f = sum(m.num_faces for m in spec.meshes)
-        g = GroupPlan(spec.method, dict(spec.knobs), list(spec.names), v, f, any(spec.moving),
+        g = GroupPlan(spec.method, spec.label, list(spec.names), v, f, any(spec.moving),
                       caster_triangles=caster_tris[k])
         cfg = None
         if spec.method is None:
             g.seconds_transfer = pc["unoccluded_seconds_per_vertex"] * v
             g.cost_source = "measured constant"
         else:
-            cfg, src = find_config(frontier, spec.method, plan.order, spec.knobs)
+            cfg, src = find_config(frontier, spec.method, plan.order, spec.label)
             if cfg is None:
                 g.cost_source = "not in the frontier: transfer not estimated"
-                plan.notes.append(f"group {spec.names}: {spec.method} {_knobs(spec.knobs)}is not in the frontier; "
+                plan.notes.append(f"group {spec.names}: {spec.method} {_knobs(spec.label)}is not in the frontier; "
                                   "its transfer cost is not estimated")
             else:
                 # the method's blockers are the casters' triangles; every vertex receives
@@ -680,39 +688,74 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
                 g.seconds_build = estimate_seconds(cfg, v, "build_seconds", triangles=caster_tris[k])
                 fit = len({t["vertices"] for t in cfg["timings"]}) >= 3
                 g.cost_source = ", ".join(x for x in (("fit over measured meshes" if fit else "nearest measured mesh"), src) if x)
-        others = sum(1 for j, t in enumerate(caster_tris) if j != k and t)  # other groups with shadow casters
-        if between and others:
-            g.seconds_between = _between_frame_seconds(v, others, pc)
-        g.seconds_lights = _distant_lights_seconds(scene, pc) + pc["local_light_seconds_per_vertex"] * v * n_local
-        g.seconds_radiance = pc["radiance_seconds_fixed"] + pc["radiance_seconds_per_vertex_coeff"] * v * n
-        if reflections:
-            t_refl = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * v * REFLECTION_SPHERES_PER_OBJECT * n_objects
-                      * (plan.order / 4.0) ** 2)
-            if plan.geometry_changes or plan.lighting_changes:
-                g.seconds_reflections = t_refl
-            else:  # the run computes the bounce of a frozen scene once
-                plan.seconds_setup_structures += t_refl
+        t_back = 0.0
         if any(spec.two_sided):
-            # the back side: the method again on the same merged mesh (or the unoccluded lobe), the between-group
-            # shadows again, exit radiance of the two-sided members' vertices
-            from .pipeline.shading import back_side_receivers
-
+            # the back side: the method again on the group seen from the back (or the unoccluded lobe), on every
+            # vertex or on the two-sided members only (back_side_receivers)
             g.two_sided = [name for name, t in zip(spec.names, spec.two_sided) if t]
             v_two = sum(m.num_vertices for m, t in zip(spec.meshes, spec.two_sided) if t)
-            alone = back_side_receivers(spec)  # the back pass receives at the two-sided members only
-            back_transfer, back_build = g.seconds_transfer, g.seconds_build
-            if alone is not None and cfg is not None:
-                back_transfer = estimate_seconds(cfg, v_two, triangles=caster_tris[k])
+            t_back, back_build = g.seconds_transfer, g.seconds_build
+            if spec.method is None:
+                back_build = 0.0
+            elif back_side_receivers(spec) is not None and cfg is not None:
+                t_back = estimate_seconds(cfg, v_two, triangles=caster_tris[k])
                 back_build = estimate_seconds(cfg, v_two, "build_seconds", triangles=caster_tris[k])
-            g.seconds_back = ((back_transfer if g.moves else 0.0) + g.seconds_between
-                              + pc["radiance_seconds_per_vertex_coeff"] * v_two * n)
             g.seconds_build += back_build
+        back_transfer.append(t_back)
         plan.groups.append(g)
-    if between and sum(1 for t in caster_tris if t) and len(specs) > 1:
+    t_refl = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * sum(g.vertices for g in plan.groups) * REFLECTION_SPHERES_PER_OBJECT
+              * n_objects * (plan.order / 4.0) ** 2)
+    n_rect = len(shader.rect_lights()) if config.area_lights == "gears" else 0
+    t_area = n_rect * _area_seconds(frontier, pc, sum(g.vertices for g in plan.groups), sum(caster_tris),
+                                    config.area_knobs["k"])
+
+    def cost(p) -> float:
+        """Estimated seconds of one pass of the graph."""
+        if p.group is None:
+            return t_area if p.kind in ("area", "back area") else t_refl
+        g, spec = plan.groups[p.group], specs[p.group]
+        v = g.vertices
+        if p.kind == "transfer":
+            return g.seconds_transfer
+        if p.kind == "back transfer":
+            return back_transfer[p.group]
+        if p.kind in ("between", "back between"):
+            others = sum(1 for j, t in enumerate(caster_tris) if j != p.group and t)
+            return _between_frame_seconds(v, others, pc)
+        if p.kind == "lights":
+            return _distant_lights_seconds(scene, pc) + pc["local_light_seconds_per_vertex"] * v * n_local
+        if p.kind == "radiance":
+            return pc["radiance_seconds_fixed"] + pc["radiance_seconds_per_vertex_coeff"] * v * n
+        if p.kind == "back radiance":
+            v_two = sum(m.num_vertices for m, t in zip(spec.meshes, spec.two_sided) if t)
+            return pc["radiance_seconds_per_vertex_coeff"] * v_two * n
+        raise ValueError(f"no cost for pass {p.kind!r}")
+
+    for p in graph:
+        seconds = cost(p)
+        plan.passes.append({"pass": p.key, "every_frame": p.every_frame, "seconds": seconds})
+        if p.group is None:
+            if p.kind in ("area", "back area"):
+                plan.seconds_area += seconds
+                plan.area_moves = p.every_frame
+            elif p.every_frame:  # the reflections, shared out by vertices for the groups' lines
+                for g in plan.groups:
+                    g.seconds_reflections += seconds * g.vertices / max(1, sum(h.vertices for h in plan.groups))
+            continue
+        g = plan.groups[p.group]
+        if p.kind == "between":
+            g.seconds_between = seconds
+        elif p.kind == "lights":
+            g.seconds_lights = seconds
+        elif p.kind == "radiance":
+            g.seconds_radiance = seconds
+        elif p.kind.startswith("back ") and (p.every_frame or p.kind != "back transfer"):
+            g.seconds_back += seconds
+    if config.between and sum(1 for t in caster_tris if t) and len(specs) > 1:
         # a sphere tree per group with shadow casters, fitted to their triangles
         plan.seconds_setup_between = (pc["between_build_seconds_per_group"] * sum(1 for t in caster_tris if t)
                                       + pc["between_build_seconds_per_triangle"] * sum(caster_tris))
-    if reflections:  # one sphere tree per object, fitted like the between-group trees
+    if config.reflections is not None:  # one sphere tree per object, fitted like the between-group trees
         plan.seconds_setup_between += (pc["between_build_seconds_per_group"] * n_objects
                                        + pc["between_build_seconds_per_triangle"] * tris)
     if any(g.method == "hemiraster" for g in plan.groups):

@@ -9,6 +9,7 @@ HELP = "print the plan (passes, shared structures, reuse, method per object) and
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from ..visibility.base import positive_int
     from .cmd_run import add_refine_argument, add_two_sided_argument
 
     parser.add_argument("scene", metavar="SCENE", help="scene file (.usd/.usda) read by warpshade.usd")
@@ -23,7 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="shadows between shading groups, as warpshade run --between (default spheres)")
     parser.add_argument("--area-lights", choices=("gears", "sh"), default="gears",
                         help="rect lights as warpshade run --area-lights: GEARS soft shadows (default) or SH")
-    parser.add_argument("--area-k", type=int, default=16, help="GEARS light samples per side, as warpshade run --area-k")
+    parser.add_argument("--area-k", type=positive_int, default=None,
+                        help="GEARS light samples per side, as warpshade run --area-k (default 16)")
     parser.add_argument("--json", default=None, metavar="PLAN.json", help="also write the plan as JSON")
     parser.add_argument("--reflections", action="store_true", default=None,
                         help="plan the one-bounce reflection pass (as warpshade run --reflections; default: the "
@@ -43,20 +45,16 @@ def load_scene(path: str):
 def run(args) -> int:
     from ..planner import make_plan, naive_seconds
 
-    from ..pipeline import DEFAULT_ORDER
     from ..pipeline.refine import describe as describe_refined, refine_receivers
 
     scene = load_scene(args.scene)
     refined = refine_receivers(scene, args.refine_receivers)
     if refined:
         print(describe_refined(refined).strip())
-    # the order warpshade run would use, so the plan costs what the run does
-    scene.settings["order"] = args.order or scene.settings.get("order", DEFAULT_ORDER)
-    if args.reflections:
-        scene.settings["reflections"] = True
-    plan = make_plan(scene, max_error=args.max_error, frontier=args.frontier,
+    # the options warpshade run takes, resolved the way the run resolves them (pipeline.config.resolve_run)
+    plan = make_plan(scene, max_error=args.max_error, frontier=args.frontier, order=args.order,
                      between=None if args.between == "none" else args.between, area_lights=args.area_lights,
-                     area_k=args.area_k, two_sided=args.two_sided)
+                     area_k=args.area_k, two_sided=args.two_sided, reflections=True if args.reflections else None)
     print(plan.describe())
     print(f"  without reuse (every object every frame): {naive_seconds(plan):.2f} s")
     if args.json:

@@ -81,7 +81,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "displayColor); default 0.8")
     parser.add_argument("--area-lights", choices=["gears", "sh"], default="gears",
                         help="rect lights: exact irradiance with GEARS soft shadows (default) or projected to SH")
-    parser.add_argument("--area-k", type=positive_int, default=None, help="GEARS light samples per side (default 16)")
+    from ..pipeline.config import DEFAULT_AREA_KNOBS
+
+    parser.add_argument("--area-k", type=positive_int, default=None,
+                        help=f"GEARS light samples per side (default {DEFAULT_AREA_KNOBS['k']})")
     add_two_sided_argument(parser)
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
@@ -105,13 +108,13 @@ def setup_estimate(scene, method: str | None, knobs: dict, order: int, args) -> 
     from ..planner import make_plan
 
     objects = [dataclasses.replace(o, method=method, knobs=dict(knobs)) if method else o for o in scene.objects]
-    settings = dict(scene.settings, order=order)
+    settings = dict(scene.settings)
     if method:
         settings.pop("max_error", None)  # a method on the command line is not the planner's to choose
     priced = dataclasses.replace(scene, objects=objects, settings=settings)
     try:
-        plan = make_plan(priced, between=None if args.between == "none" else args.between,
-                         area_lights=args.area_lights, area_k=args.area_k or 16)
+        plan = make_plan(priced, order=order, between=None if args.between == "none" else args.between,
+                         area_lights=args.area_lights, area_k=args.area_k, two_sided=args.two_sided)
     except (ValueError, KeyError, OSError):  # no frontier record for these settings: no estimate
         return None
     return plan.run_seconds_setup
@@ -160,9 +163,9 @@ def run(args) -> int:
     if args.max_error is not None and method is None:
         from ..planner import apply_plan, make_plan
 
-        scene.settings["order"] = args.order or scene.settings.get("order", 4)
-        plan = make_plan(scene, max_error=args.max_error, between=None if args.between == "none" else args.between,
-                         area_lights=args.area_lights, area_k=args.area_k or 16, two_sided=args.two_sided)
+        plan = make_plan(scene, max_error=args.max_error, order=args.order,
+                         between=None if args.between == "none" else args.between,
+                         area_lights=args.area_lights, area_k=args.area_k, two_sided=args.two_sided)
         apply_plan(scene, plan)
         print(plan.describe(), file=sys.stderr)
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
@@ -186,7 +189,7 @@ def run(args) -> int:
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,
-                                       "groups": "; ".join(f"{g.method} {g.knobs}" for g in pipe.groups),
+                                       "groups": "; ".join(f"{g.method} {g.label}" for g in pipe.groups),
                                        "between": args.between, "area_lights": args.area_lights,
                                        "reflections": str(bool(pipe.reflections is not None))})
     estimate = setup_estimate(scene, method, knobs, pipe.order, args)

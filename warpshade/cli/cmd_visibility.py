@@ -16,15 +16,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rect-light", required=True, metavar="cx,cy,cz,ux,uy,uz,vx,vy,vz",
                         help="two-sided rectangle light with corners c ± u ± v")
     parser.add_argument("--method", required=True, choices=AREA_METHODS, help="visibility method")
-    parser.add_argument("--k", type=int, default=16, help="k×k light samples per vertex, 1..32 (default 16)")
-    parser.add_argument("--offset", type=float, default=1e-5,
-                        help="receiver offset along its normal, fraction of the mesh's bbox diagonal")
     parser.add_argument("--prim", default=None, help="USD prim path of the mesh (default: first Mesh)")
     parser.add_argument("--repeat", type=int, default=3, help="timed runs after one warm-up run")
     parser.add_argument("--save", required=True, metavar="OUT.npz", help="output arrays")
     parser.add_argument("--json", default=None, metavar="STATS.json", help="write timing and knobs")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
-    parser.epilog = "Method knobs: gears --grid G; reference --no-jitter --seed S."
+    parser.epilog = ("Method knobs follow --method: --k K (light samples per side) and --offset for both; "
+                     "gears --grid G; reference --no-jitter --seed S.")
 
 
 def knob_class(method: str):
@@ -45,7 +43,7 @@ def run(args) -> int:
     cls = get_area_method(args.method)
     knobs = parse_knobs(args)
     mesh = load_mesh(args.mesh, prim=args.prim)
-    method = cls(mesh, light, k=args.k, device=args.device, offset=args.offset, **knobs)
+    method = cls(mesh, light, device=args.device, **knobs)
     seconds = median_seconds(method.update, repeat=args.repeat, warmup=1)
     save_npz(args.save, points=method.points.numpy(), normals=method.normals.numpy(),
              visibility=method.visibility.numpy())

@@ -27,11 +27,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..scene import Scene, SceneError, SceneWarning
-from ..sh.basis import check_order
 from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
 from .refine import refine_receivers as refine
-from .shading import TWO_SIDED_MODES, GroupSpec, SceneShader, back_key, group_objects, unoccluded_transfer
+from .config import DEFAULT_ORDER, RUN_KNOBS, RunConfig, resolve_run
+from .shading import GroupSpec, SceneShader, back_key, unoccluded_transfer
 
 METHOD_PREFERENCE = ("hemiraster", "reference")
 """Default visibility method: the first of these that is registered (fastest accurate first).
@@ -44,12 +44,8 @@ cloth_table 0.0046 vs 0.0107; flag_wind 0.0104 vs 0.0130; cloth_sphere 0.0057 vs
 (4-14 %) and ``spheres`` (8-29 %, made for closed blockers, worse than no shadows on open cloth over
 a ground plane) are not. A method goes in front once it is measured close to the one it replaces."""
 
-DEFAULT_KNOBS = {"reference": {"rays": 256}}
-"""Knobs a run uses when the scene and the command line give none (reference: 256 rays, 3.5 %
-relative L2 error, measured in docs/methods/reference.md)."""
-
-DEFAULT_ORDER = 4
-"""SH order of a run unless the scene (``warpshade:order``) or ``--order`` says otherwise."""
+DEFAULT_KNOBS = RUN_KNOBS
+"""Alias of :data:`.config.RUN_KNOBS` (knobs a run gives a method named with none)."""
 
 
 def default_method() -> str:
@@ -83,6 +79,8 @@ class RunReport:
     groups: list = field(default_factory=list)
     resumed_from: int = 0
     area_lights: str = ""
+    passes: list = field(default_factory=list)
+    frame_seconds: list = field(default_factory=list)
 
 
 def check_output(scene: Scene, out: str) -> None:
@@ -159,29 +157,16 @@ class Pipeline:
         self.frames = int(frames if frames is not None else scene.frames)
         if self.frames < 1:
             raise ValueError(f"frames must be >= 1, got {self.frames}")
-        self.order = check_order(order if order is not None else scene.settings.get("order", DEFAULT_ORDER))
-        self.write_transfer = bool(write_transfer if write_transfer is not None
-                                   else scene.settings.get("writeTransfer", False))
+        self.config = resolve_run(scene, method, knobs, order, between, reflections, area_lights, area_knobs,
+                                  two_sided, albedo, write_transfer)
+        """Everything the run decided before its first frame (:class:`~.config.RunConfig`)."""
+        self.order, self.groups = self.config.order, self.config.groups
+        self.write_transfer, self.reflections = self.config.write_transfer, self.config.reflections
         self.workers, self.scheduler, self.device = int(workers), scheduler, device
         self.security = security
-        if albedo is not None:
-            a = np.asarray(albedo, dtype=np.float64)
-            if a.shape not in ((), (3,)) or not np.all((a >= 0) & (a <= 1)):
-                raise ValueError(f"albedo must be a scalar or RGB in [0, 1], got {a.tolist()}")
-        if two_sided not in TWO_SIDED_MODES:
-            raise ValueError(f"two_sided must be one of {', '.join(TWO_SIDED_MODES)}, got {two_sided!r}")
-        self.groups = group_objects(scene.objects, method, knobs, DEFAULT_KNOBS, default_albedo=albedo,
-                                    two_sided=two_sided)
         if not self.groups:
             raise SceneError(f"{scene.source}: no shaded object")
-        if reflections is None:
-            reflections = bool(scene.settings.get("reflections", False))
-        if reflections is True:
-            reflections = {}
-        self.reflections = reflections if isinstance(reflections, dict) else None
-        self.shader = SceneShader(self.groups, self.order, scene.fps, list(scene.lights), scene.up_axis, lights,
-                                  self.write_transfer, device, between, self.reflections, area_lights,
-                                  dict(area_knobs or {}))
+        self.shader = SceneShader.from_config(self.config, scene, lights, device)
         self._check_lights()
         self._warn_static_scene(lights)
         from .area import area_lights_used
@@ -325,12 +310,16 @@ class Pipeline:
             secs["setup"] = time.perf_counter() - t0
             failure: list = []
             warned_black: set[str] = set()
+            passes: list = []
+            frame_seconds: list = []
             results = shade_frames(self.shader, self._geometry(sims, secs, failure, start), workers=self.workers,
                                    scheduler=self.scheduler, security=self.security)
             for f, res in results:
                 t = time.perf_counter()
-                secs["shade"] += res.pop("_seconds")
+                frame_seconds.append(res.pop("_seconds"))
+                secs["shade"] += frame_seconds[-1]
                 secs["setup"] += res.pop("_build_seconds", 0.0)
+                passes.append(res.pop("_passes", {}))
                 for name, (points, normals, colors, transfer) in res.items():
                     # docs/conventions.md §6: every shaded mesh has points, normals and extent time-sampled
                     # per frame, static ones included
@@ -360,13 +349,14 @@ class Pipeline:
         self.report = RunReport(path=path, frames=max(0, self.frames - start), seconds=secs, resumed_from=start,
                                 vertices=sum(m.num_vertices for g in self.groups for m in g.meshes),
                                 groups=[_group_line(g) for g in self.groups],
-                                area_lights=self.area_description)
+                                area_lights=self.area_description, passes=passes,
+                                frame_seconds=frame_seconds)
         return self.report
 
 
 def _group_line(g: GroupSpec) -> str:
     """One :attr:`RunReport.groups` line: method, knobs, objects, and which of them cast no shadows."""
-    line = f"{g.method or 'unoccluded'} {g.knobs or ''}: {', '.join(g.names)}"
+    line = f"{g.method or 'unoccluded'} {g.label or ''}: {', '.join(g.names)}"
     quiet = [n for n, c in zip(g.names, g.casts) if not c]
     both = [n for n, t in zip(g.names, g.two_sided) if t]
     return (line + (f" (casting no shadows: {', '.join(quiet)})" if quiet else "")
@@ -374,5 +364,5 @@ def _group_line(g: GroupSpec) -> str:
 
 
 __all__ = ["check_output", "DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
-           "RunReport", "SceneShader", "default_method", "light_from_spec", "sky_light_specs",
+           "RUN_KNOBS", "RunConfig", "RunReport", "resolve_run", "SceneShader", "default_method", "light_from_spec", "sky_light_specs",
            "unoccluded_transfer"]

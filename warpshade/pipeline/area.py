@@ -24,16 +24,7 @@ import numpy as np
 import warp as wp
 
 from ..geometry.mesh import TriMesh
-
-AREA_MODES = ("gears", "sh")
-"""``--area-lights`` values: ``gears`` (this module) or ``sh`` (rect lights projected to SH like other local lights)."""
-
-DEFAULT_AREA_KNOBS = {"k": 16, "grid": 16}
-"""GEARS knobs of a run: 16×16 light samples (0.22 % mean visibility error against 32×32 rays on the
-five benchmark meshes, ``warpshade bench``'s area sweep), a 16×16 acceleration grid."""
-
-WEIGHTINGS = ("cosine", "area")
-"""``cosine``: form-factor-weighted visible share (default); ``area``: the paper's fraction of visible samples."""
+from .config import AREA_MODES, DEFAULT_AREA_KNOBS, WEIGHTINGS
 
 
 def is_area_light(light) -> bool:
@@ -52,15 +43,12 @@ def split_area_lights(lights: list) -> tuple[list, list]:
 def area_lights_used(shader) -> tuple[str | None, str]:
     """How a :class:`~.shading.SceneShader` shades rect lights: ``("gears" | "sh" | None, one line)``
     (None and "" when it has no rect light)."""
-    if shader.lights is not None:
-        names = [li.name for li in shader.lights if is_area_light(li)]
-    else:
-        names = [s.name for s in shader.light_specs if s.kind == "rect"]
+    names = shader.rect_lights()
     if not names:
         return None, ""
     if shader.area_lights == "sh":
         return "sh", f"SH projection (low-frequency shadows through the transfer): {', '.join(names)}"
-    kn = {**DEFAULT_AREA_KNOBS, "weighting": "cosine", **shader.area_knobs}
+    kn = {**DEFAULT_AREA_KNOBS, **shader.area_knobs}
     return shader.area_lights, (f"GEARS soft shadows ({', '.join(f'{k}={v}' for k, v in kn.items())}) from every "
                                 f"shaded object, exact unshadowed irradiance: {', '.join(names)}")
 
@@ -71,7 +59,8 @@ class AreaLightShading:
     Args:
         meshes: Rest meshes of the shading groups, in group order (merged into one receiver and blocker mesh).
         lights: The :class:`warpshade.lighting.RectLight` s (with their motion, if any).
-        k: Light samples per side of the GEARS masks.
+        k: Light samples per side of the GEARS masks (default: :data:`~.config.DEFAULT_AREA_KNOBS`, as grid
+            and weighting).
         grid: GEARS acceleration grid cells per side.
         weighting: One of :data:`WEIGHTINGS`.
         static: Nothing in the scene moves: with motionless lights, frame 0's result is reused.
@@ -80,10 +69,13 @@ class AreaLightShading:
             (F_c, 3) int; None: all of them. Vertices in no blocking triangle still receive.
     """
 
-    def __init__(self, meshes: list, lights: list, k: int = 16, grid: int = 16, weighting: str = "cosine",
+    def __init__(self, meshes: list, lights: list, k: int = DEFAULT_AREA_KNOBS["k"],
+                 grid: int = DEFAULT_AREA_KNOBS["grid"], weighting: str = DEFAULT_AREA_KNOBS["weighting"],
                  static: bool = False, device: str = "cpu", blocker_faces: list | None = None):
+        from ..visibility import get_method
         from ..visibility.gears import LightRect
-        from ..visibility.gears.gears import GearsVisibility
+
+        gears = get_method("gears", kind="area")
 
         if weighting not in WEIGHTINGS:
             raise ValueError(f"area-light weighting must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
@@ -105,7 +97,7 @@ class AreaLightShading:
             except ValueError as exc:
                 raise ValueError(f"{light.name}: GEARS needs a rectangle with orthogonal axes ({exc}); "
                                  "use --area-lights sh for this scene") from None
-            self.visibility.append(GearsVisibility(self.mesh, rect, k=k, grid=grid, device=device)
+            self.visibility.append(gears(self.mesh, rect, k=k, grid=grid, device=device)
                                    if self.mesh is not None else None)
         self.static = bool(static) and all(li.motion is None for li in self.lights)
         self._phi = wp.empty(len(points), dtype=float, device=device)

@@ -51,7 +51,8 @@ class SceneReflections:
                  levels: int = 3, exp: str = "ol", cuts: bool = True, ratios: bool | str = True,
                  exclude_intersecting: bool = False, self_reflection: bool | str = "auto", threshold: float = 1.0,
                  seed: int = 0, trees: list | None = None):
-        from ..visibility.spheres import SpheresTransfer, SphereReflections, build_sphere_tree
+        from ..visibility import get_method
+        from ..visibility.spheres import SphereReflections, build_sphere_tree
 
         self.meshes = list(meshes)
         self.offsets = np.cumsum([0] + [m.num_vertices for m in self.meshes])
@@ -62,9 +63,9 @@ class SceneReflections:
             trees = [build_sphere_tree(m.points, m.faces, spheres, levels, seed=seed, device=device)
                      for m in self.meshes]
         self.trees = trees
-        self.method = SpheresTransfer(receivers, order=order, device=device, spheres=spheres, levels=levels,
-                                      threshold=threshold, seed=seed, self_shadow=False,
-                                      blockers=[(t, m.points) for t, m in zip(trees, self.meshes)])
+        self.method = get_method("spheres")(receivers, order=order, device=device, spheres=spheres, levels=levels,
+                                             threshold=threshold, seed=seed, self_shadow=False,
+                                             blockers=[(t, m.points) for t, m in zip(trees, self.meshes)])
         # receiver object ids: -1 lets the object's own spheres reflect onto it. A closed object's own
         # spheres stand for its other parts (concavities: measured better on the bunny and bear); an open
         # one's (a ground plane) bulge over its own surface and would light it spuriously.

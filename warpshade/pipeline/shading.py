@@ -16,6 +16,7 @@ import warp as wp
 from ..geometry.mesh import TriMesh
 from ..geometry.normals import vertex_normals
 from ..sh.zonal import clamped_cosine_zh, zh_rotate
+from .config import TWO_SIDED_MODES, GroupSpec, group_objects, is_two_sided
 
 
 def unoccluded_transfer(normals: np.ndarray, order: int) -> np.ndarray:
@@ -26,57 +27,6 @@ def unoccluded_transfer(normals: np.ndarray, order: int) -> np.ndarray:
         Shape (V, N*N), float32.
     """
     return zh_rotate(clamped_cosine_zh(order), normals).astype(np.float32)
-
-
-@dataclass
-class GroupSpec:
-    """Objects shaded as one receiver mesh (they shadow each other) by one visibility method.
-
-    Attributes:
-        method: A ``warpshade.visibility.METHODS`` name, or None for unshadowed (analytic) transfer.
-        knobs: Method keyword arguments.
-        names: Object names, in order.
-        meshes: Their rest meshes (topology fixed).
-        albedos: Their albedos, linear RGB, shape (3,) each.
-        moving: Whether each object moves (static objects keep their rest points).
-        casts: Whether each object casts shadows (``warpshade:castsShadows``; empty: all do). An object
-            that does not is a receiver only: its triangles block no light in any pass (not even its own).
-        two_sided: Whether each object is shaded on both sides (:func:`is_two_sided`; empty: none is).
-    """
-
-    method: str | None
-    knobs: dict
-    names: list = field(default_factory=list)
-    meshes: list = field(default_factory=list)
-    albedos: list = field(default_factory=list)
-    moving: list = field(default_factory=list)
-    casts: list = field(default_factory=list)
-    two_sided: list = field(default_factory=list)
-
-    def blocker_faces(self) -> np.ndarray:
-        """Triangles of the members that cast shadows, indexed into the merged group mesh, shape (F_c, 3), int32."""
-        offsets = np.cumsum([0] + [m.num_vertices for m in self.meshes])
-        casts = self.casts or [True] * len(self.meshes)
-        parts = [m.faces + off for m, off, c in zip(self.meshes, offsets[:-1], casts) if c]
-        return np.concatenate(parts).astype(np.int32) if parts else np.zeros((0, 3), np.int32)
-
-
-TWO_SIDED_MODES = ("auto", "on", "off")
-"""Values of the two-sided knob (``warpshade run --two-sided``, ``Pipeline(two_sided=...)``)."""
-
-
-def is_two_sided(obj, mode: str = "auto") -> bool:
-    """Whether a :class:`warpshade.scene.SceneObject` is shaded on both sides: ``"on"`` every object,
-    ``"off"`` none, ``"auto"`` its ``two_sided`` (``warpshade:twoSided``) if set, else cloth only.
-
-    Raises:
-        ValueError: for a mode not in :data:`TWO_SIDED_MODES`.
-    """
-    if mode not in TWO_SIDED_MODES:
-        raise ValueError(f"two-sided must be one of {', '.join(TWO_SIDED_MODES)}, got {mode!r}")
-    if mode != "auto":
-        return mode == "on"
-    return bool(obj.two_sided) if obj.two_sided is not None else obj.kind == "cloth"
 
 
 BACK_PASS_WITH_OCCLUDERS = ("reference",)
@@ -132,6 +82,7 @@ class _Group:
         receivers_only = len(self.blocker_faces) < len(faces)
         self.any_moving = any(spec.moving)
         self.cached = None
+        self.cached_back = None
         self.method = None
         if spec.method is not None and len(self.blocker_faces):
             from ..visibility import get_method
@@ -174,11 +125,11 @@ class _Group:
         else:
             self.back_method = cls(flipped(self.method.mesh), order=order, device=device, **spec.knobs)
 
-    def update(self, geometry: dict) -> tuple:
-        """Points (V, 3), transfer (V, N*N), unit normals (V, 3) and back-side transfer (V, N*N; None
-        without two-sided members) of the group this frame."""
+    def update(self, geometry: dict) -> tuple[bool, tuple]:
+        """``(computed, (points (V, 3), transfer (V, N*N), unit normals (V, 3)))`` of the group this frame;
+        ``computed`` is False when the first frame's result is reused (nothing in the group moves)."""
         if self.cached is not None and not self.any_moving:
-            return self.cached  # nothing in the group moves: transfer computed once
+            return False, self.cached  # nothing in the group moves: transfer computed once
         pts = np.concatenate([geometry[n] if mv else self.rest[a:b] for n, mv, a, b in
                               zip(self.spec.names, self.spec.moving, self.offsets[:-1], self.offsets[1:])])
         pts = pts.astype(np.float32)
@@ -192,17 +143,55 @@ class _Group:
         else:
             normals = normals.numpy().copy()
             transfer = unoccluded_transfer(normals, self.order)
-        back = None
+        self.cached = (pts, transfer, normals)
+        self.cached_back = None
+        return True, self.cached
+
+    def update_back(self) -> tuple[bool, np.ndarray]:
+        """``(computed, back-side transfer (V, N*N))`` at the points and normals of the last :meth:`update`
+        (rows of members shaded on one side are zero when only the two-sided members are computed)."""
+        if self.cached_back is not None:
+            return False, self.cached_back
+        pts, transfer, normals = self.cached
         if self.back_method is not None and self.back_rows is not None:
             back = np.zeros_like(transfer)  # rows of members shaded on one side stay unused
             rows = self.back_rows
             back[rows] = self.back_method.update(pts[rows], -normals[rows]).numpy()
         elif self.back_method is not None:
             back = self.back_method.update(pts, -normals).numpy().copy()
-        elif self.two_sided:
+        else:
             back = unoccluded_transfer(-normals, self.order)
-        self.cached = (pts, transfer, normals, back)
-        return self.cached
+        self.cached_back = back
+        return True, back
+
+
+@dataclass(frozen=True)
+class Pass:
+    """One pass of a frame in the pass graph (:meth:`SceneShader.passes`): what the run executes and the
+    planner costs.
+
+    Attributes:
+        kind: One of :data:`PASS_KINDS`.
+        group: Index of the shading group it works on (None: all groups at once).
+        every_frame: Recomputed every frame; False: computed on the first frame and reused after
+            (nothing it depends on moves).
+    """
+
+    kind: str
+    group: int | None = None
+    every_frame: bool = True
+
+    @property
+    def key(self) -> str:
+        """``kind`` or ``kind[group]``: how the run reports the pass (``RunReport.passes``)."""
+        return self.kind if self.group is None else f"{self.kind}[{self.group}]"
+
+
+PASS_KINDS = ("transfer", "back transfer", "area", "back area", "between", "back between", "lights", "radiance",
+              "back radiance", "reflections", "back reflections")
+"""Kinds of passes: a group's transfer (its method, or the unoccluded lobe) and its back side's; GEARS
+rect lights over all groups (front, back); sphere-set shadows from the other groups (front, back); the
+lights' SH at the group's points; exit radiance (front, back); the one-bounce reflections (front, back)."""
 
 
 @dataclass
@@ -246,6 +235,13 @@ class SceneShader:
     area_lights: str = "gears"
     area_knobs: dict = field(default_factory=dict)
 
+    @classmethod
+    def from_config(cls, config, scene, lights: list | None = None, device: str = "cpu") -> SceneShader:
+        """The shader of a :class:`~.config.RunConfig` on ``scene`` (``lights``: objects replacing the scene's)."""
+        return cls(config.groups, config.order, scene.fps, list(scene.lights), scene.up_axis, lights,
+                   config.write_transfer, device, config.between, config.reflections, config.area_lights,
+                   dict(config.area_knobs))
+
     def build_lights(self) -> list:
         """The :mod:`warpshade.lighting` objects this spec shades with."""
         from .lights import default_lights, light_from_spec
@@ -256,12 +252,64 @@ class SceneShader:
             return default_lights(self.up_axis)
         return [light_from_spec(s, self.up_axis) for s in self.light_specs]
 
+    def _described_lights(self) -> list:
+        """The lights as given: :mod:`warpshade.lighting` objects or scene ``LightSpec`` s."""
+        return list(self.lights) if self.lights is not None else list(self.light_specs)
+
+    def rect_lights(self) -> list[str]:
+        """Names of the rect lights this spec shades (the lights' or the scene's)."""
+        from .area import is_area_light
+
+        return [li.name for li in self._described_lights() if is_area_light(li) or getattr(li, "kind", None) == "rect"]
+
+    def passes(self) -> list[Pass]:
+        """The pass graph of a frame, in execution order: which passes :meth:`build`'s ``shade`` runs and
+        which of them it reuses after the first frame. The planner costs this list
+        (:func:`warpshade.planner.make_plan`); a run reports the passes it computed per frame."""
+        groups = self.groups
+        casting = [i for i, g in enumerate(groups) if len(g.blocker_faces())]
+        moving = [any(g.moving) for g in groups]
+        two = [any(g.two_sided) for g in groups]
+        lights = self._described_lights()
+        lights_move = any(getattr(li, "motion", None) is not None for li in lights)
+        out = []
+        for i, g in enumerate(groups):
+            out.append(Pass("transfer", i, moving[i]))
+            if two[i]:
+                out.append(Pass("back transfer", i, moving[i]))
+        if self.area_lights == "gears" and self.rect_lights():
+            from .area import is_area_light
+
+            rect_moves = any(getattr(li, "motion", None) is not None for li in lights
+                             if is_area_light(li) or getattr(li, "kind", None) == "rect")
+            again = any(moving) or rect_moves
+            out.append(Pass("area", None, again))
+            if any(two):
+                out.append(Pass("back area", None, again))
+        between = self.between == "spheres" and len(groups) > 1
+        for i in range(len(groups)):
+            if between and any(j != i for j in casting):
+                out.append(Pass("between", i))
+                if two[i]:
+                    out.append(Pass("back between", i))
+            out.append(Pass("lights", i))
+            out.append(Pass("radiance", i))
+            if two[i]:
+                out.append(Pass("back radiance", i))
+        if self.reflections is not None:
+            again = any(moving) or lights_move
+            out.append(Pass("reflections", None, again))
+            if any(two):
+                out.append(Pass("back reflections", None, again))
+        return out
+
     def build(self):
         """Build methods and lights; returns ``shade(frame, geometry) -> {name: (points, normals,
         colors, transfer or None)}``, for each two-sided object also ``{back_key(name): ...}`` (its back:
         the same points, negated normals, the back side's colours and transfer), plus the keys
-        ``"_seconds"`` (time spent shading the frame) and, in the first result of this build,
-        ``"_build_seconds"`` (method structures and lights)."""
+        ``"_seconds"`` (time spent shading the frame), ``"_passes"`` (``{Pass.key: seconds}`` of the
+        passes of :meth:`passes` computed this frame, reused ones left out) and, in the first result of
+        this build, ``"_build_seconds"`` (method structures and lights)."""
         from ..lighting import lights_sh
         from ..radiance import exit_radiance
 
@@ -278,10 +326,6 @@ class SceneShader:
             bounce = SceneReflections([m for g in groups for m in g.spec.meshes], self.order, self.device,
                                       **self.reflections)
         lights = self.build_lights()
-        # nothing moves and no light moves (rect lights included): the bounce of the first frame holds
-        # for every frame
-        frozen = (not any(g.any_moving for g in groups)
-                  and not any(getattr(light, "motion", None) is not None for light in lights))
         area = _area_shading(self, groups, lights)
         # a second GEARS pass for the back sides (its own frame-0 cache when nothing moves)
         area_back = _area_shading(self, groups, lights) if area is not None and any(g.two_sided for g in groups) else None
@@ -289,61 +333,98 @@ class SceneShader:
             lights = [li for li in lights if not any(li is a for a in area.lights)]
         pending_build = [time.perf_counter() - t_build]  # reported once, with the first frame
         bounce_cache = {}
+        graph = self.passes()
+        write_transfer, device, order = self.write_transfer, self.device, self.order
 
         def shade(frame: int, geometry: dict) -> dict:
             t0 = time.perf_counter()
             out = {"_build_seconds": pending_build.pop()} if pending_build else {}
             t = frame / self.fps
             frame_lights = [light.at_time(t) for light in lights]
-            updated = [g.update(geometry) for g in groups]
-            direct = []  # per object: (name, points, normals, radiance, transfer or None, albedo)
-            area_e = None if area is None else area.irradiance(t, [u[0] for u in updated], [u[2] for u in updated])
-            area_b = None if area_back is None else area_back.irradiance(
-                t, [u[0] for u in updated], [-u[2] if g.two_sided else u[2] for g, u in zip(groups, updated)])
-            for i, g in enumerate(groups):
-                pts, transfer, normals, back = updated[i]
-                if between is not None:
-                    transfer = _shadow_by_others(between[i], i, pts, transfer, normals, updated, self.device)
-                    if back is not None:
-                        back = _shadow_by_others(between[i], i, pts, back, -normals, updated, self.device)
-                distant, local = lights_sh(frame_lights, self.order, pts)
-                sides = [(transfer, normals, area_e, "")] + ([(back, -normals, area_b, "back")] if back is not None else [])
-                for k, (name, albedo) in enumerate(zip(g.spec.names, g.spec.albedos)):
-                    a, b = g.offsets[k], g.offsets[k + 1]
-                    for tr, nrm, e, side in sides:
+            # per group: points, transfer, normals, back transfer (None: one-sided), lights' SH (distant, local)
+            state = [[None, None, None, None, None] for _ in groups]
+            area_e = {}  # "area" / "back area" -> per group (V_g, 3) irradiance
+            direct = []  # per object: [name, points, normals, radiance, transfer or None, albedo]
+
+            def run(p: Pass) -> bool:
+                i = p.group
+                if p.kind == "transfer":
+                    computed, (pts, tr, nrm) = groups[i].update(geometry)
+                    state[i][:3] = [pts, tr, nrm]
+                    return computed
+                if p.kind == "back transfer":
+                    computed, state[i][3] = groups[i].update_back()
+                    return computed
+                if p.kind in ("area", "back area"):
+                    shading = area if p.kind == "area" else area_back
+                    computed = shading._cached is None
+                    normals = [st[2] if p.kind == "area" or not g.two_sided else -st[2] for g, st in zip(groups, state)]
+                    area_e[p.kind] = shading.irradiance(t, [st[0] for st in state], normals)
+                    return computed
+                if p.kind in ("between", "back between"):
+                    pts, tr, nrm, back, _ = state[i]
+                    if p.kind == "between":
+                        state[i][1] = _shadow_by_others(between[i], i, pts, tr, nrm, state, device)
+                    else:
+                        state[i][3] = _shadow_by_others(between[i], i, pts, back, -nrm, state, device)
+                    return True
+                if p.kind == "lights":
+                    state[i][4] = lights_sh(frame_lights, order, state[i][0])
+                    return True
+                if p.kind in ("radiance", "back radiance"):
+                    g = groups[i]
+                    pts, tr, nrm, back, (distant, local) = state[i]
+                    side = p.kind == "back radiance"
+                    if side:
+                        tr, nrm = back, -nrm
+                    e = area_e.get("back area" if side else "area")
+                    for k, (name, albedo) in enumerate(zip(g.spec.names, g.spec.albedos)):
                         if side and not g.spec.two_sided[k]:
                             continue
+                        a, b = g.offsets[k], g.offsets[k + 1]
                         # clamped at 0: SH ringing behind bright lights must not make displayColor negative
                         rad = exit_radiance(tr[a:b], distant, albedo, None if local is None else local[a:b],
-                                            device=self.device).numpy().copy()
+                                            device=device).numpy().copy()
                         if e is not None:  # GEARS-shadowed rect lights, (ρ/π) E (module .area)
                             rad += (albedo / np.pi * e[i][a:b]).astype(np.float32)
                         direct.append([back_key(name) if side else name, pts[a:b], nrm[a:b], rad,
-                                       tr[a:b] if self.write_transfer else None, albedo])
-            if bounce is not None:
-                # One bounce (thesis §4.3): the reflectors' samples take the direct exit radiance just shaded
-                # (every light, the group's own visibility method), the second pass sums sphere by sphere.
-                # Back sides get a second bounce in which every two-sided object is its back side (flipped
-                # normals, back-side radiance) and the others are as in the first.
-                fronts = [d for d in direct if not isinstance(d[0], tuple)]
-                backs = {d[0][1]: d for d in direct if isinstance(d[0], tuple)}
-                passes = [("front", fronts, fronts)]
-                if backs:
-                    passes.append(("back", [backs.get(d[0], d) for d in fronts], [backs.get(d[0]) for d in fronts]))
-                for key, seen, targets in passes:
+                                       tr[a:b] if write_transfer else None, albedo])
+                    return True
+                if p.kind in ("reflections", "back reflections"):
+                    # One bounce (thesis §4.3): the reflectors' samples take the direct exit radiance just shaded
+                    # (every light, the group's own visibility method), the second pass sums sphere by sphere.
+                    # Back sides get a second bounce in which every two-sided object is its back side (flipped
+                    # normals, back-side radiance) and the others are as in the first.
+                    fronts = [d for d in direct if not isinstance(d[0], tuple)]
+                    if p.kind == "reflections":
+                        seen, targets = fronts, fronts
+                    else:
+                        backs = {d[0][1]: d for d in direct if isinstance(d[0], tuple)}
+                        seen, targets = [backs.get(d[0], d) for d in fronts], [backs.get(d[0]) for d in fronts]
+                    key = "front" if p.kind == "reflections" else "back"
                     e_r = bounce_cache.get(key)
-                    if e_r is None:
+                    computed = e_r is None
+                    if computed:
                         e_r = bounce.update([d[1] for d in seen], [d[2] for d in seen], None,
                                             [d[5] for d in seen], exit_radiance=[d[3] for d in seen])
-                    if frozen:
+                    if not p.every_frame:
                         bounce_cache[key] = e_r
                     for k, d in enumerate(targets):
                         if d is not None:
                             # eq. 4.23: reflected exit radiance (ρ/π) E_R added to the shadowed direct one
                             d[3] += (np.asarray(d[5], dtype=np.float32) / np.float32(np.pi)) * bounce.slice(e_r, k)
+                    return computed
+                raise ValueError(f"unknown pass {p.kind!r}")
+
+            done = {}
+            for p in graph:
+                tp = time.perf_counter()
+                if run(p):
+                    done[p.key] = time.perf_counter() - tp
             for name, pts, normals, rad, transfer, _ in direct:
                 out[name] = (pts, normals, rad, transfer)
             wp.synchronize()
+            out["_passes"] = done
             out["_seconds"] = time.perf_counter() - t0
             return out
 
@@ -367,8 +448,10 @@ def _between_group_shadows(groups: list, order: int, device: str) -> list:
     """Per group, ``(spheres, others)``: a :class:`~warpshade.visibility.spheres.SpheresTransfer` whose
     blockers are the sphere trees of the shadow casters of the groups ``others`` (every other group with
     one; each tree fitted once, on the group's rest pose), or None when no other group casts shadows."""
+    from ..visibility import get_method
     from ..visibility.spheres.fitting import build_sphere_tree
-    from ..visibility.spheres.method import SpheresTransfer
+
+    spheres = get_method("spheres")
 
     # vertices of members that cast no shadows are in no triangle of blocker_faces: no sphere bounds them
     trees = [build_sphere_tree(g.rest, g.blocker_faces, device=device) if len(g.blocker_faces) else None
@@ -376,7 +459,7 @@ def _between_group_shadows(groups: list, order: int, device: str) -> list:
     out = []
     for i, g in enumerate(groups):
         others = [j for j in range(len(groups)) if j != i and trees[j] is not None]
-        out.append((SpheresTransfer(g.mesh, order=order, device=device, self_shadow=False,
+        out.append((spheres(g.mesh, order=order, device=device, self_shadow=False,
                                     blockers=[(trees[j], groups[j].rest) for j in others]), others) if others else None)
     return out
 
@@ -395,50 +478,6 @@ def _shadow_by_others(between, i: int, pts, transfer, normals, updated: list, de
 def back_key(name: str) -> tuple:
     """Key of an object's back side in a ``shade`` result (the front's key is ``name``)."""
     return ("back", name)
-
-
-def group_objects(objects, method: str | None = None, knobs: dict | None = None,
-                  default_knobs: dict | None = None, default_albedo=None, two_sided: str = "auto") -> list[GroupSpec]:
-    """Group shaded objects by (method, knobs). A group none of whose members casts shadows
-    (``casts_shadows`` False) gets method None: nothing in it blocks light, so its transfer is unoccluded.
-
-    Args:
-        objects: :class:`warpshade.scene.SceneObject` list.
-        method: Override every object's method (``--method``), or None to use each object's.
-        knobs: Knobs with ``method``.
-        default_knobs: Method name -> knobs used when an object names a method but no knobs.
-        default_albedo: Albedo (scalar or RGB) of objects whose material's albedo was not authored
-            (``Material.albedo_authored``), or None to keep the material's default.
-        two_sided: Which objects are shaded on both sides (:func:`is_two_sided`).
-    """
-    by_key: dict = {}
-    for obj in objects:
-        if not obj.shaded:
-            continue
-        if method is not None:
-            name, kn = method, dict(knobs or {})
-        else:
-            name, kn = obj.method, dict(obj.knobs)
-            if name is not None and not kn:
-                kn = dict((default_knobs or {}).get(name, {}))
-        key = (name, tuple(sorted(kn.items())))
-        g = by_key.setdefault(key, GroupSpec(name, kn))
-        g.names.append(obj.name)
-        g.meshes.append(obj.mesh)
-        albedo = obj.material.albedo
-        if default_albedo is not None and not obj.material.albedo_authored:
-            albedo = np.broadcast_to(np.asarray(default_albedo, dtype=np.float64), (3,))
-        g.albedos.append(np.array(albedo, dtype=np.float64))
-        g.moving.append(obj.kind != "static")
-        g.casts.append(bool(obj.casts_shadows))
-        g.two_sided.append(is_two_sided(obj, two_sided))
-    for g in by_key.values():
-        if g.method is not None and not any(g.casts):
-            # nothing in the group blocks light (castsShadows false on every member): its own transfer is the
-            # unoccluded one whatever the method; it stays a group of its own, so other groups' sphere sets
-            # still shadow it
-            g.method, g.knobs = None, {}
-    return list(by_key.values())
 
 
 __all__ = ["BACK_PASS_WITH_OCCLUDERS", "TWO_SIDED_MODES", "GroupSpec", "SceneShader", "back_key", "back_side_receivers", "flipped", "group_objects", "is_two_sided",

@@ -17,6 +17,7 @@ import warp as wp
 from ..geometry.mesh import TriMesh
 from ..geometry.normals import vertex_normals
 from ..sh.basis import check_order
+from . import knobs as _knobs
 
 
 def int_at_least(minimum: int):
@@ -39,24 +40,36 @@ positive_int = int_at_least(1)
 nonnegative_int = int_at_least(0)
 
 
-class TransferMethod(ABC):
-    """Base class of visibility methods that produce per-vertex SH transfer.
+class VisibilityMethod(ABC):
+    """Base class of every visibility method: per-vertex transfer (:class:`TransferMethod`) and area-light
+    visibility (:class:`~warpshade.visibility.gears.AreaVisibilityMethod`), registered together in
+    :data:`warpshade.visibility.REGISTRY`.
 
-    Subclasses build static structures in ``__init__`` (LUTs, rings, hierarchies) from the mesh's
-    topology and rest pose, then recompute :attr:`transfer` in :meth:`update` for new positions.
-
-    Args:
-        mesh: Mesh giving topology (fixed for the method's lifetime) and the rest pose.
-        order: SH order (docs/conventions.md §1), 1..8.
-        device: Warp device.
-        **knobs: Method-specific settings (see :meth:`add_arguments`).
+    A method builds static structures in ``__init__`` from the mesh's topology and rest pose, then
+    recomputes its output in :meth:`update` for new positions. Its knobs are declared once, in ``KNOBS``
+    (:mod:`.knobs`): the command-line flags, the knobs picked out of parsed arguments, validation and
+    normalisation, and :meth:`knobs` derive from it; defaults are the constructor's.
     """
 
     name: ClassVar[str] = ""
     """Method name used on the command line (``--method NAME``)."""
+    kind: ClassVar[str] = ""
+    """``"transfer"`` or ``"area"`` (the registry's two families)."""
+    KNOBS: ClassVar[tuple] = ()
+    """This class's own knobs (:class:`~.knobs.Knob`); :attr:`SCHEMA` adds the inherited ones."""
+    SCHEMA: ClassVar[tuple] = ()
+    """Every knob of the class, inherited first, defaults filled in from the constructor."""
 
-    def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", **knobs):
-        self.order = check_order(order)
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        merged: dict = {}
+        for base in reversed(cls.__mro__):
+            for k in base.__dict__.get("KNOBS", ()):
+                merged[k.name] = k
+        cls.SCHEMA = _knobs.resolve_schema(cls, list(merged.values()))
+
+    def _init_geometry(self, mesh: TriMesh, device: str) -> None:
+        """The device arrays every method has: :attr:`faces`, :attr:`points`, :attr:`normals`."""
         self.device = device
         self.mesh = mesh
         self.faces = wp.array(mesh.faces, dtype=wp.int32, device=device)
@@ -64,18 +77,37 @@ class TransferMethod(ABC):
         """Current vertex positions [m], shape (V,), dtype vec3."""
         self.normals = wp.array(mesh.normals, dtype=wp.vec3, device=device)
         """Current unit vertex normals, shape (V,), dtype vec3."""
-        self.transfer = wp.zeros((mesh.num_vertices, self.order * self.order), dtype=float, device=device)
-        """Diffuse transfer (docs/conventions.md §2), shape (V, N*N), dtype float32, world space."""
 
-    # -- command line ------------------------------------------------------------------------
+    # -- knobs ---------------------------------------------------------------------------------
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        """Add this method's knobs to a parser (``--name`` flags with defaults)."""
+        """Add this method's knobs to a parser (``--name`` flags with defaults, from :attr:`SCHEMA`)."""
+        _knobs.add_arguments(cls.SCHEMA, parser)
 
     @classmethod
     def knobs_from_args(cls, args: argparse.Namespace) -> dict:
         """Pick this method's knobs out of parsed arguments."""
-        return {}
+        return _knobs.from_args(cls.SCHEMA, args)
+
+    @classmethod
+    def default_knobs(cls) -> dict:
+        """Every knob's default."""
+        return _knobs.defaults(cls.SCHEMA)
+
+    @classmethod
+    def normalise_knobs(cls, knobs: dict) -> dict:
+        """Every knob, given ones validated and coerced, the others at their defaults (equal
+        configurations give equal dicts).
+
+        Raises:
+            ValueError: an unknown knob or a bad value, naming the method and the knob.
+        """
+        return _knobs.normalise(cls.SCHEMA, knobs, cls.name)
+
+    @classmethod
+    def knob_changes(cls, knobs: dict) -> dict:
+        """The knobs of ``knobs`` that differ from the defaults (how a configuration is shown and looked up)."""
+        return _knobs.changes(cls.SCHEMA, cls.normalise_knobs(knobs))
 
     @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
@@ -111,6 +143,50 @@ class TransferMethod(ABC):
         else:
             self.normals.assign(np.asarray(normals, dtype=np.float32))
 
+    @abstractmethod
+    def _compute(self) -> None:
+        """Fill the method's output from :attr:`points` and :attr:`normals`."""
+
+    # -- reporting ---------------------------------------------------------------------------
+    def knobs(self) -> dict:
+        """Every knob's value as used (for STATS.json and benchmarks): the schema's knobs read from the
+        instance (resolved values, e.g. rays rounded to a square), then :meth:`_extra_knobs`."""
+        out = {}
+        for k in self.SCHEMA:
+            v = getattr(self, k.attr or k.name)
+            out[k.name] = v.tolist() if isinstance(v, np.ndarray) else v
+        return {**out, **self._extra_knobs()}
+
+    def _extra_knobs(self) -> dict:
+        """Reported settings that are no knobs (structures given to the constructor, e.g. occluder names)."""
+        return {}
+
+    def stats(self) -> dict:
+        """Method-specific counters from the last :meth:`update` (e.g. triangles rasterized)."""
+        return {}
+
+
+class TransferMethod(VisibilityMethod):
+    """Base class of visibility methods that produce per-vertex SH transfer.
+
+    Subclasses build static structures in ``__init__`` (LUTs, rings, hierarchies) from the mesh's
+    topology and rest pose, then recompute :attr:`transfer` in :meth:`update` for new positions.
+
+    Args:
+        mesh: Mesh giving topology (fixed for the method's lifetime) and the rest pose.
+        order: SH order (docs/conventions.md §1), 1..8.
+        device: Warp device.
+        **knobs: Method-specific settings (the class's ``KNOBS``).
+    """
+
+    kind = "transfer"
+
+    def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", **knobs):
+        self.order = check_order(order)
+        self._init_geometry(mesh, device)
+        self.transfer = wp.zeros((mesh.num_vertices, self.order * self.order), dtype=float, device=device)
+        """Diffuse transfer (docs/conventions.md §2), shape (V, N*N), dtype float32, world space."""
+
     def update(self, points=None, normals=None) -> wp.array:
         """Recompute :attr:`transfer` for new vertex positions (the rest pose if None).
 
@@ -121,19 +197,6 @@ class TransferMethod(ABC):
             self.set_points(points, normals)
         self._compute()
         return self.transfer
-
-    @abstractmethod
-    def _compute(self) -> None:
-        """Fill :attr:`transfer` from :attr:`points` and :attr:`normals`."""
-
-    # -- reporting ---------------------------------------------------------------------------
-    def knobs(self) -> dict:
-        """Every knob's value as used (for STATS.json and benchmarks)."""
-        return {}
-
-    def stats(self) -> dict:
-        """Method-specific counters from the last :meth:`update` (e.g. triangles rasterized)."""
-        return {}
 
     def transfer_numpy(self) -> np.ndarray:
         """:attr:`transfer` on the host, shape (V, N*N), float32."""

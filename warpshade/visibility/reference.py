@@ -18,7 +18,6 @@ order-5 transfer is well under 1 % on Warp's bunny (measured in tests/test_refer
 
 from __future__ import annotations
 
-import argparse
 import math
 
 import numpy as np
@@ -26,7 +25,8 @@ import warp as wp
 
 from ..geometry.mesh import TriMesh
 from ..sh.kernels import normalization_array
-from .base import TransferMethod, positive_int
+from .base import TransferMethod
+from .knobs import Knob
 from .reference_kernels import trace_transfer
 
 
@@ -47,6 +47,12 @@ class ReferenceTransfer(TransferMethod):
     """
 
     name = "reference"
+    KNOBS = (
+        Knob("rays", int, "rays per vertex (rounded to a square)", minimum=1),
+        Knob("seed", int, "random seed"),
+        Knob("offset", float, "near-field distance of the rays (other surfaces this close block where entered from "
+                              "the front), fraction of the receiver's bbox diagonal", minimum=0.0, attr="offset_rel"),
+    )
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", rays: int = 1024, seed: int = 0,
                  offset: float = 1e-5, occluders: list[TriMesh] | None = None):
@@ -69,23 +75,13 @@ class ReferenceTransfer(TransferMethod):
         self._bvh = wp.Mesh(points=self._scene_points, indices=self._scene_faces)
 
     @classmethod
-    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--rays", type=positive_int, default=1024, help="rays per vertex (rounded to a square)")
-        parser.add_argument("--seed", type=int, default=0, help="random seed")
-        parser.add_argument("--offset", type=float, default=1e-5,
-                            help="near-field distance of the rays (other surfaces this close block where "
-                                 "entered from the front), fraction of the receiver's bbox diagonal")
-
-    @classmethod
-    def knobs_from_args(cls, args) -> dict:
-        return {"rays": args.rays, "seed": args.seed, "offset": args.offset}
-
-    @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
         return [{"rays": n} for n in ((64, 256, 1024) if quick else (16, 64, 256, 1024, 4096))]
 
-    def knobs(self) -> dict:
-        return {"rays": self.strata * self.strata, "seed": self.seed, "offset": self.offset_rel}
+    @property
+    def rays(self) -> int:
+        """Rays per vertex as used (``strata²``)."""
+        return self.strata * self.strata
 
     def _compute(self) -> None:
         n = self.mesh.num_vertices

@@ -11,8 +11,6 @@ directional, point and spot lights.
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 import warp as wp
 
@@ -20,6 +18,7 @@ from ...geometry.mesh import TriMesh
 from ...sh.kernels import normalization_array, zh_normalization_array
 from ...sh.zonal import clamped_cosine_zh
 from ..base import TransferMethod
+from ..knobs import Knob
 from .kernels import (BINS, STACK, accumulate_disk_areas, accumulate_occlusion, combine_passes,
                       integrate_disk_transfer, lookup_light_visibility, merge_child_access, merge_child_disks,
                       set_leaf_access, set_leaf_disks)
@@ -108,6 +107,15 @@ class DiskTransfer(TransferMethod):
     """
 
     name = "disks"
+    KNOBS = (
+        Knob("lod", float, "use a tree node when farther than LOD times its radius", minimum=1.0),
+        Knob("passes", int, "1, 2 (Bunnell's overlap correction) or 0 = auto (2 if two-sided)", choices=(0, 1, 2)),
+        Knob("sides", str, "disks occlude from one side (closed meshes) or both (cloth); auto: by boundary",
+             choices=("auto", "one", "two")),
+        Knob("samples", int, "SH quadrature: samples² directions per bin", minimum=1, maximum=16),
+        Knob("back_weight", float, "weight of disks seen from behind, 0..1 (overrides --sides: one = 0, two = 1)",
+             minimum=0.0, maximum=1.0, nullable=True),
+    )
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", lod: float = 2.0, passes: int = 0,
                  sides: str = "auto", samples: int = 3, back_weight: float | None = None):
@@ -164,32 +172,11 @@ class DiskTransfer(TransferMethod):
 
     # -- command line ------------------------------------------------------------------------
     @classmethod
-    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--lod", type=float, default=2.0,
-                            help="use a tree node when farther than LOD times its radius (>= 1)")
-        parser.add_argument("--passes", type=int, default=0, choices=(0, 1, 2),
-                            help="1, 2 (Bunnell's overlap correction) or 0 = auto (2 if two-sided)")
-        parser.add_argument("--sides", default="auto", choices=("auto", "one", "two"),
-                            help="disks occlude from one side (closed meshes) or both (cloth); auto: by boundary")
-        parser.add_argument("--samples", type=int, default=3, help="SH quadrature: samples² directions per bin")
-        parser.add_argument("--back-weight", type=float, default=None,
-                            help="weight of disks seen from behind, 0..1 (overrides --sides: one = 0, two = 1)")
-
-    @classmethod
-    def knobs_from_args(cls, args) -> dict:
-        return {"lod": args.lod, "passes": args.passes, "sides": args.sides, "samples": args.samples,
-                "back_weight": args.back_weight}
-
-    @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
         if quick:
             return [{"lod": 1.5}, {}, {"lod": 4.0}]
         return [{"lod": 1.5}, {}, {"lod": 4.0}, {"lod": 8.0}, {"lod": 16.0}, {"passes": 2},
                 {"back_weight": 0.5, "passes": 2}]
-
-    def knobs(self) -> dict:
-        return {"lod": self.lod, "passes": self.passes, "sides": self.sides, "back_weight": self.back_weight,
-                "samples": self.samples}
 
     def stats(self) -> dict:
         vis = self._visited.numpy()

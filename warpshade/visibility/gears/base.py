@@ -8,17 +8,15 @@ the light's cosine terms, for radiance).
 
 from __future__ import annotations
 
-import argparse
-from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 import warp as wp
 
 from ...geometry.mesh import TriMesh
 from ...lighting import RectLight
-from ..base import TransferMethod
+from ..base import VisibilityMethod
+from ..knobs import Knob
 
 
 @dataclass
@@ -60,8 +58,9 @@ class LightRect(RectLight):
         return cls(*(np.asarray(getattr(light, a), float).reshape(3) for a in ("center", "u", "v")), **kw)
 
 
-class AreaVisibilityMethod(ABC):
-    """Base class of per-vertex area-light visibility methods.
+class AreaVisibilityMethod(VisibilityMethod):
+    """Base class of per-vertex area-light visibility methods (the ``"area"`` family of
+    :data:`warpshade.visibility.REGISTRY`).
 
     Args:
         mesh: Receiver mesh; it also blocks the light (self-shadowing). Topology fixed.
@@ -73,7 +72,12 @@ class AreaVisibilityMethod(ABC):
             reference's origin offset).
     """
 
-    name: ClassVar[str] = ""
+    kind = "area"
+    KNOBS = (
+        Knob("k", int, "k×k light samples per vertex", minimum=1, maximum=32),
+        Knob("offset", float, "receiver offset along its normal, fraction of the mesh's bbox diagonal", minimum=0.0,
+             attr="offset_rel"),
+    )
 
     def __init__(self, mesh: TriMesh, light: LightRect, k: int = 16, device: str = "cpu", offset: float = 1e-5):
         if int(k) != k or not 1 <= k <= 32:
@@ -81,14 +85,8 @@ class AreaVisibilityMethod(ABC):
         if not offset >= 0.0:
             raise ValueError(f"offset must be >= 0, got {offset}")
         self.k = int(k)
-        self.device = device
-        self.mesh = mesh
         self.offset_rel = float(offset)
-        self.faces = wp.array(mesh.faces, dtype=wp.int32, device=device)
-        self.points = wp.array(mesh.points, dtype=wp.vec3, device=device)
-        """Current vertex positions [m], shape (V,), dtype vec3."""
-        self.normals = wp.array(mesh.normals, dtype=wp.vec3, device=device)
-        """Current unit vertex normals, shape (V,), dtype vec3."""
+        self._init_geometry(mesh, device)
         n = mesh.num_vertices
         self.masks = wp.zeros((n, self.k), dtype=wp.uint32, device=device)
         """Blocked-sample bitmasks, shape (V, k), dtype uint32: bit i of row j = sample (s_i, t_j) blocked."""
@@ -114,14 +112,6 @@ class AreaVisibilityMethod(ABC):
 
     # -- command line ------------------------------------------------------------------------
     @classmethod
-    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        """Add this method's knobs (``--k`` and ``--offset`` are common to all)."""
-
-    @classmethod
-    def knobs_from_args(cls, args: argparse.Namespace) -> dict:
-        return {}
-
-    @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
         """Constructor keyword arguments ``warpshade bench`` measures (``quick``: a few); includes the defaults."""
         return [{"k": 16}]
@@ -138,14 +128,9 @@ class AreaVisibilityMethod(ABC):
             :attr:`visibility`.
         """
         if points is not None:
-            # same validation and normal recomputation as every TransferMethod
-            TransferMethod.set_points(self, points, normals)
+            self.set_points(points, normals)
         self._compute()
         return self.visibility
-
-    @abstractmethod
-    def _compute(self) -> None:
-        """Fill :attr:`masks`, :attr:`visibility` and :attr:`form_factor`."""
 
     def radiance(self, emitted: float = 1.0, albedo=1.0) -> np.ndarray:
         """Lambertian exit radiance ``ρ L_e F`` per vertex (needs a prior :meth:`update`).
@@ -202,8 +187,3 @@ class AreaVisibilityMethod(ABC):
         lt = self.light
         return [wp.vec3(*lt.center), wp.vec3(*lt.u), wp.vec3(*lt.v), wp.vec3(*lt.normal)]
 
-    def knobs(self) -> dict:
-        return {"k": self.k, "offset": self.offset_rel}
-
-    def stats(self) -> dict:
-        return {}

@@ -10,12 +10,11 @@ whose shadow volume's bounding box covers the receiver's grid cell; see
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 import warp as wp
 
 from ...geometry.mesh import TriMesh
+from ..knobs import Knob
 from .base import AreaVisibilityMethod, LightRect
 from .kernels import (add_counts, bound_shadow_volumes, count_cell_triangles, fill_cell_triangles,
                       locate_receivers, rasterize_light_masks)
@@ -32,6 +31,8 @@ class GearsVisibility(AreaVisibilityMethod):
     """
 
     name = "gears"
+    KNOBS = (Knob("grid", int, "acceleration grid cells per side (0 = every triangle for every vertex)",
+                  minimum=0, maximum=1024),)
 
     def __init__(self, mesh: TriMesh, light: LightRect, k: int = 16, device: str = "cpu", offset: float = 1e-5,
                  grid: int = 16):
@@ -60,15 +61,6 @@ class GearsVisibility(AreaVisibilityMethod):
         self._assigned = 0
 
     @classmethod
-    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--grid", type=int, default=16,
-                            help="acceleration grid cells per side (0 = every triangle for every vertex)")
-
-    @classmethod
-    def knobs_from_args(cls, args) -> dict:
-        return {"grid": args.grid}
-
-    @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
         """k (light samples per side) at the default grid, then the grid at the default k.
 
@@ -78,9 +70,6 @@ class GearsVisibility(AreaVisibilityMethod):
         if quick:
             return [{"k": 8, "grid": 16}, {"k": 16, "grid": 16}]
         return [{"k": k, "grid": 16} for k in (4, 8, 16, 32)] + [{"k": 16, "grid": g} for g in (8, 32)]
-
-    def knobs(self) -> dict:
-        return {**super().knobs(), "grid": self.grid}
 
     def stats(self) -> dict:
         tc = self._tri_count.numpy()

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import argparse
-
 import warp as wp
 
 from ...geometry.mesh import TriMesh
+from ..knobs import Knob
 from .base import AreaVisibilityMethod, LightRect
 from .kernels import trace_light_masks
 
@@ -22,6 +21,10 @@ class RayVisibility(AreaVisibilityMethod):
     """
 
     name = "reference"
+    KNOBS = (
+        Knob("jitter", bool, "rays through light cell centres"),
+        Knob("seed", int, "random seed of the jitter"),
+    )
 
     def __init__(self, mesh: TriMesh, light: LightRect, k: int = 16, device: str = "cpu", offset: float = 1e-5,
                  jitter: bool = True, seed: int = 0):
@@ -29,18 +32,6 @@ class RayVisibility(AreaVisibilityMethod):
         self.jitter = bool(jitter)
         self.seed = int(seed)
         self._bvh = wp.Mesh(points=self.points, indices=self.faces.flatten())
-
-    @classmethod
-    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--no-jitter", action="store_true", help="rays through light cell centres")
-        parser.add_argument("--seed", type=int, default=0, help="random seed of the jitter")
-
-    @classmethod
-    def knobs_from_args(cls, args) -> dict:
-        return {"jitter": not args.no_jitter, "seed": args.seed}
-
-    def knobs(self) -> dict:
-        return {**super().knobs(), "jitter": self.jitter, "seed": self.seed}
 
     def stats(self) -> dict:
         return {"rays_per_vertex": self.k * self.k}

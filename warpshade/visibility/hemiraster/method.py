@@ -14,7 +14,6 @@ precomputation depends on the pose: ``update(points)`` reuses all static tables.
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
@@ -22,6 +21,7 @@ import warp as wp
 
 from ...geometry.mesh import TriMesh
 from ..base import TransferMethod
+from ..knobs import Knob
 from . import hierarchy, integrate, tables
 from .kernels import (Batch, Blockers, FineMesh, MaskChunk, PlaneLut, Refinement, follow_coarse_points, rasterize_masks, refit_blocker_boxes,
                       triangle_bounds, union_boxes)
@@ -41,13 +41,6 @@ def scratch_slots(device, num_receivers: int) -> int:
     one on the CPU, where Warp runs a launch on one thread anyway and one row stays in the L1
     cache; one per receiver on a GPU."""
     return 1 if wp.get_device(device).is_cpu else max(1, int(num_receivers))
-
-
-def _parse_vec3(text: str) -> tuple[float, float, float]:
-    parts = [float(x) for x in str(text).split(",")]
-    if len(parts) != 3:
-        raise argparse.ArgumentTypeError(f"expected x,y,z, got '{text}'")
-    return tuple(parts)
 
 
 class HemirasterTransfer(TransferMethod):
@@ -117,6 +110,36 @@ class HemirasterTransfer(TransferMethod):
     """
 
     name = "hemiraster"
+    KNOBS = (
+        Knob("mask", int, "visibility mask pixels across", choices=tuple(tables.MASK_SIZES), attr="mask_res"),
+        Knob("lut", int, "plane LUT cube-map resolution R (6*R*R planes)", minimum=1, attr="lut_res"),
+        Knob("downsample", int, "coverage block size in pixels", choices=(1, 2, 4, 8)),
+        Knob("ring", int, "full-resolution k-ring (0: spatial refinement only)", choices=(0, 1, 2, 3, 4)),
+        Knob("refine", float, "replace coarse triangles nearer than this many times their deviation from the fine "
+                              "surface by their fine triangles (contact, folds; 0: off)", minimum=0.0),
+        Knob("coarse", int, "coarse far-field mesh triangles (0: no hierarchy, full mesh)", minimum=0,
+             attr="coarse_target"),
+        Knob("cull", bool, "disable cluster culling"),
+        Knob("cluster", int, "triangles per culling cluster", minimum=1),
+        Knob("exclude", float, "coarse triangles nearer than this many k-ring radii are left to the k-ring"),
+        Knob("backface", bool, "rasterize back faces too (only matters on closed meshes)"),
+        Knob("mode", str, "diffuse transfer (docs/conventions.md §2) or glossy Phong transfer for --view",
+             choices=("diffuse", "glossy")),
+        Knob("view", "vec3", "glossy: direction towards the viewer x,y,z (world)"),
+        Knob("phong", float, "glossy: Phong exponent", minimum=0.0),
+        Knob("lut_dir", str, "directory caching the plane LUT on disk", nullable=True),
+        Knob("min_image", float, "skip far-field triangles whose image is smaller than this many mask pixels "
+                                 "(0: exact)", minimum=0.0),
+        Knob("redecimate", float, "rebuild the coarse far field from the current pose when its deviation from the "
+                                  "fine surface per triangle radius grew by more than this (0: never)", minimum=0.0),
+        Knob("interpolate", float, "compute a subset of receivers, interpolate the others where their neighbours "
+                                   "agree within this fraction of the unoccluded transfer (0: compute all)",
+             minimum=0.0),
+        Knob("fine_image", float, "the same cull for the fine triangles of refined blockers near a receiver "
+                                  "(0: exact near field)", minimum=0.0),
+        Knob("rim", bool, "skip blockers wholly below the lowest pixel centre", cli=False),
+        Knob("fan", bool, "rasterize the receiver's own fan on open meshes", cli=False),
+    )
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 48,
                  downsample: int = 1, ring: int = 1, coarse: int = 512, cull: bool = True, cluster: int = 16,
@@ -384,55 +407,6 @@ class HemirasterTransfer(TransferMethod):
 
     # -- command line ------------------------------------------------------------------------
     @classmethod
-    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--mask", type=int, default=32, choices=tables.MASK_SIZES,
-                            help="visibility mask pixels across (default 32)")
-        parser.add_argument("--lut", type=int, default=48,
-                            help="plane LUT cube-map resolution R (6*R*R planes; default 48)")
-        parser.add_argument("--downsample", type=int, default=1, choices=(1, 2, 4, 8),
-                            help="coverage block size in pixels (default 1)")
-        parser.add_argument("--ring", type=int, default=1, choices=(0, 1, 2, 3, 4),
-                            help="full-resolution k-ring (default 1; 0: spatial refinement only)")
-        parser.add_argument("--refine", type=float, default=2.0,
-                            help="replace coarse triangles nearer than this many times their deviation from the fine "
-                                 "surface by their fine triangles (contact, folds; default 2; 0: off)")
-        parser.add_argument("--coarse", type=int, default=512,
-                            help="coarse far-field mesh triangles (0: no hierarchy, full mesh); default 512")
-        parser.add_argument("--no-cull", dest="cull", action="store_false", help="disable cluster culling")
-        parser.add_argument("--cluster", type=int, default=16, help="triangles per culling cluster (default 16)")
-        parser.add_argument("--exclude", type=float, default=0.35,
-                            help="coarse triangles nearer than this many k-ring radii are left to the k-ring")
-        parser.add_argument("--no-backface", dest="backface", action="store_false",
-                            help="rasterize back faces too (only matters on closed meshes)")
-        parser.add_argument("--mode", choices=("diffuse", "glossy"), default="diffuse",
-                            help="diffuse transfer (docs/conventions.md §2) or glossy Phong transfer for --view")
-        parser.add_argument("--view", type=_parse_vec3, default=(0.0, 0.0, 1.0),
-                            help="glossy: direction towards the viewer x,y,z (world)")
-        parser.add_argument("--phong", type=float, default=8.0, help="glossy: Phong exponent (default 8)")
-        parser.add_argument("--lut-dir", default=None, help="directory caching the plane LUT on disk")
-        parser.add_argument("--min-image", type=float, default=0.5,
-                            help="skip far-field triangles whose image is smaller than this many mask pixels "
-                                 "(default 0.5; 0: exact)")
-        parser.add_argument("--redecimate", type=float, default=0.0,
-                            help="rebuild the coarse far field from the current pose when its deviation from the fine "
-                                 "surface per triangle radius grew by more than this (default 0: never)")
-        parser.add_argument("--interpolate", type=float, default=0.0,
-                            help="compute a subset of receivers, interpolate the others where their neighbours agree "
-                                 "within this fraction of the unoccluded transfer (default 0: compute all)")
-        parser.add_argument("--fine-image", type=float, default=0.0,
-                            help="the same cull for the fine triangles of refined blockers near a receiver "
-                                 "(default 0: exact near field)")
-
-    @classmethod
-    def knobs_from_args(cls, args) -> dict:
-        return {"mask": args.mask, "lut": args.lut, "downsample": args.downsample, "ring": args.ring,
-                "coarse": args.coarse, "cull": args.cull, "cluster": args.cluster, "exclude": args.exclude,
-                "backface": args.backface, "mode": args.mode,
-                "view": tuple(args.view), "phong": args.phong, "lut_dir": args.lut_dir, "min_image": args.min_image,
-                "fine_image": args.fine_image, "redecimate": args.redecimate,
-                "interpolate": args.interpolate, "refine": args.refine}
-
-    @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
         if quick:
             return [{}, {"refine": 0.0}, {"mask": 16}]
@@ -447,14 +421,8 @@ class HemirasterTransfer(TransferMethod):
         out += [{"ring": 0}, {"ring": 2}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 0}, {"cull": False}]
         return out
 
-    def knobs(self) -> dict:
-        return {"mask": self.mask_res, "lut": self.lut_res, "downsample": self.downsample, "ring": self.ring,
-                "coarse": self.coarse_target, "cull": self.cull, "cluster": self.cluster, "exclude": self.exclude,
-                "backface": self.backface, "mode": self.mode, "view": self.view.tolist(), "phong": self.phong, "lut_dir": self.lut_dir,
-                "pvs_frames": self._pvs_frames, "min_image": self.min_image, "refine": self.refine,
-                "fine_image": self.fine_image, "rim": self.rim, "fan": self.fan, "redecimate": self.redecimate,
-                "interpolate": self.interpolate,
-                "occluders": [o.name for o in self.occluders]}
+    def _extra_knobs(self) -> dict:
+        return {"pvs_frames": self._pvs_frames, "occluders": [o.name for o in self.occluders]}
 
     def stats(self) -> dict:
         counts = self._counts.numpy()

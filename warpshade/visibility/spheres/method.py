@@ -10,7 +10,6 @@ self-shadowed transfer by this visibility (visibilities multiply, eq. 4.5).
 
 from __future__ import annotations
 
-import argparse
 import math
 
 import numpy as np
@@ -20,6 +19,7 @@ from ...geometry.mesh import TriMesh
 from ...sh.kernels import ol_table_arrays, product_table_arrays, zh_normalization_array
 from ...sh.zonal import clamped_cosine_zh
 from ..base import TransferMethod
+from ..knobs import Knob
 from .fitting import SphereTree, build_sphere_tree, cluster_receivers
 from .fixed_kernels import shade_kernel_fixed
 from .kernels import EXP_HYBRID, EXP_OL, EXP_SERIES, compute_cut_ratios, fit_clusters, multiply_transfer
@@ -59,6 +59,18 @@ class SpheresTransfer(TransferMethod):
     """
 
     name = "spheres"
+    KNOBS = (
+        Knob("spheres", int, "leaf spheres per object", minimum=1),
+        Knob("levels", int, "sphere hierarchy levels incl. leaves", minimum=1),
+        Knob("threshold", float, "cut threshold on a sphere's max angular radius over a cluster [rad] (eq. 4.8)"),
+        Knob("exp", str, "SH exponential: hyb, ol (optimal linear), series (accurate, slow)",
+             choices=tuple(sorted(EXP_MODES))),
+        Knob("clusters", int, "receiver clusters (0: ~800 vertices each)", minimum=0),
+        Knob("seed", int, "random seed of the sphere fit and clustering"),
+        Knob("tau", float, "tau of the SH exponential's tables", cli=False),
+        Knob("self_shadow", bool, "the receiver's own sphere tree shadows it", cli=False),
+        Knob("ratios", bool, "ratio vectors of eq. 4.9 on cut spheres above the leaves", cli=False),
+    )
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", spheres: int = 30, levels: int = 3,
                  threshold: float = 0.5, exp: str = "hyb", clusters: int = 0, tau: float = 0.5, seed: int = 0,
@@ -130,22 +142,6 @@ class SpheresTransfer(TransferMethod):
 
     # -- command line ------------------------------------------------------------------------
     @classmethod
-    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--spheres", type=int, default=30, help="leaf spheres per object (default 30)")
-        parser.add_argument("--levels", type=int, default=3, help="sphere hierarchy levels incl. leaves (default 3)")
-        parser.add_argument("--threshold", type=float, default=0.5,
-                            help="cut threshold on a sphere's max angular radius over a cluster [rad] (eq. 4.8)")
-        parser.add_argument("--exp", choices=sorted(EXP_MODES), default="hyb",
-                            help="SH exponential: hyb (default), ol (optimal linear), series (accurate, slow)")
-        parser.add_argument("--clusters", type=int, default=0, help="receiver clusters (0: ~800 vertices each)")
-        parser.add_argument("--seed", type=int, default=0, help="random seed of the sphere fit and clustering")
-
-    @classmethod
-    def knobs_from_args(cls, args) -> dict:
-        return {"spheres": args.spheres, "levels": args.levels, "threshold": args.threshold, "exp": args.exp,
-                "clusters": args.clusters, "seed": args.seed}
-
-    @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
         base = {"spheres": 30, "levels": 3, "threshold": 0.5, "exp": "hyb"}
         if quick:
@@ -153,10 +149,8 @@ class SpheresTransfer(TransferMethod):
         return [base, {**base, "exp": "ol"}, {**base, "exp": "series"}, {**base, "spheres": 15},
                 {**base, "spheres": 60}, {**base, "threshold": 0.3}, {**base, "threshold": 0.8}]
 
-    def knobs(self) -> dict:
-        return {"spheres": self.spheres, "levels": self.levels, "threshold": self.threshold, "exp": self.exp,
-                "clusters": self.clusters, "tau": self.tau, "seed": self.seed, "self_shadow": self.self_shadow,
-                "blockers": self.num_blockers, "ratios": self.ratios}
+    def _extra_knobs(self) -> dict:
+        return {"blockers": self.num_blockers}
 
     def stats(self) -> dict:
         return dict(self._stats)
