@@ -9,8 +9,9 @@ from .radiance import exit_radiance, shade
 from .sh import n_coeffs, sh_eval
 from .sim import (ClothBuilder, ClothControl, ClothModel, ClothState, ColliderSet, LBSSkinner, MeshCollider,
                   SimulationError, WalkingFigure, XPBDSolver)
-from .visibility import METHODS, TransferMethod, get_method
-from .pipeline import Pipeline, RunReport
+from .visibility import METHODS, REGISTRY, TransferMethod, VisibilityMethod, get_method
+from .visibility.knobs import Knob
+from .pipeline import Pipeline, RunConfig, RunReport, resolve_run
 from .scene import LightSpec, Material, Scene, SceneError, SceneObject
 from .visibility.gears import AreaVisibilityMethod, LightRect, get_area_method
 
@@ -19,6 +20,7 @@ __all__ = ["ConstantEnvironment", "DirectionalLight", "EnvironmentMap", "PointLi
 __all__ += ["METHODS", "MeshError", "TransferMethod", "TriMesh", "__version__", "get_method", "load_mesh",
            "n_coeffs", "sh_eval"]
 __all__ += ["LightSpec", "Material", "Pipeline", "RunReport", "Scene", "SceneError", "SceneObject"]
+__all__ += ["Knob", "REGISTRY", "RunConfig", "VisibilityMethod", "resolve_run"]
 __all__ += ["AreaVisibilityMethod", "LightRect", "get_area_method"]
 __all__ += ["ClothBuilder", "ClothControl", "ClothModel", "ClothState", "ColliderSet", "LBSSkinner", "MeshCollider",
             "SimulationError", "WalkingFigure", "XPBDSolver"]

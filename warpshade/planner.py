@@ -351,6 +351,10 @@ class Plan:
                              + ("per frame" if self.area_moves else "once (nothing moves)"))
             elif self.area_lights == "sh":
                 lines.append("    rect lights projected to SH (--area-lights sh): costed with the lights, no GEARS")
+            every = [p["pass"] for p in self.passes if p["every_frame"]]
+            once = [p["pass"] for p in self.passes if not p["every_frame"]]
+            lines.append(f"  passes per frame (the run's pass graph): {', '.join(every) or 'none'}"
+                         + (f"; first frame only: {', '.join(once)}" if once else ""))
             lines.append(f"  estimated run: setup {self.run_seconds_setup:.2f} s (sphere trees "
                          f"{self.seconds_setup_between:.2f} s), shading {self.run_seconds_per_frame * 1e3:.1f} ms per frame")
         lines += [f"  note: {n}" for n in self.notes]
@@ -688,6 +692,12 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
                 g.seconds_build = estimate_seconds(cfg, v, "build_seconds", triangles=caster_tris[k])
                 fit = len({t["vertices"] for t in cfg["timings"]}) >= 3
                 g.cost_source = ", ".join(x for x in (("fit over measured meshes" if fit else "nearest measured mesh"), src) if x)
+        if cfg is not None and len(spec.names) > 1 and not any("lower bound" in n for n in plan.notes):
+            plan.notes.append(
+                "the transfer estimates are fitted on warpshade bench's isolated meshes; where the objects of a "
+                "shading group touch (cloth on a collider or a ground) the method's near-field work grows, and on "
+                "the shipped scenes hemiraster measured 1.6-12x its estimate (benchmarks/planner_savings.py "
+                "--scenes, loaded machine): read the shading time per frame as a lower bound")
         t_back = 0.0
         if any(spec.two_sided):
             # the back side: the method again on the group seen from the back (or the unoccluded lobe), on every
