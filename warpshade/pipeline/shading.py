@@ -15,18 +15,13 @@ import warp as wp
 
 from ..geometry.mesh import TriMesh
 from ..geometry.normals import vertex_normals
-from ..sh.zonal import clamped_cosine_zh, zh_rotate
+from ..sh.zonal import unoccluded_transfer as sh_unoccluded_transfer
 from .config import TWO_SIDED_MODES, GroupSpec, group_objects, is_two_sided
 
 
 def unoccluded_transfer(normals: np.ndarray, order: int) -> np.ndarray:
-    """Transfer of an unshadowed vertex (docs/conventions.md §2): the clamped-cosine lobe rotated to the
-    normal, ``sqrt(4π/(2l+1)) A_l y_lm(n)``.
-
-    Returns:
-        Shape (V, N*N), float32.
-    """
-    return zh_rotate(clamped_cosine_zh(order), normals).astype(np.float32)
+    """:func:`warpshade.sh.unoccluded_transfer` as float32, the pipeline's transfer dtype: shape (V, N*N)."""
+    return sh_unoccluded_transfer(normals, order).astype(np.float32)
 
 
 BACK_PASS_WITH_OCCLUDERS = ("reference",)
