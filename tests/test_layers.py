@@ -53,9 +53,6 @@ KNOWN = {
         "planner.load_frontier builds the frontier with bench.report.frontier_from_results",
     ("warpshade.usd.writer", "warpshade"):
         "usd/writer.py imports the whole package for __version__",
-    # forbidden pair
-    ("warpshade.usd.scene_io", "warpshade.pipeline"):
-        "usd/scene_io.py calls pipeline.default_method (the reader chooses a method)",
     # private names across modules (and parallel <-> _dask_plugin is a cycle)
     ("warpshade._dask_plugin", "warpshade.parallel"):
         "_dask_plugin.py imports parallel._WORKER_SHADERS and parallel._init_worker; parallel imports "

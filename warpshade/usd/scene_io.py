@@ -102,7 +102,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             cache.Populate(UsdSkel.Root(skel_root), Usd.PrimDefaultPredicate)
     default_method = scene.settings.get("method")
     if default_method is None:
-        from ..pipeline import default_method as fastest
+        from ..visibility import default_method as fastest
 
         default_method = fastest()
     unmarked = []  # meshes whose kind was not authored
