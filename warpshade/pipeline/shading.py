@@ -120,7 +120,7 @@ class _Group:
     they are computed: :meth:`_build_back_method`).
     """
 
-    def __init__(self, spec: GroupSpec, order: int, device: str):
+    def __init__(self, spec: GroupSpec, order: int, device: str, reuse: float | None = None):
         self.spec, self.order = spec, order
         self.offsets = np.cumsum([0] + [m.num_vertices for m in spec.meshes])
         faces = np.concatenate([m.faces + off for m, off in zip(spec.meshes, self.offsets[:-1])])
@@ -148,6 +148,10 @@ class _Group:
         self.two_sided = any(spec.two_sided)
         if self.two_sided and self.method is not None:
             self._build_back_method(type(self.method), order, device)
+        if reuse is not None:  # temporal reuse (warpshade.visibility.reuse), both sides alike
+            from ..visibility.reuse import with_reuse
+
+            self.method, self.back_method = with_reuse(self.method, reuse), with_reuse(self.back_method, reuse)
         self._faces = None
         if self.method is None or receivers_only:
             self._faces = wp.array(faces, dtype=wp.int32, device=device)
@@ -231,6 +235,8 @@ class SceneShader:
         area_lights: Rect lights: ``"gears"`` (exact irradiance with GEARS soft shadows from every
             group, :mod:`.area`) or ``"sh"`` (projected to SH like the other local lights).
         area_knobs: :class:`~.area.AreaLightShading` keyword arguments (k, grid, weighting).
+        reuse: Temporal reuse tolerance [rad] of every group's transfer
+            (:class:`warpshade.visibility.reuse.TemporalReuse`), or None (recomputed every frame).
     """
 
     groups: list
@@ -245,6 +251,7 @@ class SceneShader:
     reflections: dict | None = None
     area_lights: str = "gears"
     area_knobs: dict = field(default_factory=dict)
+    reuse: float | None = None
 
     def build_lights(self) -> list:
         """The :mod:`warpshade.lighting` objects this spec shades with."""
@@ -266,7 +273,7 @@ class SceneShader:
         from ..radiance import exit_radiance
 
         t_build = time.perf_counter()
-        groups = [_Group(g, self.order, self.device) for g in self.groups]
+        groups = [_Group(g, self.order, self.device, self.reuse) for g in self.groups]
         if self.between not in (None, "spheres"):
             raise ValueError(f"between-group shadows must be 'spheres' or None, got {self.between!r}")
         between = (_between_group_shadows(groups, self.order, self.device)
