@@ -40,7 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     anim.add_argument("--every", type=int, default=10, help="judge every k-th frame (default 10)")
     anim.add_argument("--order", type=int, default=4, help="SH order of the animation mode (default 4, as warpshade run)")
     anim.add_argument("--reuse-tolerances", default=None, metavar="RAD,...",
-                      help="temporal reuse tolerances measured (default 0,0.01,0.02,0.05,0.1)")
+                      help="temporal reuse tolerances measured (default 0,0.05,0.1,0.2,0.5,1)")
     anim.add_argument("--json", default=None, metavar="PATH", help="write the animation result as JSON")
 
 

@@ -1,21 +1,25 @@
 """Temporal reuse of transfer: recompute a receiver cluster only when the scene moved, seen from it.
 
 :class:`TemporalReuse` wraps any :class:`~.base.TransferMethod`. Receivers are grouped into small
-spatial clusters (median splits of the rest pose, :func:`kd_clusters`). Every frame, for each pair of clusters (receiver
-``c``, blocker ``b``), the step's relative motion ``|m_b - m_c| + s_b + s_c`` (``m``: a cluster's mean
-displacement since the previous frame, ``s``: the largest deviation of one of its vertices from that
-mean) over their distance (the gap between their bounding spheres, at least the mesh's median edge
-length ``h``) bounds the angle by which geometry of ``b`` moved as seen from any receiver of ``c``; a
-cluster's own vertices count with ``2 s_c / h`` (how far its normals can have turned). The largest of
-these over ``b`` is added to the cluster's account; a cluster whose account exceeds ``tolerance``
-[rad] is recomputed and its account reset, the others keep the transfer of their last computation.
+spatial clusters (median splits of the rest pose, :func:`kd_clusters`). Every frame, each cluster
+``c`` adds to its account what the step from the previous frame changed in what it sees:
 
-So ``tolerance`` bounds, per receiver, how far (in angle) anything it sees may have moved since its
-transfer was computed. A rigid translation of the whole mesh moves nothing relative to anything and
-costs no recomputation; ``tolerance = 0`` recomputes every receiver whenever anything moved, which is
-the method itself, value for value. Methods with a ``compute_rows(rows)`` (hemiraster in its diffuse
-mode without ``interpolate``) compute only the receivers due; others compute all of them when any is
-due, and the reuse saves time only on frames where none is.
+* its own normals: ``2 s_c / h`` [rad], where ``s_c`` is the largest deviation of one of its
+  vertices' displacement from the cluster's mean displacement ``m_c`` and ``h`` the mesh's median
+  edge length (a vertex moved by ``s`` among neighbours ``h`` away turns their normals by about
+  ``s / h``);
+* every other cluster ``b``: the angle it moved as seen from ``c``, ``(|m_b - m_c| + s_b + s_c) / d``
+  with ``d`` the gap between the two clusters' bounding spheres (at least ``h``), weighted by the
+  share of the view it can fill, ``min(1, (r_b + h)² / d²)`` (``r_b``: its bounding radius).
+
+A cluster whose account exceeds ``tolerance`` is recomputed and its account reset; the others keep
+the transfer of their last computation. So the tolerance is a budget in radians of view-weighted
+motion: a neighbour turning the normals by 0.05 rad spends 0.05, a small distant blocker moving by
+the same angle far less. Only relative motion counts: a rigid translation of the whole mesh spends
+nothing (the transfer is unchanged by it). ``tolerance = 0`` recomputes every receiver whenever
+anything moved, which is the method itself, value for value. Methods with a ``compute_rows(rows)``
+(hemiraster in its diffuse mode without ``interpolate``) compute only the receivers due; others
+compute all of them when any is due, and the reuse saves time only on frames where none is.
 """
 
 from __future__ import annotations
@@ -72,8 +76,8 @@ class TemporalReuse:
 
     Args:
         method: The visibility method (built; its mesh gives topology and rest pose).
-        tolerance: Largest accumulated angle [rad] by which geometry seen from a receiver cluster may
-            move before the cluster is recomputed (>= 0; 0 recomputes whenever anything moved).
+        tolerance: Budget [rad] of view-weighted motion seen from a receiver cluster before it is
+            recomputed (module doc; >= 0, 0 recomputes whenever anything moved).
         cluster: Receivers per cluster (default: :data:`MIN_CLUSTER`, more on meshes with more than
             :data:`MAX_CLUSTERS` times that many vertices).
 
@@ -97,7 +101,7 @@ class TemporalReuse:
         self.labels[self._order] = np.repeat(np.arange(len(self._start) - 1), np.diff(self._start))
         self._count = np.diff(self._start).astype(np.float64)
         self._h = median_edge(self.mesh.points, self.mesh.faces) or 1.0
-        self._angle = np.zeros(len(self._start) - 1)
+        self._account = np.zeros(len(self._start) - 1)
         self._previous = None
         self._values = None
         self.transfer = wp.zeros_like(method.transfer)
@@ -130,8 +134,8 @@ class TemporalReuse:
         return self.transfer.numpy()
 
     def due(self, points: np.ndarray) -> np.ndarray:
-        """Advance the clusters' accounts by the step from the previous frame to ``points``; returns the
-        receivers due for recomputation, sorted int32 (all of them on the first frame)."""
+        """Advance the clusters' accounts by the step from the previous frame to ``points`` (module doc);
+        returns the receivers due for recomputation, sorted int32 (all of them on the first frame)."""
         nv = self.mesh.num_vertices
         if self._previous is None:
             return np.arange(nv, dtype=np.int32)
@@ -148,10 +152,11 @@ class TemporalReuse:
         gap = np.linalg.norm(centre[:, None, :] - centre[None, :, :], axis=2) - radius[:, None] - radius[None, :]
         np.maximum(gap, self._h, out=gap)
         rel = np.linalg.norm(mean[:, None, :] - mean[None, :, :], axis=2) + spread[:, None] + spread[None, :]
-        angle = rel / gap
-        np.fill_diagonal(angle, 2.0 * spread / self._h)
-        self._angle += angle.max(axis=1)
-        due = self._angle > self.tolerance
+        share = np.minimum(1.0, ((radius[None, :] + self._h) / gap) ** 2)
+        seen = share * rel / gap
+        np.fill_diagonal(seen, 2.0 * spread / self._h)
+        self._account += seen.sum(axis=1)
+        due = self._account > self.tolerance
         return np.flatnonzero(due[lab]).astype(np.int32)
 
     def update(self, points=None, normals=None) -> wp.array:
@@ -174,7 +179,7 @@ class TemporalReuse:
                 values = m.compute_rows(rows).numpy()
                 self._values[rows] = values[rows]
         self.transfer.assign(self._values)
-        self._angle[np.unique(self.labels[rows])] = 0.0
+        self._account[np.unique(self.labels[rows])] = 0.0
         self._previous = pts.copy()
         self.frames += 1
         self.computed += len(rows)
