@@ -115,3 +115,18 @@ def test_pipeline_reuse_zero_shades_as_without():
         for k in keys:
             for x, y in zip(a[k], b[k]):
                 assert (x is None and y is None) or np.array_equal(x, y), (f, k)
+
+
+def test_back_pass_computes_the_two_sided_rows_as_a_full_update():
+    from warpshade.pipeline.shading import _Group
+
+    pipe = make_pipeline(_small_scene(), frames=3)
+    (f, geo), = [x for x in pipe.simulate()][-1:]
+    spec = next(g for g in pipe.groups if any(g.two_sided))
+    group = _Group(spec, ORDER, "cpu")
+    pts, _, normals, back = group.update(geo)
+    rows = group._two_rows
+    assert 0 < len(rows) < len(pts)  # the cloth is two-sided, the ground is not
+    full = type(group.back_method)(group.back_method.mesh, order=ORDER, **spec.knobs).update(pts, -normals).numpy()
+    assert np.array_equal(back[rows], full[rows])
+    assert not back[group._one_rows].any()  # one-sided members' back rows are not computed (unused)

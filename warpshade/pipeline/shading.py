@@ -152,6 +152,11 @@ class _Group:
             from ..visibility.reuse import with_reuse
 
             self.method, self.back_method = with_reuse(self.method, reuse), with_reuse(self.back_method, reuse)
+        two = np.zeros(len(self.rest), dtype=bool)
+        for k, t in enumerate(spec.two_sided):
+            two[self.offsets[k]:self.offsets[k + 1]] = bool(t)
+        self._two_rows, self._one_rows = np.flatnonzero(two).astype(np.int32), np.flatnonzero(~two)
+        """Group rows of the two-sided members (the back pass's receivers) and of the others."""
         self._faces = None
         if self.method is None or receivers_only:
             self._faces = wp.array(faces, dtype=wp.int32, device=device)
@@ -201,8 +206,11 @@ class _Group:
             back = np.zeros_like(transfer)  # rows of members shaded on one side stay unused
             rows = self.back_rows
             back[rows] = self.back_method.update(pts[rows], -normals[rows]).numpy()
-        elif self.back_method is not None:
-            back = self.back_method.update(pts, -normals).numpy().copy()
+        elif self.back_method is not None:  # on the whole group, computed at the two-sided members' rows only
+            from ..visibility.reuse import update_rows
+
+            back = update_rows(self.back_method, pts, -normals, self._two_rows).numpy().copy()
+            back[self._one_rows] = 0.0  # rows of members shaded on one side stay unused
         elif self.two_sided:
             back = unoccluded_transfer(-normals, self.order)
         self.cached = (pts, transfer, normals, back)

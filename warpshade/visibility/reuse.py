@@ -159,8 +159,12 @@ class TemporalReuse:
         due = self._account > self.tolerance
         return np.flatnonzero(due[lab]).astype(np.int32)
 
-    def update(self, points=None, normals=None) -> wp.array:
+    def update(self, points=None, normals=None, needed=None) -> wp.array:
         """Positions (and normals) of this frame; recomputes the receivers due, keeps the others.
+
+        Args:
+            needed: Receivers whose transfer will be read (None: all). Others are not recomputed
+                (their rows keep whatever they held) when the method can compute rows.
 
         Returns:
             :attr:`transfer`.
@@ -169,12 +173,17 @@ class TemporalReuse:
         pts = np.asarray(self.mesh.points if points is None else points, dtype=np.float32)
         rows = self.due(pts)
         nv = self.mesh.num_vertices
-        if len(rows) == nv or (len(rows) and not hasattr(m, "compute_rows")):
+        can_rows = hasattr(m, "compute_rows")
+        if needed is not None and can_rows:
+            rows = np.intersect1d(rows, np.asarray(needed, dtype=np.int32)).astype(np.int32)
+        if len(rows) and (not can_rows or (needed is None and len(rows) == nv)):
             values = m.update(pts, normals).numpy()
             rows = np.arange(nv, dtype=np.int32)
             self._values = values.copy()
         else:
             m.set_points(pts, normals)  # normals stay current everywhere, reused or not
+            if self._values is None:
+                self._values = np.zeros((nv, self.order * self.order), dtype=np.float32)
             if len(rows):
                 values = m.compute_rows(rows).numpy()
                 self._values[rows] = values[rows]
@@ -187,9 +196,21 @@ class TemporalReuse:
         return self.transfer
 
 
+def update_rows(method, points, normals, rows) -> wp.array:
+    """``method``'s transfer for ``points`` where only the receivers ``rows`` will be read: computed
+    there alone when the method can (``compute_rows``, or a :class:`TemporalReuse` of such a method),
+    else everywhere. The rows read are the same as a full ``update`` gives."""
+    if isinstance(method, TemporalReuse):
+        return method.update(points, normals, needed=rows)
+    if hasattr(method, "compute_rows"):
+        method.set_points(points, normals)
+        return method.compute_rows(rows)
+    return method.update(points, normals)
+
+
 def with_reuse(method, tolerance: float | None):
     """``method`` wrapped in :class:`TemporalReuse` at ``tolerance``, or ``method`` itself for None."""
     return method if tolerance is None or method is None else TemporalReuse(method, tolerance)
 
 
-__all__ = ["MAX_CLUSTERS", "MIN_CLUSTER", "TemporalReuse", "median_edge", "kd_clusters", "with_reuse"]
+__all__ = ["MAX_CLUSTERS", "MIN_CLUSTER", "TemporalReuse", "kd_clusters", "median_edge", "update_rows", "with_reuse"]
