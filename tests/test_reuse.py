@@ -130,3 +130,17 @@ def test_back_pass_computes_the_two_sided_rows_as_a_full_update():
     full = type(group.back_method)(group.back_method.mesh, order=ORDER, **spec.knobs).update(pts, -normals).numpy()
     assert np.array_equal(back[rows], full[rows])
     assert not back[group._one_rows].any()  # one-sided members' back rows are not computed (unused)
+
+
+def test_animation_bench_judges_every_kth_frame_and_reuse_zero_matches():
+    from warpshade.bench.animation import format_animation, run_animation
+
+    cfgs = [{"method": "hemiraster", "knobs": {}, "reuse": None}, {"method": "hemiraster", "knobs": {}, "reuse": 0.0}]
+    res = run_animation("walk", frames=3, every=2, order=3, rays=64, cache_dir=None, configs=cfgs, log=lambda m: None)
+    assert res["judged_frames"] == [0, 2]
+    plain, reused = res["records"]
+    assert [e["frame"] for e in plain["errors"]] == [0, 2]
+    assert plain["errors"] == reused["errors"]  # reuse 0 is the method itself
+    # a 64-ray truth is itself ~1/sqrt(64) = 12 % off: the bound says the errors are a comparison, not garbage
+    assert 0.0 < plain["error_mean"] < 0.2 and reused["computed_fraction"] == 1.0  # the walker moves every frame
+    assert "reuse 0" in format_animation(res)
