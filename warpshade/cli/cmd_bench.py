@@ -14,7 +14,8 @@ HELP = "measure time, memory and error of every visibility method's knob setting
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true",
                         help="few configurations on two small meshes, orders 3 and 5, 4096-ray ground truth (< 2 minutes)")
-    parser.add_argument("--out", required=True, metavar="DIR", help="writes DIR/results.json, results.csv, pareto.png")
+    parser.add_argument("--out", default=None, metavar="DIR",
+                        help="writes DIR/results.json, results.csv, pareto.png (required unless --animation)")
     parser.add_argument("--methods", default=None, help="comma-separated method names (default: all registered)")
     parser.add_argument("--meshes", default=None,
                         help="comma-separated mesh names (cloth, bunny, bear, character, two-objects)")
@@ -28,13 +29,53 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frontier", default=None, metavar="FRONTIER.json",
                         help="also write the planner's frontier file (e.g. warpshade/data/frontier.json)")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
+    from ..bench.animation import ANIMATIONS
+
+    anim = parser.add_argument_group("whole animations (--animation)")
+    anim.add_argument("--animation", choices=ANIMATIONS, default=None,
+                      help="instead of the sweep: shade every frame of a sequence (default: the default scene's drape; "
+                           "walk: the skinned walking figure), judge every --every-th frame against its ray-traced "
+                           "truth, with temporal reuse at several tolerances beside recomputation")
+    anim.add_argument("--frames", type=int, default=120, help="frames of the sequence (default 120)")
+    anim.add_argument("--every", type=int, default=10, help="judge every k-th frame (default 10)")
+    anim.add_argument("--order", type=int, default=4, help="SH order of the animation mode (default 4, as warpshade run)")
+    anim.add_argument("--reuse-tolerances", default=None, metavar="RAD,...",
+                      help="temporal reuse tolerances measured (default 0,0.05,0.1,0.2,0.5,1)")
+    anim.add_argument("--json", default=None, metavar="PATH", help="write the animation result as JSON")
 
 
 def _csv(text, conv=str):
     return None if text is None else [conv(x) for x in text.split(",") if x.strip()]
 
 
+def run_animation(args) -> int:
+    from ..bench.animation import DEFAULT_TOLERANCES, format_animation, run_animation
+    from ..bench.report import write_json
+    from ..bench.runner import machine_note
+
+    for flag, value in (("--frames", args.frames), ("--every", args.every)):
+        if value < 1:
+            raise ValueError(f"{flag} must be >= 1, got {value}")
+    tolerances = _csv(args.reuse_tolerances, float) or list(DEFAULT_TOLERANCES)
+    cache = args.cache_dir
+    result = run_animation(args.animation, frames=args.frames, every=args.every, order=args.order,
+                           rays=args.ground_truth_rays or 4096, tolerances=tolerances, device=args.device,
+                           cache_dir=".warpshade-cache/reference" if cache is None else
+                           (None if cache.lower() == "none" else cache))
+    result["machine"] = f"{machine_note()}; wall and process CPU time of update() per frame, compile excluded"
+    print(format_animation(result))
+    print(result["machine"])
+    if args.json:
+        write_json(args.json, result, indent=2)
+        print(f"-> {args.json}")
+    return 0
+
+
 def run(args) -> int:
+    if args.animation:
+        return run_animation(args)
+    if not args.out:
+        raise ValueError("warpshade bench: --out DIR is required (except with --animation)")
     from ..bench import BenchSettings, run_bench
     from ..bench.report import format_table, frontier_from_results, plot_pareto, write_csv, write_json
     from ..bench.runner import machine_note

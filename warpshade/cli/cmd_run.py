@@ -86,6 +86,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--area-k", type=positive_int, default=None,
                         help=f"GEARS light samples per side (default {DEFAULT_AREA_KNOBS['k']})")
     add_two_sided_argument(parser)
+    parser.add_argument("--reuse", type=float, default=None, metavar="RAD",
+                        help="temporal reuse: recompute a vertex cluster's transfer only when geometry it sees moved "
+                             "by more than this angle [rad] since its last computation (default: every frame)")
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -185,7 +188,7 @@ def run(args) -> int:
                     between=None if args.between == "none" else args.between,
                     reflections=reflections, albedo=parse_albedo(args.albedo), area_lights=args.area_lights,
                     area_knobs={} if args.area_k is None else {"k": args.area_k},
-                    refine_receivers=args.refine_receivers, security=security, two_sided=args.two_sided)
+                    refine_receivers=args.refine_receivers, security=security, two_sided=args.two_sided, reuse=args.reuse)
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,

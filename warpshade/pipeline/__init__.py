@@ -126,6 +126,9 @@ class Pipeline:
             its own single-sided mesh (docs/conventions.md §6): ``"auto"`` (default: objects with
             ``warpshade:twoSided``, else cloth), ``"on"`` (every shaded object) or ``"off"``. A group with a
             two-sided member runs its visibility method a second time, on the group seen from the back.
+        reuse: Temporal reuse: recompute a receiver's transfer only when geometry it sees moved by more
+            than this angle [rad] since it was last computed (:mod:`warpshade.visibility.reuse`); None
+            (default) recomputes every frame.
     """
 
     def __init__(self, scene: Scene, frames: int | None = None, method: str | None = None,
@@ -133,7 +136,7 @@ class Pipeline:
                  lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu",
                  between: str | None = "spheres", reflections: bool | dict | None = None, albedo=None,
                  area_lights: str = "gears", area_knobs: dict | None = None, refine_receivers="auto",
-                 security=None, two_sided: str = "auto"):
+                 security=None, two_sided: str = "auto", reuse: float | None = None):
         self.scene = scene
         self.refined = refine(scene, refine_receivers)
         """Static objects subdivided for shading (:mod:`warpshade.pipeline.refine`)."""
@@ -149,7 +152,8 @@ class Pipeline:
         self.security = security
         if not self.groups:
             raise SceneError(f"{scene.source}: no shaded object")
-        self.shader = SceneShader.from_config(self.config, scene, lights, device)
+        self.shader = SceneShader.from_config(self.config, scene, lights, device,
+                                              None if reuse is None else float(reuse))
         self._check_lights()
         self._warn_static_scene(lights)
         from .area import area_lights_used

@@ -65,7 +65,7 @@ class _Group:
     they are computed: :meth:`_build_back_method`).
     """
 
-    def __init__(self, spec: GroupSpec, order: int, device: str):
+    def __init__(self, spec: GroupSpec, order: int, device: str, reuse: float | None = None):
         self.spec, self.order = spec, order
         self.offsets = np.cumsum([0] + [m.num_vertices for m in spec.meshes])
         faces = np.concatenate([m.faces + off for m, off in zip(spec.meshes, self.offsets[:-1])])
@@ -94,6 +94,15 @@ class _Group:
         self.two_sided = any(spec.two_sided)
         if self.two_sided and self.method is not None:
             self._build_back_method(type(self.method), order, device)
+        if reuse is not None:  # temporal reuse (warpshade.visibility.reuse), both sides alike
+            from ..visibility.reuse import with_reuse
+
+            self.method, self.back_method = with_reuse(self.method, reuse), with_reuse(self.back_method, reuse)
+        two = np.zeros(len(self.rest), dtype=bool)
+        for k, t in enumerate(spec.two_sided):
+            two[self.offsets[k]:self.offsets[k + 1]] = bool(t)
+        self._two_rows, self._one_rows = np.flatnonzero(two).astype(np.int32), np.flatnonzero(~two)
+        """Group rows of the two-sided members (the back pass's receivers) and of the others."""
         self._faces = None
         if self.method is None or receivers_only:
             self._faces = wp.array(faces, dtype=wp.int32, device=device)
@@ -152,8 +161,11 @@ class _Group:
             back = np.zeros_like(transfer)  # rows of members shaded on one side stay unused
             rows = self.back_rows
             back[rows] = self.back_method.update(pts[rows], -normals[rows]).numpy()
-        elif self.back_method is not None:
-            back = self.back_method.update(pts, -normals).numpy().copy()
+        elif self.back_method is not None:  # on the whole group, computed at the two-sided members' rows only
+            from ..visibility.reuse import update_rows
+
+            back = update_rows(self.back_method, pts, -normals, self._two_rows).numpy().copy()
+            back[self._one_rows] = 0.0  # rows of members shaded on one side stay unused
         else:
             back = unoccluded_transfer(-normals, self.order)
         self.cached_back = back
@@ -215,6 +227,8 @@ class SceneShader:
         area_lights: Rect lights: ``"gears"`` (exact irradiance with GEARS soft shadows from every
             group, :mod:`.area`) or ``"sh"`` (projected to SH like the other local lights).
         area_knobs: :class:`~.area.AreaLightShading` keyword arguments (k, grid, weighting).
+        reuse: Temporal reuse tolerance [rad] of every group's transfer
+            (:class:`warpshade.visibility.reuse.TemporalReuse`), or None (recomputed every frame).
     """
 
     groups: list
@@ -229,13 +243,16 @@ class SceneShader:
     reflections: dict | None = None
     area_lights: str = "gears"
     area_knobs: dict = field(default_factory=dict)
+    reuse: float | None = None
 
     @classmethod
-    def from_config(cls, config, scene, lights: list | None = None, device: str = "cpu") -> SceneShader:
-        """The shader of a :class:`~.config.RunConfig` on ``scene`` (``lights``: objects replacing the scene's)."""
+    def from_config(cls, config, scene, lights: list | None = None, device: str = "cpu",
+                    reuse: float | None = None) -> SceneShader:
+        """The shader of a :class:`~.config.RunConfig` on ``scene`` (``lights``: objects replacing the scene's;
+        ``reuse``: temporal reuse tolerance [rad], or None)."""
         return cls(config.groups, config.order, scene.fps, list(scene.lights), scene.up_axis, lights,
                    config.write_transfer, device, config.between, config.reflections, config.area_lights,
-                   dict(config.area_knobs))
+                   dict(config.area_knobs), reuse)
 
     def build_lights(self) -> list:
         """The :mod:`warpshade.lighting` objects this spec shades with."""
@@ -309,7 +326,7 @@ class SceneShader:
         from ..radiance import exit_radiance
 
         t_build = time.perf_counter()
-        groups = [_Group(g, self.order, self.device) for g in self.groups]
+        groups = [_Group(g, self.order, self.device, self.reuse) for g in self.groups]
         if self.between not in (None, "spheres"):
             raise ValueError(f"between-group shadows must be 'spheres' or None, got {self.between!r}")
         between = (_between_group_shadows(groups, self.order, self.device)

@@ -456,7 +456,7 @@ class HemirasterTransfer(TransferMethod):
             wp.launch(follow_coarse_points, dim=self._bpoints.shape[0], inputs=[self._spoints, self._sfaces, *self._bind],
                       outputs=[self._bpoints], device=self.device)
 
-    def _launch(self, record: int, use_pvs: int) -> None:
+    def _launch(self, record: int, use_pvs: int, rows: wp.array | None = None) -> None:
         if self.occluders:
             wp.copy(self._spoints, self.points, count=self.mesh.num_vertices)
         self._follow()
@@ -481,6 +481,10 @@ class HemirasterTransfer(TransferMethod):
                       outputs=[self._fine.plane, self._fine.sphere], device=d)
         self._batch.record = record
         self._batch.hits = self._hits
+        if rows is not None:  # these receivers only (compute_rows)
+            self._rasterize(rows, rows.shape[0], use_pvs)
+            self._integrate_diffuse(rows, rows.shape[0])
+            return
         if self._interp is None:
             self._rasterize(self._all, self.mesh.num_vertices, use_pvs)
             if self.mode == "diffuse":
@@ -543,6 +547,26 @@ class HemirasterTransfer(TransferMethod):
         if self.redecimate > 0.0 and self._use_refine and self._departure() - self._built_departure > self.redecimate:
             self.rebuild()
         self._launch(record=0, use_pvs=1 if self._pvs_frames else 0)
+
+    def compute_rows(self, rows) -> wp.array:
+        """Recompute :attr:`transfer` at the receivers ``rows`` only, for the current :attr:`points` and
+        :attr:`normals` (:meth:`set_points`); the other rows keep their values. A receiver's transfer is
+        the same as :meth:`update` computes it (each receiver is rasterized on its own). In glossy mode
+        or with ``interpolate`` every receiver is computed.
+
+        Returns:
+            :attr:`transfer` (a new array after a :meth:`rebuild`).
+        """
+        rows = np.asarray(rows, dtype=np.int32)
+        if self.mode != "diffuse" or self._interp is not None:
+            self._compute()
+            return self.transfer
+        if self.redecimate > 0.0 and self._use_refine and self._departure() - self._built_departure > self.redecimate:
+            self.rebuild()
+        if len(rows):
+            self._launch(record=0, use_pvs=1 if self._pvs_frames else 0,
+                         rows=wp.array(rows, dtype=wp.int32, device=self.device))
+        return self.transfer
 
     def _departure(self) -> float:
         """How far the coarse mesh is from the fine surface this frame: mean blocker deviation over mean

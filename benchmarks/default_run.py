@@ -1,0 +1,150 @@
+"""The default scene end to end: ``python -m warpshade run --no-progress`` wall time, one worker
+against two, and where the time goes.
+
+What it shows (issue 18, target 5: 120 frames <= 5 s warm wall, two workers >= 1.9x one):
+
+* ``runs``: the command as a user types it (fresh process, the default scene, its 120 frames), a
+  first untimed run to warm the Warp kernel cache, then ``--repeat`` rounds of ``--workers 1`` and
+  ``--workers 2`` alternately (interleaved: load drift hits both), each with the wall time of the
+  whole process and the stage times the run prints (load, setup, simulate, shade summed over
+  workers, write, total).
+* ``profile``: one inline run (``--workers 0``) in this process under ``cProfile``: the functions with
+  the most cumulative time, and the split of shading into the group's front and back passes and the
+  rest (lights, exit radiance), from timers around ``_Group.update``'s method calls.
+
+How to run::
+
+    python benchmarks/default_run.py --repeat 3 --json benchmarks/results/default_run.json
+
+Shared, loaded 2-core machine: read the ratios, and the stage split, more than the absolute times.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import json
+import os
+import pstats
+import re
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+STAGES = re.compile(r"load ([\d.]+) s \| setup ([\d.]+) s \| simulate ([\d.]+) s .*\| shade ([\d.]+) s .*\| "
+                    r"write ([\d.]+) s .*\| total ([\d.]+) s")
+
+
+def one_run(workers: int, frames: int | None, extra: list[str]) -> dict:
+    """One ``warpshade run`` in a fresh process: wall time and the printed stage times [s]."""
+    with tempfile.TemporaryDirectory() as d:
+        cmd = [sys.executable, "-m", "warpshade", "run", "--no-progress", "--out", os.path.join(d, "out.usda"),
+               "--workers", str(workers)] + (["--frames", str(frames)] if frames else []) + extra
+        env = dict(os.environ, PYTHONPATH=REPO)
+        t0 = time.perf_counter()
+        p = subprocess.run(cmd, cwd=d, env=env, capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+    if p.returncode:
+        raise RuntimeError(f"warpshade run failed ({p.returncode}): {p.stderr[-2000:]}")
+    m = STAGES.search(p.stderr)
+    stages = dict(zip(("load", "setup", "simulate", "shade", "write", "total"), map(float, m.groups()))) if m else {}
+    return {"workers": workers, "wall_seconds": wall, "stages": stages}
+
+
+def profile_inline(frames: int | None, top: int = 25) -> dict:
+    """cProfile of an inline run (``workers=0``) and the split of the group passes' time."""
+    sys.path.insert(0, REPO)
+    from warpshade.pipeline import Pipeline, shading
+    from warpshade.usd import AnimationWriter, read_scene
+    from warpshade.usd.shipped import shipped_scene
+
+    split = {"front": 0.0, "back": 0.0}
+    original = shading._Group.update
+
+    def timed_update(self, geometry):
+        m, b = self.method, self.back_method
+        holders = []
+        for key, meth in (("front", m), ("back", b)):
+            if meth is None:
+                continue
+            real = meth.update
+
+            def wrapped(*a, _real=real, _key=key, **k):
+                t = time.perf_counter()
+                out = _real(*a, **k)
+                split[_key] += time.perf_counter() - t
+                return out
+
+            meth.update = wrapped
+            holders.append((meth, real))
+        try:
+            return original(self, geometry)
+        finally:
+            for meth, real in holders:
+                meth.update = real
+
+    shading._Group.update = timed_update
+    try:
+        scene = read_scene(shipped_scene("default.usda"))
+        with tempfile.TemporaryDirectory() as d:
+            pipe = Pipeline(scene, frames=frames, workers=0)
+            writer = AnimationWriter(os.path.join(d, "out.usda"), fps=scene.fps, up_axis=scene.up_axis,
+                                     meters_per_unit=scene.meters_per_unit)
+            prof = cProfile.Profile()
+            t0 = time.perf_counter()
+            prof.enable()
+            report = pipe.run(writer, progress=False)
+            prof.disable()
+            wall = time.perf_counter() - t0
+    finally:
+        shading._Group.update = original
+    s = io.StringIO()
+    pstats.Stats(prof, stream=s).sort_stats("cumulative").print_stats(top)
+    return {"frames": report.frames, "wall_seconds": wall, "stages": report.seconds,
+            "shade_split": {**split, "other": report.seconds["shade"] - split["front"] - split["back"]},
+            "top_cumulative": s.getvalue()}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=2, help="rounds of --workers 1 and 2 after the warm-up run")
+    ap.add_argument("--frames", type=int, default=None, help="frames (default: the scene's 120)")
+    ap.add_argument("--no-profile", action="store_true")
+    ap.add_argument("--json", default=None, metavar="PATH")
+    ap.add_argument("extra", nargs="*", help="more warpshade run options (after --)")
+    args = ap.parse_args(argv)
+    warm = one_run(2, args.frames, args.extra)  # warms the kernel cache (and is timed, for the record)
+    print(f"first run (kernel cache maybe cold): {warm['wall_seconds']:.1f} s wall {warm['stages']}", flush=True)
+    runs = []
+    for r in range(args.repeat):
+        for w in (1, 2):
+            runs.append(one_run(w, args.frames, args.extra))
+            print(f"round {r} workers {w}: {runs[-1]['wall_seconds']:.1f} s wall {runs[-1]['stages']}", flush=True)
+    med = {}
+    for w in (1, 2):
+        walls = sorted(x["wall_seconds"] for x in runs if x["workers"] == w)
+        med[w] = walls[len(walls) // 2]
+    print(f"median warm wall: 1 worker {med[1]:.1f} s, 2 workers {med[2]:.1f} s, ratio {med[1] / med[2]:.2f}x")
+    out = {"command": "python -m warpshade run --no-progress --workers W " + " ".join(args.extra),
+           "frames": args.frames or 120, "first_run": warm, "runs": runs,
+           "median_wall_seconds": {"1": med[1], "2": med[2]}, "speedup_two_workers": med[1] / med[2],
+           "machine": "shared 2-core VM, other jobs running (loaded)"}
+    if not args.no_profile:
+        prof = profile_inline(args.frames)
+        print(f"inline profile: {prof['wall_seconds']:.1f} s wall, stages {prof['stages']}, "
+              f"shade split {prof['shade_split']}")
+        print(prof["top_cumulative"])
+        out["profile_inline"] = prof
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(out, f, indent=2)
+        print(f"wrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
