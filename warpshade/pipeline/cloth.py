@@ -18,7 +18,9 @@ class ClothSimulation:
 
     Colliders (``warpshade:collider``): ``ground`` -> a plane at the mesh's mean height facing up;
     ``sphere`` -> the analytic sphere of a Sphere prim; ``box`` -> the oriented box of a Cube prim
-    (UsdPhysics PhysicsCollisionAPI on a Cube); ``mesh`` -> the triangle mesh, which may
+    (UsdPhysics PhysicsCollisionAPI on a Cube); ``capsule``, ``cylinder``, ``cone`` -> the exact
+    analytic solid of a Capsule, Cylinder or Cone prim (the tessellated mesh when its transform
+    does not keep the shape exact); ``mesh`` -> the triangle mesh, which may
     move (a skinned or animated body: its pose is passed every frame). Pins (``warpshade:pinned``)
     are fixed; attachments (``warpshade:attached`` vertices, ``warpshade:attachTarget`` a moving
     object) follow the target's nearest rest vertex with their rest offset (a cape on shoulders);
@@ -52,7 +54,7 @@ class ClothSimulation:
         self.model = builder.finalize(device=device)
         up = np.array([0.0, 1.0, 0.0]) if scene.up_axis.upper() == "Y" else np.array([0.0, 0.0, 1.0])
         colliders = ColliderSet(device=device)
-        for o in scene.objects:
+        for o in list(scene.objects) + list(scene.collision_only):
             kind = o.params.get("collider")
             if kind is None or o.kind == "cloth":
                 continue
@@ -63,12 +65,19 @@ class ClothSimulation:
                 colliders.add_box(b["center"], b["half_extents"], b["rotation"], friction=friction)
             elif kind == "sphere" and "sphere" in o.params:
                 colliders.add_sphere(o.params["sphere"]["center"], o.params["sphere"]["radius"], friction=friction)
-            elif kind in ("mesh", "sphere"):
+            elif kind in ("capsule", "cylinder") and kind in o.params:
+                c = o.params[kind]
+                add = colliders.add_capsule if kind == "capsule" else colliders.add_cylinder
+                add(c["p0"], c["p1"], c["radius"], friction=friction)
+            elif kind == "cone" and "cone" in o.params:
+                c = o.params["cone"]
+                colliders.add_cone(c["base"], c["apex"], c["radius"], friction=friction)
+            elif kind in ("mesh", "sphere", "box", "capsule", "cylinder", "cone"):
                 mc = colliders.add_mesh(o.mesh.points, o.mesh.faces, friction=friction)
                 if o.kind != "static":
                     self.moving_colliders.append((o.name, mc))
             else:
-                raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, box, mesh")
+                raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, box, capsule, cylinder, cone, mesh")
         gravity = tuple(-9.81 / scene.meters_per_unit * up)  # [scene units/s²]
         self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
                                  gravity=gravity, self_collision=bool(first.get("selfCollision", True)))

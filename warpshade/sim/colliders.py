@@ -1,4 +1,4 @@
-"""Kinematic colliders: planes, spheres, capsules, boxes and animated triangle meshes.
+"""Kinematic colliders: planes, spheres, capsules, boxes, cylinders, cones and animated triangle meshes.
 
 A :class:`ColliderSet` is given to the solver. Move colliders between steps with the ``set_*``
 methods (the new pose is where the collider is at the end of the next step; the solver sweeps
@@ -157,6 +157,25 @@ class ColliderSet:
         return self._add(int(ck.SHAPE_BOX), _vec("box center", center), np.zeros(3), self._quat(rotation), he,
                          friction)
 
+    def add_cylinder(self, p0, p1, radius: float, friction: float = 0.5) -> int:
+        """Solid cylinder with flat caps centred at p0 and p1 (sharp rims). Returns the shape index."""
+        a, b = self._axis("cylinder", p0, p1)
+        return self._add(int(ck.SHAPE_CYLINDER), a, b, (0, 0, 0, 1), (_pos("cylinder radius", radius), 0, 0), friction)
+
+    def add_cone(self, base, apex, radius: float, friction: float = 0.5) -> int:
+        """Solid cone: a flat disc of ``radius`` centred at ``base``, tapering to ``apex`` (sharp
+        rim and apex). Returns the shape index."""
+        a, b = self._axis("cone", base, apex)
+        return self._add(int(ck.SHAPE_CONE), a, b, (0, 0, 0, 1), (_pos("cone radius", radius), 0, 0), friction)
+
+    @staticmethod
+    def _axis(what: str, p0, p1) -> tuple[np.ndarray, np.ndarray]:
+        names = ("base", "apex") if what == "cone" else ("p0", "p1")
+        a, b = _vec(f"{what} {names[0]}", p0), _vec(f"{what} {names[1]}", p1)
+        if not np.linalg.norm(b - a) > 0:
+            raise ValueError(f"{what} {names[0]} and {names[1]} must differ, got {p0} and {p1}")
+        return a, b
+
     def add_mesh(self, points: np.ndarray, faces: np.ndarray, friction: float = 0.5) -> MeshCollider:
         """Animated triangle-mesh collider (move it with ``collider.set_points``)."""
         m = MeshCollider(points, faces, friction, self.device)
@@ -183,6 +202,18 @@ class ColliderSet:
         i = self._shape(index, ck.SHAPE_CAPSULE)
         self._a[i] = _vec("capsule p0", p0)
         self._b[i] = _vec("capsule p1", p1)
+        self._dirty = True
+
+    def set_cylinder(self, index: int, p0, p1) -> None:
+        """Move cylinder ``index`` (its cap centres at the end of the next step)."""
+        i = self._shape(index, ck.SHAPE_CYLINDER)
+        self._a[i], self._b[i] = self._axis("cylinder", p0, p1)
+        self._dirty = True
+
+    def set_cone(self, index: int, base, apex) -> None:
+        """Move cone ``index`` (its base centre and apex at the end of the next step)."""
+        i = self._shape(index, ck.SHAPE_CONE)
+        self._a[i], self._b[i] = self._axis("cone", base, apex)
         self._dirty = True
 
     def set_box(self, index: int, center, rotation=None) -> None:
