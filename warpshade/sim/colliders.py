@@ -301,9 +301,14 @@ class ColliderSet:
                       inputs=[m.points_start, m.points_end, alpha1], outputs=[m.mesh.points], device=self.device)
             m.mesh.refit()
 
+    @property
+    def has_sharp_edges(self) -> bool:
+        """Whether :meth:`collide_edges` has work: mesh colliders, cylinders or cones."""
+        return bool(self.meshes) or any(k in (int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE)) for k in self._kind)
+
     def collide_edges(self, thickness: float, inv_mass, edges, x) -> None:
-        """Push cloth edges out of the mesh colliders' edges (sharp edges cutting between two cloth
-        vertices), corrections averaged per vertex.
+        """Push cloth edges out of the mesh colliders' edges and the rims of cylinders and cones
+        (sharp edges cutting between two cloth vertices), corrections averaged per vertex.
 
         Args:
             thickness: Distance to keep [m].
@@ -311,12 +316,17 @@ class ColliderSet:
             edges: Cloth edges, shape (E, 2), dtype int32.
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
         """
-        if not self.meshes:
+        if not self.has_sharp_edges:
             return
         n = x.shape[0]
         if getattr(self, "_edge_delta", None) is None or self._edge_delta.shape[0] != n:
             self._edge_delta = wp.zeros(n, dtype=wp.vec3, device=self.device)
             self._edge_count = wp.zeros(n, dtype=wp.float32, device=self.device)
+        if any(k in (int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE)) for k in self._kind):
+            ar = self._arrays
+            wp.launch(ck.collide_shape_edges, dim=edges.shape[0],
+                      inputs=[ar["kind"], ar["a1"], ar["b1"], ar["r1"], ar["size"], x, edges, inv_mass, thickness],
+                      outputs=[self._edge_delta, self._edge_count], device=self.device)
         for m in self.meshes:
             wp.launch(ck.collide_mesh_edges, dim=edges.shape[0],
                       inputs=[m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x, edges,

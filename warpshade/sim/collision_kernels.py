@@ -418,3 +418,77 @@ def collide_mesh_edges(
             wp.atomic_add(delta, i1, g * (s * w1))
             wp.atomic_add(delta_count, i0, 1.0)
             wp.atomic_add(delta_count, i1, 1.0)
+
+
+@wp.kernel
+def collide_shape_edges(
+    kind: wp.array[int],
+    a1: wp.array[wp.vec3],
+    b1: wp.array[wp.vec3],
+    r1: wp.array[wp.quat],
+    size: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+    edges: wp.array2d[int],
+    inv_mass: wp.array[float],
+    thickness: float,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Cloth edges against the sharp rims of cylinders and cones (and a cone's apex): the point of
+    the edge deepest in the solid is found by golden-section search (the signed distance of a
+    convex solid is convex along a line, so the search finds the edge's minimum), and an edge
+    whose inner point is closer than ``thickness`` is pushed out along the normal there, split
+    between its two vertices as in :func:`collide_mesh_edges`."""
+    k = wp.tid()
+    i0 = edges[k, 0]
+    i1 = edges[k, 1]
+    w0 = inv_mass[i0]
+    w1 = inv_mass[i1]
+    if w0 + w1 == 0.0:
+        return
+    pa = x[i0]
+    pb = x[i1]
+    for s in range(kind.shape[0]):
+        kd = kind[s]
+        if kd != SHAPE_CYLINDER and kd != SHAPE_CONE:
+            continue
+        # bounding sphere of the solid against the edge
+        mid = (a1[s] + b1[s]) * 0.5
+        reach = wp.sqrt(0.25 * wp.length_sq(b1[s] - a1[s]) + size[s][0] * size[s][0]) + thickness
+        t = segment_parameter(mid, pa, pb)
+        if wp.length(wp.lerp(pa, pb, t) - mid) > reach:
+            continue
+        lo = float(0.0)
+        hi = float(1.0)
+        g = 0.6180339887
+        c = hi - g * (hi - lo)
+        d = lo + g * (hi - lo)
+        fc = shape_distance(kd, wp.lerp(pa, pb, c), a1[s], b1[s], r1[s], size[s])[3]
+        fd = shape_distance(kd, wp.lerp(pa, pb, d), a1[s], b1[s], r1[s], size[s])[3]
+        for it in range(24):
+            if fc < fd:
+                hi = d
+                d = c
+                fd = fc
+                c = hi - g * (hi - lo)
+                fc = shape_distance(kd, wp.lerp(pa, pb, c), a1[s], b1[s], r1[s], size[s])[3]
+            else:
+                lo = c
+                c = d
+                fc = fd
+                d = lo + g * (hi - lo)
+                fd = shape_distance(kd, wp.lerp(pa, pb, d), a1[s], b1[s], r1[s], size[s])[3]
+        u = 0.5 * (lo + hi)
+        if u <= 1.0e-3 or u >= 1.0 - 1.0e-3:
+            continue  # a cloth vertex is deepest: the vertex projection holds it
+        sd = shape_distance(kd, wp.lerp(pa, pb, u), a1[s], b1[s], r1[s], size[s])
+        if sd[3] >= thickness:
+            continue
+        denom = (1.0 - u) * (1.0 - u) * w0 + u * u * w1
+        if denom == 0.0:
+            continue
+        push = wp.vec3(sd[0], sd[1], sd[2]) * ((thickness - sd[3]) / denom)
+        wp.atomic_add(delta, i0, push * ((1.0 - u) * w0))
+        wp.atomic_add(delta, i1, push * (u * w1))
+        wp.atomic_add(delta_count, i0, 1.0)
+        wp.atomic_add(delta_count, i1, 1.0)
