@@ -192,6 +192,8 @@ class Scene:
         settings: Scene-wide ``warpshade:`` settings (SH order, reflections, max error...).
         source: File the scene came from, for messages.
         default_prim: The input's default prim path (the output's default prim), or None (``/World``).
+        collision_only: Static colliders that are neither shaded nor written (UsdPhysics colliders
+            with ``purpose`` guide or proxy, such as a character's collision twins).
     """
 
     objects: list[SceneObject] = field(default_factory=list)
@@ -204,6 +206,7 @@ class Scene:
     settings: dict[str, Any] = field(default_factory=dict)
     source: str = "<scene>"
     default_prim: str | None = None
+    collision_only: list[SceneObject] = field(default_factory=list)
 
     def object(self, name: str) -> SceneObject:
         for o in self.objects:

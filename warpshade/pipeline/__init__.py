@@ -176,7 +176,8 @@ class Pipeline:
                 warnings.warn(
                     f"{spec.name}: this light gives no light (color x intensity x 2^exposure = 0): set "
                     "inputs:intensity and inputs:color above zero, or remove it", SceneWarning, stacklevel=3)
-        has_colliders = any(o.params.get("collider") for o in objects if o.kind != "cloth")
+        has_colliders = bool(self.scene.collision_only) or any(o.params.get("collider") for o in objects
+                                                               if o.kind != "cloth")
         for o in objects:
             if o.kind != "cloth" or has_colliders:
                 continue

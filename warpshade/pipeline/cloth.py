@@ -13,12 +13,31 @@ CLOTH_GLOBAL = {"damping": "damping", "thickness": "thickness"}
 """``warpshade:cloth:*`` attributes that are builder-wide (taken from the first cloth object)."""
 
 
+def _stage_unit_defaults(meters_per_unit: float) -> tuple[dict, dict]:
+    """:class:`warpshade.sim.ClothBuilder`'s and :class:`warpshade.sim.XPBDSolver`'s SI defaults
+    in stage units (length = metersPerUnit m, kg, s), so that a stage in centimetres behaves as
+    one in metres: thickness [m] / mpu, density [kg/m²] * mpu², bend stiffness [N m] / mpu², air
+    density [kg/m³] * mpu³; the stretch stiffness [N/m = kg/s²] and damping times have no length.
+    ``warpshade:cloth:*`` values are taken in stage units."""
+    import inspect
+
+    from ..sim import ClothBuilder, XPBDSolver
+
+    b = {k: v.default for k, v in inspect.signature(ClothBuilder).parameters.items()}
+    s = {k: v.default for k, v in inspect.signature(XPBDSolver).parameters.items()}
+    u = float(meters_per_unit)
+    return ({"thickness": b["thickness"] / u, "density": b["density"] * u * u,
+             "bend_stiffness": b["bend_stiffness"] / (u * u)}, {"air_density": s["air_density"] * u ** 3})
+
+
 class ClothSimulation:
     """Every cloth object of a scene in one :mod:`warpshade.sim` model, with the scene's colliders.
 
     Colliders (``warpshade:collider``): ``ground`` -> a plane at the mesh's mean height facing up;
     ``sphere`` -> the analytic sphere of a Sphere prim; ``box`` -> the oriented box of a Cube prim
-    (UsdPhysics PhysicsCollisionAPI on a Cube); ``mesh`` -> the triangle mesh, which may
+    (UsdPhysics PhysicsCollisionAPI on a Cube); ``capsule``, ``cylinder``, ``cone`` -> the exact
+    analytic solid of a Capsule, Cylinder or Cone prim (the tessellated mesh when its transform
+    does not keep the shape exact); ``mesh`` -> the triangle mesh, which may
     move (a skinned or animated body: its pose is passed every frame). Pins (``warpshade:pinned``)
     are fixed; attachments (``warpshade:attached`` vertices, ``warpshade:attachTarget`` a moving
     object) follow the target's nearest rest vertex with their rest offset (a cape on shoulders);
@@ -37,7 +56,9 @@ class ClothSimulation:
         first = cloth[0].params.get("cloth", {})
         self.attachments = []  # (target name, target vertex per slot (A,), rest offset (A, 3))
         self.moving_colliders = []  # (object name, MeshCollider)
-        builder = ClothBuilder(**{k2: float(first[k]) for k, k2 in CLOTH_GLOBAL.items() if k in first})
+        globals_ = {k2: float(first[k]) for k, k2 in CLOTH_GLOBAL.items() if k in first}
+        builder_units, solver_units = _stage_unit_defaults(scene.meters_per_unit)
+        builder = ClothBuilder(**{**builder_units, **globals_})
         self.ranges = {}
         friction = float(first.get("friction", 0.5))
         for o in cloth:
@@ -52,7 +73,7 @@ class ClothSimulation:
         self.model = builder.finalize(device=device)
         up = np.array([0.0, 1.0, 0.0]) if scene.up_axis.upper() == "Y" else np.array([0.0, 0.0, 1.0])
         colliders = ColliderSet(device=device)
-        for o in scene.objects:
+        for o in list(scene.objects) + list(scene.collision_only):
             kind = o.params.get("collider")
             if kind is None or o.kind == "cloth":
                 continue
@@ -63,15 +84,23 @@ class ClothSimulation:
                 colliders.add_box(b["center"], b["half_extents"], b["rotation"], friction=friction)
             elif kind == "sphere" and "sphere" in o.params:
                 colliders.add_sphere(o.params["sphere"]["center"], o.params["sphere"]["radius"], friction=friction)
-            elif kind in ("mesh", "sphere"):
+            elif kind in ("capsule", "cylinder") and kind in o.params:
+                c = o.params[kind]
+                add = colliders.add_capsule if kind == "capsule" else colliders.add_cylinder
+                add(c["p0"], c["p1"], c["radius"], friction=friction)
+            elif kind == "cone" and "cone" in o.params:
+                c = o.params["cone"]
+                colliders.add_cone(c["base"], c["apex"], c["radius"], friction=friction)
+            elif kind in ("mesh", "sphere", "box", "capsule", "cylinder", "cone"):
                 mc = colliders.add_mesh(o.mesh.points, o.mesh.faces, friction=friction)
                 if o.kind != "static":
                     self.moving_colliders.append((o.name, mc))
             else:
-                raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, box, mesh")
+                raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, box, capsule, cylinder, cone, mesh")
         gravity = tuple(-9.81 / scene.meters_per_unit * up)  # [scene units/s²]
         self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
-                                 gravity=gravity, self_collision=bool(first.get("selfCollision", True)))
+                                 gravity=gravity, self_collision=bool(first.get("selfCollision", True)),
+                                 **solver_units)
         self.control = self.model.control()
         if "wind" in scene.settings:
             self.control.set_wind(scene.settings["wind"])

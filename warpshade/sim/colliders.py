@@ -1,4 +1,4 @@
-"""Kinematic colliders: planes, spheres, capsules, boxes and animated triangle meshes.
+"""Kinematic colliders: planes, spheres, capsules, boxes, cylinders, cones and animated triangle meshes.
 
 A :class:`ColliderSet` is given to the solver. Move colliders between steps with the ``set_*``
 methods (the new pose is where the collider is at the end of the next step; the solver sweeps
@@ -157,6 +157,25 @@ class ColliderSet:
         return self._add(int(ck.SHAPE_BOX), _vec("box center", center), np.zeros(3), self._quat(rotation), he,
                          friction)
 
+    def add_cylinder(self, p0, p1, radius: float, friction: float = 0.5) -> int:
+        """Solid cylinder with flat caps centred at p0 and p1 (sharp rims). Returns the shape index."""
+        a, b = self._axis("cylinder", p0, p1)
+        return self._add(int(ck.SHAPE_CYLINDER), a, b, (0, 0, 0, 1), (_pos("cylinder radius", radius), 0, 0), friction)
+
+    def add_cone(self, base, apex, radius: float, friction: float = 0.5) -> int:
+        """Solid cone: a flat disc of ``radius`` centred at ``base``, tapering to ``apex`` (sharp
+        rim and apex). Returns the shape index."""
+        a, b = self._axis("cone", base, apex)
+        return self._add(int(ck.SHAPE_CONE), a, b, (0, 0, 0, 1), (_pos("cone radius", radius), 0, 0), friction)
+
+    @staticmethod
+    def _axis(what: str, p0, p1) -> tuple[np.ndarray, np.ndarray]:
+        names = ("base", "apex") if what == "cone" else ("p0", "p1")
+        a, b = _vec(f"{what} {names[0]}", p0), _vec(f"{what} {names[1]}", p1)
+        if not np.linalg.norm(b - a) > 0:
+            raise ValueError(f"{what} {names[0]} and {names[1]} must differ, got {p0} and {p1}")
+        return a, b
+
     def add_mesh(self, points: np.ndarray, faces: np.ndarray, friction: float = 0.5) -> MeshCollider:
         """Animated triangle-mesh collider (move it with ``collider.set_points``)."""
         m = MeshCollider(points, faces, friction, self.device)
@@ -183,6 +202,18 @@ class ColliderSet:
         i = self._shape(index, ck.SHAPE_CAPSULE)
         self._a[i] = _vec("capsule p0", p0)
         self._b[i] = _vec("capsule p1", p1)
+        self._dirty = True
+
+    def set_cylinder(self, index: int, p0, p1) -> None:
+        """Move cylinder ``index`` (its cap centres at the end of the next step)."""
+        i = self._shape(index, ck.SHAPE_CYLINDER)
+        self._a[i], self._b[i] = self._axis("cylinder", p0, p1)
+        self._dirty = True
+
+    def set_cone(self, index: int, base, apex) -> None:
+        """Move cone ``index`` (its base centre and apex at the end of the next step)."""
+        i = self._shape(index, ck.SHAPE_CONE)
+        self._a[i], self._b[i] = self._axis("cone", base, apex)
         self._dirty = True
 
     def set_box(self, index: int, center, rotation=None) -> None:
@@ -270,9 +301,14 @@ class ColliderSet:
                       inputs=[m.points_start, m.points_end, alpha1], outputs=[m.mesh.points], device=self.device)
             m.mesh.refit()
 
+    @property
+    def has_sharp_edges(self) -> bool:
+        """Whether :meth:`collide_edges` has work: mesh colliders, cylinders or cones."""
+        return bool(self.meshes) or any(k in (int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE)) for k in self._kind)
+
     def collide_edges(self, thickness: float, inv_mass, edges, x) -> None:
-        """Push cloth edges out of the mesh colliders' edges (sharp edges cutting between two cloth
-        vertices), corrections averaged per vertex.
+        """Push cloth edges out of the mesh colliders' edges and the rims of cylinders and cones
+        (sharp edges cutting between two cloth vertices), corrections averaged per vertex.
 
         Args:
             thickness: Distance to keep [m].
@@ -280,12 +316,17 @@ class ColliderSet:
             edges: Cloth edges, shape (E, 2), dtype int32.
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
         """
-        if not self.meshes:
+        if not self.has_sharp_edges:
             return
         n = x.shape[0]
         if getattr(self, "_edge_delta", None) is None or self._edge_delta.shape[0] != n:
             self._edge_delta = wp.zeros(n, dtype=wp.vec3, device=self.device)
             self._edge_count = wp.zeros(n, dtype=wp.float32, device=self.device)
+        if any(k in (int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE)) for k in self._kind):
+            ar = self._arrays
+            wp.launch(ck.collide_shape_edges, dim=edges.shape[0],
+                      inputs=[ar["kind"], ar["a1"], ar["b1"], ar["r1"], ar["size"], x, edges, inv_mass, thickness],
+                      outputs=[self._edge_delta, self._edge_count], device=self.device)
         for m in self.meshes:
             wp.launch(ck.collide_mesh_edges, dim=edges.shape[0],
                       inputs=[m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x, edges,

@@ -17,6 +17,8 @@ SHAPE_PLANE = wp.constant(0)
 SHAPE_SPHERE = wp.constant(1)
 SHAPE_CAPSULE = wp.constant(2)
 SHAPE_BOX = wp.constant(3)
+SHAPE_CYLINDER = wp.constant(4)
+SHAPE_CONE = wp.constant(5)
 
 
 @wp.func
@@ -30,11 +32,80 @@ def segment_parameter(p: wp.vec3, a: wp.vec3, b: wp.vec3) -> float:
 
 
 @wp.func
+def axial_frame(p: wp.vec3, a: wp.vec3, b: wp.vec3) -> wp.vec4:
+    """The meridian half-plane of p around the axis a -> b: vec4(ex, ey, ez, h), e the unit radial
+    direction of p (any perpendicular on the axis) and h its height above a along the axis."""
+    u = wp.normalize(b - a)
+    h = wp.dot(p - a, u)
+    rv = (p - a) - u * h
+    lr = wp.length(rv)
+    e = wp.vec3(0.0)
+    if lr > 0.0:
+        e = rv / lr
+    else:
+        # on the axis: any direction perpendicular to u
+        t = wp.vec3(1.0, 0.0, 0.0)
+        if wp.abs(u[0]) > 0.9:
+            t = wp.vec3(0.0, 1.0, 0.0)
+        e = wp.normalize(wp.cross(u, t))
+    return wp.vec4(e[0], e[1], e[2], h)
+
+
+@wp.func
+def segment2_closest(q: wp.vec2, s0: wp.vec2, s1: wp.vec2) -> wp.vec2:
+    """Point of the 2-D segment s0-s1 closest to q."""
+    d = s1 - s0
+    if wp.dot(d, d) == 0.0:
+        return s0
+    t = wp.clamp(wp.dot(q - s0, d) / wp.dot(d, d), 0.0, 1.0)
+    return s0 + d * t
+
+
+@wp.func
+def meridian_distance(q: wp.vec2, c0: wp.vec2, c1: wp.vec2, c2: wp.vec2, c3: wp.vec2, n01: wp.vec2,
+                      n12: wp.vec2, n23: wp.vec2, inside: bool) -> wp.vec3:
+    """Signed distance of q = (r, h) to the surface part c0-c1-c2-c3 of a solid of revolution's
+    half-section (the axis closes it) and the 2-D outward normal: vec3(nr, nh, d). The normal is
+    the edge normal in an edge's interior and the direction from the nearest corner outside it
+    (a sharp rim's normal fan)."""
+    best = float(1.0e30)
+    cp = wp.vec2(0.0)
+    en = wp.vec2(0.0)
+    p01 = segment2_closest(q, c0, c1)
+    d01 = wp.length(q - p01)
+    if d01 < best:
+        best = d01
+        cp = p01
+        en = n01
+    p12 = segment2_closest(q, c1, c2)
+    d12 = wp.length(q - p12)
+    if d12 < best:
+        best = d12
+        cp = p12
+        en = n12
+    p23 = segment2_closest(q, c2, c3)
+    d23 = wp.length(q - p23)
+    if d23 < best:
+        best = d23
+        cp = p23
+        en = n23
+    if inside:
+        return wp.vec3(en[0], en[1], -best)
+    n = en
+    if best > 1.0e-9:
+        n = (q - cp) / best
+    return wp.vec3(n[0], n[1], best)
+
+
+@wp.func
 def shape_distance(kind: int, p: wp.vec3, a: wp.vec3, b: wp.vec3, rot: wp.quat, size: wp.vec3) -> wp.vec4:
     """Signed distance [m] of p to a shape and the outward unit normal: vec4(nx, ny, nz, d).
 
     plane: a point on it, b its normal; sphere: a centre, size[0] radius; capsule: segment a-b,
-    size[0] radius; box: a centre, rot orientation, size half extents.
+    size[0] radius; box: a centre, rot orientation, size half extents; cylinder: a and b the
+    centres of its two caps, size[0] radius; cone: a the centre of its base, b its apex, size[0]
+    the base radius. Cylinders and cones are exact solids of revolution with flat caps: the
+    distance in the meridian half-plane to the caps and the side, sharp rims included.
     """
     if kind == SHAPE_PLANE:
         n = wp.normalize(b)
@@ -53,6 +124,29 @@ def shape_distance(kind: int, p: wp.vec3, a: wp.vec3, b: wp.vec3, rot: wp.quat, 
         if ld > 0.0:
             n = d / ld
         return wp.vec4(n[0], n[1], n[2], ld - size[0])
+    if kind == SHAPE_CYLINDER or kind == SHAPE_CONE:
+        fr = axial_frame(p, a, b)
+        e = wp.vec3(fr[0], fr[1], fr[2])
+        h = fr[3]
+        length = wp.length(b - a)
+        u = (b - a) / length
+        r = wp.length((p - a) - u * h)
+        rad = size[0]
+        q2 = wp.vec2(r, h)
+        md = wp.vec3(0.0)
+        if kind == SHAPE_CYLINDER:
+            inside = r <= rad and h >= 0.0 and h <= length
+            md = meridian_distance(q2, wp.vec2(0.0, 0.0), wp.vec2(rad, 0.0), wp.vec2(rad, length),
+                                   wp.vec2(0.0, length), wp.vec2(0.0, -1.0), wp.vec2(1.0, 0.0),
+                                   wp.vec2(0.0, 1.0), inside)
+        else:
+            inside = h >= 0.0 and r * length + h * rad <= rad * length
+            sl = wp.normalize(wp.vec2(length, rad))
+            # the apex segment c2-c3 is degenerate (both the apex): the side ends there
+            md = meridian_distance(q2, wp.vec2(0.0, 0.0), wp.vec2(rad, 0.0), wp.vec2(0.0, length),
+                                   wp.vec2(0.0, length), wp.vec2(0.0, -1.0), sl, sl, inside)
+        n = e * md[0] + u * md[1]
+        return wp.vec4(n[0], n[1], n[2], md[2])
     # box: distance in the box frame (Quilez' exact box SDF), normal from the closest feature
     lp = wp.quat_rotate_inv(rot, p - a)
     q = wp.vec3(wp.abs(lp[0]) - size[0], wp.abs(lp[1]) - size[1], wp.abs(lp[2]) - size[2])
@@ -82,7 +176,7 @@ def shape_distance(kind: int, p: wp.vec3, a: wp.vec3, b: wp.vec3, rot: wp.quat, 
 def shape_point_motion(kind: int, p: wp.vec3, a0: wp.vec3, a1: wp.vec3, b0: wp.vec3, b1: wp.vec3,
                        r0: wp.quat, r1: wp.quat) -> wp.vec3:
     """Displacement over the substep of the surface point attached to p (pose 0 -> pose 1)."""
-    if kind == SHAPE_CAPSULE:
+    if kind == SHAPE_CAPSULE or kind == SHAPE_CYLINDER or kind == SHAPE_CONE:
         t = segment_parameter(p, a1, b1)
         return wp.lerp(a1, b1, t) - wp.lerp(a0, b0, t)
     if kind == SHAPE_BOX:
@@ -324,3 +418,77 @@ def collide_mesh_edges(
             wp.atomic_add(delta, i1, g * (s * w1))
             wp.atomic_add(delta_count, i0, 1.0)
             wp.atomic_add(delta_count, i1, 1.0)
+
+
+@wp.kernel
+def collide_shape_edges(
+    kind: wp.array[int],
+    a1: wp.array[wp.vec3],
+    b1: wp.array[wp.vec3],
+    r1: wp.array[wp.quat],
+    size: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+    edges: wp.array2d[int],
+    inv_mass: wp.array[float],
+    thickness: float,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Cloth edges against the sharp rims of cylinders and cones (and a cone's apex): the point of
+    the edge deepest in the solid is found by golden-section search (the signed distance of a
+    convex solid is convex along a line, so the search finds the edge's minimum), and an edge
+    whose inner point is closer than ``thickness`` is pushed out along the normal there, split
+    between its two vertices as in :func:`collide_mesh_edges`."""
+    k = wp.tid()
+    i0 = edges[k, 0]
+    i1 = edges[k, 1]
+    w0 = inv_mass[i0]
+    w1 = inv_mass[i1]
+    if w0 + w1 == 0.0:
+        return
+    pa = x[i0]
+    pb = x[i1]
+    for s in range(kind.shape[0]):
+        kd = kind[s]
+        if kd != SHAPE_CYLINDER and kd != SHAPE_CONE:
+            continue
+        # bounding sphere of the solid against the edge
+        mid = (a1[s] + b1[s]) * 0.5
+        reach = wp.sqrt(0.25 * wp.length_sq(b1[s] - a1[s]) + size[s][0] * size[s][0]) + thickness
+        t = segment_parameter(mid, pa, pb)
+        if wp.length(wp.lerp(pa, pb, t) - mid) > reach:
+            continue
+        lo = float(0.0)
+        hi = float(1.0)
+        g = 0.6180339887
+        c = hi - g * (hi - lo)
+        d = lo + g * (hi - lo)
+        fc = shape_distance(kd, wp.lerp(pa, pb, c), a1[s], b1[s], r1[s], size[s])[3]
+        fd = shape_distance(kd, wp.lerp(pa, pb, d), a1[s], b1[s], r1[s], size[s])[3]
+        for it in range(24):
+            if fc < fd:
+                hi = d
+                d = c
+                fd = fc
+                c = hi - g * (hi - lo)
+                fc = shape_distance(kd, wp.lerp(pa, pb, c), a1[s], b1[s], r1[s], size[s])[3]
+            else:
+                lo = c
+                c = d
+                fc = fd
+                d = lo + g * (hi - lo)
+                fd = shape_distance(kd, wp.lerp(pa, pb, d), a1[s], b1[s], r1[s], size[s])[3]
+        u = 0.5 * (lo + hi)
+        if u <= 1.0e-3 or u >= 1.0 - 1.0e-3:
+            continue  # a cloth vertex is deepest: the vertex projection holds it
+        sd = shape_distance(kd, wp.lerp(pa, pb, u), a1[s], b1[s], r1[s], size[s])
+        if sd[3] >= thickness:
+            continue
+        denom = (1.0 - u) * (1.0 - u) * w0 + u * u * w1
+        if denom == 0.0:
+            continue
+        push = wp.vec3(sd[0], sd[1], sd[2]) * ((thickness - sd[3]) / denom)
+        wp.atomic_add(delta, i0, push * ((1.0 - u) * w0))
+        wp.atomic_add(delta, i1, push * (u * w1))
+        wp.atomic_add(delta_count, i0, 1.0)
+        wp.atomic_add(delta_count, i1, 1.0)

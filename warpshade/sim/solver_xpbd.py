@@ -232,7 +232,7 @@ class XPBDSolver:
                         c.launch()
                     if self.colliders is not None:
                         self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
-            if self.colliders is not None and self.colliders.meshes:
+            if self.colliders is not None and self.colliders.has_sharp_edges:
                 # once per substep: sharp collider edges against cloth edges, then the vertices again
                 self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x)
                 self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)

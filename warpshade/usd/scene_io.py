@@ -119,7 +119,22 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             it.PruneChildren()
             continue
         if prim.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(prim).ComputePurpose() in _UNRENDERED_PURPOSES:
-            it.PruneChildren()  # guide / proxy geometry (collision twins, stand-ins) is not what renders
+            # guide / proxy geometry (collision twins, stand-ins) is not what renders; marked as a
+            # collider it still collides (read, not shaded, not written)
+            for sub in Usd.PrimRange(prim):
+                if (sub.IsA(UsdGeom.Gprim) and sub.IsActive() and _physics_collider(sub)
+                        and UsdGeom.Imageable(sub).ComputeVisibility() != UsdGeom.Tokens.invisible):
+                    if sub.IsA(UsdGeom.Mesh):
+                        obj = _read_mesh(sub, source, cache, None)
+                    elif sub.IsA(UsdGeom.Sphere):
+                        obj = _read_sphere(sub, source, None)
+                    elif sub.GetTypeName() in _GPRIMS:
+                        obj = _read_gprim(sub, source, None)
+                    else:
+                        continue
+                    if obj.kind == "static" and obj.params.get("collider"):
+                        scene.collision_only.append(obj)
+            it.PruneChildren()
             continue
         if prim.HasRelationship(BACK_SIDE_OF):
             continue  # the back side of a two-sided warpshade output: the front carries warpshade:twoSided
@@ -335,10 +350,11 @@ def _physics_collider(prim) -> bool:
     return enabled is None or bool(enabled)
 
 
-def _physics_collider_shape(prim, tri) -> tuple[str, dict]:
+def _physics_collider_shape(prim, tri, where) -> tuple[str, dict]:
     """The ``warpshade:collider`` kind (and its exact shape) for a PhysicsCollisionAPI prim: the
-    analytic sphere of a Sphere, the oriented box of a Cube, a ground plane for a flat horizontal
-    mesh or Plane (its mean height), else the triangle mesh itself."""
+    analytic sphere of a Sphere, the oriented box of a Cube, the analytic capsule, cylinder or cone
+    of a Capsule, Cylinder or Cone (see :func:`_axial_collider`), a ground plane for a flat
+    horizontal mesh or Plane (its mean height), else the triangle mesh itself."""
     if prim.IsA(UsdGeom.Sphere):
         return "sphere", {}
     if prim.IsA(UsdGeom.Cube):
@@ -350,6 +366,10 @@ def _physics_collider_shape(prim, tri) -> tuple[str, dict]:
         half = 0.5 * float(UsdGeom.Cube(prim).GetSizeAttr().Get()) * scale
         quat = Rotation.from_matrix(lin / scale).as_quat()  # (x, y, z, w)
         return "box", {"box": {"center": xf[:3, 3].copy(), "half_extents": half, "rotation": quat}}
+    if prim.GetTypeName() in ("Capsule", "Cylinder", "Cone"):
+        shape = _axial_collider(prim, where)
+        if shape is not None:
+            return shape
     up = 1 if str(UsdGeom.GetStageUpAxis(prim.GetStage())) == "Y" else 2
     pts = tri.points
     size = float(np.ptp(pts, axis=0).max())
@@ -358,10 +378,63 @@ def _physics_collider_shape(prim, tri) -> tuple[str, dict]:
     return "mesh", {}
 
 
+_AXES = {"X": 0, "Y": 1, "Z": 2}
+
+
+def _axial_collider(prim, where) -> tuple[str, dict] | None:
+    """The exact analytic collider of a Capsule, Cylinder or Cone gprim in world space, or None
+    (with a :class:`SceneWarning` naming the prim and why) when its world transform does not keep
+    the shape exact, so that the tessellated mesh is used instead.
+
+    The world transform must be a rotation times a scale along the shape's own axes: a Cylinder or
+    Cone keeps its shape under any scale that is the same across its two radial directions (a
+    scale along the axis only stretches its height); a Capsule's hemispherical ends need the same
+    scale in all three directions. Capsule ``height`` is the cylindrical part (USD), so the
+    segment is +-height/2 along the axis; a Cone's apex is at +height/2.
+    """
+    tname = prim.GetTypeName()
+    axis = str(prim.GetAttribute("axis").Get() or "Z")
+    radius = float(prim.GetAttribute("radius").Get())
+    height = float(prim.GetAttribute("height").Get())
+    if axis not in _AXES or not radius > 0 or not (height > 0 or (tname == "Capsule" and height == 0)):
+        return None  # _gprim_mesh has already raised for these
+    xf = _world(prim)
+    lin = xf[:3, :3]
+    scale = np.linalg.norm(lin, axis=0)
+    k = _AXES[axis]
+    radial = [j for j in range(3) if j != k]
+    why = None
+    if not (scale > 0).all() or abs(np.dot(lin[:, 0], lin[:, 1])) > 1e-6 * scale[0] * scale[1] or \
+            abs(np.dot(lin[:, 0], lin[:, 2])) > 1e-6 * scale[0] * scale[2] or \
+            abs(np.dot(lin[:, 1], lin[:, 2])) > 1e-6 * scale[1] * scale[2]:
+        why = "its world transform shears or is singular"
+    elif abs(scale[radial[0]] - scale[radial[1]]) > 1e-6 * scale[radial].max():
+        why = f"its world scale differs across its radial directions ({scale[radial[0]]:g}, {scale[radial[1]]:g})"
+    elif tname == "Capsule" and abs(scale[k] - scale[radial[0]]) > 1e-6 * scale.max():
+        why = f"its world scale is not uniform ({', '.join(f'{v:g}' for v in scale)}) and would make its ends ellipsoids"
+    if why is not None:
+        warnings.warn(f"{where}: {tname} collider is not exact because {why}; colliding with its tessellated "
+                      "mesh instead", SceneWarning, stacklevel=5)
+        return None
+    centre = xf[:3, 3].copy()
+    half = lin[:, k] * (0.5 * height)  # world half-height vector (axis scale included)
+    r = radius * float(scale[radial[0]])
+    key = tname.lower()
+    if tname == "Cone":
+        return key, {key: {"base": centre - half, "apex": centre + half, "radius": r}}
+    return key, {key: {"p0": centre - half, "p1": centre + half, "radius": r}}
+
+
 def _object(prim, where, tri, kind, settings, params, default_method, material) -> SceneObject:
     if "collider" not in settings and kind != "cloth" and _physics_collider(prim):
-        settings["collider"], shape = _physics_collider_shape(prim, tri)
+        settings["collider"], shape = _physics_collider_shape(prim, tri, where)
         params.update(shape)
+    elif settings.get("collider") in ("capsule", "cylinder", "cone") and settings["collider"] == \
+            prim.GetTypeName().lower():
+        # warpshade:collider naming the gprim's own shape: its exact analytic solid (else the mesh)
+        shape = _axial_collider(prim, where)
+        if shape is not None:
+            params.update(shape[1])
     knobs = {k[len("knobs:"):]: v for k, v in settings.items() if k.startswith("knobs:")}
     for k in [k for k in knobs if k.endswith(("_dir", "_path", "_file"))]:
         # nothing read from a scene chooses where files are written
