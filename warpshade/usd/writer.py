@@ -236,7 +236,7 @@ class OutputLock:
 class AnimationWriter:
     """Write animated triangle meshes, their shading and the lights to USD, one frame at a time.
 
-    Usage: :meth:`add_mesh` (and :meth:`add_light`) for everything, then :meth:`write_frame` per
+    Usage: :meth:`add_mesh` for every mesh, then :meth:`add_light` for the lights, then :meth:`write_frame` per
     mesh per frame with non-decreasing frame numbers, then :meth:`close`. Memory stays constant in
     the number of frames (at most ``chunk`` frames are held).
 
@@ -459,6 +459,8 @@ class AnimationWriter:
         """
         if self._frame is not None:
             raise ValueError(f"{self.path}: add_mesh('{name}') after frames were written; declare every mesh first")
+        if self._lights:  # a mesh's ancestors may move the parents of lights already placed
+            raise ValueError(f"{self.path}: add_mesh('{name}') after add_light; declare every mesh first")
         pname = base = prim_name(name)
         k = 1
         while pname in self._meshes:  # two prims with the same leaf name (/A/Mesh, /B/Mesh)
@@ -594,17 +596,30 @@ class AnimationWriter:
         UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
 
     def add_light(self, light) -> str:
-        """Write a light (a :class:`warpshade.scene.LightSpec`) under ``Lights`` of the default
-        prim (``/World/Lights`` unless :meth:`set_default_prim` chose another).
+        """Write a light (a :class:`warpshade.scene.LightSpec`): at its input prim path under its
+        input ancestors if it has one (``light.prim_path``, as :meth:`add_mesh` does for meshes, so
+        the output can be layered over the source), else under ``Lights`` of the default prim
+        (``/World/Lights`` unless :meth:`set_default_prim` chose another).
 
         Returns:
             The light's prim path.
         """
-        UsdGeom.Scope.Define(self.stage, f"{self._root}/Lights")
-        pname = prim_name(light.name)
-        path = f"{self._root}/Lights/{pname}"
-        if self.stage.GetPrimAtPath(path):
-            path = f"{path}_{len(self._lights)}"
+        prim_path = getattr(light, "prim_path", None)
+        resets = False
+        if prim_path:
+            path = prim_path
+            if self.stage.GetPrimAtPath(path):
+                raise ValueError(f"{self.path}: light {path}: a prim already exists at that path")
+            prim_xforms = tuple(getattr(light, "prim_xforms", ()))
+            self._define_parents(path, prim_xforms)
+            own = [x for x in prim_xforms if x[0] == path]
+            resets = bool(own and own[0][3])
+        else:
+            UsdGeom.Scope.Define(self.stage, f"{self._root}/Lights")
+            pname = prim_name(light.name)
+            path = f"{self._root}/Lights/{pname}"
+            if self.stage.GetPrimAtPath(path):
+                path = f"{path}_{len(self._lights)}"
         cls = {"dome": UsdLux.DomeLight, "distant": UsdLux.DistantLight, "sphere": UsdLux.SphereLight,
                "rect": UsdLux.RectLight}[light.kind]
         lux = cls.Define(self.stage, path)
@@ -626,9 +641,18 @@ class AnimationWriter:
             lux.CreateTextureFileAttr(Sdf.AssetPath(self._asset_path(light.texture)))
             lux.CreateTextureFormatAttr(UsdLux.Tokens.latlong)
         xf = np.asarray(light.transform, dtype=np.float64)
-        if not np.allclose(xf, np.eye(4)):
-            # USD matrices act on row vectors, ours on column vectors: transpose.
-            UsdGeom.Xformable(lux).AddTransformOp().Set(Gf.Matrix4d(*xf.T.reshape(-1).tolist()))
+        # the light's world transform in its output parent's space (the default prim may be moved)
+        parent = self.stage.GetPrimAtPath(path).GetParent()
+        parent_world = np.eye(4) if resets or parent.IsPseudoRoot() else np.asarray(
+            UsdGeom.XformCache(Usd.TimeCode.Default()).GetLocalToWorldTransform(parent), dtype=np.float64).T
+        if abs(np.linalg.det(parent_world[:3, :3])) < 1e-300:
+            raise ValueError(f"{self.path}: light {path}: its parent's transform is singular (a zero scale?); "
+                             "it cannot be written in its parent's space")
+        local = np.linalg.inv(parent_world) @ xf
+        if prim_path or not np.allclose(local, np.eye(4)):
+            # authored even when it is the identity for an input light: layered over the source,
+            # this one op overrides the source's ops
+            _set_transform(lux, local, resets)
         self._lights.append(path)
         return path
 
