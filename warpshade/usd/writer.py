@@ -48,6 +48,14 @@ BACK_SIDE_OF = "warpshade:backSideOf"
 """Relationship on a back-side mesh (:meth:`AnimationWriter.add_back_side`) targeting its front mesh."""
 
 BACK_SIDE_SUFFIX = "_back"
+BACK_SIDE_OFFSET = 1e-4
+"""How far a back-side mesh's points lie behind the front's, along the back's normals, as a fraction
+of the mesh's bounding-box diagonal (its first written frame). Coincident front and back triangles
+are drawn at random by ray tracers (Blender's Cycles shows the back's colours in specks through the
+front, even with back faces transparent) and fight in rasterisers without culling; 1e-4 of the
+size (0.2 mm on a 2 m cloth) is far above float32 point precision and a 24-bit depth buffer's
+step at a few metres, and far below anything visible.
+"""
 """Appended to a front mesh's prim path to name its back-side sibling (:func:`back_side_path`)."""
 
 _ANIMATED = {
@@ -523,9 +531,10 @@ class AnimationWriter:
     def add_back_side(self, name: str) -> str:
         """Declare the back side of mesh ``name`` (from :meth:`add_mesh`), for surfaces shaded on both sides.
 
-        The back is a sibling mesh at :func:`back_side_path`: same points, reversed winding (so its geometric
-        normal is the front's flipped), the same material, its own ``displayColor`` and normals (the
-        front's negated, given to :meth:`write_frame`). Both meshes become ``doubleSided = false``, so a
+        The back is a sibling mesh at :func:`back_side_path`: the front's points moved
+        :data:`BACK_SIDE_OFFSET` of the mesh's size along the back's normals (given to
+        :meth:`write_frame`: the front's negated), reversed winding (so its geometric normal is the
+        front's flipped), the same material, its own ``displayColor``. Both meshes become ``doubleSided = false``, so a
         renderer shows each side's own colour and culls the other. The back carries the relationship
         :data:`BACK_SIDE_OF` to the front and the front ``warpshade:twoSided = true``
         (docs/conventions.md §6).
@@ -551,11 +560,17 @@ class AnimationWriter:
         normals = back.GetNormalsAttr().Get()
         if normals is not None:  # static mesh: normals at the default time
             back.GetNormalsAttr().Set(Vt.Vec3fArray.FromNumpy(-np.asarray(normals, dtype=np.float32)))
+        pts = back.GetPointsAttr().Get()
+        if pts is not None and normals is not None:  # static mesh: points at the default time
+            pts = np.asarray(pts, dtype=np.float64)
+            offset = BACK_SIDE_OFFSET * float(np.linalg.norm(np.ptp(pts, axis=0)) if len(pts) else 0.0)
+            back.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(
+                (pts - offset * np.asarray(normals, dtype=np.float64)).astype(np.float32)))
         for m in (front, back):
             m.GetDoubleSidedAttr().Set(False)
         front.GetPrim().CreateAttribute("warpshade:twoSided", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
         back.GetPrim().CreateRelationship(BACK_SIDE_OF, custom=True).SetTargets([Sdf.Path(info["path"])])
-        self._meshes[key] = dict(info, path=path)
+        self._meshes[key] = dict(info, path=path, back_offset=None)
         if self._resumed_attrs:
             if path not in self._resumed_attrs:
                 raise ValueError(f"{self.path}: cannot resume: mesh {path} is not in the interrupted output "
@@ -701,6 +716,11 @@ class AnimationWriter:
             if not np.isfinite(pts).all():
                 bad = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
                 raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: vertex {bad} is not finite {pts[bad].tolist()}")
+            if "back_offset" in info and normals is not None:  # a back side: behind the front (BACK_SIDE_OFFSET)
+                if info["back_offset"] is None:
+                    info["back_offset"] = BACK_SIDE_OFFSET * float(np.linalg.norm(np.ptp(pts, axis=0)) if v else 0.0)
+                nrm = _check(normals, (v, 3), name, frame, "normals")
+                pts = (pts + info["back_offset"] * nrm).astype(np.float32)
             if info["to_local"] is not None:
                 pts = info["to_local"].points(pts)
             values = {"points": Vt.Vec3fArray.FromNumpy(pts), "extent": Vt.Vec3fArray.FromNumpy(_extent(pts))}
