@@ -13,6 +13,7 @@ from test_resume import _InterruptingWriter
 from warpshade.cli import main
 from warpshade.pipeline import Pipeline
 from warpshade.usd import AnimationWriter, read_scene
+from warpshade.usd.writer import BACK_SIDE_OFFSET
 from warpshade.usd.validate import validation_errors
 
 QUICK = dict(method="reference", knobs={"rays": 4}, order=2, refine_receivers="off")
@@ -183,8 +184,105 @@ def test_two_sided_cloth_under_a_transformed_parent(tmp_path):
     assert main(["run", str(src), "--out", str(out), "--frames", "3"] + CLI_QUICK) == 0
     res = Usd.Stage.Open(str(out))
     assert {str(p.GetPath()) for p in res.Traverse() if p.IsA(UsdGeom.Mesh)} == {"/Rig/Drape", "/Rig/Drape_back"}
+    diag = float(np.linalg.norm(np.ptp(world_points(res, "/Rig/Drape", 0), axis=0)))
     for t in (0, 2):
-        np.testing.assert_allclose(world_points(res, "/Rig/Drape_back", t), world_points(res, "/Rig/Drape", t), atol=1e-6)
+        # the back lies BACK_SIDE_OFFSET of the size behind the front (in world space, through the parent's scale)
+        gap = np.linalg.norm(world_points(res, "/Rig/Drape_back", t) - world_points(res, "/Rig/Drape", t), axis=1)
+        np.testing.assert_allclose(gap, BACK_SIDE_OFFSET * diag, rtol=1e-2)  # 1 %: float32 points of size ~1
     # pinned corners stay where the input puts them in world space: (0.5, 1, 0) + 2 * (+-0.25, 0, -0.25)
     np.testing.assert_allclose(world_points(res, "/Rig/Drape", 2)[[0, n - 1]], [[0.0, 1.0, -0.5], [1.0, 1.0, -0.5]],
                                atol=1e-5)
+
+
+def _lit_asset(path):
+    """make_asset plus a DistantLight under a moved, rotated rig of the asset (with its own
+    rotation) and a DomeLight under a second root prim."""
+    stage = make_asset(path)
+    rig = UsdGeom.Xform.Define(stage, "/Asset/Rig")
+    rig.AddTranslateOp().Set(Gf.Vec3d(0.0, 3.0, 40.0))
+    rig.AddRotateXOp().Set(-20.0)
+    from pxr import UsdLux
+
+    sun = UsdLux.DistantLight.Define(stage, "/Asset/Rig/Sun")
+    sun.AddRotateYOp().Set(35.0)
+    sun.CreateIntensityAttr(2.5)
+    sun.CreateAngleAttr(3.0)
+    env = UsdGeom.Xform.Define(stage, "/Env")
+    env.AddRotateZOp().Set(90.0)
+    UsdLux.DomeLight.Define(stage, "/Env/Sky").CreateIntensityAttr(0.4)
+    stage.GetRootLayer().Save()
+    return stage
+
+
+def test_lights_keep_their_input_paths_and_world_transforms(tmp_path):
+    """Lights read from a USD scene are written at their input prim paths under their input
+    ancestors (issue 15, item 3), with the input's world transforms, alone and layered over the source."""
+    from pxr import UsdLux
+
+    src = tmp_path / "lit.usda"
+    _lit_asset(src)
+    out = tmp_path / "o.usda"
+    assert main(["run", str(src), "--out", str(out)] + CLI_QUICK) == 0
+    a, b = Usd.Stage.Open(str(src)), Usd.Stage.Open(str(out))
+    lights = {str(p.GetPath()): p.GetTypeName() for p in b.Traverse() if p.HasAPI(UsdLux.LightAPI)}
+    assert lights == {"/Asset/Rig/Sun": "DistantLight", "/Env/Sky": "DomeLight"}
+    assert not b.GetPrimAtPath("/Asset/Lights") and not b.GetPrimAtPath("/World")
+    assert b.GetPrimAtPath("/Asset/Rig").GetTypeName() == "Xform" and b.GetPrimAtPath("/Env").GetTypeName() == "Xform"
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    layer.subLayerPaths = [str(out), str(src)]
+    both = Usd.Stage.Open(layer)
+    for path in lights:
+        want = np.asarray(UsdGeom.Xformable(a.GetPrimAtPath(path)).ComputeLocalToWorldTransform(0))
+        for stage in (b, both):
+            # float64 transform chain of translations ~40 and rotations: 1e-9 relative is float64 round-off
+            np.testing.assert_allclose(
+                np.asarray(UsdGeom.Xformable(stage.GetPrimAtPath(path)).ComputeLocalToWorldTransform(0)), want,
+                atol=1e-9)
+    assert UsdLux.DistantLight(b.GetPrimAtPath("/Asset/Rig/Sun")).GetIntensityAttr().Get() == 2.5
+    assert UsdLux.DistantLight(b.GetPrimAtPath("/Asset/Rig/Sun")).GetAngleAttr().Get() == 3.0
+    # the parents' own transforms are the input's
+    for path in ("/Asset/Rig", "/Env"):
+        np.testing.assert_allclose(np.asarray(UsdGeom.Xformable(b.GetPrimAtPath(path)).GetLocalTransformation(0)),
+                                   np.asarray(UsdGeom.Xformable(a.GetPrimAtPath(path)).GetLocalTransformation(0)),
+                                   atol=1e-12)
+    assert validation_errors(out) == []
+
+
+def test_python_lights_go_under_the_default_prims_lights(tmp_path):
+    """A light built in Python (no input prim) is written under Lights of the default prim, beside
+    the input's lights at their own paths."""
+    from pxr import UsdLux
+
+    from warpshade.scene import LightSpec
+
+    src = tmp_path / "lit.usda"
+    _lit_asset(src)
+    scene = read_scene(str(src))
+    scene.lights.append(LightSpec("sphere", "Bulb", intensity=0.5, radius=2.0,
+                                  transform=np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 30.0], [0, 0, 0, 1]])))
+    out = tmp_path / "o.usda"
+    Pipeline(scene, frames=1, **QUICK).run(AnimationWriter(str(out), fps=scene.fps, up_axis="Z"), progress=False)
+    stage = Usd.Stage.Open(str(out))
+    lights = {str(p.GetPath()) for p in stage.Traverse() if p.HasAPI(UsdLux.LightAPI)}
+    assert lights == {"/Asset/Rig/Sun", "/Env/Sky", "/Asset/Lights/Bulb"}
+    bulb = np.asarray(UsdGeom.Xformable(stage.GetPrimAtPath("/Asset/Lights/Bulb")).ComputeLocalToWorldTransform(0))
+    # at its world position although /Asset (the default prim) is moved and rotated in the output
+    np.testing.assert_allclose(bulb[3, :3], [0.0, 0.0, 30.0], atol=1e-9)
+    assert UsdLux.SphereLight(stage.GetPrimAtPath("/Asset/Lights/Bulb")).GetRadiusAttr().Get() == 2.0
+
+
+def test_default_sky_is_not_turned_by_a_moved_default_prim(shaded):
+    """The default sky (no scene light) goes under Lights of the input's default prim, which the
+    output moves and rotates as the input does: the dome keeps the world orientation it is shaded with."""
+    from pxr import UsdLux
+
+    _, out = shaded
+    stage = Usd.Stage.Open(str(out))
+    domes = [p for p in stage.Traverse() if p.IsA(UsdLux.DomeLight)]
+    assert [str(p.GetPath()) for p in domes] == ["/Asset/Lights/DefaultSky"]
+    world = np.asarray(UsdGeom.Xformable(domes[0]).ComputeLocalToWorldTransform(0))
+    assert not np.allclose(np.asarray(UsdGeom.Xformable(stage.GetPrimAtPath("/Asset")).GetLocalTransformation(0)),
+                           np.eye(4))  # the parent really is moved
+    # a Z-up scene's sky: the dome's +Y (its lat-long top; row 1 of USD's row-vector matrix) is world +Z
+    np.testing.assert_allclose(world[1, :3], [0.0, 0.0, 1.0], atol=1e-9)
+    np.testing.assert_allclose(world[3, :3], 0.0, atol=1e-9)

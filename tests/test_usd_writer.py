@@ -214,3 +214,37 @@ def test_bad_input_names_mesh_frame_vertex(tmp_path):
     with pytest.raises(ValueError, match="output must end in"):
         AnimationWriter(str(tmp_path / "out.abc"))
     w.abort()
+
+
+def test_back_side_lies_just_behind_the_front(tmp_path):
+    """A back-side mesh's points are the front's moved BACK_SIDE_OFFSET of the mesh's size along the
+    back's normals, animated and static: coincident triangles showed the back's colours in specks
+    through the front in Blender's Cycles (docs/blender_check.py)."""
+    from warpshade.usd.writer import BACK_SIDE_OFFSET
+
+    pts, faces = grid(5)
+    up = np.tile(np.float32([0.0, 1.0, 0.0]), (len(pts), 1))
+    w = AnimationWriter(str(tmp_path / "o.usda"), chunk=2)
+    cloth = w.add_mesh("Cloth", faces)
+    back = w.add_back_side(cloth)
+    ground = w.add_mesh("Ground", faces, points=pts * 3, normals=up)
+    gback = w.add_back_side(ground)
+    for f in range(3):
+        moved = pts + np.float32([0.0, 0.1 * f, 0.0])
+        w.write_frame(f, cloth, moved, up, colors=np.ones((len(pts), 3), np.float32))
+        w.write_frame(f, back, moved, -up, colors=np.zeros((len(pts), 3), np.float32))
+        w.write_frame(f, ground, None, colors=np.ones((len(pts), 3), np.float32))
+        w.write_frame(f, gback, None, colors=np.ones((len(pts), 3), np.float32))
+    w.close()
+    stage = open_stage(tmp_path / "o.usda")
+    size = np.sqrt(2.0)  # the unit grid's bounding-box diagonal
+    for f in range(3):
+        front = np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth")).GetPointsAttr().Get(f))
+        behind = np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth_back")).GetPointsAttr().Get(f))
+        # float32 points of magnitude ~1: 1e-7 absolute
+        np.testing.assert_allclose(behind - front, np.tile([0.0, -BACK_SIDE_OFFSET * size, 0.0], (len(pts), 1)),
+                                   atol=1e-7)
+    front = np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath("/World/Ground")).GetPointsAttr().Get(0))
+    behind = np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath("/World/Ground_back")).GetPointsAttr().Get(0))
+    np.testing.assert_allclose(behind - front, np.tile([0.0, -BACK_SIDE_OFFSET * 3 * size, 0.0], (len(pts), 1)),
+                               atol=1e-7)

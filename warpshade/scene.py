@@ -88,6 +88,11 @@ class LightSpec:
         normalize: UsdLux ``inputs:normalize``: the power does not depend on the light's size
             (radiance is divided by the emitting area; a distant light then gives irradiance).
         treat_as_point: Sphere light: UsdLux ``treatAsPoint``.
+        prim_path: Path of the input prim the light was read from (the output writes the light at
+            that path, under its input ancestors), or None for a light built in Python (written
+            under ``Lights`` of the output's default prim).
+        prim_xforms: With ``prim_path``: the prim and its ancestors, root first, as
+            :attr:`SceneObject.prim_xforms`.
     """
 
     kind: str
@@ -103,6 +108,8 @@ class LightSpec:
     texture: str | None = None
     normalize: bool = False
     treat_as_point: bool = False
+    prim_path: str | None = None
+    prim_xforms: tuple = ()
 
     def __post_init__(self):
         if self.kind not in LIGHT_KINDS:

@@ -644,7 +644,8 @@ def _read_light(prim, kind: str, source: str) -> LightSpec:
                      intensity=float(get(lux.GetIntensityAttr(), 1.0)),
                      exposure=float(get(lux.GetExposureAttr(), 0.0)),
                      transform=_world(prim),
-                     normalize=bool(get(lux.GetNormalizeAttr(), False)))
+                     normalize=bool(get(lux.GetNormalizeAttr(), False)),
+                     prim_path=str(prim.GetPath()), prim_xforms=_hierarchy(prim))
     if kind == "distant":
         spec.angle = float(get(UsdLux.DistantLight(prim).GetAngleAttr(), 0.53))
     elif kind == "sphere":

@@ -48,6 +48,14 @@ BACK_SIDE_OF = "warpshade:backSideOf"
 """Relationship on a back-side mesh (:meth:`AnimationWriter.add_back_side`) targeting its front mesh."""
 
 BACK_SIDE_SUFFIX = "_back"
+BACK_SIDE_OFFSET = 1e-4
+"""How far a back-side mesh's points lie behind the front's, along the back's normals, as a fraction
+of the mesh's bounding-box diagonal (its first written frame). Coincident front and back triangles
+are drawn at random by ray tracers (Blender's Cycles shows the back's colours in specks through the
+front, even with back faces transparent) and fight in rasterisers without culling; 1e-4 of the
+size (0.2 mm on a 2 m cloth) is far above float32 point precision and a 24-bit depth buffer's
+step at a few metres, and far below anything visible.
+"""
 """Appended to a front mesh's prim path to name its back-side sibling (:func:`back_side_path`)."""
 
 _ANIMATED = {
@@ -236,7 +244,7 @@ class OutputLock:
 class AnimationWriter:
     """Write animated triangle meshes, their shading and the lights to USD, one frame at a time.
 
-    Usage: :meth:`add_mesh` (and :meth:`add_light`) for everything, then :meth:`write_frame` per
+    Usage: :meth:`add_mesh` for every mesh, then :meth:`add_light` for the lights, then :meth:`write_frame` per
     mesh per frame with non-decreasing frame numbers, then :meth:`close`. Memory stays constant in
     the number of frames (at most ``chunk`` frames are held).
 
@@ -459,6 +467,8 @@ class AnimationWriter:
         """
         if self._frame is not None:
             raise ValueError(f"{self.path}: add_mesh('{name}') after frames were written; declare every mesh first")
+        if self._lights:  # a mesh's ancestors may move the parents of lights already placed
+            raise ValueError(f"{self.path}: add_mesh('{name}') after add_light; declare every mesh first")
         pname = base = prim_name(name)
         k = 1
         while pname in self._meshes:  # two prims with the same leaf name (/A/Mesh, /B/Mesh)
@@ -521,9 +531,10 @@ class AnimationWriter:
     def add_back_side(self, name: str) -> str:
         """Declare the back side of mesh ``name`` (from :meth:`add_mesh`), for surfaces shaded on both sides.
 
-        The back is a sibling mesh at :func:`back_side_path`: same points, reversed winding (so its geometric
-        normal is the front's flipped), the same material, its own ``displayColor`` and normals (the
-        front's negated, given to :meth:`write_frame`). Both meshes become ``doubleSided = false``, so a
+        The back is a sibling mesh at :func:`back_side_path`: the front's points moved
+        :data:`BACK_SIDE_OFFSET` of the mesh's size along the back's normals (given to
+        :meth:`write_frame`: the front's negated), reversed winding (so its geometric normal is the
+        front's flipped), the same material, its own ``displayColor``. Both meshes become ``doubleSided = false``, so a
         renderer shows each side's own colour and culls the other. The back carries the relationship
         :data:`BACK_SIDE_OF` to the front and the front ``warpshade:twoSided = true``
         (docs/conventions.md §6).
@@ -549,11 +560,17 @@ class AnimationWriter:
         normals = back.GetNormalsAttr().Get()
         if normals is not None:  # static mesh: normals at the default time
             back.GetNormalsAttr().Set(Vt.Vec3fArray.FromNumpy(-np.asarray(normals, dtype=np.float32)))
+        pts = back.GetPointsAttr().Get()
+        if pts is not None and normals is not None:  # static mesh: points at the default time
+            pts = np.asarray(pts, dtype=np.float64)
+            offset = BACK_SIDE_OFFSET * float(np.linalg.norm(np.ptp(pts, axis=0)) if len(pts) else 0.0)
+            back.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(
+                (pts - offset * np.asarray(normals, dtype=np.float64)).astype(np.float32)))
         for m in (front, back):
             m.GetDoubleSidedAttr().Set(False)
         front.GetPrim().CreateAttribute("warpshade:twoSided", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
         back.GetPrim().CreateRelationship(BACK_SIDE_OF, custom=True).SetTargets([Sdf.Path(info["path"])])
-        self._meshes[key] = dict(info, path=path)
+        self._meshes[key] = dict(info, path=path, back_offset=None)
         if self._resumed_attrs:
             if path not in self._resumed_attrs:
                 raise ValueError(f"{self.path}: cannot resume: mesh {path} is not in the interrupted output "
@@ -594,17 +611,30 @@ class AnimationWriter:
         UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
 
     def add_light(self, light) -> str:
-        """Write a light (a :class:`warpshade.scene.LightSpec`) under ``Lights`` of the default
-        prim (``/World/Lights`` unless :meth:`set_default_prim` chose another).
+        """Write a light (a :class:`warpshade.scene.LightSpec`): at its input prim path under its
+        input ancestors if it has one (``light.prim_path``, as :meth:`add_mesh` does for meshes, so
+        the output can be layered over the source), else under ``Lights`` of the default prim
+        (``/World/Lights`` unless :meth:`set_default_prim` chose another).
 
         Returns:
             The light's prim path.
         """
-        UsdGeom.Scope.Define(self.stage, f"{self._root}/Lights")
-        pname = prim_name(light.name)
-        path = f"{self._root}/Lights/{pname}"
-        if self.stage.GetPrimAtPath(path):
-            path = f"{path}_{len(self._lights)}"
+        prim_path = getattr(light, "prim_path", None)
+        resets = False
+        if prim_path:
+            path = prim_path
+            if self.stage.GetPrimAtPath(path):
+                raise ValueError(f"{self.path}: light {path}: a prim already exists at that path")
+            prim_xforms = tuple(getattr(light, "prim_xforms", ()))
+            self._define_parents(path, prim_xforms)
+            own = [x for x in prim_xforms if x[0] == path]
+            resets = bool(own and own[0][3])
+        else:
+            UsdGeom.Scope.Define(self.stage, f"{self._root}/Lights")
+            pname = prim_name(light.name)
+            path = f"{self._root}/Lights/{pname}"
+            if self.stage.GetPrimAtPath(path):
+                path = f"{path}_{len(self._lights)}"
         cls = {"dome": UsdLux.DomeLight, "distant": UsdLux.DistantLight, "sphere": UsdLux.SphereLight,
                "rect": UsdLux.RectLight}[light.kind]
         lux = cls.Define(self.stage, path)
@@ -626,9 +656,18 @@ class AnimationWriter:
             lux.CreateTextureFileAttr(Sdf.AssetPath(self._asset_path(light.texture)))
             lux.CreateTextureFormatAttr(UsdLux.Tokens.latlong)
         xf = np.asarray(light.transform, dtype=np.float64)
-        if not np.allclose(xf, np.eye(4)):
-            # USD matrices act on row vectors, ours on column vectors: transpose.
-            UsdGeom.Xformable(lux).AddTransformOp().Set(Gf.Matrix4d(*xf.T.reshape(-1).tolist()))
+        # the light's world transform in its output parent's space (the default prim may be moved)
+        parent = self.stage.GetPrimAtPath(path).GetParent()
+        parent_world = np.eye(4) if resets or parent.IsPseudoRoot() else np.asarray(
+            UsdGeom.XformCache(Usd.TimeCode.Default()).GetLocalToWorldTransform(parent), dtype=np.float64).T
+        if abs(np.linalg.det(parent_world[:3, :3])) < 1e-300:
+            raise ValueError(f"{self.path}: light {path}: its parent's transform is singular (a zero scale?); "
+                             "it cannot be written in its parent's space")
+        local = np.linalg.inv(parent_world) @ xf
+        if prim_path or not np.allclose(local, np.eye(4)):
+            # authored even when it is the identity for an input light: layered over the source,
+            # this one op overrides the source's ops
+            _set_transform(lux, local, resets)
         self._lights.append(path)
         return path
 
@@ -677,6 +716,11 @@ class AnimationWriter:
             if not np.isfinite(pts).all():
                 bad = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
                 raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: vertex {bad} is not finite {pts[bad].tolist()}")
+            if "back_offset" in info and normals is not None:  # a back side: behind the front (BACK_SIDE_OFFSET)
+                if info["back_offset"] is None:
+                    info["back_offset"] = BACK_SIDE_OFFSET * float(np.linalg.norm(np.ptp(pts, axis=0)) if v else 0.0)
+                nrm = _check(normals, (v, 3), name, frame, "normals")
+                pts = (pts + info["back_offset"] * nrm).astype(np.float32)
             if info["to_local"] is not None:
                 pts = info["to_local"].points(pts)
             values = {"points": Vt.Vec3fArray.FromNumpy(pts), "extent": Vt.Vec3fArray.FromNumpy(_extent(pts))}
