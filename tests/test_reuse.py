@@ -124,7 +124,8 @@ def test_back_pass_computes_the_two_sided_rows_as_a_full_update():
     (f, geo), = [x for x in pipe.simulate()][-1:]
     spec = next(g for g in pipe.groups if any(g.two_sided))
     group = _Group(spec, ORDER, "cpu")
-    pts, _, normals, back = group.update(geo)
+    _, (pts, _, normals) = group.update(geo)
+    _, back = group.update_back()
     rows = group._two_rows
     assert 0 < len(rows) < len(pts)  # the cloth is two-sided, the ground is not
     full = type(group.back_method)(group.back_method.mesh, order=ORDER, **spec.knobs).update(pts, -normals).numpy()

@@ -67,10 +67,17 @@ def test_output_prims_have_the_documented_structure(drape):
     bf = np.asarray(bm.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3)
     assert np.array_equal(bf, ff[:, ::-1])  # reversed winding
     assert np.array_equal(np.asarray(bm.GetFaceVertexCountsAttr().Get()), np.asarray(fm.GetFaceVertexCountsAttr().Get()))
+    from warpshade.usd.writer import BACK_SIDE_OFFSET
+
+    # the back lies BACK_SIDE_OFFSET of the first frame's size behind the front, along its own normals
+    off = BACK_SIDE_OFFSET * float(np.linalg.norm(np.ptp(np.asarray(fm.GetPointsAttr().Get(0)), axis=0)))
     for t in (0, 23):
-        assert np.array_equal(np.asarray(bm.GetPointsAttr().Get(t)), np.asarray(fm.GetPointsAttr().Get(t)))
-        assert np.allclose(np.asarray(bm.GetNormalsAttr().Get(t)), -np.asarray(fm.GetNormalsAttr().Get(t)))
-        assert np.array_equal(np.asarray(bm.GetExtentAttr().Get(t)), np.asarray(fm.GetExtentAttr().Get(t)))
+        fp, bp = np.asarray(fm.GetPointsAttr().Get(t)), np.asarray(bm.GetPointsAttr().Get(t))
+        bn = np.asarray(bm.GetNormalsAttr().Get(t))
+        assert np.allclose(bn, -np.asarray(fm.GetNormalsAttr().Get(t)))
+        assert np.allclose(bp, fp + off * bn, rtol=0, atol=1e-6)  # float32 rounding of unit-scale points
+        assert np.allclose(np.asarray(bm.GetExtentAttr().Get(t)), np.asarray(fm.GetExtentAttr().Get(t)), rtol=0,
+                           atol=off + 1e-6)
     fmat = UsdShade.MaterialBindingAPI(front).ComputeBoundMaterial()[0]
     bmat = UsdShade.MaterialBindingAPI(back).ComputeBoundMaterial()[0]
     assert fmat and bmat.GetPath() == fmat.GetPath()  # the radiance material reads each prim's displayColor
