@@ -66,13 +66,15 @@ def _backface_transparent(mat):
 
 
 def _bounds(objs):
-    pts = np.array([tuple(o.matrix_world @ Vector(c)) for o in objs for c in o.bound_box])
+    dg = bpy.context.evaluated_depsgraph_get()  # animated meshes: the frame's points (Mesh Sequence Cache)
+    pts = np.array([tuple(o.matrix_world @ v.co) for o in objs for v in o.evaluated_get(dg).data.vertices])
     return pts.min(axis=0), pts.max(axis=0)
 
 
 def _camera(scene, lo, hi, from_below=False):
     centre, radius = (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)) / 2, 1e-3)
-    direction = np.array([0.55, -0.75, -0.9 if from_below else 0.9])  # Blender is Z up
+    # Blender is Z up; "below" is the opposite direction, so a plane of any orientation is seen from both sides
+    direction = np.array([0.55, -0.75, 0.9]) * (-1.0 if from_below else 1.0)
     direction /= np.linalg.norm(direction)
     cam = bpy.data.objects.get("check_camera")
     if cam is None:
@@ -150,12 +152,17 @@ def check(usd, frame, out_dir, recipe=True) -> list[str]:
         if cols is None:
             failures.append(f"{o.name}: no displayColor attribute after import")
             continue
-        _camera(scene, *_bounds([o]))
-        px, n, mean = _alone(scene, meshes, [o], f"{stem}_{o.name}.exr")
+        for below in (False, True):  # a single-sided mesh (a side of cloth) may face down: try from below
+            _camera(scene, *_bounds([o]), from_below=below)
+            px, n, mean = _alone(scene, meshes, [o], f"{stem}_{o.name}.exr")
+            if n > 100:
+                break
         want, black = cols.mean(axis=0), _black_share(px, cols)
         print(f"  {o.name:24s} {n:6d} px  rendered {np.round(mean, 3)}  displayColor {np.round(want, 3)}  "
               f"extra black {100 * black:.1f} %")
-        if n and want @ LUM > 1e-3 and (mean @ LUM < 0.25 * (want @ LUM) or black > 0.05):
+        if not n:
+            failures.append(f"{o.name}: not in the picture (no pixel)")
+        elif want @ LUM > 1e-3 and (mean @ LUM < 0.25 * (want @ LUM) or black > 0.05):
             failures.append(f"{o.name}: renders black (mean {mean.round(3).tolist()}, {100 * black:.0f} % more black "
                             f"pixels than black vertices; its displayColor mean is {want.round(3).tolist()})")
         back = by_name.get(o.name + "_back")

@@ -39,12 +39,14 @@ class Recorder:
 
     def __init__(self, args):
         self.path, self.shade = args.out, not args.no_shade
-        self.meshes: dict[str, tuple] = {}  # name -> (faces, rest points)
+        self.meshes: dict[str, tuple] = {}  # name -> (faces, rest points, two-sided)
         self.frames: list[dict] = []
         self.t0 = time.perf_counter()
 
-    def add(self, name: str, faces, points) -> str:
-        self.meshes[name] = (np.asarray(faces), np.array(points, dtype=np.float64))
+    def add(self, name: str, faces, points, two_sided: bool = False) -> str:
+        """Declare a mesh; ``two_sided`` for cloth: each side shaded with its own transfer and
+        written as its own mesh (docs/guide/dcc.md), as ``warpshade run`` does for cloth."""
+        self.meshes[name] = (np.asarray(faces), np.array(points, dtype=np.float64), bool(two_sided))
         return name
 
     def frame(self, frame: int, name: str, points) -> None:
@@ -54,8 +56,11 @@ class Recorder:
 
     def close(self) -> str:
         moving = set().union(*self.frames) if self.frames else set()
-        scene = ws.make_scene(*[ws.mesh(name, pts, faces, moving=name in moving)
-                           for name, (faces, pts) in self.meshes.items()], fps=FPS)
+        objects = []
+        for name, (faces, pts, two_sided) in self.meshes.items():
+            objects.append(ws.mesh(name, pts, faces, moving=name in moving))
+            objects[-1].two_sided = two_sided
+        scene = ws.make_scene(*objects, fps=FPS)
         report = ws.run(scene, self.path, frames=max(1, len(self.frames)), shade=self.shade, geometry=self.frames)
         what = "shaded" if self.shade else "geometry only"
         print(f"wrote {report.path} ({what}, {time.perf_counter() - self.t0:.1f} s)")

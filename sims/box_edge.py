@@ -62,7 +62,7 @@ def main(argv=None) -> dict:
     counter = IntersectionCounter(model.faces)
 
     rec = Recorder(args)
-    cloth = rec.add("cloth", model.faces, x0)
+    cloth = rec.add("cloth", model.faces, x0, two_sided=True)
     rec.add("box", box.faces, box_pts)
     worst = 0
     for f in range(args.frames):

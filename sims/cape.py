@@ -56,7 +56,7 @@ def main(argv=None) -> dict:
     state, control = model.state(), model.control()
 
     rec = Recorder(args)
-    cape = rec.add("cape", model.faces, model.rest_points_np)
+    cape = rec.add("cape", model.faces, model.rest_points_np, two_sided=True)
     figure = rec.add("figure", fig.faces, fig.rest_points)
     worst, drift = np.inf, 0.0
     for f in range(args.frames):

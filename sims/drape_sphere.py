@@ -42,7 +42,7 @@ def main(argv=None) -> dict:
     sphere = trimesh.creation.icosphere(subdivisions=3, radius=RADIUS)
 
     rec = Recorder(args)
-    cloth = rec.add("cloth", model.faces, model.rest_points_np)
+    cloth = rec.add("cloth", model.faces, model.rest_points_np, two_sided=True)
     ball = rec.add("sphere", sphere.faces, np.asarray(sphere.vertices) + CENTER)
     for f in range(args.frames):
         solver.step(state, state, 1.0 / FPS)

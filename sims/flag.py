@@ -49,7 +49,7 @@ def main(argv=None) -> dict:
     pole_pts, pole_faces, _ = capsule_mesh((0.0, 0.0, 0.0), (0.0, TOP + 0.1, 0.0), POLE_R)
 
     rec = Recorder(args)
-    flag = rec.add("flag", model.faces, model.rest_points_np)
+    flag = rec.add("flag", model.faces, model.rest_points_np, two_sided=True)
     pole = rec.add("pole", pole_faces, pole_pts)
     for f in range(args.frames):
         control.set_wind(wind((f + 1) / FPS))

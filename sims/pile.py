@@ -64,7 +64,7 @@ def main(argv=None) -> dict:
     top_rest = model.rest_points_np[ids[0]].astype(np.float64)
 
     rec = Recorder(args)
-    cloth = rec.add("cloth", model.faces, model.rest_points_np)
+    cloth = rec.add("cloth", model.faces, model.rest_points_np, two_sided=True)
     worst, lowest = 0, np.inf
     for f in range(args.frames):
         targets = np.empty_like(top_rest)

@@ -44,7 +44,7 @@ def main(argv=None) -> dict:
     table = trimesh.creation.box(extents=2 * HALF)
 
     rec = Recorder(args)
-    cloth = rec.add("cloth", model.faces, model.rest_points_np)
+    cloth = rec.add("cloth", model.faces, model.rest_points_np, two_sided=True)
     tab = rec.add("table", table.faces, np.asarray(table.vertices) + table_center(0.0))
     worst, active = np.inf, 0
     for f in range(args.frames):

@@ -52,7 +52,7 @@ def main(argv=None) -> dict:
     rest_l, rest_r = model.rest_points_np[left].astype(np.float64), model.rest_points_np[right].astype(np.float64)
 
     rec = Recorder(args)
-    cloth = rec.add("cloth", model.faces, model.rest_points_np)
+    cloth = rec.add("cloth", model.faces, model.rest_points_np, two_sided=True)
     worst, drift = 0, 0.0
     for f in range(args.frames):
         t = (f + 1) / FPS
