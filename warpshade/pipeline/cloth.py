@@ -13,23 +13,6 @@ CLOTH_GLOBAL = {"damping": "damping", "thickness": "thickness"}
 """``warpshade:cloth:*`` attributes that are builder-wide (taken from the first cloth object)."""
 
 
-def _stage_unit_defaults(meters_per_unit: float) -> tuple[dict, dict]:
-    """:class:`warpshade.sim.ClothBuilder`'s and :class:`warpshade.sim.XPBDSolver`'s SI defaults
-    in stage units (length = metersPerUnit m, kg, s), so that a stage in centimetres behaves as
-    one in metres: thickness [m] / mpu, density [kg/m²] * mpu², bend stiffness [N m] / mpu², air
-    density [kg/m³] * mpu³; the stretch stiffness [N/m = kg/s²] and damping times have no length.
-    ``warpshade:cloth:*`` values are taken in stage units."""
-    import inspect
-
-    from ..sim import ClothBuilder, XPBDSolver
-
-    b = {k: v.default for k, v in inspect.signature(ClothBuilder).parameters.items()}
-    s = {k: v.default for k, v in inspect.signature(XPBDSolver).parameters.items()}
-    u = float(meters_per_unit)
-    return ({"thickness": b["thickness"] / u, "density": b["density"] * u * u,
-             "bend_stiffness": b["bend_stiffness"] / (u * u)}, {"air_density": s["air_density"] * u ** 3})
-
-
 class ClothSimulation:
     """Every cloth object of a scene in one :mod:`warpshade.sim` model, with the scene's colliders.
 
@@ -57,8 +40,7 @@ class ClothSimulation:
         self.attachments = []  # (target name, target vertex per slot (A,), rest offset (A, 3))
         self.moving_colliders = []  # (object name, MeshCollider)
         globals_ = {k2: float(first[k]) for k, k2 in CLOTH_GLOBAL.items() if k in first}
-        builder_units, solver_units = _stage_unit_defaults(scene.meters_per_unit)
-        builder = ClothBuilder(**{**builder_units, **globals_})
+        builder = ClothBuilder(**globals_)
         self.ranges = {}
         friction = float(first.get("friction", 0.5))
         for o in cloth:
@@ -99,8 +81,7 @@ class ClothSimulation:
                 raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, box, capsule, cylinder, cone, mesh")
         gravity = tuple(-9.81 / scene.meters_per_unit * up)  # [scene units/s²]
         self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
-                                 gravity=gravity, self_collision=bool(first.get("selfCollision", True)),
-                                 **solver_units)
+                                 gravity=gravity, self_collision=bool(first.get("selfCollision", True)))
         self.control = self.model.control()
         if "wind" in scene.settings:
             self.control.set_wind(scene.settings["wind"])
