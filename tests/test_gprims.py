@@ -11,6 +11,7 @@ from warpshade.usd import read_scene
 def _hand_scene(path, collision_enabled=True):
     stage = Usd.Stage.CreateNew(str(path))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)  # a scene in metres (as Blender and Houdini author it)
     stage.SetTimeCodesPerSecond(24)
     world = UsdGeom.Xform.Define(stage, "/World")
     stage.SetDefaultPrim(world.GetPrim())

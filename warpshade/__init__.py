@@ -34,6 +34,7 @@ from .pipeline.area import AreaLightShading
 __all__ += ["AreaLightShading"]
 
 from . import script
-from .script import box, cloth, cloth_grid, distant, dome, ground, make_scene, mesh, run, sky, sphere
+from .script import box, capsule, cloth, cloth_grid, cone, cylinder, distant, dome, ground, make_scene, mesh, run, sky, sphere
 
-__all__ += ["box", "cloth", "cloth_grid", "distant", "dome", "ground", "make_scene", "mesh", "run", "script", "sky", "sphere"]
+__all__ += ["box", "capsule", "cloth", "cloth_grid", "cone", "cylinder", "distant", "dome", "ground", "make_scene", "mesh", "run",
+            "script", "sky", "sphere"]

@@ -3,7 +3,7 @@
 
 Each helper returns the object the USD reader would make from the equivalent prim: a
 :class:`~warpshade.scene.SceneObject` with the same ``kind`` and ``params`` keys (``collider``,
-``box``, ``sphere``, ``pinned``, ``cloth``, ``points_at``), a :class:`~warpshade.scene.LightSpec`,
+``box``, ``sphere``, ``capsule``, ``cylinder``, ``cone``, ``pinned``, ``cloth``, ``points_at``), a :class:`~warpshade.scene.LightSpec`,
 or an analytic :class:`~warpshade.lighting.Sky`. :func:`make_scene` collects them; :func:`run` runs them::
 
     scene = ws.make_scene(ws.ground(), ws.box(size=0.5), ws.cloth_grid(height=0.8), ws.sky())
@@ -151,6 +151,73 @@ def sphere(name: str = "Sphere", center=(0.0, 0.5, 0.0), radius: float = 0.5, co
     params = {"collider": "sphere", "sphere": {"center": c, "radius": r}}
     return _object(name, _mesh(name, np.asarray(m.vertices) + c, m.faces),
                        material=_material(albedo, f"sphere '{name}'"), params=params if collider else {})
+
+
+def _axis_rotation(axis, what: str) -> np.ndarray:
+    """The rotation taking +Z to ``axis``: ``"X"``, ``"Y"``, ``"Z"`` as the USD reader turns a
+    gprim's ``axis`` (so both give the same triangles), or a direction (3 numbers)."""
+    from .geometry.shapes import AXIS_FROM_Z
+
+    if isinstance(axis, str):
+        if axis.upper() not in AXIS_FROM_Z:
+            raise ValueError(f"{what} must be 'X', 'Y', 'Z' or 3 numbers, got {axis!r}")
+        return AXIS_FROM_Z[axis.upper()]
+    d = _vec3(axis, what)
+    if not np.linalg.norm(d) > 0:
+        raise ValueError(f"{what} must not be zero")
+    import trimesh
+
+    return trimesh.geometry.align_vectors([0.0, 0.0, 1.0], d / np.linalg.norm(d))[:3, :3]
+
+
+def _axial(kind: str, name: str, center, radius, height, axis, collider: bool, albedo, lift) -> SceneObject:
+    """A capsule, cylinder or cone along ``axis`` through ``center``: tessellated as the USD reader
+    tessellates the gprim, and the exact analytic collider the reader makes of it."""
+    from .geometry.shapes import axial_shape
+
+    what = f"{kind} '{name}'"
+    r = float(_positive(radius, f"{what}: radius")[0])
+    h = float(height)
+    if not (np.isfinite(h) and (h > 0 or (kind == "capsule" and h == 0))):
+        raise ValueError(f"{what}: height must be a number > 0{' (or 0)' if kind == 'capsule' else ''}, got {height!r}")
+    rot = _axis_rotation(axis, f"{what}: axis")
+    d = rot[:, 2]
+    c = np.array([0.0, lift(r, h), 0.0]) if center is None else _vec3(center, f"{what}: center")
+    verts, faces = axial_shape(kind, r, h)
+    ends = (c - d * h / 2, c + d * h / 2)
+    shape = {"base": ends[0], "apex": ends[1]} if kind == "cone" else {"p0": ends[0], "p1": ends[1]}
+    params = {"collider": kind, kind: {**shape, "radius": r}}
+    return _object(name, _mesh(name, verts @ rot.T + c, faces), material=_material(albedo, what),
+                   params=params if collider else {})
+
+
+def capsule(name: str = "Capsule", center=None, radius: float = 0.25, height: float = 0.5, axis="Y",
+            collider: bool = True, albedo=None) -> SceneObject:
+    """A capsule (an exact capsule collider unless ``collider=False``), as a USD Capsule gprim.
+
+    Args:
+        center: Centre [m]; default: standing on y = 0 at the origin (for the default Y axis).
+        radius: Radius of the cylinder and of its hemispherical ends [m].
+        height: Length of the cylindrical part [m] (USD's Capsule ``height``; the whole capsule is
+            ``height + 2 * radius`` long), >= 0.
+        axis: ``"X"``, ``"Y"``, ``"Z"`` or a direction (3 numbers).
+    """
+    return _axial("capsule", name, center, radius, height, axis, collider, albedo, lambda r, h: h / 2 + r)
+
+
+def cylinder(name: str = "Cylinder", center=None, radius: float = 0.25, height: float = 0.5, axis="Y",
+             collider: bool = True, albedo=None) -> SceneObject:
+    """A capped cylinder (an exact cylinder collider unless ``collider=False``), as a USD Cylinder
+    gprim; the arguments as :func:`capsule`, ``height`` the whole length (> 0)."""
+    return _axial("cylinder", name, center, radius, height, axis, collider, albedo, lambda r, h: h / 2)
+
+
+def cone(name: str = "Cone", center=None, radius: float = 0.25, height: float = 0.5, axis="Y",
+         collider: bool = True, albedo=None) -> SceneObject:
+    """A cone (an exact cone collider unless ``collider=False``), as a USD Cone gprim: its base
+    (``radius``) at ``center - axis * height / 2``, its apex at ``center + axis * height / 2``; the
+    arguments as :func:`cylinder`."""
+    return _axial("cone", name, center, radius, height, axis, collider, albedo, lambda r, h: h / 2)
 
 
 def mesh(name: str, points, faces, collider: bool = False, moving: bool = False, points_at=None,
@@ -343,5 +410,5 @@ def _write_geometry(pipe, writer, report_type):
                        vertices=sum(o.mesh.num_vertices for o in objs))
 
 
-__all__ = ["box", "cloth", "cloth_grid", "distant", "dome", "ground", "mesh", "pipeline", "make_scene", "run", "sky",
-           "sphere"]
+__all__ = ["box", "capsule", "cloth", "cloth_grid", "cone", "cylinder", "distant", "dome", "ground", "mesh", "pipeline",
+           "make_scene", "run", "sky", "sphere"]

@@ -26,6 +26,11 @@ class ClothSimulation:
     object) follow the target's nearest rest vertex with their rest offset (a cape on shoulders);
     ``warpshade:wind`` on the default prim blows on all cloth. Frame 0 is the rest pose; each later
     frame advances one step of ``1/fps`` seconds.
+
+    The solver works in SI units: positions go in multiplied by the scene's ``meters_per_unit``
+    and come out divided by it, so its SI parameters (gravity, the ``warpshade:cloth:*`` values,
+    thickness and the colliders' query distances in metres) mean the same on a stage in
+    centimetres as in metres (docs/conventions.md §8).
     """
 
     def __init__(self, scene: Scene, device: str = "cpu"):
@@ -36,6 +41,10 @@ class ClothSimulation:
             raise SceneError(f"{scene.source}: {name} is cloth, and cloth needs warpshade.sim, which is not "
                              f"installed yet ({exc})") from None
         cloth = [o for o in scene.objects if o.kind == "cloth"]
+        m = float(scene.meters_per_unit)  # [m per scene unit]
+        if not np.isfinite(m) or m <= 0:
+            raise SceneError(f"{scene.source}: metersPerUnit must be a length > 0, got {scene.meters_per_unit}")
+        self.meters_per_unit = m
         first = cloth[0].params.get("cloth", {})
         self.attachments = []  # (target name, target vertex per slot (A,), rest offset (A, 3))
         self.moving_colliders = []  # (object name, MeshCollider)
@@ -45,7 +54,7 @@ class ClothSimulation:
         friction = float(first.get("friction", 0.5))
         for o in cloth:
             p = o.params.get("cloth", {})
-            ids = builder.add_mesh(o.mesh.points, o.mesh.faces, name=o.name,
+            ids = builder.add_mesh(self._si(o.mesh.points), o.mesh.faces, name=o.name,
                                    **{k2: float(p[k]) for k, k2 in CLOTH_PARAMS.items() if k in p})
             if "pinned" in o.params and len(o.params["pinned"]):
                 builder.pin(ids[o.params["pinned"]])
@@ -60,26 +69,27 @@ class ClothSimulation:
             if kind is None or o.kind == "cloth":
                 continue
             if kind == "ground":
-                colliders.add_plane(normal=up, offset=float(np.mean(o.mesh.points @ up)), friction=friction)
+                colliders.add_plane(normal=up, offset=float(np.mean(o.mesh.points @ up)) * m, friction=friction)
             elif kind == "box" and "box" in o.params:
                 b = o.params["box"]
-                colliders.add_box(b["center"], b["half_extents"], b["rotation"], friction=friction)
+                colliders.add_box(self._si(b["center"]), self._si(b["half_extents"]), b["rotation"], friction=friction)
             elif kind == "sphere" and "sphere" in o.params:
-                colliders.add_sphere(o.params["sphere"]["center"], o.params["sphere"]["radius"], friction=friction)
+                colliders.add_sphere(self._si(o.params["sphere"]["center"]), float(o.params["sphere"]["radius"]) * m,
+                                     friction=friction)
             elif kind in ("capsule", "cylinder") and kind in o.params:
                 c = o.params[kind]
                 add = colliders.add_capsule if kind == "capsule" else colliders.add_cylinder
-                add(c["p0"], c["p1"], c["radius"], friction=friction)
+                add(self._si(c["p0"]), self._si(c["p1"]), float(c["radius"]) * m, friction=friction)
             elif kind == "cone" and "cone" in o.params:
                 c = o.params["cone"]
-                colliders.add_cone(c["base"], c["apex"], c["radius"], friction=friction)
+                colliders.add_cone(self._si(c["base"]), self._si(c["apex"]), float(c["radius"]) * m, friction=friction)
             elif kind in ("mesh", "sphere", "box", "capsule", "cylinder", "cone"):
-                mc = colliders.add_mesh(o.mesh.points, o.mesh.faces, friction=friction)
+                mc = colliders.add_mesh(self._si(o.mesh.points), o.mesh.faces, friction=friction)
                 if o.kind != "static":
                     self.moving_colliders.append((o.name, mc))
             else:
                 raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, box, capsule, cylinder, cone, mesh")
-        gravity = tuple(-9.81 / scene.meters_per_unit * up)  # [scene units/s²]
+        gravity = tuple(-9.81 * up)  # [m/s²]: the solver works in metres
         self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
                                  gravity=gravity, self_collision=bool(first.get("selfCollision", True)))
         self.control = self.model.control()
@@ -105,7 +115,7 @@ class ClothSimulation:
         rest = obj.mesh.points[verts].astype(np.float64)
         tp = target.mesh.points.astype(np.float64)
         nearest = np.argmin(((rest[:, None, :] - tp[None, :, :]) ** 2).sum(-1), axis=1)
-        self.attachments.append((target.name, nearest, rest - tp[nearest]))
+        self.attachments.append((target.name, nearest, self._si(rest - tp[nearest])))
 
     def advance(self, frame: int, geometry: dict) -> dict:
         """Step to ``frame`` (frames come in order) and return ``{cloth name: positions (V, 3)}``.
@@ -117,11 +127,20 @@ class ClothSimulation:
         """
         while self._frame < frame:
             for name, mc in self.moving_colliders:
-                mc.set_points(geometry[name])  # pose at the end of this step
+                mc.set_points(self._si(geometry[name]))  # pose at the end of this step
             if self.attachments:
                 self.control.set_targets(np.concatenate(
-                    [geometry[name][idx] + off for name, idx, off in self.attachments]))
+                    [self._si(geometry[name][idx]) + off for name, idx, off in self.attachments]))
             self.solver.step(self.state, self.state, self.dt, self.control)
             self._frame += 1
             self._points = self.state.points.numpy()
-        return {name: self._points[a:b].copy() for name, (a, b) in self.ranges.items()}
+        return {name: self._scene_units(self._points[a:b]) for name, (a, b) in self.ranges.items()}
+
+    def _si(self, x):
+        """Scene-unit lengths in metres (float64; unchanged values on a metre stage)."""
+        x = np.asarray(x, dtype=np.float64)
+        return x if self.meters_per_unit == 1.0 else x * self.meters_per_unit
+
+    def _scene_units(self, x: np.ndarray) -> np.ndarray:
+        """Solver positions [m] in scene units, as the solver's dtype (a copy)."""
+        return x.copy() if self.meters_per_unit == 1.0 else (x / self.meters_per_unit).astype(x.dtype)

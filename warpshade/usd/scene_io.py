@@ -28,6 +28,7 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 
 from ..geometry.mesh import MeshError, TriMesh
+from ..geometry.shapes import AXIS_FROM_Z, axial_shape
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
 from .mesh_io import triangulate
 from .writer import BACK_SIDE_OF, RADIANCE_MATERIAL_ATTR
@@ -72,7 +73,8 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
     """Build a :class:`Scene` from an open stage (see :func:`read_scene`)."""
     scene = Scene(source=source)
     scene.up_axis = str(UsdGeom.GetStageUpAxis(stage))
-    scene.meters_per_unit = float(UsdGeom.GetStageMetersPerUnit(stage))
+    scene.meters_per_unit = float(UsdGeom.GetStageMetersPerUnit(stage))  # 0.01 when unauthored (UsdGeom)
+    units_authored = bool(UsdGeom.StageHasAuthoredMetersPerUnit(stage))
     scene.fps = float(stage.GetTimeCodesPerSecond())
     if stage.HasAuthoredMetadata("startTimeCode"):
         start = stage.GetStartTimeCode()
@@ -161,7 +163,19 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
                           'vertices, above the lowest object, not a collider) but has no warpshade:kind, so it stays '
                           'static: add custom token warpshade:kind = "cloth" to simulate it, or "static" to keep it '
                           "still", SceneWarning, stacklevel=2)
+    if not units_authored and any(o.kind == "cloth" for o in scene.objects):
+        warnings.warn(_unauthored_units_message(scene), SceneWarning, stacklevel=2)
     return scene
+
+
+def _unauthored_units_message(scene: Scene) -> str:
+    """The warning for a stage with cloth and no ``metersPerUnit``: the size its cloth is simulated at."""
+    cloth = np.concatenate([o.mesh.points for o in scene.objects if o.kind == "cloth"])
+    across = float(np.linalg.norm(np.ptp(cloth, axis=0)))
+    return (f"{scene.source}: metersPerUnit is not authored, so the stage is in centimetres (UsdGeom's fallback "
+            f"0.01, as Blender reads it) and its cloth is simulated {across * scene.meters_per_unit:.3g} m across "
+            f"({across:.3g} units); if the scene is in metres, author metersPerUnit = 1 "
+            "(UsdGeom.SetStageMetersPerUnit(stage, 1.0)), see docs/conventions.md §8")
 
 
 CLOTH_LIKE_MIN_VERTICES = 64
@@ -292,11 +306,6 @@ def _read_sphere(prim, source: str, default_method) -> SceneObject:
 _GPRIMS = ("Cube", "Cylinder", "Capsule", "Cone", "Plane")
 """UsdGeom gprims other than Sphere that are read: tessellated for shading, mesh colliders when marked."""
 
-_AXIS_FROM_Z = {"Z": np.eye(3), "Y": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),
-                "X": np.array([[0, 0, 1.0], [0, 1, 0], [-1, 0, 0]])}
-"""Rotations (acting on column vectors) taking a shape built along +Z to a gprim's ``axis``."""
-
-
 def _gprim_mesh(prim, where):
     """Tessellation of a Cube/Cylinder/Capsule/Cone/Plane gprim in its local frame (trimesh)."""
     import trimesh
@@ -317,17 +326,12 @@ def _gprim_mesh(prim, where):
         verts = np.array([[-w / 2, -ln / 2, 0], [w / 2, -ln / 2, 0], [w / 2, ln / 2, 0], [-w / 2, ln / 2, 0]])
         m = trimesh.Trimesh(verts, [[0, 1, 2], [0, 2, 3]], process=False).subdivide_to_size(max(w, ln) / 32.0,
                                                                                             max_iter=8)
-    elif tname == "Cylinder":
-        m = trimesh.creation.cylinder(radius=get("radius"), height=get("height"), sections=48)
-    elif tname == "Capsule":
-        m = trimesh.creation.capsule(height=get("height"), radius=get("radius"), count=[48, 24])
-    else:  # Cone: USD centres it, apex at +height/2; trimesh puts the base at z = 0
-        m = trimesh.creation.cone(radius=get("radius"), height=get("height"), sections=48)
-        m.apply_translation([0.0, 0.0, -get("height") / 2])
+    else:  # Cylinder, Capsule, Cone: USD centres them on the origin
+        m = trimesh.Trimesh(*axial_shape(tname.lower(), get("radius"), get("height")), process=False)
     axis = str(prim.GetAttribute("axis").Get() or "Z") if tname != "Cube" else "Z"
-    if axis not in _AXIS_FROM_Z:
+    if axis not in AXIS_FROM_Z:
         raise SceneError(f"{where}: {tname} axis must be X, Y or Z, got {axis!r}")
-    return np.asarray(m.vertices) @ _AXIS_FROM_Z[axis].T, np.asarray(m.faces)
+    return np.asarray(m.vertices) @ AXIS_FROM_Z[axis].T, np.asarray(m.faces)
 
 
 def _read_gprim(prim, source: str, default_method) -> SceneObject:
