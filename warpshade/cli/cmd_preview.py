@@ -14,7 +14,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frame", type=float, default=None, help="time code (default: the last frame)")
     parser.add_argument("-o", "--output", required=True, metavar="FRAME.png", help="PNG to write")
     parser.add_argument("--contact-sheet", default=None, metavar="START:END[:STEP]",
-                        help="tile frames START..END (inclusive) every STEP (default: 8 frames over the range)")
+                        help="tile frames START..END (inclusive) every STEP (default: 8 frames over the range); "
+                             "an empty START or END is the first or last frame, so ':' tiles the whole animation")
     parser.add_argument("--columns", type=int, default=4, help="contact-sheet columns")
     parser.add_argument("--size", default="640x480", metavar="WxH", help="image (or tile) size in pixels")
     parser.add_argument("--exposure", type=float, default=None,
