@@ -165,6 +165,7 @@ def test_two_sided_cloth_under_a_transformed_parent(tmp_path):
     src = tmp_path / "rig.usda"
     stage = Usd.Stage.CreateNew(str(src))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)  # in metres (unauthored is centimetres and warns)
     rig = UsdGeom.Xform.Define(stage, "/Rig")
     rig.AddTranslateOp().Set(Gf.Vec3d(0.5, 1.0, 0.0))
     rig.AddScaleOp().Set(Gf.Vec3f(2.0, 2.0, 2.0))

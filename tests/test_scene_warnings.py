@@ -29,6 +29,7 @@ def _scene(tmp_path, build):
     path = tmp_path / "scene.usda"
     stage = Usd.Stage.CreateNew(str(path))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)  # in metres (unauthored is centimetres and warns)
     build(stage)
     stage.GetRootLayer().Save()
     return read_scene(str(path))
