@@ -19,7 +19,7 @@ import time
 import numpy as np
 import warp as wp
 
-from warpshade.cluster import loopback_cluster
+from warpshade.parallel.cluster import loopback_cluster
 from warpshade.geometry import load_mesh
 from warpshade.parallel import TransferSpec, shade_frames
 

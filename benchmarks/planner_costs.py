@@ -67,7 +67,7 @@ def main(argv=None) -> int:
     from warpshade.pipeline.lights import light_from_spec
     from warpshade.pipeline.shading import GroupSpec, _between_group_shadows, _Group, _shadow_by_others
     from warpshade.radiance import exit_radiance
-    from warpshade.timing import median_seconds
+    from warpshade.bench.timing import median_seconds
     from warpshade.usd import read_scene
     from warpshade.visibility.hemiraster import tables
 

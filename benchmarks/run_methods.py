@@ -4,7 +4,7 @@ on frames of a shipped scene.
 What it shows: the scene is simulated once (frames 0, 40, 80, 120 kept); each registered method
 (default knobs, plus reference at 256 rays and unshadowed transfer) shades those frames through
 the pipeline's own :class:`warpshade.pipeline.SceneShader` (one shading group: every object
-shadows every other); the error is :func:`warpshade.metrics.radiance_error` of the exit radiance
+shadows every other); the error is :func:`warpshade.bench.metrics.radiance_error` of the exit radiance
 against reference transfer at 4096 rays (0.26 % transfer error, docs/methods/reference.md).
 
 Success criteria: the default method (``warpshade.pipeline.METHOD_PREFERENCE``) is the fastest one
@@ -36,7 +36,7 @@ def main(argv=None) -> int:
     import warp as wp
 
     wp.config.log_level = wp.LOG_WARNING
-    from warpshade.metrics import radiance_error
+    from warpshade.bench.metrics import radiance_error
     from warpshade.pipeline import Pipeline
     from warpshade.pipeline.cloth import ClothSimulation
     from warpshade.usd import read_scene

@@ -607,7 +607,7 @@ def test_interpolate_tolerance_zero_plus_only_trusts_equal_neighbours():
 
 def test_interpolate_on_a_smooth_sheet_within_measured_error():
     from warpshade.bench.reference_cache import ground_truth
-    from warpshade.metrics import transfer_errors
+    from warpshade.bench.metrics import transfer_errors
 
     mesh = wavy_sheet(n=24, amp=0.05)
     truth = ground_truth(mesh, 3, rays=1024, cache_dir=None)

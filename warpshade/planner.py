@@ -454,7 +454,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
 
     Args:
         scene: The scene.
-        max_error: Error budget (mean relative L2 transfer error, :mod:`warpshade.metrics`); when set,
+        max_error: Error budget (mean relative L2 transfer error, :mod:`warpshade.bench.metrics`); when set,
             each object's method is chosen from the frontier, overriding the scene's choice.
         frontier: Frontier dict, a path (frontier or ``results.json``), or None for the shipped one.
         between: The run's between-group shadows (``"spheres"`` or None, as ``warpshade run --between``).

@@ -121,7 +121,7 @@ class Pipeline:
         refine_receivers: Edge length [scene units] to which coarse static meshes are subdivided so
             shadows have vertices to fall on; ``"auto"`` (the scene's ``warpshade:refineEdge``, else
             1/12 of the scene's diagonal) or ``"off"``. The scene's objects are refined in place.
-        security: ``distributed.Security`` for ``scheduler`` (TLS, :func:`warpshade.cluster.scheduler_security`).
+        security: ``distributed.Security`` for ``scheduler`` (TLS, :func:`warpshade.parallel.cluster.scheduler_security`).
         two_sided: Shade both sides of thin surfaces, each with its own transfer, and write each side as
             its own single-sided mesh (docs/conventions.md §6): ``"auto"`` (default: objects with
             ``warpshade:twoSided``, else cloth), ``"on"`` (every shaded object) or ``"off"``. A group with a
