@@ -24,7 +24,7 @@ import warp as wp
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from warpshade.bench.reference_cache import ground_truth  # noqa: E402
-from warpshade.geometry import load_mesh  # noqa: E402
+from warpshade.usd import load_mesh  # noqa: E402
 from warpshade.bench.metrics import error_summary  # noqa: E402
 from warpshade.sh import unoccluded_transfer  # noqa: E402
 from warpshade.bench.timing import time_transfer  # noqa: E402

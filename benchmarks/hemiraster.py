@@ -37,7 +37,8 @@ import warp as wp
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 
-from warpshade.geometry import TriMesh, load_mesh  # noqa: E402
+from warpshade.geometry import TriMesh  # noqa: E402
+from warpshade.usd import load_mesh  # noqa: E402
 from warpshade.bench.reference_cache import TRUTH_VERSION  # noqa: E402
 from warpshade.bench.metrics import transfer_errors  # noqa: E402
 from warpshade.sh import sh_eval  # noqa: E402

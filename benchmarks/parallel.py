@@ -20,7 +20,7 @@ import numpy as np
 import warp as wp
 
 from warpshade.parallel.cluster import loopback_cluster
-from warpshade.geometry import load_mesh
+from warpshade.usd import load_mesh
 from warpshade.parallel import TransferSpec, shade_frames
 
 wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines

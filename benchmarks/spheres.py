@@ -36,7 +36,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
 
 from warpshade.bench.reference_cache import ground_truth  # noqa: E402
-from warpshade.geometry import TriMesh, load_mesh  # noqa: E402
+from warpshade.geometry import TriMesh  # noqa: E402
+from warpshade.usd import load_mesh  # noqa: E402
 from warpshade.bench.metrics import error_summary  # noqa: E402
 from warpshade.sh import sh_eval  # noqa: E402
 from warpshade.sh.zonal import clamped_cosine_zh, unoccluded_transfer, zh_rotate  # noqa: E402

@@ -13,7 +13,8 @@ from scipy.integrate import quad
 from conftest import warp_asset
 from test_reference import unoccluded_transfer
 from warpshade.cli import main as cli_main
-from warpshade.geometry import TriMesh, load_mesh
+from warpshade.geometry import TriMesh
+from warpshade.usd import load_mesh
 from warpshade.sh import sh_eval
 from warpshade.visibility import get_method
 from warpshade.visibility.disks import build_disk_tree

@@ -12,7 +12,8 @@ import trimesh
 
 from conftest import warp_asset
 from warpshade.cli import main as cli_main
-from warpshade.geometry import TriMesh, load_mesh
+from warpshade.geometry import TriMesh
+from warpshade.usd import load_mesh
 from warpshade.visibility import get_method
 from warpshade.visibility.spheres import SpheresTransfer, build_sphere_tree, refit_np
 from warpshade.visibility.spheres.fitting import tree_from_spheres

@@ -101,8 +101,8 @@ REFLECTION_SPHERES_PER_OBJECT = 15
 
 
 def load_frontier(path: str | None = None) -> dict:
-    """The measured frontier: ``path`` (a ``--frontier`` file or a ``results.json`` from ``warpshade bench``),
-    else the one shipped in ``warpshade/data/frontier.json``."""
+    """The measured frontier: ``path`` (a frontier file, as ``warpshade bench --frontier`` writes), else the one
+    shipped in ``warpshade/data/frontier.json``."""
     if path is None:
         with resources.files("warpshade").joinpath("data/frontier.json").open() as f:
             return json.load(f)
@@ -110,12 +110,11 @@ def load_frontier(path: str | None = None) -> dict:
         raise ValueError(f"{path}: no such frontier file")
     with open(path) as f:
         data = json.load(f)
-    if isinstance(data, list):  # a results.json
-        from .bench.report import frontier_from_results
-
-        data = frontier_from_results(data)
+    if isinstance(data, list):
+        raise ValueError(f"{path}: a warpshade bench results.json, not a frontier: convert it with "
+                         "warpshade.bench.report.frontier_from_results (warpshade plan --frontier does)")
     if "configs" not in data:
-        raise ValueError(f"{path}: not a frontier (no 'configs') nor a results.json list")
+        raise ValueError(f"{path}: not a frontier (no 'configs')")
     return data
 
 

@@ -46,7 +46,7 @@ def parse_knobs(args) -> dict:
 
 def run(args) -> int:
     from ..bench.report import write_json
-    from ..geometry import load_mesh
+    from ..usd import load_mesh
     from ..bench.timing import time_transfer
     from ..visibility import get_method
 

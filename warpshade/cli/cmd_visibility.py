@@ -33,7 +33,7 @@ def knob_class(method: str):
 
 
 def run(args) -> int:
-    from ..geometry import load_mesh
+    from ..usd import load_mesh
     from ..bench.timing import median_seconds
     from ..visibility.gears import LightRect, get_area_method
     from ..bench.report import write_json

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..geometry.mesh import first_nonfinite
 from ..scene import Scene, SceneError, SceneWarning
 from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
@@ -230,8 +231,8 @@ class Pipeline:
             if sims is not None:  # cloth after the bodies it collides with and hangs from
                 geo.update(sims.advance(f, geo))
             for name, pts in geo.items():
-                if not np.isfinite(pts).all():
-                    v = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
+                v = first_nonfinite(pts)
+                if v is not None:
                     raise SceneError(f"{name}: frame {f}: vertex {v} is not finite")
             secs["simulate"] += time.perf_counter() - t
             yield f, geo
