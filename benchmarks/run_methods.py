@@ -32,6 +32,12 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 FRAMES = (0, 40, 80, 120)
 
 
+def _object_keys(result: dict) -> list:
+    """The shaded objects' keys of a ``shade`` result in a fixed order: front sides (names), then back sides
+    (``back_key(name)`` tuples); the ``"_seconds"``-style entries left out."""
+    fronts = sorted(k for k in result if isinstance(k, str) and not k.startswith("_"))
+    return fronts + sorted(k for k in result if isinstance(k, tuple))
+
 def main(argv=None) -> int:
     import warp as wp
 
@@ -77,7 +83,7 @@ def main(argv=None) -> int:
             t0 = time.perf_counter()
             r = shade(f, g)
             times.append(time.perf_counter() - t0)
-            radiance[label][f] = np.concatenate([r[n][2] for n in sorted(k for k in r if not k.startswith("_"))])
+            radiance[label][f] = np.concatenate([r[n][2] for n in _object_keys(r)])
         rows.append({"method": label, "build_s": build,
                      "seconds_per_frame": statistics.median(times[1:] if len(times) > 1 else times)})
     for r in rows:

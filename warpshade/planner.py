@@ -196,7 +196,7 @@ class GroupPlan:
         names: Member objects.
         vertices, triangles: Of the merged mesh.
         moves: Any member moves, so the group's transfer is recomputed every frame.
-        seconds_build: Estimated method construction [s].
+        seconds_build: Estimated setup [s]: the group's meshes and the method's construction (both sides).
         seconds_transfer: Estimated transfer update on the merged mesh [s].
         seconds_between: Estimated per-frame shadowing by the other groups' sphere sets [s].
         seconds_lights: Estimated per-frame lights' SH at the group's points [s].
@@ -710,6 +710,14 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
                 t_back = estimate_seconds(cfg, v_two, triangles=caster_tris[k])
                 back_build = estimate_seconds(cfg, v_two, "build_seconds", triangles=caster_tris[k])
             g.seconds_build += back_build
+        # the group's meshes at setup (merged members and their normals; the back side's merged members),
+        # which the frontier's build_seconds (the constructor on a built mesh) leave out
+        mesh_tris = f
+        two = back_side_receivers(spec) if any(spec.two_sided) and spec.method is not None else None
+        if two is not None:
+            casts = spec.casts or [True] * len(spec.meshes)
+            mesh_tris += sum(m.num_faces for i, m in enumerate(spec.meshes) if i in two or casts[i])
+        g.seconds_build += pc["group_mesh_seconds_per_triangle"] * mesh_tris
         back_transfer.append(t_back)
         plan.groups.append(g)
     t_refl = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * sum(g.vertices for g in plan.groups) * REFLECTION_SPHERES_PER_OBJECT
