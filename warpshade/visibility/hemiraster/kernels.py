@@ -347,8 +347,7 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
     Paper §3.1.1: a triangle's image is the AND of its three edge-plane masks; images fuse by OR
     (no depth, any order). Each chunk of the batch's images is ORed in a register
     (:class:`MaskChunk`), the valid-pixel AND is applied once, and the mask row is updated once per
-    chunk. The old per-word loop over the words all three planes occupy (a bitmap AND and a bit
-    scan per triangle) cost ~9 ms of the Table 1 cloth's 33 ms; whole chunks, no branch, ~2 ms.
+    chunk (whole chunks, no branch; docs/benchmarks/history.md has what this replaced).
     """
     ft = wp.transpose(frame)
     done = int(0)
