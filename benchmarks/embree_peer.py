@@ -41,7 +41,7 @@ from warpshade.bench.reference_cache import GROUND_TRUTH_SEED, ground_truth  # n
 from warpshade.bench.metrics import transfer_errors  # noqa: E402
 from warpshade.sh import sh_eval  # noqa: E402
 from warpshade.visibility import get_method  # noqa: E402
-from warpshade.visibility.hemiraster.reference_np import tangent_frame_np  # noqa: E402
+from warpshade.visibility.hemiraster.oracle import tangent_frame_np  # noqa: E402
 
 ORDER = 5
 TRUTH_RAYS = 4096

@@ -43,7 +43,7 @@ from warpshade.bench.reference_cache import TRUTH_VERSION  # noqa: E402
 from warpshade.bench.metrics import transfer_errors  # noqa: E402
 from warpshade.sh import sh_eval  # noqa: E402
 from warpshade.visibility import get_method  # noqa: E402
-from warpshade.visibility.hemiraster.reference_np import tangent_frame_np  # noqa: E402
+from warpshade.visibility.hemiraster.oracle import tangent_frame_np  # noqa: E402
 
 CACHE = os.path.join(HERE, ".cache")
 ORDER = 5

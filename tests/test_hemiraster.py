@@ -18,9 +18,9 @@ from warpshade.usd import load_mesh
 from warpshade.sh import sh_eval
 from warpshade.visibility import get_method
 from warpshade.visibility.hemiraster import kernels as hr_kernels
-from warpshade.visibility.hemiraster import reference_np as hr_reference
+from warpshade.visibility.hemiraster import oracle as hr_oracle
 from warpshade.visibility.hemiraster import tables
-from warpshade.visibility.hemiraster.reference_np import tangent_frame_np, transfer_np
+from warpshade.visibility.hemiraster.oracle import tangent_frame_np, transfer_np
 
 Y0 = 0.5 / math.sqrt(math.pi)
 
@@ -313,7 +313,7 @@ def test_rim_cull_removes_only_bits_outside_the_exact_images():
     for v in removed[:25]:
         frame = tangent_frame_np(nrm[v] / np.linalg.norm(nrm[v]))
         keep = (faces != v).all(axis=1)
-        exact = hr_reference.rasterize_np((pts[faces[keep]] - pts[v]) @ frame, 16)
+        exact = hr_oracle.rasterize_np((pts[faces[keep]] - pts[v]) @ frame, 16)
         assert not ((bits_off[v] & ~bits_on[v]) & exact).any(), v
 
 

@@ -21,7 +21,7 @@ from warpshade.sh.products import sh_product
 from warpshade.sh.zonal import sphere_visibility_zh as cap_blocker_zh
 from warpshade.sh.zonal import zh_rotate
 from warpshade.sh import unoccluded_transfer
-from warpshade.visibility.spheres.reference import adjust_sphere_np, shade_np
+from warpshade.visibility.spheres.oracle import adjust_sphere_np, shade_np
 
 SQRT_4PI = math.sqrt(4 * math.pi)
 

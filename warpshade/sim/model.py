@@ -22,7 +22,7 @@ import numpy as np
 import warp as wp
 
 from ..geometry.mesh import MeshError, TriMesh, validate_mesh
-from .reference import dihedral_angle_np
+from .oracle import dihedral_angle_np
 
 
 class SimulationError(RuntimeError):

@@ -1,4 +1,4 @@
-"""NumPy reference of the disk kernels (tests compare :mod:`.kernels` against it).
+"""NumPy oracle of the disk kernels (tests compare :mod:`.kernels` against it).
 
 Brute force over every vertex disk (no hierarchy), single pass: the value the Warp tree walk must
 reproduce when ``lod`` is so large that no node stands for its subtree.
