@@ -12,7 +12,7 @@ computes it, against a ray-traced reference of the same term, and the time per f
   ``--seeds`` seeds averaged) from every vertex to the light, blockers = every object of the frame.
   Its own noise is reported (half the seeds against the other half).
 
-Error: :func:`warpshade.metrics.radiance_error` (mean over vertices of the RGB error norm, divided by
+Error: :func:`warpshade.bench.metrics.radiance_error` (mean over vertices of the RGB error norm, divided by
 the mean reference norm) over all shaded vertices, and over the vertices in partial or full shadow
 (reference visible share < 0.98).
 
@@ -40,10 +40,10 @@ import warp as wp
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from warpshade.metrics import radiance_error  # noqa: E402
+from warpshade.bench.metrics import radiance_error  # noqa: E402
 from warpshade.pipeline import ClothSimulation, Pipeline, light_from_spec  # noqa: E402
 from warpshade.pipeline.area import AreaLightShading  # noqa: E402
-from warpshade.timing import median_seconds  # noqa: E402
+from warpshade.bench.timing import median_seconds  # noqa: E402
 from warpshade.usd import read_scene  # noqa: E402
 from warpshade.visibility.gears import LightRect, get_area_method  # noqa: E402
 

@@ -1,7 +1,7 @@
 """Hemispherical rasterization on crumpled and draped 64x64 cloths, and Kautz's Table 1 cloth (issue 18).
 
 What it shows: per mesh, the transfer error (mean relative L2 of the order-5 transfer,
-:mod:`warpshade.metrics`, against the ray-traced reference at 4096 rays,
+:mod:`warpshade.bench.metrics`, against the ray-traced reference at 4096 rays,
 :func:`warpshade.bench.reference_cache.ground_truth`) and the process CPU time per frame (median of
 ``--repeat`` round-robin rounds after a warm-up round, compile excluded, one Warp CPU thread) of
 hemiraster configurations, beside the ray-traced reference at 256 rays measured in the same run.
@@ -41,7 +41,7 @@ from hemiraster import TUNED, scene  # noqa: E402
 from warpshade.bench.meshes import draped_cloth, wrinkled_cloth  # noqa: E402
 from warpshade.bench.reference_cache import ground_truth  # noqa: E402
 from warpshade.geometry import TriMesh  # noqa: E402
-from warpshade.metrics import transfer_errors  # noqa: E402
+from warpshade.bench.metrics import transfer_errors  # noqa: E402
 from warpshade.visibility import get_method  # noqa: E402
 
 ORDER = 5

@@ -1,6 +1,6 @@
 """Disk-hierarchy occlusion benchmark: transfer error and time against the ray-traced reference.
 
-What it shows: per-frame cost and relative L2 transfer error (warpshade.metrics) of ``disks`` over
+What it shows: per-frame cost and relative L2 transfer error (warpshade.bench.metrics) of ``disks`` over
 its knob sweep, next to the ray-traced reference at low ray counts and, when registered,
 hemispherical rasterization (``hemiraster``), on Warp's bunny and bear.
 Success criteria: disks' error well below the unoccluded transfer's, at a fraction of the time of
@@ -24,10 +24,10 @@ import warp as wp
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from warpshade.bench.reference_cache import ground_truth  # noqa: E402
-from warpshade.geometry import load_mesh  # noqa: E402
-from warpshade.metrics import error_summary  # noqa: E402
+from warpshade.usd import load_mesh  # noqa: E402
+from warpshade.bench.metrics import error_summary  # noqa: E402
 from warpshade.sh import unoccluded_transfer  # noqa: E402
-from warpshade.timing import time_transfer  # noqa: E402
+from warpshade.bench.timing import time_transfer  # noqa: E402
 from warpshade.visibility import METHODS, get_method  # noqa: E402
 
 ASSETS = os.path.join(os.path.dirname(wp.__file__), "examples", "assets")
@@ -68,7 +68,7 @@ def main() -> int:
             ks = json.dumps(m.knobs())
             print(f"{method:11} {ks:52} {sec * 1e3:8.1f} {err['error_mean']:9.4f} {err['error_p95']:8.4f} "
                   f"{err['error_max']:8.4f}", flush=True)
-    print(f"\nerror: relative L2 transfer error (warpshade.metrics) against {TRUTH_RAYS} stratified rays per vertex.")
+    print(f"\nerror: relative L2 transfer error (warpshade.bench.metrics) against {TRUTH_RAYS} stratified rays per vertex.")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(records, f, indent=2)

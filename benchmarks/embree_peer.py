@@ -38,10 +38,10 @@ sys.path.insert(0, os.path.dirname(HERE))
 
 from warpshade.bench.meshes import warp_mesh  # noqa: E402
 from warpshade.bench.reference_cache import GROUND_TRUTH_SEED, ground_truth  # noqa: E402
-from warpshade.metrics import transfer_errors  # noqa: E402
+from warpshade.bench.metrics import transfer_errors  # noqa: E402
 from warpshade.sh import sh_eval  # noqa: E402
 from warpshade.visibility import get_method  # noqa: E402
-from warpshade.visibility.hemiraster.reference_np import tangent_frame_np  # noqa: E402
+from warpshade.visibility.hemiraster.oracle import tangent_frame_np  # noqa: E402
 
 ORDER = 5
 TRUTH_RAYS = 4096

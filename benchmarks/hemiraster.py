@@ -4,7 +4,7 @@ What it shows: for (a) a wrinkled cloth of 1378 vertices (53×26 grid, determini
 wrinkles), (b) Warp's bunny.usd and (c) Warp's bear.usd, the average triangles rasterized per vertex,
 the transfer time per frame (median of repeats after a warm-up run, kernel compilation excluded;
 the hemiraster configurations are timed round-robin so load changes hit all alike)
-and the mean relative L2 error of the order-5 transfer (:mod:`warpshade.metrics`) against the
+and the mean relative L2 error of the order-5 transfer (:mod:`warpshade.bench.metrics`) against the
 ray-traced reference at 4096 rays, averaged over a few animation frames; then a sweep of the
 method's knobs; then the rays that the Warp ray-traced reference and an embree (``embreex``) script
 need for the same error, and their time there.
@@ -37,12 +37,13 @@ import warp as wp
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 
-from warpshade.geometry import TriMesh, load_mesh  # noqa: E402
+from warpshade.geometry import TriMesh  # noqa: E402
+from warpshade.usd import load_mesh  # noqa: E402
 from warpshade.bench.reference_cache import TRUTH_VERSION  # noqa: E402
-from warpshade.metrics import transfer_errors  # noqa: E402
+from warpshade.bench.metrics import transfer_errors  # noqa: E402
 from warpshade.sh import sh_eval  # noqa: E402
 from warpshade.visibility import get_method  # noqa: E402
-from warpshade.visibility.hemiraster.reference_np import tangent_frame_np  # noqa: E402
+from warpshade.visibility.hemiraster.oracle import tangent_frame_np  # noqa: E402
 
 CACHE = os.path.join(HERE, ".cache")
 ORDER = 5
@@ -117,7 +118,7 @@ def timed(fn, repeat: int) -> tuple[float, float]:
 
     On a shared machine the wall time includes waiting for the core; the process CPU time does not
     (it still pays for cache contention), so both are reported. Wall times of the Warp kernels
-    agree with :func:`warpshade.timing.median_seconds`.
+    agree with :func:`warpshade.bench.timing.median_seconds`.
     """
     fn()
     wp.synchronize()

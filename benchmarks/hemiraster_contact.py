@@ -1,6 +1,6 @@
 """Hemispherical rasterization where surfaces touch: error and time of the hierarchy's near field.
 
-What it shows: the transfer error (mean relative L2 of the order-5 transfer, :mod:`warpshade.metrics`,
+What it shows: the transfer error (mean relative L2 of the order-5 transfer, :mod:`warpshade.bench.metrics`,
 against the ray-traced reference at 4096 rays, :func:`warpshade.bench.reference_cache.ground_truth`)
 and the process CPU time per frame (median of repeats after a warm-up run, kernel compilation
 excluded; the configurations are timed round-robin so they share the machine's load) of hemiraster
@@ -44,7 +44,7 @@ import warp as wp  # noqa: E402
 
 from warpshade.bench.reference_cache import ground_truth  # noqa: E402
 from warpshade.geometry import TriMesh  # noqa: E402
-from warpshade.metrics import transfer_errors  # noqa: E402
+from warpshade.bench.metrics import transfer_errors  # noqa: E402
 from warpshade.visibility import get_method  # noqa: E402
 
 ORDER = 5

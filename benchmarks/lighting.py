@@ -18,11 +18,11 @@ import os
 import numpy as np
 import warp as wp
 
-from warpshade.geometry import load_mesh
+from warpshade.usd import load_mesh
 from warpshade.lighting import EnvironmentMap, RectLight, Sky, SphereLight, spin
 from warpshade.radiance import exit_radiance
 from warpshade.sh.projection import project_latlong
-from warpshade.timing import median_seconds
+from warpshade.bench.timing import median_seconds
 
 
 def main(argv=None) -> int:

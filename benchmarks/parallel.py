@@ -19,8 +19,8 @@ import time
 import numpy as np
 import warp as wp
 
-from warpshade.cluster import loopback_cluster
-from warpshade.geometry import load_mesh
+from warpshade.parallel.cluster import loopback_cluster
+from warpshade.usd import load_mesh
 from warpshade.parallel import TransferSpec, shade_frames
 
 wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines

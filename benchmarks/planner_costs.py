@@ -12,7 +12,10 @@ through the same functions ``warpshade run`` calls (:mod:`warpshade.pipeline.sha
 * unoccluded transfer (groups with no method): seconds per vertex;
 * rect lights under ``--area-lights gears`` besides the GEARS masks (which the frontier costs): the
   exact irradiance and the sample weighting (:mod:`warpshade.pipeline.area`), seconds per vertex per light;
-* the hemispherical-rasterization plane LUT (built once per run): seconds.
+* the hemispherical-rasterization plane LUT (built once per run): seconds;
+* a shading group's meshes at setup (``TriMesh`` of the merged members, its vertex normals; the
+  back side's merged and flipped meshes again): seconds per triangle (the frontier's ``build_seconds``
+  time the method's constructor on a mesh that is already built).
 
 Each pass's constants are a non-negative least-squares fit over the scenes with relative residuals
 (:func:`warpshade.planner.fit_cost`) of ``fixed + per-unit × count``; the script prints each measurement
@@ -24,6 +27,7 @@ How to run::
 
     python benchmarks/planner_costs.py [--order 4] [--repeat 3] [--json PATH] [--write-data]
     python benchmarks/planner_costs.py --loo     # leave-one-mesh-out check of the method cost fit
+    python benchmarks/planner_costs.py --group-mesh-only [--write-data]   # only the group-mesh constant
 
 ``--write-data`` writes ``warpshade/data/pass_costs.json`` (what the planner loads). Timings: median
 of ``--repeat`` runs after one warm-up run (kernel compilation excluded), wall time on a shared,
@@ -54,9 +58,13 @@ def main(argv=None) -> int:
     ap.add_argument("--write-data", action="store_true", help="write warpshade/data/pass_costs.json")
     ap.add_argument("--loo", action="store_true",
                     help="only: leave-one-mesh-out check of the planner's method cost fit on the shipped frontier")
+    ap.add_argument("--group-mesh-only", action="store_true",
+                    help="only: measure group_mesh_seconds_per_triangle (with --write-data, update just that constant)")
     args = ap.parse_args(argv)
     if args.loo:
         return leave_one_out()
+    if args.group_mesh_only:
+        return group_mesh_only(args.repeat, args.write_data)
 
     import warp as wp
 
@@ -67,13 +75,13 @@ def main(argv=None) -> int:
     from warpshade.pipeline.lights import light_from_spec
     from warpshade.pipeline.shading import GroupSpec, _between_group_shadows, _Group, _shadow_by_others
     from warpshade.radiance import exit_radiance
-    from warpshade.timing import median_seconds
+    from warpshade.bench.timing import median_seconds
     from warpshade.usd import read_scene
     from warpshade.visibility.hemiraster import tables
 
     order, rep = args.order, args.repeat
     rows = {"between_build": [], "between_frame": [], "lights_local": [], "radiance": [], "unoccluded": [],
-            "area_shading": []}
+            "area_shading": [], "group_mesh": []}
     print(f"pass costs at SH order {order} (median of {rep} after a warm-up; shared loaded 2-core machine)")
     print(f"{'scene':<16}{'pass':<16}{'count':>12}{'ms':>10}")
     for path in sorted(glob.glob(os.path.join(SCENES, "*.usda"))):
@@ -94,6 +102,7 @@ def main(argv=None) -> int:
             g.cached = None  # a group whose members do not move caches its transfer
             return g.update(geo)[1]
 
+        log("group_mesh", [_triangles(objs)], _group_mesh_seconds(objs, rep))
         for g in groups:
             log("unoccluded", [1, g.mesh.num_vertices], median_seconds(lambda g=g: fresh(g), repeat=rep))
         if len(groups) > 1:
@@ -143,7 +152,8 @@ def main(argv=None) -> int:
              "lights_local": ("local_light_seconds_per_vertex",),
              "area_shading": ("area_shading_seconds_per_vertex",),
              "radiance": ("radiance_seconds_fixed", "radiance_seconds_per_vertex_coeff"),
-             "unoccluded": ("unoccluded_seconds_fixed", "unoccluded_seconds_per_vertex")}
+             "unoccluded": ("unoccluded_seconds_fixed", "unoccluded_seconds_per_vertex"),
+             "group_mesh": ("group_mesh_seconds_per_triangle",)}
     names.update({k: (f"{k}_seconds",) for k in rows if k.startswith("light_")})
     consts = {"hemiraster_lut_seconds": lut_seconds}
     print("\nfitted constants (measured / fitted, over the rows of each pass):")
@@ -199,6 +209,47 @@ def leave_one_out() -> int:
     for name, e in (("fit a V + b V log2 F + c V F", fit), ("nearest mesh scaled by V", near)):
         e = np.exp(np.array(e))
         print(f"  {name:<30} median {np.median(e):.2f}  90 % {np.percentile(e, 90):.2f}  worst {e.max():.2f}")
+    return 0
+
+
+def _triangles(objs) -> int:
+    return sum(o.mesh.num_faces for o in objs)
+
+
+def _group_mesh_seconds(objs, rep: int) -> float:
+    """Median seconds of building one group's mesh from the objects' meshes, as ``_Group`` does."""
+    from warpshade.bench.timing import median_seconds
+    from warpshade.geometry import TriMesh
+
+    offs = np.cumsum([0] + [o.mesh.num_vertices for o in objs])
+    pts = [o.mesh.points for o in objs]
+    faces = [o.mesh.faces + off for o, off in zip(objs, offs[:-1])]
+    return median_seconds(lambda: TriMesh(np.concatenate(pts), np.concatenate(faces), name="group"), repeat=rep)
+
+
+def group_mesh_only(rep: int, write: bool) -> int:
+    """Measure and fit ``group_mesh_seconds_per_triangle`` alone on the shipped scenes."""
+    from warpshade.planner import fit_cost
+    from warpshade.usd import read_scene
+
+    x, y = [], []
+    for path in sorted(glob.glob(os.path.join(SCENES, "*.usda"))):
+        objs = [o for o in read_scene(path).objects if o.shaded]
+        x.append([_triangles(objs)])
+        y.append(_group_mesh_seconds(objs, rep))
+        print(f"{os.path.basename(path):<20}{x[-1][0]:>8} triangles {y[-1] * 1e3:>8.2f} ms", flush=True)
+    (c,) = fit_cost(np.array(x, dtype=float), np.array(y))
+    ratios = np.array(y) / np.maximum(np.array(x)[:, 0] * c, 1e-12)
+    print(f"group_mesh_seconds_per_triangle = {c:.3e}   ratios {ratios.min():.2f}..{ratios.max():.2f}")
+    if write:
+        with open(DATA) as f:
+            data = json.load(f)
+        data["constants"]["group_mesh_seconds_per_triangle"] = float(c)
+        data["note"] += ("; group_mesh_seconds_per_triangle measured alone later "
+                         "(benchmarks/planner_costs.py --group-mesh-only, same machine, loaded)")
+        with open(DATA, "w") as f:
+            json.dump(data, f, indent=1)
+        print(f"wrote {os.path.normpath(DATA)}")
     return 0
 
 

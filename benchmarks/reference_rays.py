@@ -21,8 +21,8 @@ import warp as wp
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from warpshade.geometry import load_mesh  # noqa: E402
-from warpshade.timing import median_seconds  # noqa: E402
+from warpshade.usd import load_mesh  # noqa: E402
+from warpshade.bench.timing import median_seconds  # noqa: E402
 from warpshade.visibility import get_method  # noqa: E402
 
 ASSETS = os.path.join(os.path.dirname(wp.__file__), "examples", "assets")

@@ -4,7 +4,7 @@ on frames of a shipped scene.
 What it shows: the scene is simulated once (frames 0, 40, 80, 120 kept); each registered method
 (default knobs, plus reference at 256 rays and unshadowed transfer) shades those frames through
 the pipeline's own :class:`warpshade.pipeline.SceneShader` (one shading group: every object
-shadows every other); the error is :func:`warpshade.metrics.radiance_error` of the exit radiance
+shadows every other); the error is :func:`warpshade.bench.metrics.radiance_error` of the exit radiance
 against reference transfer at 4096 rays (0.26 % transfer error, docs/methods/reference.md).
 
 Success criteria: the default method (``warpshade.pipeline.METHOD_PREFERENCE``) is the fastest one
@@ -32,11 +32,17 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 FRAMES = (0, 40, 80, 120)
 
 
+def _object_keys(result: dict) -> list:
+    """The shaded objects' keys of a ``shade`` result in a fixed order: front sides (names), then back sides
+    (``back_key(name)`` tuples); the ``"_seconds"``-style entries left out."""
+    fronts = sorted(k for k in result if isinstance(k, str) and not k.startswith("_"))
+    return fronts + sorted(k for k in result if isinstance(k, tuple))
+
 def main(argv=None) -> int:
     import warp as wp
 
     wp.config.log_level = wp.LOG_WARNING
-    from warpshade.metrics import radiance_error
+    from warpshade.bench.metrics import radiance_error
     from warpshade.pipeline import Pipeline
     from warpshade.pipeline.cloth import ClothSimulation
     from warpshade.usd import read_scene
@@ -77,7 +83,7 @@ def main(argv=None) -> int:
             t0 = time.perf_counter()
             r = shade(f, g)
             times.append(time.perf_counter() - t0)
-            radiance[label][f] = np.concatenate([r[n][2] for n in sorted(k for k in r if not k.startswith("_"))])
+            radiance[label][f] = np.concatenate([r[n][2] for n in _object_keys(r)])
         rows.append({"method": label, "build_s": build,
                      "seconds_per_frame": statistics.median(times[1:] if len(times) > 1 else times)})
     for r in rows:

@@ -41,7 +41,7 @@ from warpshade.sh.products import product_matrix
 from warpshade.sh.projection import sphere_quadrature
 from warpshade.sh.rotation import rotation_from_axis_angle, rotation_matrix
 from warpshade.sh.zonal import sphere_visibility_zh, zh_rotate
-from warpshade.timing import median_seconds
+from warpshade.bench.timing import median_seconds
 
 BINS = [0, 1, 2, 5, 10, 20, 35, 50, 100, 1e9]
 METHODS = ["ol", "hybrid", "series", "exact"]

@@ -6,9 +6,9 @@ objects' sphere sets and from its own (self-shadowing); the ground casts nothing
 whose ground box has no spheres), but the ray-traced reference includes it as an occluder.
 
 Measured: time per frame (median of ``--repeat`` runs after one warm-up, kernel compilation and the
-sphere fits excluded: ``warpshade.timing``) of shadows alone and shadows + reflections, for the
+sphere fits excluded: ``warpshade.bench.timing``) of shadows alone and shadows + reflections, for the
 optimal-linear, hybrid and series exponentials; transfer error against ``ReferenceTransfer`` with
-``occluders=`` (``warpshade.metrics``, relative L2), with the unoccluded transfer as a baseline;
+``occluders=`` (``warpshade.bench.metrics``, relative L2), with the unoccluded transfer as a baseline;
 single-object self-shadowing by spheres on the bunny and bear (and by hemispherical rasterization
 when that method is registered). Reference transfers are cached in ``benchmarks/cache/`` (gitignored).
 
@@ -36,11 +36,12 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
 
 from warpshade.bench.reference_cache import ground_truth  # noqa: E402
-from warpshade.geometry import TriMesh, load_mesh  # noqa: E402
-from warpshade.metrics import error_summary  # noqa: E402
+from warpshade.geometry import TriMesh  # noqa: E402
+from warpshade.usd import load_mesh  # noqa: E402
+from warpshade.bench.metrics import error_summary  # noqa: E402
 from warpshade.sh import sh_eval  # noqa: E402
 from warpshade.sh.zonal import clamped_cosine_zh, unoccluded_transfer, zh_rotate  # noqa: E402
-from warpshade.timing import median_seconds  # noqa: E402
+from warpshade.bench.timing import median_seconds  # noqa: E402
 from warpshade.visibility import METHODS, get_method  # noqa: E402
 from warpshade.visibility.spheres import SpheresTransfer, build_sphere_tree, halfspace_blocker  # noqa: E402
 from warpshade.visibility.spheres.reflections import SphereReflections  # noqa: E402
@@ -178,7 +179,7 @@ def reflection_rows(objs: dict, order: int, rays: int, repeat: int) -> list[dict
     through its own 15 leaf spheres, 3 levels) against the ray-traced bounce; time per frame of the bounce
     alone (both passes, refits included). The first pass reads the ray-traced direct exit radiance at the
     samples, as the pipeline reads its own direct shading (one row: the thesis' sphere-shadowed samples)."""
-    from warpshade.metrics import radiance_error
+    from warpshade.bench.metrics import radiance_error
     from warpshade.pipeline.reflections import SceneReflections
 
     names = list(objs)

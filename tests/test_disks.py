@@ -13,12 +13,13 @@ from scipy.integrate import quad
 from conftest import warp_asset
 from test_reference import unoccluded_transfer
 from warpshade.cli import main as cli_main
-from warpshade.geometry import TriMesh, load_mesh
+from warpshade.geometry import TriMesh
+from warpshade.usd import load_mesh
 from warpshade.sh import sh_eval
 from warpshade.visibility import get_method
 from warpshade.visibility.disks import build_disk_tree
 from warpshade.visibility.disks.disks import has_boundary
-from warpshade.visibility.disks.reference_np import bin_occlusion_np
+from warpshade.visibility.disks.oracle import bin_occlusion_np
 
 Disks = get_method("disks")
 

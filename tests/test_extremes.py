@@ -24,7 +24,8 @@ from hypothesis import strategies as st
 
 from conftest import warp_asset
 from warpshade.bench.meshes import grid
-from warpshade.geometry import TriMesh, load_mesh
+from warpshade.geometry import TriMesh
+from warpshade.usd import load_mesh
 from warpshade.sh import sh_eval
 from warpshade.visibility import METHODS, get_method
 

@@ -10,9 +10,10 @@ import trimesh
 
 from conftest import warp_asset
 from warpshade.cli import main as cli_main
-from warpshade.geometry import TriMesh, load_mesh
+from warpshade.geometry import TriMesh
+from warpshade.usd import load_mesh
 from warpshade.visibility.gears import LightRect, get_area_method
-from warpshade.visibility.gears.reference_np import blocked_samples_np, masks_to_bool
+from warpshade.visibility.gears.oracle import blocked_samples_np, masks_to_bool
 
 Gears = get_area_method("gears")
 Rays = get_area_method("reference")

@@ -13,13 +13,14 @@ import warp as wp
 from conftest import warp_asset
 from test_reference import rel_err, unoccluded_transfer
 from warpshade.cli import main as cli_main
-from warpshade.geometry import TriMesh, load_mesh
+from warpshade.geometry import TriMesh
+from warpshade.usd import load_mesh
 from warpshade.sh import sh_eval
 from warpshade.visibility import get_method
 from warpshade.visibility.hemiraster import kernels as hr_kernels
-from warpshade.visibility.hemiraster import reference_np as hr_reference
+from warpshade.visibility.hemiraster import oracle as hr_oracle
 from warpshade.visibility.hemiraster import tables
-from warpshade.visibility.hemiraster.reference_np import tangent_frame_np, transfer_np
+from warpshade.visibility.hemiraster.oracle import tangent_frame_np, transfer_np
 
 Y0 = 0.5 / math.sqrt(math.pi)
 
@@ -312,7 +313,7 @@ def test_rim_cull_removes_only_bits_outside_the_exact_images():
     for v in removed[:25]:
         frame = tangent_frame_np(nrm[v] / np.linalg.norm(nrm[v]))
         keep = (faces != v).all(axis=1)
-        exact = hr_reference.rasterize_np((pts[faces[keep]] - pts[v]) @ frame, 16)
+        exact = hr_oracle.rasterize_np((pts[faces[keep]] - pts[v]) @ frame, 16)
         assert not ((bits_off[v] & ~bits_on[v]) & exact).any(), v
 
 
@@ -607,7 +608,7 @@ def test_interpolate_tolerance_zero_plus_only_trusts_equal_neighbours():
 
 def test_interpolate_on_a_smooth_sheet_within_measured_error():
     from warpshade.bench.reference_cache import ground_truth
-    from warpshade.metrics import transfer_errors
+    from warpshade.bench.metrics import transfer_errors
 
     mesh = wavy_sheet(n=24, amp=0.05)
     truth = ground_truth(mesh, 3, rays=1024, cache_dir=None)

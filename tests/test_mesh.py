@@ -8,7 +8,8 @@ import trimesh
 import warp as wp
 
 from conftest import warp_asset
-from warpshade.geometry import MeshError, TriMesh, load_mesh, vertex_normals, vertex_normals_np
+from warpshade.geometry import MeshError, TriMesh, vertex_normals, vertex_normals_np
+from warpshade.usd import load_mesh
 from warpshade.usd import triangulate
 
 

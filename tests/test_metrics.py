@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from warpshade.metrics import error_summary, transfer_errors
+from warpshade.bench.metrics import error_summary, transfer_errors
 
 
 def test_relative_errors_hand_computed():

@@ -108,7 +108,7 @@ def test_dask_local_cluster_matches_inline(spec, blob, inline):
 
 
 def test_dask_separate_process_cluster_on_loopback(spec, blob, inline):
-    from warpshade.cluster import loopback_cluster
+    from warpshade.parallel.cluster import loopback_cluster
 
     with loopback_cluster(workers=2) as address:
         out = list(shade_frames(spec, wobble_frames(blob, 8), scheduler=address))

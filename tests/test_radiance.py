@@ -98,7 +98,7 @@ def test_bunny_under_default_sky_and_bulb():
     # and upward-facing vertices are brighter than downward-facing ones (sun 45° up, dark ground).
     from conftest import warp_asset
 
-    from warpshade.geometry import load_mesh
+    from warpshade.usd import load_mesh
     from warpshade.lighting import default_environment
 
     mesh = load_mesh(warp_asset("bunny.usd"))

@@ -11,7 +11,8 @@ import trimesh
 
 from conftest import warp_asset
 from warpshade.cli import main as cli_main
-from warpshade.geometry import TriMesh, load_mesh
+from warpshade.geometry import TriMesh
+from warpshade.usd import load_mesh
 from warpshade.sh import sh_eval
 from warpshade.visibility import get_method
 

@@ -1,10 +1,10 @@
-"""Warp start-up (warpshade.runtime): the CPU-only CUDA-driver notice is dropped, nothing else."""
+"""Warp start-up (warpshade.parallel.runtime): the CPU-only CUDA-driver notice is dropped, nothing else."""
 
 import subprocess
 import sys
 from pathlib import Path
 
-from warpshade.runtime import MISSING_DRIVER_NOTICE, filter_startup_output
+from warpshade.parallel.runtime import MISSING_DRIVER_NOTICE, filter_startup_output
 
 REPO = Path(__file__).resolve().parents[1]
 

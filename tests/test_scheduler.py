@@ -19,7 +19,7 @@ import pytest
 from test_faults import live_processes
 from test_resume import COMMON, FRAMES, SCENE, assert_same_frames, frames_of
 from warpshade.cli import main
-from warpshade.cluster import is_loopback, scheduler_security, stop_sessions, unencrypted_remote
+from warpshade.parallel.cluster import is_loopback, scheduler_security, stop_sessions, unencrypted_remote
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # workers import warpshade from this checkout, as a user's would from their install

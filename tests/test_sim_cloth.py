@@ -8,7 +8,7 @@ import warp as wp
 
 from warpshade.geometry import MeshError
 from warpshade.sim import ClothBuilder, ColliderSet, SimulationError, XPBDSolver
-from warpshade.sim.reference import dihedral_angle_np, point_triangle_distance_np
+from warpshade.sim.oracle import dihedral_angle_np, point_triangle_distance_np
 
 from conftest import warp_asset
 

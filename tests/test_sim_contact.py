@@ -9,7 +9,7 @@ import warp as wp
 
 from warpshade.sim import ClothBuilder, ColliderSet, IntersectionCounter, XPBDSolver, count_intersections
 from warpshade.sim.intersections import triangles_meet
-from warpshade.sim.reference import triangles_meet_np
+from warpshade.sim.oracle import triangles_meet_np
 
 DT = 1.0 / 60.0
 

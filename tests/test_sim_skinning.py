@@ -7,7 +7,7 @@ import pytest
 
 from warpshade.sim import LBSSkinner, WalkingFigure
 from warpshade.sim.figure import capsule_mesh
-from warpshade.sim.reference import skin_points_np
+from warpshade.sim.oracle import skin_points_np
 
 
 def _random_rig(rng, v=200, j=5, k=3):

@@ -12,7 +12,8 @@ import trimesh
 
 from conftest import warp_asset
 from warpshade.cli import main as cli_main
-from warpshade.geometry import TriMesh, load_mesh
+from warpshade.geometry import TriMesh
+from warpshade.usd import load_mesh
 from warpshade.visibility import get_method
 from warpshade.visibility.spheres import SpheresTransfer, build_sphere_tree, refit_np
 from warpshade.visibility.spheres.fitting import tree_from_spheres
@@ -20,7 +21,7 @@ from warpshade.sh.products import sh_product
 from warpshade.sh.zonal import sphere_visibility_zh as cap_blocker_zh
 from warpshade.sh.zonal import zh_rotate
 from warpshade.sh import unoccluded_transfer
-from warpshade.visibility.spheres.reference import adjust_sphere_np, shade_np
+from warpshade.visibility.spheres.oracle import adjust_sphere_np, shade_np
 
 SQRT_4PI = math.sqrt(4 * math.pi)
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from warpshade.geometry import TriMesh
-from warpshade.metrics import error_summary
+from warpshade.bench.metrics import error_summary
 from warpshade.sim import LBSSkinner
 from warpshade.visibility.spheres import SpheresTransfer, build_sphere_tree
 from warpshade.visibility.spheres.sets import SphereScene

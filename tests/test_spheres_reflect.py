@@ -10,7 +10,7 @@ import warp as wp
 
 from warpshade.geometry import TriMesh
 from warpshade.visibility.spheres import SpheresTransfer, SphereReflections, tree_from_spheres
-from warpshade.visibility.spheres.reference import reflect_np
+from warpshade.visibility.spheres.oracle import reflect_np
 
 ORDER = 4
 

@@ -1,8 +1,18 @@
 """warpshade: Warp (CPU) cloth and character simulation shaded with SH soft shadows, exported to USD."""
 
-__version__ = "0.1.0"
+from ._version import __version__
 
-from .geometry import MeshError, TriMesh, load_mesh
+from .geometry import MeshError, TriMesh
+
+
+def load_mesh(path, prim: str | None = None) -> TriMesh:
+    """Load a triangle mesh from USD, OBJ, PLY or STL: :func:`warpshade.usd.load_mesh`, imported on the first
+    call so that ``import warpshade`` does not load USD."""
+    from .usd import load_mesh as load
+
+    return load(path, prim)
+
+
 from .lighting import (ConstantEnvironment, DirectionalLight, EnvironmentMap, PointLight, RectLight, Sky, SphereLight,
                        default_environment)
 from .radiance import exit_radiance, shade

@@ -101,8 +101,8 @@ REFLECTION_SPHERES_PER_OBJECT = 15
 
 
 def load_frontier(path: str | None = None) -> dict:
-    """The measured frontier: ``path`` (a ``--frontier`` file or a ``results.json`` from ``warpshade bench``),
-    else the one shipped in ``warpshade/data/frontier.json``."""
+    """The measured frontier: ``path`` (a frontier file, as ``warpshade bench --frontier`` writes), else the one
+    shipped in ``warpshade/data/frontier.json``."""
     if path is None:
         with resources.files("warpshade").joinpath("data/frontier.json").open() as f:
             return json.load(f)
@@ -110,12 +110,11 @@ def load_frontier(path: str | None = None) -> dict:
         raise ValueError(f"{path}: no such frontier file")
     with open(path) as f:
         data = json.load(f)
-    if isinstance(data, list):  # a results.json
-        from .bench.report import frontier_from_results
-
-        data = frontier_from_results(data)
+    if isinstance(data, list):
+        raise ValueError(f"{path}: a warpshade bench results.json, not a frontier: convert it with "
+                         "warpshade.bench.report.frontier_from_results (warpshade plan --frontier does)")
     if "configs" not in data:
-        raise ValueError(f"{path}: not a frontier (no 'configs') nor a results.json list")
+        raise ValueError(f"{path}: not a frontier (no 'configs')")
     return data
 
 
@@ -197,7 +196,7 @@ class GroupPlan:
         names: Member objects.
         vertices, triangles: Of the merged mesh.
         moves: Any member moves, so the group's transfer is recomputed every frame.
-        seconds_build: Estimated method construction [s].
+        seconds_build: Estimated setup [s]: the group's meshes and the method's construction (both sides).
         seconds_transfer: Estimated transfer update on the merged mesh [s].
         seconds_between: Estimated per-frame shadowing by the other groups' sphere sets [s].
         seconds_lights: Estimated per-frame lights' SH at the group's points [s].
@@ -454,7 +453,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
 
     Args:
         scene: The scene.
-        max_error: Error budget (mean relative L2 transfer error, :mod:`warpshade.metrics`); when set,
+        max_error: Error budget (mean relative L2 transfer error, :mod:`warpshade.bench.metrics`); when set,
             each object's method is chosen from the frontier, overriding the scene's choice.
         frontier: Frontier dict, a path (frontier or ``results.json``), or None for the shipped one.
         between: The run's between-group shadows (``"spheres"`` or None, as ``warpshade run --between``).
@@ -711,6 +710,14 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
                 t_back = estimate_seconds(cfg, v_two, triangles=caster_tris[k])
                 back_build = estimate_seconds(cfg, v_two, "build_seconds", triangles=caster_tris[k])
             g.seconds_build += back_build
+        # the group's meshes at setup (merged members and their normals; the back side's merged members),
+        # which the frontier's build_seconds (the constructor on a built mesh) leave out
+        mesh_tris = f
+        two = back_side_receivers(spec) if any(spec.two_sided) and spec.method is not None else None
+        if two is not None:
+            casts = spec.casts or [True] * len(spec.meshes)
+            mesh_tris += sum(m.num_faces for i, m in enumerate(spec.meshes) if i in two or casts[i])
+        g.seconds_build += pc["group_mesh_seconds_per_triangle"] * mesh_tris
         back_transfer.append(t_back)
         plan.groups.append(g)
     t_refl = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * sum(g.vertices for g in plan.groups) * REFLECTION_SPHERES_PER_OBJECT

@@ -13,7 +13,7 @@ Sequences (:func:`sequence`):
 Each configuration (method, knobs, temporal reuse tolerance) runs the whole sequence on a fresh
 instance after a warm-up instance compiled its kernels, the configurations taking turns frame by
 frame (load drift on a shared machine hits all alike); per frame the wall and process CPU time of
-``update`` are recorded, and on judged frames :func:`warpshade.metrics.error_summary` against
+``update`` are recorded, and on judged frames :func:`warpshade.bench.metrics.error_summary` against
 :func:`.reference_cache.ground_truth` (cached) of that frame.
 """
 
@@ -28,7 +28,7 @@ import numpy as np
 import warp as wp
 
 from ..geometry.mesh import TriMesh
-from ..metrics import error_summary
+from .metrics import error_summary
 from .reference_cache import DEFAULT_CACHE_DIR, GROUND_TRUTH_SEED, ground_truth
 
 ANIMATIONS = ("default", "walk")

@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from ..timing import median_seconds
+from .timing import median_seconds
 from .records import knobs_text
 
 AREA_TRUTH_K = 32

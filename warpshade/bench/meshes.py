@@ -187,7 +187,7 @@ def warp_mesh(name: str) -> BenchMesh:
     """One of Warp's shipped meshes (``bunny``, ``bear``...) from ``warp/examples/assets``, rigid."""
     import warp as wp
 
-    from ..geometry.mesh import load_mesh
+    from ..usd.mesh_io import load_mesh
 
     path = os.path.join(os.path.dirname(wp.__file__), "examples", "assets", f"{name}.usd")
     m = load_mesh(path)

@@ -3,7 +3,7 @@
 What a record measures (one method configuration on one mesh):
 
 * ``seconds``: median wall time of ``update()`` on the judged frame over ``repeat`` runs
-  (:func:`warpshade.timing.median_seconds`). Kernels are compiled beforehand by running the same
+  (:func:`warpshade.bench.timing.median_seconds`). Kernels are compiled beforehand by running the same
   configuration on a tiny icosphere, and the first update on the real mesh is an untimed warm-up, so
   compilation and cache loading are excluded.
 * ``build_seconds``: constructing the method on the rest pose (static structures), compile excluded.
@@ -14,11 +14,11 @@ What a record measures (one method configuration on one mesh):
   None where the kernel does not allow resetting the mark.
 * ``array_bytes``: bytes of Warp and NumPy arrays the method object holds after the update (its
   persistent structures and outputs; a ``wp.Mesh`` BVH is estimated at 64 bytes per triangle).
-* ``error_mean``/``error_p95``/``error_max``: :func:`warpshade.metrics.error_summary` of the transfer
+* ``error_mean``/``error_p95``/``error_max``: :func:`warpshade.bench.metrics.error_summary` of the transfer
   against the cached ground truth (:mod:`.reference_cache`), on the method's ``order*order``
   coefficients, over the mesh's judged vertices (``judged_vertices``: all but the character's buried
   ones, :attr:`.meshes.BenchMesh.judged`).
-* ``radiance_error_<env>``: :func:`warpshade.metrics.radiance_error` of white-Lambertian exit radiance
+* ``radiance_error_<env>``: :func:`warpshade.bench.metrics.radiance_error` of white-Lambertian exit radiance
   under each environment of :mod:`.environments` (band-limited to order 6, so lower orders also pay
   for the bands they drop).
 
@@ -38,8 +38,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..metrics import error_summary, radiance_error
-from ..timing import median_seconds
+from .metrics import error_summary, radiance_error
+from .timing import median_seconds
 from .environments import ENV_ORDER, environments, radiance
 from .meshes import BenchMesh, standard_meshes
 from .records import knobs_text, pareto_mask

@@ -14,7 +14,7 @@ import sys
 import threading
 import warnings
 
-from ..runtime import init_warp
+from ..parallel.runtime import init_warp
 
 
 def _subcommands():

@@ -42,6 +42,22 @@ def load_scene(path: str):
     return reader(path)
 
 
+def _frontier(path: str | None):
+    """``--frontier``: a frontier file (the planner reads it), or a ``warpshade bench`` results.json, which the
+    bench converts to a frontier (:func:`warpshade.bench.report.frontier_from_results`)."""
+    import os
+
+    if path is None or not os.path.isfile(path):
+        return path  # the planner reads the shipped frontier, or names the missing file
+    with open(path) as f:
+        data = json.load(f)
+    if isinstance(data, list):
+        from ..bench.report import frontier_from_results
+
+        return frontier_from_results(data)
+    return path
+
+
 def run(args) -> int:
     from ..planner import make_plan, naive_seconds
 
@@ -52,7 +68,7 @@ def run(args) -> int:
     if refined:
         print(describe_refined(refined).strip())
     # the options warpshade run takes, resolved the way the run resolves them (pipeline.config.resolve_run)
-    plan = make_plan(scene, max_error=args.max_error, frontier=args.frontier, order=args.order,
+    plan = make_plan(scene, max_error=args.max_error, frontier=_frontier(args.frontier), order=args.order,
                      between=None if args.between == "none" else args.between, area_lights=args.area_lights,
                      area_k=args.area_k, two_sided=args.two_sided, reflections=True if args.reflections else None)
     print(plan.describe())

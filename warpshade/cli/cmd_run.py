@@ -148,7 +148,7 @@ def run(args) -> int:
     knobs = parse_knobs(args)
     security = None
     if args.scheduler and args.scheduler != "local":
-        from ..cluster import scheduler_security
+        from ..parallel.cluster import scheduler_security
 
         security = scheduler_security(args.scheduler, args.tls_ca_file, args.tls_cert, args.tls_key)
     elif args.tls_ca_file or args.tls_cert or args.tls_key:

@@ -46,8 +46,8 @@ def parse_knobs(args) -> dict:
 
 def run(args) -> int:
     from ..bench.report import write_json
-    from ..geometry import load_mesh
-    from ..timing import time_transfer
+    from ..usd import load_mesh
+    from ..bench.timing import time_transfer
     from ..visibility import get_method
 
     cls = get_method(args.method)

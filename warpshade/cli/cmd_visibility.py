@@ -33,8 +33,8 @@ def knob_class(method: str):
 
 
 def run(args) -> int:
-    from ..geometry import load_mesh
-    from ..timing import median_seconds
+    from ..usd import load_mesh
+    from ..bench.timing import median_seconds
     from ..visibility.gears import LightRect, get_area_method
     from ..bench.report import write_json
     from .cmd_transfer import method_stats, parse_knobs, save_npz

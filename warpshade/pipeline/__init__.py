@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..geometry.mesh import first_nonfinite
 from ..scene import Scene, SceneError, SceneWarning
 from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
@@ -121,7 +122,7 @@ class Pipeline:
         refine_receivers: Edge length [scene units] to which coarse static meshes are subdivided so
             shadows have vertices to fall on; ``"auto"`` (the scene's ``warpshade:refineEdge``, else
             1/12 of the scene's diagonal) or ``"off"``. The scene's objects are refined in place.
-        security: ``distributed.Security`` for ``scheduler`` (TLS, :func:`warpshade.cluster.scheduler_security`).
+        security: ``distributed.Security`` for ``scheduler`` (TLS, :func:`warpshade.parallel.cluster.scheduler_security`).
         two_sided: Shade both sides of thin surfaces, each with its own transfer, and write each side as
             its own single-sided mesh (docs/conventions.md §6): ``"auto"`` (default: objects with
             ``warpshade:twoSided``, else cloth), ``"on"`` (every shaded object) or ``"off"``. A group with a
@@ -233,8 +234,8 @@ class Pipeline:
             if sims is not None:  # cloth after the bodies it collides with and hangs from
                 geo.update(sims.advance(f, geo))
             for name, pts in geo.items():
-                if not np.isfinite(pts).all():
-                    v = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
+                v = first_nonfinite(pts)
+                if v is not None:
                     raise SceneError(f"{name}: frame {f}: vertex {v} is not finite")
             secs["simulate"] += time.perf_counter() - t
             yield f, geo

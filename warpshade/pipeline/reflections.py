@@ -42,7 +42,7 @@ class SceneReflections:
         self_reflection: Whether an object receives light reflected by its own spheres (``"auto"``:
             closed meshes do, open ones such as a ground plane or cloth do not).
         threshold: Cut threshold [rad] (eq. 4.8). Default 1.0: on the benchmark scene the cuts with the
-            corrected ratios are as accurate as the leaves and 1.34x faster (docs/methods/spheres.md).
+            corrected ratios are as accurate as the leaves and faster (docs/methods/spheres.md).
         seed: Random seed of the sphere fits.
         trees: Sphere trees already fitted to ``meshes`` (rest pose), to skip the fits.
     """

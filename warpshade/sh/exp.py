@@ -63,8 +63,8 @@ METHODS = ("hybrid", "ol", "series", "exact")
 
 
 def _eigh(m: np.ndarray):
-    """``np.linalg.eigh`` on one BLAS thread: many small matrices run ~30x faster than with a
-    multi-threaded OpenBLAS on a loaded machine (measured: 256 matrices 64x64, 0.07 s vs 2 s)."""
+    """``np.linalg.eigh`` on one BLAS thread (many small matrices: a multi-threaded OpenBLAS only adds
+    contention; docs/benchmarks/history.md)."""
     with threadpool_limits(limits=1, user_api="blas"):
         return np.linalg.eigh(m)
 

@@ -2,7 +2,7 @@
 
 * basis: :func:`sh_accumulate`;
 * zonal rotation (thesis eq. 3.17): :func:`zh_rotate_accumulate`, :func:`zh_lerp_rotate_accumulate`
-  (array rows, runtime order) and :func:`zh_vector_funcs` (fixed-order vector types, ~2x faster);
+  (array rows, runtime order) and :func:`zh_vector_funcs` (fixed-order vector types in registers);
 * products (eq. 3.19): :class:`SHProductTable` / :func:`product_table_arrays`, :func:`sh_product_rows`,
   kernel :func:`multiply_sh`;
 * exponential (eqs. 3.30, 3.32): :class:`OLTableArrays` / :func:`ol_table_arrays`, :func:`sh_exp_ol`,
@@ -183,9 +183,9 @@ def zh_vector_funcs(order: int) -> SimpleNamespace:
     * ``accumulate_lobes``: kernel ``(d (V, B) vec3, zh (B,) vec_zh, kz) -> out (V,) vec_sh`` summing
       lobe ``b`` rotated to ``d[v, b]`` for every vertex ``v`` (an example of use, and the benchmark).
 
-    Accumulating rotated lobes in a ``vec_sh`` local is 2–4x faster than
-    :func:`zh_rotate_accumulate` into an array row at order 8 (benchmarks/sh_exp.py: 99–188 vs
-    380–405 ns per rotation), at the price of one compiled function per order.
+    Rotated lobes accumulate in a ``vec_sh`` local (registers) instead of an array row as in
+    :func:`zh_rotate_accumulate`, at the price of one compiled function per order (``benchmarks/sh_exp.py``
+    compares them).
     """
     from .basis import check_order
 
@@ -274,8 +274,7 @@ def sh_product_vector_funcs(order: int) -> SimpleNamespace:
 
     ``table`` is :func:`product_table_arrays` of the same order. Up to :data:`UNROLL_MAX_ORDER` the
     Gaunt coefficients are written into generated source as float32 literals and ``table`` is not
-    read, so the compiler keeps the operands in registers: with the square, what makes the sphere-set
-    kernels 2.8x faster than rows + :func:`sh_product_rows` (docs/methods/sh-core.md, benchmarks/spheres.py). The
+    read, so the compiler keeps the operands in registers (the sphere-set kernels use them; docs/methods/sh-core.md). The
     generated source is registered with ``linecache`` so Warp can parse it. Above that order the
     functions loop over ``table`` (compile time).
     """

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..geometry.mesh import first_nonfinite
 from . import collision_kernels as ck
 from .kernels import apply_averaged_deltas
 
@@ -86,9 +87,9 @@ class MeshCollider:
     def _check(self, pts):
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise ValueError(f"mesh collider: points must have shape (V, 3), got {pts.shape}")
-        bad = ~np.isfinite(pts).all(axis=1)
-        if bad.any():
-            raise ValueError(f"mesh collider: vertex {int(np.flatnonzero(bad)[0])} is not finite")
+        v = first_nonfinite(pts)
+        if v is not None:
+            raise ValueError(f"mesh collider: vertex {v} is not finite")
 
     def set_points(self, points: np.ndarray) -> None:
         """Pose at the end of the next step [m], shape (V, 3) (same topology)."""

@@ -22,15 +22,17 @@ import numpy as np
 import warp as wp
 
 from ..geometry.mesh import MeshError, TriMesh, validate_mesh
-from .reference import dihedral_angle_np
+from .oracle import dihedral_angle_np
 
 
 class SimulationError(RuntimeError):
     """The simulation failed (non-finite state, bad step). The message names the step and vertex."""
 
 
-def _check_param(name: str, value: float, low: float = 0.0, low_inclusive: bool = True,
-                 allow_inf: bool = False) -> float:
+def check_param(name: str, value: float, low: float = 0.0, low_inclusive: bool = True,
+                allow_inf: bool = False) -> float:
+    """``value`` as a float, or a ValueError naming ``name`` when it is NaN, infinite (unless ``allow_inf``)
+    or below ``low`` (or at it, unless ``low_inclusive``)."""
     v = float(value)
     if np.isnan(v) or (np.isinf(v) and not allow_inf):
         raise ValueError(f"{name} must be finite, got {value}")
@@ -238,12 +240,12 @@ class ClothBuilder:
 
     def __init__(self, density: float = 0.2, stretch_stiffness: float = 5.0e4, bend_stiffness: float = 5.0e-5,
                  damping: float = 1.0e-3, thickness: float = 0.005, bend_damping: float = 0.0):
-        self.density = _check_param("density", density, 0.0, low_inclusive=False)
-        self.stretch_stiffness = _check_param("stretch_stiffness", stretch_stiffness, 0.0, False, allow_inf=True)
-        self.bend_stiffness = _check_param("bend_stiffness", bend_stiffness, 0.0, allow_inf=True)
-        self.damping = _check_param("damping", damping)
-        self.bend_damping = _check_param("bend_damping", bend_damping)
-        self.thickness = _check_param("thickness", thickness)
+        self.density = check_param("density", density, 0.0, low_inclusive=False)
+        self.stretch_stiffness = check_param("stretch_stiffness", stretch_stiffness, 0.0, False, allow_inf=True)
+        self.bend_stiffness = check_param("bend_stiffness", bend_stiffness, 0.0, allow_inf=True)
+        self.damping = check_param("damping", damping)
+        self.bend_damping = check_param("bend_damping", bend_damping)
+        self.thickness = check_param("thickness", thickness)
         self._pieces: list[_Piece] = []
         self._count = 0
         self._pinned: set[int] = set()
@@ -274,11 +276,11 @@ class ClothBuilder:
         faces = np.ascontiguousarray(faces, dtype=np.int64)
         check_cloth_mesh(points, faces, name)
         piece = _Piece(points, faces,
-                       _check_param(f"{name}: density", self.density if density is None else density, 0.0, False),
-                       _check_param(f"{name}: stretch_stiffness",
+                       check_param(f"{name}: density", self.density if density is None else density, 0.0, False),
+                       check_param(f"{name}: stretch_stiffness",
                                     self.stretch_stiffness if stretch_stiffness is None else stretch_stiffness,
                                     0.0, False, allow_inf=True),
-                       _check_param(f"{name}: bend_stiffness",
+                       check_param(f"{name}: bend_stiffness",
                                     self.bend_stiffness if bend_stiffness is None else bend_stiffness,
                                     0.0, allow_inf=True), name)
         self._pieces.append(piece)

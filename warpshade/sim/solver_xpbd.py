@@ -25,7 +25,7 @@ from . import contact_kernels as ck
 from . import kernels as k
 from .colliders import ColliderSet
 from .intersections import IntersectionCounter
-from .model import ClothModel, SimulationError, _check_param
+from .model import ClothModel, SimulationError, check_param
 from .state import ClothControl, ClothState
 
 
@@ -80,14 +80,14 @@ class XPBDSolver:
         if g.shape != (3,) or not np.isfinite(g).all():
             raise ValueError(f"gravity must be 3 finite numbers, got {gravity}")
         self.gravity = tuple(float(c) for c in g)
-        self.drag = _check_param("drag", drag)
-        self.air_density = _check_param("air_density", air_density)
-        self.drag_coefficient = _check_param("drag_coefficient", drag_coefficient)
-        self.lift_coefficient = _check_param("lift_coefficient", lift_coefficient)
+        self.drag = check_param("drag", drag)
+        self.air_density = check_param("air_density", air_density)
+        self.drag_coefficient = check_param("drag_coefficient", drag_coefficient)
+        self.lift_coefficient = check_param("lift_coefficient", lift_coefficient)
         self.self_collision = bool(self_collision)
         self.edge_contact = bool(edge_contact) and self.self_collision
         self.guard = bool(guard)
-        self.self_friction = _check_param("self_friction", self_friction)
+        self.self_friction = check_param("self_friction", self_friction)
         ci = min(self.substeps, 3) if contact_interval is None else contact_interval
         if int(ci) != ci or ci < 1:
             raise ValueError(f"contact_interval must be an integer >= 1, got {contact_interval}")
@@ -103,7 +103,7 @@ class XPBDSolver:
         self.stretch_sweeps = int(stretch_sweeps)
         self.tethers = bool(tethers) and bool((model.tether_anchor.numpy() >= 0).any())
         self.check_finite = bool(check_finite)
-        self.relaxation = _check_param("relaxation", relaxation, 0.0, False)
+        self.relaxation = check_param("relaxation", relaxation, 0.0, False)
         if self.relaxation >= 2.0:
             raise ValueError(f"relaxation must be < 2 (successive over-relaxation diverges beyond), got {relaxation}")
         self.step_count = 0

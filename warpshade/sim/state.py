@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..geometry.mesh import first_nonfinite
+
 
 class ClothState:
     """What changes every step.
@@ -92,9 +94,8 @@ class ClothControl:
         n = self.model.attachment_count
         if a.shape != (n, 3):
             raise ValueError(f"ClothControl.set_targets: expected shape ({n}, 3), got {a.shape}")
-        bad = ~np.isfinite(a).all(axis=1)
-        if bad.any():
-            k = int(np.flatnonzero(bad)[0])
+        k = first_nonfinite(a)
+        if k is not None:
             raise ValueError(f"ClothControl.set_targets: target {k} (vertex "
                              f"{int(self.model.attachment_indices.numpy()[k])}) is not finite: {a[k].tolist()}")
         self.attachment_targets.assign(a)

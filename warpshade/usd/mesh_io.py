@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 from pxr import Usd, UsdGeom
 
-from ..geometry.mesh import MeshError
+from ..geometry.mesh import MeshError, TriMesh
 
 
 def open_stage(path: str) -> Usd.Stage:
@@ -85,3 +87,37 @@ def read_usd_mesh(path: str, prim_path: str | None = None, time=None):
     points = points @ xf[:3, :3] + xf[3, :3]
     faces = triangulate(np.asarray(counts), np.asarray(idx), name)
     return points.astype(np.float32), faces, name
+
+
+def load_mesh(path: str | os.PathLike, prim: str | None = None) -> TriMesh:
+    """Load a triangle mesh from USD (``.usd/.usda/.usdc``), OBJ, PLY or STL.
+
+    USD: the first ``UsdGeom.Mesh`` prim in traversal order, or ``prim``; points are transformed
+    to world space and n-gons are fan-triangulated. OBJ/PLY/STL: read with trimesh without
+    reordering vertices (STL, which stores unshared corners, has its vertices merged).
+
+    (Here, at the file boundary, rather than in :mod:`warpshade.geometry`: only :mod:`warpshade.usd` imports pxr.)
+
+    Raises:
+        MeshError: for a missing or unreadable file, a missing prim or invalid geometry.
+    """
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise MeshError(f"{path}: no such file")
+    ext = os.path.splitext(path)[1].lower()
+    if ext in (".usd", ".usda", ".usdc", ".usdz"):
+        points, faces, name = read_usd_mesh(path, prim)
+        return TriMesh(points, faces, name=name)
+    if ext in (".obj", ".ply", ".stl", ".off", ".glb", ".gltf"):
+        if prim is not None:
+            raise MeshError(f"{path}: --prim applies to USD files only")
+        import trimesh
+
+        try:
+            tm = trimesh.load(path, force="mesh", process=False)
+        except Exception as exc:  # trimesh raises many types for malformed files
+            raise MeshError(f"{path}: cannot read mesh: {exc}") from exc
+        if ext == ".stl":
+            tm.merge_vertices()
+        return TriMesh(np.asarray(tm.vertices), np.asarray(tm.faces), name=path)
+    raise MeshError(f"{path}: unsupported mesh format '{ext}' (use .usd/.usda/.usdc, .obj, .ply or .stl)")

@@ -20,7 +20,7 @@ import tempfile
 
 from pxr import Sdf, Usd, UsdUtils
 
-from .writer import OutputWriteError, _replace_atomically
+from .writer import OutputWriteError, replace_atomically
 
 FORMATS = (".usdc", ".usda", ".usdz")
 
@@ -91,7 +91,7 @@ def export(source: str, destination: str) -> str:
                 if not UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(layer_path), tmp_path):
                     raise OSError(f"UsdUtils could not package {layer_path}")
 
-            _replace_atomically(write, dst, "usdz package")
+            replace_atomically(write, dst, "usdz package")
         return dst
     tex_dir = os.path.join(folder, f"{stem}_textures")
     if textures:
@@ -105,7 +105,7 @@ def export(source: str, destination: str) -> str:
         if not flat.Export(tmp_path):
             raise OSError(f"cannot export {tmp_path}")
 
-    _replace_atomically(write, dst, "exported file")
+    replace_atomically(write, dst, "exported file")
     return dst
 
 

@@ -37,7 +37,8 @@ import uuid
 import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdLux, UsdShade, Vt
 
-from .. import __version__
+from .._version import __version__
+from ..geometry.mesh import first_nonfinite
 from ..scene import DEFAULT_ALBEDO
 
 #: Animated attributes: name -> (value type, USD interpolation or None).
@@ -158,7 +159,7 @@ def _signals_held():
             previous[pending[0]](pending[0], None)
 
 
-def _replace_atomically(write, path: str, what: str = "output file") -> None:
+def replace_atomically(write, path: str, what: str = "output file") -> None:
     """Call ``write(tmp_path)`` then rename the temporary file onto ``path``; on failure (or any
     exception, an interrupt included) nothing is left behind, and a write failure raises
     :class:`OutputWriteError` naming ``path`` and the cause."""
@@ -713,8 +714,8 @@ class AnimationWriter:
             if info["vertices"] and v != info["vertices"]:
                 raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: {v} points, topology has {info['vertices']}")
             info["vertices"] = v
-            if not np.isfinite(pts).all():
-                bad = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
+            bad = first_nonfinite(pts)
+            if bad is not None:
                 raise ValueError(f"{self.path}: mesh '{name}' frame {frame}: vertex {bad} is not finite {pts[bad].tolist()}")
             if "back_offset" in info and normals is not None:  # a back side: behind the front (BACK_SIDE_OFFSET)
                 if info["back_offset"] is None:
@@ -813,7 +814,7 @@ class AnimationWriter:
                     Sdf.AttributeSpec(prim, attr, _ANIMATED[attr])
             return man.Save()
 
-        _replace_atomically(write, os.path.join(self._run_dir, "manifest.usda"), "clip manifest")
+        replace_atomically(write, os.path.join(self._run_dir, "manifest.usda"), "clip manifest")
 
     def _write_top(self) -> None:
         root = self.stage.GetRootLayer()
@@ -836,7 +837,7 @@ class AnimationWriter:
             }})
         out.startTimeCode = float(self._first)
         out.endTimeCode = float(self._last_committed)
-        _replace_atomically(out.Export, self.path)
+        replace_atomically(out.Export, self.path)
 
     def _remove_old_runs(self) -> None:
         for entry in os.listdir(self._frames_dir):
@@ -859,7 +860,7 @@ class AnimationWriter:
             elif not self._clips:
                 out = Sdf.Layer.CreateAnonymous(".usda")
                 out.TransferContent(self.stage.GetRootLayer())
-                _replace_atomically(out.Export, self.path)
+                replace_atomically(out.Export, self.path)
         except BaseException:
             self._finish_failed()
             raise

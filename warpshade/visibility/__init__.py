@@ -36,13 +36,10 @@ AREA_METHODS = tuple(REGISTRY["area"])
 METHOD_PREFERENCE = ("hemiraster", "reference")
 """Default visibility method: the first of these that is registered (fastest accurate first).
 
-Only methods measured accurate on the shipped scenes belong here (``benchmarks/run_methods.py``,
-radiance error against reference transfer at 4096 rays, order 4): with its spatial near-field
-refinement, ``hemiraster`` at its defaults is about twice as accurate as reference at 256 rays and
-1.2-3x faster on every shipped cloth scene (default 0.0072 vs 0.015; cape_walker 0.0054 vs 0.0135;
-cloth_table 0.0046 vs 0.0107; flag_wind 0.0104 vs 0.0130; cloth_sphere 0.0057 vs 0.0125). ``disks``
-(4-14 %) and ``spheres`` (8-29 %, made for closed blockers, worse than no shadows on open cloth over
-a ground plane) are not. A method goes in front once it is measured close to the one it replaces."""
+Only methods measured accurate on the shipped scenes belong here (``benchmarks/run_methods.py``:
+radiance error against reference transfer at 4096 rays, order 4; the numbers behind this order are in
+docs/benchmarks/history.md). ``disks`` and ``spheres`` (made for closed blockers) are not. A method goes
+in front once it is measured close to the one it replaces."""
 
 def default_method() -> str:
     """The method a run uses when neither the scene nor the command line names one."""

@@ -14,7 +14,7 @@ from typing import ClassVar
 import numpy as np
 import warp as wp
 
-from ..geometry.mesh import TriMesh
+from ..geometry.mesh import TriMesh, first_nonfinite
 from ..geometry.normals import vertex_normals
 from ..sh.basis import check_order
 from . import knobs as _knobs
@@ -132,8 +132,8 @@ class VisibilityMethod(ABC):
             pts = np.asarray(points, dtype=np.float32)
             if pts.shape != (n, 3):
                 raise ValueError(f"{self.mesh.name}: expected points of shape ({n}, 3), got {pts.shape}")
-            if not np.isfinite(pts).all():
-                v = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
+            v = first_nonfinite(pts)
+            if v is not None:
                 raise ValueError(f"{self.mesh.name}: vertex {v} has a non-finite position {pts[v].tolist()}")
             self.points.assign(pts)
         if normals is None:

@@ -7,7 +7,7 @@ concentric map), fixed seed. Near the vertex, within a distance ``eps`` that sca
 start under it (it shadows the vertex where it folds up around it; a test on directions only, unchanged by
 scale or rounding) and any other surface blocks where the ray enters its front; beyond that any hit but
 one on the vertex's own surface blocks
-(:func:`~.reference_kernels.trace_surface_ray`). Pushing the whole ray origin off along the normal
+(:func:`~.rays.trace_surface_ray`). Pushing the whole ray origin off along the normal
 instead went through any surface the vertex rests on when the normal leans into it (a box standing on
 a ground: its bottom vertices saw the sky below the ground and lost the sky above).
 
@@ -42,7 +42,7 @@ class ReferenceTransfer(TransferMethod):
         seed: Random seed (results are deterministic for a given seed).
         offset: Near-field distance ``eps`` of the rays, as a fraction of the receiver's bounding-box
             diagonal (default 1e-5): other surfaces within ``eps`` block where the ray enters their front
-            (:func:`~.reference_kernels.trace_surface_ray`).
+            (:func:`~.rays.trace_surface_ray`).
         occluders: Extra static meshes that cast shadows on ``mesh`` (they receive nothing).
     """
 

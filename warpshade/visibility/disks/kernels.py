@@ -11,7 +11,7 @@ from __future__ import annotations
 import warp as wp
 
 from ...sh.kernels import sh_accumulate, zh_rotate_accumulate
-from ..reference_kernels import concentric_disk, orthonormal_basis
+from ..rays import concentric_disk, orthonormal_basis
 
 wp.set_module_options({"enable_backward": False})
 

@@ -34,7 +34,7 @@ import warp as wp
 
 from ...sh.basis import normalization
 from ...sh.kernels import zh_vector_funcs
-from ..reference_kernels import orthonormal_basis
+from ..rays import orthonormal_basis
 
 wp.set_module_options({"enable_backward": False, "optimization_level": 3})
 
@@ -76,7 +76,7 @@ def integrate_kernels(order: int) -> SimpleNamespace:
     ``diffuse(mask, normals, nibbles, unoccluded, rot_dirs, rot_pinv, basis, receivers) -> transfer``
     (the rows of ``receivers`` only, one per thread):
     ``mask`` (V, W) uint64, ``normals`` (V,) vec3 (the tangent frame is
-    :func:`~warpshade.visibility.reference_kernels.orthonormal_basis` of the normal, as in the
+    :func:`~warpshade.visibility.rays.orthonormal_basis` of the normal, as in the
     rasterizer), ``nibbles`` (16·W·16,) vec_sh (:func:`nibble_table`), ``unoccluded`` vec_sh
     (``Σ_b W_b``), ``rot_dirs`` (K,) vec3, ``rot_pinv`` (K,) vec_sh (:func:`.tables.rotation_directions`),
     ``basis`` vec_sh (``K_lm``), ``transfer`` (V, N²) float32.

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ..reference_kernels import orthonormal_basis
+from ..rays import orthonormal_basis
 from .tables import CHUNK_WORDS
 
 # forward only (nothing here is differentiated): half the generated code and compile time. No fused
@@ -347,8 +347,7 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
     Paper §3.1.1: a triangle's image is the AND of its three edge-plane masks; images fuse by OR
     (no depth, any order). Each chunk of the batch's images is ORed in a register
     (:class:`MaskChunk`), the valid-pixel AND is applied once, and the mask row is updated once per
-    chunk. The old per-word loop over the words all three planes occupy (a bitmap AND and a bit
-    scan per triangle) cost ~9 ms of the Table 1 cloth's 33 ms; whole chunks, no branch, ~2 ms.
+    chunk (whole chunks, no branch; docs/benchmarks/history.md has what this replaced).
     """
     ft = wp.transpose(frame)
     done = int(0)
@@ -411,7 +410,7 @@ def rasterize_fan(v: int, sl: int, p: wp.vec3, n: wp.vec3, fine: FineMesh, frame
     Seen from the vertex itself, a triangle through it subtends no solid angle; but where the surface
     folds up around the vertex (valleys, creases), the directions under its fan pass through the
     surface right at the receiver. The ray-traced reference sees that fan from ``p + eps n``
-    (:func:`~warpshade.visibility.reference_kernels.trace_surface_ray`); as ``eps -> 0`` the image of
+    (:func:`~warpshade.visibility.rays.trace_surface_ray`); as ``eps -> 0`` the image of
     triangle (p, b, c) from there is the spherical triangle (nadir, b - p, c - p), whose part above
     the horizon is the region between the horizon and the fan's arc b -> c. Neighbouring fan
     triangles share their nadir edge exactly (same corners, no fused multiply-adds: complementary

@@ -30,7 +30,7 @@ def reflected_irradiance_reference(points, normals, meshes: list[TriMesh], exit_
         exit_radiance: Per mesh, linear RGB exit radiance of each vertex, shape (V_o, 3).
         rays: Rays per receiver (rounded to a square for stratification).
         seed: Random seed.
-        offset: Near-field distance of the rays (:func:`~warpshade.visibility.reference_kernels.trace_surface_ray`),
+        offset: Near-field distance of the rays (:func:`~warpshade.visibility.rays.trace_surface_ray`),
             fraction of the scene's bounding-box diagonal.
 
     Returns:

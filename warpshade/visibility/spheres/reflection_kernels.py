@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ..reference_kernels import cosine_direction, near_faces, orthonormal_basis, trace_surface_ray
+from ..rays import cosine_direction, near_faces, orthonormal_basis, trace_surface_ray
 
 
 @wp.kernel

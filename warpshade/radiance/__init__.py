@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from .radiance_kernels import shade_vertices
+from .kernels import shade_vertices
 
 
 def _albedo_rows(albedo, n_vertices: int) -> np.ndarray:
@@ -93,7 +93,7 @@ def shade(transfer, lights, order: int, albedo=1.0, points=None, time: float | N
         clamp: As in :func:`exit_radiance`.
         device: Warp device.
     """
-    from .lighting import lights_sh
+    from ..lighting import lights_sh
 
     lights = list(lights)
     if time is not None:

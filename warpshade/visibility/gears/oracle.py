@@ -1,4 +1,4 @@
-"""NumPy reference of GEARS masks: brute-force segment–triangle tests for every light sample.
+"""NumPy oracle of GEARS masks: brute-force segment–triangle tests for every light sample.
 
 Obviously correct and slow (V × F × k² work): tests compare the rasterized masks and the grid
 against it on small scenes.

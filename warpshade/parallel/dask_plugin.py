@@ -2,7 +2,7 @@
 
 from distributed import WorkerPlugin
 
-from .parallel import _WORKER_BUILD_ERRORS, _WORKER_SHADERS, _init_worker
+from .worker import WORKER_BUILD_ERRORS, WORKER_SHADERS, init_worker
 
 
 class ShaderPlugin(WorkerPlugin):
@@ -15,8 +15,8 @@ class ShaderPlugin(WorkerPlugin):
         self.spec = spec
 
     def setup(self, worker):
-        _init_worker(self.token, self.spec)
+        init_worker(self.token, self.spec)
 
     def teardown(self, worker):
-        _WORKER_SHADERS.pop(self.token, None)
-        _WORKER_BUILD_ERRORS.pop(self.token, None)
+        WORKER_SHADERS.pop(self.token, None)
+        WORKER_BUILD_ERRORS.pop(self.token, None)

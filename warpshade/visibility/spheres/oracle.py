@@ -1,4 +1,4 @@
-"""Small, obviously-correct NumPy reference of the sphere kernels (one receiver at a time, float64).
+"""Small, obviously-correct NumPy oracle of the sphere kernels (one receiver at a time, float64).
 
 Tests compare the Warp kernels against these functions, and these against analytic cases. The SH
 algebra is the SH core's (:mod:`warpshade.sh`).

@@ -1,4 +1,4 @@
-"""Small, obviously-correct NumPy references for the simulation kernels (tests compare against them)."""
+"""Small, obviously-correct NumPy oracles for the simulation kernels (tests compare against them)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""NumPy reference of the disk kernels (tests compare :mod:`.kernels` against it).
+"""NumPy oracle of the disk kernels (tests compare :mod:`.kernels` against it).
 
 Brute force over every vertex disk (no hierarchy), single pass: the value the Warp tree walk must
 reproduce when ``lod`` is so large that no node stands for its subtree.
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..reference_kernels import FRAME_AXIS
+from ..rays import FRAME_AXIS
 
 GRID = 4
 _FRAME_AXIS = np.array(FRAME_AXIS, np.float64)
@@ -26,7 +26,7 @@ def disk_areas_np(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def frame_np(n: np.ndarray) -> np.ndarray:
-    """Columns (t, b, n) around unit n, as the kernels' :func:`~warpshade.visibility.reference_kernels.orthonormal_basis`
+    """Columns (t, b, n) around unit n, as the kernels' :func:`~warpshade.visibility.rays.orthonormal_basis`
     (``t`` along ``FRAME_AXIS × n``), shape (3, 3)."""
     n = np.asarray(n, np.float64)
     t = np.cross(_FRAME_AXIS, n)

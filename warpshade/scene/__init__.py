@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from .geometry.mesh import TriMesh
+from ..geometry.mesh import TriMesh
 
 class SceneError(ValueError):
     """Invalid scene input. The message names the file and the prim at fault."""

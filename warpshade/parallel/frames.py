@@ -31,22 +31,11 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
-FrameGeometry = dict  # object name -> positions (V, 3) float32, plus optional extra arrays
-ShadeFn = Callable[[int, FrameGeometry], Any]
-
-
-class FrameShaderSpec(Protocol):
-    """What a worker needs to shade frames: picklable, and ``build()`` returns the per-frame function.
-
-    ``build()`` runs once per worker and constructs every static structure; the returned callable
-    ``shade(frame, geometry) -> result`` is called for each frame. Results must be picklable.
-    """
-
-    def build(self) -> ShadeFn: ...
+from .worker import BuildFailed, FrameGeometry, FrameShaderSpec, ShadeFn, init_worker, shade_in_worker
 
 
 class FrameShadingError(RuntimeError):
@@ -59,52 +48,6 @@ def default_workers() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on Linux
         return max(1, os.cpu_count() or 1)
-
-
-# -- worker side -------------------------------------------------------------------------------
-_WORKER_SHADERS: dict[str, ShadeFn] = {}
-_WORKER_BUILD_ERRORS: dict[str, Exception] = {}
-
-
-class _BuildFailed(Exception):
-    """``spec.build()`` raised in a worker; ``args[0]`` is that exception (raised again in the caller)."""
-
-
-def _exit_with_parent(parent: int, interval: float = 0.5) -> None:
-    """Start a daemon thread that ends this process as soon as process ``parent`` is gone.
-
-    A worker must never outlive the run, whatever killed the run (SIGKILL included, when no
-    clean-up code runs): once the parent dies this process is re-parented, ``os.getppid()``
-    changes, and the thread exits the process (``os._exit`` works while the main thread is
-    inside a kernel launch).
-    """
-    import threading
-    import time
-
-    def watch():
-        while os.getppid() == parent:
-            time.sleep(interval)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="warpshade-parent-watchdog", daemon=True).start()
-
-
-def _init_worker(token: str, spec: FrameShaderSpec, parent: int | None = None) -> None:
-    if parent is not None:
-        _exit_with_parent(parent)
-    from .runtime import init_warp
-
-    init_warp()
-    try:
-        _WORKER_SHADERS[token] = spec.build()
-    except Exception as exc:  # noqa: BLE001 - kept for the first frame: an initializer that raises
-        _WORKER_BUILD_ERRORS[token] = exc  # breaks the pool, and the cause would read as a dead worker
-
-
-def _shade_in_worker(token: str, frame: int, geometry: FrameGeometry):
-    if token in _WORKER_BUILD_ERRORS:
-        raise _BuildFailed(_WORKER_BUILD_ERRORS[token])
-    return _WORKER_SHADERS[token](frame, geometry)
 
 
 # -- backends ----------------------------------------------------------------------------------
@@ -155,14 +98,14 @@ class _ProcessBackend:
         self.pool = self._new_pool()
 
     def _new_pool(self):
-        return ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=_init_worker,
+        return ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=init_worker,
                                    initargs=(self.token, self.spec, os.getpid()))
 
     def submit(self, frame, geometry):
         if len(self.pool._processes or {}) >= self.workers:
-            return self.pool.submit(_shade_in_worker, self.token, frame, geometry)
+            return self.pool.submit(shade_in_worker, self.token, frame, geometry)
         with _sigint_blocked():  # this submit may spawn a worker
-            return self.pool.submit(_shade_in_worker, self.token, frame, geometry)
+            return self.pool.submit(shade_in_worker, self.token, frame, geometry)
 
     def worker_pids(self) -> list[int]:
         """PIDs of the live worker processes (for tests and monitoring)."""
@@ -198,7 +141,7 @@ class _ProcessBackend:
 
 
 class ClusterWarning(UserWarning):
-    """A Dask scheduler is reached in a way that exposes the run (see :mod:`warpshade.cluster`)."""
+    """A Dask scheduler is reached in a way that exposes the run (see :mod:`warpshade.parallel.cluster`)."""
 
 
 class _DaskBackend:
@@ -228,13 +171,13 @@ class _DaskBackend:
             self.client = Client(scheduler, security=security)
         self.token = token
         self.retries = retries
-        from ._dask_plugin import ShaderPlugin
+        from .dask_plugin import ShaderPlugin
 
         self.client.register_plugin(ShaderPlugin(token, spec), name=self.plugin)
 
     def submit(self, frame, geometry):
         # Dask reschedules a task whose worker died by itself; retries covers exceptions on top.
-        return self.client.submit(_shade_in_worker, self.token, frame, geometry, pure=False,
+        return self.client.submit(shade_in_worker, self.token, frame, geometry, pure=False,
                                   key=f"warpshade-{self.token}-{frame}-{uuid.uuid4().hex[:8]}")
 
     def recover(self) -> bool:
@@ -280,12 +223,12 @@ def shade_frames(
         scheduler: None for local processes, ``"local"`` for a local Dask cluster, or a Dask
             scheduler address ``tcp://HOST:PORT`` / ``tls://HOST:PORT``. An unencrypted address that
             is not loopback gives a :class:`ClusterWarning` (Dask's pickles run code; see
-            :mod:`warpshade.cluster`).
+            :mod:`warpshade.parallel.cluster`).
         max_in_flight: Frames submitted but not yet yielded (default ``2 * workers``, at least 2).
         retries: How often a frame is resubmitted after its worker died.
         on_backend: Called with the backend once it is up (tests use it to kill a worker).
         security: ``distributed.Security`` for a scheduler address (TLS certificates,
-            :func:`warpshade.cluster.scheduler_security`); None uses Dask's configuration.
+            :func:`warpshade.parallel.cluster.scheduler_security`); None uses Dask's configuration.
 
     Raises:
         FrameShadingError: naming the frame, when shading raised or workers died too often.
@@ -324,7 +267,7 @@ def shade_frames(
             except backend.worker_errors as exc:
                 _resubmit_failed(backend, order, pending, retries, exc)
                 continue
-            except _BuildFailed as exc:  # the spec is wrong (e.g. a knob out of range): no retry helps
+            except BuildFailed as exc:  # the spec is wrong (e.g. a knob out of range): no retry helps
                 raise exc.args[0] from None
             except Exception as exc:
                 raise FrameShadingError(f"frame {frame}: shading failed: {type(exc).__name__}: {exc}") from exc
@@ -392,7 +335,7 @@ class TransferSpec:
         self.knobs = dict(knobs or {})
 
     def build(self) -> ShadeFn:
-        from .visibility import get_method
+        from ..visibility import get_method
 
         cls = get_method(self.method)
         methods = {name: cls(mesh, order=self.order, **self.knobs) for name, mesh in self.meshes.items()}

@@ -1,4 +1,4 @@
-"""Plain NumPy hemispherical rasterizer: the obviously-correct reference the Warp kernels are tested against.
+"""Plain NumPy hemispherical rasterizer: the obviously-correct oracle the Warp kernels are tested against.
 
 Brute force, one receiver at a time, no hierarchy and no culling structures: every triangle not
 incident to the receiver is tested pixel by pixel. With ``lut=None`` pixels are classified against
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...sh.rotation import rotation_matrix
-from ..disks.reference_np import frame_np as tangent_frame_np  # the kernels' frame (Duff et al. 2017)
+from ..disks.oracle import frame_np as tangent_frame_np  # the kernels' frame (Duff et al. 2017)
 from . import tables
 
 
