@@ -138,7 +138,7 @@ class Pipeline:
                  between: str | None = "spheres", reflections: bool | dict | None = None, albedo=None,
                  area_lights: str = "gears", area_knobs: dict | None = None, refine_receivers="auto",
                  security=None, two_sided: str = "auto", reuse: float | None = None):
-        from ..runtime import init_warp
+        from ..parallel.runtime import init_warp
 
         init_warp()  # a script's run starts as quietly as the CLI's (no banner, no CUDA-driver notice)
         self.scene = scene
