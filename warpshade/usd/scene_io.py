@@ -29,7 +29,7 @@ from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 
 from ..geometry.mesh import MeshError, TriMesh
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
-from .mesh_io import triangulate
+from .mesh_io import triangulate, usd_error_message
 from .writer import BACK_SIDE_OF, RADIANCE_MATERIAL_ATTR
 
 # Prim types that carry no geometry warpshade needs but are expected in scenes: skipped silently.
@@ -62,7 +62,7 @@ def read_scene(path: str) -> Scene:
     try:
         stage = Usd.Stage.Open(path)
     except Exception as exc:  # pxr raises Tf.ErrorException for syntax errors
-        raise SceneError(f"{path}: cannot open USD stage: {str(exc).strip().splitlines()[-1]}") from exc
+        raise SceneError(f"{path}: cannot open USD stage: {usd_error_message(exc)}") from exc
     if stage is None:
         raise SceneError(f"{path}: cannot open USD stage")
     return scene_from_stage(stage, path)
