@@ -179,3 +179,33 @@ def test_the_progress_bar_says_setting_up_until_the_first_frame(tmp_path, capsys
     # tqdm redraws with carriage returns: the setup state comes first, then frames counted
     setup, frames = err.find("warpshade run: setting up:   0%"), err.find("warpshade run: 100%")
     assert 0 <= setup < frames, err
+
+
+SIGINT_ON_IMPORT = '''
+import os, signal, sys
+
+class _SigintAt:
+    """Sends SIGINT to this process when the module named in SIGINT_AT starts importing."""
+    def find_spec(self, name, path=None, target=None):
+        if name == os.environ.get("SIGINT_AT"):
+            sys.meta_path.remove(self)
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+
+sys.meta_path.insert(0, _SigintAt())
+'''
+
+
+@pytest.mark.parametrize("module", ["warpshade.pipeline", "warpshade.cli"])
+def test_ctrl_c_while_the_package_imports_is_one_line(tmp_path, module):
+    """SIGINT delivered at a fixed point of ``import warpshade`` (a sitecustomize import hook sends it
+    when ``module`` starts importing): one line, exit code 130; it printed the import traceback."""
+    import subprocess
+    import sys
+
+    (tmp_path / "sitecustomize.py").write_text(SIGINT_ON_IMPORT)
+    env = dict(os.environ, PYTHONPATH=f"{tmp_path}{os.pathsep}{REPO}", SIGINT_AT=module)
+    r = subprocess.run([sys.executable, "-m", "warpshade", "run", "--help"], capture_output=True, text=True, env=env,
+                       timeout=120)
+    assert (r.returncode, r.stderr.splitlines()) == (130, ["warpshade: interrupted"]), r.stderr
+    assert r.stdout == ""  # stopped before the help was printed: the signal did arrive during the import

@@ -2,6 +2,10 @@
 
 __version__ = "0.1.0"
 
+from .runtime import guard_startup
+
+guard_startup()  # Ctrl-C while the package loads, in the warpshade command: one line, exit code 130
+
 from .geometry import MeshError, TriMesh, load_mesh
 from .lighting import (ConstantEnvironment, DirectionalLight, EnvironmentMap, PointLight, RectLight, Sky, SphereLight,
                        default_environment)

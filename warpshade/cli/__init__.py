@@ -14,7 +14,7 @@ import sys
 import threading
 import warnings
 
-from ..runtime import init_warp
+from ..runtime import end_startup_guard, init_warp
 
 
 def _subcommands():
@@ -88,6 +88,7 @@ def _parse(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespa
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``warpshade`` console script."""
     try:
+        end_startup_guard()  # from here on Ctrl-C is a KeyboardInterrupt, answered below
         init_warp()
         parser = build_parser()
         args = _parse(parser, sys.argv[1:] if argv is None else list(argv))
