@@ -266,7 +266,8 @@ def two_runs(tmp):
     finally:
         if first.poll() is None:
             first.kill()
-    dome = next(p for p in Usd.Stage.Open(out).Traverse() if p.GetTypeName() == "DomeLight")
+    stage = Usd.Stage.Open(out)
+    dome = next(p for p in stage.Traverse() if p.GetTypeName() == "DomeLight")
     tex = dome.GetAttribute("inputs:texture:file").Get().resolvedPath
     refused = f"is being written by another run (pid {first.pid} " in second.stderr
     ok = second.returncode == 1 and refused and first.returncode == 143 and bool(tex) and os.path.isfile(tex) \

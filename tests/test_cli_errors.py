@@ -209,3 +209,41 @@ def test_ctrl_c_while_the_package_imports_is_one_line(tmp_path, module):
                        timeout=120)
     assert (r.returncode, r.stderr.splitlines()) == (130, ["warpshade: interrupted"]), r.stderr
     assert r.stdout == ""  # stopped before the help was printed: the signal did arrive during the import
+
+
+def test_ctrl_c_during_a_long_transfer_is_answered_between_kernel_launches(tmp_path, capsys, monkeypatch):
+    """SIGINT while ``warpshade transfer`` traces a long reference transfer (one 100 s launch before):
+    the transfer is cut into launches of about RAYS_PER_LAUNCH rays, so the KeyboardInterrupt comes at
+    the end of the launch running, and the command prints one line and returns 130. Here a launch is
+    ~0.05 s (64 vertices x 1024 rays) and the whole transfer ~60 launches; the signal is sent from
+    inside the 3rd launch."""
+    import signal
+    import threading
+    import time
+
+    import warpshade.visibility.reference as ref
+    from warpshade.bench.meshes import grid
+
+    gp, gf = grid(62, size=1.0)  # 3844 vertices
+    mesh = tmp_path / "grid.obj"
+    mesh.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in gp) + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in gf))
+    monkeypatch.setattr(ref, "RAYS_PER_LAUNCH", 64 * 1024)
+    real, launches, sent = ref.wp.launch, [], []
+
+    def launch(*a, **kw):
+        launches.append(time.monotonic())
+        if len(launches) == 3:
+            sent.append(time.monotonic())
+            signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)  # as Ctrl-C reaches the main thread
+        return real(*a, **kw)
+
+    monkeypatch.setattr(ref.wp, "launch", launch)
+    save = tmp_path / "t.npz"
+    code = main(["transfer", str(mesh), "--method", "reference", "--rays", "1024", "--order", "3", "--repeat", "1",
+                 "--save", str(save)])
+    answered = time.monotonic() - sent[0]
+    assert code == 130
+    assert capsys.readouterr().err.splitlines() == ["warpshade transfer: interrupted"]
+    assert len(launches) == 3  # the interrupt came right after the launch it arrived in, not at the end
+    assert not save.exists()
+    assert answered < 5.0, answered  # one launch (~0.05 s here); loose bound for a loaded machine
