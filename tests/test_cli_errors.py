@@ -247,3 +247,28 @@ def test_ctrl_c_during_a_long_transfer_is_answered_between_kernel_launches(tmp_p
     assert len(launches) == 3  # the interrupt came right after the launch it arrived in, not at the end
     assert not save.exists()
     assert answered < 5.0, answered  # one launch (~0.05 s here); loose bound for a loaded machine
+
+
+def test_a_slow_setup_shows_its_seconds_against_the_estimate(tmp_path, capsys, monkeypatch):
+    """Progress through setup, not a bar stuck at 0/N: the "setting up" text is redrawn every second
+    with the seconds elapsed and the planner's estimate (here replaced by 42 s, and the setup slowed
+    by 2.5 s before the method structures are built)."""
+    import time
+
+    from warpshade.cli import cmd_run
+    from warpshade.pipeline import SceneShader
+
+    real = SceneShader.build
+
+    def slow(self):
+        time.sleep(2.5)
+        return real(self)
+
+    monkeypatch.setattr(SceneShader, "build", slow)
+    monkeypatch.setattr(cmd_run, "setup_estimate", lambda *a, **k: 42.0)
+    assert main(["run", SCENE, "--frames", "2", "--order", "2", "--workers", "0", "--method", "reference",
+                 "--rays", "4", "--out", str(tmp_path / "o.usda")]) == 0
+    err = capsys.readouterr().err
+    for s in (1, 2):
+        assert f"warpshade run: setting up, {s} s of ~42 s estimated" in err, err
+    assert err.rfind("setting up") < err.find("warpshade run: 100%"), err  # the frames' count follows
