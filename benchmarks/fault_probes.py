@@ -353,6 +353,29 @@ def sigterm(tmp):
                 f"seen before the signal); {len(kids)} children, alive after 5 s: {len(left)}")
 
 
+@probe("Ctrl-C with --scheduler local --workers 2 (a LocalCluster): no worker traceback, no process left behind")
+def local_cluster_sigint(tmp):
+    out = os.path.join(tmp, "o.usda")
+    proc = start(["run", SCENE, "--frames", 2000, "--out", out, "--scheduler", "local", "--workers", "2"] + COMMON,
+                 start_new_session=True)
+    try:
+        until(lambda: end_frame(out) >= 3, 300, proc, step=0.3)
+        kids = descendants(proc.pid)
+        t = time.monotonic()
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal sends Ctrl-C: to the whole group
+        err = proc.communicate(timeout=120)[1]
+        answered = time.monotonic() - t
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    left = wait_gone(kids, 10.0)
+    ok = proc.returncode == 130 and "Traceback" not in err and "KeyboardInterrupt" not in err and not left \
+        and "complete frames kept" in last_line(err)
+    return ok, (f"rc {proc.returncode} after {answered:.1f} s; tracebacks {err.count('Traceback')}; stderr lines "
+                f"{len(err.strip().splitlines())}; last {last_line(err)[:70]!r}; processes left {len(left)}")
+
+
 @probe('scene knob warpshade:knobs:lut_dir = "../../../x" writes nothing there')
 def lut_dir(tmp):
     deep = os.path.join(tmp, "a", "b", "c")
@@ -449,6 +472,9 @@ def scale_invariance(tmp):
     from warpshade.geometry import TriMesh
     from warpshade.visibility import METHODS
 
+    from warpshade.runtime import init_warp
+
+    init_warp()
     m, worst, bad = bumpy_scene(), {}, []
     for name in sorted(METHODS):
         base = make(name, m).update().numpy()
