@@ -272,3 +272,14 @@ def test_a_slow_setup_shows_its_seconds_against_the_estimate(tmp_path, capsys, m
     for s in (1, 2):
         assert f"warpshade run: setting up, {s} s of ~42 s estimated" in err, err
     assert err.rfind("setting up") < err.find("warpshade run: 100%"), err  # the frames' count follows
+
+
+def test_a_garbled_usda_keeps_pxrs_line_and_column(tmp_path, capsys):
+    # the error used to keep only pxr's last line, "Failed to open layer @...@", losing where the syntax broke
+    scene = tmp_path / "g.usda"
+    scene.write_text('#usda 1.0\n(\n    defaultPrim = "World"\n)\n\ndef Xform "World"\n{\n    int x = }\n')
+    assert main(["run", str(scene), "--frames", "1", "--out", str(tmp_path / "o.usda"), "--no-progress"]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"warpshade run: error: {scene}: cannot open USD stage: {scene}:8:5: Expected }} at 'int x = }}' "
+                   "in </World>"], err
+    assert sorted(os.listdir(tmp_path)) == ["g.usda"]
