@@ -179,3 +179,107 @@ def test_the_progress_bar_says_setting_up_until_the_first_frame(tmp_path, capsys
     # tqdm redraws with carriage returns: the setup state comes first, then frames counted
     setup, frames = err.find("warpshade run: setting up:   0%"), err.find("warpshade run: 100%")
     assert 0 <= setup < frames, err
+
+
+SIGINT_ON_IMPORT = '''
+import os, signal, sys
+
+class _SigintAt:
+    """Sends SIGINT to this process when the module named in SIGINT_AT starts importing."""
+    def find_spec(self, name, path=None, target=None):
+        if name == os.environ.get("SIGINT_AT"):
+            sys.meta_path.remove(self)
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+
+sys.meta_path.insert(0, _SigintAt())
+'''
+
+
+@pytest.mark.parametrize("module", ["warpshade.pipeline", "warpshade.cli"])
+def test_ctrl_c_while_the_package_imports_is_one_line(tmp_path, module):
+    """SIGINT delivered at a fixed point of ``import warpshade`` (a sitecustomize import hook sends it
+    when ``module`` starts importing): one line, exit code 130; it printed the import traceback."""
+    import subprocess
+    import sys
+
+    (tmp_path / "sitecustomize.py").write_text(SIGINT_ON_IMPORT)
+    env = dict(os.environ, PYTHONPATH=f"{tmp_path}{os.pathsep}{REPO}", SIGINT_AT=module)
+    r = subprocess.run([sys.executable, "-m", "warpshade", "run", "--help"], capture_output=True, text=True, env=env,
+                       timeout=120)
+    assert (r.returncode, r.stderr.splitlines()) == (130, ["warpshade: interrupted"]), r.stderr
+    assert r.stdout == ""  # stopped before the help was printed: the signal did arrive during the import
+
+
+def test_ctrl_c_during_a_long_transfer_is_answered_between_kernel_launches(tmp_path, capsys, monkeypatch):
+    """SIGINT while ``warpshade transfer`` traces a long reference transfer (one 100 s launch before):
+    the transfer is cut into launches of about RAYS_PER_LAUNCH rays, so the KeyboardInterrupt comes at
+    the end of the launch running, and the command prints one line and returns 130. Here a launch is
+    ~0.05 s (64 vertices x 1024 rays) and the whole transfer ~60 launches; the signal is sent from
+    inside the 3rd launch."""
+    import signal
+    import threading
+    import time
+
+    import warpshade.visibility.reference as ref
+    from warpshade.bench.meshes import grid
+
+    gp, gf = grid(62, size=1.0)  # 3844 vertices
+    mesh = tmp_path / "grid.obj"
+    mesh.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in gp) + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in gf))
+    monkeypatch.setattr(ref, "RAYS_PER_LAUNCH", 64 * 1024)
+    real, launches, sent = ref.wp.launch, [], []
+
+    def launch(*a, **kw):
+        launches.append(time.monotonic())
+        if len(launches) == 3:
+            sent.append(time.monotonic())
+            signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)  # as Ctrl-C reaches the main thread
+        return real(*a, **kw)
+
+    monkeypatch.setattr(ref.wp, "launch", launch)
+    save = tmp_path / "t.npz"
+    code = main(["transfer", str(mesh), "--method", "reference", "--rays", "1024", "--order", "3", "--repeat", "1",
+                 "--save", str(save)])
+    answered = time.monotonic() - sent[0]
+    assert code == 130
+    assert capsys.readouterr().err.splitlines() == ["warpshade transfer: interrupted"]
+    assert len(launches) == 3  # the interrupt came right after the launch it arrived in, not at the end
+    assert not save.exists()
+    assert answered < 5.0, answered  # one launch (~0.05 s here); loose bound for a loaded machine
+
+
+def test_a_slow_setup_shows_its_seconds_against_the_estimate(tmp_path, capsys, monkeypatch):
+    """Progress through setup, not a bar stuck at 0/N: the "setting up" text is redrawn every second
+    with the seconds elapsed and the planner's estimate (here replaced by 42 s, and the setup slowed
+    by 2.5 s before the method structures are built)."""
+    import time
+
+    from warpshade.cli import cmd_run
+    from warpshade.pipeline import SceneShader
+
+    real = SceneShader.build
+
+    def slow(self):
+        time.sleep(2.5)
+        return real(self)
+
+    monkeypatch.setattr(SceneShader, "build", slow)
+    monkeypatch.setattr(cmd_run, "setup_estimate", lambda *a, **k: 42.0)
+    assert main(["run", SCENE, "--frames", "2", "--order", "2", "--workers", "0", "--method", "reference",
+                 "--rays", "4", "--out", str(tmp_path / "o.usda")]) == 0
+    err = capsys.readouterr().err
+    for s in (1, 2):
+        assert f"warpshade run: setting up, {s} s of ~42 s estimated" in err, err
+    assert err.rfind("setting up") < err.find("warpshade run: 100%"), err  # the frames' count follows
+
+
+def test_a_garbled_usda_keeps_pxrs_line_and_column(tmp_path, capsys):
+    # the error used to keep only pxr's last line, "Failed to open layer @...@", losing where the syntax broke
+    scene = tmp_path / "g.usda"
+    scene.write_text('#usda 1.0\n(\n    defaultPrim = "World"\n)\n\ndef Xform "World"\n{\n    int x = }\n')
+    assert main(["run", str(scene), "--frames", "1", "--out", str(tmp_path / "o.usda"), "--no-progress"]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"warpshade run: error: {scene}: cannot open USD stage: {scene}:8:5: Expected }} at 'int x = }}' "
+                   "in </World>"], err
+    assert sorted(os.listdir(tmp_path)) == ["g.usda"]

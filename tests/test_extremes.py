@@ -3,7 +3,8 @@ newly registered method is covered without editing this file).
 
 Covered here: SH orders 1..8 in float32; meshes scaled by 1e-4..1e4 or rounded one ulp differently (every
 vertex, bumpy scene and Warp's bunny); the whole transfer against the reference; coincident and degenerate
-triangles; receivers touching blockers; hypothesis properties over random meshes and directions.
+triangles; receivers touching blockers; hypothesis properties over random meshes and directions; and, for
+every area-light method (``REGISTRY["area"]``), the same per-vertex invariance under scale and rounding.
 Method-specific extremes live with each method (SH exp ‖f̂‖ up to 100 in test_sh_exp.py, overlapping
 blockers in test_spheres.py/test_disks.py, cloth stiffness/mass/time step in test_sim_cloth.py).
 
@@ -27,7 +28,7 @@ from warpshade.bench.meshes import grid
 from warpshade.geometry import TriMesh
 from warpshade.usd import load_mesh
 from warpshade.sh import sh_eval
-from warpshade.visibility import METHODS, get_method
+from warpshade.visibility import METHODS, REGISTRY, get_method
 
 Y0 = 0.5 / math.sqrt(math.pi)
 UNOCCLUDED_DC = Y0 * math.pi
@@ -169,6 +170,50 @@ def test_bunny_same_transfer_rounded_or_scaled(bunny, name, change):
     base = make(name, bunny).update().numpy()
     got = make(name, TriMesh(changed(bunny.points, change), bunny.faces)).update().numpy()
     assert_same_transfer(got, base, name, f"bunny x{change}")  # tolerance: SCALE_TOL
+
+
+AREA_TOL = 1e-5
+"""Largest change of any vertex's area-light visibility allowed when mesh and light are scaled or rounded
+differently. Visibility is a form-factor weighted count of k² = 256 light samples: one sample changing
+side moves it by ~1/256 = 3.9e-3, float32 rounding of the weights by at most ~256 x 6e-8 = 1.5e-5 of a
+sum that is <= 1 (measured: exactly 0 for gears and the ray-traced area reference on bumpy_scene and
+the bunny, at x1e-4, 1e-2, 1e2, 1e4, one ulp and random ulp jitter)."""
+
+
+_AREA_BASE: dict = {}
+"""Unchanged visibility per (method, scene), computed once for the module."""
+
+
+def area_case(mesh, change):
+    """``(mesh, light)`` of the area-light invariance tests: a 0.3-sized rect light 1.3 above, tilted,
+    scaled (or the mesh rounded) as ``change`` says."""
+    from warpshade.visibility.gears import LightRect
+
+    light = LightRect.over_points(mesh.points, size=0.3, height=1.3, tilt=0.2)
+    if change in ("ulp", "jitter"):
+        pts = away_by_one_ulp(mesh.points) if change == "ulp" else random_ulp_jitter(mesh.points, seed=0)
+        return TriMesh(pts, mesh.faces), light
+    f = np.float32(change)
+    scaled = [tuple(np.asarray(v, np.float32) * f) for v in (light.center, light.u, light.v)]
+    return TriMesh(np.asarray(mesh.points, np.float32) * f, mesh.faces), LightRect(*scaled)
+
+
+@pytest.mark.parametrize("name, scene, change", [(n, "bumpy", c) for n in sorted(REGISTRY["area"])
+                                                  for c in (1e-4, 1e-2, 1e2, 1e4, "ulp", "jitter")]
+                         + [("gears", "bunny", "ulp")])  # the bunny: 1986 partly lit vertices, ~1.5 s per pass
+def test_area_visibility_same_per_vertex_scaled_or_rounded(scenes, name, scene, change):
+    from warpshade.visibility.gears import get_area_method
+
+    cls, m = get_area_method(name), scenes[scene]
+    if (name, scene) not in _AREA_BASE:
+        _AREA_BASE[name, scene] = cls(*area_case(m, 1.0), k=16).update().numpy()
+    base = _AREA_BASE[name, scene]
+    partial = int(((base > 0) & (base < 1)).sum())
+    assert partial > 0.05 * m.num_vertices, f"{name}: only {partial} partly lit vertices: nothing is tested"
+    got = cls(*area_case(m, change), k=16).update().numpy()
+    d = np.abs(got - base)  # per vertex
+    assert d.max() <= AREA_TOL, (f"{name} {scene} x{change}: {int((d > AREA_TOL).sum())} vertices change, worst "
+                                 f"vertex {d.argmax()} by {d.max():.2e}")  # tolerance: AREA_TOL
 
 
 VS_REFERENCE = {

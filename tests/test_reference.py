@@ -93,6 +93,29 @@ def test_deterministic_with_seed():
     assert np.array_equal(a, b)
 
 
+def test_launch_in_vertex_blocks_changes_nothing(monkeypatch):
+    # the transfer is cut into launches of about RAYS_PER_LAUNCH rays (so Ctrl-C is answered between them);
+    # each vertex keeps its index, hence its random stream and its own faces: bit-identical to one launch
+    import warpshade.visibility.reference as ref
+
+    from warpshade.bench.meshes import grid
+
+    gp, gf = grid(6, size=1.0)
+    ico = trimesh.creation.icosphere(1, radius=0.2)
+    m = TriMesh(np.concatenate([gp, np.asarray(ico.vertices) + (0, 0, 0.25)]),
+                np.concatenate([gf, np.asarray(ico.faces) + len(gp)]))
+    method = get_method("reference")(m, order=3, rays=64)
+    monkeypatch.setattr(ref, "RAYS_PER_LAUNCH", 1 << 30)
+    one = method.update().numpy().copy()
+    launches = []
+    real = ref.wp.launch
+    monkeypatch.setattr(ref.wp, "launch", lambda *a, **kw: launches.append(kw["dim"]) or real(*a, **kw))
+    monkeypatch.setattr(ref, "RAYS_PER_LAUNCH", 64 * 7)  # blocks of 7 vertices
+    blocked = method.update().numpy()
+    assert sum(launches) == m.num_vertices and max(launches) == 7 and len(launches) == -(-m.num_vertices // 7)
+    assert np.array_equal(blocked, one)
+
+
 def test_cli_writes_contract_files(tmp_path):
     out, stats = tmp_path / "t.npz", tmp_path / "s.json"
     rc = cli_main(["transfer", warp_asset("bear.usd"), "--method", "reference", "--rays", "64", "--order", "3",

@@ -1,6 +1,9 @@
 """warpshade: Warp (CPU) cloth and character simulation shaded with SH soft shadows, exported to USD."""
 
 from ._version import __version__
+from ._startup import guard_startup
+
+guard_startup()  # Ctrl-C while the package loads, in the warpshade command: one line, exit code 130
 
 from .geometry import MeshError, TriMesh
 

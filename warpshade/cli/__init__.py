@@ -14,6 +14,7 @@ import sys
 import threading
 import warnings
 
+from .._startup import end_startup_guard
 from ..parallel.runtime import init_warp
 
 
@@ -88,6 +89,7 @@ def _parse(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespa
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``warpshade`` console script."""
     try:
+        end_startup_guard()  # from here on Ctrl-C is a KeyboardInterrupt, answered below
         init_warp()
         parser = build_parser()
         args = _parse(parser, sys.argv[1:] if argv is None else list(argv))

@@ -202,7 +202,7 @@ def run(args) -> int:
     if writer.resume_frame:
         print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
     try:
-        report = pipe.run(writer, progress=not args.no_progress)
+        report = pipe.run(writer, progress=not args.no_progress, setup_estimate=estimate)
     except (KeyboardInterrupt, OSError, FrameShadingError) as exc:
         kept = writer.frames_committed
         where = (f"{kept} complete frames kept in {writer.path} (--resume continues it)" if kept

@@ -67,6 +67,12 @@ def _sigint_blocked():
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
+def _in_main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
 class _InlineBackend:
     worker_errors: tuple = ()
 
@@ -159,8 +165,17 @@ class _DaskBackend:
         self.cluster = None
         self.plugin = f"warpshade-{token}"
         if scheduler == "local":
-            self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                        dashboard_address=None)
+            # Worker processes spawned while SIGINT is ignored start with it ignored (Python and
+            # asyncio then install no KeyboardInterrupt handler): Ctrl-C reaches only this process,
+            # which closes the cluster. A mask does not work here: Dask's threads that spawn the
+            # workers run unblocked. Cost: a Ctrl-C during the cluster's start-up is dropped.
+            previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _in_main_thread() else None
+            try:
+                self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                            dashboard_address=None)
+            finally:
+                if previous is not None:
+                    signal.signal(signal.SIGINT, previous)
             self.client = Client(self.cluster)
         else:
             if unencrypted_remote(scheduler):

@@ -94,6 +94,34 @@ def warn_black_mesh(scene: Scene, name: str, frame: int, albedo=None) -> None:
     warnings.warn(f"{name}: frame {frame}: exit radiance is zero at every vertex: {cause}", SceneWarning, stacklevel=2)
 
 
+class _SetupTicker:
+    """Redraws a progress bar's "setting up" text every ``every`` seconds until :meth:`stop`: the seconds
+    elapsed, against the planner's estimate when there is one (the bar's own count stays at 0 until the
+    first frame, which can take minutes on a large scene)."""
+
+    def __init__(self, bar, estimate: float | None, every: float = 1.0):
+        import threading
+
+        self.bar, self.estimate, self.t0 = bar, estimate, time.monotonic()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._tick, args=(every,), name="warpshade-setup-ticker", daemon=True)
+        self._thread.start()
+
+    def text(self) -> str:
+        elapsed = time.monotonic() - self.t0
+        of = f" of ~{self.estimate:.0f} s estimated" if self.estimate else ""
+        return f"warpshade run: setting up, {elapsed:.0f} s{of}"
+
+    def _tick(self, every: float) -> None:
+        while not self._stop.wait(every):
+            self.bar.set_description_str(self.text())  # tqdm redraws under its own lock
+
+    def stop(self) -> None:
+        if not self._stop.is_set():
+            self._stop.set()
+            self._thread.join()
+
+
 class Pipeline:
     """Simulate, shade and write one scene.
 
@@ -246,12 +274,14 @@ class Pipeline:
         sims = ClothSimulation(self.scene, self.device) if any(o.kind == "cloth" for o in self.scene.objects) else None
         yield from self._geometry_frames(sims, dict.fromkeys(("simulate",), 0.0))
 
-    def run(self, writer, progress: bool = True) -> RunReport:
+    def run(self, writer, progress: bool = True, setup_estimate: float | None = None) -> RunReport:
         """Produce every frame into ``writer`` (an :class:`warpshade.usd.AnimationWriter`-like object).
 
         The writer is closed on success and aborted (keeping complete frames) on error. A writer
         opened with ``resume=True`` on an interrupted output has ``resume_frame > 0``: the run then
-        produces only the frames from there on (``--resume``).
+        produces only the frames from there on (``--resume``). With ``progress``, a bar counts frames;
+        until the first frame it says "setting up", with the seconds elapsed against
+        ``setup_estimate`` [s] (the planner's) when given, redrawn every second.
         """
         from ..parallel import shade_frames
 
@@ -266,13 +296,14 @@ class Pipeline:
         resume = int(getattr(writer, "resume_frame", 0))  # a time code: first one not yet written
         start = max(0, resume - time0) if resume else 0
         t0 = time.perf_counter()
-        bar = None
+        bar = ticker = None
         try:
             if progress:  # the bar says "setting up" until the first frame (workers build their structures)
                 from tqdm import tqdm
 
                 bar = tqdm(total=self.frames, initial=min(start, self.frames), desc="warpshade run: setting up",
                            unit="frame")
+                ticker = _SetupTicker(bar, setup_estimate)
             sims = ClothSimulation(self.scene, self.device) if any(o.kind == "cloth" for o in self.scene.objects) else None
             static = {o.name for o in self.scene.objects if o.kind == "static"}
             names = {}
@@ -323,17 +354,22 @@ class Pipeline:
                 secs["write"] += time.perf_counter() - t
                 if bar is not None:
                     if bar.n == min(start, self.frames):
+                        ticker.stop()
                         bar.set_description_str("warpshade run", refresh=False)
                     bar.update(1)
             if failure:
                 raise failure[0]
             if bar is not None:
+                if ticker is not None:
+                    ticker.stop()
                 bar.close()
             t = time.perf_counter()
             path = writer.close()
             secs["write"] += time.perf_counter() - t
         except BaseException:
             if bar is not None:
+                if ticker is not None:
+                    ticker.stop()
                 bar.close()
             writer.abort()
             raise

@@ -6,7 +6,7 @@ import numpy as np
 from pxr import Usd, UsdGeom
 
 from ..scene import SceneError
-from .mesh_io import triangulate
+from .mesh_io import triangulate, usd_error_message
 from .writer import BACK_SIDE_OF
 
 
@@ -26,7 +26,7 @@ class ShadedStage:
         try:
             self.stage = Usd.Stage.Open(self.path)
         except Exception as exc:  # pxr raises Tf.ErrorException
-            raise SceneError(f"{path}: cannot open USD stage: {str(exc).strip().splitlines()[-1]}") from exc
+            raise SceneError(f"{path}: cannot open USD stage: {usd_error_message(exc)}") from exc
         if self.stage is None:
             raise SceneError(f"{path}: cannot open USD stage")
         self.up_axis = str(UsdGeom.GetStageUpAxis(self.stage))

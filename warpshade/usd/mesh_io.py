@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 
 import numpy as np
 from pxr import Usd, UsdGeom
@@ -10,12 +11,24 @@ from pxr import Usd, UsdGeom
 from ..geometry.mesh import MeshError, TriMesh
 
 
+_TF_ERROR = re.compile(r"Error in '[^']*' at line \d+ in file [^:]* : '(.*?)'\s*(?=\n\s*Error in |\Z)", re.S)
+
+
+def usd_error_message(exc: BaseException) -> str:
+    """The most specific line of a pxr ``Tf.ErrorException``: the first error that names a place in a
+    file (a parse error's ``FILE:LINE:COLUMN: ...``), else the last error, without pxr's C++ namespaces."""
+    text = str(exc).strip()
+    errors = [m.group(1).strip() for m in _TF_ERROR.finditer(text)] or [text.splitlines()[-1].strip() if text else ""]
+    placed = [e for e in errors if re.search(r":\d+:\d+: ", e)]
+    return re.sub(r"pxrInternal_[A-Za-z0-9_]*?__pxrReserved__::", "", (placed or errors[-1:])[0])
+
+
 def open_stage(path: str) -> Usd.Stage:
     """Open a USD stage, turning USD's errors into a :class:`MeshError` that names the file."""
     try:
         stage = Usd.Stage.Open(path)
     except Exception as exc:  # pxr raises Tf.ErrorException
-        raise MeshError(f"{path}: cannot open USD stage: {exc}") from exc
+        raise MeshError(f"{path}: cannot open USD stage: {usd_error_message(exc)}") from exc
     if stage is None:
         raise MeshError(f"{path}: cannot open USD stage")
     return stage

@@ -19,13 +19,15 @@ def trace_transfer(
     seed: int,
     order: int,
     k: wp.array[float],
+    first: int,
     transfer: wp.array2d[float],
 ):
-    """Monte-Carlo diffuse transfer (docs/conventions.md §2) by stratified cosine-weighted rays.
+    """Monte-Carlo diffuse transfer (docs/conventions.md §2) by stratified cosine-weighted rays, of
+    vertices ``first + tid`` (a launch covers one block of vertices).
 
     With pdf ``cos/pi`` the estimator of ``∫ y_i V cos dω`` is ``(pi/N) Σ y_i(ω_k) V(ω_k)``.
     """
-    v = wp.tid()
+    v = wp.tid() + first
     n = normals[v]
     frame = orthonormal_basis(n)
     rng = wp.rand_init(seed, v)
