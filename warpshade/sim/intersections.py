@@ -234,6 +234,91 @@ def count_self_pairs(
 
 
 @wp.kernel
+def triangle_boxes(x: wp.array[wp.vec3], tris: wp.array2d[int], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3]):
+    t = wp.tid()
+    pa = x[tris[t, 0]]
+    pb = x[tris[t, 1]]
+    pc = x[tris[t, 2]]
+    lower[t] = wp.min(wp.min(pa, pb), pc)
+    upper[t] = wp.max(wp.max(pa, pb), pc)
+
+
+@wp.func
+def before(lo_t: wp.vec3, t: int, lo_u: wp.vec3, u: int) -> bool:
+    """Triangle t comes before u in the order (lower box corner's x, index)."""
+    return lo_t[0] < lo_u[0] or (lo_t[0] == lo_u[0] and t < u)
+
+
+@wp.kernel
+def count_self_pairs_grid(
+    grid: wp.uint64,
+    width: float,
+    slack: float,
+    lower: wp.array[wp.vec3],
+    upper: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    count: wp.array[int],
+    pairs: wp.array2d[int],
+    mark: wp.array[int],
+):
+    """:func:`count_self_pairs` with a hash grid of the triangles' lower box corners (cells
+    ``width`` wide, at least every box's width) as the broad phase. A pair is tested from the
+    triangle t that comes first in (lower x, index): the other's lower corner then lies in
+    [lo.x, hi.x] x [lo.y - width, hi.y] x [lo.z - width, hi.z] of t's box, and t walks the cells
+    covering that range widened by ``slack`` (the float32 rounding of cell coordinates), so every
+    box-overlapping pair is tested exactly once."""
+    t = wp.tid()
+    a = tris[t, 0]
+    b = tris[t, 1]
+    c = tris[t, 2]
+    lo = lower[t]
+    hi = upper[t]
+    inv = 1.0 / width
+    x0 = int(wp.floor((lo[0] - slack) * inv))
+    x1 = int(wp.floor((hi[0] + slack) * inv))
+    y0 = int(wp.floor((lo[1] - width - slack) * inv))
+    y1 = int(wp.floor((hi[1] + slack) * inv))
+    z0 = int(wp.floor((lo[2] - width - slack) * inv))
+    z1 = int(wp.floor((hi[2] + slack) * inv))
+    for cz in range(z0, z1 + 1):
+        for cy in range(y0, y1 + 1):
+            for cx in range(x0, x1 + 1):
+                # a zero-radius query at a cell's centre visits that cell only
+                centre = wp.vec3((float(cx) + 0.5) * width, (float(cy) + 0.5) * width, (float(cz) + 0.5) * width)
+                query = wp.hash_grid_query(grid, centre, 0.0)
+                u = int(0)
+                while wp.hash_grid_query_next(query, u):
+                    ulo = lower[u]
+                    if not before(lo, t, ulo, u):
+                        continue
+                    uhi = upper[u]
+                    if (ulo[0] > hi[0] or ulo[1] > hi[1] or ulo[2] > hi[2] or lo[0] > uhi[0] or lo[1] > uhi[1]
+                            or lo[2] > uhi[2]):
+                        continue
+                    d = tris[u, 0]
+                    e = tris[u, 1]
+                    f = tris[u, 2]
+                    if a == d or a == e or a == f or b == d or b == e or b == f or c == d or c == e or c == f:
+                        continue
+                    pa = x[a]
+                    pb = x[b]
+                    pc = x[c]
+                    pd = x[d]
+                    pe = x[e]
+                    pf = x[f]
+                    if plane_separates(pa, pb, pc, pd, pe, pf) or plane_separates(pd, pe, pf, pa, pb, pc):
+                        continue
+                    if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(pd), v3d(pe), v3d(pf)):
+                        k = wp.atomic_add(count, 0, 1)
+                        if k < pairs.shape[0]:
+                            pairs[k, 0] = wp.min(t, u)
+                            pairs[k, 1] = wp.max(t, u)
+                        mark_triangle(mark, tris, t)
+                        mark_triangle(mark, tris, u)
+
+
+@wp.kernel
 def count_mesh_pairs(
     mesh: wp.uint64,
     mesh_points: wp.array[wp.vec3],
@@ -480,6 +565,10 @@ class IntersectionCounter:
         self._count = wp.zeros(1, dtype=wp.int32, device=self.device)
         self._pairs = wp.zeros((max(keep, 1), 2), dtype=wp.int32, device=self.device)
         self._no_mark = wp.zeros(0, dtype=wp.int32, device=self.device)
+        self._lower = wp.zeros(len(f), dtype=wp.vec3, device=self.device)
+        self._upper = wp.zeros(len(f), dtype=wp.vec3, device=self.device)
+        g = int(np.clip(round(3.2 * len(f) ** (1.0 / 3.0)), 8, 64))
+        self._grid = wp.HashGrid(g, g, g, device=self.device)
 
     def _points(self, points) -> wp.array:
         if isinstance(points, wp.array):
@@ -517,7 +606,21 @@ class IntersectionCounter:
             mark: Optional, shape (V,), dtype int32: set to 1 at every vertex of an intersecting triangle.
         """
         x = self._points(points)
-        return self._run(count_self_pairs, [self._mesh.id, x, self.tris], mark)
+        if not len(self.faces):
+            return 0, self._pairs.numpy()[:0].copy()
+        wp.launch(triangle_boxes, dim=len(self.faces), inputs=[x, self.tris], outputs=[self._lower, self._upper],
+                  device=self.device)
+        lo, hi = self._lower.numpy(), self._upper.numpy()
+        width = float((hi - lo).max())
+        size = float(np.abs(lo).max() + np.abs(hi).max())
+        # cells as wide as the widest box; the walk's slack (2 % of a cell and the float32 rounding
+        # of cell coordinates, a few ulp of the largest coordinate) so no overlapping box is missed
+        if not (np.isfinite(size) and width * 1.0e5 > size):
+            # cells too small against the coordinates for float32 cell arithmetic: the BVH
+            return self._run(count_self_pairs, [self._mesh.id, x, self.tris], mark)
+        self._grid.build(self._lower, width)
+        return self._run(count_self_pairs_grid, [self._grid.id, width, 0.02 * width + 1.0e-6 * size, self._lower,
+                                                 self._upper, x, self.tris], mark)
 
     def collider_pairs(self, points, colliders, mark=None) -> tuple[int, np.ndarray]:
         """(count, first pairs) against a :class:`~warpshade.sim.ColliderSet` as posed at the end
