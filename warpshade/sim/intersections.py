@@ -4,8 +4,8 @@ A cloth-cloth pair is two cloth triangles without a shared vertex whose closed t
 point (touching counts); a cloth-collider pair is a cloth triangle and a mesh collider's triangle
 that do, plus cloth triangles lying wholly inside a closed mesh collider (generalised winding
 number > 1/2 at the centroid, no crossing); against an analytic shape a cloth triangle counts when its
-distance to the solid is <= 0 (exact for planes, spheres, capsules and boxes; other kinds are
-tested at the triangle's corners and 12 interior points).
+distance to the solid is <= 0 (exact for every kind: planes, spheres, capsules, boxes, cylinders
+and cones).
 
 The triangle-triangle test is orientation based, in float64: two non-coplanar triangles meet iff
 an edge of one meets the other (segment-triangle by the signs of five orientation determinants);
@@ -447,6 +447,115 @@ def segment_triangle_distance(s0: wp.vec3d, s1: wp.vec3d, a: wp.vec3d, b: wp.vec
 
 
 @wp.func
+def quadratic_min_on(qa: wp.float64, qb: wp.float64, qc: wp.float64, t0: wp.float64, t1: wp.float64) -> wp.float64:
+    """Minimum of qa t^2 + qb t + qc over t0 <= t <= t1: the ends, and the vertex when the
+    parabola opens upwards and its vertex lies between them."""
+    m = wp.min(qa * t0 * t0 + qb * t0 + qc, qa * t1 * t1 + qb * t1 + qc)
+    if qa > wp.float64(0.0):
+        tv = -qb / (wp.float64(2.0) * qa)
+        if tv > t0 and tv < t1:
+            m = wp.min(m, qa * tv * tv + qb * tv + qc)
+    return m
+
+
+@wp.func
+def segment_meets_revolved(cone: bool, p: wp.vec3d, q: wp.vec3d, a: wp.vec3d, u: wp.vec3d, length: wp.float64,
+                           rad: wp.float64) -> bool:
+    """Closed segment p-q meets the solid cylinder (cone: the solid cone with its apex at the far
+    end) of axis a + u h, 0 <= h <= length, radius rad (cone: at h = 0). Along the segment the
+    height h(t) is linear, so 0 <= h <= length is an interval of t; on it the solid is
+    |w(t)|^2 - k(t)^2 <= 0 with w the offset from the axis and k the radius at h(t) (constant, or
+    linear and >= 0 for the cone): a quadratic in t whose minimum over the interval decides."""
+    zero = wp.float64(0.0)
+    d = q - p
+    h0 = wp.dot(p - a, u)
+    dh = wp.dot(d, u)
+    t0 = zero
+    t1 = wp.float64(1.0)
+    if dh == zero:
+        if h0 < zero or h0 > length:
+            return False
+    else:
+        ta = -h0 / dh
+        tb = (length - h0) / dh
+        t0 = wp.max(t0, wp.min(ta, tb))
+        t1 = wp.min(t1, wp.max(ta, tb))
+        if t0 > t1:
+            return False
+    w0 = (p - a) - u * h0
+    dw = d - u * dh
+    k0 = rad
+    dk = zero
+    if cone:
+        k0 = rad * (wp.float64(1.0) - h0 / length)
+        dk = -rad * dh / length
+    qa = wp.dot(dw, dw) - dk * dk
+    qb = wp.float64(2.0) * (wp.dot(w0, dw) - k0 * dk)
+    qc = wp.dot(w0, w0) - k0 * k0
+    return quadratic_min_on(qa, qb, qc, t0, t1) <= zero
+
+
+@wp.func
+def in_triangle(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, n: wp.vec3d) -> bool:
+    """p (in the plane of abc, normal n) lies in the closed triangle: the three edge signs agree."""
+    zero = wp.float64(0.0)
+    return (wp.dot(wp.cross(b - a, p - a), n) >= zero and wp.dot(wp.cross(c - b, p - b), n) >= zero
+            and wp.dot(wp.cross(a - c, p - c), n) >= zero)
+
+
+@wp.func
+def circle_meets_triangle(cen: wp.vec3d, u: wp.vec3d, rad: wp.float64, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) -> bool:
+    """The circle of radius rad about cen in the plane normal to unit u crosses the closed triangle
+    abc: the (up to two) points where it crosses the triangle's plane, c + rad (cos s e1 + sin s e2)
+    with A cos s + B sin s = -D, lie in the triangle. A circle in the triangle's plane gives False
+    (the callers cover that case by the axis test)."""
+    n = wp.cross(b - a, c - a)
+    e1 = wp.cross(u, wp.vec3d(wp.float64(1.0), wp.float64(0.0), wp.float64(0.0)))
+    if wp.length(e1) < wp.float64(0.5):
+        e1 = wp.cross(u, wp.vec3d(wp.float64(0.0), wp.float64(1.0), wp.float64(0.0)))
+    e1 = wp.normalize(e1)
+    e2 = wp.cross(u, e1)
+    ca = rad * wp.dot(n, e1)
+    cb = rad * wp.dot(n, e2)
+    cd = wp.dot(n, cen - a)
+    m = wp.sqrt(ca * ca + cb * cb)
+    if m == wp.float64(0.0) or wp.abs(cd) > m:
+        return False
+    phi = wp.atan2(cb, ca)
+    delta = wp.acos(wp.clamp(-cd / m, wp.float64(-1.0), wp.float64(1.0)))
+    s = phi + delta
+    p0 = cen + (e1 * wp.cos(s) + e2 * wp.sin(s)) * rad
+    s = phi - delta
+    p1 = cen + (e1 * wp.cos(s) + e2 * wp.sin(s)) * rad
+    return in_triangle(p0, a, b, c, n) or in_triangle(p1, a, b, c, n)
+
+
+@wp.func
+def triangle_meets_revolved(cone: bool, a0: wp.vec3d, b0: wp.vec3d, rad: wp.float64, pa: wp.vec3d, pb: wp.vec3d,
+                            pc: wp.vec3d) -> bool:
+    """Closed triangle meets the solid cylinder with cap centres a0, b0 (cone: base centre a0,
+    apex b0) of radius rad. Exact: if no edge of the triangle meets the solid, the solid's section
+    by the triangle's plane lies inside the triangle; that section either holds a point of the axis
+    segment (the plane separates the two caps, or the base from the apex) or meets a cap disc, whose
+    chord ends on the rim circle inside the triangle. So: an edge meets the solid, the axis segment
+    meets the triangle, or a rim circle crosses it."""
+    length = wp.length(b0 - a0)
+    u = (b0 - a0) / length
+    if segment_meets_revolved(cone, pa, pb, a0, u, length, rad) or segment_meets_revolved(cone, pb, pc, a0, u,
+                                                                                          length, rad):
+        return True
+    if segment_meets_revolved(cone, pc, pa, a0, u, length, rad):
+        return True
+    if segment_meets_triangle(a0, b0, pa, pb, pc):
+        return True
+    if circle_meets_triangle(a0, u, rad, pa, pb, pc):
+        return True
+    if not cone:
+        return circle_meets_triangle(b0, u, rad, pa, pb, pc)
+    return False
+
+
+@wp.func
 def triangle_box_overlap(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, h: wp.vec3d) -> bool:
     """Closed triangle meets the closed box |x_k| <= h_k (separating axes: 3 box faces, the
     triangle's normal, 9 edge cross products; Akenine-Moller 2001)."""
@@ -521,15 +630,9 @@ def count_shape_triangles(
             lb = v3d(wp.quat_rotate_inv(rot[s], pb - a[s]))
             lc = v3d(wp.quat_rotate_inv(rot[s], pc - a[s]))
             hit = triangle_box_overlap(la, lb, lc, v3d(size[s]))
-        else:
-            # other kinds: signed distance at the corners and 12 interior points
-            for i in range(5):
-                for j in range(5 - i):
-                    u = float(i) / 4.0
-                    v = float(j) / 4.0
-                    p = pa + (pb - pa) * u + (pc - pa) * v
-                    if ck.shape_distance(k, p, a[s], b[s], rot[s], size[s])[3] <= 0.0:
-                        hit = True
+        elif k == ck.SHAPE_CYLINDER or k == ck.SHAPE_CONE:
+            hit = triangle_meets_revolved(k == ck.SHAPE_CONE, v3d(a[s]), v3d(b[s]), wp.float64(size[s][0]), v3d(pa),
+                                          v3d(pb), v3d(pc))
         if hit:
             q = wp.atomic_add(count, 0, 1)
             if q < pairs.shape[0]:
