@@ -184,3 +184,55 @@ def test_cylinder_and_cone_count_is_exact(shape):
     assert total == got.sum()
     bad = np.flatnonzero(decided & (got != hit))
     assert len(bad) == 0, f"{len(bad)} triangles disagree, e.g. {tri[bad[0]].tolist()} (oracle says {hit[bad[0]]})"
+
+
+# -- pairs inherited from the start of a step ---------------------------------------------------
+
+
+def _crossing_sheets(dy):
+    """A horizontal 6 x 6 sheet at y = 0 and a vertical one whose lower edge is at y = dy (crossing
+    the first when dy < 0), in one mesh."""
+    b = ClothBuilder()
+    b.add_grid(6, 6, 1.0, 1.0, origin=(-0.5, 0.0, -0.5))
+    b.add_grid(6, 6, 1.0, 1.0, origin=(-0.43, dy, -0.31), u_axis=(1, 0, 0), v_axis=(0, 1, 0.1))
+    m = b.finalize()
+    return m, m.rest_points_np.astype(np.float32)
+
+
+def test_pairs_that_met_at_the_start_are_inherited_and_not_marked():
+    """The same crossing at the start: every pair is inherited and nothing is marked; from a start
+    where the sheets were apart: none is inherited and every crossing triangle is marked."""
+    import warp as wp
+
+    m, crossed = _crossing_sheets(-0.37)
+    _, apart = _crossing_sheets(0.2)
+    c = IntersectionCounter(m.faces)
+    ref, _ = all_pairs(crossed.astype(np.float64), m.faces)
+    for start, inherited in ((crossed, len(ref)), (apart, 0)):
+        mark = wp.zeros(len(crossed), dtype=wp.int32)
+        n = c.self_pairs(crossed, mark, wp.array(start, dtype=wp.vec3))[0]
+        assert n == len(ref) > 4 and c.inherited == inherited
+        corners = np.unique(m.faces[np.array(sorted(ref))].reshape(-1))
+        expect = np.zeros(len(crossed), np.int32)
+        if not inherited:
+            expect[corners] = 1
+        np.testing.assert_array_equal(mark.numpy(), expect)
+
+
+def test_guard_leaves_an_inherited_intersection_alone():
+    """Cloth that starts crossed (a state the guard did not make): the guard spends no rounds on
+    it (no unresolved step, nothing sent back), and the free sheet falls as without the guard."""
+    from warpshade.sim import XPBDSolver
+
+    m, crossed = _crossing_sheets(-0.37)
+    runs = {}
+    for guard in (True, False):
+        s = XPBDSolver(m, guard=guard, substeps=2)
+        st = m.state()
+        for _ in range(3):
+            s.step(st, st, 1.0 / 60.0)
+        runs[guard] = (st.points.numpy(), s.stats())
+    (x_on, stats), (x_off, _) = runs[True], runs[False]
+    assert stats["guard_steps"] == 0 and stats["guard_unresolved"] == 0, stats
+    np.testing.assert_allclose(x_on, x_off, atol=1e-6)  # same float32 steps: the guard did nothing
+    assert x_on[:, 1].mean() < crossed[:, 1].mean() - 0.01  # it fell

@@ -189,17 +189,38 @@ def mark_triangle(mark: wp.array[int], tris: wp.array2d[int], t: int):
         mark[tris[t, 2]] = 1
 
 
+@wp.func
+def count_pair(x0: wp.array[wp.vec3], tris: wp.array2d[int], t: int, u: int, count: wp.array[int],
+               pairs: wp.array2d[int], mark: wp.array[int]):
+    """Count intersecting cloth pair (t, u) in count[0] and keep it; mark both triangles, unless
+    x0 (positions at the start of the step; empty: no such test) is given and the pair met there
+    too: such an inherited pair is counted in count[1] as well and not marked (sending its
+    vertices back to x0 cannot remove it)."""
+    k = wp.atomic_add(count, 0, 1)
+    if k < pairs.shape[0]:
+        pairs[k, 0] = t
+        pairs[k, 1] = u
+    if x0.shape[0] > 0:
+        if triangles_meet(v3d(x0[tris[t, 0]]), v3d(x0[tris[t, 1]]), v3d(x0[tris[t, 2]]), v3d(x0[tris[u, 0]]),
+                          v3d(x0[tris[u, 1]]), v3d(x0[tris[u, 2]])):
+            wp.atomic_add(count, 1, 1)
+            return
+    mark_triangle(mark, tris, t)
+    mark_triangle(mark, tris, u)
+
+
 @wp.kernel
 def count_self_pairs(
     mesh: wp.uint64,
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
+    x0: wp.array[wp.vec3],
     count: wp.array[int],
     pairs: wp.array2d[int],
     mark: wp.array[int],
 ):
     """Cloth-cloth intersecting pairs (t, u), t < u, no shared vertex; the first pairs are kept,
-    and the vertices of both triangles marked."""
+    and the vertices of both triangles marked (except inherited pairs, see :func:`count_pair`)."""
     t = wp.tid()
     a = tris[t, 0]
     b = tris[t, 1]
@@ -225,12 +246,7 @@ def count_self_pairs(
         if plane_separates(pa, pb, pc, pd, pe, pf) or plane_separates(pd, pe, pf, pa, pb, pc):
             continue
         if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(pd), v3d(pe), v3d(pf)):
-            k = wp.atomic_add(count, 0, 1)
-            if k < pairs.shape[0]:
-                pairs[k, 0] = t
-                pairs[k, 1] = u
-            mark_triangle(mark, tris, t)
-            mark_triangle(mark, tris, u)
+            count_pair(x0, tris, t, u, count, pairs, mark)
 
 
 @wp.kernel
@@ -258,6 +274,7 @@ def count_self_pairs_grid(
     upper: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
+    x0: wp.array[wp.vec3],
     count: wp.array[int],
     pairs: wp.array2d[int],
     mark: wp.array[int],
@@ -275,15 +292,15 @@ def count_self_pairs_grid(
     lo = lower[t]
     hi = upper[t]
     inv = 1.0 / width
-    x0 = int(wp.floor((lo[0] - slack) * inv))
-    x1 = int(wp.floor((hi[0] + slack) * inv))
+    cx0 = int(wp.floor((lo[0] - slack) * inv))
+    cx1 = int(wp.floor((hi[0] + slack) * inv))
     y0 = int(wp.floor((lo[1] - width - slack) * inv))
     y1 = int(wp.floor((hi[1] + slack) * inv))
     z0 = int(wp.floor((lo[2] - width - slack) * inv))
     z1 = int(wp.floor((hi[2] + slack) * inv))
     for cz in range(z0, z1 + 1):
         for cy in range(y0, y1 + 1):
-            for cx in range(x0, x1 + 1):
+            for cx in range(cx0, cx1 + 1):
                 # a zero-radius query at a cell's centre visits that cell only
                 centre = wp.vec3((float(cx) + 0.5) * width, (float(cy) + 0.5) * width, (float(cz) + 0.5) * width)
                 query = wp.hash_grid_query(grid, centre, 0.0)
@@ -310,12 +327,29 @@ def count_self_pairs_grid(
                     if plane_separates(pa, pb, pc, pd, pe, pf) or plane_separates(pd, pe, pf, pa, pb, pc):
                         continue
                     if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(pd), v3d(pe), v3d(pf)):
-                        k = wp.atomic_add(count, 0, 1)
-                        if k < pairs.shape[0]:
-                            pairs[k, 0] = wp.min(t, u)
-                            pairs[k, 1] = wp.max(t, u)
-                        mark_triangle(mark, tris, t)
-                        mark_triangle(mark, tris, u)
+                        count_pair(x0, tris, wp.min(t, u), wp.max(t, u), count, pairs, mark)
+
+
+@wp.func
+def mesh_inside(mesh: wp.uint64, pa: wp.vec3, pb: wp.vec3, pc: wp.vec3) -> bool:
+    """The centroid of triangle abc is inside the closed mesh (winding number > 1/2)."""
+    q = wp.mesh_query_point_sign_winding_number(mesh, (pa + pb + pc) / 3.0, 1.0e6, 2.0, 0.5)
+    return q.result and q.sign < 0.0
+
+
+@wp.func
+def mesh_meets(mesh: wp.uint64, mesh_points: wp.array[wp.vec3], mesh_tris: wp.array[int], closed: int, pa: wp.vec3,
+               pb: wp.vec3, pc: wp.vec3) -> bool:
+    """Triangle abc crosses a triangle of the collider mesh, or lies inside it (closed mesh)."""
+    query = wp.mesh_query_aabb(mesh, wp.min(wp.min(pa, pb), pc), wp.max(wp.max(pa, pb), pc))
+    u = int(0)
+    while wp.mesh_query_aabb_next(query, u):
+        if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(mesh_points[mesh_tris[3 * u]]),
+                          v3d(mesh_points[mesh_tris[3 * u + 1]]), v3d(mesh_points[mesh_tris[3 * u + 2]])):
+            return True
+    if closed != 0:
+        return mesh_inside(mesh, pa, pb, pc)
+    return False
 
 
 @wp.kernel
@@ -326,13 +360,15 @@ def count_mesh_pairs(
     closed: int,
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
+    x0: wp.array[wp.vec3],
     count: wp.array[int],
     pairs: wp.array2d[int],
     mark: wp.array[int],
 ):
     """Cloth triangle t against a collider mesh: crossing triangle pairs (t, collider triangle),
     or, for a closed mesh, (t, -1) once for a cloth triangle wholly inside it; t's vertices are
-    marked."""
+    marked, unless t at x0 (if given) meets the mesh too (inherited: its pairs also counted in
+    count[1])."""
     t = wp.tid()
     pa = x[tris[t, 0]]
     pb = x[tris[t, 1]]
@@ -352,17 +388,22 @@ def count_mesh_pairs(
             if k < pairs.shape[0]:
                 pairs[k, 0] = t
                 pairs[k, 1] = u
+    hit = int(0)
     if crossed > 0:
-        mark_triangle(mark, tris, t)
+        hit = crossed
     elif closed != 0:
-        centroid = (pa + pb + pc) / 3.0
-        q = wp.mesh_query_point_sign_winding_number(mesh, centroid, 1.0e6, 2.0, 0.5)
-        if q.result and q.sign < 0.0:
+        if mesh_inside(mesh, pa, pb, pc):
+            hit = 1
             k = wp.atomic_add(count, 0, 1)
             if k < pairs.shape[0]:
                 pairs[k, 0] = t
                 pairs[k, 1] = -1
-            mark_triangle(mark, tris, t)
+    if hit > 0:
+        if x0.shape[0] > 0:
+            if mesh_meets(mesh, mesh_points, mesh_tris, closed, x0[tris[t, 0]], x0[tris[t, 1]], x0[tris[t, 2]]):
+                wp.atomic_add(count, 1, hit)
+                return
+        mark_triangle(mark, tris, t)
 
 
 @wp.func
@@ -593,6 +634,28 @@ def triangle_box_overlap(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, h: wp.vec3d) -> 
     return True
 
 
+@wp.func
+def shape_meets(k: int, a: wp.vec3, b: wp.vec3, rot: wp.quat, size: wp.vec3, pa: wp.vec3, pb: wp.vec3,
+                pc: wp.vec3) -> bool:
+    """Closed cloth triangle abc meets analytic solid k (exact for every kind)."""
+    if k == ck.SHAPE_PLANE:
+        n = wp.normalize(b)
+        return wp.min(wp.min(wp.dot(pa - a, n), wp.dot(pb - a, n)), wp.dot(pc - a, n)) <= 0.0
+    if k == ck.SHAPE_SPHERE:
+        cen = v3d(a)
+        cp = point_triangle_closest(cen, v3d(pa), v3d(pb), v3d(pc))
+        return wp.length(cp - cen) <= wp.float64(size[0])
+    if k == ck.SHAPE_CAPSULE:
+        return segment_triangle_distance(v3d(a), v3d(b), v3d(pa), v3d(pb), v3d(pc)) <= wp.float64(size[0])
+    if k == ck.SHAPE_BOX:
+        la = v3d(wp.quat_rotate_inv(rot, pa - a))
+        lb = v3d(wp.quat_rotate_inv(rot, pb - a))
+        lc = v3d(wp.quat_rotate_inv(rot, pc - a))
+        return triangle_box_overlap(la, lb, lc, v3d(size))
+    return triangle_meets_revolved(k == ck.SHAPE_CONE, v3d(a), v3d(b), wp.float64(size[0]), v3d(pa), v3d(pb),
+                                   v3d(pc))
+
+
 @wp.kernel
 def count_shape_triangles(
     kind: wp.array[int],
@@ -602,43 +665,32 @@ def count_shape_triangles(
     size: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
+    x0: wp.array[wp.vec3],
     count: wp.array[int],
     pairs: wp.array2d[int],
     mark: wp.array[int],
 ):
     """Cloth triangles meeting an analytic solid: pairs (cloth triangle, shape index); t's
-    vertices are marked."""
+    vertices are marked, unless t at x0 (if given) meets that solid too (inherited: also counted
+    in count[1])."""
     t = wp.tid()
     pa = x[tris[t, 0]]
     pb = x[tris[t, 1]]
     pc = x[tris[t, 2]]
     for s in range(kind.shape[0]):
-        k = kind[s]
-        hit = bool(False)
-        if k == ck.SHAPE_PLANE:
-            n = wp.normalize(b[s])
-            hit = wp.min(wp.min(wp.dot(pa - a[s], n), wp.dot(pb - a[s], n)), wp.dot(pc - a[s], n)) <= 0.0
-        elif k == ck.SHAPE_SPHERE:
-            cen = v3d(a[s])
-            cp = point_triangle_closest(cen, v3d(pa), v3d(pb), v3d(pc))
-            hit = wp.length(cp - cen) <= wp.float64(size[s][0])
-        elif k == ck.SHAPE_CAPSULE:
-            hit = segment_triangle_distance(v3d(a[s]), v3d(b[s]), v3d(pa), v3d(pb), v3d(pc)) <= wp.float64(
-                size[s][0])
-        elif k == ck.SHAPE_BOX:
-            la = v3d(wp.quat_rotate_inv(rot[s], pa - a[s]))
-            lb = v3d(wp.quat_rotate_inv(rot[s], pb - a[s]))
-            lc = v3d(wp.quat_rotate_inv(rot[s], pc - a[s]))
-            hit = triangle_box_overlap(la, lb, lc, v3d(size[s]))
-        elif k == ck.SHAPE_CYLINDER or k == ck.SHAPE_CONE:
-            hit = triangle_meets_revolved(k == ck.SHAPE_CONE, v3d(a[s]), v3d(b[s]), wp.float64(size[s][0]), v3d(pa),
-                                          v3d(pb), v3d(pc))
-        if hit:
+        if shape_meets(kind[s], a[s], b[s], rot[s], size[s], pa, pb, pc):
             q = wp.atomic_add(count, 0, 1)
             if q < pairs.shape[0]:
                 pairs[q, 0] = t
                 pairs[q, 1] = s
-            mark_triangle(mark, tris, t)
+            inherited = bool(False)
+            if x0.shape[0] > 0:
+                inherited = shape_meets(kind[s], a[s], b[s], rot[s], size[s], x0[tris[t, 0]], x0[tris[t, 1]],
+                                        x0[tris[t, 2]])
+            if inherited:
+                wp.atomic_add(count, 1, 1)
+            else:
+                mark_triangle(mark, tris, t)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -665,7 +717,10 @@ class IntersectionCounter:
         self._indices = wp.array(f.reshape(-1), dtype=wp.int32, device=self.device)
         self._x = None
         self._mesh = None
-        self._count = wp.zeros(1, dtype=wp.int32, device=self.device)
+        self._count = wp.zeros(2, dtype=wp.int32, device=self.device)
+        self._no_points = wp.zeros(0, dtype=wp.vec3, device=self.device)
+        self.inherited = 0
+        """Of the last count's pairs, how many also met at ``start`` (0 without ``start``)."""
         self._pairs = wp.zeros((max(keep, 1), 2), dtype=wp.int32, device=self.device)
         self._no_mark = wp.zeros(0, dtype=wp.int32, device=self.device)
         self._lower = wp.zeros(len(f), dtype=wp.vec3, device=self.device)
@@ -693,22 +748,25 @@ class IntersectionCounter:
             self._mesh.refit()
         return self._x
 
-    def _run(self, kernel, inputs, mark) -> tuple[int, np.ndarray]:
+    def _run(self, kernel, inputs, mark, start=None) -> tuple[int, np.ndarray]:
         self._count.zero_()
-        wp.launch(kernel, dim=len(self.faces), inputs=inputs, outputs=[self._count, self._pairs,
-                                                                        self._no_mark if mark is None else mark],
-                  device=self.device)
-        n = int(self._count.numpy()[0])
+        wp.launch(kernel, dim=len(self.faces), inputs=[*inputs, self._no_points if start is None else start],
+                  outputs=[self._count, self._pairs, self._no_mark if mark is None else mark], device=self.device)
+        n, self.inherited = (int(v) for v in self._count.numpy())
         return n, self._pairs.numpy()[:min(n, self._pairs.shape[0])].copy()
 
-    def self_pairs(self, points, mark=None) -> tuple[int, np.ndarray]:
+    def self_pairs(self, points, mark=None, start=None) -> tuple[int, np.ndarray]:
         """(count, first pairs (K, 2) of triangle indices) of cloth-cloth intersections.
 
         Args:
             points: Cloth vertex positions [m], shape (V, 3) (array or ``wp.array`` of vec3).
             mark: Optional, shape (V,), dtype int32: set to 1 at every vertex of an intersecting triangle.
+            start: Optional ``wp.array`` of vec3, shape (V,): the positions at the start of the
+                step. A pair that met there too is inherited: counted (and in :attr:`inherited`)
+                but not marked.
         """
         x = self._points(points)
+        self.inherited = 0
         if not len(self.faces):
             return 0, self._pairs.numpy()[:0].copy()
         wp.launch(triangle_boxes, dim=len(self.faces), inputs=[x, self.tris], outputs=[self._lower, self._upper],
@@ -720,27 +778,32 @@ class IntersectionCounter:
         # of cell coordinates, a few ulp of the largest coordinate) so no overlapping box is missed
         if not (np.isfinite(size) and width * 1.0e5 > size):
             # cells too small against the coordinates for float32 cell arithmetic: the BVH
-            return self._run(count_self_pairs, [self._mesh.id, x, self.tris], mark)
+            return self._run(count_self_pairs, [self._mesh.id, x, self.tris], mark, start)
         self._grid.build(self._lower, width)
         return self._run(count_self_pairs_grid, [self._grid.id, width, 0.02 * width + 1.0e-6 * size, self._lower,
-                                                 self._upper, x, self.tris], mark)
+                                                 self._upper, x, self.tris], mark, start)
 
-    def collider_pairs(self, points, colliders, mark=None) -> tuple[int, np.ndarray]:
+    def collider_pairs(self, points, colliders, mark=None, start=None) -> tuple[int, np.ndarray]:
         """(count, first pairs) against a :class:`~warpshade.sim.ColliderSet` as posed at the end
         of the last step: (cloth triangle, shape index) for analytic shapes, then (cloth triangle,
-        collider triangle or -1 for wholly inside) per mesh collider; ``mark`` as in :meth:`self_pairs`."""
+        collider triangle or -1 for wholly inside) per mesh collider; ``mark`` and ``start`` as
+        in :meth:`self_pairs` (a cloth triangle at ``start`` against the collider as posed now)."""
         x = self._points(points)
-        total, kept = 0, []
+        total, inherited, kept = 0, 0, []
         ar = colliders.end_pose_arrays()
         if ar is not None:
             n, p = self._run(count_shape_triangles, [ar["kind"], ar["a_end"], ar["b_end"], ar["rot_end"], ar["size"],
-                                                     x, self.tris], mark)
+                                                     x, self.tris], mark, start)
             total += n
+            inherited += self.inherited
             kept.append(p)
         for m in colliders.meshes:
-            n, p = self._run(count_mesh_pairs, [m.mesh.id, m.mesh.points, m.indices, int(m.closed), x, self.tris], mark)
+            n, p = self._run(count_mesh_pairs, [m.mesh.id, m.mesh.points, m.indices, int(m.closed), x, self.tris], mark,
+                             start)
             total += n
+            inherited += self.inherited
             kept.append(p)
+        self.inherited = inherited
         return total, (np.concatenate(kept) if kept else np.zeros((0, 2), np.int32))
 
 
