@@ -69,6 +69,7 @@ def run_warpshade(n: int, frames: int, repeats: int, self_collision: bool, guard
     counter.collider_pairs(s1.points, solver.colliders)
     times, cpu = [], []
     worst = {"self": 0, "collider": 0, "frames_with_intersections": 0}
+    p99 = 0.0
     for _ in range(repeats):
         s0, s1 = model.state(), model.state()
         t_wall = t_cpu = 0.0
@@ -84,6 +85,7 @@ def run_warpshade(n: int, frames: int, repeats: int, self_collision: bool, guard
             worst["self"] = max(worst["self"], ns)
             worst["collider"] = max(worst["collider"], nc)
             worst["frames_with_intersections"] += int(ns + nc > 0)
+            p99 = max(p99, float(np.percentile(model.edge_strain(s0.points.numpy()), 99)))
         times.append(t_wall)
         cpu.append(t_cpu)
     x = s0.points.numpy()
@@ -94,26 +96,136 @@ def run_warpshade(n: int, frames: int, repeats: int, self_collision: bool, guard
     return {"frames_per_second": frames / med, "seconds_per_frame": med / frames,
             "frames_per_cpu_second": frames / statistics.median(cpu), "vertices": model.particle_count,
             "triangles": model.tri_count, "substeps": solver.substeps, "iterations": solver.iterations,
-            "self_collision": self_collision, "guard": guard, "max_edge_strain": float(strain.max()),
+            "self_collision": self_collision, "guard": guard, "max_edge_strain": float(strain.max()), "max_p99_strain": p99,
             "min_height": float(x[:, 1].min()), "stats": solver.stats(),
             "max_intersecting_pairs": worst}
 
 
-def run_scenes() -> dict:
-    """The sims' hard contact scenes at their default sizes and lengths, each script's own criteria."""
+SHIPPED = ("default", "cloth_sphere", "cloth_table", "flag_wind", "cape_walker")
+"""The shipped usd_scenes/ with cloth."""
+HARD = ("pile", "twist", "box_edge", "cape")
+"""The hard contact scenes of sims/ (issue 19, item 4)."""
+OTHER_SIMS = ("drape_sphere", "flag", "table_fold")
+"""The other sims/ scripts."""
+
+
+class StepMeter:
+    """Times every ``XPBDSolver.step`` while active (wall and CPU time of the step alone) and,
+    outside the timing, counts the step's intersecting triangle pairs (cloth-cloth and
+    cloth-collider, :class:`IntersectionCounter`) and the 99th-percentile edge strain, per solver."""
+
+    def __init__(self):
+        self.solvers = {}
+
+    def __enter__(self):
+        self._step = XPBDSolver.step
+        meter = self
+
+        def step(solver, state_in, state_out, dt, control=None):
+            t, c = time.perf_counter(), time.process_time()
+            out = meter._step(solver, state_in, state_out, dt, control)
+            wall, cpu = time.perf_counter() - t, time.process_time() - c
+            r = meter.solvers.setdefault(id(solver), {"solver": solver, "counter": IntersectionCounter(solver.model.faces),
+                                                      "wall": [], "cpu": [], "self": [], "collider": [], "p99": []})
+            r["wall"].append(wall)
+            r["cpu"].append(cpu)
+            x = state_out.points
+            r["self"].append(r["counter"].self_pairs(x)[0])
+            r["collider"].append(r["counter"].collider_pairs(x, solver.colliders)[0] if solver.colliders is not None else 0)
+            r["p99"].append(float(np.percentile(solver.model.edge_strain(x.numpy()), 99)))
+            return out
+
+        XPBDSolver.step = step
+        return self
+
+    def __exit__(self, *exc):
+        XPBDSolver.step = self._step
+        return False
+
+    def summary(self) -> dict:
+        """Figures over every metered solver's steps: the first step (kernel compilation and
+        loading) is left out of the timing."""
+        if not self.solvers:
+            return {"frames": 0}
+        rs = list(self.solvers.values())
+        frames = sum(len(r["wall"]) for r in rs)
+        wall = [w for r in rs for w in r["wall"][1:]] or [w for r in rs for w in r["wall"]]
+        cpu = [w for r in rs for w in r["cpu"][1:]] or [w for r in rs for w in r["cpu"]]
+        return {"frames": frames, "max_self_pairs": max(max(r["self"]) for r in rs),
+                "max_collider_pairs": max(max(r["collider"]) for r in rs),
+                "frames_with_intersections": sum(int(a + b > 0) for r in rs for a, b in zip(r["self"], r["collider"])),
+                "max_p99_strain": max(max(r["p99"]) for r in rs),
+                "ms_per_frame": 1e3 * statistics.median(wall), "cpu_ms_per_frame": 1e3 * statistics.median(cpu),
+                "vertices": sum(r["solver"].model.particle_count for r in rs),
+                "guard_steps": sum(r["solver"].stats().get("guard_steps", 0) for r in rs),
+                "guard_unresolved": sum(r["solver"].stats().get("guard_unresolved", 0) for r in rs)}
+
+
+def run_shipped(name: str, frames: int | None) -> dict:
+    """A usd_scenes/ scene's simulation as ``warpshade run`` steps it (Pipeline's geometry frames:
+    driven objects posed, then the cloth advanced), without shading."""
+    from warpshade.pipeline.cloth import ClothSimulation
+    from warpshade.usd.scene_io import read_scene
+
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "usd_scenes")
+    scene = read_scene(os.path.join(root, f"{name}.usda"))
+    n = scene.frames if frames is None else min(frames, scene.frames)
+    with StepMeter() as meter:
+        sims = ClothSimulation(scene, "cpu")
+        driven = [o for o in scene.objects if o.kind in ("animated", "skinned")]
+        for f in range(n):
+            code = scene.start_time + f
+            geo = {o.name: np.asarray(o.params["points_at"](code), dtype=np.float32) for o in driven}
+            sims.advance(f, geo)
+    return meter.summary()
+
+
+def run_sim(name: str, frames: int | None) -> dict:
+    """A sims/ script run as its own main() with --no-shade (geometry written to a temporary file),
+    every solver step metered; ``criteria_ok`` is the script's own verdict."""
     import contextlib
     import io
     import tempfile
 
-    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "sims"))
-    out = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        for name in ("pile", "twist", "box_edge", "cape"):
-            mod = importlib.import_module(name)
-            with contextlib.redirect_stdout(io.StringIO()):
-                r = mod.main(["--out", os.path.join(tmp, f"{name}.usda")])
-            out[name] = {k: (bool(v) if isinstance(v, (bool, np.bool_)) else v) for k, v in r.items()}
+    folder = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "sims")
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
+    mod = importlib.import_module(name)
+    with tempfile.TemporaryDirectory() as tmp, StepMeter() as meter:
+        argv = ["--out", os.path.join(tmp, f"{name}.usda"), "--no-shade"]
+        if frames is not None:
+            argv += ["--frames", str(frames)]
+        with contextlib.redirect_stdout(io.StringIO()):
+            r = mod.main(argv)
+    out = meter.summary()
+    out["criteria_ok"] = bool(r.get("ok", False))
     return out
+
+
+def scene_table(frames: int | None) -> dict:
+    """Every shipped scene and every sims/ scene: intersections, strain and speed."""
+    rows = {}
+    for name in SHIPPED:
+        rows[f"usd_scenes/{name}"] = run_shipped(name, frames)
+    for name in HARD + OTHER_SIMS:
+        rows[f"sims/{name}"] = run_sim(name, frames)
+    return rows
+
+
+def print_scene_table(rows: dict, hanging: dict | None = None) -> None:
+    print("scenes (every frame counted; ms/frame = median solver step after the first, wall and CPU):")
+    print(f"{'scene':<26}{'frames':>7}{'max self':>9}{'max coll':>9}{'frames>0':>9}{'p99 strain':>11}"
+          f"{'ms/frame':>9}{'cpu ms':>8}  newton (issue 19)")
+    if hanging is not None:
+        print(f"{'hanging cloth (above)':<26}{hanging['frames']:>7}{hanging['max_self_pairs']:>9}"
+              f"{hanging['max_collider_pairs']:>9}{hanging['frames_with_intersections']:>9}"
+              f"{hanging['max_p99_strain']:>10.2%} {hanging['ms_per_frame']:>9.1f}{hanging['cpu_ms_per_frame']:>8.1f}"
+              "  VBD 1540 ms/frame (0.65 frames/s, self-contact); XPBD: no self-collision")
+    for name, r in rows.items():
+        print(f"{name:<26}{r['frames']:>7}{r['max_self_pairs']:>9}{r['max_collider_pairs']:>9}"
+              f"{r['frames_with_intersections']:>9}{r['max_p99_strain']:>10.2%} {r['ms_per_frame']:>9.1f}"
+              f"{r['cpu_ms_per_frame']:>8.1f}  -")
+
 
 
 def _warp_cloth_class(path: str):
@@ -211,7 +323,10 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-baselines", action="store_true", help="only time warpshade")
     ap.add_argument("--json", help="write the numbers to this file")
     ap.add_argument("--scenes", action="store_true",
-                    help="also run the hard contact scenes (sims/pile, twist, box_edge, cape) and report their criteria")
+                    help="also run every shipped scene (usd_scenes/) and sims/ scene (pile, twist, box_edge, cape, ...) "
+                         "and print their intersections, strain and speed")
+    ap.add_argument("--scene-frames", type=int, default=None,
+                    help="frames per scene with --scenes (default: each scene's own length)")
     args = ap.parse_args(argv)
     wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     wp.init()
@@ -248,10 +363,12 @@ def main(argv=None) -> int:
         else:
             print(f"{label:<34}{'n/a':>10}  ({r['reason']})")
     if args.scenes:
-        res["scenes"] = run_scenes()
-        print("hard contact scenes (full default runs; max_intersections = worst frame's intersecting pairs):")
-        for name, r in res["scenes"].items():
-            print(f"  {name:<10}" + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in r.items()))
+        res["scenes"] = scene_table(args.scene_frames)
+        w = res["max_intersecting_pairs"]
+        hanging = {"frames": args.frames * args.repeats, "max_self_pairs": w["self"], "max_collider_pairs": w["collider"],
+                   "frames_with_intersections": w["frames_with_intersections"], "max_p99_strain": res["max_p99_strain"],
+                   "ms_per_frame": 1e3 * res["seconds_per_frame"], "cpu_ms_per_frame": 1e3 / res["frames_per_cpu_second"]}
+        print_scene_table(res["scenes"], hanging)
     print("published figures (issue 19, not re-measured here):")
     for label, fig in NEWTON_FIGURES:
         print(f"  {label:<76}{fig}")

@@ -160,10 +160,9 @@ def test_rising_cylinder_and_cone_sweep_and_stay_exact():
 
 @pytest.mark.parametrize("shape", ["cylinder", "cone"])
 def test_intersection_count_sees_cloth_inside_the_solid(shape):
-    """A triangle wholly inside, one crossing the side, one crossing the cap and one outside. The
-    count samples cylinders and cones at 15 points a triangle (corners and a 4x grid): a triangle
-    penetrating less than about a quarter of its longest edge can be missed (the signed distance is
-    1-Lipschitz and every point is within that of a sample); these penetrate far more."""
+    """A triangle wholly inside, one crossing the side, one crossing the cap and one outside (the
+    count is exact for cylinders and cones; tests/test_intersection_count.py checks it on random
+    triangles)."""
     col = ColliderSet()
     _add(col, shape, (0, 0, 0), (0, 0.4, 0), 0.2)
     tris = {

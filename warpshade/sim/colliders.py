@@ -304,12 +304,16 @@ class ColliderSet:
 
     @property
     def has_sharp_edges(self) -> bool:
-        """Whether :meth:`collide_edges` has work: mesh colliders, cylinders or cones."""
-        return bool(self.meshes) or any(k in (int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE)) for k in self._kind)
+        """Whether :meth:`collide_edges` has work: mesh colliders, boxes, cylinders or cones."""
+        return bool(self.meshes) or any(k in self._SHARP for k in self._kind)
+
+    _SHARP = (int(ck.SHAPE_BOX), int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE))
+    """Analytic kinds with sharp edges (box edges, rims, apex)."""
 
     def collide_edges(self, thickness: float, inv_mass, edges, x) -> None:
-        """Push cloth edges out of the mesh colliders' edges and the rims of cylinders and cones
-        (sharp edges cutting between two cloth vertices), corrections averaged per vertex.
+        """Push cloth edges out of the mesh colliders' edges, the edges of boxes and the rims of
+        cylinders and cones (sharp edges cutting between two cloth vertices), corrections averaged
+        per vertex.
 
         Args:
             thickness: Distance to keep [m].
@@ -323,7 +327,7 @@ class ColliderSet:
         if getattr(self, "_edge_delta", None) is None or self._edge_delta.shape[0] != n:
             self._edge_delta = wp.zeros(n, dtype=wp.vec3, device=self.device)
             self._edge_count = wp.zeros(n, dtype=wp.float32, device=self.device)
-        if any(k in (int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE)) for k in self._kind):
+        if any(k in self._SHARP for k in self._kind):
             ar = self._arrays
             wp.launch(ck.collide_shape_edges, dim=edges.shape[0],
                       inputs=[ar["kind"], ar["a1"], ar["b1"], ar["r1"], ar["size"], x, edges, inv_mass, thickness],

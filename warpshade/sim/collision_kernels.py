@@ -434,7 +434,8 @@ def collide_shape_edges(
     delta: wp.array[wp.vec3],
     delta_count: wp.array[float],
 ):
-    """Cloth edges against the sharp rims of cylinders and cones (and a cone's apex): the point of
+    """Cloth edges against the sharp edges of boxes and rims of cylinders and cones (and a cone's
+    apex): the point of
     the edge deepest in the solid is found by golden-section search (the signed distance of a
     convex solid is convex along a line, so the search finds the edge's minimum), and an edge
     whose inner point is closer than ``thickness`` is pushed out along the normal there, split
@@ -450,11 +451,14 @@ def collide_shape_edges(
     pb = x[i1]
     for s in range(kind.shape[0]):
         kd = kind[s]
-        if kd != SHAPE_CYLINDER and kd != SHAPE_CONE:
+        if kd != SHAPE_CYLINDER and kd != SHAPE_CONE and kd != SHAPE_BOX:
             continue
         # bounding sphere of the solid against the edge
         mid = (a1[s] + b1[s]) * 0.5
         reach = wp.sqrt(0.25 * wp.length_sq(b1[s] - a1[s]) + size[s][0] * size[s][0]) + thickness
+        if kd == SHAPE_BOX:
+            mid = a1[s]
+            reach = wp.length(size[s]) + thickness
         t = segment_parameter(mid, pa, pb)
         if wp.length(wp.lerp(pa, pb, t) - mid) > reach:
             continue

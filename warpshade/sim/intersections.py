@@ -4,8 +4,8 @@ A cloth-cloth pair is two cloth triangles without a shared vertex whose closed t
 point (touching counts); a cloth-collider pair is a cloth triangle and a mesh collider's triangle
 that do, plus cloth triangles lying wholly inside a closed mesh collider (generalised winding
 number > 1/2 at the centroid, no crossing); against an analytic shape a cloth triangle counts when its
-distance to the solid is <= 0 (exact for planes, spheres, capsules and boxes; other kinds are
-tested at the triangle's corners and 12 interior points).
+distance to the solid is <= 0 (exact for every kind: planes, spheres, capsules, boxes, cylinders
+and cones).
 
 The triangle-triangle test is orientation based, in float64: two non-coplanar triangles meet iff
 an edge of one meets the other (segment-triangle by the signs of five orientation determinants);
@@ -189,17 +189,38 @@ def mark_triangle(mark: wp.array[int], tris: wp.array2d[int], t: int):
         mark[tris[t, 2]] = 1
 
 
+@wp.func
+def count_pair(x0: wp.array[wp.vec3], tris: wp.array2d[int], t: int, u: int, count: wp.array[int],
+               pairs: wp.array2d[int], mark: wp.array[int]):
+    """Count intersecting cloth pair (t, u) in count[0] and keep it; mark both triangles, unless
+    x0 (positions at the start of the step; empty: no such test) is given and the pair met there
+    too: such an inherited pair is counted in count[1] as well and not marked (sending its
+    vertices back to x0 cannot remove it)."""
+    k = wp.atomic_add(count, 0, 1)
+    if k < pairs.shape[0]:
+        pairs[k, 0] = t
+        pairs[k, 1] = u
+    if x0.shape[0] > 0:
+        if triangles_meet(v3d(x0[tris[t, 0]]), v3d(x0[tris[t, 1]]), v3d(x0[tris[t, 2]]), v3d(x0[tris[u, 0]]),
+                          v3d(x0[tris[u, 1]]), v3d(x0[tris[u, 2]])):
+            wp.atomic_add(count, 1, 1)
+            return
+    mark_triangle(mark, tris, t)
+    mark_triangle(mark, tris, u)
+
+
 @wp.kernel
 def count_self_pairs(
     mesh: wp.uint64,
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
+    x0: wp.array[wp.vec3],
     count: wp.array[int],
     pairs: wp.array2d[int],
     mark: wp.array[int],
 ):
     """Cloth-cloth intersecting pairs (t, u), t < u, no shared vertex; the first pairs are kept,
-    and the vertices of both triangles marked."""
+    and the vertices of both triangles marked (except inherited pairs, see :func:`count_pair`)."""
     t = wp.tid()
     a = tris[t, 0]
     b = tris[t, 1]
@@ -225,12 +246,110 @@ def count_self_pairs(
         if plane_separates(pa, pb, pc, pd, pe, pf) or plane_separates(pd, pe, pf, pa, pb, pc):
             continue
         if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(pd), v3d(pe), v3d(pf)):
-            k = wp.atomic_add(count, 0, 1)
-            if k < pairs.shape[0]:
-                pairs[k, 0] = t
-                pairs[k, 1] = u
-            mark_triangle(mark, tris, t)
-            mark_triangle(mark, tris, u)
+            count_pair(x0, tris, t, u, count, pairs, mark)
+
+
+@wp.kernel
+def triangle_boxes(x: wp.array[wp.vec3], tris: wp.array2d[int], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3]):
+    t = wp.tid()
+    pa = x[tris[t, 0]]
+    pb = x[tris[t, 1]]
+    pc = x[tris[t, 2]]
+    lower[t] = wp.min(wp.min(pa, pb), pc)
+    upper[t] = wp.max(wp.max(pa, pb), pc)
+
+
+@wp.func
+def before(lo_t: wp.vec3, t: int, lo_u: wp.vec3, u: int) -> bool:
+    """Triangle t comes before u in the order (lower box corner's x, index)."""
+    return lo_t[0] < lo_u[0] or (lo_t[0] == lo_u[0] and t < u)
+
+
+@wp.kernel
+def count_self_pairs_grid(
+    grid: wp.uint64,
+    width: float,
+    slack: float,
+    lower: wp.array[wp.vec3],
+    upper: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    x0: wp.array[wp.vec3],
+    count: wp.array[int],
+    pairs: wp.array2d[int],
+    mark: wp.array[int],
+):
+    """:func:`count_self_pairs` with a hash grid of the triangles' lower box corners (cells
+    ``width`` wide, at least every box's width) as the broad phase. A pair is tested from the
+    triangle t that comes first in (lower x, index): the other's lower corner then lies in
+    [lo.x, hi.x] x [lo.y - width, hi.y] x [lo.z - width, hi.z] of t's box, and t walks the cells
+    covering that range widened by ``slack`` (the float32 rounding of cell coordinates), so every
+    box-overlapping pair is tested exactly once."""
+    t = wp.tid()
+    a = tris[t, 0]
+    b = tris[t, 1]
+    c = tris[t, 2]
+    lo = lower[t]
+    hi = upper[t]
+    inv = 1.0 / width
+    cx0 = int(wp.floor((lo[0] - slack) * inv))
+    cx1 = int(wp.floor((hi[0] + slack) * inv))
+    y0 = int(wp.floor((lo[1] - width - slack) * inv))
+    y1 = int(wp.floor((hi[1] + slack) * inv))
+    z0 = int(wp.floor((lo[2] - width - slack) * inv))
+    z1 = int(wp.floor((hi[2] + slack) * inv))
+    for cz in range(z0, z1 + 1):
+        for cy in range(y0, y1 + 1):
+            for cx in range(cx0, cx1 + 1):
+                # a zero-radius query at a cell's centre visits that cell only
+                centre = wp.vec3((float(cx) + 0.5) * width, (float(cy) + 0.5) * width, (float(cz) + 0.5) * width)
+                query = wp.hash_grid_query(grid, centre, 0.0)
+                u = int(0)
+                while wp.hash_grid_query_next(query, u):
+                    ulo = lower[u]
+                    if not before(lo, t, ulo, u):
+                        continue
+                    uhi = upper[u]
+                    if (ulo[0] > hi[0] or ulo[1] > hi[1] or ulo[2] > hi[2] or lo[0] > uhi[0] or lo[1] > uhi[1]
+                            or lo[2] > uhi[2]):
+                        continue
+                    d = tris[u, 0]
+                    e = tris[u, 1]
+                    f = tris[u, 2]
+                    if a == d or a == e or a == f or b == d or b == e or b == f or c == d or c == e or c == f:
+                        continue
+                    pa = x[a]
+                    pb = x[b]
+                    pc = x[c]
+                    pd = x[d]
+                    pe = x[e]
+                    pf = x[f]
+                    if plane_separates(pa, pb, pc, pd, pe, pf) or plane_separates(pd, pe, pf, pa, pb, pc):
+                        continue
+                    if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(pd), v3d(pe), v3d(pf)):
+                        count_pair(x0, tris, wp.min(t, u), wp.max(t, u), count, pairs, mark)
+
+
+@wp.func
+def mesh_inside(mesh: wp.uint64, pa: wp.vec3, pb: wp.vec3, pc: wp.vec3) -> bool:
+    """The centroid of triangle abc is inside the closed mesh (winding number > 1/2)."""
+    q = wp.mesh_query_point_sign_winding_number(mesh, (pa + pb + pc) / 3.0, 1.0e6, 2.0, 0.5)
+    return q.result and q.sign < 0.0
+
+
+@wp.func
+def mesh_meets(mesh: wp.uint64, mesh_points: wp.array[wp.vec3], mesh_tris: wp.array[int], closed: int, pa: wp.vec3,
+               pb: wp.vec3, pc: wp.vec3) -> bool:
+    """Triangle abc crosses a triangle of the collider mesh, or lies inside it (closed mesh)."""
+    query = wp.mesh_query_aabb(mesh, wp.min(wp.min(pa, pb), pc), wp.max(wp.max(pa, pb), pc))
+    u = int(0)
+    while wp.mesh_query_aabb_next(query, u):
+        if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(mesh_points[mesh_tris[3 * u]]),
+                          v3d(mesh_points[mesh_tris[3 * u + 1]]), v3d(mesh_points[mesh_tris[3 * u + 2]])):
+            return True
+    if closed != 0:
+        return mesh_inside(mesh, pa, pb, pc)
+    return False
 
 
 @wp.kernel
@@ -241,13 +360,15 @@ def count_mesh_pairs(
     closed: int,
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
+    x0: wp.array[wp.vec3],
     count: wp.array[int],
     pairs: wp.array2d[int],
     mark: wp.array[int],
 ):
     """Cloth triangle t against a collider mesh: crossing triangle pairs (t, collider triangle),
     or, for a closed mesh, (t, -1) once for a cloth triangle wholly inside it; t's vertices are
-    marked."""
+    marked, unless t at x0 (if given) meets the mesh too (inherited: its pairs also counted in
+    count[1])."""
     t = wp.tid()
     pa = x[tris[t, 0]]
     pb = x[tris[t, 1]]
@@ -267,17 +388,22 @@ def count_mesh_pairs(
             if k < pairs.shape[0]:
                 pairs[k, 0] = t
                 pairs[k, 1] = u
+    hit = int(0)
     if crossed > 0:
-        mark_triangle(mark, tris, t)
+        hit = crossed
     elif closed != 0:
-        centroid = (pa + pb + pc) / 3.0
-        q = wp.mesh_query_point_sign_winding_number(mesh, centroid, 1.0e6, 2.0, 0.5)
-        if q.result and q.sign < 0.0:
+        if mesh_inside(mesh, pa, pb, pc):
+            hit = 1
             k = wp.atomic_add(count, 0, 1)
             if k < pairs.shape[0]:
                 pairs[k, 0] = t
                 pairs[k, 1] = -1
-            mark_triangle(mark, tris, t)
+    if hit > 0:
+        if x0.shape[0] > 0:
+            if mesh_meets(mesh, mesh_points, mesh_tris, closed, x0[tris[t, 0]], x0[tris[t, 1]], x0[tris[t, 2]]):
+                wp.atomic_add(count, 1, hit)
+                return
+        mark_triangle(mark, tris, t)
 
 
 @wp.func
@@ -362,6 +488,115 @@ def segment_triangle_distance(s0: wp.vec3d, s1: wp.vec3d, a: wp.vec3d, b: wp.vec
 
 
 @wp.func
+def quadratic_min_on(qa: wp.float64, qb: wp.float64, qc: wp.float64, t0: wp.float64, t1: wp.float64) -> wp.float64:
+    """Minimum of qa t^2 + qb t + qc over t0 <= t <= t1: the ends, and the vertex when the
+    parabola opens upwards and its vertex lies between them."""
+    m = wp.min(qa * t0 * t0 + qb * t0 + qc, qa * t1 * t1 + qb * t1 + qc)
+    if qa > wp.float64(0.0):
+        tv = -qb / (wp.float64(2.0) * qa)
+        if tv > t0 and tv < t1:
+            m = wp.min(m, qa * tv * tv + qb * tv + qc)
+    return m
+
+
+@wp.func
+def segment_meets_revolved(cone: bool, p: wp.vec3d, q: wp.vec3d, a: wp.vec3d, u: wp.vec3d, length: wp.float64,
+                           rad: wp.float64) -> bool:
+    """Closed segment p-q meets the solid cylinder (cone: the solid cone with its apex at the far
+    end) of axis a + u h, 0 <= h <= length, radius rad (cone: at h = 0). Along the segment the
+    height h(t) is linear, so 0 <= h <= length is an interval of t; on it the solid is
+    |w(t)|^2 - k(t)^2 <= 0 with w the offset from the axis and k the radius at h(t) (constant, or
+    linear and >= 0 for the cone): a quadratic in t whose minimum over the interval decides."""
+    zero = wp.float64(0.0)
+    d = q - p
+    h0 = wp.dot(p - a, u)
+    dh = wp.dot(d, u)
+    t0 = zero
+    t1 = wp.float64(1.0)
+    if dh == zero:
+        if h0 < zero or h0 > length:
+            return False
+    else:
+        ta = -h0 / dh
+        tb = (length - h0) / dh
+        t0 = wp.max(t0, wp.min(ta, tb))
+        t1 = wp.min(t1, wp.max(ta, tb))
+        if t0 > t1:
+            return False
+    w0 = (p - a) - u * h0
+    dw = d - u * dh
+    k0 = rad
+    dk = zero
+    if cone:
+        k0 = rad * (wp.float64(1.0) - h0 / length)
+        dk = -rad * dh / length
+    qa = wp.dot(dw, dw) - dk * dk
+    qb = wp.float64(2.0) * (wp.dot(w0, dw) - k0 * dk)
+    qc = wp.dot(w0, w0) - k0 * k0
+    return quadratic_min_on(qa, qb, qc, t0, t1) <= zero
+
+
+@wp.func
+def in_triangle(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, n: wp.vec3d) -> bool:
+    """p (in the plane of abc, normal n) lies in the closed triangle: the three edge signs agree."""
+    zero = wp.float64(0.0)
+    return (wp.dot(wp.cross(b - a, p - a), n) >= zero and wp.dot(wp.cross(c - b, p - b), n) >= zero
+            and wp.dot(wp.cross(a - c, p - c), n) >= zero)
+
+
+@wp.func
+def circle_meets_triangle(cen: wp.vec3d, u: wp.vec3d, rad: wp.float64, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) -> bool:
+    """The circle of radius rad about cen in the plane normal to unit u crosses the closed triangle
+    abc: the (up to two) points where it crosses the triangle's plane, c + rad (cos s e1 + sin s e2)
+    with A cos s + B sin s = -D, lie in the triangle. A circle in the triangle's plane gives False
+    (the callers cover that case by the axis test)."""
+    n = wp.cross(b - a, c - a)
+    e1 = wp.cross(u, wp.vec3d(wp.float64(1.0), wp.float64(0.0), wp.float64(0.0)))
+    if wp.length(e1) < wp.float64(0.5):
+        e1 = wp.cross(u, wp.vec3d(wp.float64(0.0), wp.float64(1.0), wp.float64(0.0)))
+    e1 = wp.normalize(e1)
+    e2 = wp.cross(u, e1)
+    ca = rad * wp.dot(n, e1)
+    cb = rad * wp.dot(n, e2)
+    cd = wp.dot(n, cen - a)
+    m = wp.sqrt(ca * ca + cb * cb)
+    if m == wp.float64(0.0) or wp.abs(cd) > m:
+        return False
+    phi = wp.atan2(cb, ca)
+    delta = wp.acos(wp.clamp(-cd / m, wp.float64(-1.0), wp.float64(1.0)))
+    s = phi + delta
+    p0 = cen + (e1 * wp.cos(s) + e2 * wp.sin(s)) * rad
+    s = phi - delta
+    p1 = cen + (e1 * wp.cos(s) + e2 * wp.sin(s)) * rad
+    return in_triangle(p0, a, b, c, n) or in_triangle(p1, a, b, c, n)
+
+
+@wp.func
+def triangle_meets_revolved(cone: bool, a0: wp.vec3d, b0: wp.vec3d, rad: wp.float64, pa: wp.vec3d, pb: wp.vec3d,
+                            pc: wp.vec3d) -> bool:
+    """Closed triangle meets the solid cylinder with cap centres a0, b0 (cone: base centre a0,
+    apex b0) of radius rad. Exact: if no edge of the triangle meets the solid, the solid's section
+    by the triangle's plane lies inside the triangle; that section either holds a point of the axis
+    segment (the plane separates the two caps, or the base from the apex) or meets a cap disc, whose
+    chord ends on the rim circle inside the triangle. So: an edge meets the solid, the axis segment
+    meets the triangle, or a rim circle crosses it."""
+    length = wp.length(b0 - a0)
+    u = (b0 - a0) / length
+    if segment_meets_revolved(cone, pa, pb, a0, u, length, rad) or segment_meets_revolved(cone, pb, pc, a0, u,
+                                                                                          length, rad):
+        return True
+    if segment_meets_revolved(cone, pc, pa, a0, u, length, rad):
+        return True
+    if segment_meets_triangle(a0, b0, pa, pb, pc):
+        return True
+    if circle_meets_triangle(a0, u, rad, pa, pb, pc):
+        return True
+    if not cone:
+        return circle_meets_triangle(b0, u, rad, pa, pb, pc)
+    return False
+
+
+@wp.func
 def triangle_box_overlap(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, h: wp.vec3d) -> bool:
     """Closed triangle meets the closed box |x_k| <= h_k (separating axes: 3 box faces, the
     triangle's normal, 9 edge cross products; Akenine-Moller 2001)."""
@@ -399,6 +634,28 @@ def triangle_box_overlap(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, h: wp.vec3d) -> 
     return True
 
 
+@wp.func
+def shape_meets(k: int, a: wp.vec3, b: wp.vec3, rot: wp.quat, size: wp.vec3, pa: wp.vec3, pb: wp.vec3,
+                pc: wp.vec3) -> bool:
+    """Closed cloth triangle abc meets analytic solid k (exact for every kind)."""
+    if k == ck.SHAPE_PLANE:
+        n = wp.normalize(b)
+        return wp.min(wp.min(wp.dot(pa - a, n), wp.dot(pb - a, n)), wp.dot(pc - a, n)) <= 0.0
+    if k == ck.SHAPE_SPHERE:
+        cen = v3d(a)
+        cp = point_triangle_closest(cen, v3d(pa), v3d(pb), v3d(pc))
+        return wp.length(cp - cen) <= wp.float64(size[0])
+    if k == ck.SHAPE_CAPSULE:
+        return segment_triangle_distance(v3d(a), v3d(b), v3d(pa), v3d(pb), v3d(pc)) <= wp.float64(size[0])
+    if k == ck.SHAPE_BOX:
+        la = v3d(wp.quat_rotate_inv(rot, pa - a))
+        lb = v3d(wp.quat_rotate_inv(rot, pb - a))
+        lc = v3d(wp.quat_rotate_inv(rot, pc - a))
+        return triangle_box_overlap(la, lb, lc, v3d(size))
+    return triangle_meets_revolved(k == ck.SHAPE_CONE, v3d(a), v3d(b), wp.float64(size[0]), v3d(pa), v3d(pb),
+                                   v3d(pc))
+
+
 @wp.kernel
 def count_shape_triangles(
     kind: wp.array[int],
@@ -408,49 +665,32 @@ def count_shape_triangles(
     size: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
+    x0: wp.array[wp.vec3],
     count: wp.array[int],
     pairs: wp.array2d[int],
     mark: wp.array[int],
 ):
     """Cloth triangles meeting an analytic solid: pairs (cloth triangle, shape index); t's
-    vertices are marked."""
+    vertices are marked, unless t at x0 (if given) meets that solid too (inherited: also counted
+    in count[1])."""
     t = wp.tid()
     pa = x[tris[t, 0]]
     pb = x[tris[t, 1]]
     pc = x[tris[t, 2]]
     for s in range(kind.shape[0]):
-        k = kind[s]
-        hit = bool(False)
-        if k == ck.SHAPE_PLANE:
-            n = wp.normalize(b[s])
-            hit = wp.min(wp.min(wp.dot(pa - a[s], n), wp.dot(pb - a[s], n)), wp.dot(pc - a[s], n)) <= 0.0
-        elif k == ck.SHAPE_SPHERE:
-            cen = v3d(a[s])
-            cp = point_triangle_closest(cen, v3d(pa), v3d(pb), v3d(pc))
-            hit = wp.length(cp - cen) <= wp.float64(size[s][0])
-        elif k == ck.SHAPE_CAPSULE:
-            hit = segment_triangle_distance(v3d(a[s]), v3d(b[s]), v3d(pa), v3d(pb), v3d(pc)) <= wp.float64(
-                size[s][0])
-        elif k == ck.SHAPE_BOX:
-            la = v3d(wp.quat_rotate_inv(rot[s], pa - a[s]))
-            lb = v3d(wp.quat_rotate_inv(rot[s], pb - a[s]))
-            lc = v3d(wp.quat_rotate_inv(rot[s], pc - a[s]))
-            hit = triangle_box_overlap(la, lb, lc, v3d(size[s]))
-        else:
-            # other kinds: signed distance at the corners and 12 interior points
-            for i in range(5):
-                for j in range(5 - i):
-                    u = float(i) / 4.0
-                    v = float(j) / 4.0
-                    p = pa + (pb - pa) * u + (pc - pa) * v
-                    if ck.shape_distance(k, p, a[s], b[s], rot[s], size[s])[3] <= 0.0:
-                        hit = True
-        if hit:
+        if shape_meets(kind[s], a[s], b[s], rot[s], size[s], pa, pb, pc):
             q = wp.atomic_add(count, 0, 1)
             if q < pairs.shape[0]:
                 pairs[q, 0] = t
                 pairs[q, 1] = s
-            mark_triangle(mark, tris, t)
+            inherited = bool(False)
+            if x0.shape[0] > 0:
+                inherited = shape_meets(kind[s], a[s], b[s], rot[s], size[s], x0[tris[t, 0]], x0[tris[t, 1]],
+                                        x0[tris[t, 2]])
+            if inherited:
+                wp.atomic_add(count, 1, 1)
+            else:
+                mark_triangle(mark, tris, t)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -477,9 +717,16 @@ class IntersectionCounter:
         self._indices = wp.array(f.reshape(-1), dtype=wp.int32, device=self.device)
         self._x = None
         self._mesh = None
-        self._count = wp.zeros(1, dtype=wp.int32, device=self.device)
+        self._count = wp.zeros(2, dtype=wp.int32, device=self.device)
+        self._no_points = wp.zeros(0, dtype=wp.vec3, device=self.device)
+        self.inherited = 0
+        """Of the last count's pairs, how many also met at ``start`` (0 without ``start``)."""
         self._pairs = wp.zeros((max(keep, 1), 2), dtype=wp.int32, device=self.device)
         self._no_mark = wp.zeros(0, dtype=wp.int32, device=self.device)
+        self._lower = wp.zeros(len(f), dtype=wp.vec3, device=self.device)
+        self._upper = wp.zeros(len(f), dtype=wp.vec3, device=self.device)
+        g = int(np.clip(round(3.2 * len(f) ** (1.0 / 3.0)), 8, 64))
+        self._grid = wp.HashGrid(g, g, g, device=self.device)
 
     def _points(self, points) -> wp.array:
         if isinstance(points, wp.array):
@@ -501,40 +748,62 @@ class IntersectionCounter:
             self._mesh.refit()
         return self._x
 
-    def _run(self, kernel, inputs, mark) -> tuple[int, np.ndarray]:
+    def _run(self, kernel, inputs, mark, start=None) -> tuple[int, np.ndarray]:
         self._count.zero_()
-        wp.launch(kernel, dim=len(self.faces), inputs=inputs, outputs=[self._count, self._pairs,
-                                                                        self._no_mark if mark is None else mark],
-                  device=self.device)
-        n = int(self._count.numpy()[0])
+        wp.launch(kernel, dim=len(self.faces), inputs=[*inputs, self._no_points if start is None else start],
+                  outputs=[self._count, self._pairs, self._no_mark if mark is None else mark], device=self.device)
+        n, self.inherited = (int(v) for v in self._count.numpy())
         return n, self._pairs.numpy()[:min(n, self._pairs.shape[0])].copy()
 
-    def self_pairs(self, points, mark=None) -> tuple[int, np.ndarray]:
+    def self_pairs(self, points, mark=None, start=None) -> tuple[int, np.ndarray]:
         """(count, first pairs (K, 2) of triangle indices) of cloth-cloth intersections.
 
         Args:
             points: Cloth vertex positions [m], shape (V, 3) (array or ``wp.array`` of vec3).
             mark: Optional, shape (V,), dtype int32: set to 1 at every vertex of an intersecting triangle.
+            start: Optional ``wp.array`` of vec3, shape (V,): the positions at the start of the
+                step. A pair that met there too is inherited: counted (and in :attr:`inherited`)
+                but not marked.
         """
         x = self._points(points)
-        return self._run(count_self_pairs, [self._mesh.id, x, self.tris], mark)
+        self.inherited = 0
+        if not len(self.faces):
+            return 0, self._pairs.numpy()[:0].copy()
+        wp.launch(triangle_boxes, dim=len(self.faces), inputs=[x, self.tris], outputs=[self._lower, self._upper],
+                  device=self.device)
+        lo, hi = self._lower.numpy(), self._upper.numpy()
+        width = float((hi - lo).max())
+        size = float(np.abs(lo).max() + np.abs(hi).max())
+        # cells as wide as the widest box; the walk's slack (2 % of a cell and the float32 rounding
+        # of cell coordinates, a few ulp of the largest coordinate) so no overlapping box is missed
+        if not (np.isfinite(size) and width * 1.0e5 > size):
+            # cells too small against the coordinates for float32 cell arithmetic: the BVH
+            return self._run(count_self_pairs, [self._mesh.id, x, self.tris], mark, start)
+        self._grid.build(self._lower, width)
+        return self._run(count_self_pairs_grid, [self._grid.id, width, 0.02 * width + 1.0e-6 * size, self._lower,
+                                                 self._upper, x, self.tris], mark, start)
 
-    def collider_pairs(self, points, colliders, mark=None) -> tuple[int, np.ndarray]:
+    def collider_pairs(self, points, colliders, mark=None, start=None) -> tuple[int, np.ndarray]:
         """(count, first pairs) against a :class:`~warpshade.sim.ColliderSet` as posed at the end
         of the last step: (cloth triangle, shape index) for analytic shapes, then (cloth triangle,
-        collider triangle or -1 for wholly inside) per mesh collider; ``mark`` as in :meth:`self_pairs`."""
+        collider triangle or -1 for wholly inside) per mesh collider; ``mark`` and ``start`` as
+        in :meth:`self_pairs` (a cloth triangle at ``start`` against the collider as posed now)."""
         x = self._points(points)
-        total, kept = 0, []
+        total, inherited, kept = 0, 0, []
         ar = colliders.end_pose_arrays()
         if ar is not None:
             n, p = self._run(count_shape_triangles, [ar["kind"], ar["a_end"], ar["b_end"], ar["rot_end"], ar["size"],
-                                                     x, self.tris], mark)
+                                                     x, self.tris], mark, start)
             total += n
+            inherited += self.inherited
             kept.append(p)
         for m in colliders.meshes:
-            n, p = self._run(count_mesh_pairs, [m.mesh.id, m.mesh.points, m.indices, int(m.closed), x, self.tris], mark)
+            n, p = self._run(count_mesh_pairs, [m.mesh.id, m.mesh.points, m.indices, int(m.closed), x, self.tris], mark,
+                             start)
             total += n
+            inherited += self.inherited
             kept.append(p)
+        self.inherited = inherited
         return total, (np.concatenate(kept) if kept else np.zeros((0, 2), np.int32))
 
 

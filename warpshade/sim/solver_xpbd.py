@@ -371,7 +371,9 @@ class XPBDSolver:
     def _guard_intersections(self, x, v, dt: float) -> None:
         """Send the vertices of intersecting triangles back to their start-of-step positions
         (colliders then push them out again), growing the region a ring per round, all free
-        vertices in the last round, until the exact count is 0. When even the last round leaves
+        vertices in the last round, until no pair is left that the step made. A cloth-cloth pair
+        that also met at the start of the step (inherited from an earlier step) is left alone:
+        sending vertices back to where it already existed cannot remove it. When even the last round leaves new
         intersections (made by kinematic vertices or colliders), the grown-region result is kept
         and the step is counted in ``stats()["guard_unresolved"]``."""
         m, d, n = self.model, self.device, self.model.particle_count
@@ -380,7 +382,11 @@ class XPBDSolver:
         self.guard_vertices = 0
         for r in range(self.GUARD_ROUNDS + 2):
             self._mark.zero_()
-            found = c.self_pairs(x, self._mark)[0]
+            # cloth-cloth pairs that met at the start of the step too are inherited: sending
+            # vertices back to the start cannot remove them, so only new pairs are marked and
+            # counted. Cloth-collider pairs are all marked: reverting them holds cloth that lies
+            # across a sharp rim, which the rim's edge contact alone can throw off.
+            found = c.self_pairs(x, self._mark, self._x_start)[0] - c.inherited
             if col is not None:
                 found += c.collider_pairs(x, col, self._mark)[0]
             if found:
