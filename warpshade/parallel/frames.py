@@ -25,6 +25,7 @@ import contextlib
 import multiprocessing as mp
 import os
 import signal
+import sys
 import time
 import uuid
 from collections import deque
@@ -96,6 +97,32 @@ class _InlineBackend:
         pass
 
 
+def start_resource_tracker_quietly() -> None:
+    """Start multiprocessing's resource tracker (if it is not running) with its stderr on /dev/null.
+
+    A run stopped by a signal exits at once (:func:`warpshade.cli.entry` uses ``os._exit``), so its
+    pool's semaphores are never finalized; the tracker unlinks them when the run's end closes its
+    pipe, as it should, but also prints "leaked semaphore objects" warnings below the run's one-line
+    message. Nothing else is printed by the tracker.
+    """
+    from multiprocessing import resource_tracker
+
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no usable file descriptor 2
+        resource_tracker.ensure_running()
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        resource_tracker.ensure_running()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
 class _ProcessBackend:
     worker_errors = (BrokenProcessPool,)
 
@@ -104,6 +131,7 @@ class _ProcessBackend:
         self.pool = self._new_pool()
 
     def _new_pool(self):
+        start_resource_tracker_quietly()
         return ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=init_worker,
                                    initargs=(self.token, self.spec, os.getpid()))
 
