@@ -209,6 +209,31 @@ def count_pair(x0: wp.array[wp.vec3], tris: wp.array2d[int], t: int, u: int, cou
     mark_triangle(mark, tris, u)
 
 
+@wp.func
+def test_self_pair(x: wp.array[wp.vec3], tris: wp.array2d[int], x0: wp.array[wp.vec3], t: int, u: int,
+                   count: wp.array[int], pairs: wp.array2d[int], mark: wp.array[int]):
+    """The narrow phase of both cloth-cloth counts: triangles t and u (sharing no vertex) are counted by
+    :func:`count_pair` when they meet (a separating plane of either rejects them first)."""
+    a = tris[t, 0]
+    b = tris[t, 1]
+    c = tris[t, 2]
+    d = tris[u, 0]
+    e = tris[u, 1]
+    f = tris[u, 2]
+    if a == d or a == e or a == f or b == d or b == e or b == f or c == d or c == e or c == f:
+        return
+    pa = x[a]
+    pb = x[b]
+    pc = x[c]
+    pd = x[d]
+    pe = x[e]
+    pf = x[f]
+    if plane_separates(pa, pb, pc, pd, pe, pf) or plane_separates(pd, pe, pf, pa, pb, pc):
+        return
+    if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(pd), v3d(pe), v3d(pf)):
+        count_pair(x0, tris, wp.min(t, u), wp.max(t, u), count, pairs, mark)
+
+
 @wp.kernel
 def count_self_pairs(
     mesh: wp.uint64,
@@ -222,12 +247,9 @@ def count_self_pairs(
     """Cloth-cloth intersecting pairs (t, u), t < u, no shared vertex; the first pairs are kept,
     and the vertices of both triangles marked (except inherited pairs, see :func:`count_pair`)."""
     t = wp.tid()
-    a = tris[t, 0]
-    b = tris[t, 1]
-    c = tris[t, 2]
-    pa = x[a]
-    pb = x[b]
-    pc = x[c]
+    pa = x[tris[t, 0]]
+    pb = x[tris[t, 1]]
+    pc = x[tris[t, 2]]
     lo = wp.min(wp.min(pa, pb), pc)
     hi = wp.max(wp.max(pa, pb), pc)
     query = wp.mesh_query_aabb(mesh, lo, hi)
@@ -235,18 +257,7 @@ def count_self_pairs(
     while wp.mesh_query_aabb_next(query, u):
         if u <= t:
             continue
-        d = tris[u, 0]
-        e = tris[u, 1]
-        f = tris[u, 2]
-        if a == d or a == e or a == f or b == d or b == e or b == f or c == d or c == e or c == f:
-            continue
-        pd = x[d]
-        pe = x[e]
-        pf = x[f]
-        if plane_separates(pa, pb, pc, pd, pe, pf) or plane_separates(pd, pe, pf, pa, pb, pc):
-            continue
-        if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(pd), v3d(pe), v3d(pf)):
-            count_pair(x0, tris, t, u, count, pairs, mark)
+        test_self_pair(x, tris, x0, t, u, count, pairs, mark)
 
 
 @wp.kernel
@@ -286,9 +297,6 @@ def count_self_pairs_grid(
     covering that range widened by ``slack`` (the float32 rounding of cell coordinates), so every
     box-overlapping pair is tested exactly once."""
     t = wp.tid()
-    a = tris[t, 0]
-    b = tris[t, 1]
-    c = tris[t, 2]
     lo = lower[t]
     hi = upper[t]
     inv = 1.0 / width
@@ -313,21 +321,7 @@ def count_self_pairs_grid(
                     if (ulo[0] > hi[0] or ulo[1] > hi[1] or ulo[2] > hi[2] or lo[0] > uhi[0] or lo[1] > uhi[1]
                             or lo[2] > uhi[2]):
                         continue
-                    d = tris[u, 0]
-                    e = tris[u, 1]
-                    f = tris[u, 2]
-                    if a == d or a == e or a == f or b == d or b == e or b == f or c == d or c == e or c == f:
-                        continue
-                    pa = x[a]
-                    pb = x[b]
-                    pc = x[c]
-                    pd = x[d]
-                    pe = x[e]
-                    pf = x[f]
-                    if plane_separates(pa, pb, pc, pd, pe, pf) or plane_separates(pd, pe, pf, pa, pb, pc):
-                        continue
-                    if triangles_meet(v3d(pa), v3d(pb), v3d(pc), v3d(pd), v3d(pe), v3d(pf)):
-                        count_pair(x0, tris, wp.min(t, u), wp.max(t, u), count, pairs, mark)
+                    test_self_pair(x, tris, x0, t, u, count, pairs, mark)
 
 
 @wp.func
