@@ -80,18 +80,14 @@ def litter(root) -> list[str]:
 
 
 def frames_of(path) -> dict:
-    """{prim: [(points, colors) per frame]} through USD (value clips resolved)."""
-    import numpy as np
-    from pxr import Usd, UsdGeom
+    """{prim: [(points, colors) per frame]} read back by warpshade.usd.ShadedStage (value clips resolved)."""
+    from warpshade.usd import ShadedStage
 
-    stage = Usd.Stage.Open(str(path))
+    stage = ShadedStage(path)
     out = {}
-    for prim in stage.Traverse():
-        if prim.IsA(UsdGeom.Mesh):
-            m = UsdGeom.Mesh(prim)
-            col = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
-            out[str(prim.GetPath())] = [(np.asarray(m.GetPointsAttr().Get(f)), np.asarray(col.Get(f)))
-                                        for f in range(int(stage.GetStartTimeCode()), int(stage.GetEndTimeCode()) + 1)]
+    for f in range(int(stage.start), int(stage.end) + 1):
+        for name, points, _, colors in stage.frame(f):
+            out.setdefault(name, []).append((points, colors))
     return out
 
 
