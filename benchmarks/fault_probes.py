@@ -140,6 +140,25 @@ def start(args, **kw) -> subprocess.Popen:
                             text=True, env=ENV, **kw)
 
 
+@contextlib.contextmanager
+def group_killed_on_exit(proc: subprocess.Popen):
+    """The probe's process group is SIGKILLed when the block ends with it still running."""
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def ctrl_c(proc: subprocess.Popen) -> tuple[str, float]:
+    """SIGINT to the process group, as a terminal sends Ctrl-C: (stderr, seconds until it exited)."""
+    t = time.monotonic()
+    os.killpg(proc.pid, signal.SIGINT)
+    err = proc.communicate(timeout=120)[1]
+    return err, time.monotonic() - t
+
+
 def until(cond, seconds: float, proc=None, step: float = 0.1) -> bool:
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
@@ -354,17 +373,10 @@ def local_cluster_sigint(tmp):
     out = os.path.join(tmp, "o.usda")
     proc = start(["run", SCENE, "--frames", 2000, "--out", out, "--scheduler", "local", "--workers", "2"] + COMMON,
                  start_new_session=True)
-    try:
+    with group_killed_on_exit(proc):
         until(lambda: end_frame(out) >= 3, 300, proc, step=0.3)
         kids = descendants(proc.pid)
-        t = time.monotonic()
-        os.killpg(proc.pid, signal.SIGINT)  # as a terminal sends Ctrl-C: to the whole group
-        err = proc.communicate(timeout=120)[1]
-        answered = time.monotonic() - t
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        err, answered = ctrl_c(proc)
     left = wait_gone(kids, 10.0)
     ok = proc.returncode == 130 and "Traceback" not in err and "KeyboardInterrupt" not in err and not left \
         and "complete frames kept" in last_line(err)
@@ -564,17 +576,10 @@ def transfer_sigint(tmp):
     proc = subprocess.Popen(PY + ["transfer", path, "--method", "reference", "--rays", "2048", "--save",
                                   os.path.join(tmp, "t.npz"), "--repeat", "20"], stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True, env=ENV, start_new_session=True)
-    try:
+    with group_killed_on_exit(proc):
         time.sleep(12.0)  # past startup, into the transfer's kernels
         alive_then = proc.poll() is None
-        t = time.monotonic()
-        os.killpg(proc.pid, signal.SIGINT)
-        err = proc.communicate(timeout=120)[1]
-        answered = time.monotonic() - t
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        err, answered = ctrl_c(proc)
     ok = alive_then and proc.returncode == 130 and err.strip().splitlines() == ["warpshade transfer: interrupted"] \
         and answered < 3.0
     return ok, f"rc {proc.returncode} after {answered:.1f} s; stderr {err.strip()[-200:]!r}"
