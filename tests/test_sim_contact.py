@@ -182,3 +182,43 @@ def test_counter_is_fast_on_a_64_grid():
         bad = pts.copy()
         bad[3, 0] = np.nan
         c.self_pairs(bad)
+
+
+def test_fold_across_one_strip_keeps_neighbour_triangle_contacts():
+    """A 4 x 3-vertex strip (edge 0.05 m) folded flat about its second vertex column, the far
+    layer 4 mm above the near one (below the 10 mm thickness) and shifted by a third of an edge
+    in both directions: vertex (column 0, row 1) now lies 4 mm under the inside of a triangle of
+    columns 1-2, which holds its edge neighbour and was 0.05 m from it at rest, while every vertex
+    of that triangle stays over a third of an edge away from it. The contact must be found (a
+    vertex-distance filter cannot see such a fold), and none with a triangle of the vertex's own
+    one ring."""
+    h, gap = 0.05, 0.004
+    b = ClothBuilder(thickness=0.01)
+    ids = b.add_grid(4, 3, 3 * h, 2 * h)
+    m = b.finalize()
+    rest = m.rest_points.numpy()
+    x = rest.copy()
+    u = rest[:, 0] / h  # column coordinate 0..3
+    # fold about column 1: columns 2, 3 are mirrored back over columns 0, 1 (cloth bent by 180 deg)
+    far = u > 1.5
+    x[far, 0] = 2 * h - rest[far, 0] - h / 3
+    x[far, 1] = gap
+    x[far, 2] += h / 3
+    st = m.state()
+    st.set_points(x)
+    s = XPBDSolver(m, None, guard=False)
+    s._detect_self_contacts(st.points, st.velocities, DT / s.substeps)
+    i = int(ids[1, 0])  # ids[row, column]
+    tris = m.tris.numpy()
+    found = {int(t) for t in s._contact_tri.numpy()[i, :int(s._contact_count.numpy()[i])]}
+    over = {t for t in range(len(tris)) if set(tris[t]) <= {int(v) for v in ids[:, 1:3].ravel()}}
+    # the configuration is the one meant: some triangle of `over` has vertex i under its inside
+    # and all its corners further than a third of an edge from it
+    e = m.edges_np
+    ring = set(e[e[:, 0] == i, 1]) | set(e[e[:, 1] == i, 0])
+    under = [t for t in over if ring & set(tris[t]) and np.all(np.linalg.norm(x[tris[t]] - x[i], axis=1) > h / 3)
+             and np.all(np.linalg.solve(np.c_[(x[tris[t]][:, [0, 2]]), np.ones(3)].T, np.r_[x[i, [0, 2]], 1.0]) > 0)]
+    assert under, "test set-up: no triangle of columns 1-2 lies over the vertex"
+    assert set(under) & found, (found, under)
+    own = {t for t in range(len(tris)) if i in tris[t]}
+    assert not (own & found)

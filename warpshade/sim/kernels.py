@@ -546,6 +546,11 @@ def in_one_ring(i: int, j: int, ring_offsets: wp.array[int], ring: wp.array[int]
     return False
 
 
+NEIGHBOUR_FOLD = wp.constant(0.5)
+"""A vertex's contact with a triangle of one of its edge neighbours is kept when the vertex is
+closer to the triangle than this fraction of its rest distance to it (a fold)."""
+
+
 @wp.kernel
 def find_self_contacts(
     bvh: wp.uint64,
@@ -591,19 +596,19 @@ def find_self_contacts(
         c = tris[t, 2]
         if i == a or i == b or i == c:
             continue
+        bc = closest_on_triangle(p, x[a], x[b], x[c])
+        dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
         if (in_one_ring(i, a, ring_offsets, ring) or in_one_ring(i, b, ring_offsets, ring)
                               or in_one_ring(i, c, ring_offsets, ring)):
-            # a triangle of a neighbour: skipped unless the pair is closer than a third of the
-            # distance its vertices have at rest (a fold)
-            mind = wp.min(wp.min(wp.length(p - x[a]), wp.length(p - x[b])), wp.length(p - x[c]))
-            rest = wp.min(wp.min(wp.length(rest_x[i] - rest_x[a]), wp.length(rest_x[i] - rest_x[b])),
-                          wp.length(rest_x[i] - rest_x[c]))
-            if mind > 0.33 * rest:
+            # a triangle of a neighbour: skipped unless the vertex is closer to the triangle than
+            # NEIGHBOUR_FOLD of its distance to it at rest (a fold across one strip of triangles;
+            # vertex-vertex distances cannot see it, the neighbour stays an edge length away)
+            rb = closest_on_triangle(rest_x[i], rest_x[a], rest_x[b], rest_x[c])
+            rest = wp.length(rest_x[i] - (rest_x[a] * rb[0] + rest_x[b] * rb[1] + rest_x[c] * rb[2]))
+            if dist > NEIGHBOUR_FOLD * rest:
                 continue
         vi = v[i]
         close = wp.max(wp.max(wp.length(vi - v[a]), wp.length(vi - v[b])), wp.length(vi - v[c])) * horizon
-        bc = closest_on_triangle(p, x[a], x[b], x[c])
-        dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
         if dist > 1.5 * (thickness + close):
             continue
         xa = x[a]
