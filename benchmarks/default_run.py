@@ -10,7 +10,8 @@ What it shows (issue 18, target 5: 120 frames <= 5 s warm wall, two workers >= 1
   workers, write, total).
 * ``profile``: one inline run (``--workers 0``) in this process under ``cProfile``: the functions with
   the most cumulative time, and the split of shading into the group's front and back passes and the
-  rest (lights, exit radiance), from timers around ``_Group.update``'s method calls.
+  rest (lights, exit radiance, between-group shadows), from timers around ``_Group.update`` and
+  ``_Group.update_back``.
 
 How to run::
 
@@ -63,31 +64,21 @@ def profile_inline(frames: int | None, top: int = 25) -> dict:
     from warpshade.usd.shipped import shipped_scene
 
     split = {"front": 0.0, "back": 0.0}
-    original = shading._Group.update
+    originals = {"front": shading._Group.update, "back": shading._Group.update_back}
 
-    def timed_update(self, geometry):
-        m, b = self.method, self.back_method
-        holders = []
-        for key, meth in (("front", m), ("back", b)):
-            if meth is None:
-                continue
-            real = meth.update
+    def timed(key):
+        real = originals[key]
 
-            def wrapped(*a, _real=real, _key=key, **k):
-                t = time.perf_counter()
-                out = _real(*a, **k)
-                split[_key] += time.perf_counter() - t
-                return out
+        def wrapped(self, *a, **k):
+            t = time.perf_counter()
+            out = real(self, *a, **k)
+            split[key] += time.perf_counter() - t
+            return out
+        return wrapped
 
-            meth.update = wrapped
-            holders.append((meth, real))
-        try:
-            return original(self, geometry)
-        finally:
-            for meth, real in holders:
-                meth.update = real
-
-    shading._Group.update = timed_update
+    # the group's front pass (_Group.update) and back pass (_Group.update_back: its method's update, or
+    # compute_rows at the two-sided rows through update_rows), each with its NumPy copies
+    shading._Group.update, shading._Group.update_back = timed("front"), timed("back")
     try:
         scene = read_scene(shipped_scene("default.usda"))
         with tempfile.TemporaryDirectory() as d:
@@ -101,7 +92,7 @@ def profile_inline(frames: int | None, top: int = 25) -> dict:
             prof.disable()
             wall = time.perf_counter() - t0
     finally:
-        shading._Group.update = original
+        shading._Group.update, shading._Group.update_back = originals["front"], originals["back"]
     s = io.StringIO()
     pstats.Stats(prof, stream=s).sort_stats("cumulative").print_stats(top)
     return {"frames": report.frames, "wall_seconds": wall, "stages": report.seconds,
@@ -115,23 +106,37 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=None, help="frames (default: the scene's 120)")
     ap.add_argument("--no-profile", action="store_true")
     ap.add_argument("--json", default=None, metavar="PATH")
+    ap.add_argument("--also", default=None, metavar="OPTIONS",
+                    help="a third configuration in every round: --workers 2 with these run options as well "
+                         "(e.g. '--reuse 2'), interleaved with the other two")
     ap.add_argument("extra", nargs="*", help="more warpshade run options (after --)")
     args = ap.parse_args(argv)
     warm = one_run(2, args.frames, args.extra)  # warms the kernel cache (and is timed, for the record)
     print(f"first run (kernel cache maybe cold): {warm['wall_seconds']:.1f} s wall {warm['stages']}", flush=True)
+    also = args.also.split() if args.also else []
     runs = []
     for r in range(args.repeat):
         for w in (1, 2):
             runs.append(one_run(w, args.frames, args.extra))
             print(f"round {r} workers {w}: {runs[-1]['wall_seconds']:.1f} s wall {runs[-1]['stages']}", flush=True)
+        if also:
+            runs.append({**one_run(2, args.frames, args.extra + also), "also": args.also})
+            print(f"round {r} workers 2 {args.also}: {runs[-1]['wall_seconds']:.1f} s wall {runs[-1]['stages']}",
+                  flush=True)
     med = {}
     for w in (1, 2):
-        walls = sorted(x["wall_seconds"] for x in runs if x["workers"] == w)
+        walls = sorted(x["wall_seconds"] for x in runs if x["workers"] == w and "also" not in x)
         med[w] = walls[len(walls) // 2]
     print(f"median warm wall: 1 worker {med[1]:.1f} s, 2 workers {med[2]:.1f} s, ratio {med[1] / med[2]:.2f}x")
+    if also:
+        walls = sorted(x["wall_seconds"] for x in runs if "also" in x)
+        med["also"] = walls[len(walls) // 2]
+        print(f"median warm wall: 2 workers {args.also} {med['also']:.1f} s, {med[2] / med['also']:.2f}x faster "
+              f"than 2 workers without")
     out = {"command": "python -m warpshade run --no-progress --workers W " + " ".join(args.extra),
            "frames": args.frames or 120, "first_run": warm, "runs": runs,
-           "median_wall_seconds": {"1": med[1], "2": med[2]}, "speedup_two_workers": med[1] / med[2],
+           "median_wall_seconds": {str(k): v for k, v in med.items()}, "speedup_two_workers": med[1] / med[2],
+           "also": args.also,
            "machine": "shared 2-core VM, other jobs running (loaded)"}
     if not args.no_profile:
         prof = profile_inline(args.frames)
