@@ -106,6 +106,32 @@ def test_shading_errors_are_one_line_in_run(tmp_path, capsys, monkeypatch):
     assert not out.exists()
 
 
+def test_run_creates_the_outputs_missing_directories(tmp_path, capsys):
+    """``--out`` in a directory that does not exist yet: created like ``mkdir -p`` (it failed with
+    ``[Errno 2] No such file or directory: '.../out_frames.lock'``)."""
+    from warpshade.usd import ShadedStage
+
+    out = tmp_path / "new" / "deeper" / "o.usda"
+    assert main(["run", SCENE, "--frames", "2", "--out", str(out), "--workers", "0", "--method", "reference",
+                 "--rays", "4", "--order", "2", "--no-progress"]) == 0
+    assert "error" not in capsys.readouterr().err
+    stage = ShadedStage(str(out))
+    assert (stage.start, stage.end) == (0, 1)
+
+
+def test_run_names_the_output_directory_it_cannot_create(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("a file where the output's directory would go")
+    out = blocker / "sub" / "o.usda"
+    assert main(["run", SCENE, "--frames", "1", "--out", str(out), "--workers", "0", "--method", "reference",
+                 "--rays", "4", "--order", "2", "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert err.splitlines()[0] == (f"warpshade run: error: cannot create the output directory {blocker / 'sub'} "
+                                   f"for {out}: Not a directory"), err
+    assert blocker.read_text().startswith("a file")
+
+
 def test_ctrl_c_during_setup_is_one_line_and_ends_the_workers(tmp_path):
     """Ctrl-C, as a terminal sends it (SIGINT to the whole process group), while the workers build
     their static structures: one line, exit code 130, no traceback from the run or its workers."""

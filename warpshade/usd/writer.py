@@ -278,6 +278,7 @@ class AnimationWriter:
         self._run = f"run-{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:6]}"
         self._run_dir = os.path.join(self._frames_dir, self._run)
         self._rel_run = f"./{frames}/{self._run}"
+        self._make_parent_dir()
         self._check_owner()
         self._lock = OutputLock(self.path, self._frames_dir)
 
@@ -318,6 +319,16 @@ class AnimationWriter:
             except BaseException:
                 self._lock.release()
                 raise
+
+    def _make_parent_dir(self) -> None:
+        """Create the output's directory and its missing parents (like ``mkdir -p``); if that fails,
+        :class:`OutputWriteError` names the directory and the cause."""
+        parent = os.path.dirname(self.path)
+        try:
+            os.makedirs(parent, exist_ok=True)
+        except OSError as exc:
+            raise OutputWriteError(exc.errno, f"cannot create the output directory {parent} for {self.path}: "
+                                   f"{exc.strerror or exc}") from exc
 
     def _check_owner(self) -> None:
         """Refuse a frame folder that another existing output (another name) also maps to, e.g.
