@@ -19,6 +19,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "warpshade"
 # "warpshade" for the package's own __init__, the public facade) may import units of its own layer
 # or of lower layers only:
 #   _version: the package version, imports nothing; _startup: the command's Ctrl-C guard, stdlib only;
+#   _atomic: write-then-rename file replacement (every atomic write), stdlib only;
 #   scene: the scene description (lights, materials, objects) the pipeline consumes; it needs
 #     only geometry;
 #   radiance: lights · transfer · BRDF, above visibility;
@@ -29,7 +30,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "warpshade"
 # usd and bench sit above pipeline/planner (the USD boundary reads scenes into and writes runs out
 # of the pipeline's types; the bench drives the methods); the CLI and the facade are on top.
 LAYERS = [
-    {"sh", "geometry", "_version", "_startup"},
+    {"sh", "geometry", "_version", "_startup", "_atomic"},
     {"lighting", "sim", "scene"},
     {"visibility"},
     {"radiance", "parallel", "preview"},

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from .._atomic import replace_atomically
 from ..geometry.mesh import TriMesh
 from .metrics import error_summary
 from .reference_cache import DEFAULT_CACHE_DIR, GROUND_TRUTH_SEED, ground_truth
@@ -83,9 +84,7 @@ def _default_scene(frames: int, cache_dir: str | None) -> Sequence:
                                  for k, (n, mv) in enumerate(zip(group.names, group.moving))])
     if path:
         os.makedirs(cache_dir, exist_ok=True)
-        tmp = f"{path}.partial{os.getpid()}.npz"
-        np.savez(tmp, frames=out, faces=faces)
-        os.replace(tmp, path)
+        replace_atomically(lambda tmp: np.savez(tmp, frames=out, faces=faces), path)
     return Sequence("default", TriMesh(rest, faces, name="default scene group"), out,
                     description=_describe_default(group, len(rest), frames))
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._atomic import replace_atomically
 from ..geometry.mesh import TriMesh
 
 
@@ -115,9 +116,7 @@ def draped_cloth(n: int = 64, frames: int = 60, cache_dir: str | None = ".warpsh
         frame = state.points.numpy().astype(np.float32)
         if path:
             os.makedirs(cache_dir, exist_ok=True)
-            tmp = f"{path}.partial{os.getpid()}.npz"
-            np.savez(tmp, rest=rest, faces=faces, frame=frame)
-            os.replace(tmp, path)
+            replace_atomically(lambda tmp: np.savez(tmp, rest=rest, faces=faces, frame=frame), path)
     return BenchMesh("draped", TriMesh(rest, faces, name="draped-cloth"), frame,
                      f"{n}x{n} cloth dropped on a ball, {frames} simulated frames (rest: flat)", up="Y")
 

@@ -18,6 +18,7 @@ import re
 
 import numpy as np
 
+from .._atomic import replace_atomically
 from ..geometry.mesh import TriMesh
 
 GROUND_TRUTH_SEED = 982451653
@@ -75,7 +76,5 @@ def ground_truth(mesh: TriMesh, order: int, rays: int = 4096, cache_dir: str | N
     if cache_dir:
         os.makedirs(cache_dir, exist_ok=True)
         path = os.path.join(cache_dir, f"{key}-o{order}-r{rays}-s{GROUND_TRUTH_SEED}.npy")
-        tmp = f"{path}.partial{os.getpid()}.npy"
-        np.save(tmp, t)
-        os.replace(tmp, path)
+        replace_atomically(lambda tmp: np.save(tmp, t), path)
     return t

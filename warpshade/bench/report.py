@@ -5,20 +5,21 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 
 import numpy as np
 
+from .._atomic import replace_atomically
 CSV_COLUMNS = ["method", "mesh", "quantity", "vertices", "triangles", "order", "knobs", "seconds", "repeat", "build_seconds",
                "error_mean", "error_p95", "error_max", "radiance_error_sky", "radiance_error_studio",
                "peak_rss_bytes", "array_bytes", "pareto", "finite", "failed"]
 
 
 def _atomic_write(path: str, write) -> None:
-    tmp = f"{path}.partial{os.getpid()}"
-    with open(tmp, "w", newline="") as f:
-        write(f)
-    os.replace(tmp, path)
+    """Call ``write(f)`` on a text file opened under a temporary name, then rename it onto ``path``."""
+    def _text(tmp):
+        with open(tmp, "w", newline="") as f:
+            write(f)
+    replace_atomically(_text, path)
 
 
 def write_json(path: str, data, indent: int = 1) -> None:
@@ -165,10 +166,10 @@ def plot_pareto(path: str, records: list[dict], title: str = "") -> None:
     if title:
         fig.suptitle("\n".join(textwrap.wrap(title, 40 * cols)), fontsize=8)
     fig.tight_layout()
-    tmp = f"{path}.partial{os.getpid()}.png"
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
+    try:
+        replace_atomically(lambda tmp: fig.savefig(tmp, dpi=110), path)
+    finally:
+        plt.close(fig)
 
 
 def _plot_area(ax, area: list[dict], plt) -> None:

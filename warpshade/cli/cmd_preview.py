@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
+
+from .._atomic import replace_atomically
 
 HELP = "render a frame of a shaded USD animation to PNG (Warp ray caster; --contact-sheet for several)"
 
@@ -78,9 +79,7 @@ def run(args) -> int:
         exposure = 0.9 / p if p > 0 else 1.0
     tiles = [tonemap(img, exposure) for img in images]
     out = tiles[0] if args.contact_sheet is None else contact_sheet(tiles, args.columns)
-    tmp = f"{args.output}.partial{os.getpid()}.png"
-    iio.imwrite(tmp, out)
-    os.replace(tmp, args.output)
+    replace_atomically(lambda tmp: iio.imwrite(tmp, out), args.output)
     what = f"frame {frames[0]:g}" if len(frames) == 1 else f"{len(frames)} frames {frames[0]:g}..{frames[-1]:g}"
     print(f"preview: {what} of {args.usd} -> {args.output}", file=sys.stderr)
     return 0

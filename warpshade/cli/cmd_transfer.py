@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
+
+from .._atomic import replace_atomically
 
 HELP = "compute per-vertex SH diffuse transfer of a mesh with a visibility method"
 ACCEPTS_EXTRA = True  # method knobs, parsed once --method is known
@@ -79,6 +80,5 @@ def save_npz(path: str, **arrays) -> None:
     """Write an ``.npz`` atomically (temporary file, then rename)."""
     import numpy as np
 
-    tmp = f"{path}.partial{os.getpid()}.npz"
-    np.savez(tmp, **{k: np.asarray(v, dtype=np.int32 if k == "faces" else np.float32) for k, v in arrays.items()})
-    os.replace(tmp, path)
+    replace_atomically(lambda tmp: np.savez(tmp, **{k: np.asarray(v, dtype=np.int32 if k == "faces" else np.float32)
+                                                     for k, v in arrays.items()}), path)

@@ -37,6 +37,7 @@ import uuid
 import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdLux, UsdShade, Vt
 
+from .._atomic import replace_atomically as _replace_atomically
 from .._version import __version__
 from ..geometry.mesh import first_nonfinite
 from ..scene import DEFAULT_ALBEDO
@@ -163,17 +164,10 @@ def replace_atomically(write, path: str, what: str = "output file") -> None:
     """Call ``write(tmp_path)`` then rename the temporary file onto ``path``; on failure (or any
     exception, an interrupt included) nothing is left behind, and a write failure raises
     :class:`OutputWriteError` naming ``path`` and the cause."""
-    root, ext = os.path.splitext(path)
-    tmp = f"{root}.partial{os.getpid()}{ext}"
     try:
-        _write_file(write, tmp, what, path)
-        os.replace(tmp, path)
-    except BaseException as exc:
-        try:
-            os.remove(tmp)
-        except OSError:
-            pass
-        if isinstance(exc, OSError) and not isinstance(exc, OutputWriteError):
+        _replace_atomically(lambda tmp: _write_file(write, tmp, what, path), path)
+    except OSError as exc:
+        if not isinstance(exc, OutputWriteError):
             raise OutputWriteError(exc.errno, f"cannot write {what} {path}: {exc.strerror}") from exc
         raise
 

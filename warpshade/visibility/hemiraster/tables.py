@@ -35,6 +35,7 @@ import time
 import numpy as np
 import warp as wp
 
+from ..._atomic import replace_atomically
 from ...geometry.polygons import projected_solid_angle_np  # noqa: F401  (moved to geometry; re-exported)
 from ...sh.basis import sh_eval
 
@@ -233,9 +234,7 @@ def build_lut(mask: int, lut: int, cache_dir: str | None = None, device: str = "
         table = out.numpy()
         if path:
             os.makedirs(cache_dir, exist_ok=True)
-            tmp = f"{path}.partial{os.getpid()}.npy"
-            np.save(tmp, table)
-            os.replace(tmp, path)
+            replace_atomically(lambda tmp: np.save(tmp, table), path)
     _LUT_CACHE[key] = table
     _LUT_BUILD_SECONDS[key] = time.perf_counter() - t0
     return table, _LUT_BUILD_SECONDS[key], source

@@ -18,6 +18,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.polynomial import legendre
 
+from ..._atomic import replace_atomically
 from ...sh.exp import ol_table, sh_exp, zh_log
 from ...sh.products import sh_product
 from ...sh.zonal import clamped_cosine_zh, sh_to_zh, sphere_visibility_zh, zh_band_factors, zh_expand_index, zh_to_sh
@@ -209,9 +210,7 @@ def log_blocker_table(order: int, mode: str = "hyb", tau: float = 0.5) -> np.nda
     table = np.stack([np.interp(thetas, fit_t, fits[:, l]) for l in range(order)], axis=1)
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
-        tmp = f"{path}.{os.getpid()}.npy"
-        np.save(tmp, table)
-        os.replace(tmp, path)
+        replace_atomically(lambda tmp: np.save(tmp, table), path)
     except OSError:  # a read-only home only costs the fit again next time
         pass
     return table
