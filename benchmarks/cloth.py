@@ -158,7 +158,9 @@ class StepMeter:
                 "ms_per_frame": 1e3 * statistics.median(wall), "cpu_ms_per_frame": 1e3 * statistics.median(cpu),
                 "vertices": sum(r["solver"].model.particle_count for r in rs),
                 "guard_steps": sum(r["solver"].stats().get("guard_steps", 0) for r in rs),
-                "guard_unresolved": sum(r["solver"].stats().get("guard_unresolved", 0) for r in rs)}
+                "guard_unresolved": sum(r["solver"].stats().get("guard_unresolved", 0) for r in rs),
+                "self_contact_overflow": sum(r["solver"].stats().get("self_contact_overflow", 0) for r in rs),
+                "contact_row_width": max(r["solver"].stats().get("self_contact_row_width", 0) for r in rs)}
 
 
 def run_shipped(name: str, frames: int | None) -> dict:

@@ -210,7 +210,7 @@ def test_fold_across_one_strip_keeps_neighbour_triangle_contacts():
     s._detect_self_contacts(st.points, st.velocities, DT / s.substeps)
     i = int(ids[1, 0])  # ids[row, column]
     tris = m.tris.numpy()
-    found = {int(t) for t in s._contact_tri.numpy()[i, :int(s._contact_count.numpy()[i])]}
+    found = {int(t) for t in s._vt_rows["ids"].numpy()[i, :int(s._contact_count.numpy()[i])]}
     over = {t for t in range(len(tris)) if set(tris[t]) <= {int(v) for v in ids[:, 1:3].ravel()}}
     # the configuration is the one meant: some triangle of `over` has vertex i under its inside
     # and all its corners further than a third of an edge from it
@@ -222,3 +222,60 @@ def test_fold_across_one_strip_keeps_neighbour_triangle_contacts():
     assert set(under) & found, (found, under)
     own = {t for t in range(len(tris)) if i in tris[t]}
     assert not (own & found)
+
+
+def _stack(layers: int, gap: float):
+    """`layers` 3 x 3-vertex sheets (0.1 m square) stacked `gap` apart along y, at rest."""
+    b = ClothBuilder(thickness=0.01)
+    ids = [b.add_grid(3, 3, 0.1, 0.1, origin=(0.0, k * gap, 0.0)) for k in range(layers)]
+    return b.finalize(), ids
+
+
+def _vertex_triangle_distance(x, tris, i, t) -> float:
+    """Distance [m] from vertex i to triangle t, by dense barycentric sampling (a NumPy oracle
+    accurate to 1e-6 m for these 0.1 m triangles, far below the 1 mm gaps compared)."""
+    a, b, c = x[tris[t]]
+    s, r = np.meshgrid(np.linspace(0, 1, 201), np.linspace(0, 1, 201))
+    keep = s + r <= 1
+    p = a + (b - a) * s[keep][:, None] + (c - a) * r[keep][:, None]
+    return float(np.linalg.norm(p - x[i], axis=1).min())
+
+
+def test_contact_rows_grow_until_no_candidate_is_dropped():
+    """Nine sheets 1 mm apart (thickness 10 mm): the centre vertex of the bottom sheet has every
+    triangle of the eight sheets above within 8 mm, inside the candidate search (boxes padded by
+    half a thickness each side) and the 15 mm candidate distance: 64 candidates, over the rows'
+    starting width. The rows grow and the detection is repeated: all of them are kept, none is
+    counted as dropped."""
+    m, ids = _stack(9, 0.001)
+    st = m.state()
+    s = XPBDSolver(m, None, guard=False, edge_contact=False)
+    s._detect_self_contacts(st.points, st.velocities, DT / s.substeps)
+    i = int(ids[0][1, 1])
+    found = set(s._vt_rows["ids"].numpy()[i, :int(s._contact_count.numpy()[i])].tolist())
+    tris = m.tris.numpy()
+    above = {t for t in range(len(tris)) if tris[t][0] >= 9}
+    assert len(above) > XPBDSolver.CONTACT_ROW_START
+    assert found == above
+    assert s.stats()["self_contact_overflow"] == 0
+    assert s.stats()["self_contact_row_width"] >= len(above)
+
+
+def test_full_contact_rows_keep_the_nearest_candidates():
+    """The same stack with max_contacts=4: the centre vertex keeps the four nearest of its
+    candidates (distances from a NumPy oracle; the four nearest are the triangles of the first
+    sheet above, 1 mm away, against 2 mm and more for the rest) and counts the rest as dropped."""
+    m, ids = _stack(9, 0.001)
+    st = m.state()
+    s = XPBDSolver(m, None, guard=False, edge_contact=False, max_contacts=4)
+    s._detect_self_contacts(st.points, st.velocities, DT / s.substeps)
+    i = int(ids[0][1, 1])
+    found = s._vt_rows["ids"].numpy()[i, :int(s._contact_count.numpy()[i])].tolist()
+    x, tris = m.rest_points.numpy(), m.tris.numpy()
+    cand = [t for t in range(len(tris)) if tris[t][0] >= 9]
+    dist = {t: _vertex_triangle_distance(x, tris, i, t) for t in cand}
+    assert len(found) == 4
+    nearest = max(dist[t] for t in found)
+    assert nearest < 0.0011, dist
+    assert all(dist[t] >= nearest - 1e-6 for t in cand if t not in found)
+    assert s.stats()["self_contact_overflow"] > 0

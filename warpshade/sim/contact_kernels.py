@@ -109,6 +109,7 @@ def find_edge_contacts(
     contact_edge: wp.array2d[int],
     contact_side: wp.array2d[float],
     contact_count: wp.array[int],
+    contact_dist: wp.array2d[float],
     overflow: wp.array[int],
 ):
     """Edge-edge candidates (e, f) of the active edges e (borders and creases, against every
@@ -144,7 +145,7 @@ def find_edge_contacts(
         side = edge_orientation(a, b, c, d)
         if dist < thickness:
             side = stored_side(prev_edge, prev_side, prev_count, e, f, side)
-        count = push_candidate(contact_edge, contact_side, e, count, f, side, overflow)
+        count = push_candidate(contact_edge, contact_side, contact_dist, e, count, f, side, dist, overflow)
     contact_count[e] = count
 
 

@@ -115,14 +115,24 @@ def stored_side(prev_id: wp.array2d[int], prev_side: wp.array2d[float], prev_cou
 
 
 @wp.func
-def push_candidate(ids: wp.array2d[int], sides: wp.array2d[float], row: int, count: int, other: int, side: float,
-                   overflow: wp.array[int]) -> int:
-    """Store contact candidate `other` with its side in slot `count` of `row`; returns the new
-    count (a full row counts the candidate in overflow[0] instead)."""
+def push_candidate(ids: wp.array2d[int], sides: wp.array2d[float], dists: wp.array2d[float], row: int, count: int,
+                   other: int, side: float, dist: float, overflow: wp.array[int]) -> int:
+    """Store contact candidate `other`, its side and distance in slot `count` of `row`; returns
+    the new count. A full row keeps the nearest candidates: `other` replaces the farthest one
+    stored if it is nearer, and one candidate dropped is counted in overflow[0] either way."""
     if count < ids.shape[1]:
         ids[row, count] = other
         sides[row, count] = side
+        dists[row, count] = dist
         return count + 1
+    far = int(0)
+    for r in range(1, count):
+        if dists[row, r] > dists[row, far]:
+            far = r
+    if dist < dists[row, far]:
+        ids[row, far] = other
+        sides[row, far] = side
+        dists[row, far] = dist
     wp.atomic_add(overflow, 0, 1)
     return count
 
@@ -569,6 +579,7 @@ def find_self_contacts(
     contact_tri: wp.array2d[int],
     contact_side: wp.array2d[float],
     contact_count: wp.array[int],
+    contact_dist: wp.array2d[float],
     overflow: wp.array[int],
 ):
     """Vertex-triangle candidate pairs whose swept boxes overlap and that
@@ -622,7 +633,7 @@ def find_self_contacts(
             side = -1.0
         if wp.abs(d) < thickness * wp.sqrt(wp.length_sq(nn)):
             side = stored_side(prev_tri, prev_side, prev_count, i, t, side)
-        count = push_candidate(contact_tri, contact_side, i, count, t, side, overflow)
+        count = push_candidate(contact_tri, contact_side, contact_dist, i, count, t, side, dist, overflow)
     contact_count[i] = count
 
 

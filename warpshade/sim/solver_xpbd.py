@@ -48,7 +48,11 @@ class XPBDSolver:
         self_friction: Coulomb coefficient between cloth layers (>= 0).
         contact_interval: Substeps between self-contact detections (>= 1; default 3: longer
             intervals let candidate lists and contact sides go stale in fast folding cloth).
-        max_contacts: Self-contact candidates kept per vertex (>= 1).
+        max_contacts: Most self-contact candidates kept per vertex and per edge (>= 1). The rows
+            start at ``min(CONTACT_ROW_START, max_contacts)`` candidates and double whenever a
+            detection finds more (the detection is then repeated, so no candidate is dropped);
+            past ``max_contacts`` the nearest are kept and the rest counted in
+            ``stats()["self_contact_overflow"]``.
         contact_iterations: Passes of self-contact and collider projection per iteration (>= 1).
         stretch_sweeps: Stretch sweeps per iteration (>= 1); the multipliers accumulate across
             them (XPBD iterations restricted to the stiffest constraints).
@@ -63,7 +67,7 @@ class XPBDSolver:
     def __init__(self, model: ClothModel, colliders: ColliderSet | None = None, substeps: int = 6,
                  iterations: int = 1, gravity=(0.0, -9.81, 0.0), drag: float = 0.0, air_density: float = 1.2,
                  drag_coefficient: float = 0.8, lift_coefficient: float = 0.3, self_collision: bool = True,
-                 contact_interval: int | None = None, max_contacts: int = 16,
+                 contact_interval: int | None = None, max_contacts: int = 128,
                  tethers: bool = True, check_finite: bool = True, relaxation: float = 1.0,
                  contact_iterations: int = 2, stretch_sweeps: int = 1, edge_contact: bool = True,
                  guard: bool = True, self_friction: float = 0.3):
@@ -128,12 +132,9 @@ class XPBDSolver:
             self._lower = wp.zeros(f, dtype=wp.vec3, device=d)
             self._upper = wp.zeros(f, dtype=wp.vec3, device=d)
             self._bvh = None
-            self._contact_tri = wp.zeros((v, self.max_contacts), dtype=wp.int32, device=d)
-            self._contact_side = wp.zeros((v, self.max_contacts), dtype=wp.float32, device=d)
             self._contact_count = wp.zeros(v, dtype=wp.int32, device=d)
-            self._prev_tri = wp.zeros((v, self.max_contacts), dtype=wp.int32, device=d)
-            self._prev_side = wp.zeros((v, self.max_contacts), dtype=wp.float32, device=d)
             self._prev_count = wp.zeros(v, dtype=wp.int32, device=d)
+            self._vt_rows = self._contact_rows(v, min(self.CONTACT_ROW_START, self.max_contacts))
             self._overflow = wp.zeros(1, dtype=wp.int32, device=d)
             self._delta = wp.zeros(v, dtype=wp.vec3, device=d)
             self._delta_count = wp.zeros(v, dtype=wp.float32, device=d)
@@ -143,12 +144,9 @@ class XPBDSolver:
             self._elower = wp.zeros(ne, dtype=wp.vec3, device=d)
             self._eupper = wp.zeros(ne, dtype=wp.vec3, device=d)
             self._ebvh = None
-            self._contact_edge = wp.zeros((ne, mc), dtype=wp.int32, device=d)
-            self._contact_eside = wp.zeros((ne, mc), dtype=wp.float32, device=d)
             self._contact_ecount = wp.zeros(ne, dtype=wp.int32, device=d)
-            self._prev_edge = wp.zeros((ne, mc), dtype=wp.int32, device=d)
-            self._prev_eside = wp.zeros((ne, mc), dtype=wp.float32, device=d)
             self._prev_ecount = wp.zeros(ne, dtype=wp.int32, device=d)
+            self._ee_rows = self._contact_rows(ne, min(self.CONTACT_ROW_START, mc))
             self._eactive = wp.zeros(ne, dtype=wp.int32, device=d)
         if self.guard:
             self._counter = IntersectionCounter(model.faces, d, keep=1)
@@ -193,11 +191,8 @@ class XPBDSolver:
         if self.guard:
             wp.copy(self._x_start, x)
         h = dt / self.substeps
-        cmds = self._commands(h)
         wind = wp.vec3(*(control.wind if control is not None else (0.0, 0.0, 0.0)))
-        cmds["predict"].set_param_by_name("wind", wind)
-        if "aero" in cmds:
-            cmds["aero"].set_param_by_name("wind", wind)
+        cmds = self._commands(h, wind)
         if self.colliders is not None:
             self.colliders.begin_step()
         attach = m.attachment_count > 0 and control is not None
@@ -207,7 +202,8 @@ class XPBDSolver:
 
         for s in range(self.substeps):
             if self.self_collision and s % self.contact_interval == 0:
-                self._detect_self_contacts(x, v, h * min(self.contact_interval, self.substeps - s))
+                if self._detect_self_contacts(x, v, h * min(self.contact_interval, self.substeps - s)):
+                    cmds = self._commands(h, wind)  # the contact rows grew: the recorded launches are stale
             if "aero" in cmds:
                 self._lift.zero_()
                 self._air_drag.zero_()
@@ -251,11 +247,19 @@ class XPBDSolver:
 
     # ------------------------------------------------------------------------------------------
 
-    def _commands(self, h: float) -> dict:
-        """Recorded launches for substep length h (recording once saves most of the Python
-        overhead of ~400 launches per step; re-recorded only when h changes)."""
-        if self._cmd_cache is not None and self._cmd_cache[0] == h:
-            return self._cmd_cache[1]
+    def _commands(self, h: float, wind) -> dict:
+        """Recorded launches for substep length h with `wind` set (recording once saves most of
+        the Python overhead of ~400 launches per step; re-recorded when h changes or the contact
+        rows grow)."""
+        if self._cmd_cache is None or self._cmd_cache[0] != h:
+            self._cmd_cache = (h, self._record_commands(h))
+        cmds = self._cmd_cache[1]
+        cmds["predict"].set_param_by_name("wind", wind)
+        if "aero" in cmds:
+            cmds["aero"].set_param_by_name("wind", wind)
+        return cmds
+
+    def _record_commands(self, h: float) -> dict:
         m, d = self.model, self.device
         x, v = self._x, self._v
         n = m.particle_count
@@ -288,13 +292,13 @@ class XPBDSolver:
         contacts = []
         if self.self_collision:
             contacts.append(wp.launch(k.solve_self_contacts, dim=n,
-                                      inputs=[x, self._x_prev, m.inv_mass, m.tris, self._contact_tri, self._contact_side,
+                                      inputs=[x, self._x_prev, m.inv_mass, m.tris, self._vt_rows["ids"], self._vt_rows["sides"],
                                               self._contact_count, m.thickness, self.self_friction],
                                       outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
             if self.edge_contact:
                 contacts.append(wp.launch(ck.solve_edge_contacts, dim=m.edge_count,
-                                          inputs=[x, self._x_prev, m.inv_mass, m.edges, self._contact_edge,
-                                                  self._contact_eside, self._contact_ecount, m.thickness,
+                                          inputs=[x, self._x_prev, m.inv_mass, m.edges, self._ee_rows["ids"],
+                                                  self._ee_rows["sides"], self._contact_ecount, m.thickness,
                                                   self.self_friction],
                                           outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
             contacts.append(wp.launch(k.apply_averaged_deltas, dim=n, inputs=[],
@@ -313,10 +317,46 @@ class XPBDSolver:
                                      inputs=[m.hinges, m.hinge_compliance, m.inv_mass, x, off, h, m.bend_damping],
                                      outputs=[v], device=d, record_cmd=True))
         cmds["velocities"] = vel
-        self._cmd_cache = (h, cmds)
         return cmds
 
-    def _detect_self_contacts(self, x, v, horizon: float) -> None:
+    CONTACT_ROW_START = 16
+    """Candidates per vertex (and per edge) the contact rows start with; they grow on demand."""
+
+    def _contact_rows(self, rows: int, width: int) -> dict:
+        """Candidate rows (ids, sides, distances) of one contact kind and the previous
+        detection's ids and sides, ``width`` per row."""
+        d = self.device
+        return {"ids": wp.zeros((rows, width), dtype=wp.int32, device=d),
+                "sides": wp.zeros((rows, width), dtype=wp.float32, device=d),
+                "dists": wp.zeros((rows, width), dtype=wp.float32, device=d),
+                "prev_ids": wp.zeros((rows, width), dtype=wp.int32, device=d),
+                "prev_sides": wp.zeros((rows, width), dtype=wp.float32, device=d)}
+
+    def _find_candidates(self, kernel, dim: int, rows: dict, inputs: list, count, prev_count) -> tuple[dict, bool]:
+        """Run a candidate search into `rows` after saving the previous detection; while rows
+        overflow and may still grow, double them and search again. Returns the rows used and
+        whether they grew."""
+        wp.copy(rows["prev_ids"], rows["ids"])
+        wp.copy(rows["prev_sides"], rows["sides"])
+        wp.copy(prev_count, count)
+        grew = False
+        while True:
+            before = int(self._overflow.numpy()[0])
+            wp.launch(kernel, dim=dim, inputs=inputs + [rows["prev_ids"], rows["prev_sides"], prev_count],
+                      outputs=[rows["ids"], rows["sides"], count, rows["dists"], self._overflow], device=self.device)
+            width = rows["ids"].shape[1]
+            if int(self._overflow.numpy()[0]) == before or width >= self.max_contacts:
+                return rows, grew
+            self._overflow.fill_(before)  # nothing dropped: the search runs again with room for all
+            wider = self._contact_rows(dim, min(2 * width, self.max_contacts))
+            for key in ("prev_ids", "prev_sides"):
+                grown = wider[key].numpy()
+                grown[:, :width] = rows[key].numpy()
+                wider[key].assign(grown)
+            rows, grew = wider, True
+
+    def _detect_self_contacts(self, x, v, horizon: float) -> bool:
+        """Candidate pairs for the next contact interval; True when the contact rows grew."""
         m, d = self.model, self.device
         # boxes of both sides padded: overlap <=> gap < thickness
         pad = self._pad
@@ -326,13 +366,10 @@ class XPBDSolver:
             self._bvh = wp.Bvh(self._lower, self._upper)
         else:
             self._bvh.refit()
-        wp.copy(self._prev_tri, self._contact_tri)
-        wp.copy(self._prev_side, self._contact_side)
-        wp.copy(self._prev_count, self._contact_count)
-        wp.launch(k.find_self_contacts, dim=m.particle_count,
-                  inputs=[self._bvh.id, x, m.rest_points, v, m.tris, m.ring_offsets, m.ring, horizon, pad, m.thickness,
-                          self._prev_tri, self._prev_side, self._prev_count],
-                  outputs=[self._contact_tri, self._contact_side, self._contact_count, self._overflow], device=d)
+        self._vt_rows, grew = self._find_candidates(
+            k.find_self_contacts, m.particle_count, self._vt_rows,
+            [self._bvh.id, x, m.rest_points, v, m.tris, m.ring_offsets, m.ring, horizon, pad, m.thickness],
+            self._contact_count, self._prev_count)
         if self.edge_contact:
             ne = m.edge_count
             wp.launch(ck.compute_edge_bounds, dim=ne, inputs=[x, v, m.edges, horizon, pad],
@@ -341,18 +378,19 @@ class XPBDSolver:
                 self._ebvh = wp.Bvh(self._elower, self._eupper)
             else:
                 self._ebvh.refit()
-            wp.copy(self._prev_edge, self._contact_edge)
-            wp.copy(self._prev_eside, self._contact_eside)
-            wp.copy(self._prev_ecount, self._contact_ecount)
             wp.copy(self._eactive, m.edge_border)
             if m.hinge_count:
                 wp.launch(ck.mark_crease_edges, dim=m.hinge_count,
                           inputs=[x, m.hinges, m.hinge_edge, self.CREASE_ANGLE], outputs=[self._eactive], device=d)
-            wp.launch(ck.find_edge_contacts, dim=ne,
-                      inputs=[self._ebvh.id, x, v, horizon, m.edges, self._eactive, m.ring_offsets, m.ring, self._elower, self._eupper,
-                              m.thickness, self._prev_edge, self._prev_eside, self._prev_ecount],
-                      outputs=[self._contact_edge, self._contact_eside, self._contact_ecount, self._overflow],
-                      device=d)
+            self._ee_rows, egrew = self._find_candidates(
+                ck.find_edge_contacts, ne, self._ee_rows,
+                [self._ebvh.id, x, v, horizon, m.edges, self._eactive, m.ring_offsets, m.ring, self._elower,
+                 self._eupper, m.thickness],
+                self._contact_ecount, self._prev_ecount)
+            grew = grew or egrew
+        if grew:
+            self._cmd_cache = None
+        return grew
 
     CREASE_ANGLE = 0.5
     """Hinges bent by more than this [rad] make their edge a crease: edge-edge contact is looked
@@ -453,8 +491,10 @@ class XPBDSolver:
         if self.self_collision:
             out["self_contact_candidates"] = int(self._contact_count.numpy().sum())
             out["self_contact_overflow"] = int(self._overflow.numpy()[0])
+            out["self_contact_row_width"] = int(self._vt_rows["ids"].shape[1])
         if self.edge_contact:
             out["edge_contact_candidates"] = int(self._contact_ecount.numpy().sum())
+            out["edge_contact_row_width"] = int(self._ee_rows["ids"].shape[1])
         if self.guard:
             out["guard_steps"] = self.guard_steps
             out["guard_unresolved"] = self.guard_unresolved
