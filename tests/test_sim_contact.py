@@ -279,3 +279,78 @@ def test_full_contact_rows_keep_the_nearest_candidates():
     assert nearest < 0.0011, dist
     assert all(dist[t] >= nearest - 1e-6 for t in cand if t not in found)
     assert s.stats()["self_contact_overflow"] > 0
+
+
+def _split_face_box(half: float, n: int = 3, gap: float = 0.0):
+    """A cube of side 2 half centred at 0 as a DCC exports it with per-face normals: each face an
+    n x n-vertex grid of its own (corners and rims duplicated, not shared), each face moved `gap`
+    outwards along its normal."""
+    pts, faces = [], []
+    g = np.linspace(-half, half, n)
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            u, v = [a for a in range(3) if a != axis]
+            base = len(pts)
+            for j in range(n):
+                for i in range(n):
+                    p = np.zeros(3)
+                    p[axis], p[u], p[v] = sign * (half + gap), g[i], g[j]
+                    pts.append(p)
+            for j in range(n - 1):
+                for i in range(n - 1):
+                    a, b, c, d = (base + j * n + i, base + j * n + i + 1, base + (j + 1) * n + i + 1,
+                                  base + (j + 1) * n + i)
+                    # outward winding: (u x v) points along +axis for the cyclic order of axes
+                    out = np.cross(np.eye(3)[u], np.eye(3)[v])[axis] * sign > 0
+                    faces += [[a, b, c], [a, c, d]] if out else [[a, c, b], [a, d, c]]
+    return np.array(pts, np.float32), np.array(faces, np.int32)
+
+
+def test_split_face_box_is_a_closed_solid_with_sharp_rims():
+    """Welded by position, a box whose faces have their own vertices is closed and each of its
+    12 rims is an edge between two faces; moved 1 mm apart, the faces are open sheets."""
+    from warpshade.sim.colliders import MeshCollider
+
+    pts, faces = _split_face_box(0.5)
+    m = MeshCollider(pts, faces, 0.5, "cpu")
+    assert m.closed
+    ef = m.edge_faces.numpy()
+    assert (ef[:, 1] >= 0).all()
+    nrm = np.cross(pts[faces[:, 1]] - pts[faces[:, 0]], pts[faces[:, 2]] - pts[faces[:, 0]])
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    sharp = np.einsum("ij,ij->i", nrm[ef[:, 0]], nrm[ef[:, 1]]) < 0.5
+    assert sharp.sum() == 12 * 2  # 12 rims, each 2 edges long at 3 x 3 vertices per face
+    apart = MeshCollider(*_split_face_box(0.5, gap=0.001), 0.5, "cpu")
+    assert not apart.closed
+
+
+def _cloth_quad(corners) -> tuple:
+    b = ClothBuilder(thickness=0.01)
+    c = np.asarray(corners, np.float64)
+    b.add_grid(2, 2, 1.0, 1.0)
+    m = b.finalize()
+    # place the grid's four vertices (ids[j, i] = j * 2 + i) at the given corners
+    m.rest_points.assign(wp.array(c.astype(np.float32), dtype=wp.vec3))
+    return m, wp.array(c.astype(np.float32), dtype=wp.vec3)
+
+
+def test_mesh_edges_do_not_lift_cloth_hanging_beside_a_split_face_box():
+    """A cloth quad hanging 4 mm off the side of a split-face box (thickness 10 mm), 2-5 cm below
+    the top rim, across the ends of the top face's inner edges: no collider edge is cut, so the
+    edge pass moves nothing (it lifted such cloth 3-4 cm onto the top when rims counted as open
+    borders and the top's flat inner edges as sharp ones). A quad folded over the rim, whose
+    edges the rim cuts, is pushed out."""
+    half, t = 0.5, 0.01
+    col = ColliderSet()
+    col.add_mesh(*_split_face_box(half))
+    x_side = half + 0.4 * t
+    hang, x = _cloth_quad([(x_side, half - 0.05, -0.2), (x_side, half - 0.05, 0.2),
+                           (x_side, half - 0.02, -0.2), (x_side, half - 0.02, 0.2)])
+    before = x.numpy().copy()
+    col.collide_edges(t, hang.inv_mass, hang.edges, x)
+    assert np.abs(x.numpy() - before).max() == 0.0
+    fold, x = _cloth_quad([(half - 0.02, half + 0.4 * t, -0.2), (half - 0.02, half + 0.4 * t, 0.2),
+                           (x_side, half - 0.02, -0.2), (x_side, half - 0.02, 0.2)])
+    before = x.numpy().copy()
+    col.collide_edges(t, fold.inv_mass, fold.edges, x)
+    assert np.abs(x.numpy() - before).max() > 0.1 * t

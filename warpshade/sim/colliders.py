@@ -36,6 +36,18 @@ def _friction(value) -> float:
     return v
 
 
+def weld_indices(points: np.ndarray) -> np.ndarray:
+    """For each vertex, the first vertex at exactly the same position, shape (V,).
+
+    DCC tools split a mesh's vertices along hard edges (a box exported with per-face normals has
+    each face's own copy of its corners). Welded, the faces on both sides of such an edge are
+    neighbours again, so the edge is a sharp edge between two faces, not two open borders, and a
+    box made of separate faces is closed. Edge topology is fixed at construction: welded vertices
+    are assumed to move together (as split copies of one vertex do)."""
+    _, first, inverse = np.unique(np.asarray(points), axis=0, return_index=True, return_inverse=True)
+    return first[inverse.reshape(-1)].astype(np.int64)
+
+
 class MeshCollider:
     """An animated triangle mesh: closed (or a union of overlapping closed parts), or an open sheet.
 
@@ -64,8 +76,9 @@ class MeshCollider:
         self.indices = wp.array(self.faces.reshape(-1), dtype=wp.int32, device=device)
         self.mesh = wp.Mesh(points=wp.array(pts, dtype=wp.vec3, device=device), indices=self.indices)
         self._pending = None
-        # edge topology for edge-edge contact: each triangle's edges, their ends and faces (-1: border)
-        f = self.faces.astype(np.int64)
+        # edge topology for edge-edge contact: each triangle's edges, their ends and faces (-1: border),
+        # on the welded mesh (see weld_indices)
+        f = weld_indices(pts)[self.faces.astype(np.int64)]
         directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
         und = np.sort(directed, axis=1)
         key = und[:, 0] * len(pts) + und[:, 1]

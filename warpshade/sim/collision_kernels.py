@@ -20,6 +20,11 @@ SHAPE_BOX = wp.constant(3)
 SHAPE_CYLINDER = wp.constant(4)
 SHAPE_CONE = wp.constant(5)
 
+FLAT_EDGE_COS = wp.constant(0.9999)
+"""Mesh-collider edges whose two faces' normals have a cosine above this (bent by less than
+0.8 degrees) are flat: the inner edges of a tessellated box face, which the vertex projection
+already holds (pushing along them would lift cloth hanging beside the face's border)."""
+
 
 @wp.func
 def segment_parameter(p: wp.vec3, a: wp.vec3, b: wp.vec3) -> float:
@@ -360,9 +365,10 @@ def collide_mesh_edges(
     delta: wp.array[wp.vec3],
     delta_count: wp.array[float],
 ):
-    """Cloth edges against a mesh collider's edges: a cloth edge whose inner point dips into the
-    thickness layer around a collider edge (below both adjacent faces' offset planes, within 4
-    thicknesses of the edge) is pushed out along the face it is least deep under. This is what
+    """Cloth edges against a mesh collider's sharp edges: a cloth edge whose inner point dips into
+    the thickness layer around a collider edge (below both adjacent faces' offset planes, within 4
+    thicknesses of the edge and closest to an inner point of it) is pushed out along the face it
+    is least deep under. Flat edges (faces within FLAT_EDGE_COS) are left to the vertex projection. This is what
     keeps a sharp box edge from cutting through a cloth edge whose two vertices are outside."""
     k = wp.tid()
     i0 = edges[k, 0]
@@ -388,6 +394,8 @@ def collide_mesh_edges(
             s = st[0]
             if s <= 0.0 or s >= 1.0:
                 continue  # a cloth vertex is closest: the vertex projection holds it
+            if st[1] <= 0.0 or st[1] >= 1.0:
+                continue  # beyond the collider edge's ends, below its faces' planes is not inside
             p = a + (b - a) * s
             q = m0 + (m1 - m0) * st[1]
             if wp.length(p - q) > 4.0 * thickness:
@@ -402,6 +410,8 @@ def collide_mesh_edges(
             if fb >= 0:
                 nb = wp.normalize(wp.cross(mesh_points[mesh_tris[3 * fb + 1]] - mesh_points[mesh_tris[3 * fb]],
                                            mesh_points[mesh_tris[3 * fb + 2]] - mesh_points[mesh_tris[3 * fb]]))
+                if wp.dot(na, nb) > FLAT_EDGE_COS:
+                    continue  # a flat edge (inside a face of a box): the vertex projection holds it
                 db = wp.dot(p - q, nb)
                 if db >= thickness:
                     continue
