@@ -392,10 +392,11 @@ class XPBDSolver:
             self._cmd_cache = None
         return grew
 
-    CREASE_ANGLE = 0.5
+    CREASE_ANGLE = 0.25
     """Hinges bent by more than this [rad] make their edge a crease: edge-edge contact is looked
     for from border and crease edges (where two layers' edges can cross without a vertex
-    meeting a triangle first)."""
+    meeting a triangle first). At 0.5 the edges of an accordion fold one strip wide were not yet
+    creases when they crossed (the default scene's drape)."""
     GUARD_ROUNDS = 6
     """Rounds of the intersection guard that grow the reverted region by one ring each; the round
     after them reverts every free vertex."""
