@@ -323,16 +323,18 @@ class ColliderSet:
     _SHARP = (int(ck.SHAPE_BOX), int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE))
     """Analytic kinds with sharp edges (box edges, rims, apex)."""
 
-    def collide_edges(self, thickness: float, inv_mass, edges, x) -> None:
+    def collide_edges(self, thickness: float, inv_mass, edges, x, tris=None) -> None:
         """Push cloth edges out of the mesh colliders' edges, the edges of boxes and the rims of
-        cylinders and cones (sharp edges cutting between two cloth vertices), corrections averaged
-        per vertex.
+        cylinders and cones (sharp edges cutting between two cloth vertices), and cloth triangles
+        off the corners of boxes (corners poking through a triangle's inside),
+        corrections averaged per vertex.
 
         Args:
             thickness: Distance to keep [m].
             inv_mass: Inverse masses, shape (V,), dtype float32.
             edges: Cloth edges, shape (E, 2), dtype int32.
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
+            tris: Cloth triangles, shape (F, 3), dtype int32; None skips the box corners.
         """
         if not self.has_sharp_edges:
             return
@@ -349,6 +351,11 @@ class ColliderSet:
             wp.launch(ck.collide_mesh_edges, dim=edges.shape[0],
                       inputs=[m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x, edges,
                               inv_mass, thickness], outputs=[self._edge_delta, self._edge_count], device=self.device)
+        if tris is not None and int(ck.SHAPE_BOX) in self._kind:
+            ar = self._arrays
+            wp.launch(ck.collide_box_corners, dim=tris.shape[0],
+                      inputs=[ar["kind"], ar["a1"], ar["r1"], ar["size"], x, tris, inv_mass, thickness],
+                      outputs=[self._edge_delta, self._edge_count], device=self.device)
         wp.launch(apply_averaged_deltas, dim=n, inputs=[], outputs=[self._edge_delta, self._edge_count, x],
                   device=self.device)
 

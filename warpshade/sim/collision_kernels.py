@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from .kernels import closest_segments
+from .kernels import closest_on_triangle, closest_segments
 
 SHAPE_PLANE = wp.constant(0)
 SHAPE_SPHERE = wp.constant(1)
@@ -506,3 +506,78 @@ def collide_shape_edges(
         wp.atomic_add(delta, i1, push * (u * w1))
         wp.atomic_add(delta_count, i0, 1.0)
         wp.atomic_add(delta_count, i1, 1.0)
+
+
+@wp.func
+def push_triangle_off_corner(corner: wp.vec3, inner: wp.vec3, x: wp.array[wp.vec3], tris: wp.array2d[int],
+                             inv_mass: wp.array[float], t: int, thickness: float, delta: wp.array[wp.vec3],
+                             delta_count: wp.array[float]):
+    """Push cloth triangle t so that a collider corner under its inside ends ``thickness`` behind
+    it, on the side of the point `inner` inside the solid: a corner poking through the inside of a triangle
+    touches none of its vertices and edges, so neither the vertex nor the edge pass sees it."""
+    i0 = tris[t, 0]
+    i1 = tris[t, 1]
+    i2 = tris[t, 2]
+    a = x[i0]
+    b = x[i1]
+    c = x[i2]
+    bc = closest_on_triangle(corner, a, b, c)
+    if bc[0] <= 0.0 or bc[1] <= 0.0 or bc[2] <= 0.0:
+        return  # the corner is nearest to an edge or vertex of the triangle: the other passes hold it
+    p = a * bc[0] + b * bc[1] + c * bc[2]
+    if wp.length(corner - p) > 4.0 * thickness:
+        return
+    n = wp.cross(b - a, c - a)
+    ln = wp.length(n)
+    if ln == 0.0:
+        return
+    n = n / ln
+    if wp.dot(n, inner - p) > 0.0:
+        n = -n  # n points away from the solid
+    h = wp.dot(corner - p, n)  # > -thickness: the corner is not far enough behind the cloth
+    if h <= -thickness:
+        return
+    w0 = inv_mass[i0]
+    w1 = inv_mass[i1]
+    w2 = inv_mass[i2]
+    denom = bc[0] * bc[0] * w0 + bc[1] * bc[1] * w1 + bc[2] * bc[2] * w2
+    if denom == 0.0:
+        return
+    g = n * ((h + thickness) / denom)
+    wp.atomic_add(delta, i0, g * (bc[0] * w0))
+    wp.atomic_add(delta, i1, g * (bc[1] * w1))
+    wp.atomic_add(delta, i2, g * (bc[2] * w2))
+    wp.atomic_add(delta_count, i0, 1.0)
+    wp.atomic_add(delta_count, i1, 1.0)
+    wp.atomic_add(delta_count, i2, 1.0)
+
+
+@wp.kernel
+def collide_box_corners(
+    kind: wp.array[int],
+    a1: wp.array[wp.vec3],
+    r1: wp.array[wp.quat],
+    size: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    inv_mass: wp.array[float],
+    thickness: float,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Cloth triangles against the eight corners of every box (see :func:`push_triangle_off_corner`)."""
+    t = wp.tid()
+    for s in range(kind.shape[0]):
+        if kind[s] != SHAPE_BOX:
+            continue
+        he = size[s]
+        for k in range(8):
+            local = wp.vec3(he[0], he[1], he[2])
+            if k & 1:
+                local = wp.vec3(-local[0], local[1], local[2])
+            if k & 2:
+                local = wp.vec3(local[0], -local[1], local[2])
+            if k & 4:
+                local = wp.vec3(local[0], local[1], -local[2])
+            corner = a1[s] + wp.quat_rotate(r1[s], local)
+            push_triangle_off_corner(corner, a1[s], x, tris, inv_mass, t, thickness, delta, delta_count)

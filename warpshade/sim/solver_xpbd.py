@@ -229,9 +229,11 @@ class XPBDSolver:
                     if self.colliders is not None:
                         self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             if self.colliders is not None and self.colliders.has_sharp_edges:
-                # once per substep: sharp collider edges against cloth edges, then the vertices again
-                self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x)
-                self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+                # sharp collider edges and corners against cloth edges and triangles, then the
+                # vertices again
+                for _c in range(self.SHARP_PASSES):
+                    self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
+                    self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             for c in cmds["velocities"]:
                 c.launch()
 
@@ -318,6 +320,9 @@ class XPBDSolver:
                                      outputs=[v], device=d, record_cmd=True))
         cmds["velocities"] = vel
         return cmds
+
+    SHARP_PASSES = 1
+    """Passes per substep of the sharp-edge and corner projection (each followed by the vertices')."""
 
     CONTACT_ROW_START = 16
     """Candidates per vertex (and per edge) the contact rows start with; they grow on demand."""
