@@ -405,12 +405,13 @@ class XPBDSolver:
     GUARD_ROUNDS = 6
     """Rounds of the intersection guard that grow the reverted region by one ring each; the round
     after them reverts every free vertex."""
-    GUARD_STREAK = 3
-    """A vertex sent back in this many consecutive steps is released (no longer sent back) until a
-    step where it is not: the guard is a safety net on top of the contacts, and an intersection the
-    contacts keep re-making (cloth crumpling at high speed onto a box's edge, which only vertex
-    contacts hold) would otherwise hang the cloth in the air for ever. Released vertices are counted
-    in ``stats()["guard_released"]``."""
+    GUARD_STREAK = 30
+    """A vertex sent back in this many consecutive steps (half a second at 60 steps/s) is released
+    (no longer sent back) until a step where it is not: the guard is a safety net on top of the
+    contacts, and an intersection the contacts keep re-making would otherwise hang the cloth in
+    the air for ever. A short hold lets intersections through that the contacts pull apart given
+    time (folds settling on the floor). Released vertices are counted in
+    ``stats()["guard_released"]``."""
 
     def _guard_intersections(self, x, v, dt: float) -> None:
         """Send the vertices of intersecting triangles back to their start-of-step positions
