@@ -10,9 +10,9 @@ Success criteria (checked every frame, printed at the end): 0 intersecting trian
 (full run) a pile of at least 6 layers (cloth layers crossing the vertical line through the
 pile's centre); 99th-percentile edge strain below 5 %.
 
-Status: not met yet: 0 intersecting pairs in the first 60 frames; in the full 180-frame run up to
-3 pairs, in 73 frames, once the held edge is lowered into the pile (kinematic vertices, which the
-intersection guard cannot undo); p99 strain 30 %.
+Status: the contact criteria are met: 0 intersecting pairs on every frame of the full 180-frame
+run, lowest vertex 5 mm above the floor, 13 layers at the end. Not met: p99 edge strain 9.6 % at
+the end (criterion 5 %).
 
 Run:  python sims/pile.py --frames 180 --out pile.usda
       (shaded under the default sky; --no-shade writes geometry only)
