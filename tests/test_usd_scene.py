@@ -168,3 +168,52 @@ def test_animated_transform_makes_an_animated_object(tmp_path):
     tri = s.objects[0]
     assert tri.kind == "animated"
     assert np.allclose(tri.params["points_at"](5) - tri.mesh.points, (0.5, 0, 0))
+
+
+def _cloth_stage(**attrs):
+    """A 3 x 3-vertex cloth in memory with `warpshade:cloth:NAME = value` for each keyword."""
+    from pxr import Gf, Sdf, Usd, UsdGeom
+
+    st = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(st, UsdGeom.Tokens.y)
+    UsdGeom.Xform.Define(st, "/World")
+    st.SetDefaultPrim(st.GetPrimAtPath("/World"))
+    m = UsdGeom.Mesh.Define(st, "/World/Cloth")
+    m.CreatePointsAttr([Gf.Vec3f(0.1 * i, 1.0, 0.1 * j) for j in range(3) for i in range(3)])
+    m.CreateFaceVertexCountsAttr([4] * 4)
+    m.CreateFaceVertexIndicesAttr([v for j in range(2) for i in range(2)
+                                   for v in (j * 3 + i, (j + 1) * 3 + i, (j + 1) * 3 + i + 1, j * 3 + i + 1)])
+    prim = m.GetPrim()
+    prim.CreateAttribute("warpshade:kind", Sdf.ValueTypeNames.Token).Set("cloth")
+    types = {bool: Sdf.ValueTypeNames.Bool, int: Sdf.ValueTypeNames.Int, float: Sdf.ValueTypeNames.Float}
+    for name, value in attrs.items():
+        prim.CreateAttribute(f"warpshade:cloth:{name}", types[type(value)], custom=True).Set(value)
+    return st
+
+
+def test_cloth_solver_settings_come_from_the_first_cloth():
+    """`warpshade:cloth:maxContacts`, `contactInterval`, `guard`, `selfFriction`... reach the solver
+    (the defaults otherwise)."""
+    from warpshade.pipeline.cloth import ClothSimulation
+    from warpshade.usd.scene_io import scene_from_stage
+
+    sim = ClothSimulation(scene_from_stage(_cloth_stage(), source="t.usda"))
+    assert sim.solver.max_contacts == 128 and sim.solver.guard and sim.solver.contact_interval == 3
+    st = _cloth_stage(maxContacts=8, contactInterval=2, guard=False, selfFriction=0.1, stretchSweeps=2,
+                      iterations=2, contactIterations=3, edgeContact=False)
+    k = ClothSimulation(scene_from_stage(st, source="t.usda")).solver.knobs()
+    assert (k["max_contacts"], k["contact_interval"], k["guard"], k["stretch_sweeps"], k["iterations"],
+            k["contact_iterations"], k["edge_contact"]) == (8, 2, False, 2, 2, 3, False)
+    assert k["self_friction"] == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("attrs, named", [({"maxContacts": 0}, "warpshade:cloth:maxContacts"),
+                                          ({"selfFriction": -1.0}, "warpshade:cloth:selfFriction"),
+                                          ({"contactInterval": 1.5}, "warpshade:cloth:contactInterval")])
+def test_bad_cloth_solver_setting_names_the_attribute(attrs, named):
+    from warpshade.pipeline.cloth import ClothSimulation
+    from warpshade.scene import SceneError
+    from warpshade.usd.scene_io import scene_from_stage
+
+    with pytest.raises(SceneError, match=f"t.usda: /World/Cloth: {named}"):
+        ClothSimulation(scene_from_stage(_cloth_stage(**attrs), source="t.usda"))

@@ -11,6 +11,13 @@ CLOTH_PARAMS = {"density": "density", "stretchStiffness": "stretch_stiffness", "
 """``warpshade:cloth:*`` attributes passed per piece to :meth:`warpshade.sim.ClothBuilder.add_mesh`."""
 CLOTH_GLOBAL = {"damping": "damping", "thickness": "thickness"}
 """``warpshade:cloth:*`` attributes that are builder-wide (taken from the first cloth object)."""
+CLOTH_SOLVER = {"selfCollision": ("self_collision", bool), "edgeContact": ("edge_contact", bool),
+                "guard": ("guard", bool), "selfFriction": ("self_friction", float),
+                "iterations": ("iterations", int), "contactInterval": ("contact_interval", int),
+                "contactIterations": ("contact_iterations", int), "maxContacts": ("max_contacts", int),
+                "stretchSweeps": ("stretch_sweeps", int)}
+"""``warpshade:cloth:*`` attributes passed to :class:`warpshade.sim.XPBDSolver` (taken from the
+first cloth object, as the solver is shared): attribute -> (keyword, type)."""
 
 
 class ClothSimulation:
@@ -90,8 +97,21 @@ class ClothSimulation:
             else:
                 raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, box, capsule, cylinder, cone, mesh")
         gravity = tuple(-9.81 * up)  # [m/s²]: the solver works in metres
-        self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
-                                 gravity=gravity, self_collision=bool(first.get("selfCollision", True)))
+        knobs = {}
+        for k, (kw, typ) in CLOTH_SOLVER.items():
+            if k in first:
+                value = first[k]
+                if typ is int and (isinstance(value, (bool, np.bool_)) or float(value) != int(value)):
+                    raise SceneError(f"{scene.source}: {cloth[0].name}: warpshade:cloth:{k} must be an integer, "
+                                     f"got {value!r}")
+                knobs[kw] = typ(value)
+        try:
+            self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
+                                     gravity=gravity, **knobs)
+        except ValueError as exc:
+            bad = [k for k, (kw, _) in CLOTH_SOLVER.items() if kw in knobs and str(exc).startswith(kw)]
+            where = f"{cloth[0].name}: warpshade:cloth:{bad[0]}" if bad else "warpshade:substeps"
+            raise SceneError(f"{scene.source}: {where}: {exc}") from None
         self.control = self.model.control()
         if "wind" in scene.settings:
             self.control.set_wind(scene.settings["wind"])
