@@ -248,3 +248,26 @@ def test_back_side_lies_just_behind_the_front(tmp_path):
     behind = np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath("/World/Ground_back")).GetPointsAttr().Get(0))
     np.testing.assert_allclose(behind - front, np.tile([0.0, -BACK_SIDE_OFFSET * 3 * size, 0.0], (len(pts), 1)),
                                atol=1e-7)
+
+
+def test_a_run_that_writes_nothing_removes_the_directories_it_made(tmp_path):
+    """`--out` into missing directories creates them (mkdir -p); a run that then fails before its
+    first frame (abort with nothing committed) removes the ones it made, deepest first, but not a
+    directory that existed before or one that has someone else's file in it now."""
+    made = tmp_path / "a" / "b" / "c"
+    w = AnimationWriter(str(made / "out.usda"), chunk=4)
+    assert made.is_dir()
+    w.abort()
+    assert not (tmp_path / "a").exists() and tmp_path.is_dir()
+
+    (tmp_path / "a").mkdir()
+    w = AnimationWriter(str(made / "out.usda"), chunk=4)
+    (tmp_path / "a" / "b" / "note.txt").write_text("someone else's")
+    w.abort()
+    assert not made.exists() and (tmp_path / "a" / "b" / "note.txt").exists()
+
+    w = AnimationWriter(str(made / "out.usda"), chunk=4)
+    name = w.add_mesh("tri", np.array([[0, 1, 2]]))
+    w.write_frame(0, name, np.zeros((3, 3), np.float32), colors=np.ones((3, 3), np.float32))
+    w.close()
+    assert (made / "out.usda").exists()  # a run that wrote its output keeps the directories

@@ -315,9 +315,15 @@ class AnimationWriter:
                 raise
 
     def _make_parent_dir(self) -> None:
-        """Create the output's directory and its missing parents (like ``mkdir -p``); if that fails,
+        """Create the output's directory and its missing parents (like ``mkdir -p``; a run that
+        writes nothing removes them again if they are still empty); if that fails,
         :class:`OutputWriteError` names the directory and the cause."""
         parent = os.path.dirname(self.path)
+        self._made_dirs = []  # the directories this writer created, deepest first
+        d = parent
+        while d and not os.path.exists(d):
+            self._made_dirs.append(d)
+            d = os.path.dirname(d)
         try:
             os.makedirs(parent, exist_ok=True)
         except OSError as exc:
@@ -910,6 +916,12 @@ class AnimationWriter:
             except OSError:
                 pass
         self._lock.release()
+        if not self._clips and not os.path.exists(self.path):
+            for d in self._made_dirs:
+                try:
+                    os.rmdir(d)  # only if still empty: nothing of anyone else's is removed
+                except OSError:
+                    break
 
     @property
     def frames_committed(self) -> int:
