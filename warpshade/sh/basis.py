@@ -75,7 +75,11 @@ def _normalize_dirs(dirs: np.ndarray) -> np.ndarray:
 
 
 def sh_eval(dirs, order: int) -> np.ndarray:
-    """Evaluate the real SH basis (convention above) at directions.
+    """Evaluate the real SH basis (convention above) at directions, in float64.
+
+    The NumPy oracle of the Warp recurrence (:class:`warpshade.sh.kernels.LegendreState`, the same
+    eqs. A.1-A.3 in float32): tests compare the kernels against it, so it is kept as a separate,
+    independent implementation rather than shared with them.
 
     Args:
         dirs: Directions, shape (..., 3), any length (normalised here; zero length reads as +z).

@@ -33,17 +33,77 @@ def normalization_array(order: int, device: str = "cpu") -> wp.array:
     return wp.array(normalization(order).astype(np.float32), dtype=float, device=device)
 
 
+@wp.struct
+class LegendreState:
+    """Running values of the Cartesian SH recurrences (thesis eqs. A.1-A.3 without the ``sin^m`` factor;
+    the NumPy oracle is :func:`warpshade.sh.basis.sh_eval`) at one unit direction ``(x, y, z)``.
+
+    :func:`legendre_start` sets it up, :func:`legendre_band` enters band ``m`` and
+    :func:`legendre_degree` steps to degree ``l >= m`` of that band; then ``q * c`` (``m > 0``),
+    ``q * s`` (``-m``) or ``q`` (``m = 0``) times ``K_lm`` is the basis function ``y_l^{+-m}``.
+    The one Warp copy of the recurrence: every Warp basis evaluation walks ``m`` in ``0..order-1``
+    and, inside, ``l`` in ``m..order-1`` through these functions.
+    """
+
+    x: float
+    y: float
+    z: float
+    c: float
+    """``C_m = Re (x + i y)^m``."""
+    s: float
+    """``S_m = Im (x + i y)^m``."""
+    pmm: float
+    """``Q_m^m = (-1)^m (2m-1)!!``."""
+    q: float
+    """``Q_l^m(z)`` of the current degree (0 before the band's first step)."""
+    q_prev: float
+    """``Q_{l-1}^m(z)`` (0 before the band's second step)."""
+
+
 @wp.func
-def legendre_q(l: int, m: int, z: float, pmm: float, q1: float, q2: float) -> float:
-    """``Q_l^m(z)`` for ``l >= m`` from ``pmm = Q_m^m`` and the two previous bands ``q1 = Q_{l-1}^m``,
-    ``q2 = Q_{l-2}^m`` (thesis eqs. A.1, A.3 without the ``sin^m`` factor; the NumPy form is
-    :func:`warpshade.sh.basis.sh_eval`). The one Warp copy of the recurrence."""
-    q = pmm
+def legendre_state(x: float, y: float, z: float, c: float, s: float, pmm: float, q: float,
+                   q_prev: float) -> LegendreState:
+    """A :class:`LegendreState` with these fields (a fresh value: assigning a struct local aliases it)."""
+    r = LegendreState()
+    r.x = x
+    r.y = y
+    r.z = z
+    r.c = c
+    r.s = s
+    r.pmm = pmm
+    r.q = q
+    r.q_prev = q_prev
+    return r
+
+
+@wp.func
+def legendre_start(n: wp.vec3) -> LegendreState:
+    """Recurrence state at the unit direction ``n``, before band 0."""
+    return legendre_state(n[0], n[1], n[2], 1.0, 0.0, 1.0, 0.0, 0.0)
+
+
+@wp.func
+def legendre_band(st: LegendreState, m: int) -> LegendreState:
+    """Enter band ``m`` (called for ``m = 0, 1, ...`` in turn): ``C_m``, ``S_m``, ``Q_m^m`` from band ``m-1``."""
+    c = st.c
+    s = st.s
+    pmm = st.pmm
+    if m > 0:
+        c = st.c * st.x - st.s * st.y
+        s = st.c * st.y + st.s * st.x
+        pmm = st.pmm * (-float(2 * m - 1))
+    return legendre_state(st.x, st.y, st.z, c, s, pmm, 0.0, 0.0)
+
+
+@wp.func
+def legendre_degree(st: LegendreState, l: int, m: int) -> LegendreState:
+    """Step to degree ``l`` of band ``m`` (called for ``l = m, m+1, ...`` in turn): ``q = Q_l^m(z)``."""
+    q = st.pmm
     if l == m + 1:
-        q = z * float(2 * m + 1) * pmm
+        q = st.z * float(2 * m + 1) * st.pmm
     elif l > m + 1:
-        q = (float(2 * l - 1) * z * q1 - float(l + m - 1) * q2) / float(l - m)
-    return q
+        q = (float(2 * l - 1) * st.z * st.q - float(l + m - 1) * st.q_prev) / float(l - m)
+    return legendre_state(st.x, st.y, st.z, st.c, st.s, st.pmm, q, st.q)
 
 
 @wp.func
@@ -63,41 +123,27 @@ def sh_accumulate_banded(
     """Add ``w_l * k[i] * Q_l^m(d) * (cos | sin)(m phi)`` to ``out[row, i]`` for all ``i < order*order``.
 
     ``w_l = weight`` when ``use_bands == 0`` (``zh`` is then not read), else
-    ``weight * lerp(zh[zh_row_a, l], zh[zh_row_b, l], t)``. Cartesian recurrences (:func:`legendre_q`),
+    ``weight * lerp(zh[zh_row_a, l], zh[zh_row_b, l], t)``. Cartesian recurrences (:class:`LegendreState`),
     so the poles are exact.
     ``d`` is normalised here; a zero vector contributes nothing.
     """
     len_d = wp.length(d)
     if len_d == 0.0:
         return
-    n = d / len_d
-    x = n[0]
-    y = n[1]
-    z = n[2]
-    c = float(1.0)
-    s = float(0.0)
-    pmm = float(1.0)
+    r = legendre_start(d / len_d)
     for m in range(order):
-        if m > 0:
-            c_new = c * x - s * y
-            s = c * y + s * x
-            c = c_new
-            pmm = pmm * (-float(2 * m - 1))
-        q2 = float(0.0)
-        q1 = float(0.0)
+        r = legendre_band(r, m)
         for l in range(m, order):
-            q = legendre_q(l, m, z, pmm, q1, q2)
-            q2 = q1
-            q1 = q
+            r = legendre_degree(r, l, m)
             g = weight
             if use_bands != 0:
                 g = weight * ((1.0 - t) * zh[zh_row_a, l] + t * zh[zh_row_b, l])
             base = l * (l + 1)
             if m == 0:
-                out[row, base] = out[row, base] + g * k[base] * q
+                out[row, base] = out[row, base] + g * k[base] * r.q
             else:
-                out[row, base + m] = out[row, base + m] + g * k[base + m] * q * c
-                out[row, base - m] = out[row, base - m] + g * k[base - m] * q * s
+                out[row, base + m] = out[row, base + m] + g * k[base + m] * r.q * r.c
+                out[row, base - m] = out[row, base - m] + g * k[base - m] * r.q * r.s
 
 
 @wp.func
@@ -205,31 +251,17 @@ def zh_vector_funcs(order: int) -> SimpleNamespace:
         len_d = wp.length(d)
         if len_d == 0.0:
             return out
-        n = d / len_d
-        x = n[0]
-        y = n[1]
-        z = n[2]
-        c = float(1.0)
-        s = float(0.0)
-        pmm = float(1.0)
+        r = legendre_start(d / len_d)
         for m in range(bands):
-            if m > 0:
-                c_new = c * x - s * y
-                s = c * y + s * x
-                c = c_new
-                pmm = pmm * (-float(2 * m - 1))
-            q2 = float(0.0)
-            q1 = float(0.0)
+            r = legendre_band(r, m)
             for l in range(m, bands):
-                q = legendre_q(l, m, z, pmm, q1, q2)
-                q2 = q1
-                q1 = q
+                r = legendre_degree(r, l, m)
                 base = l * (l + 1)
                 if m == 0:
-                    out[base] = g[l] * kz[base] * q
+                    out[base] = g[l] * kz[base] * r.q
                 else:
-                    out[base + m] = g[l] * kz[base + m] * q * c
-                    out[base - m] = g[l] * kz[base - m] * q * s
+                    out[base + m] = g[l] * kz[base + m] * r.q * r.c
+                    out[base - m] = g[l] * kz[base - m] * r.q * r.s
         return out
 
     # This module uses postponed annotations; Warp needs the real (closure-local) types.

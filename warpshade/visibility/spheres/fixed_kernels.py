@@ -93,6 +93,19 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         f = x - float(i0)
         return table[i0] * (1.0 - f) + table[i0 + 1] * f
 
+    def angular_radius(rho: float, dist: float) -> float:
+        # Angular radius [rad] of a sphere of radius rho whose centre is dist (> 0) away.
+        return wp.asin(wp.min(rho / dist, 1.0))
+
+    def sphere_lobe(d: wp.vec3, theta: float, ratio: vec_zh, table: wp.array(dtype=vec_zh), step: float,
+                    kz: vec_sh) -> vec_sh:
+        # The per-sphere lobe of shade and reflect: the ZH row of `table` (log blocker or form factor) at
+        # angular radius theta, times the per-band `ratio` (eq. 4.9; ones for none), rotated toward d.
+        g = lerp_table(table, theta, step)
+        for l in range(nb):
+            g[l] = g[l] * ratio[l]
+        return zh_rotate(d, g, kz)
+
     def exp_series(f: vec_sh, p: int, products: SHProductTable) -> vec_sh:
         # (exp_*(2^-p f))^(2^p): 8 Taylor terms of SH products (eq. 3.25) at the small scale, p squarings
         # (eq. 3.32); the DC is isolated (eq. 3.27) and restored as a factor.
@@ -192,10 +205,10 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             dist = wp.length(d)
             if dist <= 0.0:
                 continue
-            g = lerp_table(log_table, wp.asin(wp.min(rho / dist, 1.0)), theta_step)
+            ratio = vec_zh()
             for l in range(nb):
-                g[l] = g[l] * cut_ratio[e, l]
-            logsum = logsum + zh_rotate(d, g, kz)
+                ratio[l] = cut_ratio[e, l]
+            logsum = logsum + sphere_lobe(d, angular_radius(rho, dist), ratio, log_table, theta_step, kz)
             count = count + 1
         used[v] = count
         # SH exponential (thesis §3.1.4), blended between p and p+1 squarings (exp_blended).
@@ -297,6 +310,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         e_full[0] = sqrt_4pi
         full_ok = int(1)
         cosine = zh_rotate(n, cos_zh, kz)
+        ones = vec_zh(1.0)
         total = wp.vec3(0.0)
         for step in range(cnt):  # nearest first
             best = slot[v, step]
@@ -305,8 +319,8 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
             sid = row_sphere[row]
             a = adjust_sphere(p, n, centers[sid], radii[sid])
             d = wp.vec3(a[0], a[1], a[2]) - p
-            theta = wp.asin(wp.min(a[3] / wp.max(bd, 1.0e-30), 1.0))
-            g = zh_rotate(d, lerp_table(log_table, theta, theta_step), kz)
+            theta = angular_radius(a[3], wp.max(bd, 1.0e-30))
+            g = sphere_lobe(d, theta, ones, log_table, theta_step, kz)
             excl = vec_sh()
             nex = int(0)
             if exclude_intersecting != 0:
@@ -317,8 +331,8 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
                     if row_object[row2] == obj and wp.length(centers[sid2] - centers[sid]) < radii[sid] + radii[sid2]:
                         a2 = adjust_sphere(p, n, centers[sid2], radii[sid2])
                         d2 = wp.vec3(a2[0], a2[1], a2[2]) - p
-                        th2 = wp.asin(wp.min(a2[3] / wp.max(wp.length(d2), 1.0e-30), 1.0))
-                        excl = excl + zh_rotate(d2, lerp_table(log_table, th2, theta_step), kz)
+                        th2 = angular_radius(a2[3], wp.max(wp.length(d2), 1.0e-30))
+                        excl = excl + sphere_lobe(d2, th2, ones, log_table, theta_step, kz)
                         nex = nex + 1
             # sphere visibility as a difference of two exponentials (eq. 4.32)
             e_a = vec_sh()
@@ -342,7 +356,7 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
                 continue
             # form-factor lobe toward the receiver, in the sphere's rest frame (Fig. 4.17)
             u = wp.transpose(rotations[sid]) * (p - centers[sid])
-            ff = zh_rotate(u, lerp_table(ff_table, theta, theta_step), kz)
+            ff = sphere_lobe(u, theta, ones, ff_table, theta_step, kz)
             col = wp.vec3(0.0)
             for cc in range(3):
                 acc = float(0.0)
@@ -355,12 +369,14 @@ def shade_kernel_fixed(order: int) -> SimpleNamespace:
         # SH ringing of a sharply coloured radiance vector can dip below 0; irradiance cannot
         irradiance[v] = wp.vec3(wp.max(total[0], 0.0), wp.max(total[1], 0.0), wp.max(total[2], 0.0))
 
-    for fn in (dc_free_norm, exp_ol, exp_hybrid, exp_series, lerp_table, exp_blended, shade, reflect):
+    for fn in (dc_free_norm, exp_ol, exp_hybrid, exp_series, lerp_table, angular_radius, sphere_lobe, exp_blended, shade,
+               reflect):
         fn.__name__ = f"{fn.__name__}_order{order}"
         fn.__qualname__ = fn.__name__
     dc_free_norm = wp.func(dc_free_norm)
     exp_ol, exp_hybrid, exp_series = wp.func(exp_ol), wp.func(exp_hybrid), wp.func(exp_series)
     lerp_table, exp_blended = wp.func(lerp_table), wp.func(exp_blended)
+    angular_radius, sphere_lobe = wp.func(angular_radius), wp.func(sphere_lobe)
     return SimpleNamespace(order=order, vec_sh=vec_sh, vec_zh=vec_zh, kz=zf.zh_constants(),
                            shade=wp.kernel(shade, enable_backward=False),
                            reflect=wp.kernel(reflect, enable_backward=False))

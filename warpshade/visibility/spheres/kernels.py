@@ -58,6 +58,27 @@ def max_abs_entry(m: wp.mat33) -> float:
     return h
 
 
+@wp.func
+def indexed_mean(start: wp.array[wp.int32], index: wp.array[wp.int32], points: wp.array[wp.vec3], k: int) -> wp.vec3:
+    """Mean of ``points[index[start[k]:start[k+1]]]`` (CSR group ``k``; origin when empty)."""
+    a = start[k]
+    b = start[k + 1]
+    m = wp.vec3(0.0)
+    for i in range(a, b):
+        m = m + points[index[i]]
+    return m / float(wp.max(b - a, 1))
+
+
+@wp.func
+def indexed_reach(start: wp.array[wp.int32], index: wp.array[wp.int32], points: wp.array[wp.vec3], k: int,
+                  c: wp.vec3) -> float:
+    """Largest distance from ``c`` of ``points[index[start[k]:start[k+1]]]`` (CSR group ``k``; 0 when empty)."""
+    r = float(0.0)
+    for i in range(start[k], start[k + 1]):
+        r = wp.max(r, wp.length(points[index[i]] - c))
+    return r
+
+
 @wp.kernel
 def refit_spheres(
     vert_start: wp.array[wp.int32],
@@ -80,10 +101,7 @@ def refit_spheres(
     s = wp.tid()
     a = vert_start[s]
     b = vert_start[s + 1]
-    m = wp.vec3(0.0)
-    for k in range(a, b):
-        m = m + points[vert_index[k]]
-    m = m / float(wp.max(b - a, 1))
+    m = indexed_mean(vert_start, vert_index, points, s)
     h = wp.mat33(0.0)
     m0 = rest_centroid[s]
     for k in range(a, b):
@@ -104,9 +122,7 @@ def refit_spheres(
                                  -wp.vec3(vv[0, 2], vv[1, 2], vv[2, 2]))
         rot = vv * wp.transpose(u)
     c = m + rot * rest_offset[s]
-    spread = float(0.0)
-    for k in range(a, b):
-        spread = wp.max(spread, wp.length(points[vert_index[k]] - c))
+    spread = indexed_reach(vert_start, vert_index, points, s, c)
     centers[s] = c
     radii[s] = wp.max(rest_radius[s] + spread - rest_spread[s], spread)
     rotations[s] = rot
@@ -206,17 +222,9 @@ def fit_clusters(
 ):
     """Bounding sphere (centroid, farthest member) of each receiver cluster."""
     k = wp.tid()
-    a = member_start[k]
-    b = member_start[k + 1]
-    m = wp.vec3(0.0)
-    for i in range(a, b):
-        m = m + points[member_index[i]]
-    m = m / float(wp.max(b - a, 1))
-    r = float(0.0)
-    for i in range(a, b):
-        r = wp.max(r, wp.length(points[member_index[i]] - m))
+    m = indexed_mean(member_start, member_index, points, k)
     centers[k] = m
-    radii[k] = r
+    radii[k] = indexed_reach(member_start, member_index, points, k, m)
 
 
 # --------------------------------------------------------------------------------------------------
