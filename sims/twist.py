@@ -2,19 +2,18 @@
 
 What it shows: a 0.8 m square cloth (default 24 x 24 vertices) hangs between two attached
 edges (x = -0.4 and x = +0.4 m, 1 m above the floor); each edge turns about the x axis at 0.25
-turns per second, in opposite directions, while the edges close in to 0.5 m apart: the cloth
-wrings into a rope whose folds press against each other.
+turns per second, in opposite directions, while the edges close in so that the cloth's borders
+(helices of radius 0.4 m between the edges) keep their rest length, until the edges are 0.25 m
+apart after a relative turn of 109 degrees (0.6 s); then they hold. The inside of the cloth,
+shorter between the edges than at rest, buckles, and its folds press against each other.
 
 Success criteria (checked every frame, printed at the end): 0 intersecting cloth-cloth triangle
 pairs at the end of every frame; the attached edges are on their targets (1e-5 m); 99th-
 percentile edge strain below 5 %.
 
-Status: not met: 0 intersecting pairs in the first 60 frames, up to 323 in the full 120-frame
-run (made by the turning, kinematic edges: steps the guard could not resolve). The strain is the
-scene's: after t seconds the pinned edges are turned pi t apart, and a border of the 0.8 m cloth is
-a helix of radius 0.4 m, sqrt(L^2 + (0.4 pi t)^2) long between edges L apart (L = 0.65 m at
-t = 1: 118 % longer than at rest), so the p99 strain is 136 % at frame 60 and 1090 % at the end
-of the full run; the scene needs redesigning before its contact can be judged.
+Status: 0 intersecting pairs on every frame of the full 120-frame run (the guard acted in 13
+steps), the edges on their targets; not met: p99 edge strain 9.5 % at the end, 15.8 % at worst
+(the cloth hangs taut between edges its own length apart at the start and sags).
 
 Run:  python sims/twist.py --frames 120 --out twist.usda
       (shaded under the default sky; --no-shade writes geometry only)
@@ -32,12 +31,24 @@ from warpshade.sim import ClothBuilder, IntersectionCounter, XPBDSolver
 SIZE, HEIGHT = 0.8, 1.0
 
 
+GAP = 0.25
+"""Distance [m] between the attached edges when the turn stops."""
+TURN_RATE = np.pi
+"""Relative turn of the two edges [rad/s] (each a quarter turn per second, opposite ways)."""
+MAX_TURN = np.sqrt(SIZE ** 2 - GAP ** 2) / (SIZE / 2)
+"""Relative turn [rad] at which the edges are GAP apart (109 degrees)."""
+
+
 def edge_pose(rest: np.ndarray, side: float, t: float) -> np.ndarray:
-    """An attached edge at time t: turned by side * pi t about the x axis, moved in by 0.075 m/s."""
-    a = side * 0.5 * np.pi * t
+    """An attached edge at time t: turned by side * theta / 2 about the x axis, theta = min(pi t,
+    MAX_TURN) the relative turn, at x = side * L / 2 with L = sqrt(SIZE^2 - (SIZE / 2 * theta)^2):
+    the cloth's borders, helices of radius SIZE / 2 between the edges, keep their rest length."""
+    theta = min(TURN_RATE * t, MAX_TURN)
+    a = side * 0.5 * theta
     c, s = np.cos(a), np.sin(a)
     y, z = rest[:, 1] - HEIGHT, rest[:, 2]
-    x = rest[:, 0] - side * min(0.075 * t, 0.15)
+    gap = np.sqrt(SIZE ** 2 - (0.5 * SIZE * theta) ** 2)
+    x = rest[:, 0] - side * 0.5 * (SIZE - gap)
     return np.stack([x, HEIGHT + c * y - s * z, s * y + c * z], axis=1)
 
 
