@@ -351,13 +351,17 @@ class ColliderSet:
             wp.launch(ck.collide_mesh_edges, dim=edges.shape[0],
                       inputs=[m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x, edges,
                               inv_mass, thickness], outputs=[self._edge_delta, self._edge_count], device=self.device)
+        wp.launch(apply_averaged_deltas, dim=n, inputs=[], outputs=[self._edge_delta, self._edge_count, x],
+                  device=self.device)
         if tris is not None and int(ck.SHAPE_BOX) in self._kind:
+            # a pass of its own: averaged with the many small edge corrections a vertex near a
+            # corner also gets, the corner's push would be diluted
             ar = self._arrays
             wp.launch(ck.collide_box_corners, dim=tris.shape[0],
                       inputs=[ar["kind"], ar["a1"], ar["r1"], ar["size"], x, tris, inv_mass, thickness],
                       outputs=[self._edge_delta, self._edge_count], device=self.device)
-        wp.launch(apply_averaged_deltas, dim=n, inputs=[], outputs=[self._edge_delta, self._edge_count, x],
-                  device=self.device)
+            wp.launch(apply_averaged_deltas, dim=n, inputs=[], outputs=[self._edge_delta, self._edge_count, x],
+                      device=self.device)
 
     def collide(self, thickness: float, inv_mass, x_prev, x) -> None:
         """Project the vertices x out of every collider as posed by :meth:`pose_substep`.

@@ -157,8 +157,7 @@ class XPBDSolver:
             self._streak = wp.zeros(v, dtype=wp.int32, device=d)
             self._held = wp.zeros(1, dtype=wp.int32, device=d)
             self._released = wp.zeros(1, dtype=wp.int32, device=d)
-            self._x_grown = wp.zeros(v, dtype=wp.vec3, device=d)
-            self._reverted_grown = wp.zeros(v, dtype=wp.int32, device=d)
+            self._x_unguarded = wp.zeros(v, dtype=wp.vec3, device=d)
 
     # ------------------------------------------------------------------------------------------
 
@@ -419,8 +418,8 @@ class XPBDSolver:
         vertices in the last round, until no pair is left that the step made. A cloth-cloth pair
         that also met at the start of the step (inherited from an earlier step) is left alone:
         sending vertices back to where it already existed cannot remove it. When even the last round leaves new
-        intersections (made by kinematic vertices or colliders), the grown-region result is kept
-        and the step is counted in ``stats()["guard_unresolved"]``."""
+        intersections (made by kinematic vertices or colliders), the step is kept as the contacts
+        left it (no vertex sent back) and counted in ``stats()["guard_unresolved"]``."""
         m, d, n = self.model, self.device, self.model.particle_count
         c, col = self._counter, self.colliders
         self._reverted.zero_()
@@ -447,16 +446,16 @@ class XPBDSolver:
             if r == 0:
                 self.guard_steps += 1
                 self.guard_vertices = -1
+                wp.copy(self._x_unguarded, x)
             if r == self.GUARD_ROUNDS + 1:
-                # kinematic vertices or colliders made the intersection: reverting everything did
-                # not help, so keep the grown-region result rather than freeze the whole cloth
                 self.guard_unresolved += 1
-                wp.copy(x, self._x_grown)
-                wp.copy(self._reverted, self._reverted_grown)
+                # kinematic vertices or colliders made the intersection: reverting does not remove
+                # it, and holding vertices back while a collider or an attached edge moves on only
+                # stretches the cloth, so the step stands as the contacts left it
+                wp.copy(x, self._x_unguarded)
+                self._reverted.zero_()
                 break
             if r == self.GUARD_ROUNDS:
-                wp.copy(self._x_grown, x)
-                wp.copy(self._reverted_grown, self._reverted)
                 self._mark.fill_(1)
                 wp.launch(ck.drop_released, dim=n, inputs=[self._streak, self.GUARD_STREAK],
                           outputs=[self._mark, self._held, self._released], device=d)
