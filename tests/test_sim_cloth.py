@@ -158,6 +158,25 @@ def test_hanging_cloth_edge_strain_below_one_percent():
     assert x[:, 1].min() < 1.2  # really hanging (sagged), not held flat
 
 
+def test_one_launch_over_all_colours_is_the_per_colour_sweep():
+    """On the CPU the coloured stretch, bending and damping sweeps run as one launch over all
+    colours (XPBDSolver._batches); a launch runs its threads in index order there, so the result
+    must be bit-for-bit the per-colour launches' (damping on, so the damping sweeps are covered)."""
+    def build():
+        b = ClothBuilder(damping=0.1, bend_damping=0.1)
+        ids = b.add_grid(12, 12, 1.0, 1.0, origin=(-0.5, 1.0, -0.5))
+        b.pin([ids[0, 0], ids[0, -1]])
+        return b.finalize()
+    merged_model, colour_model = build(), build()
+    merged, per_colour = XPBDSolver(merged_model), XPBDSolver(colour_model)
+    per_colour._batches = lambda colours: list(colours)
+    assert len(merged_model.edge_colors) > 1 and len(merged_model.hinge_colors) > 1
+    a, b = merged_model.state(), colour_model.state()
+    xa, xb = _run(merged, a, 30), _run(per_colour, b, 30)
+    assert np.array_equal(xa, xb) and np.array_equal(a.velocities.numpy(), b.velocities.numpy())
+    assert np.abs(xa - merged_model.state().points.numpy()).max() > 0.1  # the cloth really moved
+
+
 def _released_cloth(**builder_kw):
     b = ClothBuilder(**builder_kw)
     ids = b.add_grid(16, 16, 1.0, 1.0, origin=(-0.5, 2.0, -0.5))

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import warp as wp
 
+wp.set_module_options({"enable_backward": False})
+
 from .kernels import closest_on_triangle, closest_segments
 
 SHAPE_PLANE = wp.constant(0)

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import warp as wp
 
+wp.set_module_options({"enable_backward": False})
+
 from .kernels import closest_segments, dihedral_angle, push_candidate, stored_side
 
 # ---------------------------------------------------------------------------------------------
