@@ -18,13 +18,15 @@ frame), pass by pass where a pass is a tenth of the frame or more, and the measu
 ``run_seconds_setup``. ``--max-error E`` adds each scene under an error budget (``apply_plan``, as
 ``warpshade run --max-error``); ``--split`` adds each scene with static objects on ``reference`` (1024
 rays, computed once) and moving ones on ``hemiraster``, which exercises the between-group sphere sets
-and the hemiraster LUT. Success criterion: the estimate per frame within a factor 1.5 of the
-measurement on every scene.
+and the hemiraster LUT. ``--probe K`` plans each scene a second time with ``make_plan(probe=K)``
+(``warpshade plan --probe K``: every group built and its transfer timed at K random receivers a side)
+and prints that estimate beside the first. Success criterion: the estimate per frame within a factor
+1.5 of the measurement on every scene.
 
 How to run::
 
     python benchmarks/planner_savings.py [--frames 10] [--method disks] [--json PATH]
-    python benchmarks/planner_savings.py --scenes [--frames 5] [--max-error 0.2] [--split] [--only NAME] [--json PATH]
+    python benchmarks/planner_savings.py --scenes [--frames 5] [--max-error 0.2] [--split] [--probe [K]] [--only NAME] [--json PATH]
 
 Numbers come from a shared, loaded machine: each loop runs ``--repeat`` times (default 3), alternating
 naive and planned, after a warm-up update that absorbs kernel compilation; medians are reported.
@@ -66,9 +68,12 @@ def main(argv=None) -> int:
                         help="with --scenes: only the shipped scenes whose file name contains NAME")
     parser.add_argument("--scenes", action="store_true",
                         help="estimate vs measured warpshade run time on the shipped usd_scenes instead")
+    parser.add_argument("--probe", type=int, nargs="?", const=256, default=None, metavar="RECEIVERS",
+                        help="with --scenes: also plan each scene with make_plan(probe=RECEIVERS) (warpshade plan --probe) "
+                             "and print its estimate beside the measurement")
     args = parser.parse_args(argv)
     if args.scenes:
-        return scenes_estimate_vs_measured(args.frames, args.json, args.max_error, args.split, args.only)
+        return scenes_estimate_vs_measured(args.frames, args.json, args.max_error, args.split, args.only, args.probe)
 
     import warp as wp
 
@@ -150,7 +155,7 @@ def main(argv=None) -> int:
 
 
 def scenes_estimate_vs_measured(frames: int, json_path: str | None, budgets=None, split: bool = False,
-                                only: str | None = None) -> int:
+                                only: str | None = None, probe: int | None = None) -> int:
     """Plan and run every shipped scene; print estimated vs measured shading time per frame (steady state:
     the median over frames after the first) and setup, and per pass of the pass graph where they differ
     (see module doc)."""
@@ -166,7 +171,7 @@ def scenes_estimate_vs_measured(frames: int, json_path: str | None, budgets=None
 
     root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "usd_scenes")
     rows = []
-    print(f"planner estimate vs warpshade run (inline), {frames} frames per scene; shared loaded 2-core machine, "
+    print(f"planner estimate vs warpshade run (inline), {frames} frames per scene; shared 2-core machine, "
           "one run each (kernels cached from earlier runs); per frame: median over frames 1..")
     print(f"{'scene':<18}{'groups':<40}{'est ms/frame':>13}{'meas ms/frame':>14}{'meas/est':>9}"
           f"{'est setup s':>12}{'meas setup s':>13}")
@@ -181,6 +186,8 @@ def scenes_estimate_vs_measured(frames: int, json_path: str | None, budgets=None
                     o.method, o.knobs = ("reference", {"rays": 1024}) if o.kind == "static" else ("hemiraster", {})
             pipe = Pipeline(scene, frames=frames, workers=0)  # refines the scene's receivers, as the run does
             plan = make_plan(scene, max_error=None if budget in (None, "split") else budget)
+            probed = make_plan(scene, max_error=None if budget in (None, "split") else budget,
+                               probe=probe) if probe else None
             if budget not in (None, "split"):
                 apply_plan(scene, plan)  # what warpshade run --max-error does
                 pipe = Pipeline(scene, frames=frames, workers=0)
@@ -192,6 +199,11 @@ def scenes_estimate_vs_measured(frames: int, json_path: str | None, budgets=None
                         for p in plan.passes if p["every_frame"]}
             groups = "; ".join(f"{g.method or 'unocc'} {g.vertices}v{'' if g.moves else ' static'}" for g in plan.groups)
             rows.append({"scene": name, "max_error": budget, "frames": frames,
+                         "probe": probe, "probed_seconds_per_frame": probed.run_seconds_per_frame if probed else None,
+                         "probed_ratio": meas / probed.run_seconds_per_frame if probed else None,
+                         "probed_passes": probed.passes if probed else None,
+                         "probed_setup_seconds": probed.run_seconds_setup if probed else None,
+                         "probed_sources": [g.cost_source for g in probed.groups] if probed else None,
                          "groups": [[g.method, g.knobs, g.names] for g in plan.groups],
                          "group_vertices": [g.vertices for g in plan.groups],
                          "estimated_seconds_per_frame": est, "measured_seconds_per_frame": meas,
@@ -201,17 +213,27 @@ def scenes_estimate_vs_measured(frames: int, json_path: str | None, budgets=None
                          "measured_setup_seconds": report.seconds["setup"]})
             r = rows[-1]
             print(f"{name:<18}{groups[:39]:<40}{est * 1e3:>13.1f}{meas * 1e3:>14.1f}{r['ratio']:>9.2f}"
-                  f"{r['estimated_setup_seconds']:>12.2f}{r['measured_setup_seconds']:>13.2f}", flush=True)
+                  f"{r['estimated_setup_seconds']:>12.2f}{r['measured_setup_seconds']:>13.2f}"
+                  + (f"   probed {r['probed_seconds_per_frame'] * 1e3:.1f} ms ({r['probed_ratio']:.2f}), "
+                     f"setup {r['probed_setup_seconds']:.2f} s" if probed else ""),
+                  flush=True)
             for p in plan.passes:
                 m = per_pass.get(p["pass"])
                 if m is not None and max(m, p["seconds"]) > 0.1 * max(meas, est):
-                    print(f"{'':<20}{p['pass']:<22} est {p['seconds'] * 1e3:8.1f} ms  meas {m * 1e3:8.1f} ms")
+                    q = next((x["seconds"] for x in probed.passes if x["pass"] == p["pass"]), None) if probed else None
+                    print(f"{'':<20}{p['pass']:<22} est {p['seconds'] * 1e3:8.1f} ms  meas {m * 1e3:8.1f} ms"
+                          + (f"  probed {q * 1e3:8.1f} ms" if q is not None else ""))
     ratios = [r["ratio"] for r in rows if r["ratio"]]
     print(f"measured/estimated shade time per frame: median {np.median(ratios):.2f}, "
           f"range {min(ratios):.2f}..{max(ratios):.2f}")
+    if probe:
+        ratios = [r["probed_ratio"] for r in rows if r["probed_ratio"]]
+        print(f"measured/probed (--probe {probe}): median {np.median(ratios):.2f}, "
+              f"range {min(ratios):.2f}..{max(ratios):.2f}")
     if json_path:
         with open(json_path, "w") as f:
-            json.dump({"frames": frames, "rows": rows, "note": "shared loaded 2-core machine; one run each"}, f, indent=2)
+            json.dump({"frames": frames, "rows": rows, "note": "shared 2-core machine; one run each",
+                       "load_average": os.getloadavg()}, f, indent=2)
     return 0 if all(1 / 1.5 <= x <= 1.5 for x in ratios) else 1
 
 

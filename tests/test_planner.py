@@ -217,3 +217,58 @@ def test_plan_cli_on_shipped_rect_light_scene(tmp_path):
     # the run's default --area-lights gears: one GEARS pass over the merged group, every frame (the cloth moves)
     assert plan["area_lights"] == "gears" and plan["area_moves"] and plan["seconds_area"] > 0
     assert plan["run_seconds_per_frame"] == pytest.approx(g["seconds_frame"] + plan["seconds_area"])
+
+
+def test_probe_times_the_runs_groups_on_a_random_sample_of_their_receivers(monkeypatch):
+    # make_plan(probe=K) builds each group as the run does and times its transfer at K random receivers a
+    # side (compute_rows); without probe nothing is built. Which rows it computes is checked here; how close
+    # its extrapolation comes to the run's time is benchmarks/planner_savings.py --scenes --probe's.
+    from warpshade.visibility.hemiraster.method import HemirasterTransfer
+
+    calls = []
+    original = HemirasterTransfer.compute_rows
+
+    def spy(self, rows):
+        calls.append((id(self), np.asarray(rows).copy()))
+        return original(self, rows)
+
+    monkeypatch.setattr(HemirasterTransfer, "compute_rows", spy)
+    p, f = grid(24, 1.0)  # 576 vertices, two-sided in the run (a cloth)
+    cloth = SceneObject("cloth", TriMesh(p + (0.0, 0.0, 0.3), f, name="cloth"), "cloth", method="hemiraster")
+    gp, gf = grid(8, 4.0)  # 64 vertices
+    scene = Scene([cloth, SceneObject("ground", TriMesh(gp, gf, name="ground"), "static", method="hemiraster")],
+                  frames=3)
+    estimated = make_plan(scene, frontier=FRONTIER)
+    assert calls == [] and "probed" not in estimated.groups[0].cost_source
+    plan = make_plan(scene, frontier=FRONTIER, probe=64)
+    (g,) = plan.groups
+    assert g.names == ["cloth", "ground"] and g.two_sided == ["cloth"] and g.vertices == 640
+    assert g.cost_source.startswith("probed: 64 random receivers")
+    methods = list(dict.fromkeys(k for k, _ in calls))  # front, then back, in the order they were probed
+    assert len(methods) == 2
+    front, back = ([rows for k, rows in calls if k == m] for m in methods)
+    for rows, bound in [(r, 640) for r in front] + [(r, 576) for r in back]:  # the back: the cloth's rows only
+        assert len(rows) in (1, 64) and len(np.unique(rows)) == len(rows) and 0 <= rows.min() and rows.max() < bound
+    assert {len(r) for r in front} == {len(r) for r in back} == {1, 64}  # one receiver and the sample
+    assert not np.array_equal(np.sort(front[-1]), np.arange(64))  # a random sample, not the first rows
+    assert g.seconds_transfer > 0 and g.seconds_back > 0 and g.seconds_build > 0
+
+
+def test_probe_times_a_full_update_of_a_method_without_receiver_subsets():
+    scene = Scene([ico(method="reference", knobs={"rays": 16})], frames=3)
+    plan = make_plan(scene, frontier=FRONTIER, probe=32)
+    (g,) = plan.groups
+    assert g.cost_source == "probed: one full update a side on the rest pose" and g.seconds_transfer > 0
+
+
+def test_plan_cli_probe_on_shipped_skinned_arm(tmp_path):
+    import json
+    import os
+
+    from warpshade.cli import main as cli_main
+
+    scene = os.path.join(os.path.dirname(__file__), "..", "usd_scenes", "skinned_arm.usda")
+    out = tmp_path / "plan.json"
+    assert cli_main(["plan", scene, "--probe", "16", "--json", str(out)]) == 0
+    (g,) = json.loads(out.read_text())["groups"]
+    assert g["cost_source"] == "probed: 16 random receivers a side on the rest pose" and g["seconds_transfer"] > 0

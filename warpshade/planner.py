@@ -446,7 +446,8 @@ def find_config(frontier: dict, method: str, order: int, knobs: dict) -> tuple[d
 
 def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str | None = None,
               between: str | None = "spheres", area_lights: str = "gears", area_k: int | None = None,
-              two_sided: str = "auto", order: int | None = None, reflections=None, config=None) -> Plan:
+              two_sided: str = "auto", order: int | None = None, reflections=None, config=None,
+              probe: int | None = None) -> Plan:
     """Build the :class:`Plan` of ``scene``: the run configuration ``warpshade run`` resolves for it
     (:func:`warpshade.pipeline.config.resolve_run`, the same defaults), its shading groups, and the
     per-frame passes of its pass graph (:meth:`warpshade.pipeline.shading.SceneShader.passes`) costed.
@@ -467,6 +468,10 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         order: SH order (None: the scene's ``warpshade:order``, else the run's default).
         reflections: As ``warpshade run --reflections`` (None: the scene's ``warpshade:reflections``).
         config: A resolved :class:`~warpshade.pipeline.config.RunConfig` instead of the options above.
+        probe: Measure instead of estimate: build every shading group as the run does and time its
+            transfer (both sides) on the rest pose at this many random receivers
+            (:func:`warpshade.pipeline.shading.probe_transfer`); the groups' transfer and build
+            seconds are then measured, not fitted. None: estimate from the frontier only (no building).
 
     Raises:
         ValueError: an empty scene, a bad option, or no configuration within ``max_error``.
@@ -582,7 +587,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     plan = Plan(order, scene.frames, plans, structures, lighting_changes, bool(moving), max_error, notes,
                 area_lights=area_lights if any(_is_rect(li) for li in scene.lights) else None)
     plan.area_k = area_k
-    _plan_groups(plan, scene, fr, pc, n_local, config, run_groups)
+    _plan_groups(plan, scene, fr, pc, n_local, config, run_groups, probe)
     _static_in_moving_groups(plan)
     return plan
 
@@ -654,14 +659,16 @@ def _run_groups(scene: Scene, methods: dict, two_sided: str = "auto") -> list:
     return group_objects(objs, None, None, two_sided=two_sided)
 
 
-def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: int, config, specs: list) -> None:
+def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: int, config, specs: list,
+                 probe: int | None = None) -> None:
     """Fill ``plan.groups`` and ``plan.passes``: the shading groups ``warpshade run`` forms (``specs``: the
     run configuration's, or :func:`_run_groups` with the plan's methods) and every pass of the run's pass
     graph (:meth:`warpshade.pipeline.shading.SceneShader.passes`), each costed; the groups' totals are
-    sums of their passes."""
+    sums of their passes. With ``probe``, each group's transfer and method build are measured
+    (:func:`warpshade.pipeline.shading.probe_transfer`) instead of estimated."""
     import dataclasses
 
-    from .pipeline.shading import SceneShader, back_side_receivers
+    from .pipeline.shading import SceneShader, back_side_receivers, probe_transfer
 
     n = plan.order * plan.order
     shader = SceneShader.from_config(dataclasses.replace(config, groups=specs), scene)
@@ -681,22 +688,29 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
             g.cost_source = "measured constant"
         else:
             cfg, src = find_config(frontier, spec.method, plan.order, spec.label)
-            if cfg is None:
+            if cfg is None and not probe:
                 g.cost_source = "not in the frontier: transfer not estimated"
                 plan.notes.append(f"group {spec.names}: {spec.method} {_knobs(spec.label)}is not in the frontier; "
                                   "its transfer cost is not estimated")
-            else:
+            elif cfg is not None:
                 # the method's blockers are the casters' triangles; every vertex receives
                 g.seconds_transfer = estimate_seconds(cfg, v, triangles=caster_tris[k])
                 g.seconds_build = estimate_seconds(cfg, v, "build_seconds", triangles=caster_tris[k])
                 fit = len({t["vertices"] for t in cfg["timings"]}) >= 3
                 g.cost_source = ", ".join(x for x in (("fit over measured meshes" if fit else "nearest measured mesh"), src) if x)
-        if cfg is not None and len(spec.names) > 1 and not any("lower bound" in n for n in plan.notes):
+        measured = probe_transfer(spec, plan.order, probe) if probe and spec.method is not None else None
+        if measured is not None:
+            g.seconds_transfer = measured["front"]
+            g.seconds_build = measured["build"]
+            g.cost_source = ("probed: " + (f"{measured['sampled']} random receivers a side" if measured["sampled"]
+                                            else "one full update a side") + " on the rest pose")
+        if (measured is None and cfg is not None and len(spec.names) > 1
+                and not any("lower bound" in n for n in plan.notes)):
             plan.notes.append(
                 "the transfer estimates are fitted on warpshade bench's isolated meshes; where the objects of a "
-                "shading group touch (cloth on a collider or a ground) the method's near-field work grows, and on "
-                "the shipped scenes hemiraster measured 1.6-12x its estimate (benchmarks/planner_savings.py "
-                "--scenes, loaded machine): read the shading time per frame as a lower bound")
+                "shading group touch (cloth on a collider or a ground, a cape on a figure) the method's near-field "
+                "work grows (cape_walker's transfer measured 3.4x its estimate): read the shading time per frame "
+                "as a lower bound, or measure it with warpshade plan --probe (make_plan(probe=...))")
         t_back = 0.0
         if any(spec.two_sided):
             # the back side: the method again on the group seen from the back (or the unoccluded lobe), on every
@@ -709,6 +723,8 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
             elif back_side_receivers(spec) is not None and cfg is not None:
                 t_back = estimate_seconds(cfg, v_two, triangles=caster_tris[k])
                 back_build = estimate_seconds(cfg, v_two, "build_seconds", triangles=caster_tris[k])
+            if measured is not None:  # the probe's build is both sides'
+                t_back, back_build = measured["back"] or 0.0, 0.0
             g.seconds_build += back_build
         # the group's meshes at setup (merged members and their normals; the back side's merged members),
         # which the frontier's build_seconds (the constructor on a built mesh) leave out
@@ -717,7 +733,8 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
         if two is not None:
             casts = spec.casts or [True] * len(spec.meshes)
             mesh_tris += sum(m.num_faces for i, m in enumerate(spec.meshes) if i in two or casts[i])
-        g.seconds_build += pc["group_mesh_seconds_per_triangle"] * mesh_tris
+        if measured is None:  # (the probe's build includes them)
+            g.seconds_build += pc["group_mesh_seconds_per_triangle"] * mesh_tris
         back_transfer.append(t_back)
         plan.groups.append(g)
     t_refl = (REFLECTION_SECONDS_PER_VERTEX_SPHERE * sum(g.vertices for g in plan.groups) * REFLECTION_SPHERES_PER_OBJECT

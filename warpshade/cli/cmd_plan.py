@@ -26,6 +26,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="rect lights as warpshade run --area-lights: GEARS soft shadows (default) or SH")
     parser.add_argument("--area-k", type=positive_int, default=None,
                         help="GEARS light samples per side, as warpshade run --area-k (default 16)")
+    parser.add_argument("--probe", type=positive_int, nargs="?", const=256, default=None, metavar="RECEIVERS",
+                        help="measure instead of estimate: build each shading group as the run does and time its "
+                             "transfer on the rest pose at RECEIVERS random receivers a side (default 256; costs "
+                             "the groups' setup, seconds on large scenes)")
     parser.add_argument("--json", default=None, metavar="PLAN.json", help="also write the plan as JSON")
     parser.add_argument("--reflections", action="store_true", default=None,
                         help="plan the one-bounce reflection pass (as warpshade run --reflections; default: the "
@@ -70,7 +74,8 @@ def run(args) -> int:
     # the options warpshade run takes, resolved the way the run resolves them (pipeline.config.resolve_run)
     plan = make_plan(scene, max_error=args.max_error, frontier=_frontier(args.frontier), order=args.order,
                      between=None if args.between == "none" else args.between, area_lights=args.area_lights,
-                     area_k=args.area_k, two_sided=args.two_sided, reflections=True if args.reflections else None)
+                     area_k=args.area_k, two_sided=args.two_sided, reflections=True if args.reflections else None,
+                     probe=args.probe)
     print(plan.describe())
     print(f"  without reuse (every object every frame): {naive_seconds(plan):.2f} s")
     if args.json:

@@ -172,6 +172,83 @@ class _Group:
         return True, back
 
 
+PROBE_RECEIVERS = 256
+"""Receivers :func:`probe_transfer` computes per side where the method can compute a subset."""
+
+
+def probe_transfer(spec: GroupSpec, order: int, receivers: int = PROBE_RECEIVERS, device: str = "cpu",
+                   seed: int = 0) -> dict:
+    """Measured transfer seconds per frame of one shading group on its rest pose, as the run builds it.
+
+    The group is built as :meth:`SceneShader.build` builds it (its method, and the back-side method of
+    two-sided members). A method that can compute a subset of receivers (``compute_rows``) is timed on
+    one receiver and on ``receivers`` random ones (the least of five runs each, after an untimed warm-up
+    that loads the kernels); the per-receiver slope times the receiver count plus the one-receiver time
+    is its frame (all of them timed where there are at most twice ``receivers``). Any other method is
+    timed on one full update after a warm-up update. Process CPU time, like the run's per-pass timings.
+
+    Returns:
+        ``{"front": s, "back": s or None, "build": s, "sampled": n or None}``: front and back transfer
+        seconds per frame, the seconds the group took to build (untimed warm-up excluded), and the
+        receivers sampled per side (None: full updates).
+    """
+    t0 = time.process_time()
+    g = _Group(spec, order, device)
+    build = time.process_time() - t0
+    pts = g.rest.astype(np.float32)
+    rng = np.random.default_rng(seed)
+    out = {"front": 0.0, "back": None, "build": build, "sampled": None}
+    normals = None
+    if g._faces is not None:  # normals from every member's triangles, as _Group.update
+        g._points.assign(pts)
+        normals = vertex_normals(g._points, g._faces, out=g._normals).numpy().copy()
+
+    def seconds(run, repeats: int = 5) -> float:
+        """Least process CPU time of ``repeats`` runs (this VM's speed drifts by up to 1.5x for tens of ms)."""
+        best = float("inf")
+        for _ in range(repeats):
+            t = time.process_time()
+            run()
+            wp.synchronize_device(device)
+            best = min(best, time.process_time() - t)
+        return best
+
+    def timed(method, p, n, rows) -> float:
+        # compute_rows computes every receiver in glossy mode or with interpolation: time a full frame there
+        subset = hasattr(method, "compute_rows") and getattr(method, "mode", "diffuse") == "diffuse" and not getattr(
+            method, "interpolate", 0.0)
+        if not subset:
+            method.update(p, n)  # warm-up
+            return seconds(lambda: method.update(p, n), repeats=1)
+        sample = rows if len(rows) <= 2 * receivers else rng.choice(rows, size=receivers, replace=False)
+        sample = np.asarray(sample, dtype=np.int32)
+        out["sampled"] = len(sample)
+
+        def rows_of(k):
+            def run():
+                method.set_points(p, n)
+                method.compute_rows(sample[:k])
+            return run
+
+        rows_of(len(sample))()  # warm-up: kernels loaded, scratch touched
+        if len(sample) == len(rows):  # few receivers: timed all, as the run computes them
+            return seconds(rows_of(len(sample)))
+        one, many = seconds(rows_of(1)), seconds(rows_of(len(sample)))
+        return one + max(0.0, (many - one) / (len(sample) - 1)) * (len(rows) - 1)
+
+    if g.method is None:
+        return out
+    out["front"] = timed(g.method, pts, normals, np.arange(len(pts), dtype=np.int32))
+    if g.back_method is not None:
+        n_front = g.method.normals.numpy().copy() if normals is None else normals
+        if g.back_rows is not None:
+            rows = g.back_rows
+            out["back"] = timed(g.back_method, pts[rows], -n_front[rows], np.arange(len(rows), dtype=np.int32))
+        else:
+            out["back"] = timed(g.back_method, pts, -n_front, g._two_rows)
+    return out
+
+
 @dataclass(frozen=True)
 class Pass:
     """One pass of a frame in the pass graph (:meth:`SceneShader.passes`): what the run executes and the
@@ -492,5 +569,5 @@ def back_key(name: str) -> tuple:
     return ("back", name)
 
 
-__all__ = ["BACK_PASS_WITH_OCCLUDERS", "TWO_SIDED_MODES", "GroupSpec", "SceneShader", "back_key", "back_side_receivers", "flipped", "group_objects", "is_two_sided",
+__all__ = ["BACK_PASS_WITH_OCCLUDERS", "PROBE_RECEIVERS", "probe_transfer", "TWO_SIDED_MODES", "GroupSpec", "SceneShader", "back_key", "back_side_receivers", "flipped", "group_objects", "is_two_sided",
            "unoccluded_transfer"]
