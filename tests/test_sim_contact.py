@@ -392,3 +392,43 @@ def test_box_corner_poking_through_a_triangle_is_pushed_behind_it():
             assert abs(h + t) < 1e-5, h
         else:
             assert abs(h - 0.002) < 1e-6, h
+
+
+def test_contact_launches_are_skipped_only_when_nothing_was_found():
+    """With no self-contact candidate anywhere the solver skips the contact launches
+    (XPBDSolver._contacts_found), which change nothing then. A sheet falling onto a pinned sheet
+    (no candidate in its first frames, then contact) must end bit for bit where a solver that
+    always launches them leaves it."""
+    def build():
+        b = ClothBuilder(thickness=0.01)
+        low = b.add_grid(8, 8, 0.4, 0.4, origin=(0.0, 0.0, 0.0))
+        b.pin([low[0, 0], low[0, -1], low[-1, 0], low[-1, -1]])
+        b.add_grid(6, 6, 0.3, 0.3, origin=(0.05, 0.2, 0.05))
+        return b.finalize()
+
+    found = []
+
+    class Spy(XPBDSolver):
+        def _detect_self_contacts(self, *args):
+            grew = super()._detect_self_contacts(*args)
+            found.append(self._contacts_found)
+            return grew
+
+    class Always(XPBDSolver):
+        def _detect_self_contacts(self, *args):
+            grew = super()._detect_self_contacts(*args)
+            self._contacts_found = True
+            return grew
+
+    states = []
+    for cls in (Spy, Always):
+        m = build()
+        s = cls(m, None)
+        a, b = m.state(), m.state()
+        for _ in range(40):
+            s.step(a, b, DT)
+            a, b = b, a
+        states.append((a.points.numpy().copy(), a.velocities.numpy().copy()))
+    assert False in found[:4] and True in found  # both branches taken: free fall, then contact
+    assert np.array_equal(states[0][0], states[1][0]) and np.array_equal(states[0][1], states[1][1])
+    assert states[0][0][64:, 1].max() < 0.1  # the upper sheet came down onto the lower one

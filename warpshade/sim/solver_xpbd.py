@@ -128,6 +128,8 @@ class XPBDSolver:
         self._x = wp.zeros(v, dtype=wp.vec3, device=d)
         self._v = wp.zeros(v, dtype=wp.vec3, device=d)
         self._cmd_cache = None
+        self._contacts_found = True
+        """The last self-contact detection found a candidate (vertex-triangle or edge-edge)."""
         if self.self_collision:
             self._lower = wp.zeros(f, dtype=wp.vec3, device=d)
             self._upper = wp.zeros(f, dtype=wp.vec3, device=d)
@@ -223,8 +225,9 @@ class XPBDSolver:
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
                 # more than one Jacobi pass to stop a fast layer within one substep
                 for _c in range(self.contact_iterations):
-                    for c in cmds["contacts"]:
-                        c.launch()
+                    if self._contacts_found:  # (no candidate anywhere: the contact launches change nothing)
+                        for c in cmds["contacts"]:
+                            c.launch()
                     if self.colliders is not None:
                         self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             if self.colliders is not None and self.colliders.has_sharp_edges:
@@ -404,6 +407,8 @@ class XPBDSolver:
                  self._eupper, m.thickness],
                 self._contact_ecount, self._prev_ecount)
             grew = grew or egrew
+        self._contacts_found = bool(self._contact_count.numpy().any()) or (
+            self.edge_contact and bool(self._contact_ecount.numpy().any()))
         if grew:
             self._cmd_cache = None
         return grew
