@@ -611,6 +611,10 @@ def find_self_contacts(
             continue
         bc = closest_on_triangle(p, x[a], x[b], x[c])
         dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
+        vi = v[i]
+        close = wp.max(wp.max(wp.length(vi - v[a]), wp.length(vi - v[b])), wp.length(vi - v[c])) * horizon
+        if dist > 1.5 * (thickness + close):
+            continue  # (tested first: it rejects most triangles, and the neighbour test below costs more)
         if (in_one_ring(i, a, ring_offsets, ring) or in_one_ring(i, b, ring_offsets, ring)
                               or in_one_ring(i, c, ring_offsets, ring)):
             # a triangle of a neighbour: skipped unless the vertex is closer to the triangle than
@@ -620,10 +624,6 @@ def find_self_contacts(
             rest = wp.length(rest_x[i] - (rest_x[a] * rb[0] + rest_x[b] * rb[1] + rest_x[c] * rb[2]))
             if dist > NEIGHBOUR_FOLD * rest:
                 continue
-        vi = v[i]
-        close = wp.max(wp.max(wp.length(vi - v[a]), wp.length(vi - v[b])), wp.length(vi - v[c])) * horizon
-        if dist > 1.5 * (thickness + close):
-            continue
         xa = x[a]
         nn = wp.cross(x[b] - xa, x[c] - xa)
         d = wp.dot(p - xa, nn)
