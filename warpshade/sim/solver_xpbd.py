@@ -465,12 +465,15 @@ class XPBDSolver:
                 self.guard_vertices = -1
                 wp.copy(self._x_unguarded, x)
             if r == self.GUARD_ROUNDS + 1:
-                self.guard_unresolved += 1
                 # kinematic vertices or colliders made the intersection: reverting does not remove
                 # it, and holding vertices back while a collider or an attached edge moves on only
-                # stretches the cloth, so the step stands as the contacts left it
+                # stretches the cloth, so the step stands as the contacts left it, pushed off the
+                # colliders' sharp edges and corners by extra passes if that frees it
                 wp.copy(x, self._x_unguarded)
                 self._reverted.zero_()
+                if not self._push_off_sharp_edges(x):
+                    self.guard_unresolved += 1
+                    wp.copy(x, self._x_unguarded)
                 break
             if r == self.GUARD_ROUNDS:
                 self._mark.fill_(1)
@@ -489,6 +492,24 @@ class XPBDSolver:
                       device=d)
             self.guard_vertices = int(self._reverted.numpy().sum())
         wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
+
+    PUSH_OFF_PASSES = 4
+    """Extra sharp-edge and vertex passes the guard tries on a step whose intersections a moving
+    collider made (a box's corner driven into the cloth faster than the substeps' contacts push
+    it off) before it counts the step as unresolved."""
+
+    def _push_off_sharp_edges(self, x) -> bool:
+        """Run up to :attr:`PUSH_OFF_PASSES` passes of the colliders' edge and corner projection
+        (each followed by the vertices') on x; True as soon as x has no new intersecting pair."""
+        m, c, col = self.model, self._counter, self.colliders
+        if col is None or not col.has_sharp_edges:
+            return False
+        for _ in range(self.PUSH_OFF_PASSES):
+            col.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
+            col.collide(m.thickness, m.inv_mass, self._x_unguarded, x)
+            if c.self_pairs(x, self._mark, self._x_start)[0] - c.inherited + c.collider_pairs(x, col, self._mark)[0] == 0:
+                return True
+        return False
 
     def _first_nonfinite(self, x, v) -> int:
         n = self.model.particle_count
