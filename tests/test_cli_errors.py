@@ -5,6 +5,7 @@ reported the mesh path as an invalid int; a knob out of range in a worker read a
 from __future__ import annotations
 
 import os
+import re
 
 import pytest
 
@@ -167,7 +168,11 @@ def test_ctrl_c_during_setup_is_one_line_and_ends_the_workers(tmp_path):
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait(10)
     assert proc.returncode == 130, err
-    assert err.splitlines() == ["warpshade run: interrupted; previous output (if any) left untouched"], err
+    lines = err.splitlines()
+    # a setup this long is announced first (the planner prices it over SETUP_NOTICE_SECONDS), then one line
+    assert len(lines) == 2 and re.fullmatch(r"warpshade run: setup estimated at [0-9.]+ s \(warpshade plan prices "
+                                            r"it\) before the first frame; Ctrl-C stops it", lines[0]), err
+    assert lines[1] == "warpshade run: interrupted; previous output (if any) left untouched", err
     # measured 1.1-5.4 s on the loaded 2-core machine (the parent may be inside one C call); 15 s is
     # the bound for "answered", not a speed target
     assert seconds < 15, seconds
@@ -190,12 +195,22 @@ def test_a_long_setup_is_announced_with_the_planners_estimate(tmp_path, capsys, 
     scene = read_scene(SCENE)
     refine_receivers(scene, "auto")  # as the run does before planning
     scene.settings["order"] = 2
-    expected = make_plan(scene).run_seconds_setup
+    plan = make_plan(scene)
+    expected = plan.run_seconds_setup + plan.run_seconds_per_frame  # inline (--workers 0): no pool start-up
     monkeypatch.setattr(cmd_run, "SETUP_NOTICE_SECONDS", 0.0)  # announce any setup
     assert main(argv + ["--out", str(tmp_path / "b.usda")]) == 0
     lines = [ln for ln in capsys.readouterr().err.splitlines() if "setup estimated" in ln]
     assert lines == [f"warpshade run: setup estimated at {expected:.1f} s (warpshade plan prices it) before the "
                      "first frame; Ctrl-C stops it"], lines
+    # with worker processes, their start-up comes before the first frame too
+    from warpshade.parallel import WORKER_STARTUP_SECONDS
+
+    w = argv.index("--workers")
+    pooled = argv[:w] + ["--workers", "1"] + argv[w + 2:]
+    assert main(pooled + ["--out", str(tmp_path / "c.usda")]) == 0
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if "setup estimated" in ln]
+    assert lines == [f"warpshade run: setup estimated at {expected + WORKER_STARTUP_SECONDS:.1f} s (warpshade plan "
+                     "prices it) before the first frame; Ctrl-C stops it"], lines
 
 
 def test_the_progress_bar_says_setting_up_until_the_first_frame(tmp_path, capsys):

@@ -100,8 +100,10 @@ SETUP_NOTICE_SECONDS = 10.0
 """An estimated setup at least this long [s] is announced before it starts."""
 
 
-def setup_estimate(scene, method: str | None, knobs: dict, order: int, args) -> float | None:
-    """The planner's estimate of the run's one-off setup [s] for these settings (None if it cannot price them).
+def setup_estimate(scene, method: str | None, knobs: dict, order: int, args, workers: int = 0) -> float | None:
+    """The planner's estimate of the time before the run's first frame is in [s] for these settings
+    (None if it cannot price them): the one-off setup, the first frame's shading and, with worker
+    processes or a cluster, their start-up (:data:`~warpshade.parallel.WORKER_STARTUP_SECONDS`).
 
     The plan is made on a copy of the scene whose objects carry the run's method, so ``--method``
     is priced rather than the scene's own choice.
@@ -120,7 +122,10 @@ def setup_estimate(scene, method: str | None, knobs: dict, order: int, args) -> 
                          area_lights=args.area_lights, area_k=args.area_k, two_sided=args.two_sided)
     except (ValueError, KeyError, OSError):  # no frontier record for these settings: no estimate
         return None
-    return plan.run_seconds_setup
+    from ..parallel import WORKER_STARTUP_SECONDS
+
+    startup = WORKER_STARTUP_SECONDS if workers or args.scheduler else 0.0
+    return plan.run_seconds_setup + plan.run_seconds_per_frame + startup
 
 
 def parse_albedo(text: str | None):
@@ -195,7 +200,7 @@ def run(args) -> int:
                                        "groups": "; ".join(f"{g.method} {g.label}" for g in pipe.groups),
                                        "between": args.between, "area_lights": args.area_lights,
                                        "reflections": str(bool(pipe.reflections is not None))})
-    estimate = setup_estimate(scene, method, knobs, pipe.order, args)
+    estimate = setup_estimate(scene, method, knobs, pipe.order, args, workers)
     if estimate is not None and estimate >= SETUP_NOTICE_SECONDS:
         print(f"warpshade run: setup estimated at {estimate:.1f} s (warpshade plan prices it) before the first "
               f"frame; Ctrl-C stops it", file=sys.stderr)

@@ -8,8 +8,8 @@
 * :mod:`.runtime`: Warp start-up as every warpshade process (the CLI, a worker) does it.
 """
 
-from .frames import ClusterWarning, FrameShadingError, TransferSpec, default_workers, shade_frames
+from .frames import WORKER_STARTUP_SECONDS, ClusterWarning, FrameShadingError, TransferSpec, default_workers, shade_frames
 from .worker import FrameGeometry, FrameShaderSpec, ShadeFn
 
 __all__ = ["ClusterWarning", "FrameGeometry", "FrameShaderSpec", "FrameShadingError", "ShadeFn", "TransferSpec",
-           "default_workers", "shade_frames"]
+           "default_workers", "shade_frames", "WORKER_STARTUP_SECONDS"]

@@ -43,6 +43,12 @@ class FrameShadingError(RuntimeError):
     """Shading a frame failed (the message names the frame)."""
 
 
+WORKER_STARTUP_SECONDS = 1.5
+"""Start-up of a worker pool before its first frame [s]: spawning, importing Warp and loading the
+kernels from a warm cache (``benchmarks/parallel.py`` prints it: 1.1-1.5 s for one worker, 1.4-1.5 s
+for two, 1.5 s for a loopback Dask cluster, on the 2-core machine)."""
+
+
 def default_workers() -> int:
     """All cores available to this process."""
     try:
