@@ -79,6 +79,25 @@ def test_killed_worker_loses_and_duplicates_nothing(spec, blob, inline):
     assert_same(out, inline)
 
 
+def test_worker_death_seen_before_the_next_submit_loses_nothing(spec, blob, inline):
+    # the pool has noticed the death (and refuses new work) before the loop submits the next frame
+    import time
+
+    backend_box = []
+    out = []
+    for f, r in shade_frames(spec, wobble_frames(blob, 8), workers=2, max_in_flight=4,
+                             on_backend=backend_box.append):
+        out.append((f, r))
+        if f == 1:
+            pool = backend_box[0].pool
+            os.kill(backend_box[0].worker_pids()[0], signal.SIGKILL)
+            deadline = time.monotonic() + 30
+            while not pool._broken and time.monotonic() < deadline:  # the executor's own flag
+                time.sleep(0.01)
+            assert pool._broken, "the pool did not notice the killed worker"
+    assert_same(out, inline)
+
+
 class _Boom:
     def build(self):
         def shade(frame, geometry):

@@ -30,7 +30,7 @@ import time
 import uuid
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
@@ -305,7 +305,7 @@ def shade_frames(
                 frame, geometry = nxt
                 if frame in pending:
                     raise ValueError(f"frame {frame} submitted twice")
-                pending[frame] = [geometry, backend.submit(frame, geometry), 0]
+                pending[frame] = [geometry, _submit(backend, frame, geometry), 0]
                 order.append(frame)
             if not order:
                 return
@@ -362,7 +362,19 @@ def _resubmit_failed(backend, order, pending, retries, exc):
         if entry[2] > retries:
             raise FrameShadingError(f"frame {f}: worker died {entry[2]} times while shading it "
                                     f"(last: {type(exc).__name__}: {exc})") from exc
-        entry[1] = backend.submit(f, entry[0])
+        entry[1] = _submit(backend, f, entry[0])
+
+
+def _submit(backend, frame, geometry):
+    """``backend.submit``, or a future holding the error when a worker death has already broken the
+    backend (a process pool refuses new work once it has seen a worker die): the frame is then
+    resubmitted like the others that death lost, when the loop reaches it."""
+    try:
+        return backend.submit(frame, geometry)
+    except backend.worker_errors as exc:
+        fut = Future()
+        fut.set_exception(exc)
+        return fut
 
 
 class TransferSpec:
