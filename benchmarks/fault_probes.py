@@ -381,7 +381,8 @@ def local_cluster_sigint(tmp):
     ok = proc.returncode == 130 and "Traceback" not in err and "KeyboardInterrupt" not in err and not left \
         and "complete frames kept" in last_line(err)
     return ok, (f"rc {proc.returncode} after {answered:.1f} s; tracebacks {err.count('Traceback')}; stderr lines "
-                f"{len(err.strip().splitlines())}; last {last_line(err)[:70]!r}; processes left {len(left)}")
+                f"{len(err.strip().splitlines())}; last {last_line(err)[:70]!r}; processes left {len(left)}"
+                + (f"; stderr: {err!r}" if not ok else ""))
 
 
 @probe('scene knob warpshade:knobs:lut_dir = "../../../x" writes nothing there')
@@ -439,7 +440,7 @@ def scheduler_warning(tmp):
 
 @probe("cluster path end to end: dask scheduler + dask worker --nworkers 2, frames identical to --workers 1")
 def cluster(tmp):
-    from warpshade.cluster import stop_sessions
+    from warpshade.parallel.cluster import stop_sessions
 
     dask = os.path.join(os.path.dirname(sys.executable), "dask")
     dask = [dask] if os.path.exists(dask) else [sys.executable, "-m", "dask"]

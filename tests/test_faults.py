@@ -275,6 +275,38 @@ def test_sigterm_commits_finished_frames_like_ctrl_c(tmp_path):
     assert litter(tmp_path) == []
 
 
+def test_ctrl_c_with_a_local_dask_cluster_is_one_line_and_leaves_no_process(tmp_path):
+    # the run's own LocalCluster: its workers' warnings about cancelled tasks must not follow the
+    # run's last line (they did in about half the runs), and its processes end with the run
+    out = tmp_path / "o.usda"
+    cmd = [sys.executable, "-m", "warpshade", "run", SCENE, "--frames", "2000", "--out", str(out),
+           "--scheduler", "local", "--workers", "2"] + COMMON
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=ENV, text=True,
+                            start_new_session=True)
+    kids = set()
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and proc.poll() is None:
+            kids |= children_of(proc.pid)
+            if out.exists() and Usd.Stage.Open(str(out)).GetEndTimeCode() >= 3:
+                break
+            time.sleep(0.1)
+        assert proc.poll() is None, "the run ended before it could be interrupted"
+        kids |= children_of(proc.pid)
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal sends Ctrl-C: to the whole group
+        err = proc.communicate(timeout=60)[1]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(10)
+    assert proc.returncode == 130, err
+    end = Usd.Stage.Open(str(out)).GetEndTimeCode()
+    assert err.splitlines() == [f"warpshade run: interrupted; {int(end) + 1} complete frames kept in {out} "
+                                "(--resume continues it)"], err
+    assert kids and wait_gone(kids, 10.0) == set()
+    assert litter(tmp_path) == []
+
+
 def test_a_signal_during_a_commit_waits_until_the_commit_is_in_place(tmp_path, monkeypatch):
     """The CI flake this replaces: SIGTERM landing between a top-level file's write and its rename
     left ``o.partialPID.usda`` behind. Here the signal is sent from inside every write of a commit

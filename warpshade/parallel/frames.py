@@ -22,6 +22,7 @@ single-threaded worker processes, and ``scheduler="tcp://HOST:PORT"`` (``tls://`
 from __future__ import annotations
 
 import contextlib
+import logging
 import multiprocessing as mp
 import os
 import signal
@@ -205,8 +206,10 @@ class _DaskBackend:
             # workers run unblocked. Cost: a Ctrl-C during the cluster's start-up is dropped.
             previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _in_main_thread() else None
             try:
+                # the cluster is the run's own: its workers' warnings (a task cancelled by Ctrl-C) would
+                # follow the run's last line; errors still print, and a frame's error reaches the run
                 self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                            dashboard_address=None)
+                                            dashboard_address=None, silence_logs=logging.ERROR)
             finally:
                 if previous is not None:
                     signal.signal(signal.SIGINT, previous)
