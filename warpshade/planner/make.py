@@ -1,367 +1,13 @@
-"""Model only what a scene requires: from a :class:`~warpshade.scene.Scene`, decide per object which passes
-run, which shared structures get built, what can be reused across frames, and (under an error budget)
-which visibility method and knobs to use — from the frontier ``warpshade bench`` measured.
-
-Rules (issue 8):
-
-* transfer of an object that does not move (``kind == "static"``) is computed once and reused every frame
-  only when its whole shading group is static: ``warpshade run`` shades objects sharing a method and
-  knobs as one mesh (they shadow each other), recomputed every frame when any member moves, so a static
-  member of a moving group is planned ``every_frame`` (:attr:`ObjectPlan.group_moves`) and costed so;
-* when only lighting changes, shading is a re-dot ``(ρ/π) Σ L_i T_i`` of reused transfer; when neither
-  geometry nor lighting changes, the first frame's colours are reused;
-* shared structures exist only when something uses them: the hemispherical-rasterization plane LUT only
-  if an object uses ``hemiraster``; GEARS only with rect lights; sphere sets for inter-object shadows only
-  when at least two objects exist, one casts onto another and the run has two or more shading groups
-  between which they carry shadows (never for a single self-shadowing object, nor for objects sharing a
-  group, which shadow each other through the group's method);
-  objects with ``casts_shadows`` False block nothing: they are left out of the sphere sets, out of the
-  GEARS blockers and out of their group method's blocker triangles, and a group without any caster is
-  unoccluded (method None), as the run does;
-  reflection (one diffuse bounce) only when ``settings["reflections"]`` asks; no glossy pass (a run writes
-  view-independent per-vertex colours; glossy materials get a note);
-* with ``max_error``, each object gets the configuration of the frontier whose worst measured mean error
-  is within budget and whose estimated time on this object is smallest.
-
-Cost model (estimates, printed as such):
-
-* a visibility method's time per frame (and build time) is fitted per frontier configuration from the
-  meshes ``warpshade bench`` measured it on, as ``t = a V + b V log2 F + c V F`` with ``a, b, c >= 0``
-  (V vertices, F triangles: per-receiver fixed work, BVH-like and brute-force-like work over the
-  blockers; :func:`fit_cost`); with fewer than three measured meshes, the time of the nearest mesh in
-  vertex count is scaled linearly in V. A configuration missing at the plan's SH order is costed from
-  the same knobs at the nearest measured order (time depends little on order: ≤ 20 % from 2 to 6 in
-  the frontier);
-* the other passes — between-group sphere-set shadows (setup fit + per frame), lights' SH (fixed for
-  distant lights, per vertex for each local light), exit radiance, unoccluded transfer, the
-  hemiraster LUT — use constants measured by ``benchmarks/planner_costs.py`` on the shipped scenes
-  (``warpshade/data/pass_costs.json``);
-* :attr:`Plan.groups` mirrors what ``warpshade run`` executes (the pipeline's shading groups: objects
-  sharing a method and knobs are one receiver mesh, recomputed when any member moves; groups shadow
-  each other through sphere sets), so :attr:`Plan.run_seconds_per_frame` is comparable to the
-  ``shade`` time a run reports (``benchmarks/planner_savings.py --scenes`` prints both).
-"""
+"""Making the plan: :func:`make_plan` resolves the run configuration, chooses each object's method
+(under an error budget, from the frontier), and costs the run's pass graph with the cost model of
+:mod:`.costs`; :func:`apply_plan` hands the choice to a scene."""
 
 from __future__ import annotations
 
-import json
-import os
-from dataclasses import dataclass, field
-from importlib import resources
-
-from .scene import Scene, SceneObject
-
-REDOT_SECONDS_PER_COEFF = 2.5e-9
-"""Re-dot cost per vertex per SH coefficient per RGB channel [s] (NumPy matmul, measured on this machine:
-6102×25 @ 25×3 in ~1.1 ms)."""
-
-_PASS_COSTS: dict | None = None
-
-
-def load_pass_costs() -> dict:
-    """The measured per-pass constants (``warpshade/data/pass_costs.json``, written by
-    ``benchmarks/planner_costs.py --write-data``): ``{"constants": {...}, "order", "note"}``."""
-    global _PASS_COSTS
-    if _PASS_COSTS is None:
-        with resources.files("warpshade").joinpath("data/pass_costs.json").open() as f:
-            _PASS_COSTS = json.load(f)
-    return _PASS_COSTS
-
-
-def cost_features(vertices, triangles) -> "np.ndarray":
-    """Features of the method cost model, ``[V, V log2 F, V F]``, shape (n, 3) float64."""
-    import numpy as np
-
-    v = np.atleast_1d(np.asarray(vertices, dtype=np.float64))
-    f = np.maximum(np.atleast_1d(np.asarray(triangles, dtype=np.float64)), 2.0)
-    return np.stack([v, v * np.log2(f), v * f], axis=1)
-
-
-def fit_cost(features, seconds) -> "np.ndarray":
-    """Non-negative least squares ``seconds ≈ features @ coef`` with relative residuals (each row weighted
-    by 1/seconds, so small and large meshes count alike); shape (k,) float64."""
-    import numpy as np
-    from scipy.optimize import nnls
-
-    x = np.asarray(features, dtype=np.float64)
-    y = np.asarray(seconds, dtype=np.float64)
-    w = 1.0 / np.maximum(y, 1e-12)
-    scale = np.maximum(np.abs(x).max(axis=0), 1e-300)  # conditioning: V·F is ~1e7 where V is ~1e3
-    coef, _ = nnls(x * w[:, None] / scale, y * w)
-    return coef / scale
-
-
-REFLECTION_SECONDS_PER_VERTEX_SPHERE = 7.7e-8
-"""One-bounce reflection cost per receiver vertex per reflecting leaf sphere at SH order 4 [s] (both passes,
-the pipeline's default cuts; CPU time of ``python benchmarks/spheres.py --reflections-only``: 106 ms for
-30 588 receivers and 45 leaf spheres); scaled by (order/4)² for other orders."""
-
-REFLECTION_SPHERES_PER_OBJECT = 15
-"""Leaf spheres per object of ``warpshade run --reflections`` (``--reflection-spheres``)."""
-
-
-def load_frontier(path: str | None = None) -> dict:
-    """The measured frontier: ``path`` (a frontier file, as ``warpshade bench --frontier`` writes), else the one
-    shipped in ``warpshade/data/frontier.json``."""
-    if path is None:
-        with resources.files("warpshade").joinpath("data/frontier.json").open() as f:
-            return json.load(f)
-    if not os.path.isfile(path):
-        raise ValueError(f"{path}: no such frontier file")
-    with open(path) as f:
-        data = json.load(f)
-    if isinstance(data, list):
-        raise ValueError(f"{path}: a warpshade bench results.json, not a frontier: convert it with "
-                         "warpshade.bench.report.frontier_from_results (warpshade plan --frontier does)")
-    if "configs" not in data:
-        raise ValueError(f"{path}: not a frontier (no 'configs')")
-    return data
-
-
-def estimate_seconds(config: dict, vertices: int, key: str = "seconds", triangles: int | None = None) -> float:
-    """Time of a frontier configuration on a mesh of ``vertices`` vertices and ``triangles`` triangles.
-
-    With ``triangles`` and at least three distinct measured meshes: :func:`fit_cost` over the timings
-    (the fastest timing per mesh, since repeats on a loaded machine only add noise). Otherwise the time of
-    the measured mesh nearest in vertex count, scaled linearly by vertex count.
-    """
-    import math
-
-    best: dict = {}
-    for t in config["timings"]:
-        k = (t["vertices"], t.get("triangles"))
-        if k not in best or t.get(key, 0.0) < best[k].get(key, 0.0):
-            best[k] = t
-    rows = [t for t in best.values() if t.get("triangles")]
-    if triangles is not None and len(rows) >= 3:
-        coef = fit_cost(cost_features([t["vertices"] for t in rows], [t["triangles"] for t in rows]),
-                        [t.get(key, 0.0) for t in rows])
-        return float(cost_features(vertices, triangles)[0] @ coef)
-    t = min(config["timings"], key=lambda t: abs(math.log(max(1, t["vertices"]) / max(1, vertices))))
-    return float(t.get(key, 0.0)) * vertices / max(1, t["vertices"])
-
-
-def _matches(config: dict, method: str, order: int, knobs: dict) -> bool:
-    if config["method"] != method or config["order"] != order:
-        return False
-    return all(config["knobs"].get(k) == v for k, v in knobs.items())
-
-
-@dataclass
-class ObjectPlan:
-    """What one object needs.
-
-    Attributes:
-        name: Object name.
-        kind: Scene object kind.
-        moves: Its geometry changes over time.
-        method: Visibility method for self-shadowing (None: unoccluded transfer, no method).
-        knobs: Method constructor kwargs.
-        transfer: ``"every_frame"``, ``"once"`` or ``"none"`` (unoccluded closed form). A static object
-            is ``"every_frame"`` when its shading group moves (:attr:`group_moves`).
-        passes: Per-frame passes in execution order.
-        error: Worst measured mean error of the chosen configuration (None: not in the frontier).
-        seconds_first: Estimated first-frame cost [s] (build + transfer).
-        seconds_frame: Estimated cost of each later frame [s].
-        reason: Why this method was chosen.
-    """
-
-    name: str
-    kind: str
-    vertices: int
-    moves: bool
-    method: str | None
-    knobs: dict
-    transfer: str
-    passes: list[str] = field(default_factory=list)
-    error: float | None = None
-    seconds_first: float = 0.0
-    seconds_frame: float = 0.0
-    reason: str = ""
-    seconds_transfer: float = 0.0
-    seconds_build: float = 0.0
-    group_moves: list[str] = field(default_factory=list)
-    """Moving members of this static object's shading group, which make the run recompute its transfer
-    every frame (empty: the object moves itself, or its group is static)."""
-
-
-@dataclass
-class GroupPlan:
-    """One shading group as ``warpshade run`` executes it (:func:`warpshade.pipeline.shading.group_objects`):
-    its objects are merged into one receiver mesh and shaded by one method.
-
-    Attributes:
-        method: Visibility method (None: unoccluded transfer).
-        knobs: Method constructor kwargs as the run uses them (the pipeline's defaults filled in).
-        names: Member objects.
-        vertices, triangles: Of the merged mesh.
-        moves: Any member moves, so the group's transfer is recomputed every frame.
-        seconds_build: Estimated setup [s]: the group's meshes and the method's construction (both sides).
-        seconds_transfer: Estimated transfer update on the merged mesh [s].
-        seconds_between: Estimated per-frame shadowing by the other groups' sphere sets [s].
-        seconds_lights: Estimated per-frame lights' SH at the group's points [s].
-        seconds_radiance: Estimated per-frame exit radiance [s].
-        seconds_reflections: Estimated per-frame one-bounce reflections onto the group [s] (the run
-            recomputes them every frame).
-        cost_source: Where the transfer estimate comes from (frontier configuration, fit or nearest mesh).
-        caster_triangles: Triangles of the members that cast shadows (the method's blockers; objects with
-            ``castsShadows`` false only receive); None: all ``triangles``.
-        two_sided: Members shaded on both sides (:func:`warpshade.pipeline.shading.is_two_sided`).
-        seconds_back: Estimated per-frame back-side pass [s]: the group's method a second time on the
-            group seen from the back, receiving at every vertex or only at the two-sided members'
-            (:func:`warpshade.pipeline.shading.back_side_receivers`; its build is added to
-            ``seconds_build``), the between-group shadows again, and the two-sided members' exit radiance.
-    """
-
-    method: str | None
-    knobs: dict
-    names: list[str]
-    vertices: int
-    triangles: int
-    moves: bool
-    seconds_build: float = 0.0
-    seconds_transfer: float = 0.0
-    seconds_between: float = 0.0
-    seconds_lights: float = 0.0
-    seconds_radiance: float = 0.0
-    seconds_reflections: float = 0.0
-    cost_source: str = ""
-    caster_triangles: int | None = None
-    two_sided: list[str] = field(default_factory=list)
-    seconds_back: float = 0.0
-
-    def __post_init__(self):
-        if self.caster_triangles is None:
-            self.caster_triangles = self.triangles
-
-    @property
-    def seconds_frame(self) -> float:
-        """Estimated shading time of this group per frame [s] (what the run's ``shade`` time sums)."""
-        return ((self.seconds_transfer if self.moves else 0.0) + self.seconds_between + self.seconds_lights
-                + self.seconds_radiance + self.seconds_reflections + self.seconds_back)
-
-
-@dataclass
-class Plan:
-    """The scene's plan. ``objects`` in scene order; ``structures``: shared things to build once;
-    ``groups``: what ``warpshade run`` executes (see :class:`GroupPlan`)."""
-
-    order: int
-    frames: int
-    objects: list[ObjectPlan]
-    structures: list[str]
-    lighting_changes: bool
-    geometry_changes: bool
-    max_error: float | None = None
-    notes: list[str] = field(default_factory=list)
-    groups: list[GroupPlan] = field(default_factory=list)
-    seconds_setup_between: float = 0.0
-    seconds_setup_structures: float = 0.0
-    area_lights: str | None = None
-    """How the run shades the scene's rect lights (``"gears"`` or ``"sh"``), None without rect lights."""
-    seconds_area: float = 0.0
-    """Estimated GEARS area-light pass over all shading groups [s] (0 unless ``area_lights == "gears"``)."""
-    area_moves: bool = False
-    """The area-light pass reruns every frame (something moves, or a rect light does)."""
-    area_k: int = 16
-    """GEARS light samples per side the area-light pass is costed at."""
-    passes: list = field(default_factory=list)
-    """The run's pass graph (:meth:`warpshade.pipeline.shading.SceneShader.passes`), in execution order, each
-    ``{"pass": key, "every_frame": bool, "seconds": estimate}``: what the run computes every frame, and what
-    only on the first (nothing it depends on moves)."""
-
-    @property
-    def run_seconds_per_frame(self) -> float:
-        """Estimated ``shade`` time per frame of ``warpshade run`` on this scene [s]: the passes of the pass graph
-        the run recomputes every frame (the first frame's other passes are in :attr:`run_seconds_setup`)."""
-        return sum(p["seconds"] for p in self.passes if p["every_frame"])
-
-    @property
-    def run_seconds_setup(self) -> float:
-        """Estimated one-off cost of a run [s]: method structures, sphere trees, LUT, and the passes computed
-        on the first frame only."""
-        return (sum(g.seconds_build for g in self.groups) + self.seconds_setup_between + self.seconds_setup_structures
-                + sum(p["seconds"] for p in self.passes if not p["every_frame"]))
-
-    def object(self, name: str) -> ObjectPlan:
-        for o in self.objects:
-            if o.name == name:
-                return o
-        raise KeyError(f"plan has no object {name}")
-
-    @property
-    def seconds_per_frame(self) -> float:
-        """Estimated steady-state cost per frame [s] (after the first)."""
-        return sum(o.seconds_frame for o in self.objects)
-
-    @property
-    def seconds_total(self) -> float:
-        """Estimated cost of the whole run [s]."""
-        return sum(o.seconds_first + o.seconds_frame * max(0, self.frames - 1) for o in self.objects)
-
-    def to_dict(self) -> dict:
-        import dataclasses
-
-        d = dataclasses.asdict(self)
-        for g, gd in zip(self.groups, d["groups"]):
-            gd["seconds_frame"] = g.seconds_frame
-        return {**d, "seconds_per_frame": self.seconds_per_frame, "seconds_total": self.seconds_total,
-                "run_seconds_per_frame": self.run_seconds_per_frame, "run_seconds_setup": self.run_seconds_setup}
-
-    def describe(self) -> str:
-        """Human-readable plan with estimated costs (what ``warpshade plan`` prints)."""
-        lines = [f"plan: {len(self.objects)} object(s), {self.frames} frames, SH order {self.order}"
-                 + (f", error budget {self.max_error}" if self.max_error is not None else "")]
-        lines.append(f"  shared structures: {', '.join(self.structures) or 'none'}")
-        lines.append(f"  geometry changes: {'yes' if self.geometry_changes else 'no'}; "
-                     f"lighting changes: {'yes' if self.lighting_changes else 'no'}")
-        for o in self.objects:
-            err = "" if o.error is None else f", measured error ≤ {o.error:.3f}"
-            why = f" (its shading group moves: {', '.join(o.group_moves)})" if o.group_moves else ""
-            lines.append(f"  {o.name} ({o.kind}, {o.vertices} vertices): method {o.method or 'none (unoccluded)'} "
-                         f"{_knobs(o.knobs)}transfer {o.transfer}{why}{err}")
-            lines.append(f"      passes per frame: {', '.join(o.passes) or 'reuse colours'}")
-            lines.append(f"      est. first frame {o.seconds_first * 1e3:.1f} ms, later frames {o.seconds_frame * 1e3:.2f} ms"
-                         + (f" — {o.reason}" if o.reason else ""))
-        lines.append(f"  estimated cost of what the scene requires (each object on its own mesh, transfer reused "
-                     f"where the run reuses it): "
-                     f"{self.seconds_per_frame * 1e3:.2f} ms per frame after the first; "
-                     f"{self.seconds_total:.2f} s for {self.frames} frames")
-        if self.groups:
-            lines.append(f"  warpshade run executes {len(self.groups)} shading group(s) (objects sharing a method are one mesh):")
-            for g in self.groups:
-                blockers = ("" if g.caster_triangles == g.triangles
-                            else f" ({g.caster_triangles} of them cast shadows: castsShadows false on the others)")
-                lines.append(f"    {g.method or 'unoccluded'} {_knobs(g.knobs)}[{', '.join(g.names)}]: {g.vertices} vertices, "
-                             f"{g.triangles} triangles{blockers}, transfer {'every frame' if g.moves else 'once'}")
-                lines.append(f"      est. per frame {g.seconds_frame * 1e3:.1f} ms = transfer "
-                             f"{(g.seconds_transfer if g.moves else 0.0) * 1e3:.1f} + between-group shadows "
-                             f"{g.seconds_between * 1e3:.1f} + lights {g.seconds_lights * 1e3:.1f} + radiance "
-                             f"{g.seconds_radiance * 1e3:.2f}"
-                             + (f" + reflections {g.seconds_reflections * 1e3:.1f}" if g.seconds_reflections else "")
-                             + (f" + back sides {g.seconds_back * 1e3:.1f} (two-sided: {', '.join(g.two_sided)})"
-                                if g.two_sided else "")
-                             + f"; build {g.seconds_build * 1e3:.0f} ms"
-                             + (f" ({g.cost_source})" if g.cost_source else ""))
-            if self.area_lights == "gears":
-                lines.append(f"    area-light visibility (GEARS k={self.area_k}, grid=16) over all "
-                             f"{sum(g.vertices for g in self.groups)} "
-                             f"shaded vertices: est. {self.seconds_area * 1e3:.1f} ms "
-                             + ("per frame" if self.area_moves else "once (nothing moves)"))
-            elif self.area_lights == "sh":
-                lines.append("    rect lights projected to SH (--area-lights sh): costed with the lights, no GEARS")
-            every = [p["pass"] for p in self.passes if p["every_frame"]]
-            once = [p["pass"] for p in self.passes if not p["every_frame"]]
-            lines.append(f"  passes per frame (the run's pass graph): {', '.join(every) or 'none'}"
-                         + (f"; first frame only: {', '.join(once)}" if once else ""))
-            lines.append(f"  estimated run: setup {self.run_seconds_setup:.2f} s (sphere trees "
-                         f"{self.seconds_setup_between:.2f} s), shading {self.run_seconds_per_frame * 1e3:.1f} ms per frame")
-        lines += [f"  note: {n}" for n in self.notes]
-        return "\n".join(lines)
-
-
-def _knobs(k: dict) -> str:
-    return "(" + ", ".join(f"{a}={b}" for a, b in k.items()) + ") " if k else ""
+from ..scene import Scene, SceneObject
+from .costs import (REDOT_SECONDS_PER_COEFF, REFLECTION_SECONDS_PER_VERTEX_SPHERE, REFLECTION_SPHERES_PER_OBJECT,
+                    estimate_seconds, find_config, load_frontier, load_pass_costs)
+from .plan import GroupPlan, ObjectPlan, Plan, knob_text
 
 
 def _light_moves(light) -> bool:
@@ -370,7 +16,7 @@ def _light_moves(light) -> bool:
 
 def _is_rect(light) -> bool:
     """A rect light, as a :class:`warpshade.lighting.RectLight` or a scene file's ``LightSpec``."""
-    from .lighting import RectLight
+    from ..lighting import RectLight
 
     return isinstance(light, RectLight) or getattr(light, "kind", None) == "rect"
 
@@ -380,13 +26,6 @@ def _is_local(light) -> bool:
     if hasattr(light, "kind") and isinstance(light.kind, str):
         return light.kind in ("rect", "sphere")
     return bool(getattr(light, "local", False))
-
-
-def default_knobs(method: str) -> dict:
-    """A method's default knobs (its knob schema, :attr:`warpshade.visibility.VisibilityMethod.SCHEMA`)."""
-    from .visibility import get_method
-
-    return get_method(method).default_knobs()
 
 
 def _choose(obj: SceneObject, order: int, max_error: float | None, frontier: dict) -> tuple:
@@ -405,7 +44,7 @@ def _choose(obj: SceneObject, order: int, max_error: float | None, frontier: dic
         return best["method"], knobs, best, f"fastest measured within error {max_error}"
     if obj.method is None:
         return None, {}, None, ""
-    from .pipeline.config import knob_label, resolve_knobs
+    from ..pipeline.config import knob_label, resolve_knobs
 
     knobs = knob_label(obj.method, resolve_knobs(obj.method, obj.knobs))
     cfg, _ = find_config(frontier, obj.method, order, knobs)
@@ -414,34 +53,9 @@ def _choose(obj: SceneObject, order: int, max_error: float | None, frontier: dic
 
 def _run_default_knobs(method: str) -> dict:
     """Knobs ``warpshade run`` gives a method the scene names without knobs (:data:`warpshade.pipeline.config.RUN_KNOBS`)."""
-    from .pipeline.config import RUN_KNOBS
+    from ..pipeline.config import RUN_KNOBS
 
     return dict(RUN_KNOBS.get(method, {}))
-
-
-def find_config(frontier: dict, method: str, order: int, knobs: dict) -> tuple[dict | None, str]:
-    """The frontier configuration of ``method`` with ``knobs`` at ``order`` (else at the nearest measured order).
-
-    Among matches, the one agreeing with most command-line defaults (defaults may be sentinels such as
-    "auto" that ``knobs()`` reports resolved, so agreement is scored).
-
-    Returns:
-        ``(config or None, source)``: source says which order it was measured at when not ``order``.
-    """
-    defaults = default_knobs(method)
-    orders = sorted({c["order"] for c in frontier["configs"] if c["method"] == method}, key=lambda o: (abs(o - order), -o))
-    for o in orders:
-        match = [c for c in frontier["configs"] if _matches(c, method, o, knobs)]
-        if match:
-            cfg = max(match, key=lambda c: sum(c["knobs"].get(k) == v for k, v in defaults.items()))
-            if "kwargs" in cfg:
-                # the same constructor call may report different knobs per mesh (e.g. disks' sides=auto
-                # resolving to one or two sides): its timings on every mesh belong to one cost fit
-                same = [c for c in frontier["configs"] if c["method"] == method and c["order"] == o
-                        and c.get("kwargs") == cfg["kwargs"]]
-                cfg = {**cfg, "timings": [t for c in same for t in c["timings"]]}
-            return cfg, ("" if o == order else f"cost measured at order {o}")
-    return None, ""
 
 
 def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str | None = None,
@@ -476,7 +90,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
     Raises:
         ValueError: an empty scene, a bad option, or no configuration within ``max_error``.
     """
-    from .pipeline.config import resolve_run
+    from ..pipeline.config import resolve_run
 
     if config is None:
         config = resolve_run(scene, order=order, between=between, reflections=reflections, area_lights=area_lights,
@@ -554,7 +168,7 @@ def make_plan(scene: Scene, max_error: float | None = None, frontier: dict | str
         t_build = estimate_seconds(cfg, v, "build_seconds", triangles=f) if cfg else 0.0
         redot = REDOT_SECONDS_PER_COEFF * v * order * order * 3
         if method is not None and cfg is None:
-            notes.append(f"{obj.name}: {method} {_knobs(knobs)}at order {order} is not in the frontier; its cost is not estimated")
+            notes.append(f"{obj.name}: {method} {knob_text(knobs)}at order {order} is not in the frontier; its cost is not estimated")
         t_inter = _between_frame_seconds(v, other_casters[obj.name], pc) if sphere_sets and other_casters[obj.name] else 0.0
         t_gears = n_rect * _area_seconds(fr, pc, v, f, area_k) if rect else 0.0
         t_local = pc["local_light_seconds_per_vertex"] * v * n_local
@@ -652,7 +266,7 @@ def _run_groups(scene: Scene, methods: dict, two_sided: str = "auto") -> list:
     each shaded object uses ``methods[name] = (method, knobs)``."""
     import dataclasses
 
-    from .pipeline.shading import group_objects
+    from ..pipeline.shading import group_objects
 
     objs = [dataclasses.replace(o, method=methods[o.name][0], knobs=dict(methods[o.name][1]))
             for o in scene.objects if o.shaded]
@@ -668,7 +282,7 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
     (:func:`warpshade.pipeline.shading.probe_transfer`) instead of estimated."""
     import dataclasses
 
-    from .pipeline.shading import SceneShader, back_side_receivers, probe_transfer
+    from ..pipeline.shading import SceneShader, back_side_receivers, probe_transfer
 
     n = plan.order * plan.order
     shader = SceneShader.from_config(dataclasses.replace(config, groups=specs), scene)
@@ -690,7 +304,7 @@ def _plan_groups(plan: Plan, scene: Scene, frontier: dict, pc: dict, n_local: in
             cfg, src = find_config(frontier, spec.method, plan.order, spec.label)
             if cfg is None and not probe:
                 g.cost_source = "not in the frontier: transfer not estimated"
-                plan.notes.append(f"group {spec.names}: {spec.method} {_knobs(spec.label)}is not in the frontier; "
+                plan.notes.append(f"group {spec.names}: {spec.method} {knob_text(spec.label)}is not in the frontier; "
                                   "its transfer cost is not estimated")
             elif cfg is not None:
                 # the method's blockers are the casters' triangles; every vertex receives
