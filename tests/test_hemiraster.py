@@ -640,3 +640,25 @@ def test_redecimate_rebuilds_once_and_matches_a_method_built_on_that_pose():
     never = hemiraster(bm.rest, order=3)
     never.update(bm.frame)
     assert never.stats()["rebuilds"] == 0
+
+
+@pytest.mark.parametrize("knobs", [{}, {"interpolate": 0.05}])
+def test_receivers_rasterized_in_blocks_give_the_same_transfer(monkeypatch, knobs):
+    # the CPU rasterization runs in blocks of receivers sized to take LAUNCH_SECONDS (Ctrl-C between
+    # them): each receiver is rasterized on its own, so any block size gives the same bits
+    from warpshade.visibility.hemiraster import method as hr_method
+
+    mesh = bumpy_grid(n=12)
+    whole = hemiraster(mesh, order=3, **knobs).update().numpy()
+    rows = np.arange(3, mesh.num_vertices, 5)
+    whole_rows = hemiraster(mesh, order=3).compute_rows(rows).numpy()
+    monkeypatch.setattr(hr_method, "RECEIVERS_PER_LAUNCH", 7)  # first block: 7 receivers
+    monkeypatch.setattr(hr_method, "LAUNCH_SECONDS", 1e-9)  # then one receiver a launch: 138 launches
+    launches = []
+    real_launch = wp.launch
+    monkeypatch.setattr(hr_method.wp, "launch", lambda kernel, *a, **k: (
+        launches.append(kernel.key), real_launch(kernel, *a, **k))[1])
+    blocks = hemiraster(mesh, order=3, **knobs).update().numpy()
+    assert launches.count("rasterize_masks") >= 100
+    assert np.array_equal(blocks, whole)
+    assert np.array_equal(hemiraster(mesh, order=3).compute_rows(rows).numpy(), whole_rows)

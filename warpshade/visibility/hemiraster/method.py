@@ -35,6 +35,16 @@ BATCH = 32
 slot). Measured on the Table 1 cloth (interleaved runs, ratios of CPU time): 1 -> 1.28, 4 -> 1.06,
 8 -> 1.03, 16 -> 1.00, 32 -> 0.94, 64 -> 0.95; without batching 1.06."""
 
+RECEIVERS_PER_LAUNCH = 1024
+"""Receivers of the first rasterization launch on the CPU; later launches are sized from its time to
+take about :data:`LAUNCH_SECONDS` each. Python, and so Ctrl-C, runs between launches. Each receiver is
+rasterized on its own, so the blocks give the same masks as one launch."""
+
+LAUNCH_SECONDS = 0.5
+"""Target duration of one CPU rasterization launch [s] (a receiver costs from ~10 us on a smooth
+drape to ~470 us on a deeply crumpled 400 x 400 sheet, so a fixed block would be either many
+launches or many seconds)."""
+
 
 def scratch_slots(device, num_receivers: int) -> int:
     """Threads of the rasterization launch, each with its own scratch row (:func:`.kernels.rasterize_masks`):
@@ -515,20 +525,32 @@ class HemirasterTransfer(TransferMethod):
                 self._integrate_diffuse(redo, redo.shape[0])
 
     def _rasterize(self, receivers: wp.array, count: int, use_pvs: int) -> None:
-        wp.launch(
-            rasterize_masks,
-            dim=min(self._slots, max(1, count)),
-            inputs=[self._fine, self.normals, self._ring_start, self._ring_tris,
-                    self._blockers,
-                    self._near_mode, self._excl,
-                    self._groups,
-                    1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
-                    self._super_start, *self._super_box,
-                    use_pvs, self._pvs_start, self._pvs_tris,
-                    self._lut, self._batch, receivers, count, self._slots],
-            outputs=[self._mask, self._refined],
-            device=self.device,
-        )
+        """Rasterize the masks of ``receivers[:count]``; on the CPU in launches of about :data:`LAUNCH_SECONDS`."""
+        cpu = wp.get_device(self.device).is_cpu
+        block = RECEIVERS_PER_LAUNCH if cpu else max(1, count)
+        start = 0
+        while start < count:
+            n = min(block, count - start)
+            t0 = time.perf_counter()
+            part = receivers if (start == 0 and n == receivers.shape[0]) else receivers[start:start + n]
+            wp.launch(
+                rasterize_masks,
+                dim=min(self._slots, n),
+                inputs=[self._fine, self.normals, self._ring_start, self._ring_tris,
+                        self._blockers,
+                        self._near_mode, self._excl,
+                        self._groups,
+                        1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
+                        self._super_start, *self._super_box,
+                        use_pvs, self._pvs_start, self._pvs_tris,
+                        self._lut, self._batch, part, n, self._slots],
+                outputs=[self._mask, self._refined],
+                device=self.device,
+            )
+            start += n
+            if cpu:  # the next block sized to take about LAUNCH_SECONDS (growing at most 8x)
+                rate = n / max(time.perf_counter() - t0, 1e-6)
+                block = max(1, min(8 * n, int(rate * LAUNCH_SECONDS)))
 
     def _integrate_diffuse(self, receivers: wp.array, count: int) -> None:
         wp.launch(self._integrate.diffuse, dim=count,
