@@ -246,6 +246,19 @@ def test_workers_and_resource_tracker_exit_when_the_parent_dies(tmp_path, sig):
             os.kill(p, signal.SIGKILL)
 
 
+def children_until_frames(proc: subprocess.Popen, out, end: int, seconds: float = 300.0) -> set[int]:
+    """Wait until the run's output holds frames up to ``end`` (or the run ends, or ``seconds`` pass);
+    returns the child processes seen meanwhile."""
+    kids = set()
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and proc.poll() is None:
+        kids |= children_of(proc.pid)
+        if out.exists() and Usd.Stage.Open(str(out)).GetEndTimeCode() >= end:
+            break
+        time.sleep(0.1)
+    return kids
+
+
 def test_sigterm_commits_finished_frames_like_ctrl_c(tmp_path):
     out = tmp_path / "o.usda"
     cmd = [sys.executable, "-m", "warpshade", "run", SCENE, "--frames", "2000", "--out", str(out),
@@ -253,12 +266,7 @@ def test_sigterm_commits_finished_frames_like_ctrl_c(tmp_path):
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=ENV, text=True)
     kids = set()
     try:
-        deadline = time.monotonic() + 300
-        while time.monotonic() < deadline and proc.poll() is None:
-            kids |= children_of(proc.pid)
-            if out.exists() and Usd.Stage.Open(str(out)).GetEndTimeCode() >= 3:
-                break
-            time.sleep(0.1)
+        kids = children_until_frames(proc, out, 3)
         assert proc.poll() is None, "the run ended before it could be terminated"
         seen = Usd.Stage.Open(str(out)).GetEndTimeCode()
         proc.send_signal(signal.SIGTERM)
@@ -285,12 +293,7 @@ def test_ctrl_c_with_a_local_dask_cluster_is_one_line_and_leaves_no_process(tmp_
                             start_new_session=True)
     kids = set()
     try:
-        deadline = time.monotonic() + 300
-        while time.monotonic() < deadline and proc.poll() is None:
-            kids |= children_of(proc.pid)
-            if out.exists() and Usd.Stage.Open(str(out)).GetEndTimeCode() >= 3:
-                break
-            time.sleep(0.1)
+        kids = children_until_frames(proc, out, 3)
         assert proc.poll() is None, "the run ended before it could be interrupted"
         kids |= children_of(proc.pid)
         os.killpg(proc.pid, signal.SIGINT)  # as a terminal sends Ctrl-C: to the whole group

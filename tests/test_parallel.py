@@ -66,21 +66,9 @@ def test_back_pressure_limits_frames_ahead(spec, blob):
     assert seen == 8
 
 
-def test_killed_worker_loses_and_duplicates_nothing(spec, blob, inline):
-    backend_box = []
-    out = []
-    for f, r in shade_frames(spec, wobble_frames(blob, 8), workers=2, max_in_flight=4,
-                             on_backend=backend_box.append):
-        out.append((f, r))
-        if f == 1:
-            pids = backend_box[0].worker_pids()
-            assert pids, "no worker processes to kill"
-            os.kill(pids[0], signal.SIGKILL)
-    assert_same(out, inline)
-
-
-def test_worker_death_seen_before_the_next_submit_loses_nothing(spec, blob, inline):
-    # the pool has noticed the death (and refuses new work) before the loop submits the next frame
+def shade_killing_a_worker(spec, blob, wait_until_broken: bool) -> list:
+    """Two workers shade 8 frames; one is SIGKILLed after frame 1 is yielded (then, with
+    ``wait_until_broken``, the loop waits until the pool has noticed, before it submits more)."""
     import time
 
     backend_box = []
@@ -90,12 +78,24 @@ def test_worker_death_seen_before_the_next_submit_loses_nothing(spec, blob, inli
         out.append((f, r))
         if f == 1:
             pool = backend_box[0].pool
-            os.kill(backend_box[0].worker_pids()[0], signal.SIGKILL)
-            deadline = time.monotonic() + 30
-            while not pool._broken and time.monotonic() < deadline:  # the executor's own flag
-                time.sleep(0.01)
-            assert pool._broken, "the pool did not notice the killed worker"
-    assert_same(out, inline)
+            pids = backend_box[0].worker_pids()
+            assert pids, "no worker processes to kill"
+            os.kill(pids[0], signal.SIGKILL)
+            if wait_until_broken:
+                deadline = time.monotonic() + 30
+                while not pool._broken and time.monotonic() < deadline:  # the executor's own flag
+                    time.sleep(0.01)
+                assert pool._broken, "the pool did not notice the killed worker"
+    return out
+
+
+def test_killed_worker_loses_and_duplicates_nothing(spec, blob, inline):
+    assert_same(shade_killing_a_worker(spec, blob, wait_until_broken=False), inline)
+
+
+def test_worker_death_seen_before_the_next_submit_loses_nothing(spec, blob, inline):
+    # the pool has noticed the death (and refuses new work) before the loop submits the next frame
+    assert_same(shade_killing_a_worker(spec, blob, wait_until_broken=True), inline)
 
 
 class _Boom:
