@@ -5,8 +5,8 @@ PASS or FAIL with what it observed.
 The probes are the bullet list of issue 16 ("Nothing lost, nothing written where it does not
 belong"), in its order. Each one checks the outcome the issue asks for (files kept, files not
 written, processes gone, message text, time to answer), not only the exit code. The tests in
-``tests/test_faults.py``, ``tests/test_scheduler.py``, ``tests/test_cli_errors.py`` and
-``tests/test_extremes.py`` pin the same behaviour; this script re-runs the issue's list as a user
+``tests/cli/test_faults.py``, ``tests/parallel/test_scheduler.py``, ``tests/cli/test_cli_errors.py`` and
+``tests/visibility/test_extremes.py`` pin the same behaviour; this script re-runs the issue's list as a user
 would meet it, on small inputs, in a few minutes.
 
 How to run::

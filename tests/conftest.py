@@ -24,3 +24,15 @@ def warp_asset(name: str) -> str:
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    """Frames of an uninterrupted single-process run of :data:`helpers.SCENE` (resume and fault tests compare
+    against it, frame by frame)."""
+    from helpers import COMMON, FRAMES, SCENE, frames_of
+    from warpshade.cli import main
+
+    out = tmp_path_factory.mktemp("full") / "full.usda"
+    assert main(["run", SCENE, "--frames", str(FRAMES), "--out", str(out), "--workers", "0"] + COMMON) == 0
+    return frames_of(out)

@@ -271,6 +271,50 @@ def test_no_file_names_a_missing_document():
     assert not missing, "documents named but absent:\n" + "\n".join(missing)
 
 
+REPO_REF = re.compile(r"(?<![\w/.-])((?:tests|benchmarks|sims|warpshade|usd_scenes)/[\w./-]*\.[a-z]+)\b")
+"""A path into the repository's own folders (``tests/cli/test_run.py``, ``benchmarks/cloth.py``, ...)."""
+
+
+def _ignored(paths: list[str]) -> set[str]:
+    """The paths git ignores (outputs a command writes, caches), which a text may name without them existing."""
+    # each path also as a folder, which a folder pattern ("cache/") matches only with its slash
+    out = subprocess.run(["git", "check-ignore", "--no-index", "--stdin"], cwd=ROOT,
+                         input="\n".join(q for p in paths for q in (p, p + "/")), capture_output=True, text=True)
+    return {p.rstrip("/") for p in out.stdout.split()}
+
+
+def test_no_file_names_a_missing_repository_file():
+    """Every path into tests/, benchmarks/, sims/, warpshade/ or usd_scenes/ that a tracked file names
+    exists (relative to the root or to the file), unless git ignores it (an output or a cache)."""
+    files = [f for f in tracked_files() if f != Path(__file__).resolve()]  # this file names absent ones on purpose
+    missing = []
+    for f in files:
+        if f.suffix not in TEXT_SUFFIXES or not f.is_file():
+            continue
+        try:
+            text = f.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            continue
+        for n, line in enumerate(text.split("\n"), 1):
+            for m in REPO_REF.finditer(line):
+                ref = m.group(1).rstrip(".")
+                if "://" in line[max(0, m.start() - 80):m.start()]:
+                    continue  # part of a URL
+                if not any((base / ref).exists() for base in (ROOT, f.parent)):
+                    missing.append((f"{f.relative_to(ROOT)}:{n}", ref))
+    ignored = _ignored([ref for _, ref in missing]) if missing else set()
+    missing = [f"{where}: {ref}" for where, ref in missing if ref not in ignored]
+    assert not missing, "repository files named but absent:\n" + "\n".join(missing)
+
+
+def test_repository_path_check_finds_a_missing_file():
+    """The pattern above catches the paths it is meant to, and git's ignore rules are read."""
+    found = [m.group(1) for m in REPO_REF.finditer("see tests/cli/test_run.py::test_x, `benchmarks/nowhere.py` and "
+                                                   "sims/flag_shaded.usdc; not docs/x.py or mytests/a.py")]
+    assert found == ["tests/cli/test_run.py", "benchmarks/nowhere.py", "sims/flag_shaded.usdc"]
+    assert _ignored(found) == {"sims/flag_shaded.usdc"}
+
+
 def test_reference_check_finds_a_missing_document(tmp_path):
     """The pattern above catches the references it is meant to (a check that cannot fail proves nothing)."""
     found = [(m.group(1) or m.group(2)) for m in DOC_REF.finditer(

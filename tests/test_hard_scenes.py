@@ -15,6 +15,7 @@ import sys
 import numpy as np
 import trimesh
 
+from helpers import REPO, SHIPPED
 from warpshade.sim import ClothBuilder, ColliderSet, IntersectionCounter, WalkingFigure, XPBDSolver
 
 FPS = 60.0
@@ -40,7 +41,7 @@ def _run(model, solver, frames, before_step=None, control=None, state=None, afte
 
 def _sim_module(name: str):
     """The sims/ script `name` imported as a module."""
-    folder = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "sims")
+    folder = os.path.join(REPO, "sims")
     sys.path.insert(0, folder)
     try:
         return importlib.import_module(name)
@@ -222,7 +223,7 @@ def _shipped_cloth_counts(name: str, frames: int):
     from warpshade.pipeline.cloth import ClothSimulation
     from warpshade.usd.scene_io import read_scene
 
-    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "usd_scenes")
+    root = SHIPPED
     scene = read_scene(os.path.join(root, f"{name}.usda"))
     sims = ClothSimulation(scene, "cpu")
     counter = IntersectionCounter(sims.model.faces)

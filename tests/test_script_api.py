@@ -14,7 +14,8 @@ from pxr import Usd, UsdGeom, UsdShade
 
 import warpshade as ws
 
-REPO = os.path.join(os.path.dirname(__file__), "..")
+from helpers import REPO
+
 FRAMES = 30  # the cloth falls 0.3 m onto the box in ~15 frames (sqrt(2 * 0.3 / 9.81) s at 60 fps)
 
 

@@ -9,7 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-SIMS = os.path.join(os.path.dirname(__file__), "..", "sims")
+from helpers import REPO
+
+SIMS = os.path.join(REPO, "sims")
 
 
 def _load(name):

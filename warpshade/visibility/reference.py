@@ -13,7 +13,7 @@ a ground: its bottom vertices saw the sky below the ground and lost the sky abov
 
 Error: stratified sampling of a smooth integrand converges faster than 1/sqrt(rays); visibility
 edges make it about 1/sqrt(rays) in the worst case. At 4096 rays the relative L2 error of an
-order-5 transfer is well under 1 % on Warp's bunny (measured in tests/test_reference.py).
+order-5 transfer is well under 1 % on Warp's bunny (measured in tests/visibility/test_reference.py).
 """
 
 from __future__ import annotations

@@ -1,0 +1,113 @@
+"""Helpers shared by test modules in different folders (imported as ``helpers``: ``tests/`` is on
+``sys.path`` through its ``conftest.py``). Fixtures live in ``conftest.py``."""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+from pxr import Usd, UsdGeom
+
+from warpshade.sh import sh_eval
+from warpshade.usd import AnimationWriter
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+"""The repository's root folder."""
+
+SHIPPED = os.path.join(REPO, "usd_scenes")
+"""The shipped scenes' folder."""
+
+DATA = os.path.join(REPO, "tests", "data")
+"""Test data (real assets others wrote: ``data/newton``)."""
+
+# --- a short run on a shipped cloth scene, for resume, fault and scheduler tests ---
+SCENE = os.path.join(SHIPPED, "cloth_sphere.usda")  # cloth: the simulation must be replayed
+FRAMES = 6
+COMMON = ["--method", "reference", "--rays", "4", "--order", "2", "--chunk", "2", "--no-progress"]
+
+
+def frames_of(path):
+    """{prim: [(points, colors) per frame]} read back through USD (value clips resolved)."""
+    stage = Usd.Stage.Open(str(path))
+    out = {}
+    for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.Mesh):
+            m = UsdGeom.Mesh(prim)
+            col = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
+            out[str(prim.GetPath())] = [(np.asarray(m.GetPointsAttr().Get(f)), np.asarray(col.Get(f)))
+                                        for f in range(int(stage.GetStartTimeCode()), int(stage.GetEndTimeCode()) + 1)]
+    return out
+
+
+def assert_same_frames(a, b):
+    assert a.keys() == b.keys()
+    for prim in a:
+        assert len(a[prim]) == len(b[prim]), prim
+        for f, ((pa, ca), (pb, cb)) in enumerate(zip(a[prim], b[prim])):
+            # same deterministic simulation and shading kernels, same seeds: bit-identical
+            assert np.array_equal(pa, pb), f"{prim} frame {f}: points differ"
+            assert np.array_equal(ca, cb), f"{prim} frame {f}: colours differ"
+
+
+class InterruptingWriter(AnimationWriter):
+    """Stands in for Ctrl-C arriving while frame ``at`` is being written."""
+
+    def __init__(self, *a, at: int, **kw):
+        super().__init__(*a, **kw)
+        self.at = at
+
+    def write_frame(self, frame, *a, **kw):
+        if frame == self.at:
+            raise KeyboardInterrupt
+        super().write_frame(frame, *a, **kw)
+
+
+def live_processes() -> dict[int, list[str]]:
+    """``{pid: /proc/PID/stat fields after the command name}`` of every live (not zombie) process:
+    fields[0] state, [1] ppid, [2] pgrp, [3] session."""
+    out = {}
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if fields[0] != "Z":
+                out[int(d)] = fields
+    return out
+
+
+# Clamped-cosine zonal coefficients A_l (docs/conventions.md §2), independently from the Legendre integral
+# 2π ∫_0^1 P_l(x) x dx · sqrt((2l+1)/4π).
+def clamped_cosine_zh(order):
+    out = []
+    for l in range(order):
+        p = np.polynomial.legendre.Legendre.basis(l).convert(kind=np.polynomial.Polynomial)
+        integral = (p * np.polynomial.Polynomial([0, 1])).integ()
+        val = 2 * np.pi * (integral(1.0) - integral(0.0)) * math.sqrt((2 * l + 1) / (4 * np.pi))
+        out.append(val)
+    return np.array(out)
+
+
+def unoccluded_transfer(normals, order):
+    """Transfer of vertices that see their whole hemisphere (no blocker), from the independent A_l above."""
+    a = clamped_cosine_zh(order)
+    scale = np.concatenate([[math.sqrt(4 * np.pi / (2 * l + 1)) * a[l]] * (2 * l + 1) for l in range(order)])
+    return sh_eval(normals, order) * scale
+
+
+def rel_err(t, ref):
+    """Mean per-vertex error norm over the mean reference norm."""
+    return float(np.linalg.norm(t - ref, axis=1).mean() / np.linalg.norm(ref, axis=1).mean())
+
+
+def grid(n: int):
+    """n x n vertices on [0, 1]² at y = 0, triangles facing +y (float32 points, int32 faces)."""
+    x, y = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
+    pts = np.stack([x.ravel(), np.zeros(n * n), y.ravel()], 1).astype(np.float32)
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1))
+    v = (j * n + i).ravel()
+    faces = np.concatenate([np.stack([v, v + n, v + 1], 1), np.stack([v + 1, v + n, v + n + 1], 1)])
+    return pts, faces.astype(np.int32)
