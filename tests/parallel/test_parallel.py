@@ -122,8 +122,21 @@ def test_resume_from_written_frames(spec, blob, inline):
 
 
 def test_dask_local_cluster_matches_inline(spec, blob, inline):
-    out = list(shade_frames(spec, wobble_frames(blob, 8), workers=2, scheduler="local"))
+    # Dask's default HTTP port busy (another cluster, another test): the run's own cluster must not
+    # take it or warn about it (it serves no dashboard; was a three-line warning after the run's output)
+    import socket
+    import warnings
+
+    with socket.socket() as busy, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            busy.bind(("127.0.0.1", 8787))
+            busy.listen()
+        except OSError:
+            pass  # already in use: the condition under test
+        out = list(shade_frames(spec, wobble_frames(blob, 8), workers=2, scheduler="local"))
     assert_same(out, inline)
+    assert not [str(w.message) for w in caught if "8787" in str(w.message)]
 
 
 def test_dask_separate_process_cluster_on_loopback(spec, blob, inline):

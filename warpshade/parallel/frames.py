@@ -208,8 +208,11 @@ class _DaskBackend:
             try:
                 # the cluster is the run's own: its workers' warnings (a task cancelled by Ctrl-C) would
                 # follow the run's last line; errors still print, and a frame's error reaches the run
+                # no dashboard, and the scheduler's HTTP server on a free loopback port: Dask's default
+                # 8787 may be taken (another cluster), which printed a warning after the run's output
                 self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                            dashboard_address=None, silence_logs=logging.ERROR)
+                                            dashboard_address=None, silence_logs=logging.ERROR,
+                                            scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
             finally:
                 if previous is not None:
                     signal.signal(signal.SIGINT, previous)
