@@ -262,7 +262,7 @@ def test_ctrl_c_during_a_long_transfer_is_answered_between_kernel_launches(tmp_p
     import threading
     import time
 
-    import warpshade.visibility.reference as ref
+    import warpshade.visibility.reference.method as ref
     from warpshade.bench.meshes import grid
 
     gp, gf = grid(62, size=1.0)  # 3844 vertices

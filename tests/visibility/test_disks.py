@@ -18,7 +18,7 @@ from warpshade.usd import load_mesh
 from warpshade.sh import sh_eval
 from warpshade.visibility import get_method
 from warpshade.visibility.disks import build_disk_tree
-from warpshade.visibility.disks.disks import has_boundary
+from warpshade.visibility.disks.method import has_boundary
 from warpshade.visibility.disks.oracle import bin_occlusion_np
 
 Disks = get_method("disks")

@@ -74,7 +74,7 @@ def test_deterministic_with_seed():
 def test_launch_in_vertex_blocks_changes_nothing(monkeypatch):
     # the transfer is cut into launches of about RAYS_PER_LAUNCH rays (so Ctrl-C is answered between them);
     # each vertex keeps its index, hence its random stream and its own faces: bit-identical to one launch
-    import warpshade.visibility.reference as ref
+    import warpshade.visibility.reference.method as ref
 
     from warpshade.bench.meshes import grid
 

@@ -20,7 +20,7 @@ REGISTRY = {
         "spheres": "warpshade.visibility.spheres:SpheresTransfer",
     },
     "area": {
-        "gears": "warpshade.visibility.gears.gears:GearsVisibility",
+        "gears": "warpshade.visibility.gears.method:GearsVisibility",
         "reference": "warpshade.visibility.gears.reference:RayVisibility",
     },
 }

@@ -1,6 +1,8 @@
 """Area-light visibility: GEARS bitmasks (Popescu) and the ray-traced reference (docs/conventions.md §4).
 
-Both are the ``"area"`` family of :data:`warpshade.visibility.REGISTRY`.
+Both are the ``"area"`` family of :data:`warpshade.visibility.REGISTRY`. ``base.py`` holds the rect light
+and the interface area-light methods share, ``method.py`` :class:`GearsVisibility`, ``kernels.py`` the Warp
+kernels, ``oracle.py`` the NumPy version they are tested against, ``reference.py`` the ray-traced truth.
 """
 
 from __future__ import annotations

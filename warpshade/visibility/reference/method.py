@@ -23,11 +23,11 @@ import math
 import numpy as np
 import warp as wp
 
-from ..geometry.mesh import TriMesh
-from ..sh.kernels import normalization_array
-from .base import TransferMethod
-from .knobs import Knob
-from .reference_kernels import trace_transfer
+from ...geometry.mesh import TriMesh
+from ...sh.kernels import normalization_array
+from ..base import TransferMethod
+from ..knobs import Knob
+from .kernels import trace_transfer
 
 RAYS_PER_LAUNCH = 1 << 19
 """Rays traced per kernel launch on the CPU: a transfer is cut into vertex blocks of about this many rays,

@@ -1,11 +1,11 @@
-"""Kernels of the ray-traced reference transfer (see :mod:`warpshade.visibility.reference`)."""
+"""Kernels of the ray-traced reference transfer (see :mod:`warpshade.visibility.reference.method`)."""
 
 from __future__ import annotations
 
 import warp as wp
 
-from ..sh.kernels import sh_accumulate
-from .rays import orthonormal_basis, cosine_direction, near_faces, trace_surface_ray
+from ...sh.kernels import sh_accumulate
+from ..rays import orthonormal_basis, cosine_direction, near_faces, trace_surface_ray
 
 
 @wp.kernel
