@@ -73,3 +73,21 @@ def test_preview_cli_writes_png(tmp_path):
     assert sheet.shape == (2 * 32 + 2, 4 * 42 + 2, 3)
     # shared exposure: the later (brighter) frame's tile is brighter at its centre
     assert sheet[2 + 32 + 15, 2 + 3 * 42 + 20].mean() > sheet[2 + 15, 2 + 20].mean()
+
+
+def test_preview_names_a_time_code_outside_the_animation(tmp_path, capsys):
+    # a run keeps its input's time codes (here 101..104): frame 0 is no frame of it, and USD would
+    # silently show the first sample there
+    pts, faces = grid(4)
+    w = AnimationWriter(str(tmp_path / "anim.usda"), chunk=2)
+    name = w.add_mesh("sheet", faces)
+    for f in range(101, 105):
+        w.write_frame(f, name, pts + (0, 0.001 * f, 0), colors=np.full((16, 3), 0.5))
+    w.close()
+    for args in (["--frame", "0"], ["--contact-sheet", "0:3:1"], ["--contact-sheet", "101:110:3"]):
+        assert main(["preview", str(tmp_path / "anim.usda"), *args, "-o", str(tmp_path / "f.png")]) != 0
+        err = capsys.readouterr().err
+        assert f"{args[0]}: time code" in err and "101..104" in err, err
+        assert not (tmp_path / "f.png").exists()
+    assert main(["preview", str(tmp_path / "anim.usda"), "--contact-sheet", "101:104:1", "-o",
+                 str(tmp_path / "f.png"), "--size", "40x30"]) == 0

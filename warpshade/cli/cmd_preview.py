@@ -65,6 +65,12 @@ def run(args) -> int:
         raise ValueError(f"--size '{args.size}': expected WxH, e.g. 640x480") from None
     stage = ShadedStage(args.usd)
     frames = _frames(args.contact_sheet, args.frame, stage.start, stage.end)
+    outside = [f for f in frames if not stage.start - 1e-6 <= f <= stage.end + 1e-6]
+    if outside:
+        # USD would hold the first or last sample there: the picture would show a frame not asked for
+        option = "--frame" if args.contact_sheet is None else "--contact-sheet"
+        raise ValueError(f"{option}: time code {outside[0]:g} is outside {args.usd}'s frames, time codes "
+                         f"{stage.start:g}..{stage.end:g} (frame f of a run is time code startTimeCode + f)")
     shots = [stage.frame(f) for f in frames]
     # one camera and one exposure for all tiles, so motion and lighting changes are comparable
     # frame what moves (a ground grid would otherwise set the scale), else everything
