@@ -55,7 +55,7 @@ def _grid_and_bvh(points: np.ndarray, faces: np.ndarray):
     c = IntersectionCounter(faces, keep=20000)
     n_grid, p_grid = c.self_pairs(points)  # the hash grid (cells ~1 m, coordinates < 40 m)
     x = c._points(points)
-    n_bvh, p_bvh = c._run(count_self_pairs, [c._mesh.id, x, c.tris], None)
+    n_bvh, p_bvh = c._run(count_self_pairs, [c._mesh_id(), x, c.tris], None)
     assert n_grid == len(p_grid) and n_bvh == len(p_bvh)
     return _pair_set(p_grid), _pair_set(p_bvh)
 
