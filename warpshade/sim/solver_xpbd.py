@@ -57,15 +57,6 @@ class XPBDSolver:
         stretch_sweeps: Stretch sweeps per iteration (>= 1); the multipliers accumulate across
             them (XPBD iterations restricted to the stiffest constraints).
         relaxation: Over-relaxation of the stretch sweeps (0 < relaxation < 2; 1 = plain Gauss-Seidel).
-        stretch_warm_start: Share beta (0 <= beta <= 1; 0, the default, is off) of each edge's
-            tension multiplier kept from one substep to the next: every substep starts from
-            lambda = beta * min(lambda_prev, 0) with the vertices moved by the correction it makes,
-            instead of from lambda = 0 (warm starting, as impulse solvers carry accumulated
-            impulses). One sweep a substep then no longer has to rebuild the whole tension of a
-            hanging region from its strain, so the Gauss-Seidel strain residual (~ N g h^2 / L for
-            N edges hanging, substep h, edge length L) shrinks towards (1 - beta) of it.
-            Compressive multipliers are not carried over (cloth buckles; carrying them made the
-            solve diverge); the multipliers persist across steps. Costs one edge sweep a substep.
         tethers: Long-range attachments to the nearest kinematic vertex (Kim et al. 2012).
         check_finite: Stop with :class:`SimulationError` when the state turns non-finite.
 
@@ -79,7 +70,7 @@ class XPBDSolver:
                  contact_interval: int | None = None, max_contacts: int = 128,
                  tethers: bool = True, check_finite: bool = True, relaxation: float = 1.0,
                  contact_iterations: int = 2, stretch_sweeps: int = 1, edge_contact: bool = True,
-                 guard: bool = True, self_friction: float = 0.3, stretch_warm_start: float = 0.0):
+                 guard: bool = True, self_friction: float = 0.3):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -119,9 +110,6 @@ class XPBDSolver:
         self.relaxation = check_param("relaxation", relaxation, 0.0, False)
         if self.relaxation >= 2.0:
             raise ValueError(f"relaxation must be < 2 (successive over-relaxation diverges beyond), got {relaxation}")
-        self.stretch_warm_start = check_param("stretch_warm_start", stretch_warm_start)
-        if self.stretch_warm_start > 1.0:
-            raise ValueError(f"stretch_warm_start must be in [0, 1], got {stretch_warm_start}")
         self.step_count = 0
         self.contact_overflow = 0
         self.guard_steps = 0
@@ -228,13 +216,8 @@ class XPBDSolver:
                                   (s + 1) / self.substeps], outputs=[x], device=d)
             if self.colliders is not None:
                 self.colliders.pose_substep(s / self.substeps, (s + 1) / self.substeps)
-            # XPBD multipliers restart every substep (Macklin et al. 2016, Alg. 1 line 4), or the
-            # stretch ones from a share of the last substep's tension (stretch_warm_start)
-            if self.stretch_warm_start > 0.0:
-                for c in cmds["warm"]:
-                    c.launch()
-            else:
-                self._edge_lambda.zero_()
+            # XPBD multipliers restart every substep (Macklin et al. 2016, Alg. 1 line 4)
+            self._edge_lambda.zero_()
             self._hinge_lambda.zero_()
             for _ in range(self.iterations):
                 for c in cmds["constraints"]:
@@ -297,8 +280,6 @@ class XPBDSolver:
                                     outputs=[self._x_prev, x, v], device=d, record_cmd=True)
         edge_batches, hinge_batches = self._batches(m.edge_colors), self._batches(m.hinge_colors)
         cons = []
-        cmds["warm"] = [wp.launch(k.warm_start_stretch, dim=cnt, inputs=[m.edges, m.inv_mass, off, self.stretch_warm_start],
-                                  outputs=[self._edge_lambda, x], device=d, record_cmd=True) for off, cnt in edge_batches]
         stretch = [wp.launch(k.solve_stretch, dim=cnt,
                              inputs=[m.edges, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
                                      self.relaxation], outputs=[self._edge_lambda, x], device=d, record_cmd=True)
@@ -572,7 +553,7 @@ class XPBDSolver:
                 "contact_interval": self.contact_interval, "edge_contact": self.edge_contact,
                 "guard": self.guard, "self_friction": self.self_friction,
                 "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
-                "stretch_sweeps": self.stretch_sweeps, "stretch_warm_start": self.stretch_warm_start,
+                "stretch_sweeps": self.stretch_sweeps,
                 "relaxation": self.relaxation, "tethers": self.tethers, "check_finite": self.check_finite,
                 "thickness": self.model.thickness, "damping": self.model.damping,
                 "bend_damping": self.model.bend_damping}
