@@ -55,7 +55,7 @@ def _grid_and_bvh(points: np.ndarray, faces: np.ndarray):
     c = IntersectionCounter(faces, keep=20000)
     n_grid, p_grid = c.self_pairs(points)  # the hash grid (cells ~1 m, coordinates < 40 m)
     x = c._points(points)
-    n_bvh, p_bvh = c._run(count_self_pairs, [c._mesh.id, x, c.tris], None)
+    n_bvh, p_bvh = c._run(count_self_pairs, [c._mesh_id(), x, c.tris], None)
     assert n_grid == len(p_grid) and n_bvh == len(p_bvh)
     return _pair_set(p_grid), _pair_set(p_bvh)
 
@@ -259,3 +259,24 @@ def test_box_edge_does_not_cut_between_cloth_vertices():
         worst = max(worst, c.collider_pairs(st.points, col)[0])
     assert worst == 0
     assert st.points.numpy()[:, 1].min() < -0.1  # it fell onto and past the ridge
+
+
+def test_the_bvh_is_built_only_for_the_bvh_count_and_follows_the_points():
+    """The hash-grid count never reads the counter's cloth BVH, so it is not built (nor refitted)
+    for it; the BVH count, asked after the points moved, refits it first and finds the moved
+    cloth's pairs (a stale BVH would miss the pairs that only the new points make)."""
+    b = ClothBuilder()
+    b.add_grid(14, 14, 1.0, 1.0, origin=(-0.5, 0.0, -0.5))
+    m = b.finalize()
+    flat = m.rest_points_np.astype(np.float64)
+    c = IntersectionCounter(m.faces, keep=20000)
+    assert c.self_pairs(flat)[0] == 0 and c.collider_pairs(flat, ColliderSet())[0] == 0
+    assert c._mesh is None
+    x = c._points(flat)
+    assert c._run(count_self_pairs, [c._mesh_id(), x, c.tris], None)[0] == 0  # built at the flat cloth
+    rng = np.random.default_rng(7)
+    crumpled = flat + rng.normal(0, 0.05, size=flat.shape)
+    ref, _ = all_pairs(crumpled, m.faces)
+    n_grid, p_grid = c.self_pairs(crumpled)
+    n_bvh, p_bvh = c._run(count_self_pairs, [c._mesh_id(), c._x, c.tris], None)
+    assert len(ref) > 20 and _pair_set(p_grid) == ref and _pair_set(p_bvh) == ref, (len(ref), n_grid, n_bvh)

@@ -713,6 +713,7 @@ class IntersectionCounter:
         self._indices = wp.array(f.reshape(-1), dtype=wp.int32, device=self.device)
         self._x = None
         self._mesh = None
+        self._mesh_stale = True
         self._count = wp.zeros(2, dtype=wp.int32, device=self.device)
         self._no_points = wp.zeros(0, dtype=wp.vec3, device=self.device)
         self.inherited = 0
@@ -737,12 +738,20 @@ class IntersectionCounter:
             pts = wp.array(p, dtype=wp.vec3, device=self.device)
         if self._x is None or self._x.shape != pts.shape:
             self._x = wp.empty(pts.shape[0], dtype=wp.vec3, device=self.device)
-            wp.copy(self._x, pts)
-            self._mesh = wp.Mesh(points=self._x, indices=self._indices)
-        else:
-            wp.copy(self._x, pts)
-            self._mesh.refit()
+            self._mesh = None
+        wp.copy(self._x, pts)
+        self._mesh_stale = True
         return self._x
+
+    def _mesh_id(self) -> int:
+        """The BVH of the cloth's triangles at the points last given, built or refitted only when
+        a count uses it (the hash-grid count and the collider counts do not)."""
+        if self._mesh is None:
+            self._mesh = wp.Mesh(points=self._x, indices=self._indices)
+        elif self._mesh_stale:
+            self._mesh.refit()
+        self._mesh_stale = False
+        return self._mesh.id
 
     def _run(self, kernel, inputs, mark, start=None) -> tuple[int, np.ndarray]:
         self._count.zero_()
@@ -774,7 +783,7 @@ class IntersectionCounter:
         # of cell coordinates, a few ulp of the largest coordinate) so no overlapping box is missed
         if not (np.isfinite(size) and width * 1.0e5 > size):
             # cells too small against the coordinates for float32 cell arithmetic: the BVH
-            return self._run(count_self_pairs, [self._mesh.id, x, self.tris], mark, start)
+            return self._run(count_self_pairs, [self._mesh_id(), x, self.tris], mark, start)
         self._grid.build(self._lower, width)
         return self._run(count_self_pairs_grid, [self._grid.id, width, 0.02 * width + 1.0e-6 * size, self._lower,
                                                  self._upper, x, self.tris], mark, start)
