@@ -14,7 +14,8 @@ camera and, for two-sided meshes, the front, the back and the pair from above an
 prints, per mesh, the rendered pixels' mean linear RGB beside the mean ``displayColor`` of its
 vertices and the share of its pixels that are black beyond its black vertices, and exits non-zero
 if a mesh renders black (mean luminance below 1/4 of its colours' or 5 % more black pixels than
-black vertices), or if fewer than 90 % of a two-sided pair's pixels show what the front alone or
+black vertices), brighter than its brightest vertex (99th percentile of its pixels' luminance above
+1.25 times it: the scene's lights lit it again), or if fewer than 90 % of a two-sided pair's pixels show what the front alone or
 the back alone shows there (both sides drawn at once, or specks of one through the other).
 ``--no-recipe`` keeps the imported materials unchanged.
 """
@@ -130,6 +131,13 @@ def _black_share(px, cols):
     return float(np.mean(rgb @ LUM < 1e-3)) - float(np.mean(cols @ LUM < 1e-3))
 
 
+def _bright(px) -> float:
+    """99th percentile of a mesh's pixel luminance: emission interpolated between its vertices can be no
+    brighter than its brightest vertex, so more means a renderer lit it again."""
+    rgb = px[..., :3][px[..., 3] > 0.5]
+    return float(np.percentile(rgb @ LUM, 99)) if len(rgb) else 0.0
+
+
 def check(usd, frame, out_dir, recipe=True) -> list[str]:
     scene = _reset()
     bpy.ops.wm.usd_import(filepath=os.path.abspath(usd))
@@ -165,6 +173,10 @@ def check(usd, frame, out_dir, recipe=True) -> list[str]:
         elif want @ LUM > 1e-3 and (mean @ LUM < 0.25 * (want @ LUM) or black > 0.05):
             failures.append(f"{o.name}: renders black (mean {mean.round(3).tolist()}, {100 * black:.0f} % more black "
                             f"pixels than black vertices; its displayColor mean is {want.round(3).tolist()})")
+        bright, brightest = _bright(px), float((cols @ LUM).max())
+        if n and bright > 1.25 * brightest + 0.01:
+            failures.append(f"{o.name}: renders brighter than its colours (99th percentile luminance {bright:.3f}, "
+                            f"brightest vertex {brightest:.3f}): the scene's lights light it again")
         back = by_name.get(o.name + "_back")
         if back is None:
             continue

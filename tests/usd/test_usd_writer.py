@@ -9,7 +9,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from pxr import Usd, UsdGeom, UsdLux, UsdShade
+from pxr import Gf, Usd, UsdGeom, UsdLux, UsdShade
 
 from helpers import REPO, grid
 from warpshade.scene import LightSpec
@@ -80,6 +80,12 @@ def test_round_trip_per_frame(tmp_path, rng):
     reader = UsdShade.Shader(src.GetPrim())
     assert reader.GetIdAttr().Get() == "UsdPrimvarReader_float3"
     assert reader.GetInput("varname").Get() == "displayColor"
+    # nothing a renderer's lights could add: no diffuse, and no specular (metallic workflow, F0 from ior)
+    assert surf.GetInput("diffuseColor").Get() == Gf.Vec3f(0, 0, 0)
+    ior = surf.GetInput("ior").Get()
+    assert ((1 - ior) / (1 + ior)) ** 2 == 0.0
+    assert surf.GetInput("metallic") is None or surf.GetInput("metallic").Get() in (None, 0.0)
+    assert surf.GetInput("useSpecularWorkflow") is None or surf.GetInput("useSpecularWorkflow").Get() in (None, 0)
 
 
 def test_validators_clean_with_lights_and_texture(tmp_path, rng):

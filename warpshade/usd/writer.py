@@ -603,7 +603,10 @@ class AnimationWriter:
 
     def _bind_radiance_material(self, mesh: UsdGeom.Mesh, pname: str, roughness: float) -> None:
         # displayColor holds exit radiance (shading already done), so the material shows it as
-        # emission with a black diffuse: a renderer that re-lights the scene does not light it twice.
+        # emission with a black diffuse and no specular (ior 1: UsdPreviewSurface's Fresnel F0 =
+        # ((1 - ior) / (1 + ior))^2 = 0): a renderer that re-lights the scene adds nothing to it,
+        # whatever it makes of the lights' units (Blender's importer makes a 5 cm sphere light of a
+        # stage in centimetres 5 m wide, whose specular alone outshone the colours 40x).
         # RADIANCE_MATERIAL_ATTR marks it, so a reader of this output does not take the black
         # diffuse for the albedo (that is warpshade:albedo on the mesh).
         looks = UsdGeom.Scope.Define(self.stage, f"{self._root}/Looks")
@@ -618,6 +621,7 @@ class AnimationWriter:
         out = reader.CreateOutput("result", Sdf.ValueTypeNames.Float3)
         surf.CreateInput("emissiveColor", Sdf.ValueTypeNames.Color3f).ConnectToSource(out)
         surf.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0.0, 0.0, 0.0))
+        surf.CreateInput("ior", Sdf.ValueTypeNames.Float).Set(1.0)
         surf.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(roughness))
         mat.CreateSurfaceOutput().ConnectToSource(surf.ConnectableAPI(), "surface")
         UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
