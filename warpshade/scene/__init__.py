@@ -159,9 +159,10 @@ class SceneObject:
         prim_path: Path of the input prim the object was read from (the output writes the shaded
             mesh at that path), or None for an object built in Python (written at ``/World/<name>``).
         prim_xforms: With ``prim_path``: the prim and its ancestors, root first, as tuples
-            ``(path, type name, local, resets)`` (``local``: local-to-parent matrix acting on column
-            vectors, shape (4, 4), float64, or None for a prim without a transform such as a Scope;
-            ``resets``: the prim resets the transform stack). The output rebuilds this hierarchy.
+            ``(path, type name, local, resets, instance)`` (``local``: local-to-parent matrix acting on
+            column vectors, shape (4, 4), float64, or None for a prim without a transform such as a Scope;
+            ``resets``: the prim resets the transform stack; ``instance``: the prim is an instance, the
+            object a mesh inside it). The output rebuilds this hierarchy.
     """
 
     name: str

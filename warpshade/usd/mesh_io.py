@@ -64,6 +64,23 @@ def triangulate(counts: np.ndarray, indices: np.ndarray, name: str) -> np.ndarra
     return tri[np.argsort(order, kind="stable")].astype(np.int32)
 
 
+def outward_faces(faces: np.ndarray, prim, linear: np.ndarray) -> np.ndarray:
+    """Triangles of a mesh prim wound counter-clockwise seen from outside in world space, as warpshade
+    reads normals (right-handed): reversed when the prim's ``orientation`` is ``leftHanded``, and again
+    when its world transform mirrors (``linear``, the 3x3 part, has a negative determinant), as renderers
+    flip the winding of mirrored meshes. Otherwise the normals would point in and the mesh shade black.
+
+    Args:
+        faces: Triangles in the prim's own winding, shape (F, 3).
+        prim: The ``UsdGeom.Mesh`` (or other gprim) prim; its ``orientation`` is read.
+        linear: Its local-to-world linear part (either convention: the determinant is the same).
+    """
+    left = UsdGeom.Gprim(prim).GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded
+    mirrored = float(np.linalg.det(np.asarray(linear, dtype=np.float64)[:3, :3])) < 0.0
+    faces = np.asarray(faces)
+    return np.ascontiguousarray(faces[:, [0, 2, 1]]) if left != mirrored else faces
+
+
 def read_usd_mesh(path: str, prim_path: str | None = None, time=None):
     """Read one mesh prim as world-space triangles.
 
@@ -98,7 +115,7 @@ def read_usd_mesh(path: str, prim_path: str | None = None, time=None):
     xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t), dtype=np.float64)
     # USD matrices act on row vectors: p' = [p, 1] @ M
     points = points @ xf[:3, :3] + xf[3, :3]
-    faces = triangulate(np.asarray(counts), np.asarray(idx), name)
+    faces = outward_faces(triangulate(np.asarray(counts), np.asarray(idx), name), prim, xf)
     return points.astype(np.float32), faces, name
 
 

@@ -30,7 +30,7 @@ from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 from ..geometry.mesh import MeshError, TriMesh
 from ..geometry.shapes import AXIS_FROM_Z, axial_shape
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
-from .mesh_io import triangulate, usd_error_message
+from .mesh_io import outward_faces, triangulate, usd_error_message
 from .writer import BACK_SIDE_OF, RADIANCE_MATERIAL_ATTR
 
 # Prim types that carry no geometry warpshade needs but are expected in scenes: skipped silently.
@@ -69,6 +69,11 @@ def read_scene(path: str) -> Scene:
     return scene_from_stage(stage, path)
 
 
+_PRIMS = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
+"""The prims a scene is read from: the default predicate's, and the meshes inside instances (instance
+proxies: each instance is shaded as an object of its own, at its own path)."""
+
+
 def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
     """Build a :class:`Scene` from an open stage (see :func:`read_scene`)."""
     scene = Scene(source=source)
@@ -99,16 +104,16 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         raise SceneError(f"{source}:{root.GetPath()}: warpshade:frames must be >= 1, got {scene.frames}")
 
     cache = UsdSkel.Cache()
-    for skel_root in stage.Traverse():
+    for skel_root in Usd.PrimRange(stage.GetPseudoRoot(), _PRIMS):
         if skel_root.IsA(UsdSkel.Root):
-            cache.Populate(UsdSkel.Root(skel_root), Usd.PrimDefaultPredicate)
+            cache.Populate(UsdSkel.Root(skel_root), _PRIMS)
     default_method = scene.settings.get("method")
     if default_method is None:
         from ..visibility import default_method as fastest
 
         default_method = fastest()
     unmarked = []  # meshes whose kind was not authored
-    it = iter(Usd.PrimRange(stage.GetPseudoRoot()))
+    it = iter(Usd.PrimRange(stage.GetPseudoRoot(), _PRIMS))
     for prim in it:
         if prim.IsPseudoRoot():
             continue
@@ -123,7 +128,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         if prim.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(prim).ComputePurpose() in _UNRENDERED_PURPOSES:
             # guide / proxy geometry (collision twins, stand-ins) is not what renders; marked as a
             # collider it still collides (read, not shaded, not written)
-            for sub in Usd.PrimRange(prim):
+            for sub in Usd.PrimRange(prim, _PRIMS):
                 if (sub.IsA(UsdGeom.Gprim) and sub.IsActive() and _physics_collider(sub)
                         and UsdGeom.Imageable(sub).ComputeVisibility() != UsdGeom.Tokens.invisible):
                     if sub.IsA(UsdGeom.Mesh):
@@ -220,8 +225,8 @@ def _apply(xf: np.ndarray, pts: np.ndarray) -> np.ndarray:
 
 def _hierarchy(prim) -> tuple:
     """:attr:`SceneObject.prim_xforms` of ``prim``: it and its ancestors, root first, each
-    ``(path, type name, local matrix or None, resets the xform stack)``, transforms at the earliest
-    time (the first time sample, else the default value)."""
+    ``(path, type name, local matrix or None, resets the xform stack, is an instance)``, transforms at
+    the earliest time (the first time sample, else the default value)."""
     chain = []
     t = Usd.TimeCode.EarliestTime()
     while prim and not prim.IsPseudoRoot():
@@ -230,7 +235,7 @@ def _hierarchy(prim) -> tuple:
             xf = UsdGeom.Xformable(prim)
             local = np.asarray(xf.GetLocalTransformation(t), dtype=np.float64).T
             resets = bool(xf.GetResetXformStack())
-        chain.append((str(prim.GetPath()), str(prim.GetTypeName()), local, resets))
+        chain.append((str(prim.GetPath()), str(prim.GetTypeName()), local, resets, bool(prim.IsInstance())))
         prim = prim.GetParent()
     return tuple(reversed(chain))
 
@@ -264,8 +269,11 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> Scene
     if kind == "skinned":
         params["points_at"] = _skinned_points(prim, cache, where)
         points = params["points_at"](samples[0] if samples else 0)
+        world = _world(UsdSkel.BindingAPI(prim).GetInheritedSkeleton().GetPrim())  # skinned points' space
     else:
-        points = _apply(_world(prim, t0), local)
+        world = _world(prim, t0)
+        points = _apply(world, local)
+    faces = outward_faces(faces, prim, world)
     if kind == "animated":
         params["points_at"] = _animated_points(prim, where)
     try:
@@ -297,7 +305,7 @@ def _read_sphere(prim, source: str, default_method) -> SceneObject:
     subdiv = int(settings.pop("subdivisions", 3))
     ico = trimesh.creation.icosphere(subdivisions=subdiv, radius=radius)
     xf = _world(prim)
-    tri = TriMesh(_apply(xf, np.asarray(ico.vertices)), np.asarray(ico.faces), name=where)
+    tri = TriMesh(_apply(xf, np.asarray(ico.vertices)), outward_faces(np.asarray(ico.faces), prim, xf), name=where)
     scale = float(np.cbrt(abs(np.linalg.det(xf[:3, :3]))))
     params = {"sphere": {"center": xf[:3, 3].copy(), "radius": radius * scale}}
     kind = settings.pop("kind", "static")
@@ -339,7 +347,8 @@ def _read_gprim(prim, source: str, default_method) -> SceneObject:
     where = f"{source}:{prim.GetPath()}"
     settings = _namespace(prim, source)
     verts, faces = _gprim_mesh(prim, where)
-    tri = TriMesh(_apply(_world(prim), verts), faces, name=where)
+    xf = _world(prim)
+    tri = TriMesh(_apply(xf, verts), outward_faces(faces, prim, xf), name=where)
     kind = settings.pop("kind", "static")
     if kind not in ("static",):
         raise SceneError(f"{where}: warpshade:kind '{kind}' on a {prim.GetTypeName()}: gprims are static "

@@ -427,7 +427,8 @@ class AnimationWriter:
         :attr:`warpshade.scene.SceneObject.prim_xforms`; missing ones as plain Xforms) and return
         the parent's local-to-world matrix in the output (column vectors, shape (4, 4))."""
         world = np.eye(4)
-        given = {p: (t, local, resets) for p, t, local, resets in prim_xforms}
+        given = {p: (t, local, resets) for p, t, local, resets, *_ in prim_xforms}
+        instances = {p for p, _t, _local, _resets, *instance in prim_xforms if instance and instance[0]}
         for prefix in Sdf.Path(path).GetPrefixes()[:-1]:
             p = str(prefix)
             tname, local, resets = given.get(p, ("Xform", None, False))
@@ -442,6 +443,10 @@ class AnimationWriter:
             prim = UsdGeom.Xform.Define(self.stage, p)
             if local is not None:
                 _set_transform(prim, local, resets)
+            if p in instances:
+                # an instance in the input: layered over it, this output's meshes inside it are only
+                # seen if it is no longer instanced (USD ignores opinions on instance proxies)
+                prim.GetPrim().SetInstanceable(False)
         return world
 
     def add_mesh(self, name: str, faces: np.ndarray, points: np.ndarray | None = None, *,
@@ -500,6 +505,10 @@ class AnimationWriter:
                 to_world = np.eye(4)
         to_local = None if np.allclose(to_world, np.eye(4)) else _LocalFrame(to_world, path)
         faces = np.asarray(faces, dtype=np.int32).reshape(-1, 3)
+        if np.linalg.det(to_world[:3, :3]) < 0.0:
+            # the faces are wound outward in world space; under a mirroring parent a renderer flips the
+            # winding of what it draws, so the local winding is the reverse
+            faces = faces[:, [0, 2, 1]]
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, dtype=np.int32)))
         mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(faces.reshape(-1))))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
