@@ -128,3 +128,25 @@ def test_run_shades_them_alike_and_the_output_layers_over_the_input(scene_file, 
     assert not over.GetPrimAtPath("/World/Instanced").IsInstance()
     assert np.allclose(np.asarray(UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor").Get(0)).mean(),
                        means["/World/Instanced/Geom"])
+
+
+def test_hole_faces_are_not_read(tmp_path):
+    # a strip of three quads whose middle one is a hole (holeIndices, as Maya and Houdini write them)
+    st = Usd.Stage.CreateNew(str(tmp_path / "holes.usda"))
+    UsdGeom.SetStageMetersPerUnit(st, 1.0)
+    m = UsdGeom.Mesh.Define(st, "/Strip")
+    m.CreatePointsAttr([(x, 0, z) for z in (0, 1) for x in range(4)])
+    m.CreateFaceVertexCountsAttr([4, 4, 4])
+    m.CreateFaceVertexIndicesAttr([0, 4, 5, 1, 1, 5, 6, 2, 2, 6, 7, 3])
+    m.CreateHoleIndicesAttr([1])
+    st.Save()
+    tri = next(o for o in read_scene(str(tmp_path / "holes.usda")).objects if o.name == "/Strip").mesh
+    _, faces, _ = read_usd_mesh(str(tmp_path / "holes.usda"))
+    for f in (tri.faces, faces):
+        assert len(f) == 4
+        # no triangle spans the hole (x from 1 to 2)
+        assert not any({1, 2} <= set(t) or {5, 6} <= set(t) or {1, 6} <= set(t) or {2, 5} <= set(t) for t in f.tolist())
+    m.CreateHoleIndicesAttr([3])
+    st.Save()
+    with pytest.raises(Exception, match="holeIndices 3 is not a face"):
+        read_scene(str(tmp_path / "holes.usda"))

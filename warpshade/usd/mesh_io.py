@@ -34,8 +34,11 @@ def open_stage(path: str) -> Usd.Stage:
     return stage
 
 
-def triangulate(counts: np.ndarray, indices: np.ndarray, name: str) -> np.ndarray:
+def triangulate(counts: np.ndarray, indices: np.ndarray, name: str, holes=None) -> np.ndarray:
     """Fan-triangulate polygons given USD ``faceVertexCounts`` and ``faceVertexIndices``.
+
+    Args:
+        holes: The mesh's ``holeIndices``: polygons that are holes (not drawn, not simulated), dropped.
 
     Returns:
         Triangle indices, shape (F, 3), int32. Polygons with fewer than 3 corners are dropped.
@@ -49,6 +52,14 @@ def triangulate(counts: np.ndarray, indices: np.ndarray, name: str) -> np.ndarra
         raise MeshError(f"{name}: faceVertexCounts sum to {counts.sum()} but there are "
                         f"{len(indices)} faceVertexIndices")
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    if holes is not None and len(holes):
+        holes = np.asarray(holes, dtype=np.int64)
+        bad = holes[(holes < 0) | (holes >= len(counts))]
+        if len(bad):
+            raise MeshError(f"{name}: holeIndices {int(bad[0])} is not a face (the mesh has {len(counts)})")
+        keep = np.ones(len(counts), dtype=bool)
+        keep[holes] = False
+        counts = np.where(keep, counts, 0)  # a hole becomes a polygon of no corner: dropped below
     tris = []
     for n in np.unique(counts):
         if n < 3:
@@ -115,7 +126,8 @@ def read_usd_mesh(path: str, prim_path: str | None = None, time=None):
     xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t), dtype=np.float64)
     # USD matrices act on row vectors: p' = [p, 1] @ M
     points = points @ xf[:3, :3] + xf[3, :3]
-    faces = outward_faces(triangulate(np.asarray(counts), np.asarray(idx), name), prim, xf)
+    faces = outward_faces(triangulate(np.asarray(counts), np.asarray(idx), name, mesh.GetHoleIndicesAttr().Get(t)),
+                          prim, xf)
     return points.astype(np.float32), faces, name
 
 

@@ -253,7 +253,7 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> Scene
     if pts is None or counts is None or idx is None:
         raise SceneError(f"{where}: mesh lacks points, faceVertexCounts or faceVertexIndices")
     try:
-        faces = triangulate(np.asarray(counts), np.asarray(idx), where)
+        faces = triangulate(np.asarray(counts), np.asarray(idx), where, mesh.GetHoleIndicesAttr().Get())
     except MeshError as exc:
         raise SceneError(str(exc)) from None
     local = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
