@@ -150,3 +150,56 @@ def test_hole_faces_are_not_read(tmp_path):
     st.Save()
     with pytest.raises(Exception, match="holeIndices 3 is not a face"):
         read_scene(str(tmp_path / "holes.usda"))
+
+
+def _quads_mesh(stage, path, n=4):
+    m = UsdGeom.Mesh.Define(stage, path)
+    m.CreatePointsAttr([(x, 0, z) for z in (0, 1) for x in range(n + 1)])
+    m.CreateFaceVertexCountsAttr([4] * n)
+    m.CreateFaceVertexIndicesAttr([v for i in range(n) for v in (i, i + n + 1, i + n + 2, i + 1)])
+    return m
+
+
+def _preview_material(stage, path, rgb):
+    from pxr import Sdf, UsdShade
+
+    mat = UsdShade.Material.Define(stage, path)
+    sh = UsdShade.Shader.Define(stage, path + "/Surface")
+    sh.CreateIdAttr("UsdPreviewSurface")
+    sh.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*rgb))
+    mat.CreateSurfaceOutput().ConnectToSource(sh.ConnectableAPI(), "surface")
+    return mat
+
+
+def test_materials_on_face_subsets_give_their_mean_albedo_with_a_warning(tmp_path):
+    from pxr import UsdShade
+
+    from warpshade.scene import SceneWarning
+
+    st = Usd.Stage.CreateNew(str(tmp_path / "subsets.usda"))
+    UsdGeom.SetStageMetersPerUnit(st, 1.0)
+    m = _quads_mesh(st, "/Mesh")
+    red, blue = _preview_material(st, "/Looks/Red", (0.8, 0.1, 0.1)), _preview_material(st, "/Looks/Blue", (0.1, 0.1, 0.8))
+    for name, faces, mat in (("red", [0, 1, 2], red), ("blue", [3], blue)):
+        subset = UsdShade.MaterialBindingAPI(m.GetPrim()).CreateMaterialBindSubset(name, faces)
+        UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(mat)
+    st.Save()
+    with pytest.warns(SceneWarning, match="/Mesh: materials are bound to 2 face subsets"):
+        obj = next(o for o in read_scene(str(tmp_path / "subsets.usda")).objects if o.name == "/Mesh")
+    assert np.allclose(obj.material.albedo, (3 * np.array([0.8, 0.1, 0.1]) + np.array([0.1, 0.1, 0.8])) / 4)
+
+
+def test_a_displaycolor_per_vertex_gives_its_mean_albedo_with_a_warning(tmp_path):
+    from pxr import Sdf
+
+    from warpshade.scene import SceneWarning
+
+    st = Usd.Stage.CreateNew(str(tmp_path / "cd.usda"))
+    UsdGeom.SetStageMetersPerUnit(st, 1.0)
+    m = _quads_mesh(st, "/Mesh", n=1)
+    cols = [(1, 0, 0), (0, 1, 0), (0, 0, 1), (0.2, 0.2, 0.2)]
+    UsdGeom.PrimvarsAPI(m).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex).Set(cols)
+    st.Save()
+    with pytest.warns(SceneWarning, match="displayColor varies"):
+        obj = next(o for o in read_scene(str(tmp_path / "cd.usda")).objects if o.name == "/Mesh")
+    assert np.allclose(obj.material.albedo, np.mean(cols, axis=0))

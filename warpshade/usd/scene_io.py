@@ -627,6 +627,9 @@ def _material(prim, where) -> Material:
     if out is not None:
         _check_material(out, where, recorded.GetPath())
         return out
+    subsets = _subset_albedo(prim, where)
+    if subsets is not None:
+        return subsets
     dc = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
     if dc and dc.HasAuthoredValue():
         v = np.asarray(dc.Get(), dtype=np.float64).reshape(-1, 3)
@@ -634,7 +637,43 @@ def _material(prim, where) -> Material:
             out = Material(albedo=v[0])
             _check_material(out, where, prim.GetPath())
             return out
+        if len(v) > 1:
+            out = Material(albedo=v.mean(axis=0))
+            out.albedo_authored = True
+            _check_material(out, where, prim.GetPath())
+            warnings.warn(f"{where}: primvars:displayColor varies ({dc.GetInterpolation()}, {len(v)} values): warpshade "
+                          f"shades a mesh with one albedo, their mean {np.round(out.albedo, 3).tolist()}; split the mesh "
+                          "or bind a material to set it", SceneWarning, stacklevel=4)
+            return out
     return Material()
+
+
+def _subset_albedo(prim, where) -> Material | None:
+    """For a mesh bound to no material itself but whose face subsets (``UsdGeomSubset``, family
+    ``materialBind``) are: one material, the subsets' UsdPreviewSurface diffuseColor averaged by face count,
+    with a warning (a mesh is shaded with one albedo). None when no subset binds a material."""
+    if not prim.IsA(UsdGeom.Imageable):
+        return None
+    colours, weights = [], []
+    for subset in UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets():
+        mat, _ = UsdShade.MaterialBindingAPI(subset.GetPrim()).ComputeBoundMaterial()
+        shader = mat.ComputeSurfaceSource()[0] if mat else None
+        if not shader or shader.GetIdAttr().Get() != "UsdPreviewSurface":
+            continue
+        dc = shader.GetInput("diffuseColor")
+        val = dc.Get() if dc else None
+        colours.append(np.asarray(val if val is not None else Material().albedo, dtype=np.float64))
+        weights.append(len(subset.GetIndicesAttr().Get() or ()))
+    if not colours:
+        return None
+    out = Material(albedo=np.average(np.stack(colours), axis=0, weights=np.maximum(weights, 1)))
+    out.albedo_authored = True
+    _check_material(out, where, prim.GetPath())
+    if len(colours) > 1:
+        warnings.warn(f"{where}: materials are bound to {len(colours)} face subsets: warpshade shades a mesh with one "
+                      f"albedo, their mean by face count {np.round(out.albedo, 3).tolist()}; split the mesh by material "
+                      "for an albedo each", SceneWarning, stacklevel=4)
+    return out
 
 
 def _check_material(m: Material, where, shader_path) -> None:
