@@ -203,3 +203,40 @@ def test_a_displaycolor_per_vertex_gives_its_mean_albedo_with_a_warning(tmp_path
     with pytest.warns(SceneWarning, match="displayColor varies"):
         obj = next(o for o in read_scene(str(tmp_path / "cd.usda")).objects if o.name == "/Mesh")
     assert np.allclose(obj.material.albedo, np.mean(cols, axis=0))
+
+
+def test_gprims_keyed_by_their_transform(tmp_path):
+    # as DCCs export them: transforms written as time samples only (one for a still object, a key per
+    # frame for a moving one), which USD reads as the identity at the default time
+    from warpshade.pipeline.cloth import ClothSimulation
+
+    st = Usd.Stage.CreateNew(str(tmp_path / "keys.usda"))
+    UsdGeom.SetStageUpAxis(st, "Y")
+    UsdGeom.SetStageMetersPerUnit(st, 1.0)
+    st.SetStartTimeCode(1)
+    st.SetEndTimeCode(5)
+    still = UsdGeom.Cube.Define(st, "/Still")
+    still.AddTranslateOp().Set(Gf.Vec3d(3, 0.5, 0), 1)
+    ball = UsdGeom.Sphere.Define(st, "/Ball")
+    ball.CreateRadiusAttr(0.25)
+    op = ball.AddTranslateOp()
+    for t in range(1, 6):
+        op.Set(Gf.Vec3d(0.1 * t, 0.25, 0), t)
+    from pxr import Sdf, UsdPhysics
+
+    UsdPhysics.CollisionAPI.Apply(ball.GetPrim())
+    cloth = _quads_mesh(st, "/Cloth", n=3)
+    cloth.GetPrim().CreateAttribute("warpshade:kind", Sdf.ValueTypeNames.Token, custom=True).Set("cloth")
+    UsdGeom.XformCommonAPI(cloth).SetTranslate(Gf.Vec3d(0, 1, 0))
+    st.Save()
+    scene = read_scene(str(tmp_path / "keys.usda"))
+    objs = {o.name: o for o in scene.objects}
+    assert objs["/Still"].kind == "static"
+    assert np.allclose(objs["/Still"].mesh.points.mean(axis=0), (3, 0.5, 0), atol=1e-6)  # not at the origin
+    b = objs["/Ball"]
+    assert b.kind == "animated" and b.params["collider"] == "sphere"
+    assert np.allclose(b.mesh.points.mean(axis=0), (0.1, 0.25, 0), atol=1e-6)
+    for t in (1, 3, 5):
+        assert np.allclose(b.params["points_at"](t).mean(axis=0), (0.1 * t, 0.25, 0), atol=1e-5)
+    # it collides as a moving collider (its tessellated mesh, posed every frame)
+    assert [name for name, _ in ClothSimulation(scene).moving_colliders] == ["/Ball"]

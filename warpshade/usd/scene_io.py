@@ -214,8 +214,10 @@ def _looks_like_cloth(obj, scene) -> bool:
 
 
 # -- meshes -------------------------------------------------------------------------------------
-def _world(prim, t=Usd.TimeCode.Default()) -> np.ndarray:
-    """Local-to-world of ``prim`` acting on column vectors, shape (4, 4), float64."""
+def _world(prim, t=Usd.TimeCode.EarliestTime()) -> np.ndarray:
+    """Local-to-world of ``prim`` acting on column vectors, shape (4, 4), float64. At the earliest time
+    by default: a transform a DCC wrote as time samples only (one, for a still object) has no value at
+    the default time, where USD would read it as the identity."""
     return np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t), dtype=np.float64).T
 
 
@@ -271,7 +273,7 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> Scene
         points = params["points_at"](samples[0] if samples else 0)
         world = _world(UsdSkel.BindingAPI(prim).GetInheritedSkeleton().GetPrim())  # skinned points' space
     else:
-        world = _world(prim, t0)
+        world = _world(prim, Usd.TimeCode.EarliestTime() if t0.IsDefault() else t0)
         points = _apply(world, local)
     faces = outward_faces(faces, prim, world)
     if kind == "animated":
@@ -306,10 +308,34 @@ def _read_sphere(prim, source: str, default_method) -> SceneObject:
     ico = trimesh.creation.icosphere(subdivisions=subdiv, radius=radius)
     xf = _world(prim)
     tri = TriMesh(_apply(xf, np.asarray(ico.vertices)), outward_faces(np.asarray(ico.faces), prim, xf), name=where)
-    scale = float(np.cbrt(abs(np.linalg.det(xf[:3, :3]))))
-    params = {"sphere": {"center": xf[:3, 3].copy(), "radius": radius * scale}}
-    kind = settings.pop("kind", "static")
+    kind = _gprim_kind(prim, settings, where)
+    if kind == "animated":
+        params = {"points_at": _moved_points(prim, np.asarray(ico.vertices))}
+    else:
+        scale = float(np.cbrt(abs(np.linalg.det(xf[:3, :3]))))
+        params = {"sphere": {"center": xf[:3, 3].copy(), "radius": radius * scale}}
     return _object(prim, where, tri, kind, settings, params, default_method, _material(prim, where))
+
+
+def _gprim_kind(prim, settings: dict, where: str) -> str:
+    """``warpshade:kind`` of a gprim: ``static``, or ``animated`` when its transform is time-sampled
+    (a DCC's keyframed ball); a gprim is never simulated or skinned."""
+    kind = settings.pop("kind", "animated" if _xform_varies(prim) else "static")
+    if kind not in ("static", "animated"):
+        raise SceneError(f"{where}: warpshade:kind '{kind}' on a {prim.GetTypeName()}: gprims are static or move "
+                         "with their transform (convert it to a Mesh to simulate or skin it)")
+    return kind
+
+
+def _moved_points(prim, local: np.ndarray):
+    """``points_at(time)``: a gprim's tessellation ``local`` under its transform at that time code."""
+    stage = prim.GetStage()  # the closure keeps the stage alive
+
+    def points_at(time: float) -> np.ndarray:
+        assert stage
+        return _apply(_world(prim, Usd.TimeCode(time)), local).astype(np.float32)
+
+    return points_at
 
 
 _GPRIMS = ("Cube", "Cylinder", "Capsule", "Cone", "Plane")
@@ -349,11 +375,9 @@ def _read_gprim(prim, source: str, default_method) -> SceneObject:
     verts, faces = _gprim_mesh(prim, where)
     xf = _world(prim)
     tri = TriMesh(_apply(xf, verts), outward_faces(faces, prim, xf), name=where)
-    kind = settings.pop("kind", "static")
-    if kind not in ("static",):
-        raise SceneError(f"{where}: warpshade:kind '{kind}' on a {prim.GetTypeName()}: gprims are static "
-                         "(convert it to a Mesh to simulate or animate it)")
-    return _object(prim, where, tri, kind, settings, {}, default_method, _material(prim, where))
+    kind = _gprim_kind(prim, settings, where)
+    params = {"points_at": _moved_points(prim, verts)} if kind == "animated" else {}
+    return _object(prim, where, tri, kind, settings, params, default_method, _material(prim, where))
 
 
 def _physics_collider(prim) -> bool:
@@ -442,8 +466,9 @@ def _axial_collider(prim, where) -> tuple[str, dict] | None:
 def _object(prim, where, tri, kind, settings, params, default_method, material) -> SceneObject:
     if "collider" not in settings and kind != "cloth" and _physics_collider(prim):
         settings["collider"], shape = _physics_collider_shape(prim, tri, where)
-        params.update(shape)
-    elif settings.get("collider") in ("capsule", "cylinder", "cone") and settings["collider"] == \
+        if kind == "static":  # a moving gprim collides as its moving tessellated mesh
+            params.update(shape)
+    elif kind == "static" and settings.get("collider") in ("capsule", "cylinder", "cone") and settings["collider"] == \
             prim.GetTypeName().lower():
         # warpshade:collider naming the gprim's own shape: its exact analytic solid (else the mesh)
         shape = _axial_collider(prim, where)
