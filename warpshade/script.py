@@ -348,7 +348,7 @@ def pipeline(scene: Scene, frames: int | None = None, geometry=None, **kwargs):
         if isinstance(li, Sky) and li.up.upper() != scene.up_axis:
             raise ValueError(f"sky: up='{li.up}' but the scene's up axis is '{scene.up_axis}'; give sky(up=...)")
     if objs and "lights" not in kwargs:
-        kwargs["lights"] = objs + [light_from_spec(s, scene.up_axis) for s in specs]
+        kwargs["lights"] = objs + [light_from_spec(s, scene.up_axis, scene.fps) for s in specs]
         specs = []
     return Pipeline(dataclasses.replace(scene, objects=objects, lights=specs), frames=frames, **kwargs)
 

@@ -240,3 +240,48 @@ def test_gprims_keyed_by_their_transform(tmp_path):
         assert np.allclose(b.params["points_at"](t).mean(axis=0), (0.1 * t, 0.25, 0), atol=1e-5)
     # it collides as a moving collider (its tessellated mesh, posed every frame)
     assert [name for name, _ in ClothSimulation(scene).moving_colliders] == ["/Ball"]
+
+
+def _sun_scene(path, angles, sun_path="/World/Sun"):
+    """A ground under a DistantLight keyed to tilt by ``angles`` [degrees] about X, one key per frame
+    (one angle: a still sun, its transform a single time sample)."""
+    from pxr import UsdLux
+
+    st = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(st, "Y")
+    UsdGeom.SetStageMetersPerUnit(st, 1.0)
+    st.SetStartTimeCode(0)
+    st.SetEndTimeCode(len(angles) - 1)
+    st.SetTimeCodesPerSecond(24)
+    world = UsdGeom.Xform.Define(st, "/World")
+    st.SetDefaultPrim(world.GetPrim())
+    g = _quads_mesh(st, "/World/Ground", n=2)
+    UsdGeom.XformCommonAPI(box(st, "/World/Box")).SetTranslate(Gf.Vec3d(1.0, 0.2, 0.5))
+    sun = UsdLux.DistantLight.Define(st, sun_path)
+    sun.CreateIntensityAttr(3.0)
+    sun.CreateNormalizeAttr(True)  # intensity is the irradiance
+    op = sun.AddRotateXOp()
+    for t, a in enumerate(angles):
+        op.Set(-90.0 + a, t)  # -90: shining straight down (-Z of the light onto -Y of the world)
+    st.Save()
+    return g
+
+
+def test_a_keyed_sun_turns_frame_by_frame(tmp_path):
+    # frame f of a run under a keyed sun is the run of the same scene with the sun still at frame f's pose
+    angles = [0.0, 30.0, 60.0]
+    _sun_scene(tmp_path / "keyed.usda", angles)
+    args = ["--frames", str(len(angles)), "--method", "reference", "--rays", "64", "--order", "3", "--workers", "0",
+            "--no-progress"]
+    assert main(["run", str(tmp_path / "keyed.usda"), "--out", str(tmp_path / "keyed_out.usda")] + args) == 0
+    keyed = Usd.Stage.Open(str(tmp_path / "keyed_out.usda"))
+    colours = UsdGeom.PrimvarsAPI(keyed.GetPrimAtPath("/World/Box")).GetPrimvar("displayColor")
+    for f, a in enumerate(angles):
+        _sun_scene(tmp_path / f"still{f}.usda", [a])
+        out = tmp_path / f"still{f}_out.usda"
+        assert main(["run", str(tmp_path / f"still{f}.usda"), "--out", str(out), "--frames", "1"] + args[2:]) == 0
+        still = Usd.Stage.Open(str(out))
+        want = np.asarray(UsdGeom.PrimvarsAPI(still.GetPrimAtPath("/World/Box")).GetPrimvar("displayColor").Get(0))
+        # same geometry, same rays (static scene): the same colours to float32 rounding of the SH rotation
+        np.testing.assert_allclose(np.asarray(colours.Get(f)), want, atol=1e-5, err_msg=f"frame {f}")
+    assert not np.allclose(np.asarray(colours.Get(0)), np.asarray(colours.Get(2)), atol=1e-3)  # it did turn

@@ -85,6 +85,24 @@ class Spin:
         return rotation_from_axis_angle(self.axis, math.radians(self.start_degrees + self.degrees_per_second * float(t)))
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class Keyed:
+    """Rotation given per frame (a light keyed in a scene file): ``t [s] -> rotations[round(t * fps)]``,
+    the first or last for times outside. A plain dataclass, so lights carrying it pickle.
+
+    Attributes:
+        rotations: Rotation of the light at each frame relative to its pose at frame 0, shape (F, 3, 3).
+        fps: Frames per second.
+    """
+
+    rotations: np.ndarray
+    fps: float
+
+    def __call__(self, t: float) -> np.ndarray:
+        f = int(round(float(t) * self.fps))
+        return self.rotations[min(max(f, 0), len(self.rotations) - 1)]
+
+
 def spin(axis, degrees_per_second: float, start_degrees: float = 0.0) -> Spin:
     """Motion rotating at a constant rate about ``axis`` through the origin (see :class:`Spin`)."""
     return Spin(tuple(unit_vector(axis, "spin axis").tolist()), float(degrees_per_second), float(start_degrees))

@@ -197,7 +197,8 @@ class Pipeline:
     def _warn_static_scene(self, lights) -> None:
         """Warn about a scene whose frames will all be alike, lights that give no light, and cloth that can only fall."""
         objects = self.scene.objects
-        moving_lights = any(getattr(light, "motion", None) is not None for light in (lights or []))
+        moving_lights = (any(getattr(light, "motion", None) is not None for light in (lights or []))
+                         or any(getattr(spec, "rotations", None) is not None for spec in self.scene.lights))
         if self.frames > 1 and not moving_lights and all(o.kind == "static" for o in objects):
             warnings.warn(
                 f"{self.scene.source}: nothing in the scene moves, so all {self.frames} frames are alike: "

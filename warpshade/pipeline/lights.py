@@ -30,11 +30,23 @@ def sky_light_specs(sky, image_path: str, up: str = "Y", height: int = 128) -> l
     return [LightSpec("dome", "DefaultSky", texture=image_path, transform=xf)]
 
 
-def light_from_spec(spec: LightSpec, up: str = "Y"):
+def light_from_spec(spec: LightSpec, up: str = "Y", fps: float | None = None):
     """A :mod:`warpshade.lighting` light from a UsdLux description (mapping documented in
     :mod:`warpshade.lighting.lights`: ``L = color · intensity · 2^exposure``; with ``normalize`` the
     power is independent of size, so radiance is divided by the emitting area, and a distant light
-    gives irradiance)."""
+    gives irradiance). A light keyed to turn (``spec.rotations``) moves with them (``fps``: the run's
+    frames per second, needed then)."""
+    light = _light(spec, up)
+    if spec.rotations is not None:
+        from ..lighting.base import Keyed
+
+        if fps is None:
+            raise ValueError(f"{spec.name}: a keyed light needs the run's frames per second")
+        light = light.with_motion(Keyed(np.asarray(spec.rotations, dtype=np.float64), float(fps)))
+    return light
+
+
+def _light(spec: LightSpec, up: str):
     from .. import lighting
 
     L = spec.radiance

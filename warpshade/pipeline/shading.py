@@ -339,7 +339,7 @@ class SceneShader:
             return list(self.lights)
         if not self.light_specs:
             return default_lights(self.up_axis)
-        return [light_from_spec(s, self.up_axis) for s in self.light_specs]
+        return [light_from_spec(s, self.up_axis, self.fps) for s in self.light_specs]
 
     def _described_lights(self) -> list:
         """The lights as given: :mod:`warpshade.lighting` objects or scene ``LightSpec`` s."""

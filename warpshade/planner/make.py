@@ -11,7 +11,8 @@ from .plan import GroupPlan, ObjectPlan, Plan, knob_text
 
 
 def _light_moves(light) -> bool:
-    return getattr(light, "motion", None) is not None
+    """A light that moves: with ``motion`` (a :mod:`warpshade.lighting` light) or keyed (a scene's ``LightSpec``)."""
+    return getattr(light, "motion", None) is not None or getattr(light, "rotations", None) is not None
 
 
 def _is_rect(light) -> bool:

@@ -93,6 +93,8 @@ class LightSpec:
             under ``Lights`` of the output's default prim).
         prim_xforms: With ``prim_path``: the prim and its ancestors, root first, as
             :attr:`SceneObject.prim_xforms`.
+        rotations: A distant or dome light whose transform is keyed: its rotation at each frame relative
+            to ``transform`` (frame 0), shape (F, 3, 3), float64; None for a light that stands still.
     """
 
     kind: str
@@ -110,6 +112,7 @@ class LightSpec:
     treat_as_point: bool = False
     prim_path: str | None = None
     prim_xforms: tuple = ()
+    rotations: np.ndarray | None = None
 
     def __post_init__(self):
         if self.kind not in LIGHT_KINDS:

@@ -154,7 +154,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         elif tname in _GPRIMS:
             scene.objects.append(_read_gprim(prim, source, default_method))
         elif tname in _LIGHTS:
-            scene.lights.append(_read_light(prim, _LIGHTS[tname], source))
+            scene.lights.append(_read_light(prim, _LIGHTS[tname], source, scene))
         elif tname not in _CONTAINERS and prim.IsA(UsdGeom.Imageable) and not prim.IsA(UsdPhysics.Joint):
             # non-imageable prims (UsdPhysics scene, collision groups...) and joints draw nothing: not worth a word
             warnings.warn(f"{source}: skipping {prim.GetPath()} ({tname}): warpshade reads Mesh, Sphere, Cube, Cylinder, Capsule, Cone, Plane, "
@@ -709,7 +709,7 @@ def _check_material(m: Material, where, shader_path) -> None:
 
 
 # -- lights -------------------------------------------------------------------------------------
-def _read_light(prim, kind: str, source: str) -> LightSpec:
+def _read_light(prim, kind: str, source: str, scene: Scene) -> LightSpec:
     where = f"{source}:{prim.GetPath()}"
     lux = UsdLux.LightAPI(prim)
 
@@ -752,6 +752,20 @@ def _read_light(prim, kind: str, source: str) -> LightSpec:
             raise SceneError(f"{where}: {name} must be finite and >= 0, got {value}")
     if not np.all(np.isfinite(spec.color)) or np.any(spec.color < 0):
         raise SceneError(f"{where}: color must be finite and >= 0, got {spec.color.tolist()}")
+    if _xform_varies(prim):
+        if kind in ("distant", "dome"):
+            # a light that only turns (a sun over a day, a rotating sky): its rotation at every frame's time code
+            def rotation(xf):
+                lin = xf[:3, :3]
+                return lin / np.maximum(np.linalg.norm(lin, axis=0), 1e-300)
+
+            first = rotation(spec.transform)
+            spec.rotations = np.stack([rotation(_world(prim, Usd.TimeCode(scene.start_time + f))) @ first.T
+                                       for f in range(scene.frames)])
+        else:
+            warnings.warn(f"{where}: its transform is animated: a {kind} light is lit where it stands at its first "
+                          "time sample for the whole run (distant and dome lights follow their keys)", SceneWarning,
+                          stacklevel=3)
     return spec
 
 
