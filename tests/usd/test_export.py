@@ -58,6 +58,27 @@ def test_export_stands_alone(run_output, tmp_path, ext):
     assert not [f for f in os.listdir(dst.parent) if ".partial" in f]
 
 
+def test_a_usdz_is_a_scene_warpshade_run_reads(run_output, tmp_path):
+    # an exported .usdz as a DCC would hand it over: its sky texture exists only inside the package
+    out, _ = run_output
+    pack = tmp_path / "scene.usdz"
+    assert subprocess.run([sys.executable, "-m", "warpshade", "export", str(out), "-o", str(pack)],
+                          capture_output=True, timeout=300).returncode == 0
+    rerun = tmp_path / "again" / "rerun.usda"
+    proc = subprocess.run([sys.executable, "-m", "warpshade", "run", str(pack), "--frames", "2", "--workers", "0",
+                           "--method", "reference", "--rays", "16", "--order", "2", "--no-progress", "--out", str(rerun)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    stage = Usd.Stage.Open(str(rerun))
+    texture = _dome_texture(stage)
+    # the output carries its own copy beside its frames (the run's copy out of the package was temporary)
+    assert os.path.isfile(texture.resolvedPath) and str(rerun.parent) in texture.resolvedPath, texture
+    from pxr import Ar
+
+    packed = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(_dome_texture(Usd.Stage.Open(str(pack))).resolvedPath))
+    assert open(texture.resolvedPath, "rb").read() == bytes(packed.GetBuffer())
+
+
 def test_export_errors_name_the_file(run_output, tmp_path):
     out, _ = run_output
     with pytest.raises(ValueError, match="no such file"):

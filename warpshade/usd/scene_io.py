@@ -30,6 +30,7 @@ from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 from ..geometry.mesh import MeshError, TriMesh
 from ..geometry.shapes import AXIS_FROM_Z, axial_shape
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
+from .assets import local_file
 from .mesh_io import outward_faces, triangulate, usd_error_message
 from .writer import BACK_SIDE_OF, RADIANCE_MATERIAL_ATTR
 
@@ -737,8 +738,8 @@ def _read_light(prim, kind: str, source: str, scene: Scene) -> LightSpec:
     elif kind == "dome":
         asset = UsdLux.DomeLight(prim).GetTextureFileAttr().Get()
         if asset is not None and asset.path:
-            resolved = asset.resolvedPath
-            if not resolved or not os.path.isfile(resolved):
+            resolved = local_file(asset.resolvedPath)  # (a texture inside a .usdz is copied out)
+            if resolved is None:
                 layer_dir = os.path.dirname(os.path.abspath(source))
                 raise SceneError(f"{where}: inputs:texture:file '{asset.path}' not found "
                                  f"(looked relative to {layer_dir})")

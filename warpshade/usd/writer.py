@@ -39,6 +39,7 @@ from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdLux, UsdShade, Vt
 
 from .._atomic import replace_atomically as _replace_atomically
 from .._version import __version__
+from .assets import extracted
 from ..geometry.mesh import first_nonfinite
 from ..scene import DEFAULT_ALBEDO
 
@@ -678,7 +679,11 @@ class AnimationWriter:
             lux.CreateWidthAttr(float(light.width))
             lux.CreateHeightAttr(float(light.height))
         elif light.kind == "dome" and light.texture:
-            lux.CreateTextureFileAttr(Sdf.AssetPath(self._asset_path(light.texture)))
+            texture = light.texture
+            if extracted(texture):  # copied out of an input package for this process: the output keeps its own
+                texture = os.path.join(self.asset_dir(), os.path.basename(texture))
+                shutil.copyfile(light.texture, texture)
+            lux.CreateTextureFileAttr(Sdf.AssetPath(self._asset_path(texture)))
             lux.CreateTextureFormatAttr(UsdLux.Tokens.latlong)
         xf = np.asarray(light.transform, dtype=np.float64)
         # the light's world transform in its output parent's space (the default prim may be moved)
