@@ -244,30 +244,36 @@ DOC_REF = re.compile(r"(?<![\w/.-])((?:[\w.-]+/)*[\w.-]+\.md)\b|(?<![\w/.-])(doc
 TEXT_SUFFIXES = {".md", ".py", ".toml", ".yml", ".yaml", ".txt", ".cfg", ".usda", ""}
 
 
-def test_no_file_names_a_missing_document():
-    """Every ``*.md`` file and ``docs/...`` path a tracked file mentions exists (relative to the root
-    or to the file; a bare file name anywhere in the tree)."""
-    files = [f for f in tracked_files() if f != Path(__file__).resolve()]  # this file names absent ones on purpose
-    names = {p.name for p in files} | {p.name for p in (ROOT / "docs").rglob("*")}
-    missing = []
-    for f in files:
-        if f.suffix not in TEXT_SUFFIXES or not f.is_file():
+def _mentions(pattern):
+    """``(file, line number, reference, text before it)`` for every match of ``pattern`` (its first
+    non-empty group) in the tracked text files but this one, which names absent files on purpose."""
+    for f in tracked_files():
+        if f == Path(__file__).resolve() or f.suffix not in TEXT_SUFFIXES or not f.is_file():
             continue
         try:
             text = f.read_text(encoding="utf-8")
         except UnicodeDecodeError:
             continue
         for n, line in enumerate(text.split("\n"), 1):
-            for m in DOC_REF.finditer(line):
-                ref = (m.group(1) or m.group(2)).split("#")[0].rstrip(".")
-                if "://" in line[max(0, m.start() - 80):m.start()] and "/" in ref:
-                    continue  # part of a URL
-                if "/" not in ref:
-                    ok = ref in names
-                else:
-                    ok = any((base / ref).exists() for base in (ROOT, f.parent))
-                if not ok:
-                    missing.append(f"{f.relative_to(ROOT)}:{n}: {ref}")
+            for m in pattern.finditer(line):
+                yield f, n, next(g for g in m.groups() if g), line[max(0, m.start() - 80):m.start()]
+
+
+def test_no_file_names_a_missing_document():
+    """Every ``*.md`` file and ``docs/...`` path a tracked file mentions exists (relative to the root
+    or to the file; a bare file name anywhere in the tree)."""
+    names = {p.name for p in tracked_files()} | {p.name for p in (ROOT / "docs").rglob("*")}
+    missing = []
+    for f, n, ref, before in _mentions(DOC_REF):
+        ref = ref.split("#")[0].rstrip(".")
+        if "://" in before and "/" in ref:
+            continue  # part of a URL
+        if "/" not in ref:
+            ok = ref in names
+        else:
+            ok = any((base / ref).exists() for base in (ROOT, f.parent))
+        if not ok:
+            missing.append(f"{f.relative_to(ROOT)}:{n}: {ref}")
     assert not missing, "documents named but absent:\n" + "\n".join(missing)
 
 
@@ -286,22 +292,13 @@ def _ignored(paths: list[str]) -> set[str]:
 def test_no_file_names_a_missing_repository_file():
     """Every path into tests/, benchmarks/, sims/, warpshade/ or usd_scenes/ that a tracked file names
     exists (relative to the root or to the file), unless git ignores it (an output or a cache)."""
-    files = [f for f in tracked_files() if f != Path(__file__).resolve()]  # this file names absent ones on purpose
     missing = []
-    for f in files:
-        if f.suffix not in TEXT_SUFFIXES or not f.is_file():
-            continue
-        try:
-            text = f.read_text(encoding="utf-8")
-        except UnicodeDecodeError:
-            continue
-        for n, line in enumerate(text.split("\n"), 1):
-            for m in REPO_REF.finditer(line):
-                ref = m.group(1).rstrip(".")
-                if "://" in line[max(0, m.start() - 80):m.start()]:
-                    continue  # part of a URL
-                if not any((base / ref).exists() for base in (ROOT, f.parent)):
-                    missing.append((f"{f.relative_to(ROOT)}:{n}", ref))
+    for f, n, ref, before in _mentions(REPO_REF):
+        ref = ref.rstrip(".")
+        if "://" in before:
+            continue  # part of a URL
+        if not any((base / ref).exists() for base in (ROOT, f.parent)):
+            missing.append((f"{f.relative_to(ROOT)}:{n}", ref))
     ignored = _ignored([ref for _, ref in missing]) if missing else set()
     missing = [f"{where}: {ref}" for where, ref in missing if ref not in ignored]
     assert not missing, "repository files named but absent:\n" + "\n".join(missing)
