@@ -13,7 +13,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .kernels import closest_on_triangle, closest_segments
+from .kernels import closest_on_triangle, closest_segments, push_candidate, stored_side
 
 SHAPE_PLANE = wp.constant(0)
 SHAPE_SPHERE = wp.constant(1)
@@ -510,76 +510,239 @@ def collide_shape_edges(
         wp.atomic_add(delta_count, i1, 1.0)
 
 
-@wp.func
-def push_triangle_off_corner(corner: wp.vec3, inner: wp.vec3, x: wp.array[wp.vec3], tris: wp.array2d[int],
-                             inv_mass: wp.array[float], t: int, thickness: float, delta: wp.array[wp.vec3],
-                             delta_count: wp.array[float]):
-    """Push cloth triangle t so that a collider corner under its inside ends ``thickness`` behind
-    it, on the side of the point `inner` inside the solid: a corner poking through the inside of a triangle
-    touches none of its vertices and edges, so neither the vertex nor the edge pass sees it."""
-    i0 = tris[t, 0]
-    i1 = tris[t, 1]
-    i2 = tris[t, 2]
-    a = x[i0]
-    b = x[i1]
-    c = x[i2]
-    bc = closest_on_triangle(corner, a, b, c)
-    if bc[0] <= 0.0 or bc[1] <= 0.0 or bc[2] <= 0.0:
-        return  # the corner is nearest to an edge or vertex of the triangle: the other passes hold it
-    p = a * bc[0] + b * bc[1] + c * bc[2]
-    if wp.length(corner - p) > 4.0 * thickness:
-        return
-    n = wp.cross(b - a, c - a)
-    ln = wp.length(n)
-    if ln == 0.0:
-        return
-    n = n / ln
-    if wp.dot(n, inner - p) > 0.0:
-        n = -n  # n points away from the solid
-    h = wp.dot(corner - p, n)  # > -thickness: the corner is not far enough behind the cloth
-    if h <= -thickness:
-        return
-    w0 = inv_mass[i0]
-    w1 = inv_mass[i1]
-    w2 = inv_mass[i2]
-    denom = bc[0] * bc[0] * w0 + bc[1] * bc[1] * w1 + bc[2] * bc[2] * w2
-    if denom == 0.0:
-        return
-    g = n * ((h + thickness) / denom)
-    wp.atomic_add(delta, i0, g * (bc[0] * w0))
-    wp.atomic_add(delta, i1, g * (bc[1] * w1))
-    wp.atomic_add(delta, i2, g * (bc[2] * w2))
-    wp.atomic_add(delta_count, i0, 1.0)
-    wp.atomic_add(delta_count, i1, 1.0)
-    wp.atomic_add(delta_count, i2, 1.0)
+CORNER_INSIDE_TOL = wp.constant(0.01)
+"""A corner's projection counts as inside a cloth triangle down to this barycentric coordinate: a
+corner right under the edge between two triangles would otherwise fall between them through
+round-off (as in the vertex-triangle self-contacts)."""
 
 
 @wp.kernel
-def collide_box_corners(
+def shape_corners(
     kind: wp.array[int],
-    a1: wp.array[wp.vec3],
-    r1: wp.array[wp.quat],
+    a: wp.array[wp.vec3],
+    b: wp.array[wp.vec3],
+    rot: wp.array[wp.quat],
     size: wp.array[wp.vec3],
+    corner_shape: wp.array[int],
+    corner_local: wp.array[int],
+    corners: wp.array[wp.vec3],
+    inward: wp.array[wp.vec3],
+):
+    """The corners of the analytic solids as posed (a, b, rot): the eight of a box (corner_local
+    0..7, bit k flipping axis k) and the apex of a cone, with the unit direction from each into
+    its solid (to the box's centre, down the cone's axis)."""
+    c = wp.tid()
+    s = corner_shape[c]
+    if kind[s] == SHAPE_CONE:
+        corners[c] = b[s]
+        inward[c] = wp.normalize(a[s] - b[s])
+        return
+    he = size[s]
+    k = corner_local[c]
+    local = wp.vec3(he[0], he[1], he[2])
+    if k & 1:
+        local = wp.vec3(-local[0], local[1], local[2])
+    if k & 2:
+        local = wp.vec3(local[0], -local[1], local[2])
+    if k & 4:
+        local = wp.vec3(local[0], local[1], -local[2])
+    p = a[s] + wp.quat_rotate(rot[s], local)
+    corners[c] = p
+    inward[c] = wp.normalize(a[s] - p)
+
+
+@wp.kernel
+def mesh_corners(
+    points: wp.array[wp.vec3],
+    corner_vertex: wp.array[int],
+    ring_offsets: wp.array[int],
+    ring: wp.array[int],
+    offset: int,
+    corners: wp.array[wp.vec3],
+    inward: wp.array[wp.vec3],
+):
+    """The sharp convex vertices of a mesh collider as posed (points), written from slot `offset`
+    on, with the unit direction from each towards the centroid of its neighbours (into the solid
+    at a convex vertex, whatever the faces' winding)."""
+    c = wp.tid()
+    p = points[corner_vertex[c]]
+    m = wp.vec3(0.0)
+    for r in range(ring_offsets[c], ring_offsets[c + 1]):
+        m = m + points[ring[r]]
+    m = m / float(ring_offsets[c + 1] - ring_offsets[c])
+    corners[offset + c] = p
+    inward[offset + c] = wp.normalize(m - p)
+
+
+@wp.func
+def plane_barycentric(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3, n: wp.vec3) -> wp.vec3:
+    """Barycentric coordinates of the projection of p onto the plane of triangle abc (unit normal n)."""
+    ln = wp.length(wp.cross(b - a, c - a))
+    pp = p - n * wp.dot(p - a, n)
+    w = wp.dot(wp.cross(b - a, pp - a), n) / ln
+    v = wp.dot(wp.cross(pp - a, c - a), n) / ln
+    return wp.vec3(1.0 - v - w, v, w)
+
+
+@wp.kernel
+def find_corner_contacts(
+    corner_start: wp.array[wp.vec3],
+    corner_end: wp.array[wp.vec3],
+    inward: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    horizon: float,
+    thickness: float,
+    prev_ids: wp.array2d[int],
+    prev_sides: wp.array2d[float],
+    prev_count: wp.array[int],
+    ids: wp.array2d[int],
+    sides: wp.array2d[float],
+    count: wp.array[int],
+    dists: wp.array2d[float],
+    overflow: wp.array[int],
+):
+    """The cloth triangles collider corner k (a box corner, a cone's apex, a sharp mesh vertex)
+    may meet within the next `horizon` seconds: closer than 2 thicknesses plus twice the distance
+    the triangle's fastest vertex travels in that time at its velocity v plus the corner's own
+    travel (corner_start -> corner_end); the nearest are kept when there are more than a row
+    holds. Each is stored with the side of the triangle's plane the corner is on: the side it had
+    at the previous detection while its projection lies inside the triangle (a change of side
+    there is the corner poking through, which the solve must undo), else the side it is on now;
+    a corner new to the triangle and inside its contact layer gets the solid's side (its inward
+    direction), the only one the cloth may be on."""
+    k = wp.tid()
+    p = corner_start[k]
+    motion = wp.length(corner_end[k] - p)
+    cnt = int(0)
+    for t in range(tris.shape[0]):
+        a = x[tris[t, 0]]
+        b = x[tris[t, 1]]
+        c = x[tris[t, 2]]
+        vmax = wp.max(wp.max(wp.length(v[tris[t, 0]]), wp.length(v[tris[t, 1]])), wp.length(v[tris[t, 2]]))
+        reach = 2.0 * thickness + 2.0 * vmax * horizon + motion
+        # (a bounding-box test first: it rejects most triangles)
+        lo = wp.min(wp.min(a, b), c) - wp.vec3(reach)
+        hi = wp.max(wp.max(a, b), c) + wp.vec3(reach)
+        if p[0] < lo[0] or p[1] < lo[1] or p[2] < lo[2] or p[0] > hi[0] or p[1] > hi[1] or p[2] > hi[2]:
+            continue
+        bc = closest_on_triangle(p, a, b, c)
+        dist = wp.length(p - (a * bc[0] + b * bc[1] + c * bc[2]))
+        if dist > reach:
+            continue
+        nn = wp.cross(b - a, c - a)
+        ln = wp.length(nn)
+        if ln == 0.0:
+            continue
+        n = nn / ln
+        d = wp.dot(p - a, n)
+        side = float(1.0)
+        if d < 0.0:
+            side = -1.0
+        pb = plane_barycentric(p, a, b, c, n)
+        inside = pb[0] >= -CORNER_INSIDE_TOL and pb[1] >= -CORNER_INSIDE_TOL and pb[2] >= -CORNER_INSIDE_TOL
+        lmax = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
+        known = stored_side(prev_ids, prev_sides, prev_count, k, t, 0.0)
+        if known != 0.0 and inside and wp.abs(d) < lmax:
+            side = known
+        elif known == 0.0 and wp.abs(d) < thickness:
+            side = 1.0
+            if wp.dot(inward[k], n) < 0.0:
+                side = -1.0
+        cnt = push_candidate(ids, sides, dists, k, cnt, t, side, dist, overflow)
+    count[k] = cnt
+
+
+@wp.kernel
+def solve_corner_contacts(
+    corners: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
     inv_mass: wp.array[float],
+    ids: wp.array2d[int],
+    sides: wp.array2d[float],
+    count: wp.array[int],
     thickness: float,
     delta: wp.array[wp.vec3],
     delta_count: wp.array[float],
 ):
-    """Cloth triangles against the eight corners of every box (see :func:`push_triangle_off_corner`)."""
-    t = wp.tid()
-    for s in range(kind.shape[0]):
-        if kind[s] != SHAPE_BOX:
+    """Collider corner k against the cloth near it (the triangles found for it): the cloth's
+    point q closest to the corner is kept ``thickness`` away from it on the cloth's side, along
+    the side direction g of the feature q lies on (a triangle's inside, an edge, a vertex): the
+    mean of the normals of the triangles meeting there, each turned by its stored side to point
+    away from the corner's side. Only that feature's vertices move (q's barycentric weights:
+    the corner is kinematic), corrections accumulated for averaging.
+
+    A corner poking through the inside of a triangle, or through an edge or a vertex where the
+    cloth folds over it (a tent over a cone's apex), touches no cloth vertex and cuts no cloth
+    edge against a collider edge, so neither the vertex nor the edge pass sees it. The stored
+    sides tell through from in front: a corner through the cloth is pushed back, down to the
+    longest edge of the triangle q lies on (deeper, the pair is taken for a stale one)."""
+    k = wp.tid()
+    cnt = count[k]
+    if cnt == 0:
+        return
+    p = corners[k]
+    best = float(1.0e30)
+    bt = int(-1)
+    bq = wp.vec3(0.0)
+    bbc = wp.vec3(0.0)
+    for j in range(cnt):
+        t = ids[k, j]
+        a = x[tris[t, 0]]
+        b = x[tris[t, 1]]
+        c = x[tris[t, 2]]
+        bc = closest_on_triangle(p, a, b, c)
+        q = a * bc[0] + b * bc[1] + c * bc[2]
+        dist = wp.length(p - q)
+        if dist < best:
+            best = dist
+            bt = t
+            bq = q
+            bbc = bc
+    # the side direction at q: the triangles through q (q on an edge or a vertex is on several)
+    eps = 1.0e-6 + 1.0e-5 * best
+    g = wp.vec3(0.0)
+    for j in range(cnt):
+        t = ids[k, j]
+        a = x[tris[t, 0]]
+        b = x[tris[t, 1]]
+        c = x[tris[t, 2]]
+        bc = closest_on_triangle(bq, a, b, c)
+        if wp.length(bq - (a * bc[0] + b * bc[1] + c * bc[2])) > eps:
             continue
-        he = size[s]
-        for k in range(8):
-            local = wp.vec3(he[0], he[1], he[2])
-            if k & 1:
-                local = wp.vec3(-local[0], local[1], local[2])
-            if k & 2:
-                local = wp.vec3(local[0], -local[1], local[2])
-            if k & 4:
-                local = wp.vec3(local[0], local[1], -local[2])
-            corner = a1[s] + wp.quat_rotate(r1[s], local)
-            push_triangle_off_corner(corner, a1[s], x, tris, inv_mass, t, thickness, delta, delta_count)
+        nn = wp.cross(b - a, c - a)
+        ln = wp.length(nn)
+        if ln > 0.0:
+            g = g - nn * (sides[k, j] / ln)
+    lg = wp.length(g)
+    if lg < 1.0e-3:
+        return  # no side (layers back to back at q)
+    g = g / lg
+    i0 = tris[bt, 0]
+    i1 = tris[bt, 1]
+    i2 = tris[bt, 2]
+    a = x[i0]
+    b = x[i1]
+    c = x[i2]
+    lmax = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
+    d = wp.dot(bq - p, g)  # > 0: the cloth is on its side
+    if d >= thickness or d < -lmax:
+        return
+    w0 = inv_mass[i0]
+    w1 = inv_mass[i1]
+    w2 = inv_mass[i2]
+    denom = bbc[0] * bbc[0] * w0 + bbc[1] * bbc[1] * w1 + bbc[2] * bbc[2] * w2
+    if denom == 0.0:
+        return
+    push = g * ((thickness - d) / denom)
+    if bbc[0] > 0.0:
+        wp.atomic_add(delta, i0, push * (bbc[0] * w0))
+        wp.atomic_add(delta_count, i0, 1.0)
+    if bbc[1] > 0.0:
+        wp.atomic_add(delta, i1, push * (bbc[1] * w1))
+        wp.atomic_add(delta_count, i1, 1.0)
+    if bbc[2] > 0.0:
+        wp.atomic_add(delta, i2, push * (bbc[2] * w2))
+        wp.atomic_add(delta_count, i2, 1.0)

@@ -196,6 +196,8 @@ class XPBDSolver:
         cmds = self._commands(h, wind)
         if self.colliders is not None:
             self.colliders.begin_step()
+            if self.colliders.corner_count:
+                self.colliders.detect_corner_contacts(x, v, m.tris, dt, m.thickness)
         attach = m.attachment_count > 0 and control is not None
         if attach:
             wp.launch(k.gather_points, dim=m.attachment_count, inputs=[m.attachment_indices, x],
@@ -230,6 +232,8 @@ class XPBDSolver:
                             c.launch()
                     if self.colliders is not None:
                         self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+                        if self.CORNERS_IN_LOOP:
+                            self.colliders.collide_corners(m.thickness, m.inv_mass, m.tris, x)
             if self.colliders is not None and self.colliders.has_sharp_edges:
                 # sharp collider edges and corners against cloth edges and triangles, then the
                 # vertices again
@@ -335,6 +339,7 @@ class XPBDSolver:
             assert off + cnt == nxt, "colours are stored contiguously"
         return [(colors[0][0], sum(cnt for _, cnt in colors))]
 
+    CORNERS_IN_LOOP = True
     SHARP_PASSES = 1
     """Passes per substep of the sharp-edge and corner projection (each followed by the vertices')."""
 
