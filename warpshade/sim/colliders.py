@@ -491,6 +491,11 @@ class ColliderSet:
             rows["count"] = wp.zeros(c, dtype=wp.int32, device=d)
             rows["prev_count"] = wp.zeros(c, dtype=wp.int32, device=d)
             rows["tris"] = tris.shape[0]
+            t = tris.numpy().reshape(-1)
+            order = np.argsort(t, kind="stable")
+            offsets = np.r_[0, np.cumsum(np.bincount(t, minlength=x.shape[0]))]
+            rows["vt_offsets"] = wp.array(offsets.astype(np.int32), dtype=wp.int32, device=d)
+            rows["vt_tris"] = wp.array((order // 3).astype(np.int32), dtype=wp.int32, device=d)
             self._corner_overflow = wp.zeros(1, dtype=wp.int32, device=d)
         if v is None:
             v = wp.zeros(x.shape[0], dtype=wp.vec3, device=d)
@@ -503,7 +508,8 @@ class ColliderSet:
         wp.copy(rows["prev_sides"], rows["sides"])
         wp.copy(rows["prev_count"], rows["count"])
         wp.launch(ck.find_corner_contacts, dim=c,
-                  inputs=[self._corner_start, self._corner_end, self._corner_in, x, v, tris, float(horizon),
+                  inputs=[self._corner_start, self._corner_end, self._corner_in, x, v, tris, rows["vt_offsets"],
+                          rows["vt_tris"], float(horizon),
                           float(thickness), rows["prev_ids"], rows["prev_sides"], rows["prev_count"]],
                   outputs=[rows["ids"], rows["sides"], rows["count"], rows["dists"], self._corner_overflow], device=d)
 

@@ -584,6 +584,69 @@ def plane_barycentric(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3, n: wp.vec3
     return wp.vec3(1.0 - v - w, v, w)
 
 
+@wp.func
+def unit_normal(x: wp.array[wp.vec3], tris: wp.array2d[int], t: int) -> wp.vec3:
+    """Unit normal of cloth triangle t (zero when degenerate)."""
+    a = x[tris[t, 0]]
+    nn = wp.cross(x[tris[t, 1]] - a, x[tris[t, 2]] - a)
+    ln = wp.length(nn)
+    if ln == 0.0:
+        return wp.vec3(0.0)
+    return nn / ln
+
+
+@wp.func
+def pseudo_normal(x: wp.array[wp.vec3], tris: wp.array2d[int], vt_offsets: wp.array[int], vt_tris: wp.array[int],
+                  t: int, bc: wp.vec3) -> wp.vec3:
+    """The cloth's outward direction at the point of triangle t with barycentric coordinates bc
+    (Baerentzen and Aanaes 2005): the triangle's normal inside it, the sum of the two triangles'
+    normals on an edge, the angle-weighted sum of the triangles' normals at a vertex (a point's
+    side of it is the side of the surface there, also beside a fold's ridge, where the side of
+    one triangle's plane is not). Assumes the triangles around are wound alike."""
+    if bc[0] > 0.0 and bc[1] > 0.0 and bc[2] > 0.0:
+        return unit_normal(x, tris, t)
+    if bc[0] > 0.0 or bc[1] > 0.0 or bc[2] > 0.0:
+        # an edge: which two vertices
+        e = 0
+        if bc[1] <= 0.0:
+            e = 1
+        elif bc[2] <= 0.0:
+            e = 2
+        if (bc[0] > 0.0 and bc[1] > 0.0) or (bc[0] > 0.0 and bc[2] > 0.0) or (bc[1] > 0.0 and bc[2] > 0.0):
+            i = tris[t, (e + 1) % 3]
+            j = tris[t, (e + 2) % 3]
+            n = unit_normal(x, tris, t)
+            for r in range(vt_offsets[i], vt_offsets[i + 1]):
+                u = vt_tris[r]
+                if u != t and (tris[u, 0] == j or tris[u, 1] == j or tris[u, 2] == j):
+                    n = n + unit_normal(x, tris, u)
+            return n
+    # a vertex
+    vi = 0
+    if bc[1] > 0.0:
+        vi = 1
+    elif bc[2] > 0.0:
+        vi = 2
+    i = tris[t, vi]
+    n = wp.vec3(0.0)
+    for r in range(vt_offsets[i], vt_offsets[i + 1]):
+        u = vt_tris[r]
+        k = 0
+        if tris[u, 1] == i:
+            k = 1
+        elif tris[u, 2] == i:
+            k = 2
+        p = x[i]
+        e1 = x[tris[u, (k + 1) % 3]] - p
+        e2 = x[tris[u, (k + 2) % 3]] - p
+        l1 = wp.length(e1)
+        l2 = wp.length(e2)
+        if l1 > 0.0 and l2 > 0.0:
+            angle = wp.acos(wp.clamp(wp.dot(e1, e2) / (l1 * l2), -1.0, 1.0))
+            n = n + unit_normal(x, tris, u) * angle
+    return n
+
+
 @wp.kernel
 def find_corner_contacts(
     corner_start: wp.array[wp.vec3],
@@ -592,6 +655,8 @@ def find_corner_contacts(
     x: wp.array[wp.vec3],
     v: wp.array[wp.vec3],
     tris: wp.array2d[int],
+    vt_offsets: wp.array[int],
+    vt_tris: wp.array[int],
     horizon: float,
     thickness: float,
     prev_ids: wp.array2d[int],
@@ -606,12 +671,16 @@ def find_corner_contacts(
     """The cloth triangles collider corner k (a box corner, a cone's apex, a sharp mesh vertex)
     may meet within the next `horizon` seconds: closer than 2 thicknesses plus twice the distance
     the triangle's fastest vertex travels in that time at its velocity v plus the corner's own
-    travel (corner_start -> corner_end); the nearest are kept when there are more than a row
-    holds. Each is stored with the side of the triangle's plane the corner is on: the side it had
-    at the previous detection while its projection lies inside the triangle (a change of side
-    there is the corner poking through, which the solve must undo), else the side it is on now;
-    a corner new to the triangle and inside its contact layer gets the solid's side (its inward
-    direction), the only one the cloth may be on."""
+    travel (corner_start -> corner_end) plus the triangle's longest edge (the stretch sweeps of
+    cloth hanging on a corner move it far more within a step than its velocity says: the
+    triangles of the corner's neighbourhood); the nearest are kept when there are more than a row
+    holds. Each is stored with the side of the cloth the corner is on, in the triangle's winding:
+    the side of the surface at the triangle's point closest to the corner (:func:`pseudo_normal`;
+    beside a triangle, the side of its plane can be the wrong one). A corner under the inside of
+    the triangle keeps the side it had at the previous detection (a change of side there is the
+    corner poking through, which the solve must undo), and a corner new to the triangle and
+    inside its contact layer there gets the solid's side (its inward direction), the only one the
+    cloth may be on. vt_offsets, vt_tris: the triangles of each cloth vertex."""
     k = wp.tid()
     p = corner_start[k]
     motion = wp.length(corner_end[k] - p)
@@ -621,32 +690,31 @@ def find_corner_contacts(
         b = x[tris[t, 1]]
         c = x[tris[t, 2]]
         vmax = wp.max(wp.max(wp.length(v[tris[t, 0]]), wp.length(v[tris[t, 1]])), wp.length(v[tris[t, 2]]))
-        reach = 2.0 * thickness + 2.0 * vmax * horizon + motion
+        lmax = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
+        reach = 2.0 * thickness + 2.0 * vmax * horizon + motion + lmax
         # (a bounding-box test first: it rejects most triangles)
         lo = wp.min(wp.min(a, b), c) - wp.vec3(reach)
         hi = wp.max(wp.max(a, b), c) + wp.vec3(reach)
         if p[0] < lo[0] or p[1] < lo[1] or p[2] < lo[2] or p[0] > hi[0] or p[1] > hi[1] or p[2] > hi[2]:
             continue
         bc = closest_on_triangle(p, a, b, c)
-        dist = wp.length(p - (a * bc[0] + b * bc[1] + c * bc[2]))
+        q = a * bc[0] + b * bc[1] + c * bc[2]
+        dist = wp.length(p - q)
         if dist > reach:
             continue
-        nn = wp.cross(b - a, c - a)
-        ln = wp.length(nn)
-        if ln == 0.0:
+        n = unit_normal(x, tris, t)
+        if wp.length_sq(n) == 0.0:
             continue
-        n = nn / ln
-        d = wp.dot(p - a, n)
         side = float(1.0)
-        if d < 0.0:
+        if wp.dot(p - q, pseudo_normal(x, tris, vt_offsets, vt_tris, t, bc)) < 0.0:
             side = -1.0
+        d = wp.dot(p - a, n)
         pb = plane_barycentric(p, a, b, c, n)
         inside = pb[0] >= -CORNER_INSIDE_TOL and pb[1] >= -CORNER_INSIDE_TOL and pb[2] >= -CORNER_INSIDE_TOL
-        lmax = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
         known = stored_side(prev_ids, prev_sides, prev_count, k, t, 0.0)
-        if known != 0.0 and inside and wp.abs(d) < lmax:
+        if inside and known != 0.0 and wp.abs(d) < lmax:
             side = known
-        elif known == 0.0 and wp.abs(d) < thickness:
+        elif inside and known == 0.0 and wp.abs(d) < thickness:
             side = 1.0
             if wp.dot(inward[k], n) < 0.0:
                 side = -1.0
@@ -690,9 +758,12 @@ def solve_corner_contacts(
     bbc = wp.vec3(0.0)
     for j in range(cnt):
         t = ids[k, j]
-        a = x[tris[t, 0]]
-        b = x[tris[t, 1]]
-        c = x[tris[t, 2]]
+        i0 = tris[t, 0]
+        i1 = tris[t, 1]
+        i2 = tris[t, 2]
+        a = x[i0]
+        b = x[i1]
+        c = x[i2]
         bc = closest_on_triangle(p, a, b, c)
         q = a * bc[0] + b * bc[1] + c * bc[2]
         dist = wp.length(p - q)
@@ -701,6 +772,37 @@ def solve_corner_contacts(
             bt = t
             bq = q
             bbc = bc
+        # every triangle the corner lies under (or over, through it): pushed along its normal
+        nn = wp.cross(b - a, c - a)
+        ln = wp.length(nn)
+        if ln == 0.0:
+            continue
+        n = nn / ln
+        s = sides[k, j]
+        d = s * wp.dot(p - a, n)  # > 0: the corner is on its side
+        lmax = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
+        if d >= thickness or d < -lmax:
+            continue
+        pb = plane_barycentric(p, a, b, c, n)
+        if pb[0] < -CORNER_INSIDE_TOL or pb[1] < -CORNER_INSIDE_TOL or pb[2] < -CORNER_INSIDE_TOL:
+            continue
+        pb = wp.vec3(wp.max(pb[0], 0.0), wp.max(pb[1], 0.0), wp.max(pb[2], 0.0))
+        pb = pb / (pb[0] + pb[1] + pb[2])
+        w0 = inv_mass[i0]
+        w1 = inv_mass[i1]
+        w2 = inv_mass[i2]
+        denom = pb[0] * pb[0] * w0 + pb[1] * pb[1] * w1 + pb[2] * pb[2] * w2
+        if denom == 0.0:
+            continue
+        g = n * (-s * (thickness - d) / denom)  # away from the corner
+        wp.atomic_add(delta, i0, g * (pb[0] * w0))
+        wp.atomic_add(delta, i1, g * (pb[1] * w1))
+        wp.atomic_add(delta, i2, g * (pb[2] * w2))
+        wp.atomic_add(delta_count, i0, 1.0)
+        wp.atomic_add(delta_count, i1, 1.0)
+        wp.atomic_add(delta_count, i2, 1.0)
+    if bbc[0] > 0.0 and bbc[1] > 0.0 and bbc[2] > 0.0:
+        return  # the closest point is inside a triangle: held above
     # the side direction at q: the triangles through q (q on an edge or a vertex is on several)
     eps = 1.0e-6 + 1.0e-5 * best
     g = wp.vec3(0.0)
