@@ -364,6 +364,7 @@ class ColliderSet:
             m.mesh.refit()
         if self.corner_count:
             self._corner_arrays()
+            self._pose_corners("substep_start", self._corners_prev)
             self._pose_corners("substep", self._corners)
 
     @property
@@ -374,7 +375,7 @@ class ColliderSet:
     _SHARP = (int(ck.SHAPE_BOX), int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE))
     """Analytic kinds with sharp edges (box edges, rims, apex)."""
 
-    def collide_edges(self, thickness: float, inv_mass, edges, x, tris=None) -> None:
+    def collide_edges(self, thickness: float, inv_mass, edges, x, tris=None, x_prev=None) -> None:
         """Push cloth edges out of the mesh colliders' edges, the edges of boxes and the rims of
         cylinders and cones (sharp edges cutting between two cloth vertices), and cloth triangles
         off the colliders' corners (:meth:`collide_corners`: box corners, cone apexes, sharp mesh
@@ -387,6 +388,7 @@ class ColliderSet:
             edges: Cloth edges, shape (E, 2), dtype int32.
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
             tris: Cloth triangles, shape (F, 3), dtype int32; None skips the corners.
+            x_prev: Positions at the start of the substep [m], for the corners' friction (None: none).
         """
         if not self.has_sharp_edges:
             return
@@ -408,7 +410,7 @@ class ColliderSet:
         if tris is not None:
             # a pass of its own: averaged with the many small edge corrections a vertex near a
             # corner also gets, the corner's push would be diluted
-            self.collide_corners(thickness, inv_mass, tris, x)
+            self.collide_corners(thickness, inv_mass, tris, x, x_prev)
 
     # -- corners: box corners, cone apexes, sharp mesh vertices against cloth triangles ------
 
@@ -424,8 +426,8 @@ class ColliderSet:
 
     def _pose_corners(self, pose: str, out) -> None:
         """Corner positions into `out` and their inward directions into ``self._corner_in``, the
-        analytic shapes and meshes as posed at the step's ``"start"``, ``"end"`` or the current
-        ``"substep"``'s end."""
+        analytic shapes and meshes as posed at the step's ``"start"`` or ``"end"``, or the current
+        substep's start (``"substep_start"``) or end (``"substep"``)."""
         d = self.device
         n_shape = 0
         if self._arrays is not None:
@@ -433,7 +435,7 @@ class ColliderSet:
             lay = self._corner_layout
             n_shape = lay[0].shape[0]
             a, b, r = {"start": ("a_start", "b_start", "rot_start"), "end": ("a_end", "b_end", "rot_end"),
-                       "substep": ("a1", "b1", "r1")}[pose]
+                       "substep_start": ("a0", "b0", "r0"), "substep": ("a1", "b1", "r1")}[pose]
             if n_shape:
                 wp.launch(ck.shape_corners, dim=n_shape, inputs=[ar["kind"], ar[a], ar[b], ar[r], ar["size"], *lay],
                           outputs=[out, self._corner_in], device=d)
@@ -441,7 +443,8 @@ class ColliderSet:
         for m in self.meshes:
             k = m.corner_vertices.shape[0]
             if k:
-                pts = {"start": m.points_start, "end": m.points_end, "substep": m.mesh.points}[pose]
+                pts = {"start": m.points_start, "end": m.points_end, "substep_start": m.points_prev,
+                       "substep": m.mesh.points}[pose]
                 wp.launch(ck.mesh_corners, dim=k, inputs=[pts, m.corner_vertices, m.corner_ring_offsets, m.corner_ring,
                                                          off], outputs=[out, self._corner_in], device=d)
             off += k
@@ -456,6 +459,9 @@ class ColliderSet:
         self._corner_layout = (wp.array(np.asarray(shape, np.int32), dtype=wp.int32, device=d),
                                wp.array(np.asarray(local, np.int32), dtype=wp.int32, device=d))
         self._corners = wp.zeros(c, dtype=wp.vec3, device=d)
+        self._corners_prev = wp.zeros(c, dtype=wp.vec3, device=d)
+        fr = [self._friction[s] for s in shape] + [m.friction for m in self.meshes for _ in range(m.corner_vertices.shape[0])]
+        self._corner_friction = wp.array(np.asarray(fr, np.float32), dtype=wp.float32, device=d)
         self._corner_start = wp.zeros(c, dtype=wp.vec3, device=d)
         self._corner_end = wp.zeros(c, dtype=wp.vec3, device=d)
         self._corner_in = wp.zeros(c, dtype=wp.vec3, device=d)
@@ -519,7 +525,7 @@ class ColliderSet:
         o = getattr(self, "_corner_overflow", None)
         return 0 if o is None else int(o.numpy()[0])
 
-    def collide_corners(self, thickness: float, inv_mass, tris, x) -> None:
+    def collide_corners(self, thickness: float, inv_mass, tris, x, x_prev=None) -> None:
         """Push cloth triangles off the collider corners found for them by
         :meth:`detect_corner_contacts` (box corners, cone apexes and sharp mesh vertices poking
         through their inside), the corners posed at the current substep's end, corrections
@@ -530,6 +536,7 @@ class ColliderSet:
             inv_mass: Inverse masses, shape (V,), dtype float32.
             tris: Cloth triangles, shape (F, 3), dtype int32.
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
+            x_prev: Positions at the start of the substep [m] (for friction), or None (no friction).
         """
         if not self.corner_count:
             return
@@ -542,8 +549,13 @@ class ColliderSet:
         if getattr(self, "_edge_delta", None) is None or self._edge_delta.shape[0] != n:
             self._edge_delta = wp.zeros(n, dtype=wp.vec3, device=self.device)
             self._edge_count = wp.zeros(n, dtype=wp.float32, device=self.device)
+        if x_prev is None:
+            x_prev = self._no_prev if getattr(self, "_no_prev", None) is not None else wp.zeros(0, dtype=wp.vec3,
+                                                                                                  device=self.device)
+            self._no_prev = x_prev
         wp.launch(ck.solve_corner_contacts, dim=self.corner_count,
-                  inputs=[self._corners, x, tris, inv_mass, rows["ids"], rows["sides"], rows["count"], float(thickness)],
+                  inputs=[self._corners, self._corners_prev, self._corner_friction, x, x_prev, tris, inv_mass,
+                          rows["ids"], rows["sides"], rows["count"], float(thickness)],
                   outputs=[self._edge_delta, self._edge_count], device=self.device)
         wp.launch(apply_averaged_deltas, dim=n, inputs=[], outputs=[self._edge_delta, self._edge_count, x],
                   device=self.device)

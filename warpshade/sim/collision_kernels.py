@@ -722,10 +722,43 @@ def find_corner_contacts(
     count[k] = cnt
 
 
+@wp.func
+def push_corner_contact(x: wp.array[wp.vec3], x_prev: wp.array[wp.vec3], inv_mass: wp.array[float], i0: int,
+                        i1: int, i2: int, bc: wp.vec3, g: wp.vec3, depth: float, slip: wp.vec3, mu: float,
+                        delta: wp.array[wp.vec3], delta_count: wp.array[float]):
+    """Move the cloth point with barycentric coordinates bc on triangle (i0, i1, i2) by `depth`
+    along the unit direction g, with position-based Coulomb friction (Macklin et al. 2014, eq.
+    24-25) on its tangential motion over the substep relative to the corner (`slip`: the corner's
+    motion; x_prev empty: no friction); vertices with a zero weight are left alone."""
+    w0 = inv_mass[i0] * wp.where(bc[0] > 0.0, 1.0, 0.0)
+    w1 = inv_mass[i1] * wp.where(bc[1] > 0.0, 1.0, 0.0)
+    w2 = inv_mass[i2] * wp.where(bc[2] > 0.0, 1.0, 0.0)
+    denom = bc[0] * bc[0] * w0 + bc[1] * bc[1] * w1 + bc[2] * bc[2] * w2
+    if denom == 0.0:
+        return
+    corr = g * depth
+    if mu > 0.0 and x_prev.shape[0] > 0:
+        rel = (x[i0] - x_prev[i0]) * bc[0] + (x[i1] - x_prev[i1]) * bc[1] + (x[i2] - x_prev[i2]) * bc[2] - slip
+        corr = corr + apply_friction(rel, g, depth, mu)
+    corr = corr / denom
+    if w0 > 0.0:
+        wp.atomic_add(delta, i0, corr * (bc[0] * w0))
+        wp.atomic_add(delta_count, i0, 1.0)
+    if w1 > 0.0:
+        wp.atomic_add(delta, i1, corr * (bc[1] * w1))
+        wp.atomic_add(delta_count, i1, 1.0)
+    if w2 > 0.0:
+        wp.atomic_add(delta, i2, corr * (bc[2] * w2))
+        wp.atomic_add(delta_count, i2, 1.0)
+
+
 @wp.kernel
 def solve_corner_contacts(
     corners: wp.array[wp.vec3],
+    corners_prev: wp.array[wp.vec3],
+    corner_friction: wp.array[float],
     x: wp.array[wp.vec3],
+    x_prev: wp.array[wp.vec3],
     tris: wp.array2d[int],
     inv_mass: wp.array[float],
     ids: wp.array2d[int],
@@ -735,23 +768,32 @@ def solve_corner_contacts(
     delta: wp.array[wp.vec3],
     delta_count: wp.array[float],
 ):
-    """Collider corner k against the cloth near it (the triangles found for it): the cloth's
-    point q closest to the corner is kept ``thickness`` away from it on the cloth's side, along
-    the side direction g of the feature q lies on (a triangle's inside, an edge, a vertex): the
-    mean of the normals of the triangles meeting there, each turned by its stored side to point
-    away from the corner's side. Only that feature's vertices move (q's barycentric weights:
-    the corner is kinematic), corrections accumulated for averaging.
+    """Collider corner k against the cloth near it (the triangles found for it), the corner kept
+    ``thickness`` away on its stored side of the cloth (only the cloth moves: the corner is
+    kinematic), with the collider's friction against the cloth's motion relative to the corner
+    over the substep (corners_prev: the corner at the substep's start; x_prev: the cloth then, or
+    empty for no friction); corrections accumulated for averaging.
+
+    * Every triangle the corner lies under (its projection inside, or through it) is pushed along
+      its normal.
+    * The cloth's point q closest to the corner, when on an edge or a vertex (where the cloth folds
+      over the corner, the corner can lie beyond every triangle's inside: above the ridge or the
+      peak of a tent over a cone's apex once through it), is pushed along the side direction g
+      there (the mean of the normals of the triangles meeting at q, each turned by its stored side
+      to point away from the corner): only that edge's or vertex's cloth vertices move.
 
     A corner poking through the inside of a triangle, or through an edge or a vertex where the
-    cloth folds over it (a tent over a cone's apex), touches no cloth vertex and cuts no cloth
-    edge against a collider edge, so neither the vertex nor the edge pass sees it. The stored
-    sides tell through from in front: a corner through the cloth is pushed back, down to the
-    longest edge of the triangle q lies on (deeper, the pair is taken for a stale one)."""
+    cloth folds over it, touches no cloth vertex and cuts no cloth edge against a collider edge,
+    so neither the vertex nor the edge pass sees it. The stored sides tell through from in front:
+    a corner through the cloth is pushed back, down to the longest edge of the triangle (deeper,
+    the pair is taken for a stale one)."""
     k = wp.tid()
     cnt = count[k]
     if cnt == 0:
         return
     p = corners[k]
+    slip = p - corners_prev[k]
+    mu = corner_friction[k]
     best = float(1.0e30)
     bt = int(-1)
     bq = wp.vec3(0.0)
@@ -772,12 +814,9 @@ def solve_corner_contacts(
             bt = t
             bq = q
             bbc = bc
-        # every triangle the corner lies under (or over, through it): pushed along its normal
-        nn = wp.cross(b - a, c - a)
-        ln = wp.length(nn)
-        if ln == 0.0:
+        n = unit_normal(x, tris, t)
+        if wp.length_sq(n) == 0.0:
             continue
-        n = nn / ln
         s = sides[k, j]
         d = s * wp.dot(p - a, n)  # > 0: the corner is on its side
         lmax = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
@@ -788,22 +827,11 @@ def solve_corner_contacts(
             continue
         pb = wp.vec3(wp.max(pb[0], 0.0), wp.max(pb[1], 0.0), wp.max(pb[2], 0.0))
         pb = pb / (pb[0] + pb[1] + pb[2])
-        w0 = inv_mass[i0]
-        w1 = inv_mass[i1]
-        w2 = inv_mass[i2]
-        denom = pb[0] * pb[0] * w0 + pb[1] * pb[1] * w1 + pb[2] * pb[2] * w2
-        if denom == 0.0:
-            continue
-        g = n * (-s * (thickness - d) / denom)  # away from the corner
-        wp.atomic_add(delta, i0, g * (pb[0] * w0))
-        wp.atomic_add(delta, i1, g * (pb[1] * w1))
-        wp.atomic_add(delta, i2, g * (pb[2] * w2))
-        wp.atomic_add(delta_count, i0, 1.0)
-        wp.atomic_add(delta_count, i1, 1.0)
-        wp.atomic_add(delta_count, i2, 1.0)
+        push_corner_contact(x, x_prev, inv_mass, i0, i1, i2, pb, n * (-s), thickness - d, slip, mu, delta,
+                            delta_count)
     if bbc[0] > 0.0 and bbc[1] > 0.0 and bbc[2] > 0.0:
         return  # the closest point is inside a triangle: held above
-    # the side direction at q: the triangles through q (q on an edge or a vertex is on several)
+    # the side direction at q: the triangles through q (on an edge or a vertex)
     eps = 1.0e-6 + 1.0e-5 * best
     g = wp.vec3(0.0)
     for j in range(cnt):
@@ -814,37 +842,17 @@ def solve_corner_contacts(
         bc = closest_on_triangle(bq, a, b, c)
         if wp.length(bq - (a * bc[0] + b * bc[1] + c * bc[2])) > eps:
             continue
-        nn = wp.cross(b - a, c - a)
-        ln = wp.length(nn)
-        if ln > 0.0:
-            g = g - nn * (sides[k, j] / ln)
+        g = g - unit_normal(x, tris, t) * sides[k, j]
     lg = wp.length(g)
     if lg < 1.0e-3:
         return  # no side (layers back to back at q)
     g = g / lg
-    i0 = tris[bt, 0]
-    i1 = tris[bt, 1]
-    i2 = tris[bt, 2]
-    a = x[i0]
-    b = x[i1]
-    c = x[i2]
+    a = x[tris[bt, 0]]
+    b = x[tris[bt, 1]]
+    c = x[tris[bt, 2]]
     lmax = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
     d = wp.dot(bq - p, g)  # > 0: the cloth is on its side
     if d >= thickness or d < -lmax:
         return
-    w0 = inv_mass[i0]
-    w1 = inv_mass[i1]
-    w2 = inv_mass[i2]
-    denom = bbc[0] * bbc[0] * w0 + bbc[1] * bbc[1] * w1 + bbc[2] * bbc[2] * w2
-    if denom == 0.0:
-        return
-    push = g * ((thickness - d) / denom)
-    if bbc[0] > 0.0:
-        wp.atomic_add(delta, i0, push * (bbc[0] * w0))
-        wp.atomic_add(delta_count, i0, 1.0)
-    if bbc[1] > 0.0:
-        wp.atomic_add(delta, i1, push * (bbc[1] * w1))
-        wp.atomic_add(delta_count, i1, 1.0)
-    if bbc[2] > 0.0:
-        wp.atomic_add(delta, i2, push * (bbc[2] * w2))
-        wp.atomic_add(delta_count, i2, 1.0)
+    push_corner_contact(x, x_prev, inv_mass, tris[bt, 0], tris[bt, 1], tris[bt, 2], bbc, g, thickness - d, slip, mu,
+                        delta, delta_count)

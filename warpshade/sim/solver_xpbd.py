@@ -233,12 +233,12 @@ class XPBDSolver:
                     if self.colliders is not None:
                         self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
                         if self.CORNERS_IN_LOOP:
-                            self.colliders.collide_corners(m.thickness, m.inv_mass, m.tris, x)
+                            self.colliders.collide_corners(m.thickness, m.inv_mass, m.tris, x, self._x_prev)
             if self.colliders is not None and self.colliders.has_sharp_edges:
                 # sharp collider edges and corners against cloth edges and triangles, then the
                 # vertices again
                 for _c in range(self.SHARP_PASSES):
-                    self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
+                    self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris, self._x_prev)
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             for c in cmds["velocities"]:
                 c.launch()
