@@ -420,9 +420,12 @@ class ColliderSet:
     @property
     def corner_count(self) -> int:
         """Corners the corner contacts hold: 8 per box, 1 per cone, the sharp vertices of the mesh colliders."""
-        box, cone = int(ck.SHAPE_BOX), int(ck.SHAPE_CONE)
-        return (sum(8 if k == box else 1 if k == cone else 0 for k in self._kind)
-                + sum(m.corner_vertices.shape[0] for m in self.meshes))
+        key = (len(self._kind), len(self.meshes))
+        if getattr(self, "_corner_count", (None, 0))[0] != key:
+            box, cone = int(ck.SHAPE_BOX), int(ck.SHAPE_CONE)
+            self._corner_count = (key, sum(8 if k == box else 1 if k == cone else 0 for k in self._kind)
+                                  + sum(m.corner_vertices.shape[0] for m in self.meshes))
+        return self._corner_count[1]
 
     def _pose_corners(self, pose: str, out) -> None:
         """Corner positions into `out` and their inward directions into ``self._corner_in``, the
