@@ -232,8 +232,8 @@ class XPBDSolver:
                             c.launch()
                     if self.colliders is not None:
                         self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
-                        if self.CORNERS_IN_LOOP:
-                            self.colliders.collide_corners(m.thickness, m.inv_mass, m.tris, x, self._x_prev)
+                        # collider corners (box corners, cone apexes, pointed mesh tips) against the cloth
+                        self.colliders.collide_corners(m.thickness, m.inv_mass, m.tris, x, self._x_prev)
             if self.colliders is not None and self.colliders.has_sharp_edges:
                 # sharp collider edges and corners against cloth edges and triangles, then the
                 # vertices again
@@ -339,7 +339,6 @@ class XPBDSolver:
             assert off + cnt == nxt, "colours are stored contiguously"
         return [(colors[0][0], sum(cnt for _, cnt in colors))]
 
-    CORNERS_IN_LOOP = True
     SHARP_PASSES = 1
     """Passes per substep of the sharp-edge and corner projection (each followed by the vertices')."""
 
