@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 import warp as wp
 
 from warpshade.sim import ClothBuilder, ColliderSet, IntersectionCounter, XPBDSolver, count_intersections
@@ -432,3 +433,67 @@ def test_contact_launches_are_skipped_only_when_nothing_was_found():
     assert False in found[:4] and True in found  # both branches taken: free fall, then contact
     assert np.array_equal(states[0][0], states[1][0]) and np.array_equal(states[0][1], states[1][1])
     assert states[0][0][64:, 1].max() < 0.1  # the upper sheet came down onto the lower one
+
+
+def test_sharp_corners_of_mesh_colliders():
+    """Pointed convex vertices of closed meshes are corners: a 32-sided cone's apex (its faces'
+    angles there sum to 134 degrees), a 4-sided pyramid's; not a box's corners (270), a cylinder's
+    rims, any vertex of an icosphere, a UV sphere or a capsule; none of an open sheet."""
+    from warpshade.sim.colliders import MeshCollider, sharp_corners
+
+    pyramid = trimesh.Trimesh([[0, 0, 0.3], [0.1, 0.1, 0], [-0.1, 0.1, 0], [-0.1, -0.1, 0], [0.1, -0.1, 0]],
+                              [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1], [1, 3, 2], [1, 4, 3]])
+    assert pyramid.is_watertight and pyramid.volume > 0
+    cases = [(trimesh.creation.cone(0.12, 0.3, sections=32), 1), (pyramid, 1), (trimesh.creation.box((1, 1, 1)), 0),
+             (trimesh.creation.cylinder(0.1, 0.5, sections=24), 0), (trimesh.creation.icosphere(2), 0),
+             (trimesh.creation.uv_sphere(0.5, count=[16, 16]), 0), (trimesh.creation.capsule(1.0, 0.2), 0)]
+    for mesh, count in cases:
+        assert len(sharp_corners(mesh.vertices, mesh.faces)[0]) == count
+    cone = trimesh.creation.cone(0.12, 0.3, sections=32)
+    apex = int(np.argmax(cone.vertices[:, 2]))
+    assert apex in sharp_corners(cone.vertices, cone.faces)[0]
+    sheet = MeshCollider(np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1.0]]), np.array([[0, 1, 2]]), 0.5, "cpu")
+    assert sheet.corner_vertices.shape[0] == 0
+
+
+def _tent(peak, half: float = 0.04):
+    """A 3 x 3-vertex cloth patch bent into a tent whose middle vertex (4) is at `peak`, its border
+    0.03 m lower (a cloth falling onto a cone's apex)."""
+    b = ClothBuilder(thickness=0.005)
+    b.add_grid(3, 3, 2 * half, 2 * half)
+    m = b.finalize()
+    g = np.array([(i * half - half, j * half - half) for j in range(3) for i in range(3)])
+    drop = np.where(np.abs(g).max(axis=1) > 0, 0.03, 0.0)
+    p = np.c_[g[:, 0], g[:, 1], -drop] + np.asarray(peak, np.float64)
+    return m, p
+
+
+@pytest.mark.parametrize("where", ["vertex", "edge", "inside"])
+def test_cone_apex_through_a_tent_is_pushed_back(where):
+    """A cloth tent falling onto a cone's apex, caught 4 mm through it: at its peak vertex (the
+    apex then lies beyond the inside of every triangle), at the middle of an edge from the peak
+    (beyond the inside of both triangles on that edge) or under the inside of a triangle. The
+    corner contacts, their sides found with the tent still above the apex, push the cloth back
+    over it: within float rounding a thickness above it along the cloth's side there, and no
+    pair with the cone is left."""
+    t = 0.005
+    apex = np.array([0.0, 0.0, 0.5])
+    col = ColliderSet()
+    col.add_cone((0.0, 0.0, 0.2), apex, 0.12)
+    offset = {"vertex": (0.0, 0.0), "edge": (0.02, 0.0), "inside": (0.025, 0.01)}[where]
+    m, p = _tent(apex + [-offset[0], -offset[1], 0.02])
+    x = wp.array(p.astype(np.float32), dtype=wp.vec3)
+    col.begin_step()
+    col.detect_corner_contacts(x, wp.zeros_like(x), m.tris, 1.0 / 60.0, t)
+    col.pose_substep(0.0, 1.0)
+    through = p - [0.0, 0.0, 0.024]  # the surface over the apex 4 mm under it
+    x.assign(through.astype(np.float32))
+    counter = IntersectionCounter(m.faces)
+    assert counter.collider_pairs(x, col)[0] > 0
+    for _ in range(3):
+        col.collide_corners(t, m.inv_mass, m.tris, x)
+    out = x.numpy().astype(np.float64)
+    assert counter.collider_pairs(out, col)[0] == 0
+    q = trimesh.triangles.closest_point(out[m.faces], np.repeat(apex[None], len(m.faces), 0))
+    d = np.linalg.norm(q - apex, axis=1)
+    assert q[d.argmin(), 2] > apex[2] and d.min() > 0.9 * t, (q[d.argmin()] - apex, d.min())

@@ -48,6 +48,53 @@ def weld_indices(points: np.ndarray) -> np.ndarray:
     return first[inverse.reshape(-1)].astype(np.int64)
 
 
+CORNER_ANGLE_SUM = 180.0
+"""[degrees] A closed mesh collider's convex vertex is a corner (a point the corner contacts hold)
+when the angles of its faces there sum to less than this: a pointed tip such as a cone's apex (a
+32-sided cone of half angle 22 degrees: 134), not a box's corner (270) nor a vertex on a sharp edge
+or a cylinder's rim (345-360), which the vertex and edge passes hold. Counting a table's box
+corners too made ``usd_scenes/cloth_table`` worse (guard steps 14 -> 97, p99 strain 12.9 -> 17 %,
++40 % time), the cloth draped in folds over them."""
+
+
+def sharp_corners(points: np.ndarray, faces: np.ndarray, max_angle_sum: float = CORNER_ANGLE_SUM) -> tuple:
+    """The pointed convex vertices of a closed, outward-wound triangle mesh (vertices welded as in
+    :func:`weld_indices`): the angles of the faces at the vertex sum to less than
+    ``max_angle_sum`` degrees, and the centroid of its neighbours lies behind it (opposite the sum
+    of its faces' normals). Returns (vertex indices (K,), ring offsets (K + 1,), ring (R,)): the
+    neighbours of corner k are ring[offsets[k]:offsets[k + 1]]."""
+    pts = np.asarray(points, dtype=np.float64)
+    f = weld_indices(pts)[np.asarray(faces, dtype=np.int64)]
+    nrm = np.cross(pts[f[:, 1]] - pts[f[:, 0]], pts[f[:, 2]] - pts[f[:, 0]])
+    ln = np.linalg.norm(nrm, axis=1)
+    ok = ln > 0
+    f, nrm = f[ok], nrm[ok] / ln[ok, None]
+    vert = f.reshape(-1)
+    face = np.repeat(np.arange(len(f)), 3)
+    corner = np.tile(np.arange(3), len(f))
+    e1 = pts[f[face, (corner + 1) % 3]] - pts[vert]
+    e2 = pts[f[face, (corner + 2) % 3]] - pts[vert]
+    cos = np.einsum("ij,ij->i", e1, e2) / (np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1))
+    angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    order = np.argsort(vert, kind="stable")
+    vert, face, angle = vert[order], face[order], angle[order]
+    starts = np.flatnonzero(np.r_[True, vert[1:] != vert[:-1]])
+    ends = np.r_[starts[1:], len(vert)]
+    out, offsets, ring = [], [0], []
+    for s0, s1 in zip(starts, ends):
+        if angle[s0:s1].sum() >= max_angle_sum:
+            continue
+        v = int(vert[s0])
+        nb = np.unique(f[face[s0:s1]].reshape(-1))
+        nb = nb[nb != v]
+        if (pts[nb].mean(axis=0) - pts[v]) @ nrm[face[s0:s1]].sum(axis=0) >= 0.0:
+            continue  # the neighbours lie in front of it: not a convex tip
+        out.append(v)
+        ring.extend(nb.tolist())
+        offsets.append(len(ring))
+    return np.asarray(out, np.int64), np.asarray(offsets, np.int64), np.asarray(ring, np.int64)
+
+
 class MeshCollider:
     """An animated triangle mesh: closed (or a union of overlapping closed parts), or an open sheet.
 
@@ -96,6 +143,12 @@ class MeshCollider:
                                    dtype=wp.int32, device=device)
         self.edge_faces = wp.array(edge_faces.astype(np.int32), dtype=wp.int32, device=device)
         self.closed = bool(len(edge_faces)) and bool((edge_faces[:, 1] >= 0).all())
+        corner, offsets, ring = sharp_corners(pts, self.faces) if self.closed else (np.zeros(0, np.int32),) * 3
+        self.corner_vertices = wp.array(corner.astype(np.int32), dtype=wp.int32, device=device)
+        """Pointed convex vertices (:func:`sharp_corners`: a cone's apex), whose poke through the cloth
+        the corner contacts hold; none for an open mesh (a sheet has no inside)."""
+        self.corner_ring_offsets = wp.array(np.asarray(offsets, np.int32), dtype=wp.int32, device=device)
+        self.corner_ring = wp.array(np.asarray(ring, np.int32), dtype=wp.int32, device=device)
 
     def _check(self, pts):
         if pts.ndim != 2 or pts.shape[1] != 3:
@@ -314,6 +367,10 @@ class ColliderSet:
             wp.launch(ck.interpolate_points, dim=m.points_start.shape[0],
                       inputs=[m.points_start, m.points_end, alpha1], outputs=[m.mesh.points], device=self.device)
             m.mesh.refit()
+        if self.corner_count:
+            self._corner_arrays()
+            self._pose_corners("substep_start", self._corners_prev)
+            self._pose_corners("substep", self._corners)
 
     @property
     def has_sharp_edges(self) -> bool:
@@ -323,10 +380,11 @@ class ColliderSet:
     _SHARP = (int(ck.SHAPE_BOX), int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE))
     """Analytic kinds with sharp edges (box edges, rims, apex)."""
 
-    def collide_edges(self, thickness: float, inv_mass, edges, x, tris=None) -> None:
+    def collide_edges(self, thickness: float, inv_mass, edges, x, tris=None, x_prev=None) -> None:
         """Push cloth edges out of the mesh colliders' edges, the edges of boxes and the rims of
         cylinders and cones (sharp edges cutting between two cloth vertices), and cloth triangles
-        off the corners of boxes (corners poking through a triangle's inside),
+        off the colliders' corners (:meth:`collide_corners`: box corners, cone apexes, sharp mesh
+        vertices poking through a triangle's inside),
         corrections averaged per vertex.
 
         Args:
@@ -334,7 +392,8 @@ class ColliderSet:
             inv_mass: Inverse masses, shape (V,), dtype float32.
             edges: Cloth edges, shape (E, 2), dtype int32.
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
-            tris: Cloth triangles, shape (F, 3), dtype int32; None skips the box corners.
+            tris: Cloth triangles, shape (F, 3), dtype int32; None skips the corners.
+            x_prev: Positions at the start of the substep [m], for the corners' friction (None: none).
         """
         if not self.has_sharp_edges:
             return
@@ -353,15 +412,161 @@ class ColliderSet:
                               inv_mass, thickness], outputs=[self._edge_delta, self._edge_count], device=self.device)
         wp.launch(apply_averaged_deltas, dim=n, inputs=[], outputs=[self._edge_delta, self._edge_count, x],
                   device=self.device)
-        if tris is not None and int(ck.SHAPE_BOX) in self._kind:
+        if tris is not None:
             # a pass of its own: averaged with the many small edge corrections a vertex near a
             # corner also gets, the corner's push would be diluted
+            self.collide_corners(thickness, inv_mass, tris, x, x_prev)
+
+    # -- corners: box corners, cone apexes, sharp mesh vertices against cloth triangles ------
+
+    CORNER_ROW = 64
+    """Cloth triangles kept per corner (the nearest; more are counted in ``corner_overflow``)."""
+
+    @property
+    def corner_count(self) -> int:
+        """Corners the corner contacts hold: 8 per box, 1 per cone, the sharp vertices of the mesh colliders."""
+        key = (len(self._kind), len(self.meshes))
+        if getattr(self, "_corner_count", (None, 0))[0] != key:
+            box, cone = int(ck.SHAPE_BOX), int(ck.SHAPE_CONE)
+            self._corner_count = (key, sum(8 if k == box else 1 if k == cone else 0 for k in self._kind)
+                                  + sum(m.corner_vertices.shape[0] for m in self.meshes))
+        return self._corner_count[1]
+
+    def _pose_corners(self, pose: str, out) -> None:
+        """Corner positions into `out` and their inward directions into ``self._corner_in``, the
+        analytic shapes and meshes as posed at the step's ``"start"`` or ``"end"``, or the current
+        substep's start (``"substep_start"``) or end (``"substep"``)."""
+        d = self.device
+        n_shape = 0
+        if self._arrays is not None:
             ar = self._arrays
-            wp.launch(ck.collide_box_corners, dim=tris.shape[0],
-                      inputs=[ar["kind"], ar["a1"], ar["r1"], ar["size"], x, tris, inv_mass, thickness],
-                      outputs=[self._edge_delta, self._edge_count], device=self.device)
-            wp.launch(apply_averaged_deltas, dim=n, inputs=[], outputs=[self._edge_delta, self._edge_count, x],
-                      device=self.device)
+            lay = self._corner_layout
+            n_shape = lay[0].shape[0]
+            a, b, r = {"start": ("a_start", "b_start", "rot_start"), "end": ("a_end", "b_end", "rot_end"),
+                       "substep_start": ("a0", "b0", "r0"), "substep": ("a1", "b1", "r1")}[pose]
+            if n_shape:
+                wp.launch(ck.shape_corners, dim=n_shape, inputs=[ar["kind"], ar[a], ar[b], ar[r], ar["size"], *lay],
+                          outputs=[out, self._corner_in], device=d)
+        off = n_shape
+        for m in self.meshes:
+            k = m.corner_vertices.shape[0]
+            if k:
+                pts = {"start": m.points_start, "end": m.points_end, "substep_start": m.points_prev,
+                       "substep": m.mesh.points}[pose]
+                wp.launch(ck.mesh_corners, dim=k, inputs=[pts, m.corner_vertices, m.corner_ring_offsets, m.corner_ring,
+                                                         off], outputs=[out, self._corner_in], device=d)
+            off += k
+
+    def _corner_arrays(self) -> None:
+        c, d = self.corner_count, self.device
+        if getattr(self, "_corners", None) is not None and self._corners.shape[0] == c:
+            return
+        box, cone = int(ck.SHAPE_BOX), int(ck.SHAPE_CONE)
+        shape = [s for s, k in enumerate(self._kind) for _ in range(8 if k == box else 1 if k == cone else 0)]
+        local = [j for k in self._kind for j in range(8 if k == box else 1 if k == cone else 0)]
+        self._corner_layout = (wp.array(np.asarray(shape, np.int32), dtype=wp.int32, device=d),
+                               wp.array(np.asarray(local, np.int32), dtype=wp.int32, device=d))
+        self._corners = wp.zeros(c, dtype=wp.vec3, device=d)
+        self._corners_prev = wp.zeros(c, dtype=wp.vec3, device=d)
+        fr = [self._friction[s] for s in shape] + [m.friction for m in self.meshes for _ in range(m.corner_vertices.shape[0])]
+        self._corner_friction = wp.array(np.asarray(fr, np.float32), dtype=wp.float32, device=d)
+        self._corner_start = wp.zeros(c, dtype=wp.vec3, device=d)
+        self._corner_end = wp.zeros(c, dtype=wp.vec3, device=d)
+        self._corner_in = wp.zeros(c, dtype=wp.vec3, device=d)
+        self._corner_rows = None
+
+    def detect_corner_contacts(self, x, v, tris, horizon: float, thickness: float) -> None:
+        """Find the corners each cloth triangle may meet within `horizon` seconds and the side of
+        the triangle each is on (:func:`~warpshade.sim.collision_kernels.find_corner_contacts`),
+        the colliders posed from this step's start to its end (call after :meth:`begin_step`,
+        with the cloth free of intersections, as the solver's intersection guard leaves it at the
+        start of a step). A pair found at the previous detection keeps its side while the corner
+        is under the triangle: a corner through the cloth is pushed back, however deep.
+
+        Args:
+            x: Positions [m], shape (V,), dtype vec3.
+            v: Velocities [m/s], shape (V,), dtype vec3, or None (at rest).
+            tris: Cloth triangles, shape (F, 3), dtype int32.
+            horizon: Time the contacts must last [s] (the step).
+            thickness: Distance to keep [m].
+        """
+        if not self.corner_count:
+            return
+        if self._kind and self._arrays is None:
+            self._upload_shapes()
+        self._corner_arrays()
+        d, c, w = self.device, self.corner_count, self.CORNER_ROW
+        rows = self._corner_rows
+        if rows is None or rows["tris"] != tris.shape[0]:
+            rows = self._corner_rows = {
+                key: wp.zeros((c, w), dtype=dt, device=d)
+                for key, dt in (("ids", wp.int32), ("sides", wp.float32), ("dists", wp.float32),
+                                ("prev_ids", wp.int32), ("prev_sides", wp.float32))}
+            rows["count"] = wp.zeros(c, dtype=wp.int32, device=d)
+            rows["prev_count"] = wp.zeros(c, dtype=wp.int32, device=d)
+            rows["tris"] = tris.shape[0]
+            t = tris.numpy().reshape(-1)
+            order = np.argsort(t, kind="stable")
+            offsets = np.r_[0, np.cumsum(np.bincount(t, minlength=x.shape[0]))]
+            rows["vt_offsets"] = wp.array(offsets.astype(np.int32), dtype=wp.int32, device=d)
+            rows["vt_tris"] = wp.array((order // 3).astype(np.int32), dtype=wp.int32, device=d)
+            self._corner_overflow = wp.zeros(1, dtype=wp.int32, device=d)
+        if v is None:
+            v = wp.zeros(x.shape[0], dtype=wp.vec3, device=d)
+            self._pose_corners("substep", self._corner_start)
+            wp.copy(self._corner_end, self._corner_start)
+        else:
+            self._pose_corners("start", self._corner_start)
+            self._pose_corners("end", self._corner_end)
+        wp.copy(rows["prev_ids"], rows["ids"])
+        wp.copy(rows["prev_sides"], rows["sides"])
+        wp.copy(rows["prev_count"], rows["count"])
+        wp.launch(ck.find_corner_contacts, dim=c,
+                  inputs=[self._corner_start, self._corner_end, self._corner_in, x, v, tris, rows["vt_offsets"],
+                          rows["vt_tris"], float(horizon),
+                          float(thickness), rows["prev_ids"], rows["prev_sides"], rows["prev_count"]],
+                  outputs=[rows["ids"], rows["sides"], rows["count"], rows["dists"], self._corner_overflow], device=d)
+
+    @property
+    def corner_overflow(self) -> int:
+        """Corner-triangle pairs dropped so far because a triangle's row was full."""
+        o = getattr(self, "_corner_overflow", None)
+        return 0 if o is None else int(o.numpy()[0])
+
+    def collide_corners(self, thickness: float, inv_mass, tris, x, x_prev=None) -> None:
+        """Push cloth triangles off the collider corners found for them by
+        :meth:`detect_corner_contacts` (box corners, cone apexes and sharp mesh vertices poking
+        through their inside), the corners posed at the current substep's end, corrections
+        averaged per vertex. Without a detection for these triangles, one is made from x at rest.
+
+        Args:
+            thickness: Distance to keep [m].
+            inv_mass: Inverse masses, shape (V,), dtype float32.
+            tris: Cloth triangles, shape (F, 3), dtype int32.
+            x: Positions [m], shape (V,), dtype vec3, corrected in place.
+            x_prev: Positions at the start of the substep [m] (for friction), or None (no friction).
+        """
+        if not self.corner_count:
+            return
+        self._corner_arrays()
+        rows = self._corner_rows
+        if rows is None or rows["tris"] != tris.shape[0]:
+            self.detect_corner_contacts(x, None, tris, 0.0, thickness)
+            rows = self._corner_rows
+        n = x.shape[0]
+        if getattr(self, "_edge_delta", None) is None or self._edge_delta.shape[0] != n:
+            self._edge_delta = wp.zeros(n, dtype=wp.vec3, device=self.device)
+            self._edge_count = wp.zeros(n, dtype=wp.float32, device=self.device)
+        if x_prev is None:
+            x_prev = self._no_prev if getattr(self, "_no_prev", None) is not None else wp.zeros(0, dtype=wp.vec3,
+                                                                                                  device=self.device)
+            self._no_prev = x_prev
+        wp.launch(ck.solve_corner_contacts, dim=self.corner_count,
+                  inputs=[self._corners, self._corners_prev, self._corner_friction, x, x_prev, tris, inv_mass,
+                          rows["ids"], rows["sides"], rows["count"], float(thickness)],
+                  outputs=[self._edge_delta, self._edge_count], device=self.device)
+        wp.launch(apply_averaged_deltas, dim=n, inputs=[], outputs=[self._edge_delta, self._edge_count, x],
+                  device=self.device)
 
     def collide(self, thickness: float, inv_mass, x_prev, x) -> None:
         """Project the vertices x out of every collider as posed by :meth:`pose_substep`.

@@ -13,7 +13,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .kernels import closest_on_triangle, closest_segments
+from .kernels import closest_on_triangle, closest_segments, push_candidate, stored_side
 
 SHAPE_PLANE = wp.constant(0)
 SHAPE_SPHERE = wp.constant(1)
@@ -510,76 +510,349 @@ def collide_shape_edges(
         wp.atomic_add(delta_count, i1, 1.0)
 
 
-@wp.func
-def push_triangle_off_corner(corner: wp.vec3, inner: wp.vec3, x: wp.array[wp.vec3], tris: wp.array2d[int],
-                             inv_mass: wp.array[float], t: int, thickness: float, delta: wp.array[wp.vec3],
-                             delta_count: wp.array[float]):
-    """Push cloth triangle t so that a collider corner under its inside ends ``thickness`` behind
-    it, on the side of the point `inner` inside the solid: a corner poking through the inside of a triangle
-    touches none of its vertices and edges, so neither the vertex nor the edge pass sees it."""
-    i0 = tris[t, 0]
-    i1 = tris[t, 1]
-    i2 = tris[t, 2]
-    a = x[i0]
-    b = x[i1]
-    c = x[i2]
-    bc = closest_on_triangle(corner, a, b, c)
-    if bc[0] <= 0.0 or bc[1] <= 0.0 or bc[2] <= 0.0:
-        return  # the corner is nearest to an edge or vertex of the triangle: the other passes hold it
-    p = a * bc[0] + b * bc[1] + c * bc[2]
-    if wp.length(corner - p) > 4.0 * thickness:
-        return
-    n = wp.cross(b - a, c - a)
-    ln = wp.length(n)
-    if ln == 0.0:
-        return
-    n = n / ln
-    if wp.dot(n, inner - p) > 0.0:
-        n = -n  # n points away from the solid
-    h = wp.dot(corner - p, n)  # > -thickness: the corner is not far enough behind the cloth
-    if h <= -thickness:
-        return
-    w0 = inv_mass[i0]
-    w1 = inv_mass[i1]
-    w2 = inv_mass[i2]
-    denom = bc[0] * bc[0] * w0 + bc[1] * bc[1] * w1 + bc[2] * bc[2] * w2
-    if denom == 0.0:
-        return
-    g = n * ((h + thickness) / denom)
-    wp.atomic_add(delta, i0, g * (bc[0] * w0))
-    wp.atomic_add(delta, i1, g * (bc[1] * w1))
-    wp.atomic_add(delta, i2, g * (bc[2] * w2))
-    wp.atomic_add(delta_count, i0, 1.0)
-    wp.atomic_add(delta_count, i1, 1.0)
-    wp.atomic_add(delta_count, i2, 1.0)
+CORNER_INSIDE_TOL = wp.constant(0.01)
+"""A corner's projection counts as inside a cloth triangle down to this barycentric coordinate: a
+corner right under the edge between two triangles would otherwise fall between them through
+round-off (as in the vertex-triangle self-contacts)."""
 
 
 @wp.kernel
-def collide_box_corners(
+def shape_corners(
     kind: wp.array[int],
-    a1: wp.array[wp.vec3],
-    r1: wp.array[wp.quat],
+    a: wp.array[wp.vec3],
+    b: wp.array[wp.vec3],
+    rot: wp.array[wp.quat],
     size: wp.array[wp.vec3],
+    corner_shape: wp.array[int],
+    corner_local: wp.array[int],
+    corners: wp.array[wp.vec3],
+    inward: wp.array[wp.vec3],
+):
+    """The corners of the analytic solids as posed (a, b, rot): the eight of a box (corner_local
+    0..7, bit k flipping axis k) and the apex of a cone, with the unit direction from each into
+    its solid (to the box's centre, down the cone's axis)."""
+    c = wp.tid()
+    s = corner_shape[c]
+    if kind[s] == SHAPE_CONE:
+        corners[c] = b[s]
+        inward[c] = wp.normalize(a[s] - b[s])
+        return
+    he = size[s]
+    k = corner_local[c]
+    local = wp.vec3(he[0], he[1], he[2])
+    if k & 1:
+        local = wp.vec3(-local[0], local[1], local[2])
+    if k & 2:
+        local = wp.vec3(local[0], -local[1], local[2])
+    if k & 4:
+        local = wp.vec3(local[0], local[1], -local[2])
+    p = a[s] + wp.quat_rotate(rot[s], local)
+    corners[c] = p
+    inward[c] = wp.normalize(a[s] - p)
+
+
+@wp.kernel
+def mesh_corners(
+    points: wp.array[wp.vec3],
+    corner_vertex: wp.array[int],
+    ring_offsets: wp.array[int],
+    ring: wp.array[int],
+    offset: int,
+    corners: wp.array[wp.vec3],
+    inward: wp.array[wp.vec3],
+):
+    """The sharp convex vertices of a mesh collider as posed (points), written from slot `offset`
+    on, with the unit direction from each towards the centroid of its neighbours (into the solid
+    at a convex vertex, whatever the faces' winding)."""
+    c = wp.tid()
+    p = points[corner_vertex[c]]
+    m = wp.vec3(0.0)
+    for r in range(ring_offsets[c], ring_offsets[c + 1]):
+        m = m + points[ring[r]]
+    m = m / float(ring_offsets[c + 1] - ring_offsets[c])
+    corners[offset + c] = p
+    inward[offset + c] = wp.normalize(m - p)
+
+
+@wp.func
+def plane_barycentric(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3, n: wp.vec3) -> wp.vec3:
+    """Barycentric coordinates of the projection of p onto the plane of triangle abc (unit normal n)."""
+    ln = wp.length(wp.cross(b - a, c - a))
+    pp = p - n * wp.dot(p - a, n)
+    w = wp.dot(wp.cross(b - a, pp - a), n) / ln
+    v = wp.dot(wp.cross(pp - a, c - a), n) / ln
+    return wp.vec3(1.0 - v - w, v, w)
+
+
+@wp.func
+def unit_normal(x: wp.array[wp.vec3], tris: wp.array2d[int], t: int) -> wp.vec3:
+    """Unit normal of cloth triangle t (zero when degenerate)."""
+    a = x[tris[t, 0]]
+    nn = wp.cross(x[tris[t, 1]] - a, x[tris[t, 2]] - a)
+    ln = wp.length(nn)
+    if ln == 0.0:
+        return wp.vec3(0.0)
+    return nn / ln
+
+
+@wp.func
+def pseudo_normal(x: wp.array[wp.vec3], tris: wp.array2d[int], vt_offsets: wp.array[int], vt_tris: wp.array[int],
+                  t: int, bc: wp.vec3) -> wp.vec3:
+    """The cloth's outward direction at the point of triangle t with barycentric coordinates bc
+    (Baerentzen and Aanaes 2005): the triangle's normal inside it, the sum of the two triangles'
+    normals on an edge, the angle-weighted sum of the triangles' normals at a vertex (a point's
+    side of it is the side of the surface there, also beside a fold's ridge, where the side of
+    one triangle's plane is not). Assumes the triangles around are wound alike."""
+    if bc[0] > 0.0 and bc[1] > 0.0 and bc[2] > 0.0:
+        return unit_normal(x, tris, t)
+    if bc[0] > 0.0 or bc[1] > 0.0 or bc[2] > 0.0:
+        # an edge: which two vertices
+        e = 0
+        if bc[1] <= 0.0:
+            e = 1
+        elif bc[2] <= 0.0:
+            e = 2
+        if (bc[0] > 0.0 and bc[1] > 0.0) or (bc[0] > 0.0 and bc[2] > 0.0) or (bc[1] > 0.0 and bc[2] > 0.0):
+            i = tris[t, (e + 1) % 3]
+            j = tris[t, (e + 2) % 3]
+            n = unit_normal(x, tris, t)
+            for r in range(vt_offsets[i], vt_offsets[i + 1]):
+                u = vt_tris[r]
+                if u != t and (tris[u, 0] == j or tris[u, 1] == j or tris[u, 2] == j):
+                    n = n + unit_normal(x, tris, u)
+            return n
+    # a vertex
+    vi = 0
+    if bc[1] > 0.0:
+        vi = 1
+    elif bc[2] > 0.0:
+        vi = 2
+    i = tris[t, vi]
+    n = wp.vec3(0.0)
+    for r in range(vt_offsets[i], vt_offsets[i + 1]):
+        u = vt_tris[r]
+        k = 0
+        if tris[u, 1] == i:
+            k = 1
+        elif tris[u, 2] == i:
+            k = 2
+        p = x[i]
+        e1 = x[tris[u, (k + 1) % 3]] - p
+        e2 = x[tris[u, (k + 2) % 3]] - p
+        l1 = wp.length(e1)
+        l2 = wp.length(e2)
+        if l1 > 0.0 and l2 > 0.0:
+            angle = wp.acos(wp.clamp(wp.dot(e1, e2) / (l1 * l2), -1.0, 1.0))
+            n = n + unit_normal(x, tris, u) * angle
+    return n
+
+
+@wp.kernel
+def find_corner_contacts(
+    corner_start: wp.array[wp.vec3],
+    corner_end: wp.array[wp.vec3],
+    inward: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    vt_offsets: wp.array[int],
+    vt_tris: wp.array[int],
+    horizon: float,
+    thickness: float,
+    prev_ids: wp.array2d[int],
+    prev_sides: wp.array2d[float],
+    prev_count: wp.array[int],
+    ids: wp.array2d[int],
+    sides: wp.array2d[float],
+    count: wp.array[int],
+    dists: wp.array2d[float],
+    overflow: wp.array[int],
+):
+    """The cloth triangles collider corner k (a box corner, a cone's apex, a sharp mesh vertex)
+    may meet within the next `horizon` seconds: closer than 2 thicknesses plus twice the distance
+    the triangle's fastest vertex travels in that time at its velocity v plus the corner's own
+    travel (corner_start -> corner_end) plus the triangle's longest edge (the stretch sweeps of
+    cloth hanging on a corner move it far more within a step than its velocity says: the
+    triangles of the corner's neighbourhood); the nearest are kept when there are more than a row
+    holds. Each is stored with the side of the cloth the corner is on, in the triangle's winding:
+    the side of the surface at the triangle's point closest to the corner (:func:`pseudo_normal`;
+    beside a triangle, the side of its plane can be the wrong one). A corner under the inside of
+    the triangle keeps the side it had at the previous detection (a change of side there is the
+    corner poking through, which the solve must undo), and a corner new to the triangle and
+    inside its contact layer there gets the solid's side (its inward direction), the only one the
+    cloth may be on. vt_offsets, vt_tris: the triangles of each cloth vertex."""
+    k = wp.tid()
+    p = corner_start[k]
+    motion = wp.length(corner_end[k] - p)
+    cnt = int(0)
+    for t in range(tris.shape[0]):
+        a = x[tris[t, 0]]
+        b = x[tris[t, 1]]
+        c = x[tris[t, 2]]
+        vmax = wp.max(wp.max(wp.length(v[tris[t, 0]]), wp.length(v[tris[t, 1]])), wp.length(v[tris[t, 2]]))
+        lmax = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
+        reach = 2.0 * thickness + 2.0 * vmax * horizon + motion + lmax
+        # (a bounding-box test first: it rejects most triangles)
+        lo = wp.min(wp.min(a, b), c) - wp.vec3(reach)
+        hi = wp.max(wp.max(a, b), c) + wp.vec3(reach)
+        if p[0] < lo[0] or p[1] < lo[1] or p[2] < lo[2] or p[0] > hi[0] or p[1] > hi[1] or p[2] > hi[2]:
+            continue
+        bc = closest_on_triangle(p, a, b, c)
+        q = a * bc[0] + b * bc[1] + c * bc[2]
+        dist = wp.length(p - q)
+        if dist > reach:
+            continue
+        n = unit_normal(x, tris, t)
+        if wp.length_sq(n) == 0.0:
+            continue
+        side = float(1.0)
+        if wp.dot(p - q, pseudo_normal(x, tris, vt_offsets, vt_tris, t, bc)) < 0.0:
+            side = -1.0
+        d = wp.dot(p - a, n)
+        pb = plane_barycentric(p, a, b, c, n)
+        inside = pb[0] >= -CORNER_INSIDE_TOL and pb[1] >= -CORNER_INSIDE_TOL and pb[2] >= -CORNER_INSIDE_TOL
+        known = stored_side(prev_ids, prev_sides, prev_count, k, t, 0.0)
+        if inside and known != 0.0 and wp.abs(d) < lmax:
+            side = known
+        elif inside and known == 0.0 and wp.abs(d) < thickness:
+            side = 1.0
+            if wp.dot(inward[k], n) < 0.0:
+                side = -1.0
+        cnt = push_candidate(ids, sides, dists, k, cnt, t, side, dist, overflow)
+    count[k] = cnt
+
+
+@wp.func
+def push_corner_contact(x: wp.array[wp.vec3], x_prev: wp.array[wp.vec3], inv_mass: wp.array[float], i0: int,
+                        i1: int, i2: int, bc: wp.vec3, g: wp.vec3, depth: float, slip: wp.vec3, mu: float,
+                        delta: wp.array[wp.vec3], delta_count: wp.array[float]):
+    """Move the cloth point with barycentric coordinates bc on triangle (i0, i1, i2) by `depth`
+    along the unit direction g, with position-based Coulomb friction (Macklin et al. 2014, eq.
+    24-25) on its tangential motion over the substep relative to the corner (`slip`: the corner's
+    motion; x_prev empty: no friction); vertices with a zero weight are left alone."""
+    w0 = inv_mass[i0] * wp.where(bc[0] > 0.0, 1.0, 0.0)
+    w1 = inv_mass[i1] * wp.where(bc[1] > 0.0, 1.0, 0.0)
+    w2 = inv_mass[i2] * wp.where(bc[2] > 0.0, 1.0, 0.0)
+    denom = bc[0] * bc[0] * w0 + bc[1] * bc[1] * w1 + bc[2] * bc[2] * w2
+    if denom == 0.0:
+        return
+    corr = g * depth
+    if mu > 0.0 and x_prev.shape[0] > 0:
+        rel = (x[i0] - x_prev[i0]) * bc[0] + (x[i1] - x_prev[i1]) * bc[1] + (x[i2] - x_prev[i2]) * bc[2] - slip
+        corr = corr + apply_friction(rel, g, depth, mu)
+    corr = corr / denom
+    if w0 > 0.0:
+        wp.atomic_add(delta, i0, corr * (bc[0] * w0))
+        wp.atomic_add(delta_count, i0, 1.0)
+    if w1 > 0.0:
+        wp.atomic_add(delta, i1, corr * (bc[1] * w1))
+        wp.atomic_add(delta_count, i1, 1.0)
+    if w2 > 0.0:
+        wp.atomic_add(delta, i2, corr * (bc[2] * w2))
+        wp.atomic_add(delta_count, i2, 1.0)
+
+
+@wp.kernel
+def solve_corner_contacts(
+    corners: wp.array[wp.vec3],
+    corners_prev: wp.array[wp.vec3],
+    corner_friction: wp.array[float],
+    x: wp.array[wp.vec3],
+    x_prev: wp.array[wp.vec3],
     tris: wp.array2d[int],
     inv_mass: wp.array[float],
+    ids: wp.array2d[int],
+    sides: wp.array2d[float],
+    count: wp.array[int],
     thickness: float,
     delta: wp.array[wp.vec3],
     delta_count: wp.array[float],
 ):
-    """Cloth triangles against the eight corners of every box (see :func:`push_triangle_off_corner`)."""
-    t = wp.tid()
-    for s in range(kind.shape[0]):
-        if kind[s] != SHAPE_BOX:
+    """Collider corner k against the cloth near it (the triangles found for it), the corner kept
+    ``thickness`` away on its stored side of the cloth (only the cloth moves: the corner is
+    kinematic), with the collider's friction against the cloth's motion relative to the corner
+    over the substep (corners_prev: the corner at the substep's start; x_prev: the cloth then, or
+    empty for no friction); corrections accumulated for averaging.
+
+    * Every triangle the corner lies under (its projection inside, or through it) is pushed along
+      its normal.
+    * The cloth's point q closest to the corner, when on an edge or a vertex (where the cloth folds
+      over the corner, the corner can lie beyond every triangle's inside: above the ridge or the
+      peak of a tent over a cone's apex once through it), is pushed along the side direction g
+      there (the mean of the normals of the triangles meeting at q, each turned by its stored side
+      to point away from the corner): only that edge's or vertex's cloth vertices move.
+
+    A corner poking through the inside of a triangle, or through an edge or a vertex where the
+    cloth folds over it, touches no cloth vertex and cuts no cloth edge against a collider edge,
+    so neither the vertex nor the edge pass sees it. The stored sides tell through from in front:
+    a corner through the cloth is pushed back, down to the longest edge of the triangle (deeper,
+    the pair is taken for a stale one)."""
+    k = wp.tid()
+    cnt = count[k]
+    if cnt == 0:
+        return
+    p = corners[k]
+    slip = p - corners_prev[k]
+    mu = corner_friction[k]
+    best = float(1.0e30)
+    bt = int(-1)
+    bq = wp.vec3(0.0)
+    bbc = wp.vec3(0.0)
+    for j in range(cnt):
+        t = ids[k, j]
+        i0 = tris[t, 0]
+        i1 = tris[t, 1]
+        i2 = tris[t, 2]
+        a = x[i0]
+        b = x[i1]
+        c = x[i2]
+        bc = closest_on_triangle(p, a, b, c)
+        q = a * bc[0] + b * bc[1] + c * bc[2]
+        dist = wp.length(p - q)
+        if dist < best:
+            best = dist
+            bt = t
+            bq = q
+            bbc = bc
+        n = unit_normal(x, tris, t)
+        if wp.length_sq(n) == 0.0:
             continue
-        he = size[s]
-        for k in range(8):
-            local = wp.vec3(he[0], he[1], he[2])
-            if k & 1:
-                local = wp.vec3(-local[0], local[1], local[2])
-            if k & 2:
-                local = wp.vec3(local[0], -local[1], local[2])
-            if k & 4:
-                local = wp.vec3(local[0], local[1], -local[2])
-            corner = a1[s] + wp.quat_rotate(r1[s], local)
-            push_triangle_off_corner(corner, a1[s], x, tris, inv_mass, t, thickness, delta, delta_count)
+        s = sides[k, j]
+        d = s * wp.dot(p - a, n)  # > 0: the corner is on its side
+        lmax = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
+        if d >= thickness or d < -lmax:
+            continue
+        pb = plane_barycentric(p, a, b, c, n)
+        if pb[0] < -CORNER_INSIDE_TOL or pb[1] < -CORNER_INSIDE_TOL or pb[2] < -CORNER_INSIDE_TOL:
+            continue
+        pb = wp.vec3(wp.max(pb[0], 0.0), wp.max(pb[1], 0.0), wp.max(pb[2], 0.0))
+        pb = pb / (pb[0] + pb[1] + pb[2])
+        push_corner_contact(x, x_prev, inv_mass, i0, i1, i2, pb, n * (-s), thickness - d, slip, mu, delta,
+                            delta_count)
+    if bbc[0] > 0.0 and bbc[1] > 0.0 and bbc[2] > 0.0:
+        return  # the closest point is inside a triangle: held above
+    # the side direction at q: the triangles through q (on an edge or a vertex)
+    eps = 1.0e-6 + 1.0e-5 * best
+    g = wp.vec3(0.0)
+    for j in range(cnt):
+        t = ids[k, j]
+        a = x[tris[t, 0]]
+        b = x[tris[t, 1]]
+        c = x[tris[t, 2]]
+        bc = closest_on_triangle(bq, a, b, c)
+        if wp.length(bq - (a * bc[0] + b * bc[1] + c * bc[2])) > eps:
+            continue
+        g = g - unit_normal(x, tris, t) * sides[k, j]
+    lg = wp.length(g)
+    if lg < 1.0e-3:
+        return  # no side (layers back to back at q)
+    g = g / lg
+    a = x[tris[bt, 0]]
+    b = x[tris[bt, 1]]
+    c = x[tris[bt, 2]]
+    lmax = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
+    d = wp.dot(bq - p, g)  # > 0: the cloth is on its side
+    if d >= thickness or d < -lmax:
+        return
+    push_corner_contact(x, x_prev, inv_mass, tris[bt, 0], tris[bt, 1], tris[bt, 2], bbc, g, thickness - d, slip, mu,
+                        delta, delta_count)

@@ -196,6 +196,8 @@ class XPBDSolver:
         cmds = self._commands(h, wind)
         if self.colliders is not None:
             self.colliders.begin_step()
+            if self.colliders.corner_count:
+                self.colliders.detect_corner_contacts(x, v, m.tris, dt, m.thickness)
         attach = m.attachment_count > 0 and control is not None
         if attach:
             wp.launch(k.gather_points, dim=m.attachment_count, inputs=[m.attachment_indices, x],
@@ -230,11 +232,13 @@ class XPBDSolver:
                             c.launch()
                     if self.colliders is not None:
                         self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+                        # collider corners (box corners, cone apexes, pointed mesh tips) against the cloth
+                        self.colliders.collide_corners(m.thickness, m.inv_mass, m.tris, x, self._x_prev)
             if self.colliders is not None and self.colliders.has_sharp_edges:
                 # sharp collider edges and corners against cloth edges and triangles, then the
                 # vertices again
                 for _c in range(self.SHARP_PASSES):
-                    self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
+                    self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris, self._x_prev)
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             for c in cmds["velocities"]:
                 c.launch()
