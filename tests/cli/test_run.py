@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import shlex
 
 import numpy as np
 import pytest
@@ -202,3 +203,16 @@ def test_groups_with_different_methods_shadow_each_other_through_spheres(tmp_pat
     # the one-group test's 0.08 tolerance applies
     assert shadowed[40, 0] == pytest.approx(0.8 * (1 - math.sin(math.atan(1.5)) ** 2), abs=0.08)
     assert shadowed[0, 0] == pytest.approx(0.8, rel=0.05)  # the corner sees the lid at 0.025 sr
+
+
+def test_the_preview_command_printed_runs_as_printed(tmp_path, capsys):
+    # the run's last lines suggest a preview command to copy: with a space in the output's path it must
+    # still be one command the shell splits right
+    out = tmp_path / "my renders" / "arm's take.usda"
+    assert main(["run", os.path.join(SCENES, "skinned_arm.usda"), "--frames", "2", "--out", str(out), "--no-progress",
+                 "--workers", "0", "--method", "reference", "--rays", "4", "--order", "2"]) == 0
+    line = next(x for x in capsys.readouterr().err.splitlines() if x.strip().startswith("preview: "))
+    words = shlex.split(line.strip()[len("preview: "):])
+    assert words[:2] == ["warpshade", "preview"] and words[2] == str(out)
+    assert main(words[1:] + ["--size", "32x24"]) == 0
+    assert (out.parent / "arm's take.png").is_file()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 import time
 
@@ -231,7 +232,8 @@ def run(args) -> int:
           f"({s['simulate'] * per:.1f} ms/frame) | shade {s['shade']:.2f} s ({s['shade'] * per:.1f} ms/frame) | "
           f"write {s['write']:.2f} s ({s['write'] * per:.1f} ms/frame) | total {s['total'] + load:.2f} s",
           file=sys.stderr)
-    print(f"  preview: warpshade preview {report.path} --contact-sheet : -o {os.path.splitext(report.path)[0]}.png",
-          file=sys.stderr)
+    # a command to copy and paste: paths quoted for the shell (spaces, quotes)
+    print(f"  preview: warpshade preview {shlex.quote(report.path)} --contact-sheet : "
+          f"-o {shlex.quote(os.path.splitext(report.path)[0] + '.png')}", file=sys.stderr)
     print(report.path)
     return 0
