@@ -145,3 +145,24 @@ def test_dask_separate_process_cluster_on_loopback(spec, blob, inline):
     with loopback_cluster(workers=2) as address:
         out = list(shade_frames(spec, wobble_frames(blob, 8), scheduler=address))
     assert_same(out, inline)
+
+
+def test_a_script_without_a_main_guard_stops_with_an_error_that_says_why(tmp_path):
+    # each spawned worker imports the script, which starts a run of its own there and dies as it starts;
+    # the spec used to travel in the workers' start-up message, and with a worker dead before reading it the
+    # run blocked for ever writing that message
+    import subprocess
+    import sys
+
+    script = tmp_path / "unguarded.py"
+    script.write_text("import warpshade as ws\n"
+                      # a spec over the 64 KiB a pipe holds (about 120 KiB: the meshes travel in it)
+                      "scene = ws.make_scene(ws.ground(size=1.0, resolution=41), ws.cloth_grid(resolution=40, height=0.3))\n"
+                      f"ws.run(scene, {str(tmp_path / 'out.usda')!r}, frames=2, workers=2)\n")
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=240, cwd=tmp_path,
+                          env=dict(os.environ, TMPDIR=str(tmp)))  # (timeout: it hung for ever)
+    assert proc.returncode != 0
+    assert 'if __name__ == "__main__":' in proc.stderr.splitlines()[-1], proc.stderr[-2000:]
+    assert not list(tmp.glob("warpshade-*.spec"))  # the spec file is removed with the run

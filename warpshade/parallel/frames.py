@@ -25,8 +25,10 @@ import contextlib
 import logging
 import multiprocessing as mp
 import os
+import pickle
 import signal
 import sys
+import tempfile
 import time
 import uuid
 from collections import deque
@@ -37,7 +39,8 @@ from typing import Any
 
 import numpy as np
 
-from .worker import BuildFailed, FrameGeometry, FrameShaderSpec, ShadeFn, init_worker, shade_in_worker
+from .worker import (BuildFailed, FrameGeometry, FrameShaderSpec, ShadeFn, init_worker, init_worker_from_file,
+                     shade_in_worker)
 
 
 class FrameShadingError(RuntimeError):
@@ -135,12 +138,24 @@ class _ProcessBackend:
 
     def __init__(self, spec: FrameShaderSpec, token: str, workers: int):
         self.spec, self.token, self.workers = spec, token, workers
+        # the spec goes to the workers as a file (init_worker_from_file says why), removed by close()
+        fd, self.spec_file = tempfile.mkstemp(prefix=f"warpshade-{token}-", suffix=".spec")
+        try:
+            with os.fdopen(fd, "wb") as f:
+                pickle.dump(spec, f, protocol=pickle.HIGHEST_PROTOCOL)
+        except BaseException:
+            self._remove_spec_file()
+            raise
         self.pool = self._new_pool()
 
     def _new_pool(self):
         start_resource_tracker_quietly()
-        return ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=init_worker,
-                                   initargs=(self.token, self.spec, os.getpid()))
+        return ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=init_worker_from_file,
+                                   initargs=(self.token, self.spec_file, os.getpid()))
+
+    def _remove_spec_file(self) -> None:
+        with contextlib.suppress(OSError):
+            os.remove(self.spec_file)
 
     def submit(self, frame, geometry):
         if len(self.pool._processes or {}) >= self.workers:
@@ -159,6 +174,12 @@ class _ProcessBackend:
         return True
 
     def close(self, abandon: bool = False):
+        try:
+            self._close_pool(abandon)
+        finally:
+            self._remove_spec_file()
+
+    def _close_pool(self, abandon: bool) -> None:
         if not abandon:
             self.pool.shutdown(wait=True, cancel_futures=True)
             return
@@ -302,6 +323,7 @@ def shade_frames(
     order: deque[int] = deque()
     pending: dict[int, list] = {}  # frame -> [geometry, future, failures]
     failed = False  # an error or interruption: close without waiting for frames being shaded
+    shaded_any = False
     try:
         while True:
             while len(order) < max_in_flight:
@@ -320,7 +342,7 @@ def shade_frames(
             try:
                 result = entry[1].result()
             except backend.worker_errors as exc:
-                _resubmit_failed(backend, order, pending, retries, exc)
+                _resubmit_failed(backend, order, pending, retries, exc, shaded_any)
                 continue
             except BuildFailed as exc:  # the spec is wrong (e.g. a knob out of range): no retry helps
                 raise exc.args[0] from None
@@ -328,6 +350,7 @@ def shade_frames(
                 raise FrameShadingError(f"frame {frame}: shading failed: {type(exc).__name__}: {exc}") from exc
             order.popleft()
             del pending[frame]
+            shaded_any = True
             yield frame, _aligned(result)
     except BaseException:
         failed = True
@@ -352,7 +375,13 @@ def _aligned(result):
     return result
 
 
-def _resubmit_failed(backend, order, pending, retries, exc):
+STARTUP_DEATHS_HINT = ("worker processes died before shading any frame; if this run comes from a Python script, "
+                       "its top-level code must be under `if __name__ == \"__main__\":` (every worker process imports "
+                       "the script, and one that starts a run there dies), and their own error is printed above")
+"""Added to the error when workers died and no frame was shaded yet."""
+
+
+def _resubmit_failed(backend, order, pending, retries, exc, shaded_any: bool = True):
     """After a worker death, resubmit every pending frame whose result is lost."""
     unfinished_lost = backend.recover()
     for f in order:
@@ -366,8 +395,9 @@ def _resubmit_failed(backend, order, pending, retries, exc):
             continue
         entry[2] += 1
         if entry[2] > retries:
+            hint = "" if shaded_any else f"; {STARTUP_DEATHS_HINT}"
             raise FrameShadingError(f"frame {f}: worker died {entry[2]} times while shading it "
-                                    f"(last: {type(exc).__name__}: {exc})") from exc
+                                    f"(last: {type(exc).__name__}: {exc}){hint}") from exc
         entry[1] = _submit(backend, f, entry[0])
 
 

@@ -66,6 +66,25 @@ def init_worker(token: str, spec: FrameShaderSpec, parent: int | None = None) ->
         WORKER_BUILD_ERRORS[token] = exc  # breaks the pool, and the cause would read as a dead worker
 
 
+def init_worker_from_file(token: str, path: str, parent: int | None = None) -> None:
+    """:func:`init_worker` with the spec read from ``path``, a pickle the parent wrote. A process pool sends
+    its initializer's arguments through the pipe that starts each worker, and a worker that dies while
+    it starts (a script without ``if __name__ == "__main__":`` runs itself again in it and fails) leaves
+    the parent blocked for ever on a pipe fuller than its buffer: a path keeps that message small. A spec
+    that cannot be read here (an object of the script's own) is kept for the first frame, as a build error."""
+    import pickle
+
+    try:
+        with open(path, "rb") as f:
+            spec = pickle.load(f)
+    except Exception as exc:  # noqa: BLE001 - reported with the first frame, as a build failure
+        if parent is not None:
+            exit_with_parent(parent)
+        WORKER_BUILD_ERRORS[token] = exc
+        return
+    init_worker(token, spec, parent)
+
+
 def shade_in_worker(token: str, frame: int, geometry: FrameGeometry):
     """Shade ``frame`` with run ``token``'s shader; :class:`BuildFailed` when building it raised."""
     if token in WORKER_BUILD_ERRORS:
