@@ -13,6 +13,9 @@ Meshes (``warpshade.bench.meshes``): ``cloth``, the benchmark's crumpled 64² cl
 onto a ball and simulated for 60 frames (cached); ``table1``, the 1378-vertex travelling-wrinkle
 cloth of ``benchmarks/hemiraster.py`` (3 frames, rest = frame 0).
 
+The mid level (``mid``) rows: refined coarse triangles are replaced by mid triangles and only the
+nearest of those by fine ones ("fine, mid": refined fine and mid triangles rasterized per vertex).
+
 Success criteria (issue 18): crumpled and draped cloths <= 3.0 % at <= 50 ms per frame; Table 1
 cloth >= 60 frames/s at <= 2.5 %.
 
@@ -49,10 +52,14 @@ PEER_RAYS = 256
 CRUMPLED = {"defaults": {}, "redecimate": {"redecimate": 0.1},
             "redecimate+refine1": {"redecimate": 0.1, "refine": 1.0},
             "redecimate+interpolate": {"redecimate": 0.1, "interpolate": 0.1},
-            "fan off (main)": {"fan": False}}
+            "fan off (main)": {"fan": False},
+            "redecimate, mid 2048": {"redecimate": 0.1, "mid": 2048},
+            "redecimate, coarse 256, mid 2048": {"redecimate": 0.1, "coarse": 256, "mid": 2048},
+            "redecimate, coarse 256, mid 2048, refine 1.5": {"redecimate": 0.1, "coarse": 256, "mid": 2048, "refine": 1.5}}
 TABLE1 = {"defaults": {}, "tuned": TUNED["cloth"], "tuned+interpolate": {**TUNED["cloth"], "interpolate": 0.08},
           "tuned, refine 1.25, interpolate": {**TUNED["cloth"], "refine": 1.25, "interpolate": 0.08},
-          "tuned, fan off (main)": {**TUNED["cloth"], "fan": False}}
+          "tuned, fan off (main)": {**TUNED["cloth"], "fan": False},
+          "coarse 256, mid 1024": {"coarse": 256, "mid": 1024}}
 
 
 def inputs(name: str):
@@ -91,6 +98,7 @@ def run(methods: list, frames, truths, repeat: int) -> list[dict]:
         st = m.stats()
         rows.append({"cpu_seconds": float(np.median(np.median(cpu[i], axis=1))), "error_mean": float(np.mean(errs)),
                      "triangles_per_vertex": st.get("triangles_per_vertex"), "rebuilds": st.get("rebuilds"),
+                     "refined_per_vertex": st.get("refined_per_vertex"), "mid_per_vertex": st.get("mid_per_vertex"),
                      "rebuild_seconds": st.get("rebuild_seconds"), "computed_fraction": st.get("computed_fraction")})
     return rows
 
@@ -116,11 +124,12 @@ def main(argv=None) -> int:
                                "rows": [{"label": lb, "knobs": k, **r} for lb, k, r in zip(labels, knobs, rows)]}
         del methods
     print("\nOrder 5, one Warp CPU thread; CPU ms per frame (median after warm-up, round-robin), mean error vs 4096 rays")
-    print("| mesh | configuration | ms | frames/s | error | tris/vertex | computed | rebuild |")
+    print("| mesh | configuration | ms | frames/s | error | tris/vertex (fine, mid) | computed | rebuild |")
     print("|---|---|---|---|---|---|---|---|")
     for name, e in out["meshes"].items():
         for r in e["rows"]:
-            tv = f"{r['triangles_per_vertex']:.0f}" if r["triangles_per_vertex"] is not None else "-"
+            tv = (f"{r['triangles_per_vertex']:.0f} ({r['refined_per_vertex']:.0f}, {r['mid_per_vertex']:.0f})"
+                  if r["triangles_per_vertex"] is not None else "-")
             cf = f"{r['computed_fraction']:.2f}" if r["computed_fraction"] is not None else "-"
             rb = f"{r['rebuild_seconds']:.2f} s" if r["rebuilds"] else "-"
             print(f"| {name} ({e['vertices']}) | {r['label']} | {r['cpu_seconds'] * 1e3:.1f} | {1 / r['cpu_seconds']:.1f} | "

@@ -207,7 +207,7 @@ def bind_to_surface(query: np.ndarray, points: np.ndarray, faces: np.ndarray, ne
     return face, bary.astype(np.float32), off.astype(np.float32)
 
 
-def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int]):
+def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mid_targets: list[int] | None = None):
     """Coarse blocker mesh of several parts (receiver mesh, static occluders), each decimated alone.
 
     Each part is decimated to its target (kept whole when the target reaches its triangle count),
@@ -223,34 +223,55 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int]):
         dict with ``points`` (Vc, 3) float64, ``faces`` (Fc, 3) int64, ``bind_face`` (Vc,) int32 (scene
         face index), ``bind_bary`` (Vc, 3) float32, ``bind_offset`` (Vc,) float32, ``owner`` (F,)
         int64: the primary coarse triangle of each scene face, ``extra`` (P, 2) int64: further
-        (scene face, coarse triangle) pairs (:func:`assign_to_coarse`).
+        (scene face, coarse triangle) pairs (:func:`assign_to_coarse`). With ``mid_targets`` (mid
+        level triangle target per part), also ``mid``: a dict of the same keys for the mid mesh (a
+        second decimation of each part, bound to and assigned over its fine triangles the same way)
+        plus ``coarse_owner`` (Fm,) int64, the primary coarse triangle of each mid triangle, and
+        ``coarse_extra`` (Q, 2) int64, further (mid triangle, coarse triangle) pairs: the coarse
+        triangles assigned over the mid mesh as over a fine one; ``outline`` (Fm,) float32, the
+        least deviation of each mid triangle (:func:`outline_deviation`).
     """
-    cpts, cfaces, bface, bbary, boff, owner, extras = [], [], [], [], [], [], []
-    vbase = fbase = cbase = cfbase = 0
-    for (pts, faces), target in zip(parts, targets):
-        pts = np.asarray(pts, dtype=np.float64)
-        faces = np.asarray(faces, dtype=np.int64)
+    def level(pts, faces, target, fbase, fans=True):
         cp, cf = decimate(pts, faces, target)
         f, b, o = bind_to_surface(cp, pts, faces)
-        cpts.append(cp)
-        cfaces.append(cf + cbase)
-        bface.append(f + fbase)
-        bbary.append(b)
-        boff.append(o)
-        prim, extra = assign_to_coarse(pts, faces, cp, cf)
-        owner.append(prim + cfbase)
-        extras.append(extra + np.array([fbase, cfbase]))
-        vbase += len(pts)
+        prim, extra = assign_to_coarse(pts, faces, cp, cf, fans=fans)
+        return cp, cf, f + fbase, b, o, prim, extra
+
+    out = {"points": [], "faces": [], "bind_face": [], "bind_bary": [], "bind_offset": [], "owner": [], "extra": []}
+    mid = {k: [] for k in (*out, "coarse_owner", "coarse_extra", "outline")} if mid_targets is not None else None
+    fbase = cbase = cfbase = mbase = mfbase = 0
+    for k, ((pts, faces), target) in enumerate(zip(parts, targets)):
+        pts = np.asarray(pts, dtype=np.float64)
+        faces = np.asarray(faces, dtype=np.int64)
+        cp, cf, bf, bb, bo, prim, extra = level(pts, faces, target, fbase)
+        for key, val in zip(out, (cp, cf + cbase, bf, bb, bo, prim + cfbase, extra + np.array([fbase, cfbase]))):
+            out[key].append(val)
+        if mid is not None:
+            # seam cover without the fan rule at both mid seams (coarse/mid, mid/fine): at a few fine
+            # triangles per mid triangle it tripled their extras (docs/benchmarks/history.md)
+            mp, mf, mbf, mbb, mbo, mprim, mextra = level(pts, faces, mid_targets[k], fbase, fans=False)
+            # the mid mesh is to the coarse one what the fine mesh is to it
+            cprim, cextra = assign_to_coarse(mp, mf, cp, cf, fans=False)
+            outline = outline_deviation(pts, faces, mp, mf, mprim)
+            for key, val in zip(mid, (mp, mf + mbase, mbf, mbb, mbo, mprim + mfbase, mextra + np.array([fbase, mfbase]),
+                                      cprim + cfbase, cextra + np.array([mfbase, cfbase]), outline)):
+                mid[key].append(val)
+            mbase += len(mp)
+            mfbase += len(mf)
         fbase += len(faces)
         cbase += len(cp)
         cfbase += len(cf)
-    return {"points": np.concatenate(cpts), "faces": np.concatenate(cfaces), "bind_face": np.concatenate(bface).astype(np.int32),
-            "bind_bary": np.concatenate(bbary), "bind_offset": np.concatenate(boff), "owner": np.concatenate(owner),
-            "extra": np.concatenate(extras)}
+    res = {k: np.concatenate(v) for k, v in out.items()}
+    res["bind_face"] = res["bind_face"].astype(np.int32)
+    if mid is not None:
+        res["mid"] = {k: np.concatenate(v) for k, v in mid.items()}
+        res["mid"]["bind_face"] = res["mid"]["bind_face"].astype(np.int32)
+    return res
 
 
 def assign_to_coarse(points: np.ndarray, faces: np.ndarray, cpoints: np.ndarray, cfaces: np.ndarray,
-                     candidates: int = 8, reach: float = 0.5, tol: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+                     candidates: int = 8, reach: float = 0.5, tol: float = 0.05,
+                     fans: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Which coarse triangles each fine triangle belongs to (rest pose).
 
     *Primary*: the coarse triangle nearest to the fine triangle's centroid (each fine triangle has
@@ -311,7 +332,7 @@ def assign_to_coarse(points: np.ndarray, faces: np.ndarray, cpoints: np.ndarray,
     vf = vertex_faces(faces, len(pts))
     cvf = vertex_faces(cfaces, len(cp_))
     _, nearest_fine = cKDTree(pts).query(cp_)
-    for cv in range(len(cp_)):
+    for cv in range(len(cp_) if fans else 0):
         if len(cvf[cv]) and len(vf[nearest_fine[cv]]):
             fan = np.stack(np.meshgrid(vf[nearest_fine[cv]], cvf[cv], indexing="ij"), -1).reshape(-1, 2)
             fine_all.append(fan[:, 0])
@@ -453,3 +474,51 @@ def closed_orientation(points: np.ndarray, faces: np.ndarray) -> int:
     p = p - p.mean(axis=0)
     vol = np.einsum("ij,ij->i", p[f[:, 0]], np.cross(p[f[:, 1]], p[f[:, 2]])).sum()
     return 0 if vol == 0 else (1 if vol > 0 else -1)
+
+
+def ring_lists(ring_start: np.ndarray, ring_tris: np.ndarray, faces: np.ndarray, owner: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per receiver, the blockers (``owner``: the primary blocker of each fine triangle, shape (F,))
+    standing for at least one fine triangle of its k-ring or touching it, as CSR lists: the sets of
+    :func:`ring_groups` for a level too large for a bit row per receiver (the mid level).
+
+    Returns:
+        ``(start (V+1,), items)`` int32, each receiver's blockers sorted and unique.
+    """
+    nv = len(ring_start) - 1
+    vf = vertex_faces(faces, nv)
+    lists = [np.unique(owner[np.concatenate([ring_tris[ring_start[v]:ring_start[v + 1]], vf[v]]).astype(np.int64)])
+             for v in range(nv)]
+    start = np.concatenate([[0], np.cumsum([len(x) for x in lists])])
+    items = np.concatenate(lists) if start[-1] else np.zeros(1, np.int64)
+    return start.astype(np.int32), items.astype(np.int32)
+
+
+def outline_deviation(points: np.ndarray, faces: np.ndarray, cpoints: np.ndarray, cfaces: np.ndarray,
+                      owner: np.ndarray) -> np.ndarray:
+    """Per coarse triangle, how far the fine mesh's boundary (an outline no neighbour covers) lies
+    from it: the largest distance of a fine boundary vertex from the coarse triangles owning its
+    triangles (``owner``: primary, shape (F,)); 0 for triangles away from the boundary.
+
+    The per-frame deviation (:func:`.kernels.refit_blocker_boxes`) is measured across the surface
+    only; along it, a fine triangle sticking out past a coarse edge lies on the neighbour's plane.
+    At the mesh boundary there is no neighbour: decimation rounds off corners (a 2 cm fold's corner
+    lost 1.2 cm at 400 triangles), and a receiver near them sees through the missing part.
+
+    Returns:
+        shape (Fc,) float32 [m], at the pose of ``points`` / ``cpoints``.
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    uniq, counts = np.unique(e, axis=0, return_counts=True)
+    out = np.zeros(len(cfaces), np.float64)
+    border = np.unique(uniq[counts == 1].ravel())
+    if len(border) == 0:
+        return out.astype(np.float32)
+    vf = vertex_faces(f, len(points))
+    pairs = np.unique(np.concatenate([np.stack([np.full(len(vf[v]), v), owner[vf[v]]], 1) for v in border]), axis=0)
+    cp = np.asarray(cpoints, dtype=np.float64)
+    a, b, c = (cp[cfaces[pairs[:, 1], k]] for k in range(3))
+    q = np.asarray(points, dtype=np.float64)[pairs[:, 0]]
+    near, _ = closest_points_on_triangles(q, a, b, c)
+    np.maximum.at(out, pairs[:, 1], np.linalg.norm(near - q, axis=1))
+    return out.astype(np.float32)

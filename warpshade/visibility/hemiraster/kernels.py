@@ -125,6 +125,35 @@ class Refinement:
 
 
 @wp.struct
+class MidLevel:
+    """The mid mesh between the coarse and the fine one (``mid`` knob): a refined coarse blocker is
+    replaced by the mid triangles it stands for (:class:`Refinement` ``groups`` then maps coarse to
+    mid triangles), and only the mid triangles near the receiver by their fine triangles (``sub``)."""
+
+    on: int
+    """1: the coarse blockers' groups list mid triangles (this level is used); 0: they list fine ones."""
+    points: wp.array[wp.vec3]
+    """Mid vertex positions [m] (riding the fine surface), dtype vec3."""
+    faces: wp.array2d[wp.int32]
+    """Mid triangles, shape (Fm, 3), dtype int32."""
+    plane: wp.array[wp.vec4]
+    """Per mid triangle (N, N·a) (:func:`triangle_bounds`), dtype vec4."""
+    sphere: wp.array[wp.vec4]
+    """Per mid triangle bounding sphere, dtype vec4."""
+    coarse: wp.array[wp.int32]
+    """Primary coarse blocker (reordered index) of each mid triangle, shape (Fm,), dtype int32."""
+    ring_start: wp.array[wp.int32]
+    """CSR offsets per receiver into ``ring_tris``, shape (V+1,), dtype int32."""
+    ring_tris: wp.array[wp.int32]
+    """Mid triangles standing for each receiver's k-ring: always replaced by their fine triangles, dtype int32."""
+    ring_bits: wp.array2d[wp.uint64]
+    """Per slot, bits of the current receiver's ``ring_tris``, shape (slots, ceil(Fm/64)); set at the
+    start of each receiver and cleared at its end."""
+    counts: wp.array[wp.int32]
+    """Mid triangles queued per receiver, shape (V,)."""
+
+
+@wp.struct
 class Batch:
     """Per slot (:func:`rasterize_masks`) queue of blocker triangles that passed the culls, rasterized in batches
     (:func:`flush_batch`): the LUT codes of a whole batch are computed in one branch-free loop, so
@@ -556,6 +585,36 @@ def union_boxes(
     reach[s] = r
 
 
+@wp.kernel
+def raise_deviation(floor: wp.array[float], deviation: wp.array[float]):
+    """``deviation = max(deviation, floor)`` per blocker (the mid level's outline deviation,
+    :func:`.hierarchy.outline_deviation`)."""
+    t = wp.tid()
+    deviation[t] = wp.max(deviation[t], floor[t])
+
+
+@wp.kernel
+def union_child_boxes(
+    start: wp.array[wp.int32],
+    children: wp.array[wp.int32],
+    child_lo: wp.array[wp.vec3],
+    child_hi: wp.array[wp.vec3],
+    lo: wp.array[wp.vec3],
+    hi: wp.array[wp.vec3],
+):
+    """Grow each blocker's box [lo, hi] by the boxes of the children it lists (``children[start[t]:start[t+1]]``):
+    a coarse blocker's box then holds the mid triangles that replace it and their fine triangles."""
+    t = wp.tid()
+    bmin = lo[t]
+    bmax = hi[t]
+    for r in range(start[t], start[t + 1]):
+        c = children[r]
+        bmin = wp.min(bmin, child_lo[c])
+        bmax = wp.max(bmax, child_hi[c])
+    lo[t] = bmin
+    hi[t] = bmax
+
+
 @wp.func
 def box_near(p: wp.vec3, lo: wp.vec3, hi: wp.vec3, radius: float) -> bool:
     """True when the box [lo, hi] comes within ``radius`` of ``p``."""
@@ -650,6 +709,154 @@ def rasterize_group(
 
 
 @wp.func
+def coarse_refined(o: int, v: int, p: wp.vec3, groups: Refinement, source: wp.array[wp.int32], near_mode: int,
+                   excl: wp.array2d[wp.uint32]) -> bool:
+    """Whether coarse blocker ``o`` (reordered index) is refined for receiver ``v``: it stands for the
+    receiver's k-ring (``near_mode`` 2) or passes :func:`refine_here`."""
+    skip = False
+    if near_mode == 2:
+        skip = excluded(excl, v, source[o])
+    if not skip:
+        skip = refine_here(p, groups.lo[o], groups.hi[o], groups.dev[o], groups.refine)
+    return skip
+
+
+@wp.func
+def mid_refined(m: int, sl: int, p: wp.vec3, sub: Refinement, mids: MidLevel) -> bool:
+    """Whether mid triangle ``m`` is replaced by its fine triangles for the slot's receiver (when it
+    is visited): it stands for the receiver's k-ring or passes :func:`refine_here` with its own bounds."""
+    ring = (mids.ring_bits[sl, m >> 6] >> wp.uint64(m & 63)) & wp.uint64(1) != wp.uint64(0)
+    return wp.where(ring, True, refine_here(p, sub.lo[m], sub.hi[m], sub.dev[m], sub.refine))
+
+
+@wp.func(inline=True)
+def rasterize_mid_fine(
+    m: int,
+    src: int,
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    fine: FineMesh,
+    groups: Refinement,
+    sub: Refinement,
+    mids: MidLevel,
+    source: wp.array[wp.int32],
+    near_mode: int,
+    excl: wp.array2d[wp.uint32],
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    bt: Batch,
+    nb: int,
+) -> wp.vec2i:
+    """Queue the fine triangles mid triangle ``m`` stands for, as :func:`rasterize_group` does for a
+    coarse blocker; returns (queue length, fine triangles queued). A run of seam-cover extras is
+    skipped when its primary mid triangle is replaced by its fine triangles here too: that mid
+    triangle is then certainly visited (its primary coarse blocker is refined) and expanded."""
+    count = int(0)
+    r = sub.start[m]
+    end = sub.start[m + 1]
+    mid = sub.mid[m]
+    while r < end:
+        if r >= mid:
+            o = sub.owner[r]
+            if mid_refined(o, sl, p, sub, mids):
+                if coarse_refined(mids.coarse[o], v, p, groups, source, near_mode, excl):
+                    r = sub.run_end[r]
+                    continue
+        f = sub.tris[r]
+        r += 1
+        fpl = fine.plane[f]
+        fsp = fine.sphere[f]
+        drop = skip_early(fpl, fsp, p, n, lut.backface, lut.rim)
+        if lut.fine_area > 0.0:
+            drop = wp.where(drop, True, bounds_below(fpl, fsp, p, n, lut.fine_area))
+        i = fine.faces[f, 0]
+        j = fine.faces[f, 1]
+        k = fine.faces[f, 2]
+        drop = wp.where(drop, True, wp.where(i == v, True, wp.where(j == v, True, k == v)))
+        if sub.use_seen != 0:
+            bit = wp.uint64(1) << wp.uint64(f & 63)
+            word = sub.seen[sl, f >> 6]
+            drop = wp.where(drop, True, (word & bit) != wp.uint64(0))
+            sub.seen[sl, f >> 6] = word | bit
+        fa = fine.points[i] - p
+        fb = fine.points[j] - p
+        fc = fine.points[k] - p
+        if lut.fine_area > 0.0:
+            drop = wp.where(drop, True, image_below(fa, fb, fc, n, lut.fine_area))
+        nb = push_triangle(fa, fb, fc, src, drop, nb, v, sl, frame, lut, mask, bt)
+        count += wp.where(drop, 0, 1)
+    return wp.vec2i(nb, count)
+
+
+@wp.func(inline=True)
+def rasterize_mid_group(
+    t: int,
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    fine: FineMesh,
+    groups: Refinement,
+    sub: Refinement,
+    mids: MidLevel,
+    source: wp.array[wp.int32],
+    near_mode: int,
+    excl: wp.array2d[wp.uint32],
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    bt: Batch,
+    nb: int,
+    refined: wp.array[wp.int32],
+) -> int:
+    """Queue what refined coarse blocker ``t`` stands for at the mid level: each of its mid triangles
+    (primaries, and the seam-cover extras whose primary coarse blocker is not refined here) is
+    queued itself, or, when it stands for the receiver's k-ring or comes within ``refine`` times its
+    own deviation of the receiver (:func:`mid_refined`), replaced by its fine triangles
+    (:func:`rasterize_mid_fine`). Returns the queue length; counts the fine triangles in
+    ``refined[v]`` and the mid ones in ``mids.counts[v]``."""
+    count = int(0)
+    cmid = int(0)
+    src = source[t]
+    r = groups.start[t]
+    end = groups.start[t + 1]
+    gm = groups.mid[t]
+    while r < end:
+        if r >= gm:
+            if coarse_refined(groups.owner[r], v, p, groups, source, near_mode, excl):
+                r = groups.run_end[r]
+                continue
+        m = groups.tris[r]
+        r += 1
+        if groups.use_seen != 0:
+            # a mid triangle listed by several refined coarse blockers is handled once per receiver
+            bit = wp.uint64(1) << wp.uint64(m & 63)
+            word = groups.seen[sl, m >> 6]
+            groups.seen[sl, m >> 6] = word | bit
+            if (word & bit) != wp.uint64(0):
+                continue
+        if mid_refined(m, sl, p, sub, mids):
+            res = rasterize_mid_fine(m, src, v, sl, p, n, fine, groups, sub, mids, source, near_mode, excl, frame, lut,
+                                     mask, bt, nb)
+            nb = res[0]
+            count += res[1]
+        else:
+            # exact, as the fine triangles it stands for (a tiny-image cull here cost more than it saved)
+            drop = skip_early(mids.plane[m], mids.sphere[m], p, n, lut.backface, lut.rim)
+            a = mids.points[mids.faces[m, 0]] - p
+            b = mids.points[mids.faces[m, 1]] - p
+            c = mids.points[mids.faces[m, 2]] - p
+            nb = push_triangle(a, b, c, src, drop, nb, v, sl, frame, lut, mask, bt)
+            cmid += wp.where(drop, 0, 1)
+    refined[v] = refined[v] + count
+    mids.counts[v] = mids.counts[v] + cmid
+    return nb
+
+
+@wp.func
 def excluded(excl: wp.array2d[wp.uint32], v: int, t: int) -> bool:
     """Bit ``t`` of receiver ``v``'s exclusion set."""
     return (excl[v, t >> 5] >> wp.uint32(t & 31)) & wp.uint32(1) != wp.uint32(0)
@@ -706,6 +913,8 @@ def rasterize_far_chunk(
     n: wp.vec3,
     fine: FineMesh,
     groups: Refinement,
+    sub: Refinement,
+    mids: MidLevel,
     blockers: Blockers,
     use_excl: int,
     excl: wp.array2d[wp.uint32],
@@ -760,8 +969,12 @@ def rasterize_far_chunk(
     while refine_bits != wp.uint64(0):
         k = lowest_bit(refine_bits)
         refine_bits = refine_bits & (refine_bits - wp.uint64(1))
-        nb = rasterize_group(t0 + k, v, sl, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, bt, nb,
-                             refined)
+        if mids.on != 0:
+            nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers.source, use_excl, excl, frame,
+                                     lut, mask, bt, nb, refined)
+        else:
+            nb = rasterize_group(t0 + k, v, sl, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, bt,
+                                 nb, refined)
     while keep != wp.uint64(0):
         k = lowest_bit(keep)
         keep = keep & (keep - wp.uint64(1))
@@ -779,6 +992,8 @@ def rasterize_masks(
     use_excl: int,
     excl: wp.array2d[wp.uint32],
     groups: Refinement,
+    sub: Refinement,
+    mids: MidLevel,
     use_cull: int,
     cluster_start: wp.array[wp.int32],
     cluster_lo: wp.array[wp.vec3],
@@ -826,6 +1041,14 @@ def rasterize_masks(
         if groups.use_seen != 0:
             for w in range(groups.seen.shape[1]):
                 groups.seen[sl, w] = wp.uint64(0)
+        if mids.on != 0:
+            if sub.use_seen != 0:
+                for w in range(sub.seen.shape[1]):
+                    sub.seen[sl, w] = wp.uint64(0)
+            for r in range(mids.ring_start[v], mids.ring_start[v + 1]):
+                m = mids.ring_tris[r]
+                mids.ring_bits[sl, m >> 6] = mids.ring_bits[sl, m >> 6] | (wp.uint64(1) << wp.uint64(m & 63))
+            mids.counts[v] = 0
         bt.counts[v] = 0
         refined[v] = 0
         nb = int(0)
@@ -847,7 +1070,7 @@ def rasterize_masks(
         if use_pvs != 0:
             for r in range(pvs_start[v], pvs_start[v + 1]):
                 t = pvs_tris[r]
-                nb = rasterize_far_chunk(t, t + 1, near_all, v, sl, p, n, fine, groups, blockers, use_excl, excl, frame,
+                nb = rasterize_far_chunk(t, t + 1, near_all, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame,
                                          lut, mask, bt, nb, refined)
         elif use_cull != 0:
             for s in range(super_start.shape[0] - 1):
@@ -858,13 +1081,17 @@ def rasterize_masks(
                             near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], groups.refine * cluster_reach[c])
                             for t0 in range(cluster_start[c], cluster_start[c + 1], FAR_CHUNK):
                                 t1 = wp.min(t0 + FAR_CHUNK, cluster_start[c + 1])
-                                nb = rasterize_far_chunk(t0, t1, near, v, sl, p, n, fine, groups, blockers, use_excl, excl,
+                                nb = rasterize_far_chunk(t0, t1, near, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl,
                                                          frame, lut, mask, bt, nb, refined)
         else:
             for t0 in range(0, blockers.faces.shape[0], FAR_CHUNK):
                 t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
-                nb = rasterize_far_chunk(t0, t1, near_all, v, sl, p, n, fine, groups, blockers, use_excl, excl, frame, lut,
+                nb = rasterize_far_chunk(t0, t1, near_all, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame, lut,
                                          mask, bt, nb, refined)
         if nb > 0:
             flush_batch(nb, v, sl, frame, lut, mask, bt)
+        if mids.on != 0:
+            for r in range(mids.ring_start[v], mids.ring_start[v + 1]):
+                m = mids.ring_tris[r]
+                mids.ring_bits[sl, m >> 6] = wp.uint64(0)
         row += num_slots

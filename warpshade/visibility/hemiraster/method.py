@@ -23,8 +23,9 @@ from ...geometry.mesh import TriMesh
 from ..base import TransferMethod
 from ..knobs import Knob
 from . import hierarchy, integrate, tables
-from .kernels import (Batch, Blockers, FineMesh, MaskChunk, PlaneLut, Refinement, follow_coarse_points, rasterize_masks, refit_blocker_boxes,
-                      triangle_bounds, union_boxes)
+from .kernels import (Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement, follow_coarse_points, rasterize_masks,
+                      raise_deviation, refit_blocker_boxes, triangle_bounds, union_boxes,
+                      union_child_boxes)
 
 
 SEEN_BYTES = 64 * 1024 * 1024
@@ -112,6 +113,14 @@ class HemirasterTransfer(TransferMethod):
             grown by more than this since the pose it was built on (0: never, the paper's scheme:
             decimated once at rest). A flat sheet decimated flat and crumpled departs by ~0.3.
             Needs the refinement (``refine`` > 0 with the hierarchy), whose deviations it reads.
+        mid: Triangle target of a mid level between the coarse and the fine mesh (0, the default: off;
+            used when ``coarse < mid <`` the mesh's triangles, with the refinement). A second decimation
+            of the mesh, bound to and assigned over the fine triangles like the coarse one: a refined
+            coarse blocker is replaced by the mid triangles it stands for, and only mid triangles
+            within ``refine`` times their own deviation of the receiver (or standing for its k-ring)
+            by their fine triangles. Pays on dense meshes (measured on 64² cloths and the default
+            scene with ``coarse=256, mid=2048``; docs/methods/hemiraster.md), not on meshes with
+            fewer than about 3× ``mid`` triangles.
         interpolate: Compute the transfer at a subset of receivers only (about every other one,
             :func:`.hierarchy.interpolation_subset`) and give each other receiver the unoccluded
             transfer of its own normal minus the mean blocked part of its computed neighbours, unless
@@ -147,6 +156,8 @@ class HemirasterTransfer(TransferMethod):
              minimum=0.0),
         Knob("fine_image", float, "the same cull for the fine triangles of refined blockers near a receiver "
                                   "(0: exact near field)", minimum=0.0),
+        Knob("mid", int, "mid-level triangles between the coarse and the fine mesh for the refined near field "
+                         "(0: off, refined coarse triangles are replaced by fine ones)", minimum=0, attr="mid_target"),
         Knob("rim", bool, "skip blockers wholly below the lowest pixel centre", cli=False),
         Knob("fan", bool, "rasterize the receiver's own fan on open meshes", cli=False),
     )
@@ -156,14 +167,14 @@ class HemirasterTransfer(TransferMethod):
                  exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
                  refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
-                 fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0):
+                 fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0, mid: int = 0):
         super().__init__(mesh, order, device)
         # every knob but the PVS, to rebuild the far field from another pose (:meth:`rebuild`)
         self._init_knobs = dict(mask=mask, lut=lut, downsample=downsample, ring=ring, coarse=coarse, cull=cull,
                                 cluster=cluster, exclude=exclude, backface=backface, mode=mode, view=view, phong=phong,
                                 lut_dir=lut_dir, min_image=min_image, refine=refine, occluders=occluders, rim=rim,
                                 fine_image=fine_image, fan=fan, redecimate=redecimate,
-                                interpolate=interpolate)
+                                interpolate=interpolate, mid=mid)
         if not (float(redecimate) >= 0.0 and np.isfinite(float(redecimate))):
             raise ValueError(f"hemiraster: redecimate must be a finite number >= 0, got {redecimate}")
         if float(redecimate) > 0.0 and pvs_frames is not None:
@@ -185,6 +196,9 @@ class HemirasterTransfer(TransferMethod):
             raise ValueError(f"hemiraster: mode must be 'diffuse' or 'glossy', got {mode!r}")
         if int(coarse) < 0:
             raise ValueError(f"hemiraster: coarse must be >= 0 triangles, got {coarse}")
+        if int(mid) < 0:
+            raise ValueError(f"hemiraster: mid must be >= 0 triangles, got {mid}")
+        self.mid_target = int(mid)
         if cluster < 1:
             raise ValueError(f"hemiraster: cluster must be >= 1 triangles, got {cluster}")
         view = np.asarray(view, dtype=np.float64)
@@ -265,10 +279,16 @@ class HemirasterTransfer(TransferMethod):
         # Occluders get the receiver's coarse density (each part decimated on its own).
         targets = [self.coarse_target] + [max(1, round(self.coarse_target * len(o.faces) / max(nf, 1))) for o in occluders]
         self.hierarchy = 0 < self.coarse_target < nf
+        # mid level: between the coarse and the fine mesh, for the refined near field only
+        self._use_mid = self.hierarchy and self.refine > 0.0 and self.coarse_target < self.mid_target < nf
+        mid_targets = ([self.mid_target] + [max(1, round(self.mid_target * len(o.faces) / max(nf, 1))) for o in occluders]
+                       if self._use_mid else None)
         group_start, group_mid, group_tris = np.zeros(2, np.int32), np.zeros(1, np.int32), np.zeros(1, np.int32)
         group_owner, group_run_end = np.zeros(1, np.int32), np.zeros(1, np.int32)
+        far = None
+        self._mid_bind = None
         if self.hierarchy:
-            far = hierarchy.far_field([(q.astype(np.float64), f) for q, f in parts], targets)
+            far = hierarchy.far_field([(q.astype(np.float64), f) for q, f in parts], targets, mid_targets)
             cpts, block_faces = far["points"], far["faces"]
             self._near_mode = 0  # 0: none, 1: exclusion bits (paper scheme), 2: forced refinement bits
             if self.ring:
@@ -277,6 +297,13 @@ class HemirasterTransfer(TransferMethod):
                     # the k-ring through the coarse triangles standing for it: exact in any pose, no
                     # triangle twice, no coarse triangle cutting through it
                     excl = hierarchy.ring_groups(ring_start, ring_tris, faces, far["owner"], len(block_faces))
+                    if self._use_mid:
+                        # also the coarse triangles holding the mid triangles that stand for the k-ring,
+                        # and those mid triangles (always replaced by their fine triangles)
+                        mfar = far["mid"]
+                        excl |= hierarchy.ring_groups(ring_start, ring_tris, faces, mfar["coarse_owner"][mfar["owner"]],
+                                                      len(block_faces))
+                        mid_ring = hierarchy.ring_lists(ring_start, ring_tris, faces, mfar["owner"])
                     ring_start, ring_tris = np.zeros(nv + 1, np.int32), np.zeros(1, np.int32)
                     self._near_mode = 2
                 else:
@@ -327,6 +354,71 @@ class HemirasterTransfer(TransferMethod):
         perm, cstart, sstart = hierarchy.build_clusters(rest_blockers, block_faces, self.cluster, 16)
         if self._use_refine:
             group_start, group_mid, group_tris, group_owner, group_run_end = hierarchy.groups_in_order(far["owner"], far["extra"], perm)
+        # bounds and deviation of each coarse blocker are taken over the fine triangles it stands for
+        self._fit_start = wp.array(group_start, dtype=wp.int32, device=d)
+        self._fit_mid = wp.array(group_mid, dtype=wp.int32, device=d)
+        self._fit_tris = wp.array(group_tris, dtype=wp.int32, device=d)
+        self._mids = MidLevel()
+        self._sub = Refinement()
+        self._sub.refine = self.refine if self._use_mid else 0.0
+        if self._use_mid:
+            mfar = far["mid"]
+            nm = len(mfar["faces"])
+            new_coarse = np.empty(len(perm), np.int64)
+            new_coarse[perm] = np.arange(len(perm))
+            # mid triangles in the order of their primary coarse blockers (neighbours in memory)
+            mperm = np.argsort(new_coarse[mfar["coarse_owner"]], kind="stable")
+            new_mid = np.empty(nm, np.int64)
+            new_mid[mperm] = np.arange(nm)
+            # coarse blockers list mid triangles (primaries, then the seam-cover extras) ...
+            group_start, group_mid, mtris, group_owner, group_run_end = hierarchy.groups_in_order(
+                mfar["coarse_owner"], mfar["coarse_extra"], perm)
+            group_tris = new_mid[mtris].astype(np.int32)
+            # ... and mid triangles list fine ones
+            sub = hierarchy.groups_in_order(mfar["owner"], mfar["extra"], mperm)
+            self._sub_arrays = [wp.array(x, dtype=wp.int32, device=d) for x in sub]
+            self._sub.start, self._sub.mid, self._sub.tris, self._sub.owner, self._sub.run_end = self._sub_arrays
+            self._mid_bind = (wp.array(mfar["bind_face"], dtype=wp.int32, device=d),
+                              wp.array(mfar["bind_bary"], dtype=wp.vec3, device=d),
+                              wp.array(mfar["bind_offset"], dtype=float, device=d))
+            self._mids.on = 1
+            self._mids.points = wp.zeros(len(mfar["points"]), dtype=wp.vec3, device=d)
+            self._mids.faces = wp.array(mfar["faces"][mperm].astype(np.int32), dtype=wp.int32, device=d)
+            self._mids.plane = wp.zeros(nm, dtype=wp.vec4, device=d)
+            self._mids.sphere = wp.zeros(nm, dtype=wp.vec4, device=d)
+            self._mids.coarse = wp.array(new_coarse[mfar["coarse_owner"][mperm]].astype(np.int32), dtype=wp.int32, device=d)
+            if self._near_mode == 2:
+                mstart, mitems = mid_ring
+                mitems = new_mid[mitems].astype(np.int32) if mstart[-1] else mitems
+            else:
+                mstart, mitems = np.zeros(nv + 1, np.int32), np.zeros(1, np.int32)
+            self._mids.ring_start = wp.array(mstart, dtype=wp.int32, device=d)
+            self._mids.ring_tris = wp.array(mitems, dtype=wp.int32, device=d)
+            self._mid_outline = wp.array(mfar["outline"][mperm], dtype=float, device=d)
+            self._mid_box = (wp.zeros(nm, dtype=wp.vec3, device=d), wp.zeros(nm, dtype=wp.vec3, device=d))
+            self._mid_dev = wp.zeros(nm, dtype=float, device=d)
+            self._sub.lo, self._sub.hi = self._mid_box
+            self._sub.dev = self._mid_dev
+            self.num_mid = nm
+            if self._backface_side != 0.0 and hierarchy.closed_orientation(self._mid_points_rest(), mfar["faces"]) != side:
+                self._backface_side = 0.0  # the mid mesh must be closed and oriented alike too
+                self._lut.backface = 0.0
+        else:
+            self._mid_bind = None
+            self._mids.on = 0
+            self._mids.points = wp.zeros(1, dtype=wp.vec3, device=d)
+            self._mids.faces = wp.zeros((1, 3), dtype=wp.int32, device=d)
+            self._mids.plane = wp.zeros(1, dtype=wp.vec4, device=d)
+            self._mids.sphere = wp.zeros(1, dtype=wp.vec4, device=d)
+            self._mids.coarse = wp.zeros(1, dtype=wp.int32, device=d)
+            self._mids.ring_start = wp.zeros(nv + 1, dtype=wp.int32, device=d)
+            self._mids.ring_tris = wp.zeros(1, dtype=wp.int32, device=d)
+            self._sub.lo, self._sub.hi = (wp.zeros(1, dtype=wp.vec3, device=d) for _ in range(2))
+            self._sub.dev = wp.zeros(1, dtype=float, device=d)
+            self._sub.start, self._sub.mid, self._sub.tris, self._sub.owner, self._sub.run_end = (
+                wp.zeros(2, dtype=wp.int32, device=d) for _ in range(5))
+            self.num_mid = 0
+        self._mids.counts = wp.zeros(nv, dtype=wp.int32, device=d)
         self._group_start = wp.array(group_start, dtype=wp.int32, device=d)
         self._group_tris = wp.array(group_tris, dtype=wp.int32, device=d)
         self._group_mid = wp.array(group_mid, dtype=wp.int32, device=d)
@@ -370,9 +462,20 @@ class HemirasterTransfer(TransferMethod):
         # (1 bit per fine triangle and slot; off above SEEN_BYTES, where repeats are only slower)
         self._slots = scratch_slots(d, nv)
         seen_words = (nsf + 63) // 64
-        self._groups.use_seen = 1 if (self._use_refine and self._slots * seen_words * 8 <= SEEN_BYTES) else 0
-        self._groups.seen = wp.zeros((self._slots, seen_words) if self._groups.use_seen else (1, 1), dtype=wp.uint64,
-                                     device=d)
+        use_seen = 1 if (self._use_refine and self._slots * seen_words * 8 <= SEEN_BYTES) else 0
+        fine_refs = self._sub if self._use_mid else self._groups  # the level whose groups list fine triangles
+        fine_refs.use_seen = use_seen
+        fine_refs.seen = wp.zeros((self._slots, seen_words) if use_seen else (1, 1), dtype=wp.uint64, device=d)
+        if self._use_mid:
+            mid_words = (self.num_mid + 63) // 64
+            self._groups.use_seen = 1 if self._slots * mid_words * 8 <= SEEN_BYTES else 0
+            self._groups.seen = wp.zeros((self._slots, mid_words) if self._groups.use_seen else (1, 1), dtype=wp.uint64,
+                                         device=d)
+            self._mids.ring_bits = wp.zeros((self._slots, mid_words), dtype=wp.uint64, device=d)
+        else:
+            self._sub.use_seen = 0
+            self._sub.seen = wp.zeros((1, 1), dtype=wp.uint64, device=d)
+            self._mids.ring_bits = wp.zeros((1, 1), dtype=wp.uint64, device=d)
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._blockers = Blockers()
@@ -415,6 +518,10 @@ class HemirasterTransfer(TransferMethod):
         self._follow()
         return self._bpoints.numpy()
 
+    def _mid_points_rest(self) -> np.ndarray:
+        self._follow()
+        return self._mids.points.numpy()
+
     # -- command line ------------------------------------------------------------------------
     @classmethod
     def sweep(cls, quick: bool = False) -> list[dict]:
@@ -428,6 +535,7 @@ class HemirasterTransfer(TransferMethod):
         out += [{"downsample": s} for s in (2, 4)]
         out += [{"refine": x} for x in (1.0, 4.0)]
         out += [{"redecimate": 0.1}, {"interpolate": 0.02}, {"interpolate": 0.05}]
+        out += [{"mid": 2048}, {"coarse": 256, "mid": 2048}]
         out += [{"ring": 0}, {"ring": 2}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 0}, {"cull": False}]
         return out
 
@@ -440,6 +548,8 @@ class HemirasterTransfer(TransferMethod):
             "triangles_per_vertex": float(counts.mean()),
             "triangles_per_vertex_max": int(counts.max()),
             "refined_per_vertex": float(self._refined.numpy().mean()),
+            "mid_per_vertex": float(self._mids.counts.numpy().mean()),
+            "mid_triangles": self.num_mid,
             "occluder_triangles": int(sum(o.num_faces for o in self.occluders)),
             "blocker_triangles": self.num_blockers,
             "hierarchy": self.hierarchy,
@@ -465,6 +575,27 @@ class HemirasterTransfer(TransferMethod):
         if self._bind is not None:
             wp.launch(follow_coarse_points, dim=self._bpoints.shape[0], inputs=[self._spoints, self._sfaces, *self._bind],
                       outputs=[self._bpoints], device=self.device)
+        if self._mid_bind is not None:
+            wp.launch(follow_coarse_points, dim=self._mids.points.shape[0],
+                      inputs=[self._spoints, self._sfaces, *self._mid_bind], outputs=[self._mids.points], device=self.device)
+
+    def _refit(self) -> None:
+        """Per-frame boxes and deviations of the blockers (and of the mid triangles): a coarse
+        blocker's box holds it, the fine triangles it stands for and, with the mid level, its mid
+        triangles and theirs; its deviation is taken over its fine triangles either way."""
+        d = self.device
+        wp.launch(refit_blocker_boxes, dim=self.num_blockers,
+                  inputs=[self._bpoints, self._bfaces, self._spoints, self._sfaces, 1 if self._use_refine else 0,
+                          self._fit_start, self._fit_mid, self._fit_tris, self._bind_offset_abs],
+                  outputs=[*self._blocker_box, self._blocker_dev], device=d)
+        if self._use_mid:
+            wp.launch(refit_blocker_boxes, dim=self.num_mid,
+                      inputs=[self._mids.points, self._mids.faces, self._spoints, self._sfaces, 1,
+                              self._sub.start, self._sub.mid, self._sub.tris, self._mid_bind[2]],
+                      outputs=[*self._mid_box, self._mid_dev], device=d)
+            wp.launch(raise_deviation, dim=self.num_mid, inputs=[self._mid_outline], outputs=[self._mid_dev], device=d)
+            wp.launch(union_child_boxes, dim=self.num_blockers,
+                      inputs=[self._group_start, self._group_tris, *self._mid_box], outputs=[*self._blocker_box], device=d)
 
     def _launch(self, record: int, use_pvs: int, rows: wp.array | None = None) -> None:
         if self.occluders:
@@ -472,11 +603,7 @@ class HemirasterTransfer(TransferMethod):
         self._follow()
         d = self.device
         if (self.cull and not use_pvs) or self._use_refine:
-            wp.launch(refit_blocker_boxes, dim=self.num_blockers,
-                      inputs=[self._bpoints, self._bfaces, self._spoints, self._sfaces, 1 if self._use_refine else 0,
-                              self._group_start, self._group_mid, self._group_tris, self._bind_offset_abs],
-                      outputs=[*self._blocker_box, self._blocker_dev],
-                      device=d)
+            self._refit()
         if self.cull and not use_pvs:
             wp.launch(union_boxes, dim=self._cluster_box[0].shape[0], inputs=[*self._blocker_box, self._blocker_dev, self._cluster_start],
                       outputs=[*self._cluster_box, self._cluster_reach], device=d)
@@ -489,6 +616,9 @@ class HemirasterTransfer(TransferMethod):
         if self.hierarchy:
             wp.launch(triangle_bounds, dim=self._sfaces.shape[0], inputs=[self._spoints, self._sfaces],
                       outputs=[self._fine.plane, self._fine.sphere], device=d)
+        if self._use_mid:
+            wp.launch(triangle_bounds, dim=self.num_mid, inputs=[self._mids.points, self._mids.faces],
+                      outputs=[self._mids.plane, self._mids.sphere], device=d)
         self._batch.record = record
         self._batch.hits = self._hits
         if rows is not None:  # these receivers only (compute_rows)
@@ -507,6 +637,7 @@ class HemirasterTransfer(TransferMethod):
         sel, targets, start, nbrs = self._interp
         self._counts.zero_()
         self._refined.zero_()
+        self._mids.counts.zero_()
         self._rasterize(sel, sel.shape[0], use_pvs)
         self._integrate_diffuse(sel, sel.shape[0])
         if targets.shape[0]:
@@ -539,7 +670,7 @@ class HemirasterTransfer(TransferMethod):
                 inputs=[self._fine, self.normals, self._ring_start, self._ring_tris,
                         self._blockers,
                         self._near_mode, self._excl,
-                        self._groups,
+                        self._groups, self._sub, self._mids,
                         1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
                         self._super_start, *self._super_box,
                         use_pvs, self._pvs_start, self._pvs_tris,
@@ -597,7 +728,7 @@ class HemirasterTransfer(TransferMethod):
         self._follow()
         wp.launch(refit_blocker_boxes, dim=self.num_blockers,
                   inputs=[self._bpoints, self._bfaces, self._spoints, self._sfaces, 1,
-                          self._group_start, self._group_mid, self._group_tris, self._bind_offset_abs],
+                          self._fit_start, self._fit_mid, self._fit_tris, self._bind_offset_abs],
                   outputs=[*self._blocker_box, self._blocker_dev], device=self.device)
         wp.launch(triangle_bounds, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
                   outputs=[self._bplane, self._bsphere], device=self.device)
