@@ -285,3 +285,22 @@ def test_a_keyed_sun_turns_frame_by_frame(tmp_path):
         # same geometry, same rays (static scene): the same colours to float32 rounding of the SH rotation
         np.testing.assert_allclose(np.asarray(colours.Get(f)), want, atol=1e-5, err_msg=f"frame {f}")
     assert not np.allclose(np.asarray(colours.Get(0)), np.asarray(colours.Get(2)), atol=1e-3)  # it did turn
+
+
+def test_a_closed_mesh_wound_inward_warns(tmp_path):
+    # a box whose quads face its inside (a user's own winding, right-handed): the run warns, naming it
+    from warpshade.scene import SceneWarning
+
+    st = Usd.Stage.CreateNew(str(tmp_path / "inward.usda"))
+    UsdGeom.SetStageMetersPerUnit(st, 1.0)
+    m = UsdGeom.Mesh.Define(st, "/Inward")
+    m.CreatePointsAttr(BOX_POINTS)
+    m.CreateFaceVertexCountsAttr([4] * 6)
+    m.CreateFaceVertexIndicesAttr([i for q in BOX_QUADS for i in reversed(q)])
+    box(st, "/Outward")
+    UsdGeom.XformCommonAPI(st.GetPrimAtPath("/Outward")).SetTranslate(Gf.Vec3d(1, 0, 0))
+    st.Save()
+    with pytest.warns(SceneWarning, match="/Inward: a closed mesh wound inward") as record:
+        assert main(["run", str(tmp_path / "inward.usda"), "--out", str(tmp_path / "o.usda"), "--frames", "1",
+                     "--method", "reference", "--rays", "4", "--order", "2", "--workers", "0", "--no-progress"]) == 0
+    assert not [w for w in record if "/Outward" in str(w.message) and "inward" in str(w.message)]

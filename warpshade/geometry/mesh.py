@@ -87,3 +87,22 @@ def validate_mesh(points: np.ndarray, faces: np.ndarray, name: str = "<mesh>") -
         f = int(np.flatnonzero(out.any(axis=1))[0])
         raise MeshError(f"{name}: face {f} has vertex index out of range 0..{len(points) - 1}: "
                         f"{faces[f].tolist()}")
+
+
+def closed_orientation(points: np.ndarray, faces: np.ndarray) -> int:
+    """+1 for a closed mesh with outward-facing triangles, -1 for inward, 0 if not closed or not consistent.
+
+    Closed and consistent: every directed edge appears once and its reverse once.
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    if (e[:, 0] == e[:, 1]).any():
+        return 0
+    key = e[:, 0] * (int(e.max()) + 1) + e[:, 1]
+    rkey = e[:, 1] * (int(e.max()) + 1) + e[:, 0]
+    if len(np.unique(key)) != len(key) or not np.isin(rkey, key).all():
+        return 0
+    p = np.asarray(points, dtype=np.float64)
+    p = p - p.mean(axis=0)
+    vol = np.einsum("ij,ij->i", p[f[:, 0]], np.cross(p[f[:, 1]], p[f[:, 2]])).sum()
+    return 0 if vol == 0 else (1 if vol > 0 else -1)

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..geometry.mesh import first_nonfinite
+from ..geometry.mesh import closed_orientation, first_nonfinite
 from ..scene import Scene, SceneError, SceneWarning
 from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
@@ -188,6 +188,7 @@ class Pipeline:
                                               None if reuse is None else float(reuse))
         self._check_lights()
         self._warn_static_scene(lights)
+        self._warn_inward_meshes()
         from .area import area_lights_used
 
         self.area_lights, self.area_description = area_lights_used(self.shader)
@@ -220,6 +221,14 @@ class Pipeline:
                     f"{o.name}: cloth with neither pins (warpshade:pinned) nor an attachment, and the scene has "
                     "no collider (warpshade:collider on a prim): it falls freely; add a collider or pin vertices",
                     SceneWarning, stacklevel=3)
+
+    def _warn_inward_meshes(self) -> None:
+        """Warn about closed meshes wound inward: their normals point in, so they would shade black."""
+        for o in self.scene.objects:
+            if o.shaded and o.kind != "cloth" and closed_orientation(o.mesh.points, o.mesh.faces) < 0:
+                warnings.warn(f"{o.name}: a closed mesh wound inward (its triangles face its inside), so its normals "
+                              "point in and it shades black: reverse the winding of its faces", SceneWarning,
+                              stacklevel=3)
 
     def _albedo_of(self, name: str) -> np.ndarray:
         """The albedo object ``name`` is shaded with (its material's, or the run's ``albedo``)."""

@@ -457,25 +457,6 @@ def build_clusters(points: np.ndarray, faces: np.ndarray, size: int, super_size:
     return perm, cluster_start.astype(np.int32), super_start.astype(np.int32)
 
 
-def closed_orientation(points: np.ndarray, faces: np.ndarray) -> int:
-    """+1 for a closed mesh with outward-facing triangles, -1 for inward, 0 if not closed or not consistent.
-
-    Closed and consistent: every directed edge appears once and its reverse once.
-    """
-    f = np.asarray(faces, dtype=np.int64)
-    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    if (e[:, 0] == e[:, 1]).any():
-        return 0
-    key = e[:, 0] * (int(e.max()) + 1) + e[:, 1]
-    rkey = e[:, 1] * (int(e.max()) + 1) + e[:, 0]
-    if len(np.unique(key)) != len(key) or not np.isin(rkey, key).all():
-        return 0
-    p = np.asarray(points, dtype=np.float64)
-    p = p - p.mean(axis=0)
-    vol = np.einsum("ij,ij->i", p[f[:, 0]], np.cross(p[f[:, 1]], p[f[:, 2]])).sum()
-    return 0 if vol == 0 else (1 if vol > 0 else -1)
-
-
 def ring_lists(ring_start: np.ndarray, ring_tris: np.ndarray, faces: np.ndarray, owner: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per receiver, the blockers (``owner``: the primary blocker of each fine triangle, shape (F,))
     standing for at least one fine triangle of its k-ring or touching it, as CSR lists: the sets of

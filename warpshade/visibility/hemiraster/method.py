@@ -19,7 +19,7 @@ import time
 import numpy as np
 import warp as wp
 
-from ...geometry.mesh import TriMesh
+from ...geometry.mesh import TriMesh, closed_orientation
 from ..base import TransferMethod
 from ..knobs import Knob
 from . import hierarchy, integrate, tables
@@ -337,10 +337,10 @@ class HemirasterTransfer(TransferMethod):
         rest_blockers = (self._bpoints_rest() if self.hierarchy else scene_pts)
         # back-face culling needs closed, consistently oriented fine and blocker meshes; the sign
         # of the enclosed volume says which side faces out
-        side = hierarchy.closed_orientation(scene_pts, scene_faces)
+        side = closed_orientation(scene_pts, scene_faces)
         fine_closed = side != 0
         if self.hierarchy:
-            cside = hierarchy.closed_orientation(rest_blockers, block_faces)
+            cside = closed_orientation(rest_blockers, block_faces)
             side = side if side == cside else 0
         # keep the triangles facing away: every blocked ray leaves the solid through one of those,
         # also rays that enter it right at the receiver (concave spots, under a skipped incident triangle)
@@ -400,7 +400,7 @@ class HemirasterTransfer(TransferMethod):
             self._sub.lo, self._sub.hi = self._mid_box
             self._sub.dev = self._mid_dev
             self.num_mid = nm
-            if self._backface_side != 0.0 and hierarchy.closed_orientation(self._mid_points_rest(), mfar["faces"]) != side:
+            if self._backface_side != 0.0 and closed_orientation(self._mid_points_rest(), mfar["faces"]) != side:
                 self._backface_side = 0.0  # the mid mesh must be closed and oriented alike too
                 self._lut.backface = 0.0
         else:
