@@ -662,3 +662,17 @@ def test_receivers_rasterized_in_blocks_give_the_same_transfer(monkeypatch, knob
     assert launches.count("rasterize_masks") >= 100
     assert np.array_equal(blocks, whole)
     assert np.array_equal(hemiraster(mesh, order=3).compute_rows(rows).numpy(), whole_rows)
+
+
+def test_compute_rows_with_interpolate_gives_the_rows_what_update_gives_them():
+    # the two-sided back pass computes its rows only; with interpolate it used to compute every receiver
+    mesh = bumpy_grid(n=12)
+    rows = np.arange(0, mesh.num_vertices // 3, dtype=np.int32)  # a third of the mesh, as one member's rows
+    whole = hemiraster(mesh, order=3, interpolate=0.05).update(mesh.points).numpy()
+    part = hemiraster(mesh, order=3, interpolate=0.05)
+    part.set_points(mesh.points)  # (as update(points) does: normals computed from the points)
+    got = part.compute_rows(rows).numpy()
+    assert np.array_equal(got[rows], whole[rows])  # bit for bit: the same split, the same neighbours
+    sel, targets = (a.numpy() for a in part._interp_rows(rows))
+    assert len(sel) + len(targets) < 0.6 * mesh.num_vertices  # not every receiver
+    assert set(rows) <= set(sel) | set(targets)

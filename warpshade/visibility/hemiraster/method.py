@@ -501,6 +501,7 @@ class HemirasterTransfer(TransferMethod):
             sel, targets, start, nbrs = hierarchy.interpolation_subset(faces, nv)
             self._interp = tuple(wp.array(x, dtype=wp.int32, device=d) for x in (sel, targets, start, nbrs))
             self._redo = wp.zeros(nv, dtype=wp.int32, device=d)
+            self._interp_parts = {}
             self._blocked = wp.zeros(nv, dtype=vec_sh, device=d)
             # relative to the unoccluded transfer's norm (the same for every normal: rotations keep it)
             self._interp_tolerance = self.interpolate * float(np.linalg.norm(np.array(self._unoccluded, dtype=np.float64)))
@@ -597,7 +598,7 @@ class HemirasterTransfer(TransferMethod):
             wp.launch(union_child_boxes, dim=self.num_blockers,
                       inputs=[self._group_start, self._group_tris, *self._mid_box], outputs=[*self._blocker_box], device=d)
 
-    def _launch(self, record: int, use_pvs: int, rows: wp.array | None = None) -> None:
+    def _launch(self, record: int, use_pvs: int, rows: wp.array | None = None, interp_rows=None) -> None:
         if self.occluders:
             wp.copy(self._spoints, self.points, count=self.mesh.num_vertices)
         self._follow()
@@ -625,6 +626,9 @@ class HemirasterTransfer(TransferMethod):
             self._rasterize(rows, rows.shape[0], use_pvs)
             self._integrate_diffuse(rows, rows.shape[0])
             return
+        if interp_rows is not None:  # these receivers only, with interpolation (compute_rows)
+            self._interpolated(*self._interp_rows(interp_rows), use_pvs)
+            return
         if self._interp is None:
             self._rasterize(self._all, self.mesh.num_vertices, use_pvs)
             if self.mode == "diffuse":
@@ -632,18 +636,25 @@ class HemirasterTransfer(TransferMethod):
             else:
                 self._integrate_glossy()
             return
-        # a subset of receivers, the others interpolated where their computed neighbours agree
-        # within ``interpolate``, computed themselves where not
-        sel, targets, start, nbrs = self._interp
+        self._interpolated(*self._interp[:2], use_pvs)
+
+    def _interpolated(self, sel: wp.array, targets: wp.array, use_pvs: int) -> None:
+        """Compute the receivers ``sel`` and interpolate ``targets`` from their computed neighbours where
+        these agree within ``interpolate``, computing the others themselves (``_interp`` holds the whole
+        mesh's split; :meth:`compute_rows` passes a part of it)."""
+        d = self.device
+        start, nbrs = self._interp[2], self._interp[3]
         self._counts.zero_()
         self._refined.zero_()
         self._mids.counts.zero_()
         self._rasterize(sel, sel.shape[0], use_pvs)
         self._integrate_diffuse(sel, sel.shape[0])
+        self._redone = 0
         if targets.shape[0]:
             wp.launch(self._integrate.blocked_part, dim=sel.shape[0],
                       inputs=[sel, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv, self._basis,
                               self.transfer], outputs=[self._blocked], device=d)
+            self._redo.zero_()
             wp.launch(self._integrate.interpolate, dim=targets.shape[0],
                       inputs=[targets, start, nbrs, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv,
                               self._basis, self._blocked, self._interp_tolerance],
@@ -654,6 +665,23 @@ class HemirasterTransfer(TransferMethod):
                 redo = wp.array(redo, dtype=wp.int32, device=d)
                 self._rasterize(redo, redo.shape[0], use_pvs)
                 self._integrate_diffuse(redo, redo.shape[0])
+
+    def _interp_rows(self, rows: np.ndarray) -> tuple[wp.array, wp.array]:
+        """The part of the interpolation split that gives the transfer at ``rows``: the computed receivers
+        among them and those their interpolated rows read, and the interpolated rows (cached per rows)."""
+        key = rows.tobytes()
+        if key not in self._interp_parts:
+            sel, targets, start, nbrs = (a.numpy() for a in self._interp)
+            wanted = np.zeros(self.mesh.num_vertices, dtype=bool)
+            wanted[rows] = True
+            t = targets[wanted[targets]]
+            need = wanted.copy()
+            for v in t:  # the computed neighbours each interpolated row reads
+                need[nbrs[start[v]:start[v + 1]]] = True
+            s = sel[need[sel]]
+            self._interp_parts[key] = (wp.array(s, dtype=wp.int32, device=self.device),
+                                       wp.array(t, dtype=wp.int32, device=self.device))
+        return self._interp_parts[key]
 
     def _rasterize(self, receivers: wp.array, count: int, use_pvs: int) -> None:
         """Rasterize the masks of ``receivers[:count]``; on the CPU in launches of about :data:`LAUNCH_SECONDS`."""
@@ -704,21 +732,23 @@ class HemirasterTransfer(TransferMethod):
     def compute_rows(self, rows) -> wp.array:
         """Recompute :attr:`transfer` at the receivers ``rows`` only, for the current :attr:`points` and
         :attr:`normals` (:meth:`set_points`); the other rows keep their values. A receiver's transfer is
-        the same as :meth:`update` computes it (each receiver is rasterized on its own). In glossy mode
-        or with ``interpolate`` every receiver is computed.
+        the same as :meth:`update` computes it (each receiver is rasterized on its own; with ``interpolate``
+        the rows' computed neighbours are computed too). In glossy mode every receiver is computed.
 
         Returns:
             :attr:`transfer` (a new array after a :meth:`rebuild`).
         """
         rows = np.asarray(rows, dtype=np.int32)
-        if self.mode != "diffuse" or self._interp is not None:
+        if self.mode != "diffuse":
             self._compute()
             return self.transfer
         if self.redecimate > 0.0 and self._use_refine and self._departure() - self._built_departure > self.redecimate:
             self.rebuild()
         if len(rows):
+            # with ``interpolate``: the rows' part of the split, so the rows get what update() gives them
             self._launch(record=0, use_pvs=1 if self._pvs_frames else 0,
-                         rows=wp.array(rows, dtype=wp.int32, device=self.device))
+                         rows=wp.array(rows, dtype=wp.int32, device=self.device) if self._interp is None else None,
+                         interp_rows=None if self._interp is None else rows)
         return self.transfer
 
     def _departure(self) -> float:
