@@ -30,6 +30,11 @@ def parse(doc: str, argv, frames: int, extra=None):
     args = ap.parse_args(argv)
     if args.frames < 1:
         ap.error("--frames must be >= 1")
+    # Warp started as quietly as warpshade's commands (no banner, no module-load lines): a script
+    # simulates with its own solver before any Pipeline, which would start it so
+    from warpshade.parallel.runtime import init_warp
+
+    init_warp()
     return args
 
 
