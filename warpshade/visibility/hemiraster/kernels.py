@@ -633,6 +633,52 @@ def refine_here(p: wp.vec3, lo: wp.vec3, hi: wp.vec3, deviation: float, refine: 
 
 
 @wp.func(inline=True)
+def queue_fine(
+    f: int,
+    src: int,
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    fine: FineMesh,
+    use_seen: int,
+    seen: wp.array2d[wp.uint64],
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    bt: Batch,
+    nb: int,
+) -> wp.vec2i:
+    """Queue fine triangle ``f`` standing in for a refined blocker (coarse or mid), unless a cull drops
+    it; returns (queue length, 1 if queued else 0). Branch-free culls (selects): a dropped triangle is
+    still written to the queue but takes no entry. Triangles incident to the receiver are dropped (they
+    contain it: no solid angle); with ``use_seen`` one already queued for this receiver is too (the
+    slot's row of ``seen`` is marked even when culled: the culls depend only on the triangle and the
+    receiver, so any other group listing it culls it too)."""
+    fpl = fine.plane[f]
+    fsp = fine.sphere[f]
+    drop = skip_early(fpl, fsp, p, n, lut.backface, lut.rim)
+    if lut.fine_area > 0.0:
+        drop = wp.where(drop, True, bounds_below(fpl, fsp, p, n, lut.fine_area))
+    i = fine.faces[f, 0]
+    j = fine.faces[f, 1]
+    k = fine.faces[f, 2]
+    drop = wp.where(drop, True, wp.where(i == v, True, wp.where(j == v, True, k == v)))
+    if use_seen != 0:
+        bit = wp.uint64(1) << wp.uint64(f & 63)
+        word = seen[sl, f >> 6]
+        drop = wp.where(drop, True, (word & bit) != wp.uint64(0))
+        seen[sl, f >> 6] = word | bit
+    fa = fine.points[i] - p
+    fb = fine.points[j] - p
+    fc = fine.points[k] - p
+    if lut.fine_area > 0.0:
+        drop = wp.where(drop, True, image_below(fa, fb, fc, n, lut.fine_area))
+    nb = push_triangle(fa, fb, fc, src, drop, nb, v, sl, frame, lut, mask, bt)
+    return wp.vec2i(nb, wp.where(drop, 0, 1))
+
+
+@wp.func(inline=True)
 def rasterize_group(
     t: int,
     v: int,
@@ -678,32 +724,10 @@ def rasterize_group(
             if skip:
                 r = groups.run_end[r]
                 continue
-        f = groups.tris[r]
+        q = queue_fine(groups.tris[r], src, v, sl, p, n, fine, groups.use_seen, groups.seen, frame, lut, mask, bt, nb)
         r += 1
-        # branch-free culls (selects): skipped triangles are still written to the queue but take no entry
-        fpl = fine.plane[f]
-        fsp = fine.sphere[f]
-        drop = skip_early(fpl, fsp, p, n, lut.backface, lut.rim)
-        if lut.fine_area > 0.0:
-            drop = wp.where(drop, True, bounds_below(fpl, fsp, p, n, lut.fine_area))
-        i = fine.faces[f, 0]
-        j = fine.faces[f, 1]
-        k = fine.faces[f, 2]
-        drop = wp.where(drop, True, wp.where(i == v, True, wp.where(j == v, True, k == v)))
-        if groups.use_seen != 0:
-            # marked even when culled: the culls depend only on the triangle and the receiver, so
-            # any other group listing it culls it too
-            bit = wp.uint64(1) << wp.uint64(f & 63)
-            word = groups.seen[sl, f >> 6]
-            drop = wp.where(drop, True, (word & bit) != wp.uint64(0))
-            groups.seen[sl, f >> 6] = word | bit
-        fa = fine.points[i] - p
-        fb = fine.points[j] - p
-        fc = fine.points[k] - p
-        if lut.fine_area > 0.0:
-            drop = wp.where(drop, True, image_below(fa, fb, fc, n, lut.fine_area))
-        nb = push_triangle(fa, fb, fc, src, drop, nb, v, sl, frame, lut, mask, bt)
-        count += wp.where(drop, 0, 1)
+        nb = q[0]
+        count += q[1]
     refined[v] = refined[v] + count
     return nb
 
@@ -765,29 +789,10 @@ def rasterize_mid_fine(
                 if coarse_refined(mids.coarse[o], v, p, groups, source, near_mode, excl):
                     r = sub.run_end[r]
                     continue
-        f = sub.tris[r]
+        q = queue_fine(sub.tris[r], src, v, sl, p, n, fine, sub.use_seen, sub.seen, frame, lut, mask, bt, nb)
         r += 1
-        fpl = fine.plane[f]
-        fsp = fine.sphere[f]
-        drop = skip_early(fpl, fsp, p, n, lut.backface, lut.rim)
-        if lut.fine_area > 0.0:
-            drop = wp.where(drop, True, bounds_below(fpl, fsp, p, n, lut.fine_area))
-        i = fine.faces[f, 0]
-        j = fine.faces[f, 1]
-        k = fine.faces[f, 2]
-        drop = wp.where(drop, True, wp.where(i == v, True, wp.where(j == v, True, k == v)))
-        if sub.use_seen != 0:
-            bit = wp.uint64(1) << wp.uint64(f & 63)
-            word = sub.seen[sl, f >> 6]
-            drop = wp.where(drop, True, (word & bit) != wp.uint64(0))
-            sub.seen[sl, f >> 6] = word | bit
-        fa = fine.points[i] - p
-        fb = fine.points[j] - p
-        fc = fine.points[k] - p
-        if lut.fine_area > 0.0:
-            drop = wp.where(drop, True, image_below(fa, fb, fc, n, lut.fine_area))
-        nb = push_triangle(fa, fb, fc, src, drop, nb, v, sl, frame, lut, mask, bt)
-        count += wp.where(drop, 0, 1)
+        nb = q[0]
+        count += q[1]
     return wp.vec2i(nb, count)
 
 
