@@ -111,3 +111,29 @@ def grid(n: int):
     v = (j * n + i).ravel()
     faces = np.concatenate([np.stack([v, v + n, v + 1], 1), np.stack([v + 1, v + n, v + n + 1], 1)])
     return pts, faces.astype(np.int32)
+
+
+def level_bounds(level_points, level_faces, fine_points, fine_faces, start, mid, tris, offsets, outline=None):
+    """NumPy oracle of a hemiraster hierarchy level's per-triangle bounds: for each triangle ``t`` of the level
+    (points and faces in float64), standing for fine triangles ``tris[start[t]:start[t+1]]`` (primaries
+    before ``mid[t]``, seam-cover extras after), the box of it and of every fine triangle it stands for,
+    and its deviation: the largest distance of a primary fine vertex from its plane, at least the largest
+    binding ``offsets`` of its corners, 1e-3 of its size, its whole size when it has no primary, and its
+    ``outline`` deviation (the mesh boundary) when given. Returns ``(lo, hi, dev)``, (T, 3), (T, 3), (T,)."""
+    lo, hi, dev = [], [], []
+    for t, face in enumerate(level_faces):
+        a, b, c = level_points[face]
+        fine = fine_points[fine_faces[tris[start[t]:start[t + 1]]]].reshape(-1, 3)
+        prim = fine_points[fine_faces[tris[start[t]:mid[t]]]].reshape(-1, 3)
+        allp = np.concatenate([level_points[face], fine])
+        lo.append(allp.min(axis=0))
+        hi.append(allp.max(axis=0))
+        nrm = np.cross(b - a, c - a)
+        size = np.linalg.norm(np.stack([a, b, c]) - (a + b + c) / 3, axis=1).max()
+        want = max(offsets[face].max(), np.abs((prim - a) @ nrm).max(initial=0.0) / np.linalg.norm(nrm), 1e-3 * size)
+        if mid[t] == start[t]:
+            want = max(want, size)
+        if outline is not None:
+            want = max(want, outline[t])
+        dev.append(want)
+    return np.array(lo), np.array(hi), np.array(dev)

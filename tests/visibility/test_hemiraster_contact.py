@@ -17,6 +17,7 @@ import pytest
 import trimesh
 import warp as wp
 
+from helpers import level_bounds
 from warpshade.geometry import TriMesh
 from warpshade.visibility import get_method
 from warpshade.visibility.hemiraster import hierarchy
@@ -134,19 +135,10 @@ def test_blocker_boxes_and_deviation_match_numpy():
     offs = np.abs(h._bind[2].numpy())
     lo, hi, dev = h._blocker_box[0].numpy(), h._blocker_box[1].numpy(), h._blocker_dev.numpy()
     p64 = pts.astype(np.float32).astype(np.float64)
-    for t in range(len(bf)):
-        a, b, c = bp[bf[t]]
-        fine = p64[mesh.faces[tris[start[t]:start[t + 1]]]].reshape(-1, 3)
-        prim = p64[mesh.faces[tris[start[t]:mid[t]]]].reshape(-1, 3)
-        allp = np.concatenate([bp[bf[t]], fine])
-        np.testing.assert_allclose(lo[t], allp.min(axis=0), atol=1e-6, err_msg=f"blocker {t}")
-        np.testing.assert_allclose(hi[t], allp.max(axis=0), atol=1e-6, err_msg=f"blocker {t}")
-        nrm = np.cross(b - a, c - a)
-        size = np.linalg.norm(np.stack([a, b, c]) - (a + b + c) / 3, axis=1).max()
-        want = max(offs[bf[t]].max(), np.abs((prim - a) @ nrm).max(initial=0.0) / np.linalg.norm(nrm), 1e-3 * size)
-        if mid[t] == start[t]:
-            want = max(want, size)
-        np.testing.assert_allclose(dev[t], want, rtol=1e-4, atol=1e-7, err_msg=f"blocker {t}")
+    want_lo, want_hi, want_dev = level_bounds(bp, bf, p64, mesh.faces, start, mid, tris, offs)
+    np.testing.assert_allclose(lo, want_lo, atol=1e-6)
+    np.testing.assert_allclose(hi, want_hi, atol=1e-6)
+    np.testing.assert_allclose(dev, want_dev, rtol=1e-4, atol=1e-7)
 
 
 def test_groups_cover_every_fine_triangle_once_as_primary():

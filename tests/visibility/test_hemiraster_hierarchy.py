@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from helpers import level_bounds
 from test_hemiraster_contact import UNOCCLUDED_T0, differences, folded_sheet, grid_sheet, hemiraster, merge
 from warpshade.geometry import TriMesh
 from warpshade.visibility.hemiraster import hierarchy, tables
@@ -79,23 +80,17 @@ def test_mid_bounds_and_deviation_enclose_what_each_level_stands_for():
     outline = h._mid_outline.numpy()
     assert outline.max() > 0  # the sheet's boundary
     assert h.num_mid == len(mf) and len(mf) > 48
+    # the box holds the mid triangle and every fine triangle it stands for (primaries and extras)
+    want_lo, want_hi, want_dev = level_bounds(mp, mf, p64, mesh.faces, start, mid, tris, offs, outline)
+    np.testing.assert_allclose(lo, want_lo, atol=1e-6)
+    np.testing.assert_allclose(hi, want_hi, atol=1e-6)
+    np.testing.assert_allclose(dev, want_dev, rtol=1e-4, atol=1e-7)
     for m in range(len(mf)):
-        a, b, c = mp[mf[m]]
-        fine = p64[mesh.faces[tris[start[m]:start[m + 1]]]].reshape(-1, 3)
-        prim = p64[mesh.faces[tris[start[m]:mid[m]]]].reshape(-1, 3)
-        allp = np.concatenate([mp[mf[m]], fine])
-        # the box holds the mid triangle and every fine triangle it stands for (primaries and extras)
-        np.testing.assert_allclose(lo[m], allp.min(axis=0), atol=1e-6, err_msg=f"mid {m}")
-        np.testing.assert_allclose(hi[m], allp.max(axis=0), atol=1e-6, err_msg=f"mid {m}")
-        nrm = np.cross(b - a, c - a)
-        size = np.linalg.norm(np.stack([a, b, c]) - (a + b + c) / 3, axis=1).max()
-        want = max(offs[mf[m]].max(), np.abs((prim - a) @ nrm).max(initial=0.0) / np.linalg.norm(nrm), 1e-3 * size)
-        if mid[m] == start[m]:
-            want = max(want, size)
-        want = max(want, outline[m])
-        np.testing.assert_allclose(dev[m], want, rtol=1e-4, atol=1e-7, err_msg=f"mid {m}")
         # the deviation bounds every primary fine vertex's distance from the mid triangle's plane
-        assert (np.abs((prim - a) @ nrm) / np.linalg.norm(nrm) <= dev[m] * (1 + 1e-4) + 1e-7).all()
+        a, b, c = mp[mf[m]]
+        nrm = np.cross(b - a, c - a)
+        prim = p64[mesh.faces[tris[start[m]:mid[m]]]].reshape(-1, 3)
+        assert (np.abs((prim - a) @ nrm) / np.linalg.norm(nrm) <= dev[m] * (1 + 1e-4) + 1e-7).all(), f"mid {m}"
     # a coarse blocker's box holds the boxes of the mid triangles it stands for (and so their fine triangles)
     clo, chi = h._blocker_box[0].numpy(), h._blocker_box[1].numpy()
     gs, gt = h._group_start.numpy(), h._group_tris.numpy()
