@@ -84,17 +84,22 @@ def test_surfaces_in_contact_match_the_exact_far_field(case):
     assert h.stats()["refined_per_vertex"] > 0
 
 
-def test_ball_under_a_draped_cap_sees_no_sky():
-    # A closed unit ball with a cap (part of a sphere 1 cm larger, above z = 0.3) lying on it: from a
-    # ball vertex with z > 0.6 every direction above its tangent plane meets the cap within ~0.14 m,
-    # so the exact transfer is 0 (coarse=0 measured 2.7e-7). Without refinement the coarse cap's
-    # chords dip under the ball's surface and those vertices got T_0 = 0.886 (the whole sky).
+def ball_under_cap():
+    """A closed unit ball with a cap (part of a sphere 1 cm larger, above z = 0.3) lying on it, and the ball
+    vertices with z > 0.6: every direction above their tangent planes meets the cap within ~0.14 m, so their
+    exact transfer is 0 (coarse=0 measured 2.7e-7)."""
     ball = trimesh.creation.icosphere(3, radius=1.0)
     outer = trimesh.creation.icosphere(3, radius=1.01)
     cap = trimesh.Trimesh(outer.vertices, outer.faces[outer.vertices[outer.faces].min(axis=1)[:, 2] > 0.303], process=False)
     cap.remove_unreferenced_vertices()
     mesh = merge((ball.vertices, ball.faces), (cap.vertices, cap.faces))
-    under = np.flatnonzero(mesh.points[:len(ball.vertices), 2] > 0.6)
+    return mesh, np.flatnonzero(mesh.points[:len(ball.vertices), 2] > 0.6)
+
+
+def test_ball_under_a_draped_cap_sees_no_sky():
+    # Without refinement the coarse cap's chords dip under the ball's surface and those vertices got
+    # T_0 = 0.886 (the whole sky).
+    mesh, under = ball_under_cap()
     t = hemiraster(mesh, order=3, coarse=256).update().numpy()[under]
     # pinholes at quantised vertices: at most three 32² pixels, as in test_hemiraster's closed shell
     assert np.abs(t).max() < 0.0036 * UNOCCLUDED_T0, (np.abs(t).max(), under[np.argmax(np.abs(t).max(axis=1))])

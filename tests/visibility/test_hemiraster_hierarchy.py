@@ -17,7 +17,7 @@ import pytest
 import trimesh
 
 from helpers import level_bounds
-from test_hemiraster_contact import UNOCCLUDED_T0, differences, folded_sheet, grid_sheet, hemiraster, merge
+from test_hemiraster_contact import UNOCCLUDED_T0, ball_under_cap, differences, folded_sheet, grid_sheet, hemiraster, merge
 from warpshade.geometry import TriMesh
 from warpshade.visibility.hemiraster import hierarchy, tables
 from warpshade.visibility.hemiraster.oracle import rasterize_np, tangent_frame_np
@@ -226,12 +226,7 @@ def test_surfaces_in_contact_match_the_exact_far_field_with_the_mid_level(case):
 
 
 def test_ball_under_a_draped_cap_sees_no_sky_with_the_mid_level():
-    ball = trimesh.creation.icosphere(3, radius=1.0)
-    outer = trimesh.creation.icosphere(3, radius=1.01)
-    cap = trimesh.Trimesh(outer.vertices, outer.faces[outer.vertices[outer.faces].min(axis=1)[:, 2] > 0.303], process=False)
-    cap.remove_unreferenced_vertices()
-    mesh = merge((ball.vertices, ball.faces), (cap.vertices, cap.faces))
-    under = np.flatnonzero(mesh.points[:len(ball.vertices), 2] > 0.6)
+    mesh, under = ball_under_cap()
     h = hemiraster(mesh, order=3, coarse=256, mid=800)
     t = h.update().numpy()[under]
     assert h.stats()["mid_per_vertex"] > 0
