@@ -170,6 +170,10 @@ class Batch:
     """Blocker to mark in the receiver's PVS bits when the triangle sets a bit (-1: none), shape (slots, B)."""
     codes: wp.array2d[wp.vec3i]
     """Scratch: LUT codes of the three oriented edge planes (-1: culled), shape (slots, B)."""
+    cand: wp.array2d[wp.int32]
+    """Scratch: fine triangles of a refined group that passed the culls from per-frame data
+    (:func:`stage_fine`), waiting for the gathers and the exact tests (:func:`queue_candidates`),
+    shape (slots, :data:`CANDIDATES`)."""
     record: int
     """1 while recording a PVS (``hits``)."""
     hits: wp.array2d[wp.uint32]
@@ -632,50 +636,77 @@ def refine_here(p: wp.vec3, lo: wp.vec3, hi: wp.vec3, deviation: float, refine: 
     return box_near(p, lo, hi, refine * deviation)
 
 
+CANDIDATES = wp.constant(64)
+"""Fine triangles staged per slot (:attr:`Batch.cand`) before their gathers and exact tests."""
+
+
 @wp.func(inline=True)
-def queue_fine(
+def stage_fine(
     f: int,
-    src: int,
-    v: int,
     sl: int,
     p: wp.vec3,
     n: wp.vec3,
     fine: FineMesh,
     use_seen: int,
     seen: wp.array2d[wp.uint64],
+    lut: PlaneLut,
+    bt: Batch,
+    nc: int,
+) -> int:
+    """Stage fine triangle ``f`` standing in for a refined blocker (coarse or mid) unless a cull from
+    per-frame data (:func:`skip_early`, :func:`bounds_below`) drops it or, with ``use_seen``, it was
+    already staged for this receiver; returns the number staged. Branch-free: ``f`` is always written
+    to the next free entry, which only a kept one takes. The slot's row of ``seen`` is marked even
+    when culled (the culls depend only on the triangle and the receiver, so any other group listing
+    it culls it too). The gathers and the exact tests wait for :func:`queue_candidates`: about half
+    the fine triangles of a refined group (slivers below the horizon, repeats) never need them."""
+    fpl = fine.plane[f]
+    fsp = fine.sphere[f]
+    drop = skip_early(fpl, fsp, p, n, lut.backface, lut.rim)
+    if lut.fine_area > 0.0:
+        drop = wp.where(drop, True, bounds_below(fpl, fsp, p, n, lut.fine_area))
+    if use_seen != 0:
+        bit = wp.uint64(1) << wp.uint64(f & 63)
+        word = seen[sl, f >> 6]
+        drop = wp.where(drop, True, (word & bit) != wp.uint64(0))
+        seen[sl, f >> 6] = word | bit
+    bt.cand[sl, nc] = f
+    return nc + wp.where(drop, 0, 1)
+
+
+@wp.func(inline=True)
+def queue_candidates(
+    nc: int,
+    src: int,
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    fine: FineMesh,
     frame: wp.mat33,
     lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
 ) -> wp.vec2i:
-    """Queue fine triangle ``f`` standing in for a refined blocker (coarse or mid), unless a cull drops
-    it; returns (queue length, 1 if queued else 0). Branch-free culls (selects): a dropped triangle is
-    still written to the queue but takes no entry. Triangles incident to the receiver are dropped (they
-    contain it: no solid angle); with ``use_seen`` one already queued for this receiver is too (the
-    slot's row of ``seen`` is marked even when culled: the culls depend only on the triangle and the
-    receiver, so any other group listing it culls it too)."""
-    fpl = fine.plane[f]
-    fsp = fine.sphere[f]
-    drop = skip_early(fpl, fsp, p, n, lut.backface, lut.rim)
-    if lut.fine_area > 0.0:
-        drop = wp.where(drop, True, bounds_below(fpl, fsp, p, n, lut.fine_area))
-    i = fine.faces[f, 0]
-    j = fine.faces[f, 1]
-    k = fine.faces[f, 2]
-    drop = wp.where(drop, True, wp.where(i == v, True, wp.where(j == v, True, k == v)))
-    if use_seen != 0:
-        bit = wp.uint64(1) << wp.uint64(f & 63)
-        word = seen[sl, f >> 6]
-        drop = wp.where(drop, True, (word & bit) != wp.uint64(0))
-        seen[sl, f >> 6] = word | bit
-    fa = fine.points[i] - p
-    fb = fine.points[j] - p
-    fc = fine.points[k] - p
-    if lut.fine_area > 0.0:
-        drop = wp.where(drop, True, image_below(fa, fb, fc, n, lut.fine_area))
-    nb = push_triangle(fa, fb, fc, src, drop, nb, v, sl, frame, lut, mask, bt)
-    return wp.vec2i(nb, wp.where(drop, 0, 1))
+    """Queue the ``nc`` staged fine triangles (:func:`stage_fine`) unless incident to the receiver (they
+    contain it: no solid angle) or their exact image is tiny (:func:`image_below`); returns (queue
+    length, triangles queued). Branch-free (:func:`push_triangle`)."""
+    count = int(0)
+    for e in range(nc):
+        f = bt.cand[sl, e]
+        i = fine.faces[f, 0]
+        j = fine.faces[f, 1]
+        k = fine.faces[f, 2]
+        drop = wp.where(i == v, True, wp.where(j == v, True, k == v))
+        fa = fine.points[i] - p
+        fb = fine.points[j] - p
+        fc = fine.points[k] - p
+        if lut.fine_area > 0.0:
+            drop = wp.where(drop, True, image_below(fa, fb, fc, n, lut.fine_area))
+        nb = push_triangle(fa, fb, fc, src, drop, nb, v, sl, frame, lut, mask, bt)
+        count += wp.where(drop, 0, 1)
+    return wp.vec2i(nb, count)
 
 
 @wp.func(inline=True)
@@ -711,6 +742,7 @@ def rasterize_group(
     r = groups.start[t]
     end = groups.start[t + 1]
     mid = groups.mid[t]
+    nc = int(0)
     while r < end:
         if r >= mid:
             # a run of extras of one primary blocker ``o``: all skipped when ``o`` is refined
@@ -724,12 +756,16 @@ def rasterize_group(
             if skip:
                 r = groups.run_end[r]
                 continue
-        q = queue_fine(groups.tris[r], src, v, sl, p, n, fine, groups.use_seen, groups.seen, frame, lut, mask, bt, nb)
+        nc = stage_fine(groups.tris[r], sl, p, n, fine, groups.use_seen, groups.seen, lut, bt, nc)
         r += 1
-        nb = q[0]
-        count += q[1]
-    refined[v] = refined[v] + count
-    return nb
+        if nc == CANDIDATES:
+            q = queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
+            nb = q[0]
+            count += q[1]
+            nc = 0
+    q = queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
+    refined[v] = refined[v] + count + q[1]
+    return q[0]
 
 
 @wp.func
@@ -782,6 +818,7 @@ def rasterize_mid_fine(
     r = sub.start[m]
     end = sub.start[m + 1]
     mid = sub.mid[m]
+    nc = int(0)
     while r < end:
         if r >= mid:
             o = sub.owner[r]
@@ -789,11 +826,15 @@ def rasterize_mid_fine(
                 if coarse_refined(mids.coarse[o], v, p, groups, source, near_mode, excl):
                     r = sub.run_end[r]
                     continue
-        q = queue_fine(sub.tris[r], src, v, sl, p, n, fine, sub.use_seen, sub.seen, frame, lut, mask, bt, nb)
+        nc = stage_fine(sub.tris[r], sl, p, n, fine, sub.use_seen, sub.seen, lut, bt, nc)
         r += 1
-        nb = q[0]
-        count += q[1]
-    return wp.vec2i(nb, count)
+        if nc == CANDIDATES:
+            q = queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
+            nb = q[0]
+            count += q[1]
+            nc = 0
+    q = queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
+    return wp.vec2i(q[0], count + q[1])
 
 
 @wp.func(inline=True)

@@ -23,7 +23,7 @@ from ...geometry.mesh import TriMesh, closed_orientation
 from ..base import TransferMethod
 from ..knobs import Knob
 from . import hierarchy, integrate, tables
-from .kernels import (Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement, follow_coarse_points, rasterize_masks,
+from .kernels import (CANDIDATES, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement, follow_coarse_points, rasterize_masks,
                       raise_deviation, refit_blocker_boxes, triangle_bounds, union_boxes,
                       union_child_boxes)
 
@@ -493,6 +493,7 @@ class HemirasterTransfer(TransferMethod):
         ns, nq = self._slots, BATCH
         self._batch.a, self._batch.b, self._batch.c = (wp.zeros((ns, nq), dtype=wp.vec3, device=d) for _ in range(3))
         self._batch.codes = wp.zeros((ns, nq), dtype=wp.vec3i, device=d)
+        self._batch.cand = wp.zeros((ns, CANDIDATES), dtype=wp.int32, device=d)
         self._batch.src = wp.zeros((ns, nq), dtype=wp.int32, device=d)
         self._batch.counts = self._counts
         self._all = wp.array(np.arange(nv, dtype=np.int32), dtype=wp.int32, device=d)
