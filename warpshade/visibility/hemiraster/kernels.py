@@ -199,25 +199,33 @@ def cube_cell(n: wp.vec3, res: int) -> int:
     (the negative face is indexed as the mirror of the positive one).
 
     Branch-free: the major axis changes from edge to edge, so branches would mispredict. The axis
-    is chosen as an integer and the components indexed with it (three selects, not nine selects
-    and sign flips). The cell of a
+    is chosen as an integer and the components picked with selects on it (:func:`cube_cell_xyz`,
+    no sign flips). The cell of a
     negative face is the mirror cell of ``-n`` on the positive face: ``u / major`` with the signed
     major component is ``(-u) / |major|`` exactly, so ``cell(-n)`` and ``cell(n)`` are exact
     mirrors (also when u or v is exactly 0) and the two triangles sharing an edge get
     complementary masks (no crack).
     """
-    ax = wp.abs(n[0])
-    ay = wp.abs(n[1])
-    az = wp.abs(n[2])
+    return cube_cell_xyz(n[0], n[1], n[2], res)
+
+
+@wp.func(inline=True)
+def cube_cell_xyz(x: float, y: float, z: float, res: int) -> int:
+    """:func:`cube_cell` of the normal (x, y, z), on scalars: the major component and the two others
+    are picked with selects, not by indexing the vector with the axis (which made the compiler spill
+    the vector to the stack and reload the components)."""
+    ax = wp.abs(x)
+    ay = wp.abs(y)
+    az = wp.abs(z)
     # ties go to the lower axis
     axis = wp.where(ax >= ay, wp.where(ax >= az, 0, 2), wp.where(ay >= az, 1, 2))
-    a1 = wp.where(axis == 2, 0, axis + 1)
-    a2 = wp.where(axis == 0, 2, axis - 1)
-    major = n[axis]
+    major = wp.where(axis == 0, x, wp.where(axis == 1, y, z))
+    nu = wp.where(axis == 0, y, wp.where(axis == 1, z, x))
+    nv = wp.where(axis == 0, z, wp.where(axis == 1, x, y))
     half = 0.5 * float(res)
     inv = half / major
-    iu = wp.clamp(int(n[a1] * inv + half), 0, res - 1)
-    iv = wp.clamp(int(n[a2] * inv + half), 0, res - 1)
+    iu = wp.clamp(int(nu * inv + half), 0, res - 1)
+    iv = wp.clamp(int(nv * inv + half), 0, res - 1)
     return 2 * ((axis * res + iu) * res + iv) + wp.where(major < 0.0, 1, 0)
 
 
@@ -360,7 +368,11 @@ def triangle_codes(a: wp.vec3, b: wp.vec3, c: wp.vec3, ft: wp.mat33, backface: f
         return wp.vec3i(-1, -1, -1)
     # orient the planes so the triangle's image is above all three (either winding blocks)
     orient = wp.where(det < 0.0, -1.0, 1.0)
-    return wp.vec3i(cube_cell(orient * nab, res), cube_cell(orient * nbc, res), cube_cell(orient * nca, res))
+    pab = orient * nab
+    pbc = orient * nbc
+    pca = orient * nca
+    return wp.vec3i(cube_cell_xyz(pab[0], pab[1], pab[2], res), cube_cell_xyz(pbc[0], pbc[1], pbc[2], res),
+                    cube_cell_xyz(pca[0], pca[1], pca[2], res))
 
 
 @wp.func(inline=True)
