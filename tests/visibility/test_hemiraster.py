@@ -473,7 +473,7 @@ def _image_bounds(tri: wp.array2d[wp.vec3], area: wp.array[float], below: wp.arr
     r = wp.max(wp.max(wp.length(a - cen), wp.length(b - cen)), wp.length(c - cen))
     plane = wp.vec4(nrm[0], nrm[1], nrm[2], wp.dot(nrm, a))
     sphere = wp.vec4(cen[0], cen[1], cen[2], r)
-    below[i, 1] = wp.where(hr_kernels.bounds_below(plane, sphere, wp.vec3(0.0, 0.0, 0.0), nz, area[i]), 1, 0)
+    below[i, 1] = wp.where(hr_kernels.bounds_below(plane, sphere, wp.length(nrm), wp.vec3(0.0, 0.0, 0.0), nz, area[i]), 1, 0)
 
 
 def test_tiny_image_bounds_never_cull_a_larger_image():

@@ -65,6 +65,8 @@ class FineMesh:
     """Per triangle (N, N·a) with N = (b-a)×(c-a) (:func:`triangle_bounds`), dtype vec4."""
     sphere: wp.array[wp.vec4]
     """Per triangle bounding sphere (centroid [m], radius [m]), dtype vec4."""
+    nlen: wp.array[float]
+    """Per triangle ``|N|`` of ``plane`` (:func:`triangle_bounds`; read by :func:`bounds_below`)."""
     fan_start: wp.array[wp.int32]
     """CSR offsets into ``fan_tris`` per receiver, shape (V+1,), dtype int32."""
     fan_tris: wp.array[wp.int32]
@@ -87,6 +89,8 @@ class Blockers:
     """Per blocker (N, N·a) (:func:`triangle_bounds`), dtype vec4."""
     sphere: wp.array[wp.vec4]
     """Per blocker bounding sphere (centroid [m], radius [m]), dtype vec4."""
+    nlen: wp.array[float]
+    """Per blocker ``|N|`` of ``plane`` (:func:`triangle_bounds`)."""
     source: wp.array[wp.int32]
     """Index of each blocker before the cluster reordering (exclusion and PVS bits), dtype int32."""
     skip_incident: int
@@ -303,11 +307,11 @@ def skip_early(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, nz: wp.vec3, backfac
 
 
 @wp.func(inline=True)
-def bounds_below(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, n: wp.vec3, min_area: float) -> bool:
+def bounds_below(plane: wp.vec4, sphere: wp.vec4, nlen: float, p: wp.vec3, n: wp.vec3, min_area: float) -> bool:
     """Cheap pre-test of :func:`image_below` from per-frame triangle data (no vertex gathers).
 
     ``plane`` = (N, N·a) with N = (b-a)×(c-a) (twice the area times the unit normal), ``sphere`` =
-    (centroid, radius). A triangle of area A whose plane is h from the receiver and whose points
+    (centroid, radius), ``nlen`` = ``|N|`` (stored per frame: one square root less per test). A triangle of area A whose plane is h from the receiver and whose points
     are at least d_min = |centroid - p| - radius away subtends Ω = ∫ h/|x|³ dA <= A h / d_min³
     = |N·p - N·a| / (2 d_min³); its largest cosine is at most (n·(centroid - p) + radius) / d_min.
     Branch-free, as :func:`skip_early`.
@@ -318,7 +322,7 @@ def bounds_below(plane: wp.vec4, sphere: wp.vec4, p: wp.vec3, n: wp.vec3, min_ar
     twice_ah = wp.abs(wp.dot(nrm, p) - plane[3])
     # only triangles seen at a grazing angle: h / d_min bounds the sine seen from any corner, so this
     # skips nothing that :func:`image_below` would keep
-    grazing = twice_ah < EDGE_ON_SINE * wp.length(nrm) * dmin
+    grazing = twice_ah < EDGE_ON_SINE * nlen * dmin
     cmax = wp.min(1.0, (wp.dot(n, q) + sphere[3]) / dmin)
     small = twice_ah * cmax < min_area * 2.0 * dmin * dmin * dmin
     return wp.where(dmin > 0.0, wp.where(grazing, small, False), False)
@@ -330,14 +334,16 @@ def triangle_bounds(
     faces: wp.array2d[wp.int32],
     plane: wp.array[wp.vec4],
     sphere: wp.array[wp.vec4],
+    nlen: wp.array[float],
 ):
-    """Per triangle: (N, N·a) with N = (b-a)×(c-a), and a bounding sphere (centroid, max corner distance)."""
+    """Per triangle: (N, N·a) with N = (b-a)×(c-a), ``|N|``, and a bounding sphere (centroid, max corner distance)."""
     t = wp.tid()
     a = points[faces[t, 0]]
     b = points[faces[t, 1]]
     c = points[faces[t, 2]]
     nrm = wp.cross(b - a, c - a)
     plane[t] = wp.vec4(nrm[0], nrm[1], nrm[2], wp.dot(nrm, a))
+    nlen[t] = wp.length(nrm)
     cen = (a + b + c) / 3.0
     r = wp.max(wp.max(wp.length(a - cen), wp.length(b - cen)), wp.length(c - cen))
     sphere[t] = wp.vec4(cen[0], cen[1], cen[2], r)
@@ -676,7 +682,7 @@ def stage_fine(
     fsp = fine.sphere[f]
     drop = skip_early(fpl, fsp, p, n, lut.backface, lut.rim)
     if lut.fine_area > 0.0:
-        drop = wp.where(drop, True, bounds_below(fpl, fsp, p, n, lut.fine_area))
+        drop = wp.where(drop, True, bounds_below(fpl, fsp, fine.nlen[f], p, n, lut.fine_area))
     if use_seen != 0:
         bit = wp.uint64(1) << wp.uint64(f & 63)
         word = seen[sl, f >> 6]
@@ -1006,7 +1012,7 @@ def rasterize_far_chunk(
         pln = blockers.plane[t]
         cull = cull | wp.where(skip_early(pln, sph, p, n, lut.backface, lut.rim), bit, zero)
         if lut.min_area > 0.0:  # the same for every blocker: predicted
-            tiny = tiny | wp.where(bounds_below(pln, sph, p, n, lut.min_area), bit, zero)
+            tiny = tiny | wp.where(bounds_below(pln, sph, blockers.nlen[t], p, n, lut.min_area), bit, zero)
     if near:
         # :func:`refine_here`
         for t in range(t0, t1):
