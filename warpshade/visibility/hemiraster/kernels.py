@@ -381,6 +381,72 @@ def triangle_codes(a: wp.vec3, b: wp.vec3, c: wp.vec3, ft: wp.mat33, backface: f
                     cube_cell_xyz(pca[0], pca[1], pca[2], res))
 
 
+_BATCH_CODES = r"""
+// corners of slot ``sl``'s queue: rows of contiguous vec3 (wp.zeros), codes rows of contiguous vec3i
+const float* __restrict__ pa = (const float*)((const char*)a.data + sl * a.strides[0]);
+const float* __restrict__ pb = (const float*)((const char*)b.data + sl * b.strides[0]);
+const float* __restrict__ pc = (const float*)((const char*)c.data + sl * c.strides[0]);
+int* __restrict__ out = (int*)((char*)codes.data + sl * codes.strides[0]);
+// rows of the transposed frame (:func:`triangle_codes`: ``transpose(frame) * a``)
+const float t00 = frame.data[0][0], t01 = frame.data[1][0], t02 = frame.data[2][0];
+const float t10 = frame.data[0][1], t11 = frame.data[1][1], t12 = frame.data[2][1];
+const float t20 = frame.data[0][2], t21 = frame.data[1][2], t22 = frame.data[2][2];
+const float half = 0.5f * (float)res;
+const int top = res - 1;
+int done = 0;
+#define WS_CELL(X, Y, Z, CODE) { \
+    const float x_ = (X), y_ = (Y), z_ = (Z); \
+    const float ax_ = fabsf(x_), ay_ = fabsf(y_), az_ = fabsf(z_); \
+    const int axis_ = ax_ >= ay_ ? (ax_ >= az_ ? 0 : 2) : (ay_ >= az_ ? 1 : 2); \
+    const float major_ = axis_ == 0 ? x_ : (axis_ == 1 ? y_ : z_); \
+    const float nu_ = axis_ == 0 ? y_ : (axis_ == 1 ? z_ : x_); \
+    const float nv_ = axis_ == 0 ? z_ : (axis_ == 1 ? x_ : y_); \
+    const float inv_ = half / major_; \
+    int iu_ = (int)(nu_ * inv_ + half); iu_ = iu_ < 0 ? 0 : iu_; iu_ = iu_ > top ? top : iu_; \
+    int iv_ = (int)(nv_ * inv_ + half); iv_ = iv_ < 0 ? 0 : iv_; iv_ = iv_ > top ? top : iv_; \
+    CODE = 2 * ((axis_ * res + iu_) * res + iv_) + (major_ < 0.0f ? 1 : 0); }
+for (int k = 0; k < nb; ++k) {
+    const float ax = pa[3 * k], ay = pa[3 * k + 1], az = pa[3 * k + 2];
+    const float bx = pb[3 * k], by = pb[3 * k + 1], bz = pb[3 * k + 2];
+    const float cx = pc[3 * k], cy = pc[3 * k + 1], cz = pc[3 * k + 2];
+    const float lax = t00 * ax + t01 * ay + t02 * az;
+    const float lay = t10 * ax + t11 * ay + t12 * az;
+    const float laz = t20 * ax + t21 * ay + t22 * az;
+    const float lbx = t00 * bx + t01 * by + t02 * bz;
+    const float lby = t10 * bx + t11 * by + t12 * bz;
+    const float lbz = t20 * bx + t21 * by + t22 * bz;
+    const float lcx = t00 * cx + t01 * cy + t02 * cz;
+    const float lcy = t10 * cx + t11 * cy + t12 * cz;
+    const float lcz = t20 * cx + t21 * cy + t22 * cz;
+    const float abx = lay * lbz - laz * lby, aby = laz * lbx - lax * lbz, abz = lax * lby - lay * lbx;
+    const float bcx = lby * lcz - lbz * lcy, bcy = lbz * lcx - lbx * lcz, bcz = lbx * lcy - lby * lcx;
+    const float cax = lcy * laz - lcz * lay, cay = lcz * lax - lcx * laz, caz = lcx * lay - lcy * lax;
+    const float det = lax * bcx + lay * bcy + laz * bcz;
+    const bool culled = det == 0.0f || det * backface > 0.0f;
+    const float o = det < 0.0f ? -1.0f : 1.0f;
+    int c0, c1, c2;
+    WS_CELL(abx * o, aby * o, abz * o, c0)
+    WS_CELL(bcx * o, bcy * o, bcz * o, c1)
+    WS_CELL(cax * o, cay * o, caz * o, c2)
+    out[3 * k] = culled ? -1 : c0;
+    out[3 * k + 1] = culled ? -1 : c1;
+    out[3 * k + 2] = culled ? -1 : c2;
+    done += culled ? 0 : 1;
+}
+#undef WS_CELL
+return done;
+"""
+
+
+@wp.func_native(_BATCH_CODES)
+def batch_codes(a: wp.array2d[wp.vec3], b: wp.array2d[wp.vec3], c: wp.array2d[wp.vec3], codes: wp.array2d[wp.vec3i],
+                sl: int, nb: int, frame: wp.mat33, backface: float, res: int) -> int:
+    """:func:`triangle_codes` of the ``nb`` queued triangles of slot ``sl`` into ``codes`` (the same
+    operations in the same order, so the same bits); returns how many are not culled. Native C++ in
+    one loop without calls or branches, which clang vectorizes (8 triangles per AVX2 instruction);
+    the rows of ``a``, ``b``, ``c`` and ``codes`` must be contiguous."""
+
+
 @wp.func(inline=True)
 def chunk_any(x: MaskChunk) -> bool:
     """Whether any bit of the chunk is set."""
@@ -400,12 +466,7 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
     (:class:`MaskChunk`), the valid-pixel AND is applied once, and the mask row is updated once per
     chunk (whole chunks, no branch; docs/benchmarks/history.md has what this replaced).
     """
-    ft = wp.transpose(frame)
-    done = int(0)
-    for k in range(nb):
-        codes = triangle_codes(bt.a[sl, k], bt.b[sl, k], bt.c[sl, k], ft, lut.backface, lut.res)
-        bt.codes[sl, k] = codes
-        done += wp.where(codes[0] >= 0, 1, 0)
+    done = batch_codes(bt.a, bt.b, bt.c, bt.codes, sl, nb, frame, lut.backface, lut.res)
     for ch in range(lut.chunks):
         acc = MaskChunk()
         if bt.record == 0:

@@ -494,6 +494,7 @@ class HemirasterTransfer(TransferMethod):
         # per slot queue of triangles rasterized in batches (kernels.Batch; rows private to their thread)
         self._batch = Batch()
         ns, nq = self._slots, BATCH
+        # contiguous rows: kernels.batch_codes reads them as flat float and int rows
         self._batch.a, self._batch.b, self._batch.c = (wp.zeros((ns, nq), dtype=wp.vec3, device=d) for _ in range(3))
         self._batch.codes = wp.zeros((ns, nq), dtype=wp.vec3i, device=d)
         self._batch.cand = wp.zeros((ns, CANDIDATES), dtype=wp.int32, device=d)
