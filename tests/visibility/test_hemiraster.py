@@ -473,7 +473,7 @@ def _image_bounds(tri: wp.array2d[wp.vec3], area: wp.array[float], below: wp.arr
     r = wp.max(wp.max(wp.length(a - cen), wp.length(b - cen)), wp.length(c - cen))
     plane = wp.vec4(nrm[0], nrm[1], nrm[2], wp.dot(nrm, a))
     sphere = wp.vec4(cen[0], cen[1], cen[2], r)
-    below[i, 1] = wp.where(hr_kernels.bounds_below(plane, sphere, wp.vec3(0.0, 0.0, 0.0), nz, area[i]), 1, 0)
+    below[i, 1] = wp.where(hr_kernels.bounds_below(plane, sphere, wp.length(nrm), wp.vec3(0.0, 0.0, 0.0), nz, area[i]), 1, 0)
 
 
 def test_tiny_image_bounds_never_cull_a_larger_image():
@@ -676,3 +676,41 @@ def test_compute_rows_with_interpolate_gives_the_rows_what_update_gives_them():
     sel, targets = (a.numpy() for a in part._interp_rows(rows))
     assert len(sel) + len(targets) < 0.6 * mesh.num_vertices  # not every receiver
     assert set(rows) <= set(sel) | set(targets)
+
+
+# ------------------------------------------------------------------------------ native batch codes
+@wp.kernel
+def _batch_codes_both(a: wp.array2d[wp.vec3], b: wp.array2d[wp.vec3], c: wp.array2d[wp.vec3], normals: wp.array[wp.vec3],
+                      backface: float, res: int, native: wp.array2d[wp.vec3i], ref: wp.array2d[wp.vec3i],
+                      done: wp.array2d[wp.int32]):
+    sl = wp.tid()
+    frame = hr_kernels.orthonormal_basis(normals[sl])
+    done[sl, 0] = hr_kernels.batch_codes(a, b, c, native, sl, a.shape[1], frame, backface, res)
+    count = int(0)
+    for k in range(a.shape[1]):
+        codes = hr_kernels.triangle_codes(a[sl, k], b[sl, k], c[sl, k], wp.transpose(frame), backface, res)
+        ref[sl, k] = codes
+        count += wp.where(codes[0] >= 0, 1, 0)
+    done[sl, 1] = count
+
+
+@pytest.mark.parametrize("backface", [0.0, 1.0, -1.0])
+def test_batch_codes_match_triangle_codes_bit_for_bit(backface):
+    """The native, vectorized LUT codes of a queue (kernels.batch_codes) are triangle_codes' to the bit,
+    culled and degenerate triangles included (a shared corner, corners on a line through the receiver)."""
+    rng = np.random.default_rng(3)
+    slots, nq = 16, 37  # a length that is not a multiple of the vector width
+    pts = rng.normal(size=(3, slots, nq, 3)).astype(np.float32)
+    pts[1, :, ::7] = pts[0, :, ::7]  # repeated corner: zero edge plane
+    pts[2, :, 3::9] = 2.5 * pts[0, :, 3::9]  # corner on the line through the receiver and a: det 0
+    normals = rng.normal(size=(slots, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    arrs = [wp.array(p, dtype=wp.vec3) for p in pts]
+    native, ref = (wp.zeros((slots, nq), dtype=wp.vec3i) for _ in range(2))
+    done = wp.zeros((slots, 2), dtype=wp.int32)
+    wp.launch(_batch_codes_both, dim=slots, inputs=[*arrs, wp.array(normals.astype(np.float32), dtype=wp.vec3), backface, 48],
+              outputs=[native, ref, done])
+    np.testing.assert_array_equal(native.numpy(), ref.numpy())
+    d = done.numpy()
+    np.testing.assert_array_equal(d[:, 0], d[:, 1])
+    assert (ref.numpy()[..., 0] < 0).any() and (ref.numpy()[..., 0] >= 0).any()

@@ -23,7 +23,7 @@ from ...geometry.mesh import TriMesh, closed_orientation
 from ..base import TransferMethod
 from ..knobs import Knob
 from . import hierarchy, integrate, tables
-from .kernels import (Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement, follow_coarse_points, rasterize_masks,
+from .kernels import (CANDIDATES, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement, follow_coarse_points, rasterize_masks,
                       raise_deviation, refit_blocker_boxes, triangle_bounds, union_boxes,
                       union_child_boxes)
 
@@ -386,6 +386,7 @@ class HemirasterTransfer(TransferMethod):
             self._mids.faces = wp.array(mfar["faces"][mperm].astype(np.int32), dtype=wp.int32, device=d)
             self._mids.plane = wp.zeros(nm, dtype=wp.vec4, device=d)
             self._mids.sphere = wp.zeros(nm, dtype=wp.vec4, device=d)
+            self._mid_nlen = wp.zeros(nm, dtype=float, device=d)
             self._mids.coarse = wp.array(new_coarse[mfar["coarse_owner"][mperm]].astype(np.int32), dtype=wp.int32, device=d)
             if self._near_mode == 2:
                 mstart, mitems = mid_ring
@@ -442,6 +443,7 @@ class HemirasterTransfer(TransferMethod):
         self._fine.points, self._fine.faces = self._spoints, self._sfaces
         self._fine.plane = wp.zeros(nsf, dtype=wp.vec4, device=d)
         self._fine.sphere = wp.zeros(nsf, dtype=wp.vec4, device=d)
+        self._fine.nlen = wp.zeros(nsf, dtype=float, device=d)
         # the receiver's own fan seen from just above it (kernels.rasterize_fan): on open surfaces;
         # on a closed one every direction under the fan leaves the solid through a back face
         self._fan_on = self.fan and not fine_closed
@@ -478,9 +480,10 @@ class HemirasterTransfer(TransferMethod):
             self._mids.ring_bits = wp.zeros((1, 1), dtype=wp.uint64, device=d)
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
+        self._bnlen = wp.zeros(self.num_blockers, dtype=float, device=d)
         self._blockers = Blockers()
         self._blockers.points, self._blockers.faces = self._bpoints, self._bfaces
-        self._blockers.plane, self._blockers.sphere = self._bplane, self._bsphere
+        self._blockers.plane, self._blockers.sphere, self._blockers.nlen = self._bplane, self._bsphere, self._bnlen
         self._blockers.source, self._blockers.skip_incident = self._bsource, 0 if self.hierarchy else 1
 
         # per-receiver results
@@ -491,8 +494,10 @@ class HemirasterTransfer(TransferMethod):
         # per slot queue of triangles rasterized in batches (kernels.Batch; rows private to their thread)
         self._batch = Batch()
         ns, nq = self._slots, BATCH
+        # contiguous rows: kernels.batch_codes reads them as flat float and int rows
         self._batch.a, self._batch.b, self._batch.c = (wp.zeros((ns, nq), dtype=wp.vec3, device=d) for _ in range(3))
         self._batch.codes = wp.zeros((ns, nq), dtype=wp.vec3i, device=d)
+        self._batch.cand = wp.zeros((ns, CANDIDATES), dtype=wp.int32, device=d)
         self._batch.src = wp.zeros((ns, nq), dtype=wp.int32, device=d)
         self._batch.counts = self._counts
         self._all = wp.array(np.arange(nv, dtype=np.int32), dtype=wp.int32, device=d)
@@ -613,13 +618,13 @@ class HemirasterTransfer(TransferMethod):
         # planes and bounding spheres pre-cull triangles below the horizon or back-facing, and bound
         # image sizes, before any vertex is gathered
         wp.launch(triangle_bounds, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
-                  outputs=[self._bplane, self._bsphere], device=d)
+                  outputs=[self._bplane, self._bsphere, self._bnlen], device=d)
         if self.hierarchy:
             wp.launch(triangle_bounds, dim=self._sfaces.shape[0], inputs=[self._spoints, self._sfaces],
-                      outputs=[self._fine.plane, self._fine.sphere], device=d)
+                      outputs=[self._fine.plane, self._fine.sphere, self._fine.nlen], device=d)
         if self._use_mid:
             wp.launch(triangle_bounds, dim=self.num_mid, inputs=[self._mids.points, self._mids.faces],
-                      outputs=[self._mids.plane, self._mids.sphere], device=d)
+                      outputs=[self._mids.plane, self._mids.sphere, self._mid_nlen], device=d)
         self._batch.record = record
         self._batch.hits = self._hits
         if rows is not None:  # these receivers only (compute_rows)
@@ -761,7 +766,7 @@ class HemirasterTransfer(TransferMethod):
                           self._fit_start, self._fit_mid, self._fit_tris, self._bind_offset_abs],
                   outputs=[*self._blocker_box, self._blocker_dev], device=self.device)
         wp.launch(triangle_bounds, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
-                  outputs=[self._bplane, self._bsphere], device=self.device)
+                  outputs=[self._bplane, self._bsphere, self._bnlen], device=self.device)
         radius = float(self._bsphere.numpy()[:, 3].mean())
         return float(self._blocker_dev.numpy().mean()) / radius if radius > 0.0 else 0.0
 
