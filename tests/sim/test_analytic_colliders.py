@@ -353,13 +353,17 @@ def test_small_cloth_lands_on_the_humanoids_guide_capsules():
     sim = ClothSimulation(scene)
     assert sim.solver.colliders.shape_count == 19 and not sim.solver.colliders.meshes
     caps = [o.params["capsule"] for o in scene.collision_only if o.params["collider"] == "capsule"]
+    balls = [o.params["sphere"] for o in scene.collision_only if o.params["collider"] == "sphere"]
     th = sim.model.thickness
     touching = []
     for f in range(1, 61):
         x = sim.advance(f, {})["/Cloth"].astype(np.float64)
-        sd = np.min([sd_capsule(x, c["p0"], c["p1"], c["radius"]) for c in caps], axis=0)
-        assert sd.min() >= th - 1e-5, f"frame {f}: a vertex {th - sd.min():.2e} m deep in a capsule"
+        sd = np.min([sd_capsule(x, c["p0"], c["p1"], c["radius"]) for c in caps]
+                    + [np.linalg.norm(x - b["center"], axis=1) - b["radius"] for b in balls], axis=0)
+        assert sd.min() >= th - 1e-5, f"frame {f}: a vertex {th - sd.min():.2e} m deep in a capsule or sphere"
         touching.append(int((sd < th + 2e-3).sum()))
-    # it settles on the shoulders (measured: 1..5 vertices within 2 mm of a capsule each frame)
-    assert min(touching[-20:]) >= 1, touching
+    # it settles on the head and the shoulders (measured: 60..63 vertices within 2 mm of a
+    # capsule or sphere in each of the last 20 frames; the shoulder capsules alone are touched on
+    # and off, as the cloth, which hardly stretches, hangs from the head just above them)
+    assert min(touching[-20:]) >= 20, touching
     assert x[:, 2].mean() > 0.1, x[:, 2].mean()  # resting on the head (its top at z = 0.28)

@@ -81,12 +81,12 @@ def test_a_centimetre_stage_drapes_as_the_same_scene_in_metres(metres, centimetr
     # The solver runs in metres either way; the centimetre input differs only by float32 rounding
     # (points x100, then x0.01: <= 1 ulp). This drape is sensitive to that, most where the cloth
     # slides off the box's edge: 8 runs of the metre scene with every cloth coordinate moved by
-    # -1, 0 or +1 ulp at random differed from it by 0.3-8.7 mm RMS (max over vertices 1.8-36 mm)
-    # after 30 frames; the centimetre stage differs by 9.0 mm RMS (38 mm max). Bounds: 2x the
-    # largest jitter figures. Taking the SI numbers as centimetres (the behaviour before stage
-    # units were applied) was 62 mm RMS off.
+    # -1, 0 or +1 ulp at random (seed 0) differed from it by 0.9-21.8 mm RMS (max over vertices
+    # 6.1-64.5 mm) after 30 frames; the centimetre stage differs by 21.1 mm RMS (61.3 mm max).
+    # Bounds: 1.25x the largest jitter figures. Taking the SI numbers as centimetres (the
+    # behaviour before stage units were applied) was 62 mm RMS off.
     d = np.linalg.norm(xc * 0.01 - xm, axis=1)
-    assert np.sqrt(np.mean(d ** 2)) < 18e-3 and d.max() < 0.075, (np.sqrt(np.mean(d ** 2)), d.max())
+    assert np.sqrt(np.mean(d ** 2)) < 27e-3 and d.max() < 0.081, (np.sqrt(np.mean(d ** 2)), d.max())
     assert not [w for w in warned_m + warned_c if "metersPerUnit" in w]
 
 

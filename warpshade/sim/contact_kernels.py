@@ -268,25 +268,8 @@ def revert_marked(
 
 
 @wp.kernel
-def drop_released(streak: wp.array[int], max_streak: int, mark: wp.array[int], held: wp.array[int],
-                  released: wp.array[int]):
-    """Unmark the vertices sent back in each of the last ``max_streak`` steps (released: an
-    intersection reverting has not resolved in that many steps would otherwise hold them in place
-    for ever, a cloth hung in the air); ``held[0]`` counts the vertices left marked, ``released[0]``
-    those unmarked."""
-    i = wp.tid()
-    if mark[i] != 0:
-        if streak[i] < max_streak:
-            wp.atomic_add(held, 0, 1)
-        else:
-            mark[i] = 0
-            wp.atomic_add(released, 0, 1)
-
-
-@wp.kernel
 def update_streaks(reverted: wp.array[int], streak: wp.array[int]):
-    """Consecutive steps in which each vertex was sent back (0 after a step it was not; a released
-    vertex starts again from 0)."""
+    """Consecutive steps in which each vertex was sent back (0 after a step it was not)."""
     i = wp.tid()
     if reverted[i] != 0:
         streak[i] = streak[i] + 1

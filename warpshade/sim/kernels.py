@@ -465,6 +465,46 @@ def solve_tethers(
                 x[i] = x[i] - d * ((length - lmax) / length)
 
 
+@wp.kernel
+def flag_moved(before: wp.array[wp.vec3], x: wp.array[wp.vec3], flag: wp.array[int]):
+    """flag[i] = 1 where the contact projections moved vertex i (x differs from ``before``), else 0."""
+    i = wp.tid()
+    d = x[i] - before[i]
+    flag[i] = wp.where(wp.dot(d, d) > 0.0, 1, 0)
+
+
+@wp.kernel
+def solve_limits(
+    pairs: wp.array2d[int],
+    max_length: wp.array[float],
+    inv_mass: wp.array[float],
+    max_move: float,
+    contacts: wp.array[int],
+    touched: wp.array[int],
+    offset: int,
+    x: wp.array[wp.vec3],
+):
+    """Stretch limits |xi - xj| <= L between distant vertices
+    (:func:`~warpshade.sim.model.stretch_limits`), projected with inverse-mass weights; a limit
+    never pushes apart, moves neither vertex by more than ``max_move``, and is skipped while
+    ``contacts`` or ``touched`` is non-zero at either vertex."""
+    p = wp.tid() + offset
+    i = pairs[p, 0]
+    j = pairs[p, 1]
+    wi = inv_mass[i]
+    wj = inv_mass[j]
+    wsum = wi + wj
+    d = x[i] - x[j]
+    length = wp.length(d)
+    lmax = max_length[p]
+    if wsum == 0.0 or length <= lmax or contacts[i] + contacts[j] + touched[i] + touched[j] > 0:
+        return
+    step = wp.min((length - lmax) / wsum, max_move / wp.max(wi, wj))
+    corr = d * (step / length)
+    x[i] = x[i] - corr * wi
+    x[j] = x[j] + corr * wj
+
+
 # ---------------------------------------------------------------------------------------------
 # Aerodynamics
 # ---------------------------------------------------------------------------------------------

@@ -158,7 +158,6 @@ def tether_anchors(points: np.ndarray, edges: np.ndarray, kinematic: np.ndarray,
     Returns:
         (anchor (V, T) int32, -1 for none; length (V, T) float32 [m]), T = min(count, #anchors).
     """
-    from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
     from scipy.spatial import cKDTree
 
@@ -183,15 +182,178 @@ def tether_anchors(points: np.ndarray, edges: np.ndarray, kinematic: np.ndarray,
         anchor[free, :kk] = kin[near.reshape(len(free), kk)]
         length[free, :kk] = dist.reshape(len(free), kk)
     if curved.any():
-        w = np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)
-        g = coo_matrix((np.concatenate([w, w]), (np.concatenate([edges[:, 0], edges[:, 1]]),
-                                                 np.concatenate([edges[:, 1], edges[:, 0]]))), shape=(v, v)).tocsr()
-        dist, _, src = dijkstra(g, directed=False, indices=np.flatnonzero(kinematic), min_only=True,
+        dist, _, src = dijkstra(_edge_graph(points, edges), directed=False, indices=np.flatnonzero(kinematic), min_only=True,
                                 return_predecessors=True)
         ok = np.flatnonzero(curved & np.isfinite(dist))
         anchor[ok, 0] = src[ok]
         length[ok, 0] = dist[ok]
     return anchor, length
+
+
+def _edge_graph(points: np.ndarray, edges: np.ndarray):
+    """The mesh's edges as a symmetric sparse graph weighted by rest length (for scipy's dijkstra)."""
+    from scipy.sparse import coo_matrix
+
+    v = len(points)
+    w = np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)
+    return coo_matrix((np.concatenate([w, w]), (np.concatenate([edges[:, 0], edges[:, 1]]),
+                                             np.concatenate([edges[:, 1], edges[:, 0]]))), shape=(v, v)).tocsr()
+
+
+def stretch_limits(points: np.ndarray, edges: np.ndarray, piece: np.ndarray, convex_flat: np.ndarray,
+                   radius: float = 2.0, max_path: float = 1.5):
+    """Multi-scale stretch limits: pairs of vertices about 2, 4, 8, ... edges apart and an upper
+    bound of their rest geodesic distance, coarsest scale first.
+
+    Level l keeps a subset of the vertices no two of which are closer than ``2**l`` median edge
+    lengths (greedy, in index order; each level a subset of the one below) and pairs each kept
+    vertex with the kept vertices of its piece within ``radius`` times that spacing. The bound is
+    exact on a flat, convex piece (the Euclidean rest distance) and the shortest edge path
+    elsewhere (never smaller than the geodesic distance); pairs whose edge path is longer than
+    ``max_path`` times their Euclidean distance (across a fold or a gap of the rest shape) are
+    left out, as loose bounds that would never act. A limit ``|xi - xj| <= L`` holds in every
+    unstretched pose, so it acts on stretch only. It carries in one projection the load that
+    sweeps over single edges pass on one edge per sweep: a hanging span of N edges keeps a
+    stretch of about N g h^2 per substep of length h without it (the coarse levels of Müller
+    2008, hierarchical position based dynamics, act the same way). It moves only the pair's two
+    vertices, along the straight line between them.
+
+    Args:
+        points: Rest positions, shape (V, 3).
+        edges: Mesh edges, shape (E, 2).
+        piece: Piece index of each vertex, shape (V,), int.
+        convex_flat: Per piece, whether it is flat and convex, shape (P,), bool.
+        radius: Neighbourhood of a kept vertex, in units of its level's spacing.
+        max_path: Longest edge path kept, relative to the Euclidean distance.
+
+    Returns:
+        (pairs (L, 2) int32, length (L,) float32 [m], levels: (offset, count) of each level's
+        pairs, coarsest first).
+    """
+    from scipy.sparse.csgraph import dijkstra
+    from scipy.spatial import cKDTree
+
+    empty = (np.zeros((0, 2), np.int32), np.zeros(0, np.float32), [])
+    if len(edges) == 0:
+        return empty
+    h0 = float(np.median(np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)))
+    if not h0 > 0:
+        return empty
+    graph = None
+    kept = np.arange(len(points))
+    levels = []
+    lvl = 1
+    while len(kept) > 1:
+        r = h0 * 2.0 ** lvl
+        near = cKDTree(points[kept]).query_ball_point(points[kept], 0.999 * r)
+        taken = np.zeros(len(kept), dtype=bool)
+        blocked = np.zeros(len(kept), dtype=bool)
+        for a in range(len(kept)):
+            if not blocked[a]:
+                taken[a] = True
+                blocked[near[a]] = True
+        kept = kept[taken]
+        if len(kept) < 2:
+            break
+        pairs = cKDTree(points[kept]).query_pairs(radius * r, output_type="ndarray")
+        pairs = kept[pairs] if len(pairs) else np.zeros((0, 2), np.int64)
+        pairs = pairs[piece[pairs[:, 0]] == piece[pairs[:, 1]]]
+        euclid = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
+        length = euclid.copy()
+        curved = ~convex_flat[piece[pairs[:, 0]]]
+        if curved.any():
+            if graph is None:
+                graph = _edge_graph(points, edges)
+            cp = pairs[curved]
+            src, inv = np.unique(cp[:, 0], return_inverse=True)
+            path = np.empty(len(cp))
+            chunk = max(1, 2 ** 24 // len(points))  # rows of the dense distance matrix per call
+            for c0 in range(0, len(src), chunk):
+                dist = dijkstra(graph, directed=False, indices=src[c0:c0 + chunk], limit=max_path * radius * r * 1.001)
+                sel = (inv >= c0) & (inv < c0 + chunk)
+                path[sel] = dist[inv[sel] - c0, cp[sel, 1]]
+            length[curved] = path
+        ok = np.isfinite(length) & (length <= max_path * euclid)
+        if ok.any():
+            levels.append((pairs[ok], length[ok]))
+        lvl += 1
+    levels = levels[::-1]  # coarsest first: a sweep carries the load down the scales
+    if not levels:
+        return empty
+    pairs = np.concatenate([p for p, _ in levels]).astype(np.int32)
+    length = np.concatenate([w for _, w in levels]).astype(np.float32)
+    offsets = np.cumsum([0] + [len(p) for p, _ in levels])
+    return pairs, length, [(int(o), int(len(p))) for o, (p, _) in zip(offsets, levels)]
+
+
+def stretch_paths(points: np.ndarray, edges: np.ndarray, radius: float = 2.0):
+    """Multi-scale stretch limits: shortest edge paths between vertices about 2, 4, 8, ... edges
+    apart, each bounded by its rest length; coarsest scale first.
+
+    Level l keeps a subset of the vertices no two of which are closer than ``2**l`` median edge
+    lengths (greedy, in index order; each level a subset of the one below) and joins each kept
+    vertex to the kept vertices within ``radius`` times that spacing by a shortest path of edges
+    at rest.
+
+    Returns:
+        (offsets (P + 1,) int32, vertices (offsets[-1],) int32: the vertices of path p are
+        ``vertices[offsets[p]:offsets[p + 1]]`` in order; rest (P,) float32: their rest lengths [m];
+        levels: (first path, count) of each level, coarsest first).
+    """
+    from scipy.sparse.csgraph import dijkstra
+    from scipy.spatial import cKDTree
+
+    empty = (np.zeros(1, np.int32), np.zeros(0, np.int32), np.zeros(0, np.float32), [])
+    if len(edges) == 0:
+        return empty
+    h0 = float(np.median(np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)))
+    if not h0 > 0:
+        return empty
+    graph = _edge_graph(points, edges)
+    kept = np.arange(len(points))
+    levels = []
+    lvl = 1
+    while len(kept) > 1:
+        r = h0 * 2.0 ** lvl
+        near = cKDTree(points[kept]).query_ball_point(points[kept], 0.999 * r)
+        taken = np.zeros(len(kept), dtype=bool)
+        blocked = np.zeros(len(kept), dtype=bool)
+        for a in range(len(kept)):
+            if not blocked[a]:
+                taken[a] = True
+                blocked[near[a]] = True
+        kept = kept[taken]
+        if len(kept) < 2:
+            break
+        pairs = cKDTree(points[kept]).query_pairs(radius * r, output_type="ndarray")
+        paths, rest = [], []
+        if len(pairs):
+            pairs = kept[pairs]
+            src, inv = np.unique(pairs[:, 0], return_inverse=True)
+            chunk = max(1, 2 ** 24 // len(points))
+            for c0 in range(0, len(src), chunk):
+                dist, pred = dijkstra(graph, directed=False, indices=src[c0:c0 + chunk], return_predecessors=True,
+                                      limit=1.5 * radius * r)
+                for q in np.flatnonzero((inv >= c0) & (inv < c0 + chunk)):
+                    row, j = inv[q] - c0, pairs[q, 1]
+                    if not np.isfinite(dist[row, j]):
+                        continue
+                    path = [j]
+                    while path[-1] != pairs[q, 0]:
+                        path.append(pred[row, path[-1]])
+                    paths.append(path[::-1])
+                    rest.append(dist[row, j])
+        levels.append((paths, rest))
+        lvl += 1
+    levels = [lv for lv in levels[::-1] if lv[0]]
+    if not levels:
+        return empty
+    paths = [p for ps, _ in levels for p in ps]
+    offsets = np.concatenate([[0], np.cumsum([len(p) for p in paths])]).astype(np.int32)
+    vertices = np.concatenate(paths).astype(np.int32)
+    rest = np.concatenate([w for _, w in levels]).astype(np.float32)
+    firsts = np.cumsum([0] + [len(ps) for ps, _ in levels])
+    return offsets, vertices, rest, [(int(f), len(ps)) for f, (ps, _) in zip(firsts, levels)]
 
 
 def convex_and_flat(points: np.ndarray, faces: np.ndarray) -> bool:
@@ -419,6 +581,10 @@ class ClothModel:
         hinge_colors: (offset, count) of each colour's hinges.
         tether_anchor: Nearest kinematic vertices per vertex, shape (V, T), dtype int32 (-1: none).
         tether_length: Upper bound of the rest geodesic distance to them [m], shape (V, T), dtype float32.
+        limit_pairs: Multi-scale stretch limits (:func:`stretch_limits`), coarsest level first and
+            each level sorted by colour, shape (L, 2), dtype int32.
+        limit_length: Their upper bounds of the rest geodesic distance [m], shape (L,), dtype float32.
+        limit_colors: (offset, count) of each level's colours, in sweep order.
         hinge_edge: Index into ``edges`` of every hinge's shared edge, shape (H,), dtype int32.
         edge_border: 1 for edges on the cloth's border (one triangle), shape (E,), dtype int32.
         ring_offsets, ring: One-ring adjacency (CSR): the edge neighbours of vertex i are
@@ -473,7 +639,15 @@ class ClothModel:
             convex_flat[pi] = convex_and_flat(pc.points, pc.faces)
             start += len(pc.points)
         anchor, tlen = tether_anchors(points, edges, kinematic, piece, convex_flat)
-
+        lpairs, llen, llevels = stretch_limits(points, edges, piece, convex_flat)
+        # each level coloured on its own, so that a sweep still runs the levels coarsest first
+        lorder, self.limit_colors = [], []
+        for off, cnt in llevels:
+            o, cols = color_constraints(lpairs[off:off + cnt], v)
+            self.limit_colors += [(off + co, cc) for co, cc in cols]
+            lorder.append(off + o)
+        lorder = np.concatenate(lorder) if lorder else np.zeros(0, np.int64)
+        self.limit_pairs_np, limit_length = lpairs[lorder], llen[lorder]
         d = self.device
         self.rest_points = wp.array(self.rest_points_np, dtype=wp.vec3, device=d)
         self.tris = wp.array(self.faces, dtype=wp.int32, device=d)
@@ -491,6 +665,8 @@ class ClothModel:
         self.ring = wp.array(both[:, 1].astype(np.int32), dtype=wp.int32, device=d)
         self.tether_anchor = wp.array(anchor, dtype=wp.int32, device=d)
         self.tether_length = wp.array(tlen, dtype=wp.float32, device=d)
+        self.limit_pairs = wp.array(self.limit_pairs_np.reshape(-1, 2), dtype=wp.int32, device=d)
+        self.limit_length = wp.array(limit_length, dtype=wp.float32, device=d)
         self.attachment_indices = wp.array(attached.astype(np.int32), dtype=wp.int32, device=d)
         self.attachment_count = len(attached)
         self.hinge_edge = wp.array(hinge_edge.astype(np.int32), dtype=wp.int32, device=d)

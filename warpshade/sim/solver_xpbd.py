@@ -4,13 +4,15 @@
 One :meth:`XPBDSolver.step` advances ``dt`` seconds in ``substeps`` substeps of ``iterations``
 constraint sweeps each (small steps, Macklin et al. 2019: substeps buy more accuracy per cost than
 iterations). Per substep: aerodynamic forces, symplectic-Euler prediction, attachments driven to
-their interpolated targets, then per iteration: coloured stretch and bending sweeps, long-range
-tethers, self-contacts, colliders (last, so collider contacts hold at the end of every substep);
+their interpolated targets, then per iteration: multi-scale stretch limits, coloured stretch and
+bending sweeps, long-range tethers, self-contacts, colliders (last, so collider contacts hold at
+the end of every substep);
 finally velocities from positions. Self-contact candidates are found every ``contact_interval``
 substeps with a swept-box BVH query. After the last substep the intersection guard
 (``guard=True``) counts intersecting triangle pairs exactly and sends the vertices of offending
 triangles back to their start-of-step positions, growing the region until none is left, so
-every step ends free of intersections when it started free of them (see
+every step ends free of intersections when it started free of them; a vertex the contacts keep
+pushing into an intersection is held where it was until a step frees it (see
 :mod:`warpshade.sim.contact_kernels`).
 """
 
@@ -58,6 +60,15 @@ class XPBDSolver:
             them (XPBD iterations restricted to the stiffest constraints).
         relaxation: Over-relaxation of the stretch sweeps (0 < relaxation < 2; 1 = plain Gauss-Seidel).
         tethers: Long-range attachments to the nearest kinematic vertex (Kim et al. 2012).
+        stretch_limits: The model's multi-scale stretch limits (``model.limit_pairs``), swept
+            coarsest first before the edges in every iteration: they take out the stretch that one
+            sweep per substep leaves along long free spans (cloth hanging from pins or over a
+            collider's rim). A limit is skipped while either vertex is in contact (it has
+            self-contact candidates, or the contact projections moved it in the last substep):
+            a straight-line correction there fights the contacts (it would pull cloth through a
+            layer or into a collider). Each moves a vertex by at most the thickness per sweep.
+            They allow no stretch: switch them off for a cloth meant to stretch under its own
+            weight.
         check_finite: Stop with :class:`SimulationError` when the state turns non-finite.
 
     Raises:
@@ -70,7 +81,7 @@ class XPBDSolver:
                  contact_interval: int | None = None, max_contacts: int = 128,
                  tethers: bool = True, check_finite: bool = True, relaxation: float = 1.0,
                  contact_iterations: int = 2, stretch_sweeps: int = 1, edge_contact: bool = True,
-                 guard: bool = True, self_friction: float = 0.3):
+                 guard: bool = True, self_friction: float = 0.3, stretch_limits: bool = True):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -106,6 +117,15 @@ class XPBDSolver:
             raise ValueError(f"stretch_sweeps must be an integer >= 1, got {stretch_sweeps}")
         self.stretch_sweeps = int(stretch_sweeps)
         self.tethers = bool(tethers) and bool((model.tether_anchor.numpy() >= 0).any())
+        self.stretch_limits = bool(stretch_limits) and len(model.limit_pairs_np) > 0
+        if self.stretch_limits:
+            # a limit moves a vertex by at most the contact thickness per sweep (a quarter of the
+            # median edge without thickness), so a correction never jumps a vertex through a layer
+            rest = model.edge_rest_length.numpy()
+            self._limit_move = model.thickness if model.thickness > 0 else 0.25 * float(np.median(rest))
+            # vertices the contact projections moved in the last substep (limits skip them)
+            self._touched = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
+            self._x_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
         self.check_finite = bool(check_finite)
         self.relaxation = check_param("relaxation", relaxation, 0.0, False)
         if self.relaxation >= 2.0:
@@ -114,7 +134,8 @@ class XPBDSolver:
         self.contact_overflow = 0
         self.guard_steps = 0
         self.guard_unresolved = 0
-        self.guard_released = 0
+        self.guard_longest_hold = 0
+        self._holding = False
         self.guard_vertices = 0
 
         v, f, d = model.particle_count, model.tri_count, self.device
@@ -157,8 +178,6 @@ class XPBDSolver:
             self._mark2 = wp.zeros(v, dtype=wp.int32, device=d)
             self._reverted = wp.zeros(v, dtype=wp.int32, device=d)
             self._streak = wp.zeros(v, dtype=wp.int32, device=d)
-            self._held = wp.zeros(1, dtype=wp.int32, device=d)
-            self._released = wp.zeros(1, dtype=wp.int32, device=d)
             self._x_unguarded = wp.zeros(v, dtype=wp.vec3, device=d)
 
     # ------------------------------------------------------------------------------------------
@@ -224,6 +243,8 @@ class XPBDSolver:
             for _ in range(self.iterations):
                 for c in cmds["constraints"]:
                     c.launch()
+                if self.stretch_limits:
+                    wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
                 # more than one Jacobi pass to stop a fast layer within one substep
                 for _c in range(self.contact_iterations):
@@ -240,6 +261,8 @@ class XPBDSolver:
                 for _c in range(self.SHARP_PASSES):
                     self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris, self._x_prev)
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+            if self.stretch_limits:
+                wp.launch(k.flag_moved, dim=m.particle_count, inputs=[self._x_before, x], outputs=[self._touched], device=d)
             for c in cmds["velocities"]:
                 c.launch()
 
@@ -284,6 +307,13 @@ class XPBDSolver:
                                     outputs=[self._x_prev, x, v], device=d, record_cmd=True)
         edge_batches, hinge_batches = self._batches(m.edge_colors), self._batches(m.hinge_colors)
         cons = []
+        if self.stretch_limits:
+            cons.extend(wp.launch(k.solve_limits, dim=cnt, inputs=[m.limit_pairs, m.limit_length, m.inv_mass,
+                                                                   self._limit_move,
+                                                                   self._contact_count if self.self_collision
+                                                                   else self._touched, self._touched, off],
+                                  outputs=[x], device=d, record_cmd=True)
+                        for off, cnt in self._batches(m.limit_colors))
         stretch = [wp.launch(k.solve_stretch, dim=cnt,
                              inputs=[m.edges, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
                                      self.relaxation], outputs=[self._edge_lambda, x], device=d, record_cmd=True)
@@ -425,14 +455,6 @@ class XPBDSolver:
     GUARD_ROUNDS = 6
     """Rounds of the intersection guard that grow the reverted region by one ring each; the round
     after them reverts every free vertex."""
-    GUARD_STREAK = 30
-    """A vertex sent back in this many consecutive steps (half a second at 60 steps/s) is released
-    (no longer sent back) until a step where it is not: the guard is a safety net on top of the
-    contacts, and an intersection the contacts keep re-making would otherwise hang the cloth in
-    the air for ever. A short hold lets intersections through that the contacts pull apart given
-    time (folds settling on the floor). Released vertices are counted in
-    ``stats()["guard_released"]``."""
-
     def _guard_intersections(self, x, v, dt: float) -> None:
         """Send the vertices of intersecting triangles back to their start-of-step positions
         (colliders then push them out again), growing the region a ring per round, all free
@@ -454,14 +476,6 @@ class XPBDSolver:
             found = c.self_pairs(x, self._mark, self._x_start)[0] - c.inherited
             if col is not None:
                 found += c.collider_pairs(x, col, self._mark)[0]
-            if found:
-                self._held.zero_()
-                self._released.zero_()
-                wp.launch(ck.drop_released, dim=n, inputs=[self._streak, self.GUARD_STREAK],
-                          outputs=[self._mark, self._held, self._released], device=d)
-                found = int(self._held.numpy()[0])
-                if r == 0:
-                    self.guard_released += int(self._released.numpy()[0])
             if found == 0:
                 break
             if r == 0:
@@ -481,8 +495,6 @@ class XPBDSolver:
                 break
             if r == self.GUARD_ROUNDS:
                 self._mark.fill_(1)
-                wp.launch(ck.drop_released, dim=n, inputs=[self._streak, self.GUARD_STREAK],
-                          outputs=[self._mark, self._held, self._released], device=d)
             for _ in range(r):
                 wp.copy(self._mark2, self._mark)
                 wp.launch(ck.grow_mark, dim=m.edge_count, inputs=[m.edges, self._mark], outputs=[self._mark2], device=d)
@@ -495,7 +507,11 @@ class XPBDSolver:
             wp.launch(ck.reverted_velocities, dim=n, inputs=[self._reverted, self._x_start, x, dt], outputs=[v],
                       device=d)
             self.guard_vertices = int(self._reverted.numpy().sum())
-        wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
+            wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
+            self.guard_longest_hold = max(self.guard_longest_hold, int(self._streak.numpy().max()))
+        elif self._holding:
+            self._streak.zero_()
+        self._holding = self.guard_vertices > 0
 
     PUSH_OFF_PASSES = 4
     """Extra sharp-edge and vertex passes the guard tries on a step whose intersections a moving
@@ -546,7 +562,7 @@ class XPBDSolver:
         if self.guard:
             out["guard_steps"] = self.guard_steps
             out["guard_unresolved"] = self.guard_unresolved
-            out["guard_released"] = self.guard_released
+            out["guard_longest_hold"] = self.guard_longest_hold
         return out
 
     def knobs(self) -> dict:
@@ -558,6 +574,6 @@ class XPBDSolver:
                 "guard": self.guard, "self_friction": self.self_friction,
                 "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
                 "stretch_sweeps": self.stretch_sweeps,
-                "relaxation": self.relaxation, "tethers": self.tethers, "check_finite": self.check_finite,
+                "relaxation": self.relaxation, "tethers": self.tethers, "stretch_limits": self.stretch_limits, "check_finite": self.check_finite,
                 "thickness": self.model.thickness, "damping": self.model.damping,
                 "bend_damping": self.model.bend_damping}

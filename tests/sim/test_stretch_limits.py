@@ -1,0 +1,144 @@
+"""Multi-scale stretch limits (``warpshade.sim.model.stretch_limits``, ``XPBDSolver(stretch_limits=...)``):
+valid bounds (no unstretched pose violates one), the projection's rules, and the sag they take out."""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from warpshade.sim import ClothBuilder, ColliderSet, XPBDSolver
+from warpshade.sim import kernels as k
+from warpshade.sim.model import stretch_limits
+
+DT = 1.0 / 60.0
+
+
+def _grid(n=13, size=0.6):
+    b = ClothBuilder()
+    b.add_grid(n, n, size, size)
+    return b
+
+
+def _roll(points, radius):
+    """The flat sheet (y = 0) rolled around an axis along z: an isometry of the plane."""
+    x = points[:, 0] - points[:, 0].min()
+    return np.stack([radius * np.sin(x / radius), radius * (1.0 - np.cos(x / radius)), points[:, 2]], axis=1)
+
+
+def _fold(points, column, angle, n=13):
+    """Vertices past grid column `column` (index % n) turned by `angle` about the line through that
+    column's vertices (a straight line along z in these sheets): an exact isometry of the mesh."""
+    col = np.arange(len(points)) % n
+    line = points[col == column]
+    o, d = line[0], line[-1] - line[0]
+    d = d / np.linalg.norm(d)
+    r = points - o
+    par = (r @ d)[:, None] * d
+    perp = r - par
+    turned = perp * np.cos(angle) + np.cross(d, perp) * np.sin(angle) + par + o
+    return np.where((col > column)[:, None], turned, points)
+
+
+def _excess(model, x):
+    """|xi - xj| / L - 1 of every limit."""
+    p = model.limit_pairs_np
+    return np.linalg.norm(x[p[:, 0]] - x[p[:, 1]], axis=1) / model.limit_length.numpy() - 1.0
+
+
+def test_no_unstretched_pose_violates_a_limit_and_a_stretched_one_does():
+    flat = _grid().finalize()
+    rest = flat.rest_points_np.astype(np.float64)
+    assert len(flat.limit_pairs_np) > 0 and len(flat.limit_colors) > 1
+    # a flat convex piece: the bound is the Euclidean rest distance, exactly met at rest
+    np.testing.assert_allclose(_excess(flat, rest), 0.0, atol=1e-6)
+    # rolled up (bent, not stretched): every limit slack, up to float32 rounding of L
+    for radius in (0.5, 0.2, 0.08):
+        assert _excess(flat, _roll(rest, radius)).max() <= 1e-6, radius
+    # stretched by 1 % across the sheet: limits act
+    assert (_excess(flat, rest * [1.01, 1.0, 1.0]) > 0.005).sum() > len(flat.limit_pairs_np) // 4
+
+    # folded along a column of vertices (an exact isometry of the mesh) by up to 170 degrees: slack
+    for angle in (0.5, 1.5, 3.0):
+        assert _excess(flat, _fold(rest, 6, angle)).max() <= 1e-6, angle
+
+    # a curved rest piece (the sheet rolled on a 0.2 m radius): bounds are edge paths, never shorter
+    # than the geodesic distance, so folding it along a straight column violates none
+    b = ClothBuilder()
+    b.add_mesh(_roll(rest, 0.2), flat.faces)
+    curved = b.finalize()
+    rolled = curved.rest_points_np.astype(np.float64)
+    assert len(curved.limit_pairs_np) > 0
+    assert _excess(curved, rolled).max() <= 1e-6
+    for angle in (0.5, 1.5, -1.0):
+        assert _excess(curved, _fold(rolled, 6, angle)).max() <= 1e-6, angle
+    assert (_excess(curved, rolled * 1.01) > 0.005).sum() > len(curved.limit_pairs_np) // 4
+
+
+def test_levels_run_coarsest_first_and_stay_within_a_piece():
+    b = _grid(17, 0.8)
+    b.add_grid(9, 9, 0.4, 0.4, origin=(2.0, 0.0, 0.0))  # a second piece, far away
+    m = b.finalize()
+    pairs, length, levels = stretch_limits(m.rest_points_np.astype(np.float64), m.edges_np,
+                                           np.repeat([0, 1], [17 * 17, 81]), np.array([True, True]))
+    means = [float(length[o:o + c].mean()) for o, c in levels]
+    assert means == sorted(means, reverse=True) and len(means) >= 3, means
+    piece = np.repeat([0, 1], [17 * 17, 81])
+    assert (piece[pairs[:, 0]] == piece[pairs[:, 1]]).all()
+    # the model stores them level by level, each level coloured (no two limits of a colour share a vertex)
+    p = m.limit_pairs_np
+    for off, cnt in m.limit_colors:
+        used = p[off:off + cnt].ravel()
+        assert len(np.unique(used)) == len(used)
+
+
+def _project(points, inv_mass, length, max_move, contacts=(0, 0), touched=(0, 0)):
+    x = wp.array(np.asarray(points, np.float32), dtype=wp.vec3)
+    wp.launch(k.solve_limits, dim=1,
+              inputs=[wp.array(np.array([[0, 1]], np.int32), dtype=wp.int32), wp.array([length], dtype=wp.float32),
+                      wp.array(np.asarray(inv_mass, np.float32), dtype=wp.float32), max_move,
+                      wp.array(np.asarray(contacts, np.int32), dtype=wp.int32),
+                      wp.array(np.asarray(touched, np.int32), dtype=wp.int32), 0],
+              outputs=[x])
+    return x.numpy()
+
+
+def test_a_limit_pulls_a_stretched_pair_together_by_at_most_max_move_and_only_when_free():
+    p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+    # 0.1 over the bound, equal masses: each end moves 0.05 (within max_move 0.2)
+    np.testing.assert_allclose(_project(p, [1, 1], 0.9, 0.2)[:, 0], [0.05, 0.95], atol=1e-6)
+    # the same with max_move 0.01: each end moves 0.01
+    np.testing.assert_allclose(_project(p, [1, 1], 0.9, 0.01)[:, 0], [0.01, 0.99], atol=1e-6)
+    # a kinematic end (inverse mass 0) stays; the other takes the whole correction
+    np.testing.assert_allclose(_project(p, [0, 1], 0.9, 0.2)[:, 0], [0.0, 0.9], atol=1e-6)
+    # never pushes apart
+    np.testing.assert_array_equal(_project(p, [1, 1], 1.5, 0.2), np.float32(p))
+    # skipped while either end is in contact (self-contact candidates, or moved by the contacts)
+    np.testing.assert_array_equal(_project(p, [1, 1], 0.9, 0.2, contacts=(0, 3)), np.float32(p))
+    np.testing.assert_array_equal(_project(p, [1, 1], 0.9, 0.2, touched=(1, 0)), np.float32(p))
+
+
+def _hang(limits: bool, n=32, frames=60):
+    """The benchmark's scene at 32 x 32: 1 m cloth pinned at two corners, swinging down onto the ground
+    (self-collision off: this is about the stretch solve)."""
+    b = ClothBuilder()
+    ids = b.add_grid(n, n, 1.0, 1.0, origin=(-0.5, 0.8, -0.5))
+    b.pin([ids[0, 0], ids[0, -1]])
+    m = b.finalize()
+    col = ColliderSet()
+    col.add_plane((0.0, 1.0, 0.0), 0.0)
+    s = XPBDSolver(m, col, stretch_limits=limits, self_collision=False)
+    st = m.state()
+    p99 = []
+    for _ in range(frames):
+        s.step(st, st, DT)
+        p99.append(float(np.percentile(m.edge_strain(st.points.numpy()), 99)))
+    return max(p99)
+
+
+def test_limits_take_out_the_sag_of_hanging_cloth():
+    """One edge sweep per substep leaves a stretch that grows with the number of edges along the
+    hang; the limits carry it. Measured worst p99 edge strain over 60 frames: 1.97 % with them,
+    5.36 % without (16 x 16: 1.14 / 1.45 %; 24 x 24: 1.75 / 3.13 %)."""
+    with_limits, without = _hang(True), _hang(False)
+    assert with_limits < 0.03, with_limits
+    assert without > 0.04, without
