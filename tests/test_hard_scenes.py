@@ -17,6 +17,7 @@ import pytest
 import trimesh
 
 from helpers import REPO, SHIPPED
+from warpshade.geometry import ulp_jitter
 from warpshade.sim import ClothBuilder, ColliderSet, IntersectionCounter, WalkingFigure, XPBDSolver
 
 FPS = 60.0
@@ -230,10 +231,7 @@ def _shipped_cloth_counts(name: str, frames: int, jitter_seed: int | None = None
     if jitter_seed is not None:
         for o in scene.objects:
             if o.kind == "cloth":
-                p = np.asarray(o.mesh.points, dtype=np.float32)
-                step = np.random.default_rng(jitter_seed).integers(-1, 2, size=p.shape)
-                o.mesh.points[...] = np.where(step > 0, np.nextafter(p, np.float32(np.inf)),
-                                              np.where(step < 0, np.nextafter(p, np.float32(-np.inf)), p))
+                o.mesh.points[...] = ulp_jitter(o.mesh.points, jitter_seed)
     sims = ClothSimulation(scene, "cpu")
     counter = IntersectionCounter(sims.model.faces)
     counts = []
@@ -275,6 +273,41 @@ def test_cloth_table_rounded_differently_stays_free_of_intersections():
     counts, sims = _shipped_cloth_counts("cloth_table", 100, jitter_seed=2)
     _assert_free(counts, sims.solver)
     assert sims.solver.stats()["guard_longest_hold"] > 30, sims.solver.stats()
+
+
+@pytest.mark.parametrize("push_off", [True, False])
+def test_attached_edges_that_drive_cloth_into_cloth_get_it_pushed_off(push_off, monkeypatch, tmp_path):
+    """sims/twist (120 frames) with its cloth coordinates moved by an ulp (seed 3): at one step the
+    turning attached edges press a fold into the cloth beside it, which no revert of free vertices
+    undoes. The guard then finds the self-contacts afresh and runs up to PUSH_OFF_PASSES contact
+    passes, which free it; without them 10 pairs stood in 4 frames (measured), which shows the check
+    can fail."""
+    twist = _sim_module("twist")
+    finalize = ClothBuilder.finalize
+
+    def jittered(builder, *args, **kwargs):
+        for pc in builder._pieces:
+            pc.points = ulp_jitter(pc.points, 3).astype(np.float64)
+        return finalize(builder, *args, **kwargs)
+
+    monkeypatch.setattr(ClothBuilder, "finalize", jittered)
+    if not push_off:
+        monkeypatch.setattr(XPBDSolver, "_push_off_contacts", lambda self, x, v, dt: False)
+    step, counters, counts = XPBDSolver.step, {}, []
+
+    def counted(solver, state_in, state_out, dt, control=None):
+        step(solver, state_in, state_out, dt, control)
+        c = counters.setdefault(id(solver), IntersectionCounter(solver.model.faces))
+        counts.append(c.self_pairs(state_out.points)[0])
+
+    monkeypatch.setattr(XPBDSolver, "step", counted)
+    with contextlib.redirect_stdout(io.StringIO()):
+        twist.main(["--out", str(tmp_path / "twist.usda"), "--no-shade"])
+    assert len(counts) == 120
+    if push_off:
+        assert not any(counts), [(f, n) for f, n in enumerate(counts) if n][:5]
+    else:
+        assert any(counts)
 
 
 def test_pile_script_without_intersections_for_one_second(tmp_path):

@@ -106,3 +106,13 @@ def closed_orientation(points: np.ndarray, faces: np.ndarray) -> int:
     p = p - p.mean(axis=0)
     vol = np.einsum("ij,ij->i", p[f[:, 0]], np.cross(p[f[:, 1]], p[f[:, 2]])).sum()
     return 0 if vol == 0 else (1 if vol > 0 else -1)
+
+
+def ulp_jitter(points, seed: int) -> np.ndarray:
+    """``points`` rounded to float32 with each coordinate then moved by -1, 0 or +1 ulp at random
+    (``numpy.random.default_rng(seed)``): the same geometry as another file or tool might round it,
+    for checking that a result does not hang on the last bit. Returns float32, same shape."""
+    p = np.asarray(points, dtype=np.float32)
+    step = np.random.default_rng(seed).integers(-1, 2, size=p.shape)
+    return np.where(step > 0, np.nextafter(p, np.float32(np.inf)),
+                    np.where(step < 0, np.nextafter(p, np.float32(-np.inf)), p)).astype(np.float32)

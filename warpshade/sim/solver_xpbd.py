@@ -212,6 +212,7 @@ class XPBDSolver:
             wp.copy(self._x_start, x)
         h = dt / self.substeps
         wind = wp.vec3(*(control.wind if control is not None else (0.0, 0.0, 0.0)))
+        self._wind = wind
         cmds = self._commands(h, wind)
         if self.colliders is not None:
             self.colliders.begin_step()
@@ -490,8 +491,10 @@ class XPBDSolver:
                 wp.copy(x, self._x_unguarded)
                 self._reverted.zero_()
                 if not self._push_off_sharp_edges(x):
-                    self.guard_unresolved += 1
                     wp.copy(x, self._x_unguarded)
+                    if not self._push_off_contacts(x, v, dt):
+                        self.guard_unresolved += 1
+                        wp.copy(x, self._x_unguarded)
                 break
             if r == self.GUARD_ROUNDS:
                 self._mark.fill_(1)
@@ -530,6 +533,61 @@ class XPBDSolver:
             if c.self_pairs(x, self._mark, self._x_start)[0] - c.inherited + c.collider_pairs(x, col, self._mark)[0] == 0:
                 return True
         return False
+
+    def _push_off_contacts(self, x, v, dt: float) -> bool:
+        """Find the self-contacts of x afresh and run up to :attr:`PUSH_OFF_PASSES` passes of the
+        self-contact and collider projections on it; True as soon as x has no new intersecting
+        pair (attached vertices driven into cloth that lies under them: the free cloth is pushed
+        off them). The contact rows are left as the step left them."""
+        if not self.self_collision:
+            return False
+        m, c, col = self.model, self._counter, self.colliders
+        saved = self._contact_memory()
+        try:
+            self._detect_self_contacts(x, v, 0.0)
+            if not self._contacts_found:
+                return False
+            cmds = self._commands(dt / self.substeps, self._wind)
+            for _ in range(self.PUSH_OFF_PASSES):
+                for cmd in cmds["contacts"]:
+                    cmd.launch()
+                if col is not None:
+                    col.collide(m.thickness, m.inv_mass, self._x_unguarded, x)
+                new = c.self_pairs(x, self._mark, self._x_start)[0] - c.inherited
+                if col is not None:
+                    new += c.collider_pairs(x, col, self._mark)[0]
+                if new == 0:
+                    return True
+            return False
+        finally:
+            self._restore_contact_memory(saved)
+
+    def _contact_memory(self) -> dict:
+        """Copies of the self-contact rows and counts (what the next detection reads)."""
+        out = {"vt": self._vt_rows, "vt_copy": {k: wp.clone(a) for k, a in self._vt_rows.items()},
+               "count": wp.clone(self._contact_count), "prev_count": wp.clone(self._prev_count),
+               "found": self._contacts_found, "overflow": wp.clone(self._overflow)}
+        if self.edge_contact:
+            out.update(ee=self._ee_rows, ee_copy={k: wp.clone(a) for k, a in self._ee_rows.items()},
+                       ecount=wp.clone(self._contact_ecount), prev_ecount=wp.clone(self._prev_ecount))
+        return out
+
+    def _restore_contact_memory(self, saved: dict) -> None:
+        for key, copy, attr in (("vt", "vt_copy", "_vt_rows"), ("ee", "ee_copy", "_ee_rows")):
+            if key not in saved:
+                continue
+            if getattr(self, attr) is not saved[key]:  # the rows grew: back to the old arrays
+                setattr(self, attr, saved[key])
+                self._cmd_cache = None
+            for k, a in saved[copy].items():
+                wp.copy(saved[key][k], a)
+        wp.copy(self._contact_count, saved["count"])
+        wp.copy(self._prev_count, saved["prev_count"])
+        if self.edge_contact:
+            wp.copy(self._contact_ecount, saved["ecount"])
+            wp.copy(self._prev_ecount, saved["prev_ecount"])
+        self._contacts_found = saved["found"]
+        wp.copy(self._overflow, saved["overflow"])
 
     def _first_nonfinite(self, x, v) -> int:
         n = self.model.particle_count
