@@ -12,7 +12,7 @@ folded onto itself); the final state is finite.
 Status: these criteria are met (closest vertex 5 mm from the table or floor over 240 frames); the
 intersection target of the other hard scenes, which this script does not check itself, holds too:
 0 cloth-cloth and 0 cloth-table triangle pairs on every frame (``benchmarks/cloth.py --scenes``,
-``tests/test_hard_scenes.py`` for the first 80 frames); p99 edge strain 19 % at worst.
+``tests/test_hard_scenes.py`` for the first 80 frames); p99 edge strain 17 % at worst.
 
 Run:  python sims/table_fold.py --frames 240 --out table_fold.usda
       (shaded under the default sky; --no-shade writes geometry only)

@@ -11,9 +11,9 @@ Success criteria (checked every frame, printed at the end): 0 intersecting cloth
 pairs at the end of every frame; the attached edges are on their targets (1e-5 m); 99th-
 percentile edge strain below 5 %.
 
-Status: 0 intersecting pairs on every frame of the full 120-frame run (the guard acted in 13
-steps), the edges on their targets; not met: p99 edge strain 9.5 % at the end, 15.8 % at worst
-(the cloth hangs taut between edges its own length apart at the start and sags).
+Status: 0 intersecting pairs on every frame of the full 120-frame run, the edges on their
+targets; not met: p99 edge strain 7.1 % at the end, 9.4 % at worst (the cloth hangs taut between
+edges its own length apart at the start and sags).
 
 Run:  python sims/twist.py --frames 120 --out twist.usda
       (shaded under the default sky; --no-shade writes geometry only)
