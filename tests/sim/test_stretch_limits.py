@@ -91,6 +91,19 @@ def test_levels_run_coarsest_first_and_stay_within_a_piece():
         assert len(np.unique(used)) == len(used)
 
 
+def test_only_pieces_that_barely_stretch_get_limits():
+    """A limit allows no stretch: a piece whose full weight would stretch it by more than
+    STIFF_STRAIN (density g diameter / k) is left to its edges. The default cloth (0.2 kg/m2, 5e4
+    N/m, 0.85 m across): 3.3e-5; at 50 N/m (a rubber sheet): 3.3e-2."""
+    b = ClothBuilder()
+    b.add_grid(13, 13, 0.6, 0.6)
+    b.add_grid(13, 13, 0.6, 0.6, origin=(2.0, 0.0, 0.0), stretch_stiffness=50.0)
+    b.add_grid(13, 13, 0.6, 0.6, origin=(4.0, 0.0, 0.0), stretch_stiffness=np.inf)
+    m = b.finalize()
+    piece = np.arange(m.particle_count) // (13 * 13)
+    assert sorted(set(piece[m.limit_pairs_np.ravel()].tolist())) == [0, 2]
+
+
 def _project(points, inv_mass, length, max_move, contacts=(0, 0), touched=(0, 0)):
     x = wp.array(np.asarray(points, np.float32), dtype=wp.vec3)
     wp.launch(k.solve_limits, dim=1,

@@ -200,8 +200,14 @@ def _edge_graph(points: np.ndarray, edges: np.ndarray):
                                              np.concatenate([edges[:, 1], edges[:, 0]]))), shape=(v, v)).tocsr()
 
 
+STIFF_STRAIN = 1.0e-3
+"""Pieces get stretch limits when their full weight hanging from one edge would stretch them by at
+most this (density * g * diameter / stretch_stiffness): the limits allow no stretch at all, so a
+softer piece (a rubber sheet) is left to its edges."""
+
+
 def stretch_limits(points: np.ndarray, edges: np.ndarray, piece: np.ndarray, convex_flat: np.ndarray,
-                   radius: float = 2.0, max_path: float = 1.5):
+                   radius: float = 2.0, max_path: float = 1.5, limited: np.ndarray | None = None):
     """Multi-scale stretch limits: pairs of vertices about 2, 4, 8, ... edges apart and an upper
     bound of their rest geodesic distance, coarsest scale first.
 
@@ -225,6 +231,7 @@ def stretch_limits(points: np.ndarray, edges: np.ndarray, piece: np.ndarray, con
         convex_flat: Per piece, whether it is flat and convex, shape (P,), bool.
         radius: Neighbourhood of a kept vertex, in units of its level's spacing.
         max_path: Longest edge path kept, relative to the Euclidean distance.
+        limited: Per piece, whether it gets limits, shape (P,), bool (None: all).
 
     Returns:
         (pairs (L, 2) int32, length (L,) float32 [m], levels: (offset, count) of each level's
@@ -258,6 +265,8 @@ def stretch_limits(points: np.ndarray, edges: np.ndarray, piece: np.ndarray, con
         pairs = cKDTree(points[kept]).query_pairs(radius * r, output_type="ndarray")
         pairs = kept[pairs] if len(pairs) else np.zeros((0, 2), np.int64)
         pairs = pairs[piece[pairs[:, 0]] == piece[pairs[:, 1]]]
+        if limited is not None:
+            pairs = pairs[limited[piece[pairs[:, 0]]]]
         euclid = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
         length = euclid.copy()
         curved = ~convex_flat[piece[pairs[:, 0]]]
@@ -639,7 +648,12 @@ class ClothModel:
             convex_flat[pi] = convex_and_flat(pc.points, pc.faces)
             start += len(pc.points)
         anchor, tlen = tether_anchors(points, edges, kinematic, piece, convex_flat)
-        lpairs, llen, llevels = stretch_limits(points, edges, piece, convex_flat)
+        # stretch limits only on pieces that barely stretch under their own weight (the sag their
+        # full weight would give, density g diameter / k, below STIFF_STRAIN): a limit allows no stretch
+        stiff = np.array([np.isinf(pc.stretch_stiffness) or
+                          pc.density * 9.81 * float(np.linalg.norm(np.ptp(pc.points, axis=0))) / pc.stretch_stiffness
+                          <= STIFF_STRAIN for pc in builder._pieces], dtype=bool)
+        lpairs, llen, llevels = stretch_limits(points, edges, piece, convex_flat, limited=stiff)
         # each level coloured on its own, so that a sweep still runs the levels coarsest first
         lorder, self.limit_colors = [], []
         for off, cnt in llevels:

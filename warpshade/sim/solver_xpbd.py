@@ -67,8 +67,8 @@ class XPBDSolver:
             self-contact candidates, or the contact projections moved it in the last substep):
             a straight-line correction there fights the contacts (it would pull cloth through a
             layer or into a collider). Each moves a vertex by at most the thickness per sweep.
-            They allow no stretch: switch them off for a cloth meant to stretch under its own
-            weight.
+            They allow no stretch, so pieces soft enough to stretch under their own weight get
+            none (:data:`~warpshade.sim.model.STIFF_STRAIN`).
         check_finite: Stop with :class:`SimulationError` when the state turns non-finite.
 
     Raises:
