@@ -499,7 +499,10 @@ class HemirasterTransfer(TransferMethod):
         self._batch.codes = wp.zeros((ns, nq), dtype=wp.vec3i, device=d)
         self._batch.cand = wp.zeros((ns, CANDIDATES), dtype=wp.int32, device=d)
         self._batch.src = wp.zeros((ns, nq), dtype=wp.int32, device=d)
+        self._batch.area = wp.zeros((ns, nq), dtype=float, device=d)
+        self._batch.fine_flag = wp.zeros((ns, nq), dtype=wp.int32, device=d)
         self._batch.counts = self._counts
+        self._batch.refined = self._refined
         self._all = wp.array(np.arange(nv, dtype=np.int32), dtype=wp.int32, device=d)
         self._interp, self._redone = None, 0
         if self.interpolate > 0.0:
