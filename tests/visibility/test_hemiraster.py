@@ -680,24 +680,37 @@ def test_compute_rows_with_interpolate_gives_the_rows_what_update_gives_them():
 
 # ------------------------------------------------------------------------------ native batch codes
 @wp.kernel
-def _batch_codes_both(a: wp.array2d[wp.vec3], b: wp.array2d[wp.vec3], c: wp.array2d[wp.vec3], normals: wp.array[wp.vec3],
+def _batch_codes_both(a: wp.array2d[wp.vec3], b: wp.array2d[wp.vec3], c: wp.array2d[wp.vec3], area: wp.array2d[float],
+                      flag: wp.array2d[wp.int32], src: wp.array2d[wp.int32], normals: wp.array[wp.vec3],
                       backface: float, res: int, native: wp.array2d[wp.vec3i], ref: wp.array2d[wp.vec3i],
-                      done: wp.array2d[wp.int32]):
+                      ref_src: wp.array2d[wp.int32], done: wp.array2d[wp.int32], refined: wp.array[wp.int32]):
     sl = wp.tid()
     frame = hr_kernels.orthonormal_basis(normals[sl])
-    done[sl, 0] = hr_kernels.batch_codes(a, b, c, native, sl, a.shape[1], frame, backface, res)
+    n = normals[sl]
     count = int(0)
+    nref = int(0)
     for k in range(a.shape[1]):
+        # what push_triangle and queue_candidates / queue_blocker did before the tests moved into batch_codes
+        tiny = False
+        if area[sl, k] > 0.0:
+            tiny = hr_kernels.image_below(a[sl, k], b[sl, k], c[sl, k], n, area[sl, k])
+        nref += wp.where(flag[sl, k] != 0 and not tiny, 1, 0)
+        up = wp.max(wp.max(wp.dot(n, a[sl, k]), wp.dot(n, b[sl, k])), wp.dot(n, c[sl, k])) > 0.0
         codes = hr_kernels.triangle_codes(a[sl, k], b[sl, k], c[sl, k], wp.transpose(frame), backface, res)
-        ref[sl, k] = codes
-        count += wp.where(codes[0] >= 0, 1, 0)
+        if codes[0] >= 0 and up and not tiny:
+            ref[sl, count] = codes
+            ref_src[sl, count] = src[sl, k]
+            count += 1
     done[sl, 1] = count
+    done[sl, 2] = nref
+    done[sl, 0] = hr_kernels.batch_codes(a, b, c, area, flag, src, native, refined, sl, sl, a.shape[1], frame, backface, res)
 
 
 @pytest.mark.parametrize("backface", [0.0, 1.0, -1.0])
 def test_batch_codes_match_triangle_codes_bit_for_bit(backface):
-    """The native, vectorized LUT codes of a queue (kernels.batch_codes) are triangle_codes' to the bit,
-    culled and degenerate triangles included (a shared corner, corners on a line through the receiver)."""
+    """The native, vectorized exact culls and LUT codes of a queue (kernels.batch_codes) are image_below's,
+    the horizon cull's and triangle_codes' to the bit, culled and degenerate triangles included (a shared
+    corner, corners on a line through the receiver), compacted in order with their sources."""
     rng = np.random.default_rng(3)
     slots, nq = 16, 37  # a length that is not a multiple of the vector width
     pts = rng.normal(size=(3, slots, nq, 3)).astype(np.float32)
@@ -705,12 +718,23 @@ def test_batch_codes_match_triangle_codes_bit_for_bit(backface):
     pts[2, :, 3::9] = 2.5 * pts[0, :, 3::9]  # corner on the line through the receiver and a: det 0
     normals = rng.normal(size=(slots, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    area = np.array([0.0, 0.05, 0.5], dtype=np.float32)[np.arange(nq) % 3][None].repeat(slots, 0)
+    flag = (np.arange(nq) % 2).astype(np.int32)[None].repeat(slots, 0)
+    srcs = np.arange(slots * nq, dtype=np.int32).reshape(slots, nq)
     arrs = [wp.array(p, dtype=wp.vec3) for p in pts]
     native, ref = (wp.zeros((slots, nq), dtype=wp.vec3i) for _ in range(2))
-    done = wp.zeros((slots, 2), dtype=wp.int32)
-    wp.launch(_batch_codes_both, dim=slots, inputs=[*arrs, wp.array(normals.astype(np.float32), dtype=wp.vec3), backface, 48],
-              outputs=[native, ref, done])
-    np.testing.assert_array_equal(native.numpy(), ref.numpy())
+    src, ref_src = wp.array(srcs, dtype=wp.int32), wp.zeros((slots, nq), dtype=wp.int32)
+    done = wp.zeros((slots, 3), dtype=wp.int32)
+    refined = wp.zeros(slots, dtype=wp.int32)
+    wp.launch(_batch_codes_both, dim=slots,
+              inputs=[*arrs, wp.array(area, dtype=float), wp.array(flag, dtype=wp.int32), src,
+                      wp.array(normals.astype(np.float32), dtype=wp.vec3), backface, 48],
+              outputs=[native, ref, ref_src, done, refined])
     d = done.numpy()
     np.testing.assert_array_equal(d[:, 0], d[:, 1])
-    assert (ref.numpy()[..., 0] < 0).any() and (ref.numpy()[..., 0] >= 0).any()
+    np.testing.assert_array_equal(refined.numpy(), d[:, 2])
+    assert (d[:, 2] < flag.sum(axis=1)).any()  # the tiny-image test fired
+    assert (d[:, 0] > 0).all() and (d[:, 0] < nq).all()
+    for s in range(slots):
+        np.testing.assert_array_equal(native.numpy()[s, :d[s, 0]], ref.numpy()[s, :d[s, 0]])
+        np.testing.assert_array_equal(src.numpy()[s, :d[s, 0]], ref_src.numpy()[s, :d[s, 0]])

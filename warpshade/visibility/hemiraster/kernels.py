@@ -172,6 +172,12 @@ class Batch:
     """Third corner, shape (slots, B), dtype vec3."""
     src: wp.array2d[wp.int32]
     """Blocker to mark in the receiver's PVS bits when the triangle sets a bit (-1: none), shape (slots, B)."""
+    area: wp.array2d[float]
+    """Tiny-image threshold of each queued triangle (:func:`image_below`'s ``min_area``; 0: no such
+    test), shape (slots, B)."""
+    fine_flag: wp.array2d[wp.int32]
+    """1 for a fine triangle standing in for a refined blocker (counted in ``refined`` when its image
+    is not tiny), shape (slots, B)."""
     codes: wp.array2d[wp.vec3i]
     """Scratch: LUT codes of the three oriented edge planes (-1: culled), shape (slots, B)."""
     cand: wp.array2d[wp.int32]
@@ -184,6 +190,8 @@ class Batch:
     """PVS recording bits per receiver and blocker source index, shape (V, ceil(Fc/32))."""
     counts: wp.array[wp.int32]
     """Triangles rasterized per receiver (not culled by the exact tests), shape (V,)."""
+    refined: wp.array[wp.int32]
+    """Fine triangles of refined blockers queued per receiver (not incident, image not tiny), shape (V,)."""
 
 
 @wp.func
@@ -405,10 +413,40 @@ int done = 0;
     int iu_ = (int)(nu_ * inv_ + half); iu_ = iu_ < 0 ? 0 : iu_; iu_ = iu_ > top ? top : iu_; \
     int iv_ = (int)(nv_ * inv_ + half); iv_ = iv_ < 0 ? 0 : iv_; iv_ = iv_ > top ? top : iv_; \
     CODE = 2 * ((axis_ * res + iu_) * res + iv_) + (major_ < 0.0f ? 1 : 0); }
+const float* __restrict__ parea = (const float*)((const char*)area.data + sl * area.strides[0]);
+const int* __restrict__ pflag = (const int*)((const char*)fine_flag.data + sl * fine_flag.strides[0]);
+int* __restrict__ psrc = (int*)((char*)src.data + sl * src.strides[0]);
+// the receiver's normal: the frame's third column (:func:`push_triangle`'s ``nz``)
+const float nx = frame.data[0][2], ny = frame.data[1][2], nz = frame.data[2][2];
+int nref = 0;
 for (int k = 0; k < nb; ++k) {
     const float ax = pa[3 * k], ay = pa[3 * k + 1], az = pa[3 * k + 2];
     const float bx = pb[3 * k], by = pb[3 * k + 1], bz = pb[3 * k + 2];
     const float cx = pc[3 * k], cy = pc[3 * k + 1], cz = pc[3 * k + 2];
+    // :func:`image_below` in the same operations and order (Warp's dot, cross, length, max)
+    const float ra = sqrtf(ax * ax + ay * ay + az * az);
+    const float rb = sqrtf(bx * bx + by * by + bz * bz);
+    const float rc = sqrtf(cx * cx + cy * cy + cz * cz);
+    const float wdet = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx);
+    const float ex = bx - ax, ey = by - ay, ez = bz - az;
+    const float fx = cx - ax, fy = cy - ay, fz = cz - az;
+    const float gx = ey * fz - ez * fy, gy = ez * fx - ex * fz, gz = ex * fy - ey * fx;
+    const float adet = fabsf(wdet);
+    const bool grazing = adet < 0.5f * sqrtf(gx * gx + gy * gy + gz * gz) * ra;
+    const float d = ra * rb * rc + (ax * bx + ay * by + az * bz) * rc + (ax * cx + ay * cy + az * cz) * rb
+                    + (bx * cx + by * cy + bz * cz) * ra;
+    const float ha = nx * ax + ny * ay + nz * az;
+    const float hb = nx * bx + ny * by + nz * bz;
+    const float hc = nx * cx + ny * cy + nz * cz;
+    const float za = ha * rb * rc, zb = hb * ra * rc, zc = hc * ra * rb;
+    const float z1 = (za >= zb) ? za : ((zb == zb) ? zb : za);
+    const float zmax = (z1 >= zc) ? z1 : ((zc == zc) ? zc : z1);
+    const float mina = parea[k];
+    const bool tiny = mina > 0.0f && grazing && 2.0f * adet * zmax < mina * d * ra * rb * rc;
+    nref += (pflag[k] != 0 && !tiny) ? 1 : 0;
+    // :func:`push_triangle`'s exact horizon cull
+    const float h1 = (ha >= hb) ? ha : ((hb == hb) ? hb : ha);
+    const float hmax = (h1 >= hc) ? h1 : ((hc == hc) ? hc : h1);
     const float lax = t00 * ax + t01 * ay + t02 * az;
     const float lay = t10 * ax + t11 * ay + t12 * az;
     const float laz = t20 * ax + t21 * ay + t22 * az;
@@ -422,7 +460,7 @@ for (int k = 0; k < nb; ++k) {
     const float bcx = lby * lcz - lbz * lcy, bcy = lbz * lcx - lbx * lcz, bcz = lbx * lcy - lby * lcx;
     const float cax = lcy * laz - lcz * lay, cay = lcz * lax - lcx * laz, caz = lcx * lay - lcy * lax;
     const float det = lax * bcx + lay * bcy + laz * bcz;
-    const bool culled = det == 0.0f || det * backface > 0.0f;
+    const bool culled = det == 0.0f || det * backface > 0.0f || tiny || !(hmax > 0.0f);
     const float o = det < 0.0f ? -1.0f : 1.0f;
     int c0, c1, c2;
     WS_CELL(abx * o, aby * o, abz * o, c0)
@@ -431,20 +469,34 @@ for (int k = 0; k < nb; ++k) {
     out[3 * k] = culled ? -1 : c0;
     out[3 * k + 1] = culled ? -1 : c1;
     out[3 * k + 2] = culled ? -1 : c2;
-    done += culled ? 0 : 1;
 }
 #undef WS_CELL
+// the kept ones moved to the front (in order, with their PVS source): no test in the AND/OR loop
+for (int k = 0; k < nb; ++k) {
+    const int c0 = out[3 * k], c1 = out[3 * k + 1], c2 = out[3 * k + 2], s = psrc[k];
+    out[3 * done] = c0;
+    out[3 * done + 1] = c1;
+    out[3 * done + 2] = c2;
+    psrc[done] = s;
+    done += c0 >= 0 ? 1 : 0;
+}
+int* prefined = (int*)((char*)refined.data + v * refined.strides[0]);
+*prefined += nref;
 return done;
 """
 
 
 @wp.func_native(_BATCH_CODES)
-def batch_codes(a: wp.array2d[wp.vec3], b: wp.array2d[wp.vec3], c: wp.array2d[wp.vec3], codes: wp.array2d[wp.vec3i],
-                sl: int, nb: int, frame: wp.mat33, backface: float, res: int) -> int:
-    """:func:`triangle_codes` of the ``nb`` queued triangles of slot ``sl`` into ``codes`` (the same
-    operations in the same order, so the same bits); returns how many are not culled. Native C++ in
-    one loop without calls or branches, which clang vectorizes (8 triangles per AVX2 instruction);
-    the rows of ``a``, ``b``, ``c`` and ``codes`` must be contiguous."""
+def batch_codes(a: wp.array2d[wp.vec3], b: wp.array2d[wp.vec3], c: wp.array2d[wp.vec3], area: wp.array2d[float],
+                fine_flag: wp.array2d[wp.int32], src: wp.array2d[wp.int32], codes: wp.array2d[wp.vec3i],
+                refined: wp.array[wp.int32], v: int, sl: int, nb: int, frame: wp.mat33, backface: float, res: int) -> int:
+    """The exact culls and :func:`triangle_codes` of the ``nb`` queued triangles of slot ``sl``: the
+    tiny-image cull (:func:`image_below` with each entry's ``area``), the horizon cull, then the
+    codes (the same operations in the same order as the Warp functions, so the same bits). The
+    kept triangles' codes and PVS sources are moved to the front of ``codes`` and ``src``; returns
+    how many; adds the kept-by-the-image-test fine triangles (``fine_flag``) to ``refined[v]``.
+    Native C++ in one loop without calls or branches, which clang vectorizes (8 triangles per AVX2
+    instruction), then a compaction loop; the rows must be contiguous."""
 
 
 @wp.func(inline=True)
@@ -466,24 +518,23 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
     (:class:`MaskChunk`), the valid-pixel AND is applied once, and the mask row is updated once per
     chunk (whole chunks, no branch; docs/benchmarks/history.md has what this replaced).
     """
-    done = batch_codes(bt.a, bt.b, bt.c, bt.codes, sl, nb, frame, lut.backface, lut.res)
+    done = batch_codes(bt.a, bt.b, bt.c, bt.area, bt.fine_flag, bt.src, bt.codes, bt.refined, v, sl, nb, frame,
+                       lut.backface, lut.res)
     for ch in range(lut.chunks):
         acc = MaskChunk()
         if bt.record == 0:
-            for k in range(nb):
+            for k in range(done):
                 codes = bt.codes[sl, k]
-                if codes[0] >= 0:
-                    acc = acc | (lut_chunk(lut, codes[0], ch) & lut_chunk(lut, codes[1], ch) & lut_chunk(lut, codes[2], ch))
+                acc = acc | (lut_chunk(lut, codes[0], ch) & lut_chunk(lut, codes[1], ch) & lut_chunk(lut, codes[2], ch))
         else:
             # recording a PVS: which triangles set a bit
-            for k in range(nb):
+            for k in range(done):
                 codes = bt.codes[sl, k]
-                if codes[0] >= 0:
-                    m = lut_chunk(lut, codes[0], ch) & lut_chunk(lut, codes[1], ch) & lut_chunk(lut, codes[2], ch)
-                    acc = acc | m
-                    src = bt.src[sl, k]
-                    if src >= 0 and chunk_any(m & lut.valid[ch]):
-                        bt.hits[v, src >> 5] = bt.hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
+                m = lut_chunk(lut, codes[0], ch) & lut_chunk(lut, codes[1], ch) & lut_chunk(lut, codes[2], ch)
+                acc = acc | m
+                src = bt.src[sl, k]
+                if src >= 0 and chunk_any(m & lut.valid[ch]):
+                    bt.hits[v, src >> 5] = bt.hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
         acc = acc & lut.valid[ch]
         for i in range(wp.min(CHUNK_WORDS, lut.words - ch * CHUNK_WORDS)):
             w = ch * CHUNK_WORDS + i
@@ -493,8 +544,8 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
 
 
 @wp.func(inline=True)
-def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, src: int, skip: bool, nb: int, v: int, sl: int,
-                  frame: wp.mat33, lut: PlaneLut, mask: wp.array2d[wp.uint64], bt: Batch) -> int:
+def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, src: int, skip: bool, area: float, fine_flag: int, nb: int, v: int,
+                  sl: int, frame: wp.mat33, lut: PlaneLut, mask: wp.array2d[wp.uint64], bt: Batch) -> int:
     """Queue triangle (a, b, c) (corners relative to the receiver) for receiver ``v`` unless ``skip``
     or it is wholly at or below the horizon; flushes a full queue. Returns the new queue length.
 
@@ -502,13 +553,13 @@ def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, src: int, skip: bool, nb: 
     otherwise leak bits at the disk rim. Branch-free: the triangle is always written to the next
     free entry, which only a kept triangle takes.
     """
-    nz = wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2])
-    keep = wp.where(skip, False, wp.max(wp.max(wp.dot(nz, a), wp.dot(nz, b)), wp.dot(nz, c)) > 0.0)
     bt.a[sl, nb] = a
     bt.b[sl, nb] = b
     bt.c[sl, nb] = c
     bt.src[sl, nb] = src
-    nb = nb + wp.where(keep, 1, 0)
+    bt.area[sl, nb] = area
+    bt.fine_flag[sl, nb] = fine_flag
+    nb = nb + wp.where(skip, 0, 1)
     if nb == bt.a.shape[1]:
         return flush_batch(nb, v, sl, frame, lut, mask, bt)
     return nb
@@ -537,7 +588,7 @@ def rasterize_fan(v: int, sl: int, p: wp.vec3, n: wp.vec3, fine: FineMesh, frame
         # the two corners other than the receiver, in winding order
         b = wp.where(i == v, j, wp.where(j == v, k, i))
         c = wp.where(i == v, k, wp.where(j == v, i, j))
-        nb = push_triangle(down, fine.points[b] - p, fine.points[c] - p, -1, False, nb, v, sl, frame, lut, mask, bt)
+        nb = push_triangle(down, fine.points[b] - p, fine.points[c] - p, -1, False, 0.0, 0, nb, v, sl, frame, lut, mask, bt)
     return nb
 
 
@@ -768,11 +819,11 @@ def queue_candidates(
     mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
-) -> wp.vec2i:
+) -> int:
     """Queue the ``nc`` staged fine triangles (:func:`stage_fine`) unless incident to the receiver (they
-    contain it: no solid angle) or their exact image is tiny (:func:`image_below`); returns (queue
-    length, triangles queued). Branch-free (:func:`push_triangle`)."""
-    count = int(0)
+    contain it: no solid angle); returns the queue length. Their tiny-image test (:func:`image_below`
+    with ``lut.fine_area``) and the count in ``refined`` wait for :func:`batch_codes`.
+    Branch-free (:func:`push_triangle`)."""
     for e in range(nc):
         f = bt.cand[sl, e]
         i = fine.faces[f, 0]
@@ -782,11 +833,8 @@ def queue_candidates(
         fa = fine.points[i] - p
         fb = fine.points[j] - p
         fc = fine.points[k] - p
-        if lut.fine_area > 0.0:
-            drop = wp.where(drop, True, image_below(fa, fb, fc, n, lut.fine_area))
-        nb = push_triangle(fa, fb, fc, src, drop, nb, v, sl, frame, lut, mask, bt)
-        count += wp.where(drop, 0, 1)
-    return wp.vec2i(nb, count)
+        nb = push_triangle(fa, fb, fc, src, drop, lut.fine_area, 1, nb, v, sl, frame, lut, mask, bt)
+    return nb
 
 
 @wp.func(inline=True)
@@ -809,7 +857,7 @@ def rasterize_group(
     refined: wp.array[wp.int32],
 ) -> int:
     """Queue the fine triangles blocker ``t`` stands for (spatial near field); returns the queue
-    length and counts them in ``refined[v]``.
+    length (:func:`batch_codes` counts them in ``refined[v]``).
 
     The seam-cover extras (``groups.mid[t]`` on) are skipped when their primary coarse triangle is
     refined for this receiver too: it rasterizes them itself (in PVS mode, when it is in the set:
@@ -817,7 +865,6 @@ def rasterize_group(
     receiver are skipped (they contain it: no solid angle); a triangle rasterized twice (also in a
     k-ring) is harmless under the OR fusion of §3.1.1.
     """
-    count = int(0)
     src = source[t]
     r = groups.start[t]
     end = groups.start[t + 1]
@@ -839,13 +886,9 @@ def rasterize_group(
         nc = stage_fine(groups.tris[r], sl, p, n, fine, groups.use_seen, groups.seen, lut, bt, nc)
         r += 1
         if nc == CANDIDATES:
-            q = queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
-            nb = q[0]
-            count += q[1]
+            nb = queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
             nc = 0
-    q = queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
-    refined[v] = refined[v] + count + q[1]
-    return q[0]
+    return queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
 
 
 @wp.func
@@ -889,12 +932,11 @@ def rasterize_mid_fine(
     mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
-) -> wp.vec2i:
+) -> int:
     """Queue the fine triangles mid triangle ``m`` stands for, as :func:`rasterize_group` does for a
-    coarse blocker; returns (queue length, fine triangles queued). A run of seam-cover extras is
+    coarse blocker; returns the queue length. A run of seam-cover extras is
     skipped when its primary mid triangle is replaced by its fine triangles here too: that mid
     triangle is then certainly visited (its primary coarse blocker is refined) and expanded."""
-    count = int(0)
     r = sub.start[m]
     end = sub.start[m + 1]
     mid = sub.mid[m]
@@ -909,12 +951,9 @@ def rasterize_mid_fine(
         nc = stage_fine(sub.tris[r], sl, p, n, fine, sub.use_seen, sub.seen, lut, bt, nc)
         r += 1
         if nc == CANDIDATES:
-            q = queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
-            nb = q[0]
-            count += q[1]
+            nb = queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
             nc = 0
-    q = queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
-    return wp.vec2i(q[0], count + q[1])
+    return queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
 
 
 @wp.func(inline=True)
@@ -942,9 +981,8 @@ def rasterize_mid_group(
     (primaries, and the seam-cover extras whose primary coarse blocker is not refined here) is
     queued itself, or, when it stands for the receiver's k-ring or comes within ``refine`` times its
     own deviation of the receiver (:func:`mid_refined`), replaced by its fine triangles
-    (:func:`rasterize_mid_fine`). Returns the queue length; counts the fine triangles in
-    ``refined[v]`` and the mid ones in ``mids.counts[v]``."""
-    count = int(0)
+    (:func:`rasterize_mid_fine`). Returns the queue length; counts the mid triangles in
+    ``mids.counts[v]`` (the fine ones are counted by :func:`batch_codes`)."""
     cmid = int(0)
     src = source[t]
     r = groups.start[t]
@@ -965,19 +1003,16 @@ def rasterize_mid_group(
             if (word & bit) != wp.uint64(0):
                 continue
         if mid_refined(m, sl, p, sub, mids):
-            res = rasterize_mid_fine(m, src, v, sl, p, n, fine, groups, sub, mids, source, near_mode, excl, frame, lut,
-                                     mask, bt, nb)
-            nb = res[0]
-            count += res[1]
+            nb = rasterize_mid_fine(m, src, v, sl, p, n, fine, groups, sub, mids, source, near_mode, excl, frame, lut,
+                                    mask, bt, nb)
         else:
             # exact, as the fine triangles it stands for (a tiny-image cull here cost more than it saved)
             drop = skip_early(mids.plane[m], mids.sphere[m], p, n, lut.backface, lut.rim)
             a = mids.points[mids.faces[m, 0]] - p
             b = mids.points[mids.faces[m, 1]] - p
             c = mids.points[mids.faces[m, 2]] - p
-            nb = push_triangle(a, b, c, src, drop, nb, v, sl, frame, lut, mask, bt)
+            nb = push_triangle(a, b, c, src, drop, 0.0, 0, nb, v, sl, frame, lut, mask, bt)
             cmid += wp.where(drop, 0, 1)
-    refined[v] = refined[v] + count
     mids.counts[v] = mids.counts[v] + cmid
     return nb
 
@@ -1013,9 +1048,7 @@ def queue_blocker(
     a = blockers.points[i] - p
     b = blockers.points[j] - p
     c = blockers.points[k] - p
-    if lut.min_area > 0.0:
-        skip = wp.where(skip, True, image_below(a, b, c, wp.vec3(frame[0, 2], frame[1, 2], frame[2, 2]), lut.min_area))
-    return push_triangle(a, b, c, blockers.source[t], skip, nb, v, sl, frame, lut, mask, bt)
+    return push_triangle(a, b, c, blockers.source[t], skip, lut.min_area, 0, nb, v, sl, frame, lut, mask, bt)
 
 
 FAR_CHUNK = wp.constant(64)
@@ -1188,7 +1221,7 @@ def rasterize_masks(
             i = fine.faces[t, 0]
             j = fine.faces[t, 1]
             k = fine.faces[t, 2]
-            nb = push_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, -1, False, nb, v, sl, frame, lut,
+            nb = push_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, -1, False, 0.0, 0, nb, v, sl, frame, lut,
                                mask, bt)
         # far field: coarse blockers, replaced by their fine triangles near the receiver
         offset = wp.dot(n, p)

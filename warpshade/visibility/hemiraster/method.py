@@ -31,10 +31,11 @@ from .kernels import (CANDIDATES, Batch, Blockers, FineMesh, MaskChunk, MidLevel
 SEEN_BYTES = 64 * 1024 * 1024
 """Largest rasterized-once table (slots × ceil(F/64) uint64 words) the method allocates."""
 
-BATCH = 32
-"""Triangles queued per slot before they are rasterized together (kernels.Batch; 2 KiB per
+BATCH = 64
+"""Triangles queued per slot before they are rasterized together (kernels.Batch; 4 KiB per
 slot). Measured on the Table 1 cloth (interleaved runs, ratios of CPU time): 1 -> 1.28, 4 -> 1.06,
-8 -> 1.03, 16 -> 1.00, 32 -> 0.94, 64 -> 0.95; without batching 1.06."""
+8 -> 1.03, 16 -> 1.00, 32 -> 0.94, 64 -> 0.95; without batching 1.06. Since the tiny-image test
+runs in the batch (docs/benchmarks/history.md): 32 -> 64 0.965, 64 -> 128 1.02."""
 
 RECEIVERS_PER_LAUNCH = 1024
 """Receivers of the first rasterization launch on the CPU; later launches are sized from its time to
@@ -499,7 +500,10 @@ class HemirasterTransfer(TransferMethod):
         self._batch.codes = wp.zeros((ns, nq), dtype=wp.vec3i, device=d)
         self._batch.cand = wp.zeros((ns, CANDIDATES), dtype=wp.int32, device=d)
         self._batch.src = wp.zeros((ns, nq), dtype=wp.int32, device=d)
+        self._batch.area = wp.zeros((ns, nq), dtype=float, device=d)
+        self._batch.fine_flag = wp.zeros((ns, nq), dtype=wp.int32, device=d)
         self._batch.counts = self._counts
+        self._batch.refined = self._refined
         self._all = wp.array(np.arange(nv, dtype=np.int32), dtype=wp.int32, device=d)
         self._interp, self._redone = None, 0
         if self.interpolate > 0.0:
