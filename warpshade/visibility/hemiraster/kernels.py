@@ -854,7 +854,6 @@ def rasterize_group(
     mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
-    refined: wp.array[wp.int32],
 ) -> int:
     """Queue the fine triangles blocker ``t`` stands for (spatial near field); returns the queue
     length (:func:`batch_codes` counts them in ``refined[v]``).
@@ -975,7 +974,6 @@ def rasterize_mid_group(
     mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
-    refined: wp.array[wp.int32],
 ) -> int:
     """Queue what refined coarse blocker ``t`` stands for at the mid level: each of its mid triangles
     (primaries, and the seam-cover extras whose primary coarse blocker is not refined here) is
@@ -1082,7 +1080,6 @@ def rasterize_far_chunk(
     mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
-    refined: wp.array[wp.int32],
 ) -> int:
     """Far-field blockers ``t0 .. t1-1`` (at most :data:`FAR_CHUNK`, consecutive; the PVS path passes
     one at a time): each is rasterized itself, or replaced by its fine triangles near the receiver
@@ -1130,10 +1127,10 @@ def rasterize_far_chunk(
         refine_bits = refine_bits & (refine_bits - wp.uint64(1))
         if mids.on != 0:
             nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers.source, use_excl, excl, frame,
-                                     lut, mask, bt, nb, refined)
+                                     lut, mask, bt, nb)
         else:
             nb = rasterize_group(t0 + k, v, sl, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, bt,
-                                 nb, refined)
+                                 nb)
     while keep != wp.uint64(0):
         k = lowest_bit(keep)
         keep = keep & (keep - wp.uint64(1))
@@ -1230,7 +1227,7 @@ def rasterize_masks(
             for r in range(pvs_start[v], pvs_start[v + 1]):
                 t = pvs_tris[r]
                 nb = rasterize_far_chunk(t, t + 1, near_all, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame,
-                                         lut, mask, bt, nb, refined)
+                                         lut, mask, bt, nb)
         elif use_cull != 0:
             for s in range(super_start.shape[0] - 1):
                 if box_above_plane(super_lo[s], super_hi[s], n, offset):
@@ -1241,12 +1238,12 @@ def rasterize_masks(
                             for t0 in range(cluster_start[c], cluster_start[c + 1], FAR_CHUNK):
                                 t1 = wp.min(t0 + FAR_CHUNK, cluster_start[c + 1])
                                 nb = rasterize_far_chunk(t0, t1, near, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl,
-                                                         frame, lut, mask, bt, nb, refined)
+                                                         frame, lut, mask, bt, nb)
         else:
             for t0 in range(0, blockers.faces.shape[0], FAR_CHUNK):
                 t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
                 nb = rasterize_far_chunk(t0, t1, near_all, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame, lut,
-                                         mask, bt, nb, refined)
+                                         mask, bt, nb)
         if nb > 0:
             flush_batch(nb, v, sl, frame, lut, mask, bt)
         if mids.on != 0:
