@@ -135,7 +135,6 @@ class XPBDSolver:
         self.guard_steps = 0
         self.guard_unresolved = 0
         self.guard_longest_hold = 0
-        self._holding = False
         self.guard_vertices = 0
 
         v, f, d = model.particle_count, model.tri_count, self.device
@@ -465,7 +464,7 @@ class XPBDSolver:
         intersections (made by kinematic vertices or colliders), the step is kept as the contacts
         left it (no vertex sent back) and counted in ``stats()["guard_unresolved"]``."""
         m, d, n = self.model, self.device, self.model.particle_count
-        c, col = self._counter, self.colliders
+        col = self.colliders
         self._reverted.zero_()
         self.guard_vertices = 0
         for r in range(self.GUARD_ROUNDS + 2):
@@ -474,9 +473,7 @@ class XPBDSolver:
             # vertices back to the start cannot remove them, so only new pairs are marked and
             # counted. Cloth-collider pairs are all marked: reverting them holds cloth that lies
             # across a sharp rim, which the rim's edge contact alone can throw off.
-            found = c.self_pairs(x, self._mark, self._x_start)[0] - c.inherited
-            if col is not None:
-                found += c.collider_pairs(x, col, self._mark)[0]
+            found = self._new_pairs(x)
             if found == 0:
                 break
             if r == 0:
@@ -510,11 +507,9 @@ class XPBDSolver:
             wp.launch(ck.reverted_velocities, dim=n, inputs=[self._reverted, self._x_start, x, dt], outputs=[v],
                       device=d)
             self.guard_vertices = int(self._reverted.numpy().sum())
-            wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
+        wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
+        if self.guard_vertices:
             self.guard_longest_hold = max(self.guard_longest_hold, int(self._streak.numpy().max()))
-        elif self._holding:
-            self._streak.zero_()
-        self._holding = self.guard_vertices > 0
 
     PUSH_OFF_PASSES = 4
     """Extra sharp-edge and vertex passes the guard tries on a step whose intersections a moving
@@ -524,15 +519,25 @@ class XPBDSolver:
     def _push_off_sharp_edges(self, x) -> bool:
         """Run up to :attr:`PUSH_OFF_PASSES` passes of the colliders' edge and corner projection
         (each followed by the vertices') on x; True as soon as x has no new intersecting pair."""
-        m, c, col = self.model, self._counter, self.colliders
+        m, col = self.model, self.colliders
         if col is None or not col.has_sharp_edges:
             return False
         for _ in range(self.PUSH_OFF_PASSES):
             col.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
             col.collide(m.thickness, m.inv_mass, self._x_unguarded, x)
-            if c.self_pairs(x, self._mark, self._x_start)[0] - c.inherited + c.collider_pairs(x, col, self._mark)[0] == 0:
+            if self._new_pairs(x) == 0:
                 return True
         return False
+
+    def _new_pairs(self, x) -> int:
+        """Intersecting pairs of x that the step made (cloth-cloth pairs that met at the start of the
+        step too are inherited and not counted; every cloth-collider pair is), their vertices marked
+        in ``_mark``."""
+        c = self._counter
+        found = c.self_pairs(x, self._mark, self._x_start)[0] - c.inherited
+        if self.colliders is not None:
+            found += c.collider_pairs(x, self.colliders, self._mark)[0]
+        return found
 
     def _push_off_contacts(self, x, v, dt: float) -> bool:
         """Find the self-contacts of x afresh and run up to :attr:`PUSH_OFF_PASSES` passes of the
@@ -541,7 +546,7 @@ class XPBDSolver:
         off them). The contact rows are left as the step left them."""
         if not self.self_collision:
             return False
-        m, c, col = self.model, self._counter, self.colliders
+        m, col = self.model, self.colliders
         saved = self._contact_memory()
         try:
             self._detect_self_contacts(x, v, 0.0)
@@ -553,10 +558,7 @@ class XPBDSolver:
                     cmd.launch()
                 if col is not None:
                     col.collide(m.thickness, m.inv_mass, self._x_unguarded, x)
-                new = c.self_pairs(x, self._mark, self._x_start)[0] - c.inherited
-                if col is not None:
-                    new += c.collider_pairs(x, col, self._mark)[0]
-                if new == 0:
+                if self._new_pairs(x) == 0:
                     return True
             return False
         finally:
@@ -564,11 +566,11 @@ class XPBDSolver:
 
     def _contact_memory(self) -> dict:
         """Copies of the self-contact rows and counts (what the next detection reads)."""
-        out = {"vt": self._vt_rows, "vt_copy": {k: wp.clone(a) for k, a in self._vt_rows.items()},
+        out = {"vt": self._vt_rows, "vt_copy": {name: wp.clone(a) for name, a in self._vt_rows.items()},
                "count": wp.clone(self._contact_count), "prev_count": wp.clone(self._prev_count),
                "found": self._contacts_found, "overflow": wp.clone(self._overflow)}
         if self.edge_contact:
-            out.update(ee=self._ee_rows, ee_copy={k: wp.clone(a) for k, a in self._ee_rows.items()},
+            out.update(ee=self._ee_rows, ee_copy={name: wp.clone(a) for name, a in self._ee_rows.items()},
                        ecount=wp.clone(self._contact_ecount), prev_ecount=wp.clone(self._prev_ecount))
         return out
 
@@ -579,8 +581,8 @@ class XPBDSolver:
             if getattr(self, attr) is not saved[key]:  # the rows grew: back to the old arrays
                 setattr(self, attr, saved[key])
                 self._cmd_cache = None
-            for k, a in saved[copy].items():
-                wp.copy(saved[key][k], a)
+            for name, a in saved[copy].items():
+                wp.copy(saved[key][name], a)
         wp.copy(self._contact_count, saved["count"])
         wp.copy(self._prev_count, saved["prev_count"])
         if self.edge_contact:
