@@ -117,7 +117,6 @@ def main(argv=None) -> int:
                 log("between_frame", [1, g.mesh.num_vertices * (len(groups) - 1)], sec)
         lights = [light_from_spec(s, scene.up_axis) for s in scene.lights]
         pts = np.concatenate([u[0] for u in updated])
-        distant = [li for li in lights if not li.local]
         local = [li for li in lights if li.local]
         for spec, li in zip(scene.lights, lights):
             if not li.local:  # per light kind: a textured dome re-projects its map, a distant light is a formula

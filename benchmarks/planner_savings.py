@@ -81,7 +81,7 @@ def main(argv=None) -> int:
     from warpshade.bench.environments import environments, radiance
     from warpshade.bench.meshes import grid, warp_mesh
     from warpshade.geometry import TriMesh
-    from warpshade.planner import apply_plan, make_plan, naive_seconds
+    from warpshade.planner import make_plan, naive_seconds
     from warpshade.scene import Scene, SceneObject
     from warpshade.visibility import get_method
 

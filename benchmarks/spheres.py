@@ -39,7 +39,6 @@ from warpshade.bench.reference_cache import ground_truth  # noqa: E402
 from warpshade.geometry import TriMesh  # noqa: E402
 from warpshade.usd import load_mesh  # noqa: E402
 from warpshade.bench.metrics import error_summary  # noqa: E402
-from warpshade.sh import sh_eval  # noqa: E402
 from warpshade.sh.zonal import clamped_cosine_zh, unoccluded_transfer, zh_rotate  # noqa: E402
 from warpshade.bench.timing import median_seconds  # noqa: E402
 from warpshade.visibility import METHODS, get_method  # noqa: E402

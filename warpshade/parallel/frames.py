@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from .worker import (BuildFailed, FrameGeometry, FrameShaderSpec, ShadeFn, init_worker, init_worker_from_file,
+from .worker import (BuildFailed, FrameGeometry, FrameShaderSpec, ShadeFn, init_worker_from_file,
                      shade_in_worker)
 
 

@@ -19,7 +19,6 @@ lies behind it; every object's spheres also block reflected light.
 from __future__ import annotations
 
 import numpy as np
-import warp as wp
 
 from ..geometry.mesh import TriMesh
 

@@ -17,12 +17,16 @@ Material parameters and their units:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import warp as wp
 
 from ..geometry.mesh import MeshError, TriMesh, validate_mesh
 from .oracle import dihedral_angle_np
+
+if TYPE_CHECKING:  # (state.py imports this module)
+    from .state import ClothControl, ClothState
 
 
 class SimulationError(RuntimeError):
@@ -630,13 +634,13 @@ class ClothModel:
         e = self.edges_np
         return np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) / self.edge_rest_length.numpy().astype(np.float64) - 1.0
 
-    def state(self) -> "ClothState":
+    def state(self) -> ClothState:
         """A new state at the rest pose with zero velocity."""
         from .state import ClothState
 
         return ClothState(self)
 
-    def control(self) -> "ClothControl":
+    def control(self) -> ClothControl:
         """A new control: attachment targets at their rest positions, no wind."""
         from .state import ClothControl
 
