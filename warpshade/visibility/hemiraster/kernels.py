@@ -160,14 +160,14 @@ class MidLevel:
     start of each receiver and cleared at its end."""
     counts: wp.array[wp.int32]
     """Mid triangles queued per receiver, shape (V,)."""
-    cover: wp.array2d[wp.uint64]
+    cover: wp.array2d[MaskChunk]
     """Per coarse blocker (reordered index), bits of every mid triangle its group lists (primaries and
-    seam-cover extras), shape (Fc, ceil(Fm/64)) (:func:`rasterize_mid_set`)."""
-    primary: wp.array2d[wp.uint64]
-    """Per coarse blocker, bits of its primary mid triangles, shape (Fc, ceil(Fm/64))."""
-    listed: wp.array2d[wp.uint64]
+    seam-cover extras) in chunks of 16 words, shape (Fc, ceil(Fm/1024)) (:func:`rasterize_mid_set`)."""
+    primary: wp.array2d[MaskChunk]
+    """Per coarse blocker, bits of its primary mid triangles, as ``cover``."""
+    listed: wp.array2d[MaskChunk]
     """Per slot, OR of ``cover`` over the refined coarse blockers the far-field pass visited for the
-    current receiver, shape (slots, ceil(Fm/64)); cleared by :func:`rasterize_mid_set`."""
+    current receiver, shape (slots, ceil(Fm/1024)); cleared by :func:`rasterize_mid_set`."""
     visited: wp.array2d[wp.uint64]
     """Per slot, bits of those visited refined coarse blockers, shape (slots, ceil(Fc/64))."""
 
@@ -1098,24 +1098,26 @@ def rasterize_mid_set(
             t = w * 64 + lowest_bit(x)
             x = x & (x - wp.uint64(1))
             for u in range(mids.listed.shape[1]):
-                mids.listed[sl, u] = mids.listed[sl, u] & ~mids.primary[t, u]
+                mids.listed[sl, u] = mids.listed[sl, u] & (mids.primary[t, u] ^ MaskChunk(~wp.uint64(0)))
     cmid = int(0)
     for u in range(mids.listed.shape[1]):
-        x = mids.listed[sl, u]
-        mids.listed[sl, u] = wp.uint64(0)
-        while x != wp.uint64(0):
-            m = u * 64 + lowest_bit(x)
-            x = x & (x - wp.uint64(1))
-            if mid_refined(m, sl, p, sub, mids):
-                nb = rasterize_mid_fine(m, -1, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
-            else:
-                # exact, as the fine triangles it stands for (a tiny-image cull here cost more than it saved)
-                drop = skip_early(mids.plane[m], mids.sphere[m], p, n, lut.backface, lut.rim)
-                a = mids.points[mids.faces[m, 0]] - p
-                b = mids.points[mids.faces[m, 1]] - p
-                c = mids.points[mids.faces[m, 2]] - p
-                nb = push_triangle(a, b, c, -1, drop, 0.0, 0, nb, v, sl, frame, lut, mask, bt)
-                cmid += wp.where(drop, 0, 1)
+        chunk = mids.listed[sl, u]
+        mids.listed[sl, u] = MaskChunk()
+        for i in range(CHUNK_WORDS):
+            x = chunk[i]
+            while x != wp.uint64(0):
+                m = (u * CHUNK_WORDS + i) * 64 + lowest_bit(x)
+                x = x & (x - wp.uint64(1))
+                if mid_refined(m, sl, p, sub, mids):
+                    nb = rasterize_mid_fine(m, -1, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+                else:
+                    # exact, as the fine triangles it stands for (a tiny-image cull here cost more than it saved)
+                    drop = skip_early(mids.plane[m], mids.sphere[m], p, n, lut.backface, lut.rim)
+                    a = mids.points[mids.faces[m, 0]] - p
+                    b = mids.points[mids.faces[m, 1]] - p
+                    c = mids.points[mids.faces[m, 2]] - p
+                    nb = push_triangle(a, b, c, -1, drop, 0.0, 0, nb, v, sl, frame, lut, mask, bt)
+                    cmid += wp.where(drop, 0, 1)
     mids.counts[v] = mids.counts[v] + cmid
     return nb
 

@@ -477,16 +477,17 @@ class HemirasterTransfer(TransferMethod):
             self._mids.ring_bits = wp.zeros((self._slots, mid_words), dtype=wp.uint64, device=d)
             # kernels.rasterize_mid_set: each coarse blocker's listed and primary mid triangles as bit rows
             cover, primary = hierarchy.group_bits(group_start, group_mid, group_tris, self.num_mid)
-            self._mids.cover = wp.array(cover, dtype=wp.uint64, device=d)
-            self._mids.primary = wp.array(primary, dtype=wp.uint64, device=d)
-            self._mids.listed = wp.zeros((self._slots, mid_words), dtype=wp.uint64, device=d)
+            self._mids.cover = wp.array(tables.chunked_rows(cover), dtype=MaskChunk, device=d)
+            self._mids.primary = wp.array(tables.chunked_rows(primary), dtype=MaskChunk, device=d)
+            self._mids.listed = wp.zeros((self._slots, self._mids.cover.shape[1]), dtype=MaskChunk, device=d)
             self._mids.visited = wp.zeros((self._slots, (self.num_blockers + 63) // 64), dtype=wp.uint64, device=d)
         else:
             self._sub.use_seen = 0
             self._sub.seen = wp.zeros((1, 1), dtype=wp.uint64, device=d)
             self._mids.ring_bits = wp.zeros((1, 1), dtype=wp.uint64, device=d)
-            self._mids.cover, self._mids.primary, self._mids.listed, self._mids.visited = (
-                wp.zeros((1, 1), dtype=wp.uint64, device=d) for _ in range(4))
+            self._mids.cover, self._mids.primary, self._mids.listed = (wp.zeros((1, 1), dtype=MaskChunk, device=d)
+                                                                       for _ in range(3))
+            self._mids.visited = wp.zeros((1, 1), dtype=wp.uint64, device=d)
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bnlen = wp.zeros(self.num_blockers, dtype=float, device=d)
