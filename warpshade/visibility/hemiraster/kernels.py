@@ -1099,25 +1099,40 @@ def rasterize_mid_set(
             x = x & (x - wp.uint64(1))
             for u in range(mids.listed.shape[1]):
                 mids.listed[sl, u] = mids.listed[sl, u] & (mids.primary[t, u] ^ MaskChunk(~wp.uint64(0)))
+    zero = wp.uint64(0)
     cmid = int(0)
     for u in range(mids.listed.shape[1]):
         chunk = mids.listed[sl, u]
         mids.listed[sl, u] = MaskChunk()
         for i in range(CHUNK_WORDS):
+            base = (u * CHUNK_WORDS + i) * 64
+            # first each listed mid triangle classified from per-frame data (selects), as in
+            # :func:`rasterize_far_chunk`: replaced by its fine triangles, culled, or kept
             x = chunk[i]
-            while x != wp.uint64(0):
-                m = (u * CHUNK_WORDS + i) * 64 + lowest_bit(x)
+            expand = zero
+            keep = zero
+            while x != zero:
+                k = lowest_bit(x)
                 x = x & (x - wp.uint64(1))
-                if mid_refined(m, sl, p, sub, mids):
-                    nb = rasterize_mid_fine(m, -1, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
-                else:
-                    # exact, as the fine triangles it stands for (a tiny-image cull here cost more than it saved)
-                    drop = skip_early(mids.plane[m], mids.sphere[m], p, n, lut.backface, lut.rim)
-                    a = mids.points[mids.faces[m, 0]] - p
-                    b = mids.points[mids.faces[m, 1]] - p
-                    c = mids.points[mids.faces[m, 2]] - p
-                    nb = push_triangle(a, b, c, -1, drop, 0.0, 0, nb, v, sl, frame, lut, mask, bt)
-                    cmid += wp.where(drop, 0, 1)
+                m = base + k
+                bit = wp.uint64(1) << wp.uint64(k)
+                ref = mid_refined(m, sl, p, sub, mids)
+                expand = expand | wp.where(ref, bit, zero)
+                drop = skip_early(mids.plane[m], mids.sphere[m], p, n, lut.backface, lut.rim)
+                keep = keep | wp.where(ref, zero, wp.where(drop, zero, bit))
+            while expand != zero:
+                m = base + lowest_bit(expand)
+                expand = expand & (expand - wp.uint64(1))
+                nb = rasterize_mid_fine(m, -1, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+            # exact, as the fine triangles they stand for (a tiny-image cull here cost more than it saved)
+            cmid += wp.bit_count(keep)
+            while keep != zero:
+                m = base + lowest_bit(keep)
+                keep = keep & (keep - wp.uint64(1))
+                a = mids.points[mids.faces[m, 0]] - p
+                b = mids.points[mids.faces[m, 1]] - p
+                c = mids.points[mids.faces[m, 2]] - p
+                nb = push_triangle(a, b, c, -1, False, 0.0, 0, nb, v, sl, frame, lut, mask, bt)
     mids.counts[v] = mids.counts[v] + cmid
     return nb
 
