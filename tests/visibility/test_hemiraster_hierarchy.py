@@ -266,3 +266,59 @@ def test_mid_level_stats_and_knob():
     with pytest.raises(ValueError, match="mid"):
         hemiraster(mesh, order=2, mid=-1)
     assert math.isfinite(st["refined_per_vertex"])
+
+
+def test_group_bits_are_the_groups_lists():
+    start = np.array([0, 3, 3, 7])
+    mid = np.array([2, 3, 5])
+    tris = np.array([0, 65, 3, 1, 2, 70, 129])
+    cover, primary = hierarchy.group_bits(start, mid, tris, 130)
+    for t in range(3):
+        for bits, items in ((cover, tris[start[t]:start[t + 1]]), (primary, tris[start[t]:mid[t]])):
+            got = [w * 64 + k for w in range(bits.shape[1]) for k in range(64) if (int(bits[t, w]) >> k) & 1]
+            assert got == sorted(items.tolist()), (t, got)
+
+
+@pytest.mark.parametrize("ring", [0, 1])
+def test_mid_set_queues_what_the_per_group_walk_queues(ring):
+    """The far-field pass collects the refined coarse blockers' mid triangles as a bit set
+    (kernels.rasterize_mid_set); recording a PVS walks each refined blocker's group instead
+    (kernels.rasterize_mid_group). Both must rasterize the same triangles: same masks and counts."""
+    import warp as wp
+
+    from warpshade.bench.meshes import wrinkled_cloth
+
+    bm = wrinkled_cloth(24)
+    h = hemiraster(TriMesh(bm.frame, bm.rest.faces), order=2, coarse=64, mid=256, ring=ring)
+    h.update(bm.frame)
+    mask, counts, mids = h._mask.numpy().copy(), h._counts.numpy().copy(), h._mids.counts.numpy().copy()
+    assert mids.mean() > 10 and h.stats()["refined_per_vertex"] > 1
+    h._hits = wp.zeros((h.mesh.num_vertices, (h.num_blockers + 31) // 32), dtype=wp.uint32, device=h.device)
+    h._launch(record=1, use_pvs=0)
+    assert np.array_equal(h._mask.numpy(), mask)
+    assert np.array_equal(h._counts.numpy(), counts) and np.array_equal(h._mids.counts.numpy(), mids)
+
+
+@pytest.mark.parametrize("refine", [2.0, 0.05])
+def test_refined_bits_are_the_per_blocker_refinement_test(refine):
+    """kernels.mark_refined skips the clusters that do not come near the receiver; its bits must equal
+    kernels.refine_here of every blocker (float32, the same operations) or the receiver's k-ring bits
+    (a small ``refine`` leaves few near clusters; the k-ring's blockers hold the receiver in their boxes,
+    so they pass the distance test too unless their deviation is 0)."""
+    from warpshade.bench.meshes import wrinkled_cloth
+
+    bm = wrinkled_cloth(24)
+    h = hemiraster(TriMesh(bm.frame, bm.rest.faces), order=2, coarse=64, refine=refine)
+    lo, hi = (b.numpy() for b in h._blocker_box)
+    for v in (0, 123, 311, 575):
+        h.compute_rows([v])
+        got = h._blockers.refined.numpy()[0]
+        got = np.array([(int(got[t >> 6]) >> (t & 63)) & 1 for t in range(h.num_blockers)], bool)
+        p = h.points.numpy()[v]
+        d = np.maximum(np.maximum(lo - p, p - hi), np.float32(0))
+        r = np.float32(h.refine) * h._blocker_dev.numpy()
+        near = (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]) < r * r
+        excl = h._excl.numpy()[v]
+        ring = np.array([(int(excl[s >> 5]) >> (s & 31)) & 1 for s in h._bsource.numpy()], bool)
+        assert np.array_equal(got, near | ring), v
+        assert got.any() and got.sum() < h.num_blockers

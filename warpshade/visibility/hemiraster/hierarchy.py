@@ -342,6 +342,24 @@ def assign_to_coarse(points: np.ndarray, faces: np.ndarray, cpoints: np.ndarray,
     return primary, extra
 
 
+def group_bits(start: np.ndarray, mid: np.ndarray, tris: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """The groups of :func:`groups_in_order` as bit rows over the listed items (``count`` of them).
+
+    Returns:
+        ``(cover, primary)``, each shape (groups, ceil(count/64)) uint64: bit ``i`` of row ``t`` is set
+        when group ``t`` lists item ``i`` (``cover``: primaries and extras; ``primary``: primaries only).
+    """
+    groups, words = len(start) - 1, (count + 63) // 64
+    cover = np.zeros((groups, words), np.uint64)
+    primary = np.zeros((groups, words), np.uint64)
+    row = np.repeat(np.arange(groups), np.diff(start))
+    is_primary = np.arange(len(row)) < np.asarray(mid)[row]
+    bit = np.left_shift(np.uint64(1), (tris[:len(row)] % 64).astype(np.uint64))
+    np.bitwise_or.at(cover, (row, tris[:len(row)] // 64), bit)
+    np.bitwise_or.at(primary, (row[is_primary], tris[:len(row)][is_primary] // 64), bit[is_primary])
+    return cover, primary
+
+
 def groups_in_order(primary: np.ndarray, extra: np.ndarray, perm: np.ndarray):
     """CSR of the fine triangles each reordered coarse triangle stands for: primary ones, then extras.
 

@@ -93,6 +93,11 @@ class Blockers:
     """Per blocker ``|N|`` of ``plane`` (:func:`triangle_bounds`)."""
     source: wp.array[wp.int32]
     """Index of each blocker before the cluster reordering (exclusion and PVS bits), dtype int32."""
+    order: wp.array[wp.int32]
+    """Reordered index of each blocker by its index before the reordering (inverse of ``source``), dtype int32."""
+    refined: wp.array2d[wp.uint64]
+    """Per slot, bits of the blockers refined for its current receiver (:func:`mark_refined`), shape
+    (slots, ceil(Fc/64)); all 0 without refinement and k-ring exclusion bits."""
     skip_incident: int
     """1 when the blockers are the fine triangles themselves (skip those incident to the receiver)."""
 
@@ -155,6 +160,16 @@ class MidLevel:
     start of each receiver and cleared at its end."""
     counts: wp.array[wp.int32]
     """Mid triangles queued per receiver, shape (V,)."""
+    cover: wp.array2d[MaskChunk]
+    """Per coarse blocker (reordered index), bits of every mid triangle its group lists (primaries and
+    seam-cover extras) in chunks of 16 words, shape (Fc, ceil(Fm/1024)) (:func:`rasterize_mid_set`)."""
+    primary: wp.array2d[MaskChunk]
+    """Per coarse blocker, bits of its primary mid triangles, as ``cover``."""
+    listed: wp.array2d[MaskChunk]
+    """Per slot, OR of ``cover`` over the refined coarse blockers the far-field pass visited for the
+    current receiver, shape (slots, ceil(Fm/1024)); cleared by :func:`rasterize_mid_set`."""
+    visited: wp.array2d[wp.uint64]
+    """Per slot, bits of those visited refined coarse blockers, shape (slots, ceil(Fc/64))."""
 
 
 @wp.struct
@@ -766,6 +781,66 @@ def refine_here(p: wp.vec3, lo: wp.vec3, hi: wp.vec3, deviation: float, refine: 
     return box_near(p, lo, hi, refine * deviation)
 
 
+@wp.func(inline=True)
+def blocker_refined(blockers: Blockers, sl: int, t: int) -> bool:
+    """Whether blocker ``t`` (reordered index) is refined for the slot's current receiver (:func:`mark_refined`)."""
+    return (blockers.refined[sl, t >> 6] >> wp.uint64(t & 63)) & wp.uint64(1) != wp.uint64(0)
+
+
+@wp.func(inline=True)
+def refined_bits(blockers: Blockers, sl: int, t0: int, t1: int) -> wp.uint64:
+    """Bits ``t0 .. t1-1`` (at most 64) of the slot's refined set (:func:`mark_refined`), bit 0 = ``t0``."""
+    w = t0 >> 6
+    s = wp.uint64(t0 & 63)
+    x = blockers.refined[sl, w] >> s
+    if w + 1 < blockers.refined.shape[1]:
+        # (``<< 1 << (63 - s)``: no shift by 64 when s = 0)
+        x = x | ((blockers.refined[sl, w + 1] << wp.uint64(1)) << (wp.uint64(63) - s))
+    if t1 - t0 < 64:
+        x = x & ((wp.uint64(1) << wp.uint64(t1 - t0)) - wp.uint64(1))
+    return x
+
+
+@wp.func(inline=True)
+def mark_refined(
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    blockers: Blockers,
+    groups: Refinement,
+    near_mode: int,
+    excl: wp.array2d[wp.uint32],
+    cluster_start: wp.array[wp.int32],
+    cluster_lo: wp.array[wp.vec3],
+    cluster_hi: wp.array[wp.vec3],
+    cluster_reach: wp.array[float],
+):
+    """Set the slot's bits of the blockers replaced by their fine (or mid) triangles for receiver ``v``:
+    those standing for its k-ring (``near_mode`` 2: its exclusion bits) and those passing
+    :func:`refine_here`. Decided once per receiver for the whole far field, so the far-field pass
+    and the seam-cover extras of every refined group (whose primary blocker may be anywhere) read
+    one bit. Per-blocker tests only in clusters that come near enough: a cluster's box and reach
+    hold its blockers' boxes and deviations, so a cluster failing :func:`box_near` has no blocker
+    passing :func:`refine_here` (the same float operations on smaller distances and a larger radius)."""
+    for w in range(blockers.refined.shape[1]):
+        blockers.refined[sl, w] = wp.uint64(0)
+    if near_mode == 2:
+        for w in range(excl.shape[1]):
+            x = excl[v, w]
+            while x != wp.uint32(0):
+                b = wp.bit_count((x & (~x + wp.uint32(1))) - wp.uint32(1))
+                x = x & (x - wp.uint32(1))
+                t = blockers.order[w * 32 + b]
+                blockers.refined[sl, t >> 6] = blockers.refined[sl, t >> 6] | (wp.uint64(1) << wp.uint64(t & 63))
+    if groups.refine > 0.0:
+        for c in range(cluster_start.shape[0] - 1):
+            if box_near(p, cluster_lo[c], cluster_hi[c], groups.refine * cluster_reach[c]):
+                for t in range(cluster_start[c], cluster_start[c + 1]):
+                    bit = wp.where(refine_here(p, groups.lo[t], groups.hi[t], groups.dev[t], groups.refine),
+                                   wp.uint64(1) << wp.uint64(t & 63), wp.uint64(0))
+                    blockers.refined[sl, t >> 6] = blockers.refined[sl, t >> 6] | bit
+
+
 CANDIDATES = wp.constant(64)
 """Fine triangles staged per slot (:attr:`Batch.cand`) before their gathers and exact tests."""
 
@@ -846,9 +921,7 @@ def rasterize_group(
     n: wp.vec3,
     fine: FineMesh,
     groups: Refinement,
-    source: wp.array[wp.int32],
-    near_mode: int,
-    excl: wp.array2d[wp.uint32],
+    blockers: Blockers,
     frame: wp.mat33,
     lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
@@ -859,27 +932,21 @@ def rasterize_group(
     length (:func:`batch_codes` counts them in ``refined[v]``).
 
     The seam-cover extras (``groups.mid[t]`` on) are skipped when their primary coarse triangle is
-    refined for this receiver too: it rasterizes them itself (in PVS mode, when it is in the set:
-    it was refined whenever the extra set a bit while recording). Triangles incident to the
-    receiver are skipped (they contain it: no solid angle); a triangle rasterized twice (also in a
-    k-ring) is harmless under the OR fusion of §3.1.1.
+    refined for this receiver too (:func:`mark_refined`): it rasterizes them itself (in PVS mode,
+    when it is in the set: it was refined whenever the extra set a bit while recording). Triangles
+    incident to the receiver are skipped (they contain it: no solid angle); a triangle rasterized
+    twice (also in a k-ring) is harmless under the OR fusion of §3.1.1.
     """
-    src = source[t]
+    src = blockers.source[t]
     r = groups.start[t]
     end = groups.start[t + 1]
     mid = groups.mid[t]
     nc = int(0)
     while r < end:
         if r >= mid:
-            # a run of extras of one primary blocker ``o``: all skipped when ``o`` is refined
-            # here too (or, in PVS mode, excluded), with one test for the run
-            o = groups.owner[r]
-            skip = False
-            if near_mode == 2:
-                skip = excluded(excl, v, source[o])
-            if groups.refine > 0.0 and not skip:
-                skip = refine_here(p, groups.lo[o], groups.hi[o], groups.dev[o], groups.refine)
-            if skip:
+            # a run of extras of one primary blocker: all skipped when it is refined here too,
+            # with one test for the run
+            if blocker_refined(blockers, sl, groups.owner[r]):
                 r = groups.run_end[r]
                 continue
         nc = stage_fine(groups.tris[r], sl, p, n, fine, groups.use_seen, groups.seen, lut, bt, nc)
@@ -888,19 +955,6 @@ def rasterize_group(
             nb = queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
             nc = 0
     return queue_candidates(nc, src, v, sl, p, n, fine, frame, lut, mask, bt, nb)
-
-
-@wp.func
-def coarse_refined(o: int, v: int, p: wp.vec3, groups: Refinement, source: wp.array[wp.int32], near_mode: int,
-                   excl: wp.array2d[wp.uint32]) -> bool:
-    """Whether coarse blocker ``o`` (reordered index) is refined for receiver ``v``: it stands for the
-    receiver's k-ring (``near_mode`` 2) or passes :func:`refine_here`."""
-    skip = False
-    if near_mode == 2:
-        skip = excluded(excl, v, source[o])
-    if not skip:
-        skip = refine_here(p, groups.lo[o], groups.hi[o], groups.dev[o], groups.refine)
-    return skip
 
 
 @wp.func
@@ -923,9 +977,7 @@ def rasterize_mid_fine(
     groups: Refinement,
     sub: Refinement,
     mids: MidLevel,
-    source: wp.array[wp.int32],
-    near_mode: int,
-    excl: wp.array2d[wp.uint32],
+    blockers: Blockers,
     frame: wp.mat33,
     lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
@@ -944,7 +996,7 @@ def rasterize_mid_fine(
         if r >= mid:
             o = sub.owner[r]
             if mid_refined(o, sl, p, sub, mids):
-                if coarse_refined(mids.coarse[o], v, p, groups, source, near_mode, excl):
+                if blocker_refined(blockers, sl, mids.coarse[o]):
                     r = sub.run_end[r]
                     continue
         nc = stage_fine(sub.tris[r], sl, p, n, fine, sub.use_seen, sub.seen, lut, bt, nc)
@@ -966,9 +1018,7 @@ def rasterize_mid_group(
     groups: Refinement,
     sub: Refinement,
     mids: MidLevel,
-    source: wp.array[wp.int32],
-    near_mode: int,
-    excl: wp.array2d[wp.uint32],
+    blockers: Blockers,
     frame: wp.mat33,
     lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
@@ -982,13 +1032,13 @@ def rasterize_mid_group(
     (:func:`rasterize_mid_fine`). Returns the queue length; counts the mid triangles in
     ``mids.counts[v]`` (the fine ones are counted by :func:`batch_codes`)."""
     cmid = int(0)
-    src = source[t]
+    src = blockers.source[t]
     r = groups.start[t]
     end = groups.start[t + 1]
     gm = groups.mid[t]
     while r < end:
         if r >= gm:
-            if coarse_refined(groups.owner[r], v, p, groups, source, near_mode, excl):
+            if blocker_refined(blockers, sl, groups.owner[r]):
                 r = groups.run_end[r]
                 continue
         m = groups.tris[r]
@@ -1001,8 +1051,7 @@ def rasterize_mid_group(
             if (word & bit) != wp.uint64(0):
                 continue
         if mid_refined(m, sl, p, sub, mids):
-            nb = rasterize_mid_fine(m, src, v, sl, p, n, fine, groups, sub, mids, source, near_mode, excl, frame, lut,
-                                    mask, bt, nb)
+            nb = rasterize_mid_fine(m, src, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
         else:
             # exact, as the fine triangles it stands for (a tiny-image cull here cost more than it saved)
             drop = skip_early(mids.plane[m], mids.sphere[m], p, n, lut.backface, lut.rim)
@@ -1011,6 +1060,79 @@ def rasterize_mid_group(
             c = mids.points[mids.faces[m, 2]] - p
             nb = push_triangle(a, b, c, src, drop, 0.0, 0, nb, v, sl, frame, lut, mask, bt)
             cmid += wp.where(drop, 0, 1)
+    mids.counts[v] = mids.counts[v] + cmid
+    return nb
+
+
+@wp.func(inline=True)
+def rasterize_mid_set(
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    fine: FineMesh,
+    groups: Refinement,
+    sub: Refinement,
+    mids: MidLevel,
+    blockers: Blockers,
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    bt: Batch,
+    nb: int,
+) -> int:
+    """Queue the mid triangles of the refined coarse blockers the far-field pass visited (``mids.listed``,
+    ``mids.visited``), as :func:`rasterize_mid_group` would blocker by blocker; returns the queue length.
+
+    The set is a bit set over the mid mesh: the OR of the visited blockers' ``cover`` rows, less the
+    primary mid triangles of the refined blockers the pass did not visit. That is the union of what
+    :func:`rasterize_mid_group` queues for each visited blocker: its primaries, and the extras whose
+    primary coarse blocker is not refined (those whose primary is refined and visited are primaries
+    of that one; those whose primary is refined and not visited are left out by both). Each mid
+    triangle is then handled once, in index order, without walking the groups' lists, testing a
+    run of extras per primary blocker, or a rasterized-once table. Not for recording a PVS
+    (``bt.record``), which credits each triangle to the blocker whose group listed it."""
+    for w in range(blockers.refined.shape[1]):
+        x = blockers.refined[sl, w] & ~mids.visited[sl, w]
+        while x != wp.uint64(0):
+            t = w * 64 + lowest_bit(x)
+            x = x & (x - wp.uint64(1))
+            for u in range(mids.listed.shape[1]):
+                mids.listed[sl, u] = mids.listed[sl, u] & (mids.primary[t, u] ^ MaskChunk(~wp.uint64(0)))
+    zero = wp.uint64(0)
+    cmid = int(0)
+    for u in range(mids.listed.shape[1]):
+        chunk = mids.listed[sl, u]
+        mids.listed[sl, u] = MaskChunk()
+        for i in range(CHUNK_WORDS):
+            base = (u * CHUNK_WORDS + i) * 64
+            # first each listed mid triangle classified from per-frame data (selects), as in
+            # :func:`rasterize_far_chunk`: replaced by its fine triangles, culled, or kept
+            x = chunk[i]
+            expand = zero
+            keep = zero
+            while x != zero:
+                k = lowest_bit(x)
+                x = x & (x - wp.uint64(1))
+                m = base + k
+                bit = wp.uint64(1) << wp.uint64(k)
+                ref = mid_refined(m, sl, p, sub, mids)
+                expand = expand | wp.where(ref, bit, zero)
+                drop = skip_early(mids.plane[m], mids.sphere[m], p, n, lut.backface, lut.rim)
+                keep = keep | wp.where(ref, zero, wp.where(drop, zero, bit))
+            while expand != zero:
+                m = base + lowest_bit(expand)
+                expand = expand & (expand - wp.uint64(1))
+                nb = rasterize_mid_fine(m, -1, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+            # exact, as the fine triangles they stand for (a tiny-image cull here cost more than it saved)
+            cmid += wp.bit_count(keep)
+            while keep != zero:
+                m = base + lowest_bit(keep)
+                keep = keep & (keep - wp.uint64(1))
+                a = mids.points[mids.faces[m, 0]] - p
+                b = mids.points[mids.faces[m, 1]] - p
+                c = mids.points[mids.faces[m, 2]] - p
+                nb = push_triangle(a, b, c, -1, False, 0.0, 0, nb, v, sl, frame, lut, mask, bt)
     mids.counts[v] = mids.counts[v] + cmid
     return nb
 
@@ -1063,7 +1185,6 @@ def lowest_bit(x: wp.uint64) -> int:
 def rasterize_far_chunk(
     t0: int,
     t1: int,
-    near: bool,
     v: int,
     sl: int,
     p: wp.vec3,
@@ -1086,9 +1207,8 @@ def rasterize_far_chunk(
     (:func:`rasterize_group`). Returns the receiver's queue length.
 
     First a branch-free pass over all of them classifies each from per-frame data alone: dropped
-    (near-field exclusion of the paper scheme), refined (:func:`refine_here`, or standing for the
-    receiver's k-ring), culled (:func:`skip_early`, :func:`bounds_below`), or kept; the outcome goes
-    into two bit sets. Then only the refined and the kept blockers are visited. On one CPU thread
+    (near-field exclusion of the paper scheme), refined (the receiver's bits, :func:`mark_refined`),
+    culled (:func:`skip_early`, :func:`bounds_below`), or kept; the outcome goes into two bit sets. Then only the refined and the kept blockers are visited. On one CPU thread
     per-blocker branches mispredicted about as often as they were taken (a coarse cloth triangle
     is kept, culled or tiny with similar odds), and their stalls cost more than the tests themselves.
     """
@@ -1097,7 +1217,6 @@ def rasterize_far_chunk(
     # ``wp.where`` selects and bitwise operators instead)
     cull = zero
     tiny = zero
-    near_bits = zero
     for t in range(t0, t1):
         bit = wp.uint64(1) << wp.uint64(t - t0)
         sph = blockers.sphere[t]
@@ -1105,20 +1224,12 @@ def rasterize_far_chunk(
         cull = cull | wp.where(skip_early(pln, sph, p, n, lut.backface, lut.rim), bit, zero)
         if lut.min_area > 0.0:  # the same for every blocker: predicted
             tiny = tiny | wp.where(bounds_below(pln, sph, blockers.nlen[t], p, n, lut.min_area), bit, zero)
-    if near:
-        # :func:`refine_here`
-        for t in range(t0, t1):
-            bit = wp.uint64(1) << wp.uint64(t - t0)
-            near_bits = near_bits | wp.where(refine_here(p, groups.lo[t], groups.hi[t], groups.dev[t], groups.refine),
-                                             bit, zero)
+    refine_bits = refined_bits(blockers, sl, t0, t1)
     ex = zero
-    if use_excl != 0:
-        # near-field exclusion bits (paper scheme: drop; with refinement: the k-ring's coarse triangles, refined)
+    if use_excl == 1:
+        # near-field exclusion bits of the paper scheme (no refinement): dropped
         for t in range(t0, t1):
             ex = ex | wp.where(excluded(excl, v, blockers.source[t]), wp.uint64(1) << wp.uint64(t - t0), zero)
-    refine_bits = near_bits & ~ex
-    if use_excl == 2:
-        refine_bits = refine_bits | ex
     keep = ~(ex | refine_bits | cull | tiny)
     if t1 - t0 < 64:
         keep = keep & ((wp.uint64(1) << wp.uint64(t1 - t0)) - wp.uint64(1))
@@ -1126,11 +1237,16 @@ def rasterize_far_chunk(
         k = lowest_bit(refine_bits)
         refine_bits = refine_bits & (refine_bits - wp.uint64(1))
         if mids.on != 0:
-            nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers.source, use_excl, excl, frame,
-                                     lut, mask, bt, nb)
+            if bt.record == 0:
+                # queued with the other visited ones' after the far field (:func:`rasterize_mid_set`)
+                t = t0 + k
+                mids.visited[sl, t >> 6] = mids.visited[sl, t >> 6] | (wp.uint64(1) << wp.uint64(t & 63))
+                for u in range(mids.listed.shape[1]):
+                    mids.listed[sl, u] = mids.listed[sl, u] | mids.cover[t, u]
+            else:
+                nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
         else:
-            nb = rasterize_group(t0 + k, v, sl, p, n, fine, groups, blockers.source, use_excl, excl, frame, lut, mask, bt,
-                                 nb)
+            nb = rasterize_group(t0 + k, v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb)
     while keep != wp.uint64(0):
         k = lowest_bit(keep)
         keep = keep & (keep - wp.uint64(1))
@@ -1204,9 +1320,12 @@ def rasterize_masks(
             for r in range(mids.ring_start[v], mids.ring_start[v + 1]):
                 m = mids.ring_tris[r]
                 mids.ring_bits[sl, m >> 6] = mids.ring_bits[sl, m >> 6] | (wp.uint64(1) << wp.uint64(m & 63))
+            for w in range(mids.visited.shape[1]):
+                mids.visited[sl, w] = wp.uint64(0)
             mids.counts[v] = 0
         bt.counts[v] = 0
         refined[v] = 0
+        mark_refined(v, sl, p, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi, cluster_reach)
         nb = int(0)
         if fine.fan != 0:
             nb = rasterize_fan(v, sl, p, n, fine, frame, lut, mask, bt, nb)
@@ -1222,28 +1341,27 @@ def rasterize_masks(
                                mask, bt)
         # far field: coarse blockers, replaced by their fine triangles near the receiver
         offset = wp.dot(n, p)
-        near_all = groups.refine > 0.0
         if use_pvs != 0:
             for r in range(pvs_start[v], pvs_start[v + 1]):
                 t = pvs_tris[r]
-                nb = rasterize_far_chunk(t, t + 1, near_all, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame,
+                nb = rasterize_far_chunk(t, t + 1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame,
                                          lut, mask, bt, nb)
         elif use_cull != 0:
             for s in range(super_start.shape[0] - 1):
                 if box_above_plane(super_lo[s], super_hi[s], n, offset):
                     for c in range(super_start[s], super_start[s + 1]):
                         if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
-                            # per-blocker refinement tests only in clusters that come near enough
-                            near = near_all and box_near(p, cluster_lo[c], cluster_hi[c], groups.refine * cluster_reach[c])
                             for t0 in range(cluster_start[c], cluster_start[c + 1], FAR_CHUNK):
                                 t1 = wp.min(t0 + FAR_CHUNK, cluster_start[c + 1])
-                                nb = rasterize_far_chunk(t0, t1, near, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl,
+                                nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl,
                                                          frame, lut, mask, bt, nb)
         else:
             for t0 in range(0, blockers.faces.shape[0], FAR_CHUNK):
                 t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
-                nb = rasterize_far_chunk(t0, t1, near_all, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame, lut,
+                nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame, lut,
                                          mask, bt, nb)
+        if mids.on != 0 and bt.record == 0:
+            nb = rasterize_mid_set(v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
         if nb > 0:
             flush_batch(nb, v, sl, frame, lut, mask, bt)
         if mids.on != 0:

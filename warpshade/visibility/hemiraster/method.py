@@ -475,10 +475,19 @@ class HemirasterTransfer(TransferMethod):
             self._groups.seen = wp.zeros((self._slots, mid_words) if self._groups.use_seen else (1, 1), dtype=wp.uint64,
                                          device=d)
             self._mids.ring_bits = wp.zeros((self._slots, mid_words), dtype=wp.uint64, device=d)
+            # kernels.rasterize_mid_set: each coarse blocker's listed and primary mid triangles as bit rows
+            cover, primary = hierarchy.group_bits(group_start, group_mid, group_tris, self.num_mid)
+            self._mids.cover = wp.array(tables.chunked_rows(cover), dtype=MaskChunk, device=d)
+            self._mids.primary = wp.array(tables.chunked_rows(primary), dtype=MaskChunk, device=d)
+            self._mids.listed = wp.zeros((self._slots, self._mids.cover.shape[1]), dtype=MaskChunk, device=d)
+            self._mids.visited = wp.zeros((self._slots, (self.num_blockers + 63) // 64), dtype=wp.uint64, device=d)
         else:
             self._sub.use_seen = 0
             self._sub.seen = wp.zeros((1, 1), dtype=wp.uint64, device=d)
             self._mids.ring_bits = wp.zeros((1, 1), dtype=wp.uint64, device=d)
+            self._mids.cover, self._mids.primary, self._mids.listed = (wp.zeros((1, 1), dtype=MaskChunk, device=d)
+                                                                       for _ in range(3))
+            self._mids.visited = wp.zeros((1, 1), dtype=wp.uint64, device=d)
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bnlen = wp.zeros(self.num_blockers, dtype=float, device=d)
@@ -486,6 +495,8 @@ class HemirasterTransfer(TransferMethod):
         self._blockers.points, self._blockers.faces = self._bpoints, self._bfaces
         self._blockers.plane, self._blockers.sphere, self._blockers.nlen = self._bplane, self._bsphere, self._bnlen
         self._blockers.source, self._blockers.skip_incident = self._bsource, 0 if self.hierarchy else 1
+        self._blockers.order = wp.array(self._perm_inv.astype(np.int32), dtype=wp.int32, device=d)
+        self._blockers.refined = wp.zeros((self._slots, (self.num_blockers + 63) // 64), dtype=wp.uint64, device=d)
 
         # per-receiver results
         self._mask = wp.zeros((nv, self._words), dtype=wp.uint64, device=d)
@@ -614,9 +625,10 @@ class HemirasterTransfer(TransferMethod):
         d = self.device
         if (self.cull and not use_pvs) or self._use_refine:
             self._refit()
-        if self.cull and not use_pvs:
+        if (self.cull and not use_pvs) or self._use_refine:  # clusters: culling, and kernels.mark_refined
             wp.launch(union_boxes, dim=self._cluster_box[0].shape[0], inputs=[*self._blocker_box, self._blocker_dev, self._cluster_start],
                       outputs=[*self._cluster_box, self._cluster_reach], device=d)
+        if self.cull and not use_pvs:
             wp.launch(union_boxes, dim=self._super_box[0].shape[0], inputs=[*self._cluster_box, self._cluster_reach, self._super_start],
                       outputs=[*self._super_box, self._super_reach], device=d)
         # planes and bounding spheres pre-cull triangles below the horizon or back-facing, and bound
