@@ -49,6 +49,15 @@ def popcount(x: wp.uint32) -> int:
 
 
 @wp.func
+def mask_full(masks: wp.array2d[wp.uint32], r: int, k: int, full: wp.uint32) -> bool:
+    """Whether every row of receiver ``r``'s mask equals ``full`` (all k samples blocked)."""
+    for j in range(k):
+        if masks[r, j] != full:
+            return False
+    return True
+
+
+@wp.func
 def light_point(c: wp.vec3, u: wp.vec3, v: wp.vec3, s: float, t: float) -> wp.vec3:
     return c + u * s + v * t
 
@@ -100,6 +109,13 @@ def summarize_mask(
                 s = -1.0 + (2.0 * float(i) + 1.0) / float(k)
                 ff += light_sample_weight(p, n, light_point(c, u, v, s, t), light_normal) * dA
     return wp.vec2(1.0 - float(blocked) / float(k * k), ff)
+
+
+@wp.kernel
+def triangle_corners(points: wp.array[wp.vec3], faces: wp.array2d[wp.int32], corners: wp.array[wp.vec3]):
+    """``corners[3 f + i] = points[faces[f, i]]``: the triangles' corners side by side, read per receiver."""
+    f, i = wp.tid()
+    corners[3 * f + i] = points[faces[f, i]]
 
 
 # -- acceleration grid (the paper's A.1–A.3) -----------------------------------------------------
@@ -281,12 +297,136 @@ def add_counts(count: wp.array[int], end: wp.array[int]):
     end[i] = end[i] + count[i]
 
 
+# -- conservative pre-cull (native) ------------------------------------------------------------------
+CULL_BATCH = wp.constant(32)
+"""Candidate triangles a receiver passes to :func:`cull_batch` at a time (its scratch row length)."""
+
+_CULL_BATCH = r"""
+// corners: (3F) contiguous vec3; ids: the cell's triangle list; the walk goes first, first-1, ...
+const float* __restrict__ P = (const float*)corners.data;
+const int* __restrict__ ids = (const int*)cell_tris.data;
+const unsigned int* __restrict__ mrow = (const unsigned int*)((const char*)masks.data + r * masks.strides[0]);
+int* __restrict__ out = (int*)((char*)keep.data + r * keep.strides[0]);
+const float px = p[0], py = p[1], pz = p[2];
+const float nx = nrm[0], ny = nrm[1], nz = nrm[2];
+const float ux = du[0], uy = du[1], uz = du[2];
+const float vx = dv[0], vy = dv[1], vz = dv[2];
+const float ax = fabsf(ux) + fabsf(vx), ay = fabsf(uy) + fabsf(vy), az = fabsf(uz) + fabsf(vz);
+const float anx = fabsf(nx), any = fabsf(ny), anz = fabsf(nz);
+const float hs = 1.0f + fabsf(s0) + fabsf(t0);
+const float fk = (float)k;
+// the outermost sample centres are 1/k inside the light's edges: cull at half a cell outside them
+const float edge = 1.0f - 0.5f / fk;
+// gather the corners relative to the receiver (structure of arrays, so the next loop vectorizes)
+float cx[3][32], cy[3][32], cz[3][32];
+for (int q = 0; q < n; ++q) {
+    const float* t = P + 9 * ids[first - q];
+    for (int c = 0; c < 3; ++c) {
+        cx[c][q] = t[3 * c] - px;
+        cy[c][q] = t[3 * c + 1] - py;
+        cz[c][q] = t[3 * c + 2] - pz;
+    }
+}
+int row0[32], row1[32], pass[32];
+unsigned int span[32];
+// branch-free (bitwise & and | on the tests): clang vectorizes this loop
+for (int q = 0; q < n; ++q) {
+    float H[3], S[3], T[3];
+    float asum = 0.0f;
+    for (int c = 0; c < 3; ++c) {
+        const float dx = cx[c][q], dy = cy[c][q], dz = cz[c][q];
+        const float h = dx * nx + dy * ny + dz * nz;
+        H[c] = h;
+        S[c] = h * s0 + (dx * ux + dy * uy + dz * uz);
+        T[c] = h * t0 + (dx * vx + dy * vy + dz * vz);
+        // sum of the magnitudes of the terms: bounds the rounding of H, S, T (here and in the exact path)
+        const float b = fabsf(dx) * anx + fabsf(dy) * any + fabsf(dz) * anz;
+        asum += (fabsf(h) + b) * hs + fabsf(dx) * ax + fabsf(dy) * ay + fabsf(dz) * az;
+    }
+    const float tau = 1.0e-5f * asum;
+    // outside a plane through the receiver and a light edge pushed out by half a cell (linear in X,
+    // so the clipped polygon is outside it too), behind the receiver or beyond the light
+    bool out_ = (S[0] + edge * H[0] < -tau) & (S[1] + edge * H[1] < -tau) & (S[2] + edge * H[2] < -tau);
+    out_ |= (S[0] - edge * H[0] > tau) & (S[1] - edge * H[1] > tau) & (S[2] - edge * H[2] > tau);
+    out_ |= (T[0] + edge * H[0] < -tau) & (T[1] + edge * H[1] < -tau) & (T[2] + edge * H[2] < -tau);
+    out_ |= (T[0] - edge * H[0] > tau) & (T[1] - edge * H[1] > tau) & (T[2] - edge * H[2] > tau);
+    out_ |= (H[0] < -tau) & (H[1] < -tau) & (H[2] < -tau);
+    out_ |= (H[0] > 1.0f + tau) & (H[1] > 1.0f + tau) & (H[2] > 1.0f + tau);
+    // wholly in front of the receiver: the projection lies in the box of the corners' projections
+    const float hmin = wp::min(H[0], wp::min(H[1], H[2]));
+    const bool front = hmin > 1.0e-3f;
+    const float ih = front ? 1.0f / hmin : 0.0f;
+    const float r0 = front ? 1.0f / H[0] : 0.0f, r1 = front ? 1.0f / H[1] : 0.0f, r2 = front ? 1.0f / H[2] : 0.0f;
+    const float s_0 = S[0] * r0, s_1 = S[1] * r1, s_2 = S[2] * r2;
+    const float t_0 = T[0] * r0, t_1 = T[1] * r1, t_2 = T[2] * r2;
+    // margin: over 1000x the rounding of s = S/H (that of S, and of H times |s|), plus 1e-4
+    const float big = wp::max(wp::max(wp::max(fabsf(s_0), fabsf(s_1)), wp::max(fabsf(s_2), fabsf(t_0))),
+                              wp::max(fabsf(t_1), fabsf(t_2)));
+    const float m = 1.0e-4f * asum * (1.0f + big) * ih + 1.0e-4f;
+    const float smin = wp::min(s_0, wp::min(s_1, s_2)) - m, smax = wp::max(s_0, wp::max(s_1, s_2)) + m;
+    const float tmin = wp::min(t_0, wp::min(t_1, t_2)) - m, tmax = wp::max(t_0, wp::max(t_1, t_2)) + m;
+    // sample index ranges as :func:`sample_index_range`
+    const float lo_c = -2.0f, hi_c = fk + 2.0f;
+    const float ai = wp::min(wp::max((smin + 1.0f) * 0.5f * fk - 0.5f, lo_c), hi_c);
+    const float bi = wp::min(wp::max((smax + 1.0f) * 0.5f * fk - 0.5f, lo_c), hi_c);
+    const float aj = wp::min(wp::max((tmin + 1.0f) * 0.5f * fk - 0.5f, lo_c), hi_c);
+    const float bj = wp::min(wp::max((tmax + 1.0f) * 0.5f * fk - 0.5f, lo_c), hi_c);
+    int i0 = (int)ceilf(ai), i1 = (int)floorf(bi), j0 = (int)ceilf(aj), j1 = (int)floorf(bj);
+    i0 = i0 < 0 ? 0 : i0;
+    j0 = j0 < 0 ? 0 : j0;
+    i1 = i1 > k - 1 ? k - 1 : i1;
+    j1 = j1 > k - 1 ? k - 1 : j1;
+    // not in front: every row, every column
+    i0 = front ? i0 : 0;
+    j0 = front ? j0 : 0;
+    i1 = front ? i1 : k - 1;
+    j1 = front ? j1 : k - 1;
+    out_ |= (i0 > i1) | (j0 > j1);
+    const int w = out_ ? 1 : i1 - i0 + 1;
+    span[q] = (0xFFFFFFFFu >> (32 - w)) << (out_ ? 0 : i0);
+    row0[q] = j0;
+    row1[q] = j1;
+    pass[q] = ((cull == 0) | !out_) ? 1 : 0;
+}
+int kept = 0;
+for (int q = 0; q < n; ++q) {
+    bool hit = pass[q] != 0;
+    if (hit && cull != 0) {
+        // every sample the box covers already blocked
+        const unsigned int sp = span[q];
+        unsigned int all = sp;
+        for (int j = row0[q]; j <= row1[q]; ++j) all &= mrow[j];
+        hit = all != sp;
+    }
+    out[kept] = ids[first - q];
+    kept += hit ? 1 : 0;
+}
+return kept;
+"""
+
+
+@wp.func_native(_CULL_BATCH)
+def cull_batch(corners: wp.array[wp.vec3], cell_tris: wp.array[int], first: int, n: int, p: wp.vec3, nrm: wp.vec3,
+               du: wp.vec3, dv: wp.vec3, s0: float, t0: float, k: int, masks: wp.array2d[wp.uint32], r: int,
+               cull: int, keep: wp.array2d[int]) -> int:
+    """Conservative cull of ``n <= CULL_BATCH`` candidate triangles ``cell_tris[first], cell_tris[first-1], ...``
+    for receiver ``r`` (at ``p``; ``nrm``, ``du``, ``dv``, ``s0``, ``t0`` as in :func:`rasterize_light_masks`).
+
+    Drops a triangle only if it cannot set a bit of the mask: wholly outside the light's frustum (its
+    planes pushed out by half a sample cell), wholly behind the receiver or beyond the light, or, in
+    front of the receiver, when the box of its corners' projections (with a margin of 1000× their
+    rounding) covers no sample or only samples already blocked. The kept triangle ids go to
+    ``keep[r, :]`` in walk order; returns how many. ``cull = 0`` keeps all (for tests). Native C++:
+    a branch-free first loop clang vectorizes, then the mask test and compaction.
+    """
+
+
 # -- GEARS visibility masks (the paper's step 4) ---------------------------------------------------
 @wp.kernel
 def rasterize_light_masks(
     points: wp.array[wp.vec3],
     normals: wp.array[wp.vec3],
-    faces: wp.array2d[wp.int32],
+    corners: wp.array[wp.vec3],
     offset: float,
     c: wp.vec3,
     u: wp.vec3,
@@ -300,10 +440,12 @@ def rasterize_light_masks(
     cell_count: wp.array[int],
     cell_tris: wp.array[int],
     cell_keys: wp.array[float],
+    cull: int,
+    keep: wp.array2d[int],
     masks: wp.array2d[wp.uint32],
     visibility: wp.array[float],
     form_factor: wp.array[float],
-    tri_count: wp.array[int],
+    tri_count: wp.array2d[int],
 ):
     """Per receiver: rasterize its blocker triangles, seen from it, onto the light's k×k mask.
 
@@ -316,7 +458,10 @@ def rasterize_light_masks(
     "all triangles" (brute force: ``cell_start[0] = 0``, ``cell_count[0] = F``). Each cell's list is
     sorted by the triangles' near height above the light: triangles no closer to the light than the
     receiver are skipped by a binary search (the near clip would reject them), and the rest are
-    walked from the receiver toward the light.
+    walked from the receiver toward the light, :data:`CULL_BATCH` at a time: :func:`cull_batch` drops
+    those that cannot set a bit, the rest are clipped and scan-converted. ``corners[3 f + i]``: corner
+    ``i`` of triangle ``f``; ``keep``: scratch, shape (V, CULL_BATCH); ``tri_count[r]``: (triangles
+    the cull tested, triangles scan-converted).
     """
     r = wp.tid()
     n = normals[r]
@@ -326,6 +471,7 @@ def rasterize_light_masks(
     denom = wp.dot(c - p, light_normal)
     cell = cell_of[r]
     tested = int(0)
+    scanned = int(0)
     if denom != 0.0 and cell != -1:
         if cell == -2:
             cell = 0
@@ -350,100 +496,108 @@ def rasterize_light_masks(
                 lo = mid + 1
         # walk from the receiver toward the light: near triangles subtend more of the light, so
         # fully shadowed receivers fill their mask and stop early
-        for e in range(lo):
-            f = cell_tris[start + lo - 1 - e]
-            a0 = points[faces[f, 0]]
-            a1 = points[faces[f, 1]]
-            a2 = points[faces[f, 2]]
-            tested += 1
-            # keep 1e-6 <= h <= 1: in front of the receiver, not beyond the light. The near plane
-            # keeps the projection finite; the receiver offset keeps its own triangles behind it.
-            h0 = wp.dot(a0 - p, nrm)
-            h1 = wp.dot(a1 - p, nrm)
-            h2 = wp.dot(a2 - p, nrm)
-            if wp.max(h0, wp.max(h1, h2)) < 1.0e-6 or wp.min(h0, wp.min(h1, h2)) > 1.0:
-                continue  # entirely behind the receiver or beyond the light (most triangles)
-            poly[0] = a0
-            poly[1] = a1
-            poly[2] = a2
-            m = int(3)
-            if wp.min(h0, wp.min(h1, h2)) < 1.0e-6 or wp.max(h0, wp.max(h1, h2)) > 1.0:
-                tmp, m = clip_polygon(poly, 3, nrm, 1.0e-6, p)
-                if m == 0:
-                    continue
-                poly, m = clip_polygon(tmp, m, -nrm, -1.0, p)
-                if m < 3:
-                    continue
-            # Homogeneous light coordinates (S, T, H) = (s h, t h, h), linear in X: the central
-            # projection X' = P + (X - P)/h has s = s0 + du·(X - P)/h with s0 = du·(P - c).
-            # all tests in homogeneous form (H >= 0 after the near clip, possibly rounded to 0)
-            out_lo_s = bool(True)
-            out_hi_s = bool(True)
-            out_lo_t = bool(True)
-            out_hi_t = bool(True)
-            big = bool(False)
-            for i in range(m):
-                x = poly[i]
-                hx = wp.dot(x - p, nrm)
-                hom = wp.vec3(hx * s0 + wp.dot(x - p, du), hx * t0 + wp.dot(x - p, dv), hx)
-                poly[i] = hom
-                out_lo_s = out_lo_s and hom[0] < -hx
-                out_hi_s = out_hi_s and hom[0] > hx
-                out_lo_t = out_lo_t and hom[1] < -hx
-                out_hi_t = out_hi_t and hom[1] > hx
-                if not (wp.abs(hom[0]) <= 4.0 * hx and wp.abs(hom[1]) <= 4.0 * hx):
-                    big = True
-            if out_lo_s or out_hi_s or out_lo_t or out_hi_t:
-                continue  # projection misses the light
-            if big:
-                # The projection reaches far past the light (a blocker close to the receiver, or a
-                # light seen almost edge-on), where float32 spans on huge coordinates lose samples.
-                # Clip in homogeneous coordinates to |s|, |t| <= 1.5 H (GPU-style clipping, well
-                # conditioned where 3-D planes through the receiver would be nearly parallel).
-                zero = wp.vec3(0.0, 0.0, 0.0)
-                for j in range(4):
-                    plane = wp.vec3(wp.where(j == 0, -1.0, wp.where(j == 1, 1.0, 0.0)),
-                                    wp.where(j == 2, -1.0, wp.where(j == 3, 1.0, 0.0)), 1.5)
-                    tmp, m = clip_polygon(poly, m, plane, 0.0, zero)
-                    poly = tmp
+        e = int(0)
+        done = bool(False)
+        while e < lo and not done:
+            nb = wp.min(CULL_BATCH, lo - e)
+            kept = cull_batch(corners, cell_tris, start + lo - 1 - e, nb, p, nrm, du, dv, s0, t0, k, masks, r, cull,
+                              keep)
+            e += nb
+            tested += nb
+            for q in range(kept):
+                f = keep[r, q]
+                a0 = corners[3 * f]
+                a1 = corners[3 * f + 1]
+                a2 = corners[3 * f + 2]
+                scanned += 1
+                # keep 1e-6 <= h <= 1: in front of the receiver, not beyond the light. The near plane
+                # keeps the projection finite; the receiver offset keeps its own triangles behind it.
+                h0 = wp.dot(a0 - p, nrm)
+                h1 = wp.dot(a1 - p, nrm)
+                h2 = wp.dot(a2 - p, nrm)
+                if wp.max(h0, wp.max(h1, h2)) < 1.0e-6 or wp.min(h0, wp.min(h1, h2)) > 1.0:
+                    continue  # entirely behind the receiver or beyond the light
+                poly[0] = a0
+                poly[1] = a1
+                poly[2] = a2
+                m = int(3)
+                if wp.min(h0, wp.min(h1, h2)) < 1.0e-6 or wp.max(h0, wp.max(h1, h2)) > 1.0:
+                    tmp, m = clip_polygon(poly, 3, nrm, 1.0e-6, p)
                     if m == 0:
-                        break
-                if m < 3:
-                    continue
-            tmin = float(1.0e30)
-            tmax = float(-1.0e30)
-            for i in range(m):
-                hom = poly[i]
-                hh = wp.max(hom[2], 1.0e-30)
-                tmp[i] = wp.vec3(hom[0] / hh, hom[1] / hh, 0.0)
-                tmin = wp.min(tmin, tmp[i][1])
-                tmax = wp.max(tmax, tmp[i][1])
-            rows = sample_index_range(tmin, tmax, k)
-            for j in range(rows[0], rows[1] + 1):
-                t = -1.0 + (2.0 * float(j) + 1.0) / float(k)
-                smin = float(1.0e30)
-                smax = float(-1.0e30)
+                        continue
+                    poly, m = clip_polygon(tmp, m, -nrm, -1.0, p)
+                    if m < 3:
+                        continue
+                # Homogeneous light coordinates (S, T, H) = (s h, t h, h), linear in X: the central
+                # projection X' = P + (X - P)/h has s = s0 + du·(X - P)/h with s0 = du·(P - c).
+                # all tests in homogeneous form (H >= 0 after the near clip, possibly rounded to 0)
+                out_lo_s = bool(True)
+                out_hi_s = bool(True)
+                out_lo_t = bool(True)
+                out_hi_t = bool(True)
+                big = bool(False)
                 for i in range(m):
-                    a = tmp[i]
-                    b = tmp[(i + 1) % m]
-                    # half-open crossing rule: an edge counts for rows in [min t, max t)
-                    if (a[1] <= t and t < b[1]) or (b[1] <= t and t < a[1]):
-                        sx = a[0] + (t - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
-                        smin = wp.min(smin, sx)
-                        smax = wp.max(smax, sx)
-                if smin <= smax:
-                    cols = sample_index_range(smin, smax, k)
-                    if cols[0] <= cols[1]:
-                        masks[r, j] = masks[r, j] | bit_span(cols[0], cols[1])
-            # fully blocked: no later triangle can change the mask
-            if e % 4 == 3:
-                done = bool(True)
-                for j in range(k):
-                    if masks[r, j] != full:
-                        done = False
-                if done:
-                    break
-    tri_count[r] = tested
+                    x = poly[i]
+                    hx = wp.dot(x - p, nrm)
+                    hom = wp.vec3(hx * s0 + wp.dot(x - p, du), hx * t0 + wp.dot(x - p, dv), hx)
+                    poly[i] = hom
+                    out_lo_s = out_lo_s and hom[0] < -hx
+                    out_hi_s = out_hi_s and hom[0] > hx
+                    out_lo_t = out_lo_t and hom[1] < -hx
+                    out_hi_t = out_hi_t and hom[1] > hx
+                    if not (wp.abs(hom[0]) <= 4.0 * hx and wp.abs(hom[1]) <= 4.0 * hx):
+                        big = True
+                if out_lo_s or out_hi_s or out_lo_t or out_hi_t:
+                    continue  # projection misses the light
+                if big:
+                    # The projection reaches far past the light (a blocker close to the receiver, or a
+                    # light seen almost edge-on), where float32 spans on huge coordinates lose samples.
+                    # Clip in homogeneous coordinates to |s|, |t| <= 1.5 H (GPU-style clipping, well
+                    # conditioned where 3-D planes through the receiver would be nearly parallel).
+                    zero = wp.vec3(0.0, 0.0, 0.0)
+                    for j in range(4):
+                        plane = wp.vec3(wp.where(j == 0, -1.0, wp.where(j == 1, 1.0, 0.0)),
+                                        wp.where(j == 2, -1.0, wp.where(j == 3, 1.0, 0.0)), 1.5)
+                        tmp, m = clip_polygon(poly, m, plane, 0.0, zero)
+                        poly = tmp
+                        if m == 0:
+                            break
+                    if m < 3:
+                        continue
+                tmin = float(1.0e30)
+                tmax = float(-1.0e30)
+                for i in range(m):
+                    hom = poly[i]
+                    hh = wp.max(hom[2], 1.0e-30)
+                    tmp[i] = wp.vec3(hom[0] / hh, hom[1] / hh, 0.0)
+                    tmin = wp.min(tmin, tmp[i][1])
+                    tmax = wp.max(tmax, tmp[i][1])
+                rows = sample_index_range(tmin, tmax, k)
+                for j in range(rows[0], rows[1] + 1):
+                    t = -1.0 + (2.0 * float(j) + 1.0) / float(k)
+                    smin = float(1.0e30)
+                    smax = float(-1.0e30)
+                    for i in range(m):
+                        a = tmp[i]
+                        b = tmp[(i + 1) % m]
+                        # half-open crossing rule: an edge counts for rows in [min t, max t)
+                        if (a[1] <= t and t < b[1]) or (b[1] <= t and t < a[1]):
+                            sx = a[0] + (t - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
+                            smin = wp.min(smin, sx)
+                            smax = wp.max(smax, sx)
+                    if smin <= smax:
+                        cols = sample_index_range(smin, smax, k)
+                        if cols[0] <= cols[1]:
+                            masks[r, j] = masks[r, j] | bit_span(cols[0], cols[1])
+                # fully blocked: no later triangle can change the mask
+                if q % 4 == 3:
+                    done = mask_full(masks, r, k, full)
+                    if done:
+                        break
+            if not done:
+                done = mask_full(masks, r, k, full)
+    tri_count[r, 0] = tested
+    tri_count[r, 1] = scanned
     dA = 4.0 * wp.length(wp.cross(u, v)) / float(k * k)
     res = summarize_mask(masks, r, k, points[r], n, c, u, v, light_normal, dA)
     visibility[r] = res[0]
