@@ -291,6 +291,41 @@ def fill_cell_triangles(
 
 
 @wp.kernel
+def iota(out: wp.array[int]):
+    """``out[i] = i``."""
+    i = wp.tid()
+    out[i] = i
+
+
+@wp.kernel
+def fill_cells_in_order(
+    order: wp.array[int],
+    rows: int,
+    boxes: wp.array2d[int],
+    grid_res: int,
+    near_height: wp.array[float],
+    cell_start: wp.array[int],
+    cell_fill: wp.array[int],
+    cell_tris: wp.array[int],
+    cell_keys: wp.array[float],
+):
+    """:func:`fill_cell_triangles` for one thread (launch dim 1): rows taken in the order ``order[:rows]``
+    (sorted by near height), so every cell's list comes out sorted without a segmented sort."""
+    for i in range(rows):
+        row = order[i]
+        if boxes[row, 0] >= 0:
+            side = row % 2
+            f = row / 2
+            for y in range(boxes[row, 1], boxes[row, 3] + 1):
+                for x in range(boxes[row, 0], boxes[row, 2] + 1):
+                    cell = (side * grid_res + y) * grid_res + x
+                    slot = cell_start[cell] + cell_fill[cell]
+                    cell_fill[cell] = cell_fill[cell] + 1
+                    cell_tris[slot] = f
+                    cell_keys[slot] = near_height[row]
+
+
+@wp.kernel
 def add_counts(count: wp.array[int], end: wp.array[int]):
     """``end += count`` (segment ends from starts)."""
     i = wp.tid()
