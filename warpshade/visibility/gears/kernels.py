@@ -346,13 +346,22 @@ const float px = p[0], py = p[1], pz = p[2];
 const float nx = nrm[0], ny = nrm[1], nz = nrm[2];
 const float ux = du[0], uy = du[1], uz = du[2];
 const float vx = dv[0], vy = dv[1], vz = dv[2];
+const float fk = (float)k;
+// the outermost sample centres are 1/k inside the light's edges: planes half a cell outside them
+const float edge = 1.0f - 0.5f / fk;
+// S + edge H, S - edge H, T + edge H, T - edge H as planes through the receiver: w·(X - P)
+const float w0x = (s0 + edge) * nx + ux, w0y = (s0 + edge) * ny + uy, w0z = (s0 + edge) * nz + uz;
+const float w1x = (s0 - edge) * nx + ux, w1y = (s0 - edge) * ny + uy, w1z = (s0 - edge) * nz + uz;
+const float w2x = (t0 + edge) * nx + vx, w2y = (t0 + edge) * ny + vy, w2z = (t0 + edge) * nz + vz;
+const float w3x = (t0 - edge) * nx + vx, w3y = (t0 - edge) * ny + vy, w3z = (t0 - edge) * nz + vz;
+// every term of these planes and of the exact path's S, T, H is at most C |X - P|_1 in magnitude
+const float an = wp::max(fabsf(nx), wp::max(fabsf(ny), fabsf(nz)));
+const float C = (fabsf(s0) + fabsf(t0) + 2.0f) * an + wp::max(fabsf(ux), wp::max(fabsf(uy), fabsf(uz)))
+              + wp::max(fabsf(vx), wp::max(fabsf(vy), fabsf(vz)));
 const float ax = fabsf(ux) + fabsf(vx), ay = fabsf(uy) + fabsf(vy), az = fabsf(uz) + fabsf(vz);
 const float anx = fabsf(nx), any = fabsf(ny), anz = fabsf(nz);
 const float hs = 1.0f + fabsf(s0) + fabsf(t0);
-const float fk = (float)k;
-// the outermost sample centres are 1/k inside the light's edges: cull at half a cell outside them
-const float edge = 1.0f - 0.5f / fk;
-// gather the corners relative to the receiver (structure of arrays, so the next loop vectorizes)
+// gather the corners relative to the receiver (structure of arrays, so the next loops vectorize)
 float cx[3][32], cy[3][32], cz[3][32];
 for (int q = 0; q < n; ++q) {
     const float* t = P + 9 * ids[first - q];
@@ -362,10 +371,41 @@ for (int q = 0; q < n; ++q) {
         cz[c][q] = t[3 * c + 2] - pz;
     }
 }
-int row0[32], row1[32], pass[32];
-unsigned int span[32];
-// branch-free (bitwise & and | on the tests): clang vectorizes this loop
+// 1. branch-free frustum test (bitwise & and |): outside one of the planes (linear in X, so the
+// clipped polygon is outside it too), wholly behind the receiver or beyond the light
+int inside[32];
 for (int q = 0; q < n; ++q) {
+    bool o0 = true, o1 = true, o2 = true, o3 = true, ob = true, of = true;
+    float l1 = 0.0f;
+    for (int c = 0; c < 3; ++c) {
+        const float dx = cx[c][q], dy = cy[c][q], dz = cz[c][q];
+        l1 += fabsf(dx) + fabsf(dy) + fabsf(dz);
+    }
+    const float tau = 1.0e-5f * C * l1;
+    for (int c = 0; c < 3; ++c) {
+        const float dx = cx[c][q], dy = cy[c][q], dz = cz[c][q];
+        const float h = dx * nx + dy * ny + dz * nz;
+        o0 &= dx * w0x + dy * w0y + dz * w0z < -tau;
+        o1 &= dx * w1x + dy * w1y + dz * w1z > tau;
+        o2 &= dx * w2x + dy * w2y + dz * w2z < -tau;
+        o3 &= dx * w3x + dy * w3y + dz * w3z > tau;
+        ob &= h < -tau;
+        of &= h > 1.0f + tau;
+    }
+    inside[q] = (cull == 0) | !(o0 | o1 | o2 | o3 | ob | of);
+}
+int sel[32];
+int ns = 0;
+for (int q = 0; q < n; ++q) {
+    sel[ns] = q;
+    ns += inside[q];
+}
+// 2. the survivors wholly in front of the receiver: the box of the corners' projections, as sample
+// ranges (branch-free, vectorized)
+int row0[32], row1[32], hit[32];
+unsigned int span[32];
+for (int e = 0; e < ns; ++e) {
+    const int q = sel[e];
     float H[3], S[3], T[3];
     float asum = 0.0f;
     for (int c = 0; c < 3; ++c) {
@@ -378,16 +418,6 @@ for (int q = 0; q < n; ++q) {
         const float b = fabsf(dx) * anx + fabsf(dy) * any + fabsf(dz) * anz;
         asum += (fabsf(h) + b) * hs + fabsf(dx) * ax + fabsf(dy) * ay + fabsf(dz) * az;
     }
-    const float tau = 1.0e-5f * asum;
-    // outside a plane through the receiver and a light edge pushed out by half a cell (linear in X,
-    // so the clipped polygon is outside it too), behind the receiver or beyond the light
-    bool out_ = (S[0] + edge * H[0] < -tau) & (S[1] + edge * H[1] < -tau) & (S[2] + edge * H[2] < -tau);
-    out_ |= (S[0] - edge * H[0] > tau) & (S[1] - edge * H[1] > tau) & (S[2] - edge * H[2] > tau);
-    out_ |= (T[0] + edge * H[0] < -tau) & (T[1] + edge * H[1] < -tau) & (T[2] + edge * H[2] < -tau);
-    out_ |= (T[0] - edge * H[0] > tau) & (T[1] - edge * H[1] > tau) & (T[2] - edge * H[2] > tau);
-    out_ |= (H[0] < -tau) & (H[1] < -tau) & (H[2] < -tau);
-    out_ |= (H[0] > 1.0f + tau) & (H[1] > 1.0f + tau) & (H[2] > 1.0f + tau);
-    // wholly in front of the receiver: the projection lies in the box of the corners' projections
     const float hmin = wp::min(H[0], wp::min(H[1], H[2]));
     const bool front = hmin > 1.0e-3f;
     const float ih = front ? 1.0f / hmin : 0.0f;
@@ -416,25 +446,25 @@ for (int q = 0; q < n; ++q) {
     j0 = front ? j0 : 0;
     i1 = front ? i1 : k - 1;
     j1 = front ? j1 : k - 1;
-    out_ |= (i0 > i1) | (j0 > j1);
-    const int w = out_ ? 1 : i1 - i0 + 1;
-    span[q] = (0xFFFFFFFFu >> (32 - w)) << (out_ ? 0 : i0);
-    row0[q] = j0;
-    row1[q] = j1;
-    pass[q] = ((cull == 0) | !out_) ? 1 : 0;
+    const bool empty = (i0 > i1) | (j0 > j1);
+    const int w = empty ? 1 : i1 - i0 + 1;
+    span[e] = (0xFFFFFFFFu >> (32 - w)) << (empty ? 0 : i0);
+    row0[e] = j0;
+    row1[e] = j1;
+    hit[e] = (cull == 0) | !empty;
 }
+// 3. drop those whose box covers only samples already blocked; the rest, in walk order, to ``keep``
 int kept = 0;
-for (int q = 0; q < n; ++q) {
-    bool hit = pass[q] != 0;
-    if (hit && cull != 0) {
-        // every sample the box covers already blocked
-        const unsigned int sp = span[q];
+for (int e = 0; e < ns; ++e) {
+    bool h = hit[e] != 0;
+    if (h && cull != 0) {
+        const unsigned int sp = span[e];
         unsigned int all = sp;
-        for (int j = row0[q]; j <= row1[q]; ++j) all &= mrow[j];
-        hit = all != sp;
+        for (int j = row0[e]; j <= row1[e]; ++j) all &= mrow[j];
+        h = all != sp;
     }
-    out[kept] = ids[first - q];
-    kept += hit ? 1 : 0;
+    out[kept] = ids[first - sel[e]];
+    kept += h ? 1 : 0;
 }
 return kept;
 """
