@@ -648,7 +648,7 @@ def rasterize_light_masks(
                     smax = float(-1.0e30)
                     for i in range(m):
                         a = tmp[i]
-                        b = tmp[(i + 1) % m]
+                        b = tmp[wp.where(i + 1 == m, 0, i + 1)]  # (i + 1) % m without an integer division
                         # half-open crossing rule: an edge counts for rows in [min t, max t)
                         if (a[1] <= t and t < b[1]) or (b[1] <= t and t < a[1]):
                             sx = a[0] + (t - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
