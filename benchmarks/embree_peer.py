@@ -18,6 +18,7 @@ What it shows (issue 18, target 3):
 How to run::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --json benchmarks/results/embree_peer.json
+    OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --parts gears --json benchmarks/results/embree_peer_gears.json
 
 Numbers come from a shared, loaded 2-core machine: A and B are timed alternately (hemiraster, embree,
 hemiraster...), so drift hits both; compare within one run.
@@ -221,8 +222,12 @@ def main(argv=None) -> int:
     ap.add_argument("--meshes", default="bunny,bear")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--k", type=int, default=16, help="GEARS light samples per side")
+    ap.add_argument("--parts", default="transfer,gears", help="which comparisons to run (comma-separated)")
     ap.add_argument("--json", default=None, metavar="PATH")
     args = ap.parse_args(argv)
+    parts = {p for p in args.parts.split(",") if p}
+    if not parts <= {"transfer", "gears"}:
+        ap.error(f"--parts: transfer and/or gears, got {args.parts!r}")
     wp.config.log_level = wp.LOG_WARNING
     wp.init()
 
@@ -230,15 +235,17 @@ def main(argv=None) -> int:
         print(msg, file=sys.stderr, flush=True)
 
     meshes = [m for m in args.meshes.split(",") if m]
-    transfer = [transfer_peer(m, args.repeat, log) for m in meshes]
-    gears = [gears_peer(m, args.k, args.repeat, log) for m in meshes]
-    print(f"\n{'mesh':6} {'hemiraster ms':>13} {'err %':>6} {'embree rays':>11} {'err %':>6} {'cast ms':>8} {'speedup':>8}")
+    transfer = [transfer_peer(m, args.repeat, log) for m in meshes] if "transfer" in parts else []
+    gears = [gears_peer(m, args.k, args.repeat, log) for m in meshes] if "gears" in parts else []
+    if transfer:
+        print(f"\n{'mesh':6} {'hemiraster ms':>13} {'err %':>6} {'embree rays':>11} {'err %':>6} {'cast ms':>8} {'speedup':>8}")
     for t in transfer:
         e = t.get("embree_at_equal_error", {})
         print(f"{t['mesh']:6} {t['hemiraster']['seconds'] * 1e3:13.1f} {t['hemiraster']['error_mean'] * 100:6.2f} "
               f"{e.get('rays', 0):11d} {e.get('error_mean', float('nan')) * 100:6.2f} "
               f"{e.get('cast_seconds', float('nan')) * 1e3:8.1f} {t.get('speedup', float('nan')):7.1f}x")
-    print(f"\n{'mesh':6} {'k':>3} {'GEARS ms':>9} {'Warp rays ms':>12} {'x':>6} {'embree ms':>10} {'x':>6}")
+    if gears:
+        print(f"\n{'mesh':6} {'k':>3} {'GEARS ms':>9} {'Warp rays ms':>12} {'x':>6} {'embree ms':>10} {'x':>6}")
     for g in gears:
         print(f"{g['mesh']:6} {g['k']:3d} {g['gears_seconds'] * 1e3:9.1f} {g['warp_rays_seconds'] * 1e3:12.1f} "
               f"{g['speedup_vs_warp_rays']:5.1f}x {g['embree_cast_seconds'] * 1e3:10.1f} {g['speedup_vs_embree']:5.1f}x")

@@ -121,6 +121,46 @@ def test_grid_never_misses_a_blocker(asset, height, size, tilt):
         assert g.stats()["triangles_tested_per_vertex"] < brute.stats()["triangles_tested_per_vertex"]
 
 
+@pytest.mark.parametrize("asset,k,height,size,tilt", [
+    ("bunny.usd", 16, 1.4, 0.3, 0.4),    # the benchmark light
+    ("bunny.usd", 32, 0.5, 0.5, 1.2),    # light plane through the mesh, steep: receivers on both sides
+    ("bear.usd", 7, 1.2, 0.05, 1.2),     # small light, odd k
+    ("bear.usd", 4, 3.0, 1.0, 0.0),      # big far light, coarse mask
+])
+def test_cull_drops_no_triangle_that_sets_a_bit(asset, k, height, size, tilt):
+    # cull_batch drops triangles before the exact clipping and scan conversion; with it off every
+    # candidate is scan-converted. A dropped triangle that sets a bit would change a mask.
+    m = load_mesh(warp_asset(asset))
+    light = light_above(m, height, size, tilt)
+    for grid in (0, 16):
+        on, off = Gears(m, light, k=k, grid=grid), Gears(m, light, k=k, grid=grid)
+        off._cull = 0
+        on.update()
+        off.update()
+        assert np.array_equal(on.masks.numpy(), off.masks.numpy()), (asset, grid)
+        # the cull must cull
+        assert on.stats()["triangles_scanned_per_vertex"] < 0.5 * off.stats()["triangles_scanned_per_vertex"]
+    # the same on the random scenes of the segment test, and with the light inside the bunny
+    for seed in (0, 1, 2):
+        rs = random_scene(seed)
+        rl = LightRect((0.2, -0.1, 2.2), (0.8, 0.1, 0), (-0.05, 0.4, 0.0))
+        on, off = Gears(rs, rl, k=k, grid=4), Gears(rs, rl, k=k, grid=4)
+        off._cull = 0
+        assert np.array_equal(on.update().numpy(), off.update().numpy())
+        assert np.array_equal(on.masks.numpy(), off.masks.numpy())
+
+
+def test_cull_keeps_grazing_and_inside_light_masks():
+    m = load_mesh(warp_asset("bunny.usd"))
+    for light in (LightRect((0.0, 0.3, 0.0), (0.05, 0, 0), (0, 0, 0.05)),   # inside the bunny
+                  light_above(m, 0.6, 0.4, 1.5)):                          # nearly edge-on to many receivers
+        on, off = Gears(m, light, k=16), Gears(m, light, k=16)
+        off._cull = 0
+        on.update()
+        off.update()
+        assert np.array_equal(on.masks.numpy(), off.masks.numpy())
+
+
 def test_bitmask_agrees_with_ray_tracing_on_bunny():
     m = load_mesh(warp_asset("bunny.usd"))
     light = light_above(m, 1.4, 0.4, 0.4)
