@@ -276,7 +276,7 @@ class XPBDSolver:
                     self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris, self._x_prev)
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             if self.stretch_limits:
-                wp.launch(k.flag_moved, dim=m.particle_count, inputs=[self._x_before, x], outputs=[self._touched], device=d)
+                cmds["moved"].launch()
             for c in cmds["velocities"]:
                 c.launch()
 
@@ -342,6 +342,9 @@ class XPBDSolver:
             cons.append(wp.launch(k.solve_tethers, dim=n, inputs=[m.tether_anchor, m.tether_length, m.inv_mass],
                                   outputs=[x], device=d, record_cmd=True))
         cmds["constraints"] = cons
+        if self.stretch_limits:
+            cmds["moved"] = wp.launch(k.flag_moved, dim=n, inputs=[self._x_before, x], outputs=[self._touched], device=d,
+                                      record_cmd=True)
         contacts = []
         if self.self_collision:
             contacts.append(wp.launch(k.solve_self_contacts, dim=n,
