@@ -12,7 +12,7 @@ import warp as wp
 
 from ..geometry.mesh import first_nonfinite
 from . import collision_kernels as ck
-from .kernels import apply_averaged_deltas
+from .kernels import apply_averaged_deltas, save_rows
 
 
 def _vec(name: str, value, n: int = 3) -> np.ndarray:
@@ -533,9 +533,8 @@ class ColliderSet:
         else:
             self._pose_corners("start", self._corner_start)
             self._pose_corners("end", self._corner_end)
-        wp.copy(rows["prev_ids"], rows["ids"])
-        wp.copy(rows["prev_sides"], rows["sides"])
-        wp.copy(rows["prev_count"], rows["count"])
+        wp.launch(save_rows, dim=c, inputs=[rows["count"], rows["ids"], rows["sides"]],
+                  outputs=[rows["prev_count"], rows["prev_ids"], rows["prev_sides"]], device=d)
         wp.launch(ck.find_corner_contacts, dim=c,
                   inputs=[self._corner_start, self._corner_end, self._corner_in, x, v, tris, rows["vt_offsets"],
                           rows["vt_tris"], float(horizon),

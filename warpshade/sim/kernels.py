@@ -116,6 +116,26 @@ def stored_side(prev_id: wp.array2d[int], prev_side: wp.array2d[float], prev_cou
     return out
 
 
+@wp.kernel
+def save_rows(
+    count: wp.array[int],
+    ids: wp.array2d[int],
+    sides: wp.array2d[float],
+    prev_count: wp.array[int],
+    prev_ids: wp.array2d[int],
+    prev_sides: wp.array2d[float],
+):
+    """Keep a detection's candidate rows for the next one's :func:`stored_side`: prev_count =
+    count and the rows' first count ids and sides (the rest of a row is never read; copying
+    only those spares copying whole rows, most of them empty)."""
+    i = wp.tid()
+    c = count[i]
+    prev_count[i] = c
+    for r in range(c):
+        prev_ids[i, r] = ids[i, r]
+        prev_sides[i, r] = sides[i, r]
+
+
 @wp.func
 def push_candidate(ids: wp.array2d[int], sides: wp.array2d[float], dists: wp.array2d[float], row: int, count: int,
                    other: int, side: float, dist: float, overflow: wp.array[int]) -> int:

@@ -406,9 +406,8 @@ class XPBDSolver:
         """Run a candidate search into `rows` after saving the previous detection; while rows
         overflow and may still grow, double them and search again. Returns the rows used and
         whether they grew."""
-        wp.copy(rows["prev_ids"], rows["ids"])
-        wp.copy(rows["prev_sides"], rows["sides"])
-        wp.copy(prev_count, count)
+        wp.launch(k.save_rows, dim=dim, inputs=[count, rows["ids"], rows["sides"]],
+                  outputs=[prev_count, rows["prev_ids"], rows["prev_sides"]], device=self.device)
         grew = False
         while True:
             before = int(self._overflow.numpy()[0])
