@@ -709,12 +709,15 @@ def find_self_contacts(
         look = later > 0.0 and near[0] == 0
         if not now and not look:
             continue
-        bc = closest_on_triangle(p, x[a], x[b], x[c])
-        dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
         speed = wp.max(wp.max(wp.length(vi - v[a]), wp.length(vi - v[b])), wp.length(vi - v[c]))
         close = speed * horizon
         reach = 1.5 * (thickness + speed * later)
-        # (the pair's distance changes by at most `close` until the next detection)
+        # (the pair's distance changes by at most `close` until the next detection, and is at
+        # least the vertex's distance to the triangle's box, which holds it)
+        if not now and wp.length(wp.max(wp.max(lower[t] - p, p - upper[t]), wp.vec3(0.0))) - close > reach:
+            continue
+        bc = closest_on_triangle(p, x[a], x[b], x[c])
+        dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
         if look and dist - close <= reach:
             ta = x[a] + v[a] * horizon
             tb = x[b] + v[b] * horizon
