@@ -361,7 +361,7 @@ class ColliderSet:
         """``wp.launch`` of the per-substep kernels through recorded launches, one per kernel,
         dimension and arguments (arrays by identity, which the record keeps alive): a recorded
         launch skips most of ``wp.launch``'s Python cost (tens of microseconds a call)."""
-        key = (kernel.key, dim, *(id(a) if isinstance(a, wp.array) else a for a in (*inputs, *outputs)))
+        key = (kernel, dim, *(id(a) if isinstance(a, wp.array) else a for a in (*inputs, *outputs)))
         cmd = self._cmds.get(key)
         if cmd is None:
             if len(self._cmds) >= self.MAX_RECORDED:
