@@ -12,7 +12,7 @@ import warp as wp
 
 from ..geometry.mesh import first_nonfinite
 from . import collision_kernels as ck
-from .kernels import apply_averaged_deltas
+from .kernels import apply_averaged_deltas, save_rows
 
 
 def _vec(name: str, value, n: int = 3) -> np.ndarray:
@@ -184,6 +184,7 @@ class ColliderSet:
         self.meshes: list[MeshCollider] = []
         self._dirty = True
         self._arrays = None
+        self._cmds: dict = {}
 
     # -- building ---------------------------------------------------------------------------
 
@@ -353,19 +354,34 @@ class ColliderSet:
         for m in self.meshes:
             wp.copy(m.points_start, m.points_end)
 
+    MAX_RECORDED = 256
+    """Most recorded launches :meth:`_launch` keeps (it starts afresh beyond)."""
+
+    def _launch(self, kernel, dim: int, inputs: list, outputs: list) -> None:
+        """``wp.launch`` of the per-substep kernels through recorded launches, one per kernel,
+        dimension and arguments (arrays by identity, which the record keeps alive): a recorded
+        launch skips most of ``wp.launch``'s Python cost (tens of microseconds a call)."""
+        key = (kernel, dim, *(id(a) if isinstance(a, wp.array) else a for a in (*inputs, *outputs)))
+        cmd = self._cmds.get(key)
+        if cmd is None:
+            if len(self._cmds) >= self.MAX_RECORDED:
+                self._cmds.clear()
+            cmd = self._cmds[key] = wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=self.device,
+                                              record_cmd=True)
+        cmd.launch()
+
     def pose_substep(self, alpha0: float, alpha1: float) -> None:
         """Pose the colliders for the substep spanning fractions alpha0..alpha1 of the step."""
         if self._arrays is not None:
             ar = self._arrays
-            wp.launch(ck.pose_shapes, dim=len(self._kind),
-                      inputs=[ar["a_start"], ar["a_end"], ar["b_start"], ar["b_end"], ar["rot_start"], ar["rot_end"],
-                              alpha0, alpha1], outputs=[ar["a0"], ar["a1"], ar["b0"], ar["b1"], ar["r0"], ar["r1"]],
-                      device=self.device)
+            self._launch(ck.pose_shapes, len(self._kind),
+                         [ar["a_start"], ar["a_end"], ar["b_start"], ar["b_end"], ar["rot_start"], ar["rot_end"], alpha0,
+                          alpha1], [ar["a0"], ar["a1"], ar["b0"], ar["b1"], ar["r0"], ar["r1"]])
         for m in self.meshes:
-            wp.launch(ck.interpolate_points, dim=m.points_start.shape[0],
-                      inputs=[m.points_start, m.points_end, alpha0], outputs=[m.points_prev], device=self.device)
-            wp.launch(ck.interpolate_points, dim=m.points_start.shape[0],
-                      inputs=[m.points_start, m.points_end, alpha1], outputs=[m.mesh.points], device=self.device)
+            self._launch(ck.interpolate_points, m.points_start.shape[0], [m.points_start, m.points_end, alpha0],
+                         [m.points_prev])
+            self._launch(ck.interpolate_points, m.points_start.shape[0], [m.points_start, m.points_end, alpha1],
+                         [m.mesh.points])
             m.mesh.refit()
         if self.corner_count:
             self._corner_arrays()
@@ -403,15 +419,14 @@ class ColliderSet:
             self._edge_count = wp.zeros(n, dtype=wp.float32, device=self.device)
         if any(k in self._SHARP for k in self._kind):
             ar = self._arrays
-            wp.launch(ck.collide_shape_edges, dim=edges.shape[0],
-                      inputs=[ar["kind"], ar["a1"], ar["b1"], ar["r1"], ar["size"], x, edges, inv_mass, thickness],
-                      outputs=[self._edge_delta, self._edge_count], device=self.device)
+            self._launch(ck.collide_shape_edges, edges.shape[0],
+                         [ar["kind"], ar["a1"], ar["b1"], ar["r1"], ar["size"], x, edges, inv_mass, thickness],
+                         [self._edge_delta, self._edge_count])
         for m in self.meshes:
-            wp.launch(ck.collide_mesh_edges, dim=edges.shape[0],
-                      inputs=[m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x, edges,
-                              inv_mass, thickness], outputs=[self._edge_delta, self._edge_count], device=self.device)
-        wp.launch(apply_averaged_deltas, dim=n, inputs=[], outputs=[self._edge_delta, self._edge_count, x],
-                  device=self.device)
+            self._launch(ck.collide_mesh_edges, edges.shape[0],
+                         [m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x, edges,
+                          inv_mass, thickness], [self._edge_delta, self._edge_count])
+        self._launch(apply_averaged_deltas, n, [], [self._edge_delta, self._edge_count, x])
         if tris is not None:
             # a pass of its own: averaged with the many small edge corrections a vertex near a
             # corner also gets, the corner's push would be diluted
@@ -518,9 +533,8 @@ class ColliderSet:
         else:
             self._pose_corners("start", self._corner_start)
             self._pose_corners("end", self._corner_end)
-        wp.copy(rows["prev_ids"], rows["ids"])
-        wp.copy(rows["prev_sides"], rows["sides"])
-        wp.copy(rows["prev_count"], rows["count"])
+        wp.launch(save_rows, dim=c, inputs=[rows["count"], rows["ids"], rows["sides"]],
+                  outputs=[rows["prev_count"], rows["prev_ids"], rows["prev_sides"]], device=d)
         wp.launch(ck.find_corner_contacts, dim=c,
                   inputs=[self._corner_start, self._corner_end, self._corner_in, x, v, tris, rows["vt_offsets"],
                           rows["vt_tris"], float(horizon),
@@ -561,12 +575,10 @@ class ColliderSet:
             x_prev = self._no_prev if getattr(self, "_no_prev", None) is not None else wp.zeros(0, dtype=wp.vec3,
                                                                                                   device=self.device)
             self._no_prev = x_prev
-        wp.launch(ck.solve_corner_contacts, dim=self.corner_count,
-                  inputs=[self._corners, self._corners_prev, self._corner_friction, x, x_prev, tris, inv_mass,
-                          rows["ids"], rows["sides"], rows["count"], float(thickness)],
-                  outputs=[self._edge_delta, self._edge_count], device=self.device)
-        wp.launch(apply_averaged_deltas, dim=n, inputs=[], outputs=[self._edge_delta, self._edge_count, x],
-                  device=self.device)
+        self._launch(ck.solve_corner_contacts, self.corner_count,
+                     [self._corners, self._corners_prev, self._corner_friction, x, x_prev, tris, inv_mass, rows["ids"],
+                      rows["sides"], rows["count"], float(thickness)], [self._edge_delta, self._edge_count])
+        self._launch(apply_averaged_deltas, n, [], [self._edge_delta, self._edge_count, x])
 
     def collide(self, thickness: float, inv_mass, x_prev, x) -> None:
         """Project the vertices x out of every collider as posed by :meth:`pose_substep`.
@@ -580,14 +592,12 @@ class ColliderSet:
         n = x.shape[0]
         if self._arrays is not None:
             ar = self._arrays
-            wp.launch(ck.collide_shapes, dim=n,
-                      inputs=[ar["kind"], ar["a0"], ar["a1"], ar["b0"], ar["b1"], ar["r0"], ar["r1"], ar["size"],
-                              ar["friction"], thickness, inv_mass, x_prev], outputs=[x], device=self.device)
+            self._launch(ck.collide_shapes, n, [ar["kind"], ar["a0"], ar["a1"], ar["b0"], ar["b1"], ar["r0"], ar["r1"],
+                                                ar["size"], ar["friction"], thickness, inv_mass, x_prev], [x])
         for m in self.meshes:
-            wp.launch(ck.collide_mesh, dim=n,
-                      inputs=[m.mesh.id, m.points_prev, m.indices, int(m.closed), thickness + self.mesh_query_distance,
-                              thickness, m.friction, inv_mass, x_prev],
-                      outputs=[x], device=self.device)
+            self._launch(ck.collide_mesh, n, [m.mesh.id, m.points_prev, m.indices, int(m.closed),
+                                              thickness + self.mesh_query_distance, thickness, m.friction, inv_mass,
+                                              x_prev], [x])
 
     mesh_query_distance = 0.25
     """How far [m] beyond the thickness a vertex is still looked up against a mesh collider; a

@@ -15,7 +15,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .kernels import closest_segments, dihedral_angle, push_candidate, stored_side
+from .kernels import boxes_overlap, closest_segments, dihedral_angle, push_candidate, stored_side
 
 # ---------------------------------------------------------------------------------------------
 # Geometry
@@ -98,12 +98,13 @@ def find_edge_contacts(
     x: wp.array[wp.vec3],
     v: wp.array[wp.vec3],
     horizon: float,
+    ahead: float,
     edges: wp.array2d[int],
     active: wp.array[int],
-    ring_offsets: wp.array[int],
-    ring: wp.array[int],
     lower: wp.array[wp.vec3],
     upper: wp.array[wp.vec3],
+    ahead_lower: wp.array[wp.vec3],
+    ahead_upper: wp.array[wp.vec3],
     thickness: float,
     prev_edge: wp.array2d[int],
     prev_side: wp.array2d[float],
@@ -113,20 +114,26 @@ def find_edge_contacts(
     contact_count: wp.array[int],
     contact_dist: wp.array2d[float],
     overflow: wp.array[int],
+    near: wp.array[int],
 ):
     """Edge-edge candidates (e, f) of the active edges e (borders and creases, against every
     edge f; a pair of two active edges is kept once, f > e) whose swept boxes overlap and that
     may come within 1.5 thicknesses (as :func:`warpshade.sim.kernels.find_self_contacts`); edges
     sharing a vertex are skipped. The side (orientation sign of the edge pair) is stored,
-    kept from the previous detection while the pair is in contact."""
+    kept from the previous detection while the pair is in contact. ``lower``/``upper`` are the
+    edges' boxes swept over ``horizon``; ``bvh`` holds ``ahead_lower``/``ahead_upper``, swept over
+    ``ahead`` >= ``horizon``, and near[0] is set to 1 when some pair, moved on with its velocities
+    to the next detection, would be a candidate of it (the look-ahead of
+    :func:`warpshade.sim.kernels.find_self_contacts`)."""
     e = wp.tid()
+    later = ahead - horizon
     if active[e] == 0:
         contact_count[e] = 0
         return
     i0 = edges[e, 0]
     i1 = edges[e, 1]
     count = int(0)
-    query = wp.bvh_query_aabb(bvh, lower[e], upper[e])
+    query = wp.bvh_query_aabb(bvh, ahead_lower[e], ahead_upper[e])
     f = int(0)
     while wp.bvh_query_next(query, f):
         if f <= e and active[f] != 0:
@@ -135,6 +142,10 @@ def find_edge_contacts(
         j1 = edges[f, 1]
         if i0 == j0 or i0 == j1 or i1 == j0 or i1 == j1:
             continue
+        now = boxes_overlap(lower[e], upper[e], lower[f], upper[f])
+        look = later > 0.0 and near[0] == 0
+        if not now and not look:
+            continue
         a = x[i0]
         b = x[i1]
         c = x[j0]
@@ -142,7 +153,19 @@ def find_edge_contacts(
         st = closest_segments(a, b, c, d)
         dist = wp.length((a + (b - a) * st[0]) - (c + (d - c) * st[1]))
         close = wp.max(pair_closure(v, i0, j0, j1, -1, horizon), pair_closure(v, i1, j0, j1, -1, horizon))
-        if dist > 1.5 * (thickness + close):
+        if look:
+            reach = 1.5 * (thickness + wp.max(pair_closure(v, i0, j0, j1, -1, later),
+                                              pair_closure(v, i1, j0, j1, -1, later)))
+            # (the pair's distance changes by at most `close` until the next detection)
+            if dist - close <= reach:
+                ta = a + v[i0] * horizon
+                tb = b + v[i1] * horizon
+                tc = c + v[j0] * horizon
+                td = d + v[j1] * horizon
+                sn = closest_segments(ta, tb, tc, td)
+                if wp.length((ta + (tb - ta) * sn[0]) - (tc + (td - tc) * sn[1])) <= reach:
+                    near[0] = 1
+        if not now or dist > 1.5 * (thickness + close):
             continue
         side = edge_orientation(a, b, c, d)
         if dist < thickness:

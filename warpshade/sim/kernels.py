@@ -116,6 +116,26 @@ def stored_side(prev_id: wp.array2d[int], prev_side: wp.array2d[float], prev_cou
     return out
 
 
+@wp.kernel
+def save_rows(
+    count: wp.array[int],
+    ids: wp.array2d[int],
+    sides: wp.array2d[float],
+    prev_count: wp.array[int],
+    prev_ids: wp.array2d[int],
+    prev_sides: wp.array2d[float],
+):
+    """Keep a detection's candidate rows for the next one's :func:`stored_side`: prev_count =
+    count and the rows' first count ids and sides (the rest of a row is never read; copying
+    only those spares copying whole rows, most of them empty)."""
+    i = wp.tid()
+    c = count[i]
+    prev_count[i] = c
+    for r in range(c):
+        prev_ids[i, r] = ids[i, r]
+        prev_sides[i, r] = sides[i, r]
+
+
 @wp.func
 def push_candidate(ids: wp.array2d[int], sides: wp.array2d[float], dists: wp.array2d[float], row: int, count: int,
                    other: int, side: float, dist: float, overflow: wp.array[int]) -> int:
@@ -603,6 +623,28 @@ NEIGHBOUR_FOLD = wp.constant(0.5)
 closer to the triangle than this fraction of its rest distance to it (a fold)."""
 
 
+@wp.func
+def boxes_overlap(a_lo: wp.vec3, a_hi: wp.vec3, b_lo: wp.vec3, b_hi: wp.vec3) -> bool:
+    """Closed boxes a and b overlap (the test of Warp's BVH box query)."""
+    return not (a_lo[0] > b_hi[0] or a_lo[1] > b_hi[1] or a_lo[2] > b_hi[2] or a_hi[0] < b_lo[0]
+                or a_hi[1] < b_lo[1] or a_hi[2] < b_lo[2])
+
+
+@wp.func
+def neighbour_flat(i: int, a: int, b: int, c: int, dist: float, rest_x: wp.array[wp.vec3],
+                   ring_offsets: wp.array[int], ring: wp.array[int]) -> bool:
+    """Triangle abc is one of vertex i's neighbours' and no fold brings it to i: the vertex is
+    not closer to it (dist) than NEIGHBOUR_FOLD of its distance to it at rest (a fold across one
+    strip of triangles; vertex-vertex distances cannot see it, the neighbour stays an edge length
+    away). Such a pair is no contact candidate."""
+    if (in_one_ring(i, a, ring_offsets, ring) or in_one_ring(i, b, ring_offsets, ring)
+            or in_one_ring(i, c, ring_offsets, ring)):
+        rb = closest_on_triangle(rest_x[i], rest_x[a], rest_x[b], rest_x[c])
+        rest = wp.length(rest_x[i] - (rest_x[a] * rb[0] + rest_x[b] * rb[1] + rest_x[c] * rb[2]))
+        return dist > NEIGHBOUR_FOLD * rest
+    return False
+
+
 @wp.kernel
 def find_self_contacts(
     bvh: wp.uint64,
@@ -613,6 +655,9 @@ def find_self_contacts(
     ring_offsets: wp.array[int],
     ring: wp.array[int],
     horizon: float,
+    ahead: float,
+    lower: wp.array[wp.vec3],
+    upper: wp.array[wp.vec3],
     pad: wp.array[float],
     thickness: float,
     prev_tri: wp.array2d[int],
@@ -623,6 +668,7 @@ def find_self_contacts(
     contact_count: wp.array[int],
     contact_dist: wp.array2d[float],
     overflow: wp.array[int],
+    near: wp.array[int],
 ):
     """Vertex-triangle candidate pairs whose swept boxes overlap and that
     are, or may come within one interval, closer than 1.5 thicknesses: distance <= 1.5 (thickness
@@ -634,14 +680,24 @@ def find_self_contacts(
     neighbours against the vertex, and they must be kept apart too. The side of
     the triangle the vertex is on now is stored; the solve keeps it there, which is what stops
     folds from passing through (the cloth is assumed free of intersections at detection time).
+
+    The look-ahead, for ``ahead`` > ``horizon``: the next detection comes after ``horizon``
+    seconds and looks ``ahead - horizon`` seconds on. ``bvh`` holds the triangles' boxes swept
+    over ``ahead`` (``lower``/``upper``: over ``horizon``, the boxes the candidates are found
+    with; the BVH's leaf order is the same for both, so the candidates and their order are those
+    of a search over the ``horizon`` boxes alone), and near[0] is set to 1 when some pair, moved
+    on with its velocities to the next detection, would be a candidate of it.
     """
     i = wp.tid()
     p = x[i]
-    q = p + v[i] * horizon
+    vi = v[i]
+    q = p + vi * horizon
     lo = wp.min(p, q) - wp.vec3(pad[i])
     hi = wp.max(p, q) + wp.vec3(pad[i])
+    qa = p + vi * ahead
+    later = ahead - horizon
     count = int(0)
-    query = wp.bvh_query_aabb(bvh, lo, hi)
+    query = wp.bvh_query_aabb(bvh, wp.min(p, qa) - wp.vec3(pad[i]), wp.max(p, qa) + wp.vec3(pad[i]))
     t = int(0)
     while wp.bvh_query_next(query, t):
         a = tris[t, 0]
@@ -649,21 +705,31 @@ def find_self_contacts(
         c = tris[t, 2]
         if i == a or i == b or i == c:
             continue
+        now = boxes_overlap(lo, hi, lower[t], upper[t])
+        look = later > 0.0 and near[0] == 0
+        if not now and not look:
+            continue
+        speed = wp.max(wp.max(wp.length(vi - v[a]), wp.length(vi - v[b])), wp.length(vi - v[c]))
+        close = speed * horizon
+        reach = 1.5 * (thickness + speed * later)
+        # (the pair's distance changes by at most `close` until the next detection, and is at
+        # least the vertex's distance to the triangle's box, which holds it)
+        if not now and wp.length(wp.max(wp.max(lower[t] - p, p - upper[t]), wp.vec3(0.0))) - close > reach:
+            continue
         bc = closest_on_triangle(p, x[a], x[b], x[c])
         dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
-        vi = v[i]
-        close = wp.max(wp.max(wp.length(vi - v[a]), wp.length(vi - v[b])), wp.length(vi - v[c])) * horizon
-        if dist > 1.5 * (thickness + close):
-            continue  # (tested first: it rejects most triangles, and the neighbour test below costs more)
-        if (in_one_ring(i, a, ring_offsets, ring) or in_one_ring(i, b, ring_offsets, ring)
-                              or in_one_ring(i, c, ring_offsets, ring)):
-            # a triangle of a neighbour: skipped unless the vertex is closer to the triangle than
-            # NEIGHBOUR_FOLD of its distance to it at rest (a fold across one strip of triangles;
-            # vertex-vertex distances cannot see it, the neighbour stays an edge length away)
-            rb = closest_on_triangle(rest_x[i], rest_x[a], rest_x[b], rest_x[c])
-            rest = wp.length(rest_x[i] - (rest_x[a] * rb[0] + rest_x[b] * rb[1] + rest_x[c] * rb[2]))
-            if dist > NEIGHBOUR_FOLD * rest:
-                continue
+        if look and dist - close <= reach:
+            ta = x[a] + v[a] * horizon
+            tb = x[b] + v[b] * horizon
+            tc = x[c] + v[c] * horizon
+            bt = closest_on_triangle(q, ta, tb, tc)
+            dist_next = wp.length(q - (ta * bt[0] + tb * bt[1] + tc * bt[2]))
+            if dist_next <= reach and not neighbour_flat(i, a, b, c, dist_next, rest_x, ring_offsets, ring):
+                near[0] = 1
+        if not now or dist > 1.5 * (thickness + close):
+            continue  # (tested first: it rejects most triangles, and the neighbour test costs more)
+        if neighbour_flat(i, a, b, c, dist, rest_x, ring_offsets, ring):
+            continue
         xa = x[a]
         nn = wp.cross(x[b] - xa, x[c] - xa)
         d = wp.dot(p - xa, nn)

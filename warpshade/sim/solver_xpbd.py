@@ -8,9 +8,11 @@ their interpolated targets, then per iteration: multi-scale stretch limits, colo
 bending sweeps, long-range tethers, self-contacts, colliders (last, so collider contacts hold at
 the end of every substep);
 finally velocities from positions. Self-contact candidates are found every ``contact_interval``
-substeps with a swept-box BVH query. After the last substep the intersection guard
-(``guard=True``) counts intersecting triangle pairs exactly and sends the vertices of offending
-triangles back to their start-of-step positions, growing the region until none is left, so
+substeps with a swept-box BVH query; a detection is skipped when the one before it in the step
+found no candidate and, moving the cloth on with its velocities, foresaw none for it. After the
+last substep the intersection guard (``guard=True``) counts intersecting triangle pairs exactly
+and sends the vertices of offending triangles back to their start-of-step positions, growing
+the region until none is left, so
 every step ends free of intersections when it started free of them; a vertex the contacts keep
 pushing into an intersection is held where it was until a step frees it (see
 :mod:`warpshade.sim.contact_kernels`).
@@ -150,10 +152,14 @@ class XPBDSolver:
         self._cmd_cache = None
         self._contacts_found = True
         """The last self-contact detection found a candidate (vertex-triangle or edge-edge)."""
+        self._clear_ahead = False
+        """The last detection found no candidate and foresaw none for the next one (see
+        :func:`~warpshade.sim.kernels.find_self_contacts`), which is then skipped."""
         if self.self_collision:
-            self._lower = wp.zeros(f, dtype=wp.vec3, device=d)
-            self._upper = wp.zeros(f, dtype=wp.vec3, device=d)
+            # triangle boxes swept over the contact interval, and over the next one too (the BVH's)
+            self._tri_boxes = [wp.zeros(f, dtype=wp.vec3, device=d) for _ in range(4)]
             self._bvh = None
+            self._near = wp.zeros(1, dtype=wp.int32, device=d)
             self._contact_count = wp.zeros(v, dtype=wp.int32, device=d)
             self._prev_count = wp.zeros(v, dtype=wp.int32, device=d)
             self._vt_rows = self._contact_rows(v, min(self.CONTACT_ROW_START, self.max_contacts))
@@ -163,8 +169,7 @@ class XPBDSolver:
             self._pad = wp.full(v, 0.5 * model.thickness, dtype=wp.float32, device=d)
         if self.edge_contact:
             ne, mc = model.edge_count, self.max_contacts
-            self._elower = wp.zeros(ne, dtype=wp.vec3, device=d)
-            self._eupper = wp.zeros(ne, dtype=wp.vec3, device=d)
+            self._edge_boxes = [wp.zeros(ne, dtype=wp.vec3, device=d) for _ in range(4)]
             self._ebvh = None
             self._contact_ecount = wp.zeros(ne, dtype=wp.int32, device=d)
             self._prev_ecount = wp.zeros(ne, dtype=wp.int32, device=d)
@@ -224,8 +229,17 @@ class XPBDSolver:
 
         for s in range(self.substeps):
             if self.self_collision and s % self.contact_interval == 0:
-                if self._detect_self_contacts(x, v, h * min(self.contact_interval, self.substeps - s)):
-                    cmds = self._commands(h, wind)  # the contact rows grew: the recorded launches are stale
+                if s > 0 and self._clear_ahead:
+                    # the last detection found no candidate and, moving the cloth on with its
+                    # velocities, foresaw none for this one: skipped (the one after it runs)
+                    self._clear_ahead = False
+                else:
+                    nxt = s + self.contact_interval  # the next detection's substep
+                    horizon = h * (min(nxt, self.substeps) - s)
+                    ahead = horizon + (h * (min(nxt + self.contact_interval, self.substeps) - nxt)
+                                       if nxt < self.substeps else 0.0)
+                    if self._detect_self_contacts(x, v, horizon, ahead):
+                        cmds = self._commands(h, wind)  # the contact rows grew: the recorded launches are stale
             if "aero" in cmds:
                 self._lift.zero_()
                 self._air_drag.zero_()
@@ -262,7 +276,7 @@ class XPBDSolver:
                     self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris, self._x_prev)
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             if self.stretch_limits:
-                wp.launch(k.flag_moved, dim=m.particle_count, inputs=[self._x_before, x], outputs=[self._touched], device=d)
+                cmds["moved"].launch()
             for c in cmds["velocities"]:
                 c.launch()
 
@@ -328,6 +342,9 @@ class XPBDSolver:
             cons.append(wp.launch(k.solve_tethers, dim=n, inputs=[m.tether_anchor, m.tether_length, m.inv_mass],
                                   outputs=[x], device=d, record_cmd=True))
         cmds["constraints"] = cons
+        if self.stretch_limits:
+            cmds["moved"] = wp.launch(k.flag_moved, dim=n, inputs=[self._x_before, x], outputs=[self._touched], device=d,
+                                      record_cmd=True)
         contacts = []
         if self.self_collision:
             contacts.append(wp.launch(k.solve_self_contacts, dim=n,
@@ -389,14 +406,14 @@ class XPBDSolver:
         """Run a candidate search into `rows` after saving the previous detection; while rows
         overflow and may still grow, double them and search again. Returns the rows used and
         whether they grew."""
-        wp.copy(rows["prev_ids"], rows["ids"])
-        wp.copy(rows["prev_sides"], rows["sides"])
-        wp.copy(prev_count, count)
+        wp.launch(k.save_rows, dim=dim, inputs=[count, rows["ids"], rows["sides"]],
+                  outputs=[prev_count, rows["prev_ids"], rows["prev_sides"]], device=self.device)
         grew = False
         while True:
             before = int(self._overflow.numpy()[0])
             wp.launch(kernel, dim=dim, inputs=inputs + [rows["prev_ids"], rows["prev_sides"], prev_count],
-                      outputs=[rows["ids"], rows["sides"], count, rows["dists"], self._overflow], device=self.device)
+                      outputs=[rows["ids"], rows["sides"], count, rows["dists"], self._overflow, self._near],
+                      device=self.device)
             width = rows["ids"].shape[1]
             if int(self._overflow.numpy()[0]) == before or width >= self.max_contacts:
                 return rows, grew
@@ -408,41 +425,60 @@ class XPBDSolver:
                 wider[key].assign(grown)
             rows, grew = wider, True
 
-    def _detect_self_contacts(self, x, v, horizon: float) -> bool:
-        """Candidate pairs for the next contact interval; True when the contact rows grew."""
+    def _swept_bvh(self, bvh, kernel, prims, boxes: list, x, v, horizon: float, ahead: float):
+        """Boxes of the triangles or edges `prims` swept over `horizon` and over `ahead` (>=
+        horizon) into `boxes` (lower, upper, ahead lower, ahead upper) and the BVH over the `ahead`
+        ones (built at the first detection from that detection's `horizon` boxes, refitted after:
+        its leaf order, which orders the candidates, is fixed then). Returns the BVH and the
+        `horizon` boxes."""
+        d, n = self.device, prims.shape[0]
+        lo, hi, alo, ahi = boxes
+        if bvh is None:
+            wp.launch(kernel, dim=n, inputs=[x, v, prims, horizon, self._pad], outputs=[alo, ahi], device=d)
+            bvh = wp.Bvh(alo, ahi)
+            if ahead == horizon:
+                return bvh, alo, ahi
+        if ahead == horizon:
+            wp.launch(kernel, dim=n, inputs=[x, v, prims, horizon, self._pad], outputs=[alo, ahi], device=d)
+            bvh.refit()
+            return bvh, alo, ahi
+        wp.launch(kernel, dim=n, inputs=[x, v, prims, horizon, self._pad], outputs=[lo, hi], device=d)
+        wp.launch(kernel, dim=n, inputs=[x, v, prims, ahead, self._pad], outputs=[alo, ahi], device=d)
+        bvh.refit()
+        return bvh, lo, hi
+
+    def _detect_self_contacts(self, x, v, horizon: float, ahead: float | None = None) -> bool:
+        """Candidate pairs for the next contact interval (`horizon` seconds); with `ahead` >
+        horizon, the next detection comes after `horizon` seconds with horizon `ahead - horizon`,
+        and ``_clear_ahead`` tells whether it would find none. True when the contact rows grew."""
         m, d = self.model, self.device
+        ahead = horizon if ahead is None else max(ahead, horizon)
+        self._near.zero_()
         # boxes of both sides padded: overlap <=> gap < thickness
-        pad = self._pad
-        wp.launch(k.compute_triangle_bounds, dim=m.tri_count, inputs=[x, v, m.tris, horizon, pad],
-                  outputs=[self._lower, self._upper], device=d)
-        if self._bvh is None:
-            self._bvh = wp.Bvh(self._lower, self._upper)
-        else:
-            self._bvh.refit()
+        self._bvh, lower, upper = self._swept_bvh(self._bvh, k.compute_triangle_bounds, m.tris, self._tri_boxes, x, v,
+                                                  horizon, ahead)
         self._vt_rows, grew = self._find_candidates(
             k.find_self_contacts, m.particle_count, self._vt_rows,
-            [self._bvh.id, x, m.rest_points, v, m.tris, m.ring_offsets, m.ring, horizon, pad, m.thickness],
+            [self._bvh.id, x, m.rest_points, v, m.tris, m.ring_offsets, m.ring, horizon, ahead, lower, upper,
+             self._pad, m.thickness],
             self._contact_count, self._prev_count)
         if self.edge_contact:
             ne = m.edge_count
-            wp.launch(ck.compute_edge_bounds, dim=ne, inputs=[x, v, m.edges, horizon, pad],
-                      outputs=[self._elower, self._eupper], device=d)
-            if self._ebvh is None:
-                self._ebvh = wp.Bvh(self._elower, self._eupper)
-            else:
-                self._ebvh.refit()
+            self._ebvh, elower, eupper = self._swept_bvh(self._ebvh, ck.compute_edge_bounds, m.edges, self._edge_boxes,
+                                                         x, v, horizon, ahead)
             wp.copy(self._eactive, m.edge_border)
             if m.hinge_count:
                 wp.launch(ck.mark_crease_edges, dim=m.hinge_count,
                           inputs=[x, m.hinges, m.hinge_edge, self.CREASE_ANGLE], outputs=[self._eactive], device=d)
             self._ee_rows, egrew = self._find_candidates(
                 ck.find_edge_contacts, ne, self._ee_rows,
-                [self._ebvh.id, x, v, horizon, m.edges, self._eactive, m.ring_offsets, m.ring, self._elower,
-                 self._eupper, m.thickness],
+                [self._ebvh.id, x, v, horizon, ahead, m.edges, self._eactive, elower, eupper, self._edge_boxes[2],
+                 self._edge_boxes[3], m.thickness],
                 self._contact_ecount, self._prev_ecount)
             grew = grew or egrew
         self._contacts_found = bool(self._contact_count.numpy().any()) or (
             self.edge_contact and bool(self._contact_ecount.numpy().any()))
+        self._clear_ahead = ahead > horizon and not self._contacts_found and not self._near.numpy()[0]
         if grew:
             self._cmd_cache = None
         return grew
