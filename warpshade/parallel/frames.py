@@ -227,12 +227,15 @@ class _DaskBackend:
             # workers run unblocked. Cost: a Ctrl-C during the cluster's start-up is dropped.
             previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _in_main_thread() else None
             try:
-                # the cluster is the run's own: its workers' warnings (a task cancelled by Ctrl-C) would
-                # follow the run's last line; errors still print, and a frame's error reaches the run
-                # no dashboard, and the scheduler's HTTP server on a free loopback port: Dask's default
-                # 8787 may be taken (another cluster), which printed a warning after the run's output
+                # the cluster is the run's own: its workers' log lines would follow the run's last line
+                # (a task cancelled by Ctrl-C; the scheduler gone with this process: "Failed to
+                # communicate with scheduler during heartbeat", logged as an error), so only critical
+                # ones print; a frame's error reaches the run through its future, a worker's failed
+                # build through the plugin. No dashboard, and the scheduler's HTTP server on a free
+                # loopback port: Dask's default 8787 may be taken (another cluster), which printed a
+                # warning after the run's output
                 self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                            dashboard_address=None, silence_logs=logging.ERROR,
+                                            dashboard_address=None, silence_logs=logging.CRITICAL,
                                             scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
             finally:
                 if previous is not None:
