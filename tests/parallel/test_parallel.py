@@ -139,6 +139,15 @@ def test_dask_local_cluster_matches_inline(spec, blob, inline):
     assert not [str(w.message) for w in caught if "8787" in str(w.message)]
 
 
+def test_dask_local_cluster_reports_a_build_error_as_itself(blob):
+    """The run's own cluster prints only critical worker logs (its workers' other lines followed the
+    run's last line); a spec whose build fails in the workers still stops the run with the build's
+    own error, not a dead worker or a silent hang."""
+    bad = TransferSpec({"blob": blob}, method="reference", order=3, knobs={"rays": -5})
+    with pytest.raises(ValueError, match="rays must be >= 1, got -5"):
+        list(shade_frames(bad, wobble_frames(blob, 3), workers=2, scheduler="local"))
+
+
 def test_dask_separate_process_cluster_on_loopback(spec, blob, inline):
     from warpshade.parallel.cluster import loopback_cluster
 
