@@ -29,6 +29,7 @@ with visible fraction ``f_b`` (visible valid pixels / valid pixels) contributes 
 
 from __future__ import annotations
 
+import functools
 import os
 import time
 
@@ -242,6 +243,15 @@ def build_lut(mask: int, lut: int, cache_dir: str | None = None, device: str = "
 
 # ---------------------------------------------------------------------------------------------
 # blocks and SH weights
+def _read_only(arrays: dict) -> dict:
+    """``arrays`` with every array made read-only: the tables below are cached (one copy per process,
+    shared by every method instance, e.g. a group's front and back pass), so no caller may change them."""
+    for a in arrays.values():
+        a.flags.writeable = False
+    return arrays
+
+
+@functools.lru_cache(maxsize=None)
 def block_tables(mask: int, downsample: int, order: int, supersample: int = 512) -> dict:
     """Per-block tables for downsampled integration, over all ``(M/D)²`` blocks in Morton block order.
 
@@ -255,6 +265,8 @@ def block_tables(mask: int, downsample: int, order: int, supersample: int = 512)
         downsample: Block size D in pixels (power of two, D² <= 64).
         order: SH order N.
         supersample: Integration grid across the disk for the block integrals.
+
+    Cached per arguments; the arrays are read-only.
 
     Returns:
         dict: ``valid`` (B,) int32 (valid pixels per block), ``weights`` (B, N*N) float64
@@ -301,9 +313,10 @@ def block_tables(mask: int, downsample: int, order: int, supersample: int = 512)
         area[b] = 0.0
     ln = np.linalg.norm(dsum, axis=1, keepdims=True)
     dirs = np.where(ln > 0, dsum / np.where(ln > 0, ln, 1.0), 0.0)
-    return {"valid": counts.astype(np.int32), "weights": weights, "dirs": dirs, "area": area}
+    return _read_only({"valid": counts.astype(np.int32), "weights": weights, "dirs": dirs, "area": area})
 
 
+@functools.lru_cache(maxsize=None)
 def rotation_directions(order: int) -> tuple[np.ndarray, np.ndarray]:
     """Directions and pseudo-inverses that rotate a band-limited SH vector by sampling.
 
@@ -314,7 +327,7 @@ def rotation_directions(order: int) -> tuple[np.ndarray, np.ndarray]:
 
     Returns:
         ``(dirs, pinv)``: dirs shape (K, 3) float64 unit; pinv shape (K, N*N) float64 with
-        ``pinv[k, l(l+1)+m] = (Y_l(S)^+)[k, m]``.
+        ``pinv[k, l(l+1)+m] = (Y_l(S)^+)[k, m]``. Cached per order; the arrays are read-only.
     """
     k = 2 * order - 1
     best, best_cond = None, np.inf
@@ -330,6 +343,7 @@ def rotation_directions(order: int) -> tuple[np.ndarray, np.ndarray]:
     pinv = np.zeros((k, order * order))
     for l in range(order):
         pinv[:, l * l:(l + 1) ** 2] = np.linalg.pinv(y[:, l * l:(l + 1) ** 2].T)
+    _read_only({"dirs": best, "pinv": pinv})
     return best, pinv
 
 
