@@ -21,6 +21,7 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 from . import collision_kernels as ck
+from .kernels import boxes_overlap
 
 # ---------------------------------------------------------------------------------------------
 # Exact predicates (float64)
@@ -321,8 +322,7 @@ def count_self_pairs_grid(
                     if not before(lo, t, ulo, u):
                         continue
                     uhi = upper[u]
-                    if (ulo[0] > hi[0] or ulo[1] > hi[1] or ulo[2] > hi[2] or lo[0] > uhi[0] or lo[1] > uhi[1]
-                            or lo[2] > uhi[2]):
+                    if not boxes_overlap(lo, hi, ulo, uhi):
                         continue
                     test_self_pair(x, tris, x0, t, u, count, pairs, mark)
 
