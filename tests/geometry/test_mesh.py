@@ -76,3 +76,38 @@ def test_angle_weighting_is_tessellation_independent():
     box = trimesh.creation.box()
     n = vertex_normals_np(box.vertices, box.faces)
     np.testing.assert_allclose(np.abs(n), 1 / np.sqrt(3), atol=1e-12)
+
+
+def test_split_creases_unshares_the_rims_of_a_box_and_the_caps_of_a_cylinder():
+    """A subdivided box split at its creases: every vertex lies in one face (its normal is that
+    face's), the triangles are the same; a cylinder's cap rims are split (48 vertices each), its
+    7.5-degree side steps are not; a mesh without creases (an icosphere) comes back unchanged."""
+    from warpshade.geometry.shapes import axial_shape, box_shape, split_creases
+
+    shared = trimesh.creation.box(extents=[1.2, 0.8, 0.8]).subdivide_to_size(0.075, max_iter=8)
+    v, f = box_shape([1.2, 0.8, 0.8], 0.075)
+    np.testing.assert_array_equal(v[f], np.asarray(shared.vertices)[shared.faces])
+    np.testing.assert_array_equal(v[:len(shared.vertices)], shared.vertices)
+    n = vertex_normals_np(v, f)
+    np.testing.assert_allclose(np.abs(n).max(axis=1), 1.0, atol=1e-12)
+    assert np.abs(vertex_normals_np(shared.vertices, shared.faces)).max(axis=1).min() < 0.6  # shared: 1/sqrt(3) at corners
+    cyl = trimesh.creation.cylinder(radius=0.5, height=1.0, sections=48)
+    assert len(axial_shape("cylinder", 0.5, 1.0)[0]) == len(cyl.vertices) + 2 * 48
+    ico = trimesh.creation.icosphere(subdivisions=2)
+    sv, sf = split_creases(ico.vertices, ico.faces)
+    np.testing.assert_array_equal(sv, ico.vertices)
+    np.testing.assert_array_equal(sf, ico.faces)
+
+
+def test_a_box_split_at_its_rims_is_still_a_closed_solid():
+    """Closedness is the surface's: vertices at one position count as one (hemiraster's back-face
+    culling and the sphere sets' inside points need it); faces moved apart by 1 mm are open."""
+    from warpshade.geometry import closed_orientation
+    from warpshade.geometry.shapes import box_shape
+    from warpshade.visibility.spheres.fitting import fit_leaf_spheres
+
+    v, f = box_shape([1.0, 1.0, 1.0], 0.25)
+    assert closed_orientation(v, f) == 1 and closed_orientation(v, f[:, ::-1]) == -1
+    apart = v + 1e-3 * vertex_normals_np(v, f)  # each face moved out along its own normal
+    assert closed_orientation(apart, f) == 0
+    assert fit_leaf_spheres(v, f, 4, restarts=1)[3]  # closed: fitted with inside points

@@ -89,12 +89,31 @@ def validate_mesh(points: np.ndarray, faces: np.ndarray, name: str = "<mesh>") -
                         f"{faces[f].tolist()}")
 
 
+def welded_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``faces`` (F, 3) with every vertex index replaced by the lowest index of a vertex at exactly the
+    same position: the triangles' connectivity as a surface, whether or not its faces have vertices of
+    their own along sharp edges (a box split at its rims, :func:`warpshade.geometry.shapes.split_creases`).
+    Returns int64."""
+    p = np.ascontiguousarray(np.asarray(points) + 0.0)  # + 0.0: -0.0 and 0.0 are one position
+    rows = p.view(np.dtype((np.void, p.dtype.itemsize * p.shape[1]))).reshape(-1)
+    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+    return first[inverse.reshape(-1)][np.asarray(faces, dtype=np.int64)]
+
+
 def closed_orientation(points: np.ndarray, faces: np.ndarray) -> int:
     """+1 for a closed mesh with outward-facing triangles, -1 for inward, 0 if not closed or not consistent.
 
-    Closed and consistent: every directed edge appears once and its reverse once.
+    Closed and consistent: every directed edge appears once and its reverse once, with vertices at the
+    same position counted as one (:func:`welded_faces`).
     """
-    f = np.asarray(faces, dtype=np.int64)
+    side = _closed_orientation(points, np.asarray(faces, dtype=np.int64))
+    if side == 0 and len(faces):
+        side = _closed_orientation(points, welded_faces(points, faces))
+    return side
+
+
+def _closed_orientation(points: np.ndarray, f: np.ndarray) -> int:
+    """:func:`closed_orientation` with vertices told apart by index (``f`` int64)."""
     e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     if (e[:, 0] == e[:, 1]).any():
         return 0
