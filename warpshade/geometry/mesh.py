@@ -89,26 +89,30 @@ def validate_mesh(points: np.ndarray, faces: np.ndarray, name: str = "<mesh>") -
                         f"{faces[f].tolist()}")
 
 
-def welded_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """``faces`` (F, 3) with every vertex index replaced by the lowest index of a vertex at exactly the
-    same position: the triangles' connectivity as a surface, whether or not its faces have vertices of
-    their own along sharp edges (a box split at its rims, :func:`warpshade.geometry.shapes.split_creases`).
-    Returns int64."""
-    p = np.ascontiguousarray(np.asarray(points) + 0.0)  # + 0.0: -0.0 and 0.0 are one position
-    rows = p.view(np.dtype((np.void, p.dtype.itemsize * p.shape[1]))).reshape(-1)
+def weld_indices(points: np.ndarray) -> np.ndarray:
+    """For each vertex, the first vertex at exactly the same position, shape (V,).
+
+    DCC tools split a mesh's vertices along hard edges (a box exported with per-face normals has
+    each face's own copy of its corners). Welded, the faces on both sides of such an edge are
+    neighbours again, so the edge is a sharp edge between two faces, not two open borders, and a
+    box made of separate faces is closed. Edge topology is fixed at construction: welded vertices
+    are assumed to move together (as split copies of one vertex do). -0.0 and 0.0 are one position."""
+    p = np.ascontiguousarray(np.asarray(points) + 0.0)  # + 0.0 turns -0.0 into 0.0
+    rows = p.view(np.dtype((np.void, p.dtype.itemsize * p.shape[1]))).reshape(-1)  # one key per row
     _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
-    return first[inverse.reshape(-1)][np.asarray(faces, dtype=np.int64)]
+    return first[inverse.reshape(-1)].astype(np.int64)
 
 
 def closed_orientation(points: np.ndarray, faces: np.ndarray) -> int:
     """+1 for a closed mesh with outward-facing triangles, -1 for inward, 0 if not closed or not consistent.
 
     Closed and consistent: every directed edge appears once and its reverse once, with vertices at the
-    same position counted as one (:func:`welded_faces`).
+    same position counted as one (:func:`weld_indices`).
     """
-    side = _closed_orientation(points, np.asarray(faces, dtype=np.int64))
-    if side == 0 and len(faces):
-        side = _closed_orientation(points, welded_faces(points, faces))
+    f = np.asarray(faces, dtype=np.int64)
+    side = _closed_orientation(points, f)
+    if side == 0 and len(f):
+        side = _closed_orientation(points, weld_indices(points)[f])
     return side
 
 
