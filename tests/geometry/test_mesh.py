@@ -78,25 +78,43 @@ def test_angle_weighting_is_tessellation_independent():
     np.testing.assert_allclose(np.abs(n), 1 / np.sqrt(3), atol=1e-12)
 
 
-def test_split_creases_unshares_the_rims_of_a_box_and_the_caps_of_a_cylinder():
-    """A subdivided box split at its creases: every vertex lies in one face (its normal is that
-    face's), the triangles are the same; a cylinder's cap rims are split (48 vertices each), its
-    7.5-degree side steps are not; a mesh without creases (an icosphere) comes back unchanged."""
-    from warpshade.geometry.shapes import axial_shape, box_shape, split_creases
+def test_split_creases_unshares_cap_rims_not_smooth_sides():
+    """A cylinder split at its creases: its cap rims get a copy each (48 vertices a cap), its
+    7.5-degree side steps stay shared, the triangles are the same; a mesh without creases (an
+    icosphere) comes back unchanged."""
+    from warpshade.geometry.shapes import split_creases
 
-    shared = trimesh.creation.box(extents=[1.2, 0.8, 0.8]).subdivide_to_size(0.075, max_iter=8)
-    v, f = box_shape([1.2, 0.8, 0.8], 0.075)
-    np.testing.assert_array_equal(v[f], np.asarray(shared.vertices)[shared.faces])
-    np.testing.assert_array_equal(v[:len(shared.vertices)], shared.vertices)
-    n = vertex_normals_np(v, f)
-    np.testing.assert_allclose(np.abs(n).max(axis=1), 1.0, atol=1e-12)
-    assert np.abs(vertex_normals_np(shared.vertices, shared.faces)).max(axis=1).min() < 0.6  # shared: 1/sqrt(3) at corners
     cyl = trimesh.creation.cylinder(radius=0.5, height=1.0, sections=48)
-    assert len(axial_shape("cylinder", 0.5, 1.0)[0]) == len(cyl.vertices) + 2 * 48
+    v, f = split_creases(cyl.vertices, cyl.faces)
+    assert len(v) == len(cyl.vertices) + 2 * 48
+    np.testing.assert_array_equal(v[f], np.asarray(cyl.vertices)[cyl.faces])
+    np.testing.assert_array_equal(v[:len(cyl.vertices)], cyl.vertices)
+    n = vertex_normals_np(v, f)
+    rim = (np.abs(np.abs(v[:, 2]) - 0.5) < 1e-9) & (np.abs(np.linalg.norm(v[:, :2], axis=1) - 0.5) < 1e-9)
+    on_cap = np.abs(n[:, 2]) > 1 - 1e-9
+    side = np.abs(n[:, 2]) < 1e-9
+    assert (on_cap | side).all() and (rim & on_cap).sum() == (rim & side).sum() == 96
     ico = trimesh.creation.icosphere(subdivisions=2)
     sv, sf = split_creases(ico.vertices, ico.faces)
     np.testing.assert_array_equal(sv, ico.vertices)
     np.testing.assert_array_equal(sf, ico.faces)
+
+
+def test_box_faces_are_grids_of_their_own():
+    """Every vertex of a box lies in one face (its normal is that face's); each triangle spans two
+    adjacent rows of vertices in both directions along its face, so values constant along rows
+    (a contact shadow along a rim) interpolate as a function of the distance to the rim alone (a
+    triangle spanning three rows draws a tooth at each rim vertex)."""
+    from warpshade.geometry.shapes import box_shape
+
+    v, f = box_shape([1.2, 0.8, 0.8])
+    n = vertex_normals_np(v, f)
+    np.testing.assert_allclose(np.abs(n).max(axis=1), 1.0, atol=1e-12)
+    for axis in range(3):
+        face = f[np.abs(n[f[:, 0], axis]) > 0.5]
+        for k in (k for k in range(3) if k != axis):
+            row = np.searchsorted(np.unique(v[face, k]), v[face, k])  # each corner's row along k
+            assert (row.max(axis=1) - row.min(axis=1) == 1).all(), (axis, k)
 
 
 def test_a_box_split_at_its_rims_is_still_a_closed_solid():
@@ -106,7 +124,7 @@ def test_a_box_split_at_its_rims_is_still_a_closed_solid():
     from warpshade.geometry.shapes import box_shape
     from warpshade.visibility.spheres.fitting import fit_leaf_spheres
 
-    v, f = box_shape([1.0, 1.0, 1.0], 0.25)
+    v, f = box_shape([1.0, 1.0, 1.0])
     assert closed_orientation(v, f) == 1 and closed_orientation(v, f[:, ::-1]) == -1
     apart = v + 1e-3 * vertex_normals_np(v, f)  # each face moved out along its own normal
     assert closed_orientation(apart, f) == 0

@@ -3,9 +3,9 @@ and the Python scene API, so that both shade the same triangles.
 
 Shading is per vertex, so a vertex shared by two faces meeting at a sharp edge would get one
 normal between them and shade like neither face (a dark or bright seam along every rim of a
-cube). The tessellations are therefore split at their creases (:func:`split_creases`): each face
-of a cube, and the caps of a cylinder or cone, has vertices of its own, as a renderer shades the
-gprim (flat faces, smooth sides).
+cube). So each face of a box (:func:`box_shape`) and the caps of a cylinder or cone (split at their
+creases, :func:`split_creases`) have vertices of their own, as a renderer shades the gprims (flat
+faces, smooth sides).
 """
 
 from __future__ import annotations
@@ -82,14 +82,34 @@ def split_creases(vertices: np.ndarray, faces: np.ndarray, angle: float = CREASE
     return new_vertices, new_faces
 
 
-def box_shape(extents, edge: float) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (V, 3) and triangles (F, 3) of a box of ``extents`` centred on the origin, its
-    triangles subdivided until no edge exceeds ``edge`` (trimesh's ``subdivide_to_size``: fine
-    enough for shadows to land on vertices) and split at its 12 rims (:func:`split_creases`)."""
-    import trimesh
+BOX_SEGMENTS = 22
+"""Squares along the longest side of a box's faces (:func:`box_shape`): a unit Cube gets 3174
+vertices, fine enough for shadows to land on."""
 
-    m = trimesh.creation.box(extents=extents).subdivide_to_size(edge, max_iter=8)
-    return split_creases(np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces))
+
+def box_shape(extents) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (V, 3) and triangles (F, 3) of a box of ``extents`` centred on the origin: each face a
+    grid of its own vertices (its rims not shared: each face shades as itself up to them) of
+    squares of side about ``max(extents) / BOX_SEGMENTS``, each square two triangles. Rows of
+    vertices run along the rims, so a shading that changes towards a rim (a contact shadow) changes
+    smoothly across the rows."""
+    ext = np.asarray(extents, dtype=np.float64)
+    edge = float(ext.max()) / BOX_SEGMENTS
+    points, triangles = [], []
+    for axis in range(3):
+        u, w = (axis + 1) % 3, (axis + 2) % 3  # (u x w) = +axis
+        nu, nw = (max(1, int(np.ceil(ext[k] / edge * (1.0 - 1e-9)))) for k in (u, w))
+        a, b = np.meshgrid(np.linspace(-ext[u] / 2, ext[u] / 2, nu + 1), np.linspace(-ext[w] / 2, ext[w] / 2, nw + 1))
+        i, j = np.meshgrid(np.arange(nu), np.arange(nw))
+        corner = (j * (nu + 1) + i).ravel()
+        quad = np.stack([corner, corner + 1, corner + nu + 2, corner + nu + 1], axis=1)
+        tri = quad[:, [0, 1, 2, 0, 2, 3]].reshape(-1, 3)
+        for sign in (1.0, -1.0):
+            p = np.zeros((a.size, 3))
+            p[:, axis], p[:, u], p[:, w] = sign * ext[axis] / 2, a.ravel(), b.ravel()
+            triangles.append(sum(len(q) for q in points) + (tri if sign > 0 else tri[:, ::-1]))
+            points.append(p)
+    return np.concatenate(points), np.concatenate(triangles)
 
 
 def axial_shape(kind: str, radius: float, height: float) -> tuple[np.ndarray, np.ndarray]:

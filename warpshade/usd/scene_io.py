@@ -354,8 +354,8 @@ def _gprim_mesh(prim, where):
     for name in dims:
         if not get(name) > 0 and not (tname == "Capsule" and name == "height" and get(name) == 0):
             raise SceneError(f"{where}: {tname} {name} must be > 0, got {get(name)}")
-    if tname == "Cube":  # faces fine enough for shadows to land on (per-vertex shading): 16 edges a side
-        verts, faces = box_shape([get("size")] * 3, get("size") / 16.0)
+    if tname == "Cube":
+        verts, faces = box_shape([get("size")] * 3)
     elif tname == "Plane":
         w, ln = get("width"), get("length")
         verts = np.array([[-w / 2, -ln / 2, 0], [w / 2, -ln / 2, 0], [w / 2, ln / 2, 0], [-w / 2, ln / 2, 0]])
