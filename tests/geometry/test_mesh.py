@@ -129,3 +129,22 @@ def test_a_box_split_at_its_rims_is_still_a_closed_solid():
     apart = v + 1e-3 * vertex_normals_np(v, f)  # each face moved out along its own normal
     assert closed_orientation(apart, f) == 0
     assert fit_leaf_spheres(v, f, 4, restarts=1)[3]  # closed: fitted with inside points
+
+
+def test_stitching_joins_open_borders_not_parts_touching_inside():
+    """Only vertices on open borders are stitched: a ball resting on a grid's inner vertex keeps its
+    own vertex there (the two are different surfaces), a box's split rims are joined."""
+    from warpshade.geometry.mesh import stitched_faces
+    from warpshade.geometry.shapes import box_shape
+
+    ball = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    bottom = int(np.argmin(ball.vertices[:, 2]))
+    g = np.stack(np.meshgrid(np.linspace(-1, 1, 3), np.linspace(-1, 1, 3), indexing="ij"), -1).reshape(-1, 2)
+    ground = np.c_[g, np.zeros(9)] + ball.vertices[bottom] * [0, 0, 1]  # its centre vertex under the ball
+    ground_faces = np.array([[0, 3, 4], [0, 4, 1], [1, 4, 5], [1, 5, 2], [3, 6, 7], [3, 7, 4], [4, 7, 8], [4, 8, 5]])
+    points = np.concatenate([ball.vertices, ground])
+    faces = np.concatenate([ball.faces, ground_faces + len(ball.vertices)])
+    assert np.array_equal(points[len(ball.vertices) + 4], points[bottom])
+    np.testing.assert_array_equal(stitched_faces(points, faces), faces)
+    v, f = box_shape([1.0, 1.0, 1.0])
+    assert len(np.unique(stitched_faces(v, f))) == 6 * 23 * 23 - 12 * 23 + 8  # shared rims, corners once

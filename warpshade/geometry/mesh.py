@@ -103,16 +103,37 @@ def weld_indices(points: np.ndarray) -> np.ndarray:
     return first[inverse.reshape(-1)].astype(np.int64)
 
 
+def stitched_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``faces`` (F, 3) with the vertices on open borders (ends of an edge of one triangle only) that lie
+    at exactly the same position made one (the lowest index, :func:`weld_indices`): the surface of a
+    mesh whose faces have vertices of their own along sharp edges (a box split at its rims,
+    :mod:`warpshade.geometry.shapes`), while separate parts that touch at a vertex inside them (a ball
+    resting on a ground vertex) stay apart. Returns int64; ``faces`` as they are when nothing is
+    stitched."""
+    f = np.asarray(faces, dtype=np.int64)
+    if not len(f):
+        return f
+    e = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    keys, counts = np.unique(e[:, 0] * len(points) + e[:, 1], return_counts=True)
+    once = keys[counts == 1]
+    border = np.unique(np.concatenate([once // len(points), once % len(points)]))
+    if not len(border):
+        return f
+    index = np.arange(len(points))
+    index[border] = border[weld_indices(np.asarray(points)[border])]
+    return index[f]
+
+
 def closed_orientation(points: np.ndarray, faces: np.ndarray) -> int:
     """+1 for a closed mesh with outward-facing triangles, -1 for inward, 0 if not closed or not consistent.
 
-    Closed and consistent: every directed edge appears once and its reverse once, with vertices at the
-    same position counted as one (:func:`weld_indices`).
+    Closed and consistent: every directed edge appears once and its reverse once, on the surface
+    (:func:`stitched_faces`: a box whose faces have vertices of their own is closed).
     """
     f = np.asarray(faces, dtype=np.int64)
     side = _closed_orientation(points, f)
     if side == 0 and len(f):
-        side = _closed_orientation(points, weld_indices(points)[f])
+        side = _closed_orientation(points, stitched_faces(points, f))
     return side
 
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...geometry.mesh import weld_indices
+from ...geometry.mesh import stitched_faces
 
 
 def vertex_faces(faces: np.ndarray, num_vertices: int) -> list[np.ndarray]:
@@ -234,9 +234,9 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mi
         least deviation of each mid triangle (:func:`outline_deviation`).
     """
     def level(pts, faces, target, fbase, fans=True):
-        # the surface is decimated, whatever its vertices: faces with vertices of their own along
+        # the surface is decimated (:func:`stitched_faces`): faces with vertices of their own along
         # sharp edges (a box's rims) decimated apart let light through their seams
-        cp, cf = decimate(pts, weld_indices(pts)[faces], target)
+        cp, cf = decimate(pts, stitched_faces(pts, faces), target)
         f, b, o = bind_to_surface(cp, pts, faces)
         prim, extra = assign_to_coarse(pts, faces, cp, cf, fans=fans)
         return cp, cf, f + fbase, b, o, prim, extra
