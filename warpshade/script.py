@@ -124,19 +124,20 @@ def ground(name: str = "Ground", size: float = 4.0, height: float = 0.0, resolut
 
 
 def box(name: str = "Box", center=None, size=1.0, collider: bool = True, albedo=None) -> SceneObject:
-    """An axis-aligned box (an exact box collider unless ``collider=False``), 16 edges a side.
+    """An axis-aligned box (an exact box collider unless ``collider=False``), tessellated as the USD
+    reader tessellates a Cube (:func:`warpshade.geometry.shapes.box_shape`: each face a grid of its own).
 
     Args:
         center: Centre [m]; default: standing on y = 0 at the origin.
         size: Edge lengths [m], a number or three.
     """
-    import trimesh
+    from .geometry.shapes import box_shape
 
     ext = _positive(size, f"box '{name}': size", 3)
     c = np.array([0.0, ext[1] / 2, 0.0]) if center is None else _vec3(center, f"box '{name}': center")
-    m = trimesh.creation.box(extents=ext).subdivide_to_size(float(ext.max()) / 16.0, max_iter=8)
+    verts, faces = box_shape(ext)
     params = {"collider": "box", "box": {"center": c, "half_extents": ext / 2, "rotation": np.array([0.0, 0, 0, 1])}}
-    return _object(name, _mesh(name, np.asarray(m.vertices) + c, m.faces),
+    return _object(name, _mesh(name, verts + c, faces),
                        material=_material(albedo, f"box '{name}'"), params=params if collider else {})
 
 

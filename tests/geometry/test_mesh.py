@@ -76,3 +76,75 @@ def test_angle_weighting_is_tessellation_independent():
     box = trimesh.creation.box()
     n = vertex_normals_np(box.vertices, box.faces)
     np.testing.assert_allclose(np.abs(n), 1 / np.sqrt(3), atol=1e-12)
+
+
+def test_split_creases_unshares_cap_rims_not_smooth_sides():
+    """A cylinder split at its creases: its cap rims get a copy each (48 vertices a cap), its
+    7.5-degree side steps stay shared, the triangles are the same; a mesh without creases (an
+    icosphere) comes back unchanged."""
+    from warpshade.geometry.shapes import split_creases
+
+    cyl = trimesh.creation.cylinder(radius=0.5, height=1.0, sections=48)
+    v, f = split_creases(cyl.vertices, cyl.faces)
+    assert len(v) == len(cyl.vertices) + 2 * 48
+    np.testing.assert_array_equal(v[f], np.asarray(cyl.vertices)[cyl.faces])
+    np.testing.assert_array_equal(v[:len(cyl.vertices)], cyl.vertices)
+    n = vertex_normals_np(v, f)
+    rim = (np.abs(np.abs(v[:, 2]) - 0.5) < 1e-9) & (np.abs(np.linalg.norm(v[:, :2], axis=1) - 0.5) < 1e-9)
+    on_cap = np.abs(n[:, 2]) > 1 - 1e-9
+    side = np.abs(n[:, 2]) < 1e-9
+    assert (on_cap | side).all() and (rim & on_cap).sum() == (rim & side).sum() == 96
+    ico = trimesh.creation.icosphere(subdivisions=2)
+    sv, sf = split_creases(ico.vertices, ico.faces)
+    np.testing.assert_array_equal(sv, ico.vertices)
+    np.testing.assert_array_equal(sf, ico.faces)
+
+
+def test_box_faces_are_grids_of_their_own():
+    """Every vertex of a box lies in one face (its normal is that face's); each triangle spans two
+    adjacent rows of vertices in both directions along its face, so values constant along rows
+    (a contact shadow along a rim) interpolate as a function of the distance to the rim alone (a
+    triangle spanning three rows draws a tooth at each rim vertex)."""
+    from warpshade.geometry.shapes import box_shape
+
+    v, f = box_shape([1.2, 0.8, 0.8])
+    n = vertex_normals_np(v, f)
+    np.testing.assert_allclose(np.abs(n).max(axis=1), 1.0, atol=1e-12)
+    for axis in range(3):
+        face = f[np.abs(n[f[:, 0], axis]) > 0.5]
+        for k in (k for k in range(3) if k != axis):
+            row = np.searchsorted(np.unique(v[face, k]), v[face, k])  # each corner's row along k
+            assert (row.max(axis=1) - row.min(axis=1) == 1).all(), (axis, k)
+
+
+def test_a_box_split_at_its_rims_is_still_a_closed_solid():
+    """Closedness is the surface's: vertices at one position count as one (hemiraster's back-face
+    culling and the sphere sets' inside points need it); faces moved apart by 1 mm are open."""
+    from warpshade.geometry import closed_orientation
+    from warpshade.geometry.shapes import box_shape
+    from warpshade.visibility.spheres.fitting import fit_leaf_spheres
+
+    v, f = box_shape([1.0, 1.0, 1.0])
+    assert closed_orientation(v, f) == 1 and closed_orientation(v, f[:, ::-1]) == -1
+    apart = v + 1e-3 * vertex_normals_np(v, f)  # each face moved out along its own normal
+    assert closed_orientation(apart, f) == 0
+    assert fit_leaf_spheres(v, f, 4, restarts=1)[3]  # closed: fitted with inside points
+
+
+def test_stitching_joins_open_borders_not_parts_touching_inside():
+    """Only vertices on open borders are stitched: a ball resting on a grid's inner vertex keeps its
+    own vertex there (the two are different surfaces), a box's split rims are joined."""
+    from warpshade.geometry.mesh import stitched_faces
+    from warpshade.geometry.shapes import box_shape
+
+    ball = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    bottom = int(np.argmin(ball.vertices[:, 2]))
+    g = np.stack(np.meshgrid(np.linspace(-1, 1, 3), np.linspace(-1, 1, 3), indexing="ij"), -1).reshape(-1, 2)
+    ground = np.c_[g, np.zeros(9)] + ball.vertices[bottom] * [0, 0, 1]  # its centre vertex under the ball
+    ground_faces = np.array([[0, 3, 4], [0, 4, 1], [1, 4, 5], [1, 5, 2], [3, 6, 7], [3, 7, 4], [4, 7, 8], [4, 8, 5]])
+    points = np.concatenate([ball.vertices, ground])
+    faces = np.concatenate([ball.faces, ground_faces + len(ball.vertices)])
+    assert np.array_equal(points[len(ball.vertices) + 4], points[bottom])
+    np.testing.assert_array_equal(stitched_faces(points, faces), faces)
+    v, f = box_shape([1.0, 1.0, 1.0])
+    assert len(np.unique(stitched_faces(v, f))) == 6 * 23 * 23 - 12 * 23 + 8  # shared rims, corners once

@@ -89,12 +89,56 @@ def validate_mesh(points: np.ndarray, faces: np.ndarray, name: str = "<mesh>") -
                         f"{faces[f].tolist()}")
 
 
+def weld_indices(points: np.ndarray) -> np.ndarray:
+    """For each vertex, the first vertex at exactly the same position, shape (V,).
+
+    DCC tools split a mesh's vertices along hard edges (a box exported with per-face normals has
+    each face's own copy of its corners). Welded, the faces on both sides of such an edge are
+    neighbours again, so the edge is a sharp edge between two faces, not two open borders, and a
+    box made of separate faces is closed. Edge topology is fixed at construction: welded vertices
+    are assumed to move together (as split copies of one vertex do). -0.0 and 0.0 are one position."""
+    p = np.ascontiguousarray(np.asarray(points) + 0.0)  # + 0.0 turns -0.0 into 0.0
+    rows = p.view(np.dtype((np.void, p.dtype.itemsize * p.shape[1]))).reshape(-1)  # one key per row
+    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+    return first[inverse.reshape(-1)].astype(np.int64)
+
+
+def stitched_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``faces`` (F, 3) with the vertices on open borders (ends of an edge of one triangle only) that lie
+    at exactly the same position made one (the lowest index, :func:`weld_indices`): the surface of a
+    mesh whose faces have vertices of their own along sharp edges (a box split at its rims,
+    :mod:`warpshade.geometry.shapes`), while separate parts that touch at a vertex inside them (a ball
+    resting on a ground vertex) stay apart. Returns int64; ``faces`` as they are when nothing is
+    stitched."""
+    f = np.asarray(faces, dtype=np.int64)
+    if not len(f):
+        return f
+    e = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    keys, counts = np.unique(e[:, 0] * len(points) + e[:, 1], return_counts=True)
+    once = keys[counts == 1]
+    border = np.unique(np.concatenate([once // len(points), once % len(points)]))
+    if not len(border):
+        return f
+    index = np.arange(len(points))
+    index[border] = border[weld_indices(np.asarray(points)[border])]
+    return index[f]
+
+
 def closed_orientation(points: np.ndarray, faces: np.ndarray) -> int:
     """+1 for a closed mesh with outward-facing triangles, -1 for inward, 0 if not closed or not consistent.
 
-    Closed and consistent: every directed edge appears once and its reverse once.
+    Closed and consistent: every directed edge appears once and its reverse once, on the surface
+    (:func:`stitched_faces`: a box whose faces have vertices of their own is closed).
     """
     f = np.asarray(faces, dtype=np.int64)
+    side = _closed_orientation(points, f)
+    if side == 0 and len(f):
+        side = _closed_orientation(points, stitched_faces(points, f))
+    return side
+
+
+def _closed_orientation(points: np.ndarray, f: np.ndarray) -> int:
+    """:func:`closed_orientation` with vertices told apart by index (``f`` int64)."""
     e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     if (e[:, 0] == e[:, 1]).any():
         return 0

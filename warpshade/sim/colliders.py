@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..geometry.mesh import first_nonfinite
+from ..geometry.mesh import first_nonfinite, weld_indices
 from . import collision_kernels as ck
 from .kernels import apply_averaged_deltas, save_rows
 
@@ -34,18 +34,6 @@ def _friction(value) -> float:
     if not np.isfinite(v) or v < 0:
         raise ValueError(f"friction must be finite and >= 0, got {value}")
     return v
-
-
-def weld_indices(points: np.ndarray) -> np.ndarray:
-    """For each vertex, the first vertex at exactly the same position, shape (V,).
-
-    DCC tools split a mesh's vertices along hard edges (a box exported with per-face normals has
-    each face's own copy of its corners). Welded, the faces on both sides of such an edge are
-    neighbours again, so the edge is a sharp edge between two faces, not two open borders, and a
-    box made of separate faces is closed. Edge topology is fixed at construction: welded vertices
-    are assumed to move together (as split copies of one vertex do)."""
-    _, first, inverse = np.unique(np.asarray(points), axis=0, return_index=True, return_inverse=True)
-    return first[inverse.reshape(-1)].astype(np.int64)
 
 
 CORNER_ANGLE_SUM = 180.0

@@ -28,7 +28,7 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 
 from ..geometry.mesh import MeshError, TriMesh
-from ..geometry.shapes import AXIS_FROM_Z, axial_shape
+from ..geometry.shapes import AXIS_FROM_Z, axial_shape, box_shape
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
 from .assets import local_file
 from .mesh_io import outward_faces, triangulate, usd_error_message
@@ -343,7 +343,8 @@ _GPRIMS = ("Cube", "Cylinder", "Capsule", "Cone", "Plane")
 """UsdGeom gprims other than Sphere that are read: tessellated for shading, mesh colliders when marked."""
 
 def _gprim_mesh(prim, where):
-    """Tessellation of a Cube/Cylinder/Capsule/Cone/Plane gprim in its local frame (trimesh)."""
+    """Tessellation of a Cube/Cylinder/Capsule/Cone/Plane gprim in its local frame: ``(vertices (V, 3),
+    triangles (F, 3))``, split at its creases (:mod:`warpshade.geometry.shapes`)."""
     import trimesh
 
     tname = prim.GetTypeName()
@@ -354,20 +355,19 @@ def _gprim_mesh(prim, where):
         if not get(name) > 0 and not (tname == "Capsule" and name == "height" and get(name) == 0):
             raise SceneError(f"{where}: {tname} {name} must be > 0, got {get(name)}")
     if tname == "Cube":
-        m = trimesh.creation.box(extents=[get("size")] * 3)
-        # faces fine enough for shadows to land on (per-vertex shading): 16 edges a side
-        m = m.subdivide_to_size(get("size") / 16.0, max_iter=8)
+        verts, faces = box_shape([get("size")] * 3)
     elif tname == "Plane":
         w, ln = get("width"), get("length")
         verts = np.array([[-w / 2, -ln / 2, 0], [w / 2, -ln / 2, 0], [w / 2, ln / 2, 0], [-w / 2, ln / 2, 0]])
         m = trimesh.Trimesh(verts, [[0, 1, 2], [0, 2, 3]], process=False).subdivide_to_size(max(w, ln) / 32.0,
                                                                                             max_iter=8)
+        verts, faces = np.asarray(m.vertices), np.asarray(m.faces)
     else:  # Cylinder, Capsule, Cone: USD centres them on the origin
-        m = trimesh.Trimesh(*axial_shape(tname.lower(), get("radius"), get("height")), process=False)
+        verts, faces = axial_shape(tname.lower(), get("radius"), get("height"))
     axis = str(prim.GetAttribute("axis").Get() or "Z") if tname != "Cube" else "Z"
     if axis not in AXIS_FROM_Z:
         raise SceneError(f"{where}: {tname} axis must be X, Y or Z, got {axis!r}")
-    return np.asarray(m.vertices) @ AXIS_FROM_Z[axis].T, np.asarray(m.faces)
+    return verts @ AXIS_FROM_Z[axis].T, faces
 
 
 def _read_gprim(prim, source: str, default_method) -> SceneObject:

@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...geometry.mesh import stitched_faces
+
 
 def vertex_faces(faces: np.ndarray, num_vertices: int) -> list[np.ndarray]:
     """Triangles incident to each vertex."""
@@ -232,7 +234,9 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mi
         least deviation of each mid triangle (:func:`outline_deviation`).
     """
     def level(pts, faces, target, fbase, fans=True):
-        cp, cf = decimate(pts, faces, target)
+        # the surface is decimated (:func:`stitched_faces`): faces with vertices of their own along
+        # sharp edges (a box's rims) decimated apart let light through their seams
+        cp, cf = decimate(pts, stitched_faces(pts, faces), target)
         f, b, o = bind_to_surface(cp, pts, faces)
         prim, extra = assign_to_coarse(pts, faces, cp, cf, fans=fans)
         return cp, cf, f + fbase, b, o, prim, extra

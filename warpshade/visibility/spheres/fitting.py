@@ -24,6 +24,8 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
+from ...geometry.mesh import stitched_faces
+
 
 @dataclass
 class SphereTree:
@@ -292,7 +294,7 @@ def _fit_leaf_unit(points, faces, spheres, seed, iterations, teleports, grid_cel
     if spheres < 1:
         raise ValueError(f"spheres must be >= 1, got {spheres}")
     rng = np.random.default_rng(seed)
-    closed = bool(trimesh.Trimesh(points, faces, process=False).is_watertight)
+    closed = bool(trimesh.Trimesh(points, stitched_faces(points, faces), process=False).is_watertight)
     inner, outside, h = _grid_points(points, faces, closed, grid_cells, device)
     closed = closed and len(inner) > 0
     surf = _sample_surface(points, faces, surface_samples, rng)
