@@ -300,15 +300,24 @@ def bin_boxes(lower: wp.array[wp.vec3], origin: wp.vec3, inv: float, dims: wp.ve
 
 
 @wp.kernel
-def sort_boxes(cell: wp.array[int], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3], cursor: wp.array[int],
-               ids: wp.array[int], sorted_lower: wp.array[wp.vec3], sorted_upper: wp.array[wp.vec3]):
+def sort_boxes(cell: wp.array[int], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3], tris: wp.array2d[int],
+               cursor: wp.array[int], ids: wp.array[int], sorted_lower: wp.array[wp.vec3],
+               sorted_upper: wp.array[wp.vec3], sorted_tris: wp.array[wp.vec3i]):
     """Counting sort of the triangles by cell (``cursor`` starts at each cell's first slot), their
-    boxes copied alongside so that a walk along a row of cells reads them in order."""
+    boxes and vertices copied alongside so that a walk along a row of cells reads them in order."""
     t = wp.tid()
     s = wp.atomic_add(cursor, cell[t], 1)
     ids[s] = t
     sorted_lower[s] = lower[t]
     sorted_upper[s] = upper[t]
+    sorted_tris[s] = wp.vec3i(tris[t, 0], tris[t, 1], tris[t, 2])
+
+
+@wp.func
+def share_vertex(a: wp.vec3i, b: wp.vec3i) -> bool:
+    """Triangles with vertices a and b share a vertex."""
+    return (a[0] == b[0] or a[0] == b[1] or a[0] == b[2] or a[1] == b[0] or a[1] == b[1] or a[1] == b[2]
+            or a[2] == b[0] or a[2] == b[1] or a[2] == b[2])
 
 
 @wp.kernel
@@ -317,6 +326,7 @@ def count_self_pairs_grid(
     ids: wp.array[int],
     sorted_lower: wp.array[wp.vec3],
     sorted_upper: wp.array[wp.vec3],
+    sorted_tris: wp.array[wp.vec3i],
     origin: wp.vec3,
     inv: float,
     dims: wp.vec3i,
@@ -342,6 +352,7 @@ def count_self_pairs_grid(
     t = ids[s]
     lo = sorted_lower[s]
     hi = sorted_upper[s]
+    vt = sorted_tris[s]
     c0 = grid_cell(wp.vec3(lo[0] - slack, lo[1] - width_y - slack, lo[2] - width_z - slack), origin, inv, dims)
     c1 = grid_cell(hi + wp.vec3(slack), origin, inv, dims)
     for cz in range(c0[2], c1[2] + 1):
@@ -353,6 +364,8 @@ def count_self_pairs_grid(
                 if not before(lo, t, ulo, u):
                     continue
                 if not boxes_overlap(lo, hi, ulo, sorted_upper[r]):
+                    continue
+                if share_vertex(vt, sorted_tris[r]):
                     continue
                 test_self_pair(x, tris, x0, t, u, count, pairs, mark)
 
@@ -758,6 +771,7 @@ class IntersectionCounter:
         self._ids = wp.zeros(nf, dtype=wp.int32, device=self.device)
         self._sorted_lower = wp.zeros(nf, dtype=wp.vec3, device=self.device)
         self._sorted_upper = wp.zeros(nf, dtype=wp.vec3, device=self.device)
+        self._sorted_tris = wp.zeros(nf, dtype=wp.vec3i, device=self.device)
         self._cell_size = self._first = None
 
     MAX_CELLS = 1 << 17
@@ -844,9 +858,10 @@ class IntersectionCounter:
         sizes, first = self._cell_size[:cells + 1], self._first[:cells + 1]
         wp.utils.array_scan(sizes, first, inclusive=False)
         wp.copy(self._cursor, first, count=cells + 1)
-        wp.launch(sort_boxes, dim=nf, inputs=[self._cell, self._lower, self._upper, self._cursor],
-                  outputs=[self._ids, self._sorted_lower, self._sorted_upper], device=d)
-        return self._run(count_self_pairs_grid, [first, self._ids, self._sorted_lower, self._sorted_upper, o, inv, dm,
+        wp.launch(sort_boxes, dim=nf, inputs=[self._cell, self._lower, self._upper, self.tris, self._cursor],
+                  outputs=[self._ids, self._sorted_lower, self._sorted_upper, self._sorted_tris], device=d)
+        return self._run(count_self_pairs_grid, [first, self._ids, self._sorted_lower, self._sorted_upper,
+                                                 self._sorted_tris, o, inv, dm,
                                                  float(extent[1]), float(extent[2]), 0.02 * cell + 1.0e-6 * size, x,
                                                  self.tris], mark, start)
 
