@@ -9,8 +9,10 @@ and cones).
 
 The triangle-triangle test is orientation based, in float64: two non-coplanar triangles meet iff
 an edge of one meets the other (segment-triangle by the signs of five orientation determinants);
-coplanar ones by 2-D edge crossings and containment. Candidates come from a BVH over the cloth's
-triangles (``wp.Mesh`` + ``mesh_query_aabb``), so a 64 x 64 cloth counts in milliseconds.
+coplanar ones by 2-D edge crossings and containment. Cloth-cloth candidates come from a uniform
+grid of the triangles' boxes (a BVH over them, ``wp.Mesh`` + ``mesh_query_aabb``, when the boxes
+are too small against the coordinates for float32 cells), so a 64 x 64 cloth counts in
+milliseconds.
 """
 
 from __future__ import annotations
