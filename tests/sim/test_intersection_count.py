@@ -1,4 +1,4 @@
-"""The intersection count against brute-force NumPy oracles written here: the hash-grid broad
+"""The intersection count against brute-force NumPy oracles written here: the grid broad
 phase of the cloth-cloth count (pair for pair against every pair by separating axes, and against
 the BVH search), and the exact cloth-triangle-versus-cylinder/cone test (against dense sampling of
 a signed distance with a Lipschitz bound)."""
@@ -76,6 +76,27 @@ def test_grid_broad_phase_matches_all_pairs_on_triangle_soups(seed):
     grid, bvh = _grid_and_bvh(points, faces)
     assert grid == ref, (sorted(grid - ref)[:5], sorted(ref - grid)[:5])
     assert bvh == ref
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_grid_broad_phase_with_cells_wider_than_the_boxes(seed):
+    """Eight clusters of small triangles (0.02-0.06 m) at the corners of a 30 m cube: a grid of
+    cells one box wide would have about 10^8 cells, so the cells grow to keep within
+    ``IntersectionCounter.MAX_CELLS`` (to over 0.6 m, five times the widest box) and a walk covers
+    one or two cells holding many boxes; the grid count still finds exactly the pairs of all pairs."""
+    rng = np.random.default_rng(seed)
+    n = 200
+    corner = rng.integers(0, 2, size=(n, 1, 3)) * 30.0
+    centre = corner + rng.uniform(-0.05, 0.05, size=(n, 1, 3))
+    size = rng.uniform(0.02, 0.06, size=(n, 1, 1))
+    points = (centre + size * rng.uniform(-1, 1, size=(n, 3, 3))).reshape(-1, 3)
+    faces = np.arange(3 * n, dtype=np.int32).reshape(n, 3)
+    ref, near = all_pairs(points, faces)
+    assert near == 0 and len(ref) > 50, (near, len(ref))
+    c = IntersectionCounter(faces, keep=20000)
+    n_grid, p_grid = c.self_pairs(points)
+    assert c._cell_width > 3 * 0.12  # the cells grew past three times the widest box (<= 0.12 m)
+    assert n_grid == len(p_grid) and _pair_set(p_grid) == ref
 
 
 @pytest.mark.parametrize("seed", range(3))

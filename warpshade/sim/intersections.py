@@ -9,8 +9,10 @@ and cones).
 
 The triangle-triangle test is orientation based, in float64: two non-coplanar triangles meet iff
 an edge of one meets the other (segment-triangle by the signs of five orientation determinants);
-coplanar ones by 2-D edge crossings and containment. Candidates come from a BVH over the cloth's
-triangles (``wp.Mesh`` + ``mesh_query_aabb``), so a 64 x 64 cloth counts in milliseconds.
+coplanar ones by 2-D edge crossings and containment. Cloth-cloth candidates come from a uniform
+grid of the triangles' boxes (a BVH over them, ``wp.Mesh`` + ``mesh_query_aabb``, when the boxes
+are too small against the coordinates for float32 cells), so a 64 x 64 cloth counts in
+milliseconds.
 """
 
 from __future__ import annotations
@@ -279,14 +281,60 @@ def before(lo_t: wp.vec3, t: int, lo_u: wp.vec3, u: int) -> bool:
     return lo_t[0] < lo_u[0] or (lo_t[0] == lo_u[0] and t < u)
 
 
+@wp.func
+def grid_cell(p: wp.vec3, origin: wp.vec3, inv: float, dims: wp.vec3i) -> wp.vec3i:
+    """Cell of point p in the dense grid of ``dims`` cells 1 / ``inv`` wide from ``origin``,
+    clamped to the grid (monotone along each axis)."""
+    q = (p - origin) * inv
+    return wp.vec3i(wp.clamp(int(wp.floor(q[0])), 0, dims[0] - 1), wp.clamp(int(wp.floor(q[1])), 0, dims[1] - 1),
+                    wp.clamp(int(wp.floor(q[2])), 0, dims[2] - 1))
+
+
+@wp.kernel
+def bin_boxes(lower: wp.array[wp.vec3], origin: wp.vec3, inv: float, dims: wp.vec3i, cell: wp.array[int],
+              cell_size: wp.array[int]):
+    """Grid cell of each triangle's lower box corner (x fastest) and the cells' sizes."""
+    t = wp.tid()
+    c = grid_cell(lower[t], origin, inv, dims)
+    k = (c[2] * dims[1] + c[1]) * dims[0] + c[0]
+    cell[t] = k
+    wp.atomic_add(cell_size, k, 1)
+
+
+@wp.kernel
+def sort_boxes(cell: wp.array[int], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3], tris: wp.array2d[int],
+               cursor: wp.array[int], ids: wp.array[int], sorted_lower: wp.array[wp.vec3],
+               sorted_upper: wp.array[wp.vec3], sorted_tris: wp.array[wp.vec3i]):
+    """Counting sort of the triangles by cell (``cursor`` starts at each cell's first slot), their
+    boxes and vertices copied alongside so that a walk along a row of cells reads them in order."""
+    t = wp.tid()
+    s = wp.atomic_add(cursor, cell[t], 1)
+    ids[s] = t
+    sorted_lower[s] = lower[t]
+    sorted_upper[s] = upper[t]
+    sorted_tris[s] = wp.vec3i(tris[t, 0], tris[t, 1], tris[t, 2])
+
+
+@wp.func
+def share_vertex(a: wp.vec3i, b: wp.vec3i) -> bool:
+    """Triangles with vertices a and b share a vertex."""
+    return (a[0] == b[0] or a[0] == b[1] or a[0] == b[2] or a[1] == b[0] or a[1] == b[1] or a[1] == b[2]
+            or a[2] == b[0] or a[2] == b[1] or a[2] == b[2])
+
+
 @wp.kernel
 def count_self_pairs_grid(
-    grid: wp.uint64,
-    cell: float,
-    width: float,
+    first: wp.array[int],
+    ids: wp.array[int],
+    sorted_lower: wp.array[wp.vec3],
+    sorted_upper: wp.array[wp.vec3],
+    sorted_tris: wp.array[wp.vec3i],
+    origin: wp.vec3,
+    inv: float,
+    dims: wp.vec3i,
+    width_y: float,
+    width_z: float,
     slack: float,
-    lower: wp.array[wp.vec3],
-    upper: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
     x0: wp.array[wp.vec3],
@@ -294,37 +342,34 @@ def count_self_pairs_grid(
     pairs: wp.array2d[int],
     mark: wp.array[int],
 ):
-    """:func:`count_self_pairs` with a hash grid of the triangles' lower box corners (cells
-    ``cell`` wide) as the broad phase; ``width`` is at least every box's width. A pair is tested
-    from the triangle t that comes first in (lower x, index): the other's lower corner then lies in
-    [lo.x, hi.x] x [lo.y - width, hi.y] x [lo.z - width, hi.z] of t's box, and t walks the cells
-    covering that range widened by ``slack`` (the float32 rounding of cell coordinates), so every
-    box-overlapping pair is tested exactly once."""
-    t = wp.tid()
-    lo = lower[t]
-    hi = upper[t]
-    inv = 1.0 / cell
-    cx0 = int(wp.floor((lo[0] - slack) * inv))
-    cx1 = int(wp.floor((hi[0] + slack) * inv))
-    y0 = int(wp.floor((lo[1] - width - slack) * inv))
-    y1 = int(wp.floor((hi[1] + slack) * inv))
-    z0 = int(wp.floor((lo[2] - width - slack) * inv))
-    z1 = int(wp.floor((hi[2] + slack) * inv))
-    for cz in range(z0, z1 + 1):
-        for cy in range(y0, y1 + 1):
-            for cx in range(cx0, cx1 + 1):
-                # a zero-radius query at a cell's centre visits that cell only
-                centre = wp.vec3((float(cx) + 0.5) * cell, (float(cy) + 0.5) * cell, (float(cz) + 0.5) * cell)
-                query = wp.hash_grid_query(grid, centre, 0.0)
-                u = int(0)
-                while wp.hash_grid_query_next(query, u):
-                    ulo = lower[u]
-                    if not before(lo, t, ulo, u):
-                        continue
-                    uhi = upper[u]
-                    if not boxes_overlap(lo, hi, ulo, uhi):
-                        continue
-                    test_self_pair(x, tris, x0, t, u, count, pairs, mark)
+    """:func:`count_self_pairs` with a dense grid of the triangles' lower box corners as the
+    broad phase (cells 1 / ``inv`` wide, at least the widest box; counting-sorted by
+    :func:`sort_boxes`, ``first[k]`` the first slot of cell k); ``width_y`` and ``width_z`` are at
+    least every box's extent along y and z. A pair is tested from the triangle t that comes first
+    in (lower x, index): the other's lower corner then lies in [lo.x, hi.x] x [lo.y - width_y,
+    hi.y] x [lo.z - width_z, hi.z] of t's box, and t walks the cells covering that range widened
+    by ``slack`` (the float32 rounding of the bounds), one contiguous run of slots per row of
+    cells along x, so every box-overlapping pair is tested exactly once."""
+    s = wp.tid()
+    t = ids[s]
+    lo = sorted_lower[s]
+    hi = sorted_upper[s]
+    vt = sorted_tris[s]
+    c0 = grid_cell(wp.vec3(lo[0] - slack, lo[1] - width_y - slack, lo[2] - width_z - slack), origin, inv, dims)
+    c1 = grid_cell(hi + wp.vec3(slack), origin, inv, dims)
+    for cz in range(c0[2], c1[2] + 1):
+        for cy in range(c0[1], c1[1] + 1):
+            row = (cz * dims[1] + cy) * dims[0]
+            for r in range(first[row + c0[0]], first[row + c1[0] + 1]):
+                ulo = sorted_lower[r]
+                u = ids[r]
+                if not before(lo, t, ulo, u):
+                    continue
+                if not boxes_overlap(lo, hi, ulo, sorted_upper[r]):
+                    continue
+                if share_vertex(vt, sorted_tris[r]):
+                    continue
+                test_self_pair(x, tris, x0, t, u, count, pairs, mark)
 
 
 @wp.func
@@ -723,8 +768,17 @@ class IntersectionCounter:
         self._no_mark = wp.zeros(0, dtype=wp.int32, device=self.device)
         self._lower = wp.zeros(len(f), dtype=wp.vec3, device=self.device)
         self._upper = wp.zeros(len(f), dtype=wp.vec3, device=self.device)
-        g = int(np.clip(round(3.2 * len(f) ** (1.0 / 3.0)), 8, 64))
-        self._grid = wp.HashGrid(g, g, g, device=self.device)
+        nf = max(len(f), 1)
+        self._cell = wp.zeros(nf, dtype=wp.int32, device=self.device)
+        self._ids = wp.zeros(nf, dtype=wp.int32, device=self.device)
+        self._sorted_lower = wp.zeros(nf, dtype=wp.vec3, device=self.device)
+        self._sorted_upper = wp.zeros(nf, dtype=wp.vec3, device=self.device)
+        self._sorted_tris = wp.zeros(nf, dtype=wp.vec3i, device=self.device)
+        self._cell_size = self._first = self._cell_width = None
+
+    MAX_CELLS = 1 << 17
+    """Most cells of the cloth-cloth count's grid (cells grow beyond the widest box past it);
+    every count clears and scans them."""
 
     def _points(self, points) -> wp.array:
         if isinstance(points, wp.array):
@@ -777,20 +831,44 @@ class IntersectionCounter:
             return 0, self._pairs.numpy()[:0].copy()
         wp.launch(triangle_boxes, dim=len(self.faces), inputs=[x, self.tris], outputs=[self._lower, self._upper],
                   device=self.device)
-        lo, hi = self._lower.numpy(), self._upper.numpy()
-        width = float((hi - lo).max())
+        # (3, F): numpy reduces the rows of an (F, 3) array along axis 0 some 20 times slower
+        lo, hi = np.ascontiguousarray(self._lower.numpy().T), np.ascontiguousarray(self._upper.numpy().T)
+        extent = (hi - lo).max(axis=1)
+        width = float(extent.max())
         size = float(np.abs(lo).max() + np.abs(hi).max())
-        # cells twice as wide as the widest box: a box's walk then covers 1-2 cells along x and
-        # mostly 2 along y and z (2 x 3 x 3 at one box width), which made the count of a 64 x 64
-        # cloth ~15 % faster; the walk's slack (2 % of a cell and the float32 rounding of cell
-        # coordinates, a few ulp of the largest coordinate) so no overlapping box is missed
         if not (np.isfinite(size) and width * 1.0e5 > size):
             # cells too small against the coordinates for float32 cell arithmetic: the BVH
             return self._run(count_self_pairs, [self._mesh_id(), x, self.tris], mark, start)
-        cell = 2.0 * width
-        self._grid.build(self._lower, cell)
-        return self._run(count_self_pairs_grid, [self._grid.id, cell, width, 0.02 * cell + 1.0e-6 * size,
-                                                 self._lower, self._upper, x, self.tris], mark, start)
+        # cells as wide as the widest box (a walk then covers 1-2 cells along x and 2-3 along y
+        # and z), wider when the grid would have more than MAX_CELLS; the walk's slack (2 % of a
+        # cell and the float32 rounding of the bounds, a few ulp of the largest coordinate) so no
+        # overlapping box is missed
+        origin = lo.min(axis=1).astype(np.float64)
+        span = lo.max(axis=1) - origin
+        cell = width
+        while np.prod(np.floor(span / cell) + 1) > self.MAX_CELLS:
+            cell *= 1.25
+        dims = (np.floor(span / cell) + 1).astype(int)
+        cells = int(np.prod(dims))
+        self._cell_width = cell
+        if self._first is None or self._first.shape[0] < cells + 1:
+            room = min(max(cells + 1, 2 * (0 if self._first is None else self._first.shape[0])), self.MAX_CELLS + 1)
+            self._cell_size = wp.zeros(room, dtype=wp.int32, device=self.device)
+            self._first = wp.zeros(room, dtype=wp.int32, device=self.device)
+            self._cursor = wp.zeros(room, dtype=wp.int32, device=self.device)
+        nf, d = len(self.faces), self.device
+        o, inv, dm = wp.vec3(*origin), 1.0 / cell, wp.vec3i(*dims.tolist())
+        sizes, first = self._cell_size[:cells + 1], self._first[:cells + 1]
+        sizes.zero_()
+        wp.launch(bin_boxes, dim=nf, inputs=[self._lower, o, inv, dm], outputs=[self._cell, sizes], device=d)
+        wp.utils.array_scan(sizes, first, inclusive=False)
+        wp.copy(self._cursor, first, count=cells + 1)
+        wp.launch(sort_boxes, dim=nf, inputs=[self._cell, self._lower, self._upper, self.tris, self._cursor],
+                  outputs=[self._ids, self._sorted_lower, self._sorted_upper, self._sorted_tris], device=d)
+        return self._run(count_self_pairs_grid, [first, self._ids, self._sorted_lower, self._sorted_upper,
+                                                 self._sorted_tris, o, inv, dm,
+                                                 float(extent[1]), float(extent[2]), 0.02 * cell + 1.0e-6 * size, x,
+                                                 self.tris], mark, start)
 
     def collider_pairs(self, points, colliders, mark=None, start=None) -> tuple[int, np.ndarray]:
         """(count, first pairs) against a :class:`~warpshade.sim.ColliderSet` as posed at the end
