@@ -299,6 +299,41 @@ def test_mid_set_queues_what_the_per_group_walk_queues(ring):
     assert np.array_equal(h._counts.numpy(), counts) and np.array_equal(h._mids.counts.numpy(), mids)
 
 
+@pytest.mark.parametrize("closed", [False, True])
+def test_fine_set_queues_what_the_per_group_walk_queues(closed, monkeypatch):
+    """Without the mid level the far-field pass collects the refined coarse blockers' fine triangles as
+    a bit set (kernels.rasterize_fine_set); recording a PVS, or a mesh too large for the bit rows
+    (method.SET_BYTES), walks each refined blocker's group instead (kernels.rasterize_group). All must
+    rasterize the same triangles: same masks and counts (the rasterized-once table makes the walk's
+    counts those of distinct triangles)."""
+    import warp as wp
+
+    from warpshade.bench.meshes import warp_mesh, wrinkled_cloth
+    from warpshade.visibility.hemiraster import method
+
+    if closed:
+        mesh = warp_mesh("bear").rest  # closed: back-face culling; seam extras around every refined group
+        pts = mesh.points
+    else:
+        bm = wrinkled_cloth(24)
+        mesh, pts = TriMesh(bm.frame, bm.rest.faces), bm.frame
+    h = hemiraster(mesh, order=2, coarse=64 if not closed else 256)
+    assert h._groups.use_set == 1
+    h.update(pts)
+    mask, counts, refined = h._mask.numpy().copy(), h._counts.numpy().copy(), h._refined.numpy().copy()
+    assert refined.mean() > 10
+    h._hits = wp.zeros((h.mesh.num_vertices, (h.num_blockers + 31) // 32), dtype=wp.uint32, device=h.device)
+    h._launch(record=1, use_pvs=0)
+    assert np.array_equal(h._mask.numpy(), mask)
+    assert np.array_equal(h._counts.numpy(), counts) and np.array_equal(h._refined.numpy(), refined)
+    monkeypatch.setattr(method, "SET_BYTES", 0)
+    walk = hemiraster(mesh, order=2, coarse=64 if not closed else 256)
+    assert walk._groups.use_set == 0
+    walk.update(pts)
+    assert np.array_equal(walk._mask.numpy(), mask)
+    assert np.array_equal(walk._counts.numpy(), counts) and np.array_equal(walk._refined.numpy(), refined)
+
+
 @pytest.mark.parametrize("refine", [2.0, 0.05])
 def test_refined_bits_are_the_per_blocker_refinement_test(refine):
     """kernels.mark_refined skips the clusters that do not come near the receiver; its bits must equal

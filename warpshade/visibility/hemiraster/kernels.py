@@ -131,6 +131,21 @@ class Refinement:
     use_seen: int
     """1: skip fine triangles already in ``seen`` (a seam triangle belongs to several refined coarse
     triangles; OR fusion makes the repeat harmless but not free); 0: no such table (large meshes)."""
+    use_set: int
+    """1: the far-field pass collects what its refined blockers list as a bit set (``listed``), handled
+    after the far field (:func:`rasterize_mid_set`, :func:`rasterize_fine_set`); 0: each refined
+    blocker's group is walked when the pass visits it (:func:`rasterize_group`; also while recording
+    a PVS, which credits each triangle to the blocker whose group listed it)."""
+    cover: wp.array2d[MaskChunk]
+    """Per blocker (reordered index), bits of every triangle its group lists (primaries and seam-cover
+    extras) in chunks of 16 words, shape (Fc, ceil(count/1024)) (:func:`.hierarchy.group_bits`)."""
+    primary: wp.array2d[MaskChunk]
+    """Per blocker, bits of its primary triangles, as ``cover``."""
+    listed: wp.array2d[MaskChunk]
+    """Per slot, OR of ``cover`` over the refined blockers the far-field pass visited for the current
+    receiver, shape (slots, ceil(count/1024)); cleared when the set is handled."""
+    visited: wp.array2d[wp.uint64]
+    """Per slot, bits of those visited refined blockers, shape (slots, ceil(Fc/64))."""
 
 
 @wp.struct
@@ -160,16 +175,6 @@ class MidLevel:
     start of each receiver and cleared at its end."""
     counts: wp.array[wp.int32]
     """Mid triangles queued per receiver, shape (V,)."""
-    cover: wp.array2d[MaskChunk]
-    """Per coarse blocker (reordered index), bits of every mid triangle its group lists (primaries and
-    seam-cover extras) in chunks of 16 words, shape (Fc, ceil(Fm/1024)) (:func:`rasterize_mid_set`)."""
-    primary: wp.array2d[MaskChunk]
-    """Per coarse blocker, bits of its primary mid triangles, as ``cover``."""
-    listed: wp.array2d[MaskChunk]
-    """Per slot, OR of ``cover`` over the refined coarse blockers the far-field pass visited for the
-    current receiver, shape (slots, ceil(Fm/1024)); cleared by :func:`rasterize_mid_set`."""
-    visited: wp.array2d[wp.uint64]
-    """Per slot, bits of those visited refined coarse blockers, shape (slots, ceil(Fc/64))."""
 
 
 @wp.struct
@@ -1065,6 +1070,78 @@ def rasterize_mid_group(
 
 
 @wp.func(inline=True)
+def listed_set(sl: int, blockers: Blockers, groups: Refinement):
+    """Finish the slot's set of the triangles listed by the refined blockers the far-field pass visited
+    (``groups.listed``: the OR of their ``cover`` rows) by removing the primary triangles of the
+    refined blockers the pass did not visit (below the horizon).
+
+    That is the union of what the per-group walk (:func:`rasterize_group`, :func:`rasterize_mid_group`)
+    queues for each visited blocker: its primaries, and the extras whose primary blocker is not
+    refined (those whose primary blocker is refined and visited are primaries of that one; those
+    whose primary blocker is refined and not visited are left out by both; a triangle has one
+    primary blocker). Not for recording a PVS (``bt.record``), which credits each triangle to the
+    blocker whose group listed it."""
+    for w in range(blockers.refined.shape[1]):
+        x = blockers.refined[sl, w] & ~groups.visited[sl, w]
+        groups.visited[sl, w] = wp.uint64(0)
+        while x != wp.uint64(0):
+            t = w * 64 + lowest_bit(x)
+            x = x & (x - wp.uint64(1))
+            for u in range(groups.listed.shape[1]):
+                groups.listed[sl, u] = groups.listed[sl, u] & (groups.primary[t, u] ^ MaskChunk(~wp.uint64(0)))
+
+
+@wp.func(inline=True)
+def rasterize_fine_set(
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    fine: FineMesh,
+    groups: Refinement,
+    blockers: Blockers,
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    bt: Batch,
+    nb: int,
+) -> int:
+    """Queue the fine triangles of the refined blockers the far-field pass visited (the set of
+    :func:`listed_set`), as :func:`rasterize_group` would blocker by blocker; returns the queue length.
+
+    Each fine triangle is handled once, in index order, without walking the groups' lists or a
+    rasterized-once table: 64 at a time classified from per-frame data (:func:`skip_early`, as
+    :func:`stage_fine`), then the kept ones gathered and queued unless incident to the receiver (as
+    :func:`queue_candidates`; the tiny-image test with ``lut.fine_area`` and the count in
+    ``refined`` wait for :func:`batch_codes`)."""
+    listed_set(sl, blockers, groups)
+    zero = wp.uint64(0)
+    for u in range(groups.listed.shape[1]):
+        chunk = groups.listed[sl, u]
+        groups.listed[sl, u] = MaskChunk()
+        for i in range(CHUNK_WORDS):
+            base = (u * CHUNK_WORDS + i) * 64
+            x = chunk[i]
+            keep = zero
+            while x != zero:
+                k = lowest_bit(x)
+                x = x & (x - wp.uint64(1))
+                f = base + k
+                drop = skip_early(fine.plane[f], fine.sphere[f], p, n, lut.backface, lut.rim)
+                keep = keep | wp.where(drop, zero, wp.uint64(1) << wp.uint64(k))
+            while keep != zero:
+                f = base + lowest_bit(keep)
+                keep = keep & (keep - wp.uint64(1))
+                i0 = fine.faces[f, 0]
+                j0 = fine.faces[f, 1]
+                k0 = fine.faces[f, 2]
+                drop = wp.where(i0 == v, True, wp.where(j0 == v, True, k0 == v))
+                nb = push_triangle(fine.points[i0] - p, fine.points[j0] - p, fine.points[k0] - p, -1, drop, lut.fine_area, 1,
+                                   nb, v, sl, frame, lut, mask, bt)
+    return nb
+
+
+@wp.func(inline=True)
 def rasterize_mid_set(
     v: int,
     sl: int,
@@ -1081,29 +1158,16 @@ def rasterize_mid_set(
     bt: Batch,
     nb: int,
 ) -> int:
-    """Queue the mid triangles of the refined coarse blockers the far-field pass visited (``mids.listed``,
-    ``mids.visited``), as :func:`rasterize_mid_group` would blocker by blocker; returns the queue length.
-
-    The set is a bit set over the mid mesh: the OR of the visited blockers' ``cover`` rows, less the
-    primary mid triangles of the refined blockers the pass did not visit. That is the union of what
-    :func:`rasterize_mid_group` queues for each visited blocker: its primaries, and the extras whose
-    primary coarse blocker is not refined (those whose primary is refined and visited are primaries
-    of that one; those whose primary is refined and not visited are left out by both). Each mid
-    triangle is then handled once, in index order, without walking the groups' lists, testing a
-    run of extras per primary blocker, or a rasterized-once table. Not for recording a PVS
-    (``bt.record``), which credits each triangle to the blocker whose group listed it."""
-    for w in range(blockers.refined.shape[1]):
-        x = blockers.refined[sl, w] & ~mids.visited[sl, w]
-        while x != wp.uint64(0):
-            t = w * 64 + lowest_bit(x)
-            x = x & (x - wp.uint64(1))
-            for u in range(mids.listed.shape[1]):
-                mids.listed[sl, u] = mids.listed[sl, u] & (mids.primary[t, u] ^ MaskChunk(~wp.uint64(0)))
+    """Queue the mid triangles of the refined coarse blockers the far-field pass visited (the set of
+    :func:`listed_set`), as :func:`rasterize_mid_group` would blocker by blocker; returns the queue
+    length. Each mid triangle is handled once, in index order, without walking the groups' lists,
+    testing a run of extras per primary blocker, or a rasterized-once table."""
+    listed_set(sl, blockers, groups)
     zero = wp.uint64(0)
     cmid = int(0)
-    for u in range(mids.listed.shape[1]):
-        chunk = mids.listed[sl, u]
-        mids.listed[sl, u] = MaskChunk()
+    for u in range(groups.listed.shape[1]):
+        chunk = groups.listed[sl, u]
+        groups.listed[sl, u] = MaskChunk()
         for i in range(CHUNK_WORDS):
             base = (u * CHUNK_WORDS + i) * 64
             # first each listed mid triangle classified from per-frame data (selects), as in
@@ -1236,15 +1300,15 @@ def rasterize_far_chunk(
     while refine_bits != wp.uint64(0):
         k = lowest_bit(refine_bits)
         refine_bits = refine_bits & (refine_bits - wp.uint64(1))
-        if mids.on != 0:
-            if bt.record == 0:
-                # queued with the other visited ones' after the far field (:func:`rasterize_mid_set`)
-                t = t0 + k
-                mids.visited[sl, t >> 6] = mids.visited[sl, t >> 6] | (wp.uint64(1) << wp.uint64(t & 63))
-                for u in range(mids.listed.shape[1]):
-                    mids.listed[sl, u] = mids.listed[sl, u] | mids.cover[t, u]
-            else:
-                nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+        if groups.use_set != 0 and bt.record == 0:
+            # queued with the other visited ones' after the far field (:func:`rasterize_mid_set`,
+            # :func:`rasterize_fine_set`)
+            t = t0 + k
+            groups.visited[sl, t >> 6] = groups.visited[sl, t >> 6] | (wp.uint64(1) << wp.uint64(t & 63))
+            for u in range(groups.listed.shape[1]):
+                groups.listed[sl, u] = groups.listed[sl, u] | groups.cover[t, u]
+        elif mids.on != 0:
+            nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
         else:
             nb = rasterize_group(t0 + k, v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb)
     while keep != wp.uint64(0):
@@ -1320,8 +1384,6 @@ def rasterize_masks(
             for r in range(mids.ring_start[v], mids.ring_start[v + 1]):
                 m = mids.ring_tris[r]
                 mids.ring_bits[sl, m >> 6] = mids.ring_bits[sl, m >> 6] | (wp.uint64(1) << wp.uint64(m & 63))
-            for w in range(mids.visited.shape[1]):
-                mids.visited[sl, w] = wp.uint64(0)
             mids.counts[v] = 0
         bt.counts[v] = 0
         refined[v] = 0
@@ -1360,8 +1422,11 @@ def rasterize_masks(
                 t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
                 nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame, lut,
                                          mask, bt, nb)
-        if mids.on != 0 and bt.record == 0:
-            nb = rasterize_mid_set(v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+        if groups.use_set != 0 and bt.record == 0:
+            if mids.on != 0:
+                nb = rasterize_mid_set(v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+            else:
+                nb = rasterize_fine_set(v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb)
         if nb > 0:
             flush_batch(nb, v, sl, frame, lut, mask, bt)
         if mids.on != 0:

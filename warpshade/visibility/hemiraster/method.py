@@ -31,6 +31,13 @@ from .kernels import (CANDIDATES, Batch, Blockers, FineMesh, MaskChunk, MidLevel
 SEEN_BYTES = 64 * 1024 * 1024
 """Largest rasterized-once table (slots × ceil(F/64) uint64 words) the method allocates."""
 
+SET_BYTES = 16 * 1024 * 1024
+"""Largest pair of per-blocker bit rows over the fine triangles (``cover``, ``primary``: 2 × coarse
+blockers × ceil(F/1024) chunks of 128 bytes) for which the refined blockers' fine triangles are
+collected as a bit set (kernels.rasterize_fine_set); above it (with 512 coarse blockers: meshes of
+more than ~130k triangles) each refined group is walked instead (kernels.rasterize_group): the same
+masks, without tables and a per-receiver scan that grow with the mesh."""
+
 BATCH = 64
 """Triangles queued per slot before they are rasterized together (kernels.Batch; 4 KiB per
 slot). Measured on the Table 1 cloth (interleaved runs, ratios of CPU time): 1 -> 1.28, 4 -> 1.06,
@@ -475,19 +482,28 @@ class HemirasterTransfer(TransferMethod):
             self._groups.seen = wp.zeros((self._slots, mid_words) if self._groups.use_seen else (1, 1), dtype=wp.uint64,
                                          device=d)
             self._mids.ring_bits = wp.zeros((self._slots, mid_words), dtype=wp.uint64, device=d)
-            # kernels.rasterize_mid_set: each coarse blocker's listed and primary mid triangles as bit rows
-            cover, primary = hierarchy.group_bits(group_start, group_mid, group_tris, self.num_mid)
-            self._mids.cover = wp.array(tables.chunked_rows(cover), dtype=MaskChunk, device=d)
-            self._mids.primary = wp.array(tables.chunked_rows(primary), dtype=MaskChunk, device=d)
-            self._mids.listed = wp.zeros((self._slots, self._mids.cover.shape[1]), dtype=MaskChunk, device=d)
-            self._mids.visited = wp.zeros((self._slots, (self.num_blockers + 63) // 64), dtype=wp.uint64, device=d)
         else:
             self._sub.use_seen = 0
             self._sub.seen = wp.zeros((1, 1), dtype=wp.uint64, device=d)
             self._mids.ring_bits = wp.zeros((1, 1), dtype=wp.uint64, device=d)
-            self._mids.cover, self._mids.primary, self._mids.listed = (wp.zeros((1, 1), dtype=MaskChunk, device=d)
-                                                                       for _ in range(3))
-            self._mids.visited = wp.zeros((1, 1), dtype=wp.uint64, device=d)
+        # kernels.listed_set: each coarse blocker's listed and primary triangles (mid, or fine without
+        # the mid level) as bit rows; for fine triangles only up to SET_BYTES (else the groups are walked)
+        listed_count = self.num_mid if self._use_mid else nsf
+        set_bytes = 2 * len(group_start) * -(-listed_count // 1024) * 128
+        self._groups.use_set = 1 if self._use_mid or (self._use_refine and set_bytes <= SET_BYTES) else 0
+        if self._groups.use_set:
+            cover, primary = hierarchy.group_bits(group_start, group_mid, group_tris, listed_count)
+            self._groups.cover = wp.array(tables.chunked_rows(cover), dtype=MaskChunk, device=d)
+            self._groups.primary = wp.array(tables.chunked_rows(primary), dtype=MaskChunk, device=d)
+            self._groups.listed = wp.zeros((self._slots, self._groups.cover.shape[1]), dtype=MaskChunk, device=d)
+            self._groups.visited = wp.zeros((self._slots, (self.num_blockers + 63) // 64), dtype=wp.uint64, device=d)
+        else:
+            self._groups.cover, self._groups.primary, self._groups.listed = (wp.zeros((1, 1), dtype=MaskChunk, device=d)
+                                                                             for _ in range(3))
+            self._groups.visited = wp.zeros((1, 1), dtype=wp.uint64, device=d)
+        self._sub.use_set = 0
+        self._sub.cover, self._sub.primary, self._sub.listed = (wp.zeros((1, 1), dtype=MaskChunk, device=d) for _ in range(3))
+        self._sub.visited = wp.zeros((1, 1), dtype=wp.uint64, device=d)
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bnlen = wp.zeros(self.num_blockers, dtype=float, device=d)
