@@ -334,6 +334,30 @@ def test_fine_set_queues_what_the_per_group_walk_queues(closed, monkeypatch):
     assert np.array_equal(walk._counts.numpy(), counts) and np.array_equal(walk._refined.numpy(), refined)
 
 
+@pytest.mark.parametrize("mesh_name", ["bear", "wrinkled"])
+def test_far_field_bits_give_the_per_cluster_culls(mesh_name):
+    """kernels.far_field_bits computes every coarse blocker's per-frame culls (skip_early, bounds_below)
+    and refinement bits per receiver in one native pass; per cluster in Warp (``precull`` 0) they must
+    be the same bits: same masks and counts (closed bear: back faces culled; wrinkled sheet: the fan)."""
+    from warpshade.bench.meshes import warp_mesh, wrinkled_cloth
+
+    if mesh_name == "bear":
+        mesh = warp_mesh("bear").rest
+        pts = mesh.points
+    else:
+        bm = wrinkled_cloth(24)
+        mesh, pts = TriMesh(bm.frame, bm.rest.faces), bm.frame
+    h = hemiraster(mesh, order=2, coarse=200)
+    assert h._blockers.precull == 1
+    a = h.update(pts).numpy().copy()
+    mask, counts, refined = h._mask.numpy().copy(), h._counts.numpy().copy(), h._refined.numpy().copy()
+    assert counts.mean() > 20
+    h._blockers.precull = 0
+    b = h.update(pts).numpy()
+    assert np.array_equal(h._mask.numpy(), mask) and np.array_equal(a, b)
+    assert np.array_equal(h._counts.numpy(), counts) and np.array_equal(h._refined.numpy(), refined)
+
+
 @pytest.mark.parametrize("refine", [2.0, 0.05])
 def test_refined_bits_are_the_per_blocker_refinement_test(refine):
     """kernels.mark_refined skips the clusters that do not come near the receiver; its bits must equal

@@ -100,6 +100,18 @@ class Blockers:
     (slots, ceil(Fc/64)); all 0 without refinement and k-ring exclusion bits."""
     skip_incident: int
     """1 when the blockers are the fine triangles themselves (skip those incident to the receiver)."""
+    precull: int
+    """1: the per-frame culls and refinement bits of every blocker are computed for each receiver in
+    one vectorized pass before the far field (:func:`far_field_bits`; a coarse far field of a few
+    hundred blockers); 0: per cluster that reaches above the tangent plane (the full mesh)."""
+    cull: wp.array2d[wp.uint64]
+    """Per slot, bits of the blockers :func:`skip_early` culls for the current receiver (``precull``),
+    shape (slots, ceil(Fc/64))."""
+    tiny: wp.array2d[wp.uint64]
+    """Per slot, bits of the blockers :func:`bounds_below` deems tiny (``precull``), as ``cull``."""
+    ring: wp.array2d[wp.uint64]
+    """Per receiver, bits (reordered index) of the blockers standing for its k-ring (``near_mode`` 2,
+    the exclusion bits of ``excl`` reordered), shape (V, ceil(Fc/64)); (1, 1) otherwise."""
 
 
 @wp.struct
@@ -793,17 +805,100 @@ def blocker_refined(blockers: Blockers, sl: int, t: int) -> bool:
 
 
 @wp.func(inline=True)
-def refined_bits(blockers: Blockers, sl: int, t0: int, t1: int) -> wp.uint64:
-    """Bits ``t0 .. t1-1`` (at most 64) of the slot's refined set (:func:`mark_refined`), bit 0 = ``t0``."""
+def slot_bits(bits: wp.array2d[wp.uint64], sl: int, t0: int, t1: int) -> wp.uint64:
+    """Bits ``t0 .. t1-1`` (at most 64) of the slot's row of a per-blocker bit set (:func:`mark_refined`,
+    :func:`far_field_bits`), bit 0 = ``t0``."""
     w = t0 >> 6
     s = wp.uint64(t0 & 63)
-    x = blockers.refined[sl, w] >> s
-    if w + 1 < blockers.refined.shape[1]:
+    x = bits[sl, w] >> s
+    if w + 1 < bits.shape[1]:
         # (``<< 1 << (63 - s)``: no shift by 64 when s = 0)
-        x = x | ((blockers.refined[sl, w + 1] << wp.uint64(1)) << (wp.uint64(63) - s))
+        x = x | ((bits[sl, w + 1] << wp.uint64(1)) << (wp.uint64(63) - s))
     if t1 - t0 < 64:
         x = x & ((wp.uint64(1) << wp.uint64(t1 - t0)) - wp.uint64(1))
     return x
+
+
+_FAR_FIELD_BITS = r"""
+// per blocker t (reordered index): :func:`skip_early`, :func:`bounds_below` and :func:`refine_here`
+// in the same operations and order as the Warp functions (Warp's dot, length, min, max, abs)
+const int nt = plane.shape[0];
+const float* __restrict__ pl = (const float*)plane.data;
+const float* __restrict__ sp = (const float*)sphere.data;
+const float* __restrict__ nl = (const float*)nlen.data;
+const float* __restrict__ blo = (const float*)lo.data;
+const float* __restrict__ bhi = (const float*)hi.data;
+const float* __restrict__ bdv = (const float*)dev.data;
+uint64_t* __restrict__ pc = (uint64_t*)((char*)cull.data + sl * cull.strides[0]);
+uint64_t* __restrict__ pt = (uint64_t*)((char*)tiny.data + sl * tiny.strides[0]);
+uint64_t* __restrict__ pr = (uint64_t*)((char*)refined.data + sl * refined.strides[0]);
+const uint64_t* __restrict__ pring = (const uint64_t*)((const char*)ring.data + (use_ring ? v : 0) * ring.strides[0]);
+const float px = p.c[0], py = p.c[1], pz = p.c[2];
+const float nx = n.c[0], ny = n.c[1], nz = n.c[2];
+const float rim2 = rim * rim;
+const float area2 = min_area * 2.0f;
+const bool do_tiny = min_area > 0.0f;
+const bool do_refine = refine > 0.0f;
+const int words = (nt + 63) / 64;
+for (int w = 0; w < words; ++w) {
+    const int t0 = w * 64;
+    const int cnt = nt - t0 < 64 ? nt - t0 : 64;
+    uint64_t mc = 0, mt = 0, mr = 0;
+    for (int k = 0; k < cnt; ++k) {
+        const int t = t0 + k;
+        const float s0 = sp[4 * t], s1 = sp[4 * t + 1], s2 = sp[4 * t + 2], s3 = sp[4 * t + 3];
+        const float n0 = pl[4 * t], n1 = pl[4 * t + 1], n2 = pl[4 * t + 2], n3 = pl[4 * t + 3];
+        const float qx = s0 - px, qy = s1 - py, qz = s2 - pz;
+        const float qq = qx * qx + qy * qy + qz * qz;
+        const float nq = nx * qx + ny * qy + nz * qz;
+        const float np_ = n0 * px + n1 * py + n2 * pz;
+        // skip_early
+        const float h = nq + s3;
+        const float hr = h + rim * s3;
+        const bool back = (n3 - np_) * backface > 0.0f;
+        const bool culled = (h <= 0.0f) ? true : ((hr * hr <= rim2 * qq) ? true : back);
+        // bounds_below
+        const float dmin = sqrtf(qq) - s3;
+        const float twice_ah = fabsf(np_ - n3);
+        const bool grazing = twice_ah < 0.5f * nl[t] * dmin;
+        const float cq = (nq + s3) / dmin;
+        const float cmax = (1.0f <= cq) ? 1.0f : ((cq == cq) ? cq : 1.0f);
+        const bool small = twice_ah * cmax < area2 * dmin * dmin * dmin;
+        const bool tiny_ = (dmin > 0.0f) ? (grazing ? small : false) : false;
+        // refine_here: box_near(p, lo, hi, refine * dev)
+        const float ax = blo[3 * t] - px, bx = px - bhi[3 * t];
+        const float ay = blo[3 * t + 1] - py, by = py - bhi[3 * t + 1];
+        const float az = blo[3 * t + 2] - pz, bz = pz - bhi[3 * t + 2];
+        float dx = (ax >= bx) ? ax : ((bx == bx) ? bx : ax);
+        float dy = (ay >= by) ? ay : ((by == by) ? by : ay);
+        float dz = (az >= bz) ? az : ((bz == bz) ? bz : az);
+        dx = (dx >= 0.0f) ? dx : 0.0f;
+        dy = (dy >= 0.0f) ? dy : 0.0f;
+        dz = (dz >= 0.0f) ? dz : 0.0f;
+        const float rad = refine * bdv[t];
+        const bool near_ = dx * dx + dy * dy + dz * dz < rad * rad;
+        mc |= (uint64_t)culled << k;
+        mt |= (uint64_t)(do_tiny && tiny_) << k;
+        mr |= (uint64_t)(do_refine && near_) << k;
+    }
+    pc[w] = mc;
+    pt[w] = mt;
+    pr[w] = mr | (use_ring ? pring[w] : (uint64_t)0);
+}
+"""
+
+
+@wp.func_native(_FAR_FIELD_BITS)
+def far_field_bits(plane: wp.array[wp.vec4], sphere: wp.array[wp.vec4], nlen: wp.array[float], lo: wp.array[wp.vec3],
+                   hi: wp.array[wp.vec3], dev: wp.array[float], ring: wp.array2d[wp.uint64], use_ring: int, v: int, sl: int,
+                   p: wp.vec3, n: wp.vec3, backface: float, rim: float, min_area: float, refine: float,
+                   cull: wp.array2d[wp.uint64], tiny: wp.array2d[wp.uint64], refined: wp.array2d[wp.uint64]):
+    """For receiver ``v`` (slot ``sl``) and every blocker, in one pass: the bits of :func:`skip_early`
+    (``cull``), of :func:`bounds_below` (``tiny``; none when ``min_area`` is 0) and of the blockers
+    refined here (``refined``: :func:`refine_here` with ``refine`` > 0, or the receiver's k-ring row of
+    ``ring`` with ``use_ring``), the same operations in the same order as those Warp functions, so
+    the same bits (:func:`mark_refined` tests only the clusters that come near; its bits equal the
+    per-blocker test). Native C++ over flat rows, which clang vectorizes; the arrays must be contiguous."""
 
 
 @wp.func(inline=True)
@@ -811,6 +906,8 @@ def mark_refined(
     v: int,
     sl: int,
     p: wp.vec3,
+    n: wp.vec3,
+    lut: PlaneLut,
     blockers: Blockers,
     groups: Refinement,
     near_mode: int,
@@ -826,7 +923,14 @@ def mark_refined(
     and the seam-cover extras of every refined group (whose primary blocker may be anywhere) read
     one bit. Per-blocker tests only in clusters that come near enough: a cluster's box and reach
     hold its blockers' boxes and deviations, so a cluster failing :func:`box_near` has no blocker
-    passing :func:`refine_here` (the same float operations on smaller distances and a larger radius)."""
+    passing :func:`refine_here` (the same float operations on smaller distances and a larger radius).
+    With ``blockers.precull``, :func:`far_field_bits` sets these bits for every blocker instead (and
+    the per-frame culls' bits)."""
+    if blockers.precull != 0:
+        far_field_bits(blockers.plane, blockers.sphere, blockers.nlen, groups.lo, groups.hi, groups.dev, blockers.ring,
+                       wp.where(near_mode == 2, 1, 0), v, sl, p, n, lut.backface, lut.rim, lut.min_area, groups.refine,
+                       blockers.cull, blockers.tiny, blockers.refined)
+        return
     for w in range(blockers.refined.shape[1]):
         blockers.refined[sl, w] = wp.uint64(0)
     if near_mode == 2:
@@ -1281,14 +1385,18 @@ def rasterize_far_chunk(
     # ``wp.where`` selects and bitwise operators instead)
     cull = zero
     tiny = zero
-    for t in range(t0, t1):
-        bit = wp.uint64(1) << wp.uint64(t - t0)
-        sph = blockers.sphere[t]
-        pln = blockers.plane[t]
-        cull = cull | wp.where(skip_early(pln, sph, p, n, lut.backface, lut.rim), bit, zero)
-        if lut.min_area > 0.0:  # the same for every blocker: predicted
-            tiny = tiny | wp.where(bounds_below(pln, sph, blockers.nlen[t], p, n, lut.min_area), bit, zero)
-    refine_bits = refined_bits(blockers, sl, t0, t1)
+    if blockers.precull != 0:
+        cull = slot_bits(blockers.cull, sl, t0, t1)
+        tiny = slot_bits(blockers.tiny, sl, t0, t1)
+    else:
+        for t in range(t0, t1):
+            bit = wp.uint64(1) << wp.uint64(t - t0)
+            sph = blockers.sphere[t]
+            pln = blockers.plane[t]
+            cull = cull | wp.where(skip_early(pln, sph, p, n, lut.backface, lut.rim), bit, zero)
+            if lut.min_area > 0.0:  # the same for every blocker: predicted
+                tiny = tiny | wp.where(bounds_below(pln, sph, blockers.nlen[t], p, n, lut.min_area), bit, zero)
+    refine_bits = slot_bits(blockers.refined, sl, t0, t1)
     ex = zero
     if use_excl == 1:
         # near-field exclusion bits of the paper scheme (no refinement): dropped
@@ -1387,7 +1495,8 @@ def rasterize_masks(
             mids.counts[v] = 0
         bt.counts[v] = 0
         refined[v] = 0
-        mark_refined(v, sl, p, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi, cluster_reach)
+        mark_refined(v, sl, p, n, lut, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi,
+                     cluster_reach)
         nb = int(0)
         if fine.fan != 0:
             nb = rasterize_fan(v, sl, p, n, fine, frame, lut, mask, bt, nb)
