@@ -819,6 +819,11 @@ def slot_bits(bits: wp.array2d[wp.uint64], sl: int, t0: int, t1: int) -> wp.uint
     return x
 
 
+PRECULL_BLOCKERS = 4096
+"""Largest far field (coarse blockers) whose culls are computed for every blocker per receiver in one
+vectorized pass (:func:`far_field_bits`, whose flags sit in a stack buffer of this size); larger ones
+(the full mesh as blockers) are culled per cluster that reaches above the tangent plane."""
+
 _FAR_FIELD_BITS = r"""
 // per blocker t (reordered index): :func:`skip_early`, :func:`bounds_below` and :func:`refine_here`
 // in the same operations and order as the Warp functions (Warp's dot, length, min, max, abs)
@@ -839,53 +844,65 @@ const float rim2 = rim * rim;
 const float area2 = min_area * 2.0f;
 const bool do_tiny = min_area > 0.0f;
 const bool do_refine = refine > 0.0f;
+// flags per blocker (bit 0 culled, 1 tiny, 2 refined) in a straight loop over the flat rows, then
+// packed 8 at a time into the bit rows (a byte b_i at byte i of x: ((x >> j) & 0x01..01) * 0x0102040810204080
+// >> 56 has bit j of b_i at bit i)
+unsigned char flags[PRECULL_BLOCKERS + 64];
+for (int t = 0; t < nt; ++t) {
+    const float s0 = sp[4 * t], s1 = sp[4 * t + 1], s2 = sp[4 * t + 2], s3 = sp[4 * t + 3];
+    const float n0 = pl[4 * t], n1 = pl[4 * t + 1], n2 = pl[4 * t + 2], n3 = pl[4 * t + 3];
+    const float qx = s0 - px, qy = s1 - py, qz = s2 - pz;
+    const float qq = qx * qx + qy * qy + qz * qz;
+    const float nq = nx * qx + ny * qy + nz * qz;
+    const float np_ = n0 * px + n1 * py + n2 * pz;
+    // skip_early
+    const float h = nq + s3;
+    const float hr = h + rim * s3;
+    const bool back = (n3 - np_) * backface > 0.0f;
+    const bool culled = (h <= 0.0f) ? true : ((hr * hr <= rim2 * qq) ? true : back);
+    // bounds_below
+    const float dmin = sqrtf(qq) - s3;
+    const float twice_ah = fabsf(np_ - n3);
+    const bool grazing = twice_ah < 0.5f * nl[t] * dmin;
+    const float cq = (nq + s3) / dmin;
+    const float cmax = (1.0f <= cq) ? 1.0f : ((cq == cq) ? cq : 1.0f);
+    const bool small = twice_ah * cmax < area2 * dmin * dmin * dmin;
+    const bool tiny_ = (dmin > 0.0f) ? (grazing ? small : false) : false;
+    // refine_here: box_near(p, lo, hi, refine * dev)
+    const float ax = blo[3 * t] - px, bx = px - bhi[3 * t];
+    const float ay = blo[3 * t + 1] - py, by = py - bhi[3 * t + 1];
+    const float az = blo[3 * t + 2] - pz, bz = pz - bhi[3 * t + 2];
+    float dx = (ax >= bx) ? ax : ((bx == bx) ? bx : ax);
+    float dy = (ay >= by) ? ay : ((by == by) ? by : ay);
+    float dz = (az >= bz) ? az : ((bz == bz) ? bz : az);
+    dx = (dx >= 0.0f) ? dx : 0.0f;
+    dy = (dy >= 0.0f) ? dy : 0.0f;
+    dz = (dz >= 0.0f) ? dz : 0.0f;
+    const float rad = refine * bdv[t];
+    const bool near_ = dx * dx + dy * dy + dz * dz < rad * rad;
+    flags[t] = (unsigned char)((culled ? 1 : 0) | ((do_tiny && tiny_) ? 2 : 0) | ((do_refine && near_) ? 4 : 0));
+}
 const int words = (nt + 63) / 64;
+for (int t = nt; t < words * 64; ++t)
+    flags[t] = 0;
+const uint64_t ones = 0x0101010101010101ull, magic = 0x0102040810204080ull;
 for (int w = 0; w < words; ++w) {
-    const int t0 = w * 64;
-    const int cnt = nt - t0 < 64 ? nt - t0 : 64;
     uint64_t mc = 0, mt = 0, mr = 0;
-    for (int k = 0; k < cnt; ++k) {
-        const int t = t0 + k;
-        const float s0 = sp[4 * t], s1 = sp[4 * t + 1], s2 = sp[4 * t + 2], s3 = sp[4 * t + 3];
-        const float n0 = pl[4 * t], n1 = pl[4 * t + 1], n2 = pl[4 * t + 2], n3 = pl[4 * t + 3];
-        const float qx = s0 - px, qy = s1 - py, qz = s2 - pz;
-        const float qq = qx * qx + qy * qy + qz * qz;
-        const float nq = nx * qx + ny * qy + nz * qz;
-        const float np_ = n0 * px + n1 * py + n2 * pz;
-        // skip_early
-        const float h = nq + s3;
-        const float hr = h + rim * s3;
-        const bool back = (n3 - np_) * backface > 0.0f;
-        const bool culled = (h <= 0.0f) ? true : ((hr * hr <= rim2 * qq) ? true : back);
-        // bounds_below
-        const float dmin = sqrtf(qq) - s3;
-        const float twice_ah = fabsf(np_ - n3);
-        const bool grazing = twice_ah < 0.5f * nl[t] * dmin;
-        const float cq = (nq + s3) / dmin;
-        const float cmax = (1.0f <= cq) ? 1.0f : ((cq == cq) ? cq : 1.0f);
-        const bool small = twice_ah * cmax < area2 * dmin * dmin * dmin;
-        const bool tiny_ = (dmin > 0.0f) ? (grazing ? small : false) : false;
-        // refine_here: box_near(p, lo, hi, refine * dev)
-        const float ax = blo[3 * t] - px, bx = px - bhi[3 * t];
-        const float ay = blo[3 * t + 1] - py, by = py - bhi[3 * t + 1];
-        const float az = blo[3 * t + 2] - pz, bz = pz - bhi[3 * t + 2];
-        float dx = (ax >= bx) ? ax : ((bx == bx) ? bx : ax);
-        float dy = (ay >= by) ? ay : ((by == by) ? by : ay);
-        float dz = (az >= bz) ? az : ((bz == bz) ? bz : az);
-        dx = (dx >= 0.0f) ? dx : 0.0f;
-        dy = (dy >= 0.0f) ? dy : 0.0f;
-        dz = (dz >= 0.0f) ? dz : 0.0f;
-        const float rad = refine * bdv[t];
-        const bool near_ = dx * dx + dy * dy + dz * dz < rad * rad;
-        mc |= (uint64_t)culled << k;
-        mt |= (uint64_t)(do_tiny && tiny_) << k;
-        mr |= (uint64_t)(do_refine && near_) << k;
+    for (int b = 0; b < 8; ++b) {
+        uint64_t x;
+        memcpy(&x, flags + w * 64 + 8 * b, 8);
+        mc |= (((x & ones) * magic) >> 56) << (8 * b);
+        mt |= ((((x >> 1) & ones) * magic) >> 56) << (8 * b);
+        mr |= ((((x >> 2) & ones) * magic) >> 56) << (8 * b);
     }
     pc[w] = mc;
     pt[w] = mt;
     pr[w] = mr | (use_ring ? pring[w] : (uint64_t)0);
 }
 """
+
+
+_FAR_FIELD_BITS = _FAR_FIELD_BITS.replace("PRECULL_BLOCKERS", str(PRECULL_BLOCKERS))
 
 
 @wp.func_native(_FAR_FIELD_BITS)

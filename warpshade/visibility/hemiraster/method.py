@@ -23,9 +23,9 @@ from ...geometry.mesh import TriMesh, closed_orientation
 from ..base import TransferMethod
 from ..knobs import Knob
 from . import hierarchy, integrate, tables
-from .kernels import (CANDIDATES, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement, follow_coarse_points, rasterize_masks,
-                      raise_deviation, refit_blocker_boxes, triangle_bounds, union_boxes,
-                      union_child_boxes)
+from .kernels import (CANDIDATES, PRECULL_BLOCKERS, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement,
+                      follow_coarse_points, rasterize_masks, raise_deviation, refit_blocker_boxes, triangle_bounds,
+                      union_boxes, union_child_boxes)
 
 
 SEEN_BYTES = 64 * 1024 * 1024
@@ -37,11 +37,6 @@ blockers × ceil(F/1024) chunks of 128 bytes) for which the refined blockers' fi
 collected as a bit set (kernels.rasterize_fine_set); above it (with 512 coarse blockers: meshes of
 more than ~130k triangles) each refined group is walked instead (kernels.rasterize_group): the same
 masks, without tables and a per-receiver scan that grow with the mesh."""
-
-PRECULL_BLOCKERS = 4096
-"""Largest far field (coarse blockers) whose culls are computed for every blocker per receiver in one
-vectorized pass (kernels.far_field_bits); larger ones (the full mesh as blockers) per cluster that
-reaches above the tangent plane."""
 
 BATCH = 64
 """Triangles queued per slot before they are rasterized together (kernels.Batch; 4 KiB per
