@@ -1204,7 +1204,6 @@ def listed_set(sl: int, blockers: Blockers, groups: Refinement):
     blocker whose group listed it."""
     for w in range(blockers.refined.shape[1]):
         x = blockers.refined[sl, w] & ~groups.visited[sl, w]
-        groups.visited[sl, w] = wp.uint64(0)
         while x != wp.uint64(0):
             t = w * 64 + lowest_bit(x)
             x = x & (x - wp.uint64(1))
@@ -1213,33 +1212,35 @@ def listed_set(sl: int, blockers: Blockers, groups: Refinement):
 
 
 @wp.func(inline=True)
-def rasterize_fine_set(
+def clear_visited(sl: int, groups: Refinement):
+    """Clear the slot's bits of the visited refined blockers (after :func:`listed_set`'s set is handled)."""
+    for w in range(groups.visited.shape[1]):
+        groups.visited[sl, w] = wp.uint64(0)
+
+
+@wp.func(inline=True)
+def queue_fine_set(
     v: int,
     sl: int,
     p: wp.vec3,
     n: wp.vec3,
     fine: FineMesh,
-    groups: Refinement,
-    blockers: Blockers,
+    level: Refinement,
     frame: wp.mat33,
     lut: PlaneLut,
     mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
 ) -> int:
-    """Queue the fine triangles of the refined blockers the far-field pass visited (the set of
-    :func:`listed_set`), as :func:`rasterize_group` would blocker by blocker; returns the queue length.
-
-    Each fine triangle is handled once, in index order, without walking the groups' lists or a
-    rasterized-once table: 64 at a time classified from per-frame data (:func:`skip_early`, as
-    :func:`stage_fine`), then the kept ones gathered and queued unless incident to the receiver (as
-    :func:`queue_candidates`; the tiny-image test with ``lut.fine_area`` and the count in
-    ``refined`` wait for :func:`batch_codes`)."""
-    listed_set(sl, blockers, groups)
+    """Queue the fine triangles of the slot's set ``level.listed`` (bits over the fine mesh) and clear it;
+    returns the queue length. Each fine triangle is handled once, in index order: 64 at a time
+    classified from per-frame data (:func:`skip_early`, as :func:`stage_fine`), then the kept ones
+    gathered and queued unless incident to the receiver (as :func:`queue_candidates`; the tiny-image
+    test with ``lut.fine_area`` and the count in ``refined`` wait for :func:`batch_codes`)."""
     zero = wp.uint64(0)
-    for u in range(groups.listed.shape[1]):
-        chunk = groups.listed[sl, u]
-        groups.listed[sl, u] = MaskChunk()
+    for u in range(level.listed.shape[1]):
+        chunk = level.listed[sl, u]
+        level.listed[sl, u] = MaskChunk()
         for i in range(CHUNK_WORDS):
             base = (u * CHUNK_WORDS + i) * 64
             x = chunk[i]
@@ -1263,6 +1264,29 @@ def rasterize_fine_set(
 
 
 @wp.func(inline=True)
+def rasterize_fine_set(
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    fine: FineMesh,
+    groups: Refinement,
+    blockers: Blockers,
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    bt: Batch,
+    nb: int,
+) -> int:
+    """Queue the fine triangles of the refined blockers the far-field pass visited (the set of
+    :func:`listed_set`), as :func:`rasterize_group` would blocker by blocker, without walking the
+    groups' lists or a rasterized-once table (:func:`queue_fine_set`); returns the queue length."""
+    listed_set(sl, blockers, groups)
+    clear_visited(sl, groups)
+    return queue_fine_set(v, sl, p, n, fine, groups, frame, lut, mask, bt, nb)
+
+
+@wp.func(inline=True)
 def rasterize_mid_set(
     v: int,
     sl: int,
@@ -1282,7 +1306,16 @@ def rasterize_mid_set(
     """Queue the mid triangles of the refined coarse blockers the far-field pass visited (the set of
     :func:`listed_set`), as :func:`rasterize_mid_group` would blocker by blocker; returns the queue
     length. Each mid triangle is handled once, in index order, without walking the groups' lists,
-    testing a run of extras per primary blocker, or a rasterized-once table."""
+    testing a run of extras per primary blocker, or a rasterized-once table.
+
+    With ``sub.use_set`` the mid triangles replaced by their fine triangles are collected the same
+    way, as a set over the fine mesh (``sub.listed``: the OR of their ``cover`` rows), less the primary
+    fine triangles of the mid triangles that :func:`rasterize_mid_fine` treats as replaced elsewhere
+    (those passing :func:`mid_refined` whose primary coarse blocker is refined) but which are not in
+    the set: those of the refined coarse blockers the pass did not visit (a mid triangle in the set
+    whose coarse blocker is refined and visited is replaced here). That is the union of what
+    :func:`rasterize_mid_fine` queues for each replaced mid triangle; it is queued once, in index
+    order (:func:`queue_fine_set`)."""
     listed_set(sl, blockers, groups)
     zero = wp.uint64(0)
     cmid = int(0)
@@ -1308,7 +1341,11 @@ def rasterize_mid_set(
             while expand != zero:
                 m = base + lowest_bit(expand)
                 expand = expand & (expand - wp.uint64(1))
-                nb = rasterize_mid_fine(m, -1, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+                if sub.use_set != 0:
+                    for ch in range(sub.listed.shape[1]):
+                        sub.listed[sl, ch] = sub.listed[sl, ch] | sub.cover[m, ch]
+                else:
+                    nb = rasterize_mid_fine(m, -1, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
             # exact, as the fine triangles they stand for (a tiny-image cull here cost more than it saved)
             cmid += wp.bit_count(keep)
             while keep != zero:
@@ -1319,6 +1356,21 @@ def rasterize_mid_set(
                 c = mids.points[mids.faces[m, 2]] - p
                 nb = push_triangle(a, b, c, -1, False, 0.0, 0, nb, v, sl, frame, lut, mask, bt)
     mids.counts[v] = mids.counts[v] + cmid
+    if sub.use_set != 0:
+        # after every OR: the primaries of the replaced mid triangles not in the set
+        for w in range(blockers.refined.shape[1]):
+            x = blockers.refined[sl, w] & ~groups.visited[sl, w]
+            while x != wp.uint64(0):
+                t = w * 64 + lowest_bit(x)
+                x = x & (x - wp.uint64(1))
+                for r in range(groups.start[t], groups.mid[t]):
+                    o = groups.tris[r]
+                    if mid_refined(o, sl, p, sub, mids):
+                        for ch in range(sub.listed.shape[1]):
+                            sub.listed[sl, ch] = sub.listed[sl, ch] & (sub.primary[o, ch] ^ MaskChunk(~wp.uint64(0)))
+    clear_visited(sl, groups)
+    if sub.use_set != 0:
+        nb = queue_fine_set(v, sl, p, n, fine, sub, frame, lut, mask, bt, nb)
     return nb
 
 

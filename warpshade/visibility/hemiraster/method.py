@@ -34,7 +34,8 @@ SEEN_BYTES = 64 * 1024 * 1024
 SET_BYTES = 16 * 1024 * 1024
 """Largest pair of per-blocker bit rows over the fine triangles (``cover``, ``primary``: 2 × coarse
 blockers × ceil(F/1024) chunks of 128 bytes) for which the refined blockers' fine triangles are
-collected as a bit set (kernels.rasterize_fine_set); above it (with 512 coarse blockers: meshes of
+collected as a bit set (kernels.rasterize_fine_set; with the mid level, those of the mid triangles
+replaced near a receiver, kernels.rasterize_mid_set, rows per mid triangle); above it (with 512 coarse blockers: meshes of
 more than ~130k triangles) each refined group is walked instead (kernels.rasterize_group): the same
 masks, without tables and a per-receiver scan that grow with the mesh."""
 
@@ -501,8 +502,18 @@ class HemirasterTransfer(TransferMethod):
             self._groups.cover, self._groups.primary, self._groups.listed = (wp.zeros((1, 1), dtype=MaskChunk, device=d)
                                                                              for _ in range(3))
             self._groups.visited = wp.zeros((1, 1), dtype=wp.uint64, device=d)
-        self._sub.use_set = 0
-        self._sub.cover, self._sub.primary, self._sub.listed = (wp.zeros((1, 1), dtype=MaskChunk, device=d) for _ in range(3))
+        # kernels.rasterize_mid_set: the fine triangles of the replaced mid triangles as a set too
+        sub_bytes = 2 * self.num_mid * -(-nsf // 1024) * 128
+        self._sub.use_set = 1 if (self._use_mid and sub_bytes <= SET_BYTES) else 0
+        if self._sub.use_set:
+            sstart, smid, stris = (a.numpy() for a in self._sub_arrays[:3])
+            cover, primary = hierarchy.group_bits(sstart, smid, stris, nsf)
+            self._sub.cover = wp.array(tables.chunked_rows(cover), dtype=MaskChunk, device=d)
+            self._sub.primary = wp.array(tables.chunked_rows(primary), dtype=MaskChunk, device=d)
+            self._sub.listed = wp.zeros((self._slots, self._sub.cover.shape[1]), dtype=MaskChunk, device=d)
+        else:
+            self._sub.cover, self._sub.primary, self._sub.listed = (wp.zeros((1, 1), dtype=MaskChunk, device=d)
+                                                                    for _ in range(3))
         self._sub.visited = wp.zeros((1, 1), dtype=wp.uint64, device=d)
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
