@@ -35,8 +35,9 @@ SET_BYTES = 16 * 1024 * 1024
 """Largest pair of per-blocker bit rows over the fine triangles (``cover``, ``primary``: 2 × coarse
 blockers × ceil(F/1024) chunks of 128 bytes) for which the refined blockers' fine triangles are
 collected as a bit set (kernels.rasterize_fine_set; with the mid level, those of the mid triangles
-replaced near a receiver, kernels.rasterize_mid_set, rows per mid triangle); above it (with 512 coarse blockers: meshes of
-more than ~130k triangles) each refined group is walked instead (kernels.rasterize_group): the same
+replaced near a receiver, kernels.rasterize_mid_set, rows per mid triangle); above it (rows per coarse
+blocker: ~130k fine triangles at 512 coarse blockers; rows per mid triangle: ~32k at 2048 mid triangles)
+each refined group is walked instead (kernels.rasterize_group, kernels.rasterize_mid_fine): the same
 masks, without tables and a per-receiver scan that grow with the mesh."""
 
 BATCH = 64
