@@ -279,24 +279,97 @@ def test_group_bits_are_the_groups_lists():
             assert got == sorted(items.tolist()), (t, got)
 
 
-@pytest.mark.parametrize("ring", [0, 1])
+@pytest.mark.parametrize("ring", [0, 1, "bear"])
 def test_mid_set_queues_what_the_per_group_walk_queues(ring):
     """The far-field pass collects the refined coarse blockers' mid triangles as a bit set
-    (kernels.rasterize_mid_set); recording a PVS walks each refined blocker's group instead
-    (kernels.rasterize_mid_group). Both must rasterize the same triangles: same masks and counts."""
+    (kernels.rasterize_mid_set), and the fine triangles of the mid triangles replaced near the receiver
+    as a second bit set (``sub.use_set``); recording a PVS walks each refined blocker's group instead
+    (kernels.rasterize_mid_group, kernels.rasterize_mid_fine). Both must rasterize the same triangles:
+    same masks and counts."""
     import warp as wp
 
     from warpshade.bench.meshes import wrinkled_cloth
 
-    bm = wrinkled_cloth(24)
-    h = hemiraster(TriMesh(bm.frame, bm.rest.faces), order=2, coarse=64, mid=256, ring=ring)
-    h.update(bm.frame)
+    from warpshade.bench.meshes import warp_mesh
+
+    if ring == "bear":
+        # closed: refined coarse blockers below the horizon whose replaced mid triangles' primaries are
+        # extras of visited ones (the fine set's removal step); the walk and the set differ in counts
+        # without it
+        mesh = warp_mesh("bear").rest
+        h, pts = hemiraster(mesh, order=2, mid=2048), mesh.points
+    else:
+        bm = wrinkled_cloth(24)
+        h, pts = hemiraster(TriMesh(bm.frame, bm.rest.faces), order=2, coarse=64, mid=256, ring=ring), bm.frame
+    assert h._groups.use_set == 1 and h._sub.use_set == 1
+    h.update(pts)
     mask, counts, mids = h._mask.numpy().copy(), h._counts.numpy().copy(), h._mids.counts.numpy().copy()
+    refined = h._refined.numpy().copy()
     assert mids.mean() > 10 and h.stats()["refined_per_vertex"] > 1
     h._hits = wp.zeros((h.mesh.num_vertices, (h.num_blockers + 31) // 32), dtype=wp.uint32, device=h.device)
     h._launch(record=1, use_pvs=0)
     assert np.array_equal(h._mask.numpy(), mask)
     assert np.array_equal(h._counts.numpy(), counts) and np.array_equal(h._mids.counts.numpy(), mids)
+    assert np.array_equal(h._refined.numpy(), refined)
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_fine_set_queues_what_the_per_group_walk_queues(closed, monkeypatch):
+    """Without the mid level the far-field pass collects the refined coarse blockers' fine triangles as
+    a bit set (kernels.rasterize_fine_set); recording a PVS, or a mesh too large for the bit rows
+    (method.SET_BYTES), walks each refined blocker's group instead (kernels.rasterize_group). All must
+    rasterize the same triangles: same masks and counts (the rasterized-once table makes the walk's
+    counts those of distinct triangles)."""
+    import warp as wp
+
+    from warpshade.bench.meshes import warp_mesh, wrinkled_cloth
+    from warpshade.visibility.hemiraster import method
+
+    if closed:
+        mesh = warp_mesh("bear").rest  # closed: back-face culling; seam extras around every refined group
+        pts = mesh.points
+    else:
+        bm = wrinkled_cloth(24)
+        mesh, pts = TriMesh(bm.frame, bm.rest.faces), bm.frame
+    h = hemiraster(mesh, order=2, coarse=64 if not closed else 256)
+    assert h._groups.use_set == 1
+    h.update(pts)
+    mask, counts, refined = h._mask.numpy().copy(), h._counts.numpy().copy(), h._refined.numpy().copy()
+    assert refined.mean() > 10
+    h._hits = wp.zeros((h.mesh.num_vertices, (h.num_blockers + 31) // 32), dtype=wp.uint32, device=h.device)
+    h._launch(record=1, use_pvs=0)
+    assert np.array_equal(h._mask.numpy(), mask)
+    assert np.array_equal(h._counts.numpy(), counts) and np.array_equal(h._refined.numpy(), refined)
+    monkeypatch.setattr(method, "SET_BYTES", 0)
+    walk = hemiraster(mesh, order=2, coarse=64 if not closed else 256)
+    assert walk._groups.use_set == 0
+    walk.update(pts)
+    assert np.array_equal(walk._mask.numpy(), mask)
+    assert np.array_equal(walk._counts.numpy(), counts) and np.array_equal(walk._refined.numpy(), refined)
+
+
+@pytest.mark.parametrize("mesh_name", ["bear", "wrinkled"])
+def test_far_field_bits_give_the_per_cluster_culls(mesh_name):
+    """kernels.far_field_bits computes every coarse blocker's per-frame culls (skip_early, bounds_below)
+    and refinement bits per receiver in one native pass; per cluster in Warp (``precull`` 0) they must
+    be the same bits: same masks and counts (closed bear: back faces culled; wrinkled sheet: the fan)."""
+    from warpshade.bench.meshes import warp_mesh, wrinkled_cloth
+
+    if mesh_name == "bear":
+        mesh = warp_mesh("bear").rest
+        pts = mesh.points
+    else:
+        bm = wrinkled_cloth(24)
+        mesh, pts = TriMesh(bm.frame, bm.rest.faces), bm.frame
+    h = hemiraster(mesh, order=2, coarse=200)
+    assert h._blockers.precull == 1
+    a = h.update(pts).numpy().copy()
+    mask, counts, refined = h._mask.numpy().copy(), h._counts.numpy().copy(), h._refined.numpy().copy()
+    assert counts.mean() > 20
+    h._blockers.precull = 0
+    b = h.update(pts).numpy()
+    assert np.array_equal(h._mask.numpy(), mask) and np.array_equal(a, b)
+    assert np.array_equal(h._counts.numpy(), counts) and np.array_equal(h._refined.numpy(), refined)
 
 
 @pytest.mark.parametrize("refine", [2.0, 0.05])

@@ -100,6 +100,18 @@ class Blockers:
     (slots, ceil(Fc/64)); all 0 without refinement and k-ring exclusion bits."""
     skip_incident: int
     """1 when the blockers are the fine triangles themselves (skip those incident to the receiver)."""
+    precull: int
+    """1: the per-frame culls and refinement bits of every blocker are computed for each receiver in
+    one vectorized pass before the far field (:func:`far_field_bits`; a coarse far field of a few
+    hundred blockers); 0: per cluster that reaches above the tangent plane (the full mesh)."""
+    cull: wp.array2d[wp.uint64]
+    """Per slot, bits of the blockers :func:`skip_early` culls for the current receiver (``precull``),
+    shape (slots, ceil(Fc/64))."""
+    tiny: wp.array2d[wp.uint64]
+    """Per slot, bits of the blockers :func:`bounds_below` deems tiny (``precull``), as ``cull``."""
+    ring: wp.array2d[wp.uint64]
+    """Per receiver, bits (reordered index) of the blockers standing for its k-ring (``near_mode`` 2,
+    the exclusion bits of ``excl`` reordered), shape (V, ceil(Fc/64)); (1, 1) otherwise."""
 
 
 @wp.struct
@@ -131,6 +143,21 @@ class Refinement:
     use_seen: int
     """1: skip fine triangles already in ``seen`` (a seam triangle belongs to several refined coarse
     triangles; OR fusion makes the repeat harmless but not free); 0: no such table (large meshes)."""
+    use_set: int
+    """1: the far-field pass collects what its refined blockers list as a bit set (``listed``), handled
+    after the far field (:func:`rasterize_mid_set`, :func:`rasterize_fine_set`); 0: each refined
+    blocker's group is walked when the pass visits it (:func:`rasterize_group`; also while recording
+    a PVS, which credits each triangle to the blocker whose group listed it)."""
+    cover: wp.array2d[MaskChunk]
+    """Per blocker (reordered index), bits of every triangle its group lists (primaries and seam-cover
+    extras) in chunks of 16 words, shape (Fc, ceil(count/1024)) (:func:`.hierarchy.group_bits`)."""
+    primary: wp.array2d[MaskChunk]
+    """Per blocker, bits of its primary triangles, as ``cover``."""
+    listed: wp.array2d[MaskChunk]
+    """Per slot, OR of ``cover`` over the refined blockers the far-field pass visited for the current
+    receiver, shape (slots, ceil(count/1024)); cleared when the set is handled."""
+    visited: wp.array2d[wp.uint64]
+    """Per slot, bits of those visited refined blockers, shape (slots, ceil(Fc/64))."""
 
 
 @wp.struct
@@ -160,16 +187,6 @@ class MidLevel:
     start of each receiver and cleared at its end."""
     counts: wp.array[wp.int32]
     """Mid triangles queued per receiver, shape (V,)."""
-    cover: wp.array2d[MaskChunk]
-    """Per coarse blocker (reordered index), bits of every mid triangle its group lists (primaries and
-    seam-cover extras) in chunks of 16 words, shape (Fc, ceil(Fm/1024)) (:func:`rasterize_mid_set`)."""
-    primary: wp.array2d[MaskChunk]
-    """Per coarse blocker, bits of its primary mid triangles, as ``cover``."""
-    listed: wp.array2d[MaskChunk]
-    """Per slot, OR of ``cover`` over the refined coarse blockers the far-field pass visited for the
-    current receiver, shape (slots, ceil(Fm/1024)); cleared by :func:`rasterize_mid_set`."""
-    visited: wp.array2d[wp.uint64]
-    """Per slot, bits of those visited refined coarse blockers, shape (slots, ceil(Fc/64))."""
 
 
 @wp.struct
@@ -788,17 +805,117 @@ def blocker_refined(blockers: Blockers, sl: int, t: int) -> bool:
 
 
 @wp.func(inline=True)
-def refined_bits(blockers: Blockers, sl: int, t0: int, t1: int) -> wp.uint64:
-    """Bits ``t0 .. t1-1`` (at most 64) of the slot's refined set (:func:`mark_refined`), bit 0 = ``t0``."""
+def slot_bits(bits: wp.array2d[wp.uint64], sl: int, t0: int, t1: int) -> wp.uint64:
+    """Bits ``t0 .. t1-1`` (at most 64) of the slot's row of a per-blocker bit set (:func:`mark_refined`,
+    :func:`far_field_bits`), bit 0 = ``t0``."""
     w = t0 >> 6
     s = wp.uint64(t0 & 63)
-    x = blockers.refined[sl, w] >> s
-    if w + 1 < blockers.refined.shape[1]:
+    x = bits[sl, w] >> s
+    if w + 1 < bits.shape[1]:
         # (``<< 1 << (63 - s)``: no shift by 64 when s = 0)
-        x = x | ((blockers.refined[sl, w + 1] << wp.uint64(1)) << (wp.uint64(63) - s))
+        x = x | ((bits[sl, w + 1] << wp.uint64(1)) << (wp.uint64(63) - s))
     if t1 - t0 < 64:
         x = x & ((wp.uint64(1) << wp.uint64(t1 - t0)) - wp.uint64(1))
     return x
+
+
+PRECULL_BLOCKERS = 4096
+"""Largest far field (coarse blockers) whose culls are computed for every blocker per receiver in one
+vectorized pass (:func:`far_field_bits`, whose flags sit in a stack buffer of this size); larger ones
+(the full mesh as blockers) are culled per cluster that reaches above the tangent plane."""
+
+_FAR_FIELD_BITS = r"""
+// per blocker t (reordered index): :func:`skip_early`, :func:`bounds_below` and :func:`refine_here`
+// in the same operations and order as the Warp functions (Warp's dot, length, min, max, abs)
+const int nt = plane.shape[0];
+const float* __restrict__ pl = (const float*)plane.data;
+const float* __restrict__ sp = (const float*)sphere.data;
+const float* __restrict__ nl = (const float*)nlen.data;
+const float* __restrict__ blo = (const float*)lo.data;
+const float* __restrict__ bhi = (const float*)hi.data;
+const float* __restrict__ bdv = (const float*)dev.data;
+uint64_t* __restrict__ pc = (uint64_t*)((char*)cull.data + sl * cull.strides[0]);
+uint64_t* __restrict__ pt = (uint64_t*)((char*)tiny.data + sl * tiny.strides[0]);
+uint64_t* __restrict__ pr = (uint64_t*)((char*)refined.data + sl * refined.strides[0]);
+const uint64_t* __restrict__ pring = (const uint64_t*)((const char*)ring.data + (use_ring ? v : 0) * ring.strides[0]);
+const float px = p.c[0], py = p.c[1], pz = p.c[2];
+const float nx = n.c[0], ny = n.c[1], nz = n.c[2];
+const float rim2 = rim * rim;
+const float area2 = min_area * 2.0f;
+const bool do_tiny = min_area > 0.0f;
+const bool do_refine = refine > 0.0f;
+// flags per blocker (bit 0 culled, 1 tiny, 2 refined) in a straight loop over the flat rows, then
+// packed 8 at a time into the bit rows (a byte b_i at byte i of x: ((x >> j) & 0x01..01) * 0x0102040810204080
+// >> 56 has bit j of b_i at bit i)
+unsigned char flags[PRECULL_BLOCKERS + 64];
+for (int t = 0; t < nt; ++t) {
+    const float s0 = sp[4 * t], s1 = sp[4 * t + 1], s2 = sp[4 * t + 2], s3 = sp[4 * t + 3];
+    const float n0 = pl[4 * t], n1 = pl[4 * t + 1], n2 = pl[4 * t + 2], n3 = pl[4 * t + 3];
+    const float qx = s0 - px, qy = s1 - py, qz = s2 - pz;
+    const float qq = qx * qx + qy * qy + qz * qz;
+    const float nq = nx * qx + ny * qy + nz * qz;
+    const float np_ = n0 * px + n1 * py + n2 * pz;
+    // skip_early
+    const float h = nq + s3;
+    const float hr = h + rim * s3;
+    const bool back = (n3 - np_) * backface > 0.0f;
+    const bool culled = (h <= 0.0f) ? true : ((hr * hr <= rim2 * qq) ? true : back);
+    // bounds_below
+    const float dmin = sqrtf(qq) - s3;
+    const float twice_ah = fabsf(np_ - n3);
+    const bool grazing = twice_ah < 0.5f * nl[t] * dmin;
+    const float cq = (nq + s3) / dmin;
+    const float cmax = (1.0f <= cq) ? 1.0f : ((cq == cq) ? cq : 1.0f);
+    const bool small = twice_ah * cmax < area2 * dmin * dmin * dmin;
+    const bool tiny_ = (dmin > 0.0f) ? (grazing ? small : false) : false;
+    // refine_here: box_near(p, lo, hi, refine * dev)
+    const float ax = blo[3 * t] - px, bx = px - bhi[3 * t];
+    const float ay = blo[3 * t + 1] - py, by = py - bhi[3 * t + 1];
+    const float az = blo[3 * t + 2] - pz, bz = pz - bhi[3 * t + 2];
+    float dx = (ax >= bx) ? ax : ((bx == bx) ? bx : ax);
+    float dy = (ay >= by) ? ay : ((by == by) ? by : ay);
+    float dz = (az >= bz) ? az : ((bz == bz) ? bz : az);
+    dx = (dx >= 0.0f) ? dx : 0.0f;
+    dy = (dy >= 0.0f) ? dy : 0.0f;
+    dz = (dz >= 0.0f) ? dz : 0.0f;
+    const float rad = refine * bdv[t];
+    const bool near_ = dx * dx + dy * dy + dz * dz < rad * rad;
+    flags[t] = (unsigned char)((culled ? 1 : 0) | ((do_tiny && tiny_) ? 2 : 0) | ((do_refine && near_) ? 4 : 0));
+}
+const int words = (nt + 63) / 64;
+for (int t = nt; t < words * 64; ++t)
+    flags[t] = 0;
+const uint64_t ones = 0x0101010101010101ull, magic = 0x0102040810204080ull;
+for (int w = 0; w < words; ++w) {
+    uint64_t mc = 0, mt = 0, mr = 0;
+    for (int b = 0; b < 8; ++b) {
+        uint64_t x;
+        memcpy(&x, flags + w * 64 + 8 * b, 8);
+        mc |= (((x & ones) * magic) >> 56) << (8 * b);
+        mt |= ((((x >> 1) & ones) * magic) >> 56) << (8 * b);
+        mr |= ((((x >> 2) & ones) * magic) >> 56) << (8 * b);
+    }
+    pc[w] = mc;
+    pt[w] = mt;
+    pr[w] = mr | (use_ring ? pring[w] : (uint64_t)0);
+}
+"""
+
+
+_FAR_FIELD_BITS = _FAR_FIELD_BITS.replace("PRECULL_BLOCKERS", str(PRECULL_BLOCKERS))
+
+
+@wp.func_native(_FAR_FIELD_BITS)
+def far_field_bits(plane: wp.array[wp.vec4], sphere: wp.array[wp.vec4], nlen: wp.array[float], lo: wp.array[wp.vec3],
+                   hi: wp.array[wp.vec3], dev: wp.array[float], ring: wp.array2d[wp.uint64], use_ring: int, v: int, sl: int,
+                   p: wp.vec3, n: wp.vec3, backface: float, rim: float, min_area: float, refine: float,
+                   cull: wp.array2d[wp.uint64], tiny: wp.array2d[wp.uint64], refined: wp.array2d[wp.uint64]):
+    """For receiver ``v`` (slot ``sl``) and every blocker, in one pass: the bits of :func:`skip_early`
+    (``cull``), of :func:`bounds_below` (``tiny``; none when ``min_area`` is 0) and of the blockers
+    refined here (``refined``: :func:`refine_here` with ``refine`` > 0, or the receiver's k-ring row of
+    ``ring`` with ``use_ring``), the same operations in the same order as those Warp functions, so
+    the same bits (:func:`mark_refined` tests only the clusters that come near; its bits equal the
+    per-blocker test). Native C++ over flat rows, which clang vectorizes; the arrays must be contiguous."""
 
 
 @wp.func(inline=True)
@@ -806,6 +923,8 @@ def mark_refined(
     v: int,
     sl: int,
     p: wp.vec3,
+    n: wp.vec3,
+    lut: PlaneLut,
     blockers: Blockers,
     groups: Refinement,
     near_mode: int,
@@ -821,7 +940,14 @@ def mark_refined(
     and the seam-cover extras of every refined group (whose primary blocker may be anywhere) read
     one bit. Per-blocker tests only in clusters that come near enough: a cluster's box and reach
     hold its blockers' boxes and deviations, so a cluster failing :func:`box_near` has no blocker
-    passing :func:`refine_here` (the same float operations on smaller distances and a larger radius)."""
+    passing :func:`refine_here` (the same float operations on smaller distances and a larger radius).
+    With ``blockers.precull``, :func:`far_field_bits` sets these bits for every blocker instead (and
+    the per-frame culls' bits)."""
+    if blockers.precull != 0:
+        far_field_bits(blockers.plane, blockers.sphere, blockers.nlen, groups.lo, groups.hi, groups.dev, blockers.ring,
+                       wp.where(near_mode == 2, 1, 0), v, sl, p, n, lut.backface, lut.rim, lut.min_area, groups.refine,
+                       blockers.cull, blockers.tiny, blockers.refined)
+        return
     for w in range(blockers.refined.shape[1]):
         blockers.refined[sl, w] = wp.uint64(0)
     if near_mode == 2:
@@ -1065,6 +1191,102 @@ def rasterize_mid_group(
 
 
 @wp.func(inline=True)
+def listed_set(sl: int, blockers: Blockers, groups: Refinement):
+    """Finish the slot's set of the triangles listed by the refined blockers the far-field pass visited
+    (``groups.listed``: the OR of their ``cover`` rows) by removing the primary triangles of the
+    refined blockers the pass did not visit (below the horizon).
+
+    That is the union of what the per-group walk (:func:`rasterize_group`, :func:`rasterize_mid_group`)
+    queues for each visited blocker: its primaries, and the extras whose primary blocker is not
+    refined (those whose primary blocker is refined and visited are primaries of that one; those
+    whose primary blocker is refined and not visited are left out by both; a triangle has one
+    primary blocker). Not for recording a PVS (``bt.record``), which credits each triangle to the
+    blocker whose group listed it."""
+    for w in range(blockers.refined.shape[1]):
+        x = blockers.refined[sl, w] & ~groups.visited[sl, w]
+        while x != wp.uint64(0):
+            t = w * 64 + lowest_bit(x)
+            x = x & (x - wp.uint64(1))
+            for u in range(groups.listed.shape[1]):
+                groups.listed[sl, u] = groups.listed[sl, u] & (groups.primary[t, u] ^ MaskChunk(~wp.uint64(0)))
+
+
+@wp.func(inline=True)
+def clear_visited(sl: int, groups: Refinement):
+    """Clear the slot's bits of the visited refined blockers (after :func:`listed_set`'s set is handled)."""
+    for w in range(groups.visited.shape[1]):
+        groups.visited[sl, w] = wp.uint64(0)
+
+
+@wp.func(inline=True)
+def queue_fine_set(
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    fine: FineMesh,
+    level: Refinement,
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    bt: Batch,
+    nb: int,
+) -> int:
+    """Queue the fine triangles of the slot's set ``level.listed`` (bits over the fine mesh) and clear it;
+    returns the queue length. Each fine triangle is handled once, in index order: 64 at a time
+    classified from per-frame data (:func:`skip_early`, as :func:`stage_fine`), then the kept ones
+    gathered and queued unless incident to the receiver (as :func:`queue_candidates`; the tiny-image
+    test with ``lut.fine_area`` and the count in ``refined`` wait for :func:`batch_codes`)."""
+    zero = wp.uint64(0)
+    for u in range(level.listed.shape[1]):
+        chunk = level.listed[sl, u]
+        level.listed[sl, u] = MaskChunk()
+        for i in range(CHUNK_WORDS):
+            base = (u * CHUNK_WORDS + i) * 64
+            x = chunk[i]
+            keep = zero
+            while x != zero:
+                k = lowest_bit(x)
+                x = x & (x - wp.uint64(1))
+                f = base + k
+                drop = skip_early(fine.plane[f], fine.sphere[f], p, n, lut.backface, lut.rim)
+                keep = keep | wp.where(drop, zero, wp.uint64(1) << wp.uint64(k))
+            while keep != zero:
+                f = base + lowest_bit(keep)
+                keep = keep & (keep - wp.uint64(1))
+                i0 = fine.faces[f, 0]
+                j0 = fine.faces[f, 1]
+                k0 = fine.faces[f, 2]
+                drop = wp.where(i0 == v, True, wp.where(j0 == v, True, k0 == v))
+                nb = push_triangle(fine.points[i0] - p, fine.points[j0] - p, fine.points[k0] - p, -1, drop, lut.fine_area, 1,
+                                   nb, v, sl, frame, lut, mask, bt)
+    return nb
+
+
+@wp.func(inline=True)
+def rasterize_fine_set(
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    fine: FineMesh,
+    groups: Refinement,
+    blockers: Blockers,
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    bt: Batch,
+    nb: int,
+) -> int:
+    """Queue the fine triangles of the refined blockers the far-field pass visited (the set of
+    :func:`listed_set`), as :func:`rasterize_group` would blocker by blocker, without walking the
+    groups' lists or a rasterized-once table (:func:`queue_fine_set`); returns the queue length."""
+    listed_set(sl, blockers, groups)
+    clear_visited(sl, groups)
+    return queue_fine_set(v, sl, p, n, fine, groups, frame, lut, mask, bt, nb)
+
+
+@wp.func(inline=True)
 def rasterize_mid_set(
     v: int,
     sl: int,
@@ -1081,29 +1303,25 @@ def rasterize_mid_set(
     bt: Batch,
     nb: int,
 ) -> int:
-    """Queue the mid triangles of the refined coarse blockers the far-field pass visited (``mids.listed``,
-    ``mids.visited``), as :func:`rasterize_mid_group` would blocker by blocker; returns the queue length.
+    """Queue the mid triangles of the refined coarse blockers the far-field pass visited (the set of
+    :func:`listed_set`), as :func:`rasterize_mid_group` would blocker by blocker; returns the queue
+    length. Each mid triangle is handled once, in index order, without walking the groups' lists,
+    testing a run of extras per primary blocker, or a rasterized-once table.
 
-    The set is a bit set over the mid mesh: the OR of the visited blockers' ``cover`` rows, less the
-    primary mid triangles of the refined blockers the pass did not visit. That is the union of what
-    :func:`rasterize_mid_group` queues for each visited blocker: its primaries, and the extras whose
-    primary coarse blocker is not refined (those whose primary is refined and visited are primaries
-    of that one; those whose primary is refined and not visited are left out by both). Each mid
-    triangle is then handled once, in index order, without walking the groups' lists, testing a
-    run of extras per primary blocker, or a rasterized-once table. Not for recording a PVS
-    (``bt.record``), which credits each triangle to the blocker whose group listed it."""
-    for w in range(blockers.refined.shape[1]):
-        x = blockers.refined[sl, w] & ~mids.visited[sl, w]
-        while x != wp.uint64(0):
-            t = w * 64 + lowest_bit(x)
-            x = x & (x - wp.uint64(1))
-            for u in range(mids.listed.shape[1]):
-                mids.listed[sl, u] = mids.listed[sl, u] & (mids.primary[t, u] ^ MaskChunk(~wp.uint64(0)))
+    With ``sub.use_set`` the mid triangles replaced by their fine triangles are collected the same
+    way, as a set over the fine mesh (``sub.listed``: the OR of their ``cover`` rows), less the primary
+    fine triangles of the mid triangles that :func:`rasterize_mid_fine` treats as replaced elsewhere
+    (those passing :func:`mid_refined` whose primary coarse blocker is refined) but which are not in
+    the set: those of the refined coarse blockers the pass did not visit (a mid triangle in the set
+    whose coarse blocker is refined and visited is replaced here). That is the union of what
+    :func:`rasterize_mid_fine` queues for each replaced mid triangle; it is queued once, in index
+    order (:func:`queue_fine_set`)."""
+    listed_set(sl, blockers, groups)
     zero = wp.uint64(0)
     cmid = int(0)
-    for u in range(mids.listed.shape[1]):
-        chunk = mids.listed[sl, u]
-        mids.listed[sl, u] = MaskChunk()
+    for u in range(groups.listed.shape[1]):
+        chunk = groups.listed[sl, u]
+        groups.listed[sl, u] = MaskChunk()
         for i in range(CHUNK_WORDS):
             base = (u * CHUNK_WORDS + i) * 64
             # first each listed mid triangle classified from per-frame data (selects), as in
@@ -1123,7 +1341,11 @@ def rasterize_mid_set(
             while expand != zero:
                 m = base + lowest_bit(expand)
                 expand = expand & (expand - wp.uint64(1))
-                nb = rasterize_mid_fine(m, -1, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+                if sub.use_set != 0:
+                    for ch in range(sub.listed.shape[1]):
+                        sub.listed[sl, ch] = sub.listed[sl, ch] | sub.cover[m, ch]
+                else:
+                    nb = rasterize_mid_fine(m, -1, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
             # exact, as the fine triangles they stand for (a tiny-image cull here cost more than it saved)
             cmid += wp.bit_count(keep)
             while keep != zero:
@@ -1134,6 +1356,21 @@ def rasterize_mid_set(
                 c = mids.points[mids.faces[m, 2]] - p
                 nb = push_triangle(a, b, c, -1, False, 0.0, 0, nb, v, sl, frame, lut, mask, bt)
     mids.counts[v] = mids.counts[v] + cmid
+    if sub.use_set != 0:
+        # after every OR: the primaries of the replaced mid triangles not in the set
+        for w in range(blockers.refined.shape[1]):
+            x = blockers.refined[sl, w] & ~groups.visited[sl, w]
+            while x != wp.uint64(0):
+                t = w * 64 + lowest_bit(x)
+                x = x & (x - wp.uint64(1))
+                for r in range(groups.start[t], groups.mid[t]):
+                    o = groups.tris[r]
+                    if mid_refined(o, sl, p, sub, mids):
+                        for ch in range(sub.listed.shape[1]):
+                            sub.listed[sl, ch] = sub.listed[sl, ch] & (sub.primary[o, ch] ^ MaskChunk(~wp.uint64(0)))
+    clear_visited(sl, groups)
+    if sub.use_set != 0:
+        nb = queue_fine_set(v, sl, p, n, fine, sub, frame, lut, mask, bt, nb)
     return nb
 
 
@@ -1217,14 +1454,18 @@ def rasterize_far_chunk(
     # ``wp.where`` selects and bitwise operators instead)
     cull = zero
     tiny = zero
-    for t in range(t0, t1):
-        bit = wp.uint64(1) << wp.uint64(t - t0)
-        sph = blockers.sphere[t]
-        pln = blockers.plane[t]
-        cull = cull | wp.where(skip_early(pln, sph, p, n, lut.backface, lut.rim), bit, zero)
-        if lut.min_area > 0.0:  # the same for every blocker: predicted
-            tiny = tiny | wp.where(bounds_below(pln, sph, blockers.nlen[t], p, n, lut.min_area), bit, zero)
-    refine_bits = refined_bits(blockers, sl, t0, t1)
+    if blockers.precull != 0:
+        cull = slot_bits(blockers.cull, sl, t0, t1)
+        tiny = slot_bits(blockers.tiny, sl, t0, t1)
+    else:
+        for t in range(t0, t1):
+            bit = wp.uint64(1) << wp.uint64(t - t0)
+            sph = blockers.sphere[t]
+            pln = blockers.plane[t]
+            cull = cull | wp.where(skip_early(pln, sph, p, n, lut.backface, lut.rim), bit, zero)
+            if lut.min_area > 0.0:  # the same for every blocker: predicted
+                tiny = tiny | wp.where(bounds_below(pln, sph, blockers.nlen[t], p, n, lut.min_area), bit, zero)
+    refine_bits = slot_bits(blockers.refined, sl, t0, t1)
     ex = zero
     if use_excl == 1:
         # near-field exclusion bits of the paper scheme (no refinement): dropped
@@ -1236,15 +1477,15 @@ def rasterize_far_chunk(
     while refine_bits != wp.uint64(0):
         k = lowest_bit(refine_bits)
         refine_bits = refine_bits & (refine_bits - wp.uint64(1))
-        if mids.on != 0:
-            if bt.record == 0:
-                # queued with the other visited ones' after the far field (:func:`rasterize_mid_set`)
-                t = t0 + k
-                mids.visited[sl, t >> 6] = mids.visited[sl, t >> 6] | (wp.uint64(1) << wp.uint64(t & 63))
-                for u in range(mids.listed.shape[1]):
-                    mids.listed[sl, u] = mids.listed[sl, u] | mids.cover[t, u]
-            else:
-                nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+        if groups.use_set != 0 and bt.record == 0:
+            # queued with the other visited ones' after the far field (:func:`rasterize_mid_set`,
+            # :func:`rasterize_fine_set`)
+            t = t0 + k
+            groups.visited[sl, t >> 6] = groups.visited[sl, t >> 6] | (wp.uint64(1) << wp.uint64(t & 63))
+            for u in range(groups.listed.shape[1]):
+                groups.listed[sl, u] = groups.listed[sl, u] | groups.cover[t, u]
+        elif mids.on != 0:
+            nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
         else:
             nb = rasterize_group(t0 + k, v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb)
     while keep != wp.uint64(0):
@@ -1320,12 +1561,11 @@ def rasterize_masks(
             for r in range(mids.ring_start[v], mids.ring_start[v + 1]):
                 m = mids.ring_tris[r]
                 mids.ring_bits[sl, m >> 6] = mids.ring_bits[sl, m >> 6] | (wp.uint64(1) << wp.uint64(m & 63))
-            for w in range(mids.visited.shape[1]):
-                mids.visited[sl, w] = wp.uint64(0)
             mids.counts[v] = 0
         bt.counts[v] = 0
         refined[v] = 0
-        mark_refined(v, sl, p, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi, cluster_reach)
+        mark_refined(v, sl, p, n, lut, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi,
+                     cluster_reach)
         nb = int(0)
         if fine.fan != 0:
             nb = rasterize_fan(v, sl, p, n, fine, frame, lut, mask, bt, nb)
@@ -1360,8 +1600,11 @@ def rasterize_masks(
                 t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
                 nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame, lut,
                                          mask, bt, nb)
-        if mids.on != 0 and bt.record == 0:
-            nb = rasterize_mid_set(v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+        if groups.use_set != 0 and bt.record == 0:
+            if mids.on != 0:
+                nb = rasterize_mid_set(v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+            else:
+                nb = rasterize_fine_set(v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb)
         if nb > 0:
             flush_batch(nb, v, sl, frame, lut, mask, bt)
         if mids.on != 0:

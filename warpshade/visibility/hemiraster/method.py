@@ -23,13 +23,22 @@ from ...geometry.mesh import TriMesh, closed_orientation
 from ..base import TransferMethod
 from ..knobs import Knob
 from . import hierarchy, integrate, tables
-from .kernels import (CANDIDATES, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement, follow_coarse_points, rasterize_masks,
-                      raise_deviation, refit_blocker_boxes, triangle_bounds, union_boxes,
-                      union_child_boxes)
+from .kernels import (CANDIDATES, PRECULL_BLOCKERS, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement,
+                      follow_coarse_points, rasterize_masks, raise_deviation, refit_blocker_boxes, triangle_bounds,
+                      union_boxes, union_child_boxes)
 
 
 SEEN_BYTES = 64 * 1024 * 1024
 """Largest rasterized-once table (slots × ceil(F/64) uint64 words) the method allocates."""
+
+SET_BYTES = 16 * 1024 * 1024
+"""Largest pair of per-blocker bit rows over the fine triangles (``cover``, ``primary``: 2 × coarse
+blockers × ceil(F/1024) chunks of 128 bytes) for which the refined blockers' fine triangles are
+collected as a bit set (kernels.rasterize_fine_set; with the mid level, those of the mid triangles
+replaced near a receiver, kernels.rasterize_mid_set, rows per mid triangle); above it (rows per coarse
+blocker: ~130k fine triangles at 512 coarse blockers; rows per mid triangle: ~32k at 2048 mid triangles)
+each refined group is walked instead (kernels.rasterize_group, kernels.rasterize_mid_fine): the same
+masks, without tables and a per-receiver scan that grow with the mesh."""
 
 BATCH = 64
 """Triangles queued per slot before they are rasterized together (kernels.Batch; 4 KiB per
@@ -475,19 +484,38 @@ class HemirasterTransfer(TransferMethod):
             self._groups.seen = wp.zeros((self._slots, mid_words) if self._groups.use_seen else (1, 1), dtype=wp.uint64,
                                          device=d)
             self._mids.ring_bits = wp.zeros((self._slots, mid_words), dtype=wp.uint64, device=d)
-            # kernels.rasterize_mid_set: each coarse blocker's listed and primary mid triangles as bit rows
-            cover, primary = hierarchy.group_bits(group_start, group_mid, group_tris, self.num_mid)
-            self._mids.cover = wp.array(tables.chunked_rows(cover), dtype=MaskChunk, device=d)
-            self._mids.primary = wp.array(tables.chunked_rows(primary), dtype=MaskChunk, device=d)
-            self._mids.listed = wp.zeros((self._slots, self._mids.cover.shape[1]), dtype=MaskChunk, device=d)
-            self._mids.visited = wp.zeros((self._slots, (self.num_blockers + 63) // 64), dtype=wp.uint64, device=d)
         else:
             self._sub.use_seen = 0
             self._sub.seen = wp.zeros((1, 1), dtype=wp.uint64, device=d)
             self._mids.ring_bits = wp.zeros((1, 1), dtype=wp.uint64, device=d)
-            self._mids.cover, self._mids.primary, self._mids.listed = (wp.zeros((1, 1), dtype=MaskChunk, device=d)
-                                                                       for _ in range(3))
-            self._mids.visited = wp.zeros((1, 1), dtype=wp.uint64, device=d)
+        # kernels.listed_set: each coarse blocker's listed and primary triangles (mid, or fine without
+        # the mid level) as bit rows; for fine triangles only up to SET_BYTES (else the groups are walked)
+        listed_count = self.num_mid if self._use_mid else nsf
+        set_bytes = 2 * len(group_start) * -(-listed_count // 1024) * 128
+        self._groups.use_set = 1 if self._use_mid or (self._use_refine and set_bytes <= SET_BYTES) else 0
+        if self._groups.use_set:
+            cover, primary = hierarchy.group_bits(group_start, group_mid, group_tris, listed_count)
+            self._groups.cover = wp.array(tables.chunked_rows(cover), dtype=MaskChunk, device=d)
+            self._groups.primary = wp.array(tables.chunked_rows(primary), dtype=MaskChunk, device=d)
+            self._groups.listed = wp.zeros((self._slots, self._groups.cover.shape[1]), dtype=MaskChunk, device=d)
+            self._groups.visited = wp.zeros((self._slots, (self.num_blockers + 63) // 64), dtype=wp.uint64, device=d)
+        else:
+            self._groups.cover, self._groups.primary, self._groups.listed = (wp.zeros((1, 1), dtype=MaskChunk, device=d)
+                                                                             for _ in range(3))
+            self._groups.visited = wp.zeros((1, 1), dtype=wp.uint64, device=d)
+        # kernels.rasterize_mid_set: the fine triangles of the replaced mid triangles as a set too
+        sub_bytes = 2 * self.num_mid * -(-nsf // 1024) * 128
+        self._sub.use_set = 1 if (self._use_mid and sub_bytes <= SET_BYTES) else 0
+        if self._sub.use_set:
+            sstart, smid, stris = (a.numpy() for a in self._sub_arrays[:3])
+            cover, primary = hierarchy.group_bits(sstart, smid, stris, nsf)
+            self._sub.cover = wp.array(tables.chunked_rows(cover), dtype=MaskChunk, device=d)
+            self._sub.primary = wp.array(tables.chunked_rows(primary), dtype=MaskChunk, device=d)
+            self._sub.listed = wp.zeros((self._slots, self._sub.cover.shape[1]), dtype=MaskChunk, device=d)
+        else:
+            self._sub.cover, self._sub.primary, self._sub.listed = (wp.zeros((1, 1), dtype=MaskChunk, device=d)
+                                                                    for _ in range(3))
+        self._sub.visited = wp.zeros((1, 1), dtype=wp.uint64, device=d)
         self._bplane = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bsphere = wp.zeros(self.num_blockers, dtype=wp.vec4, device=d)
         self._bnlen = wp.zeros(self.num_blockers, dtype=float, device=d)
@@ -497,6 +525,21 @@ class HemirasterTransfer(TransferMethod):
         self._blockers.source, self._blockers.skip_incident = self._bsource, 0 if self.hierarchy else 1
         self._blockers.order = wp.array(self._perm_inv.astype(np.int32), dtype=wp.int32, device=d)
         self._blockers.refined = wp.zeros((self._slots, (self.num_blockers + 63) // 64), dtype=wp.uint64, device=d)
+        # kernels.far_field_bits: every blocker's culls and refinement bits per receiver in one pass (a
+        # coarse far field; the full mesh as blockers is culled per cluster)
+        bwords = (self.num_blockers + 63) // 64
+        self._blockers.precull = 1 if (self.hierarchy and self.num_blockers <= PRECULL_BLOCKERS) else 0
+        shape = (self._slots, bwords) if self._blockers.precull else (1, 1)
+        self._blockers.cull, self._blockers.tiny = (wp.zeros(shape, dtype=wp.uint64, device=d) for _ in range(2))
+        if self._blockers.precull and self._near_mode == 2:
+            # the k-ring's exclusion bits by reordered blocker index, as uint64 rows
+            src = ((excl[:, :, None] >> np.arange(32, dtype=np.uint32)) & 1).reshape(nv, -1)[:, :self.num_blockers]
+            rows = np.zeros((nv, bwords * 64), np.uint8)
+            rows[:, :self.num_blockers] = src[:, perm]
+            self._blockers.ring = wp.array(np.packbits(rows, axis=1, bitorder="little").view("<u8"), dtype=wp.uint64,
+                                           device=d)
+        else:
+            self._blockers.ring = wp.zeros((1, 1), dtype=wp.uint64, device=d)
 
         # per-receiver results
         self._mask = wp.zeros((nv, self._words), dtype=wp.uint64, device=d)
