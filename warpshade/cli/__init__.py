@@ -36,7 +36,9 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run, _extra_ok=getattr(mod, "ACCEPTS_EXTRA", False),
-                       _knob_class=getattr(mod, "knob_class", None), _parser=p)
+                       _knob_class=getattr(mod, "knob_class", None), _knob_methods=getattr(mod, "knob_methods", None),
+                       _parser=p)
+    parser.commands = sub.choices
     return parser
 
 
@@ -64,6 +66,61 @@ def exit_code(exc: BaseException) -> int:
     return 128 + (exc.signum if isinstance(exc, Terminated) else signal.SIGINT)
 
 
+def _describe_knobs(sub: argparse.ArgumentParser) -> None:
+    """For ``--help`` without ``--method``: every method's knob flags with their defaults, as the epilog
+    of a subcommand taking method knobs (from each method's ``KNOBS``, through its ``knob_summary``)."""
+    import textwrap
+
+    knob_class = sub.get_default("_knob_class")
+    head = (f"method knobs: after --method NAME, its own flags; '{sub.prog} --method NAME --help' gives each "
+            "knob's meaning and allowed values. Defaults:")
+    lines = textwrap.wrap(head, 100, break_on_hyphens=False)
+    for name in sub.get_default("_knob_methods")():
+        cls = knob_class(name)
+        text = cls.knob_summary() if cls is not None and cls.knob_flags() else "no knobs"
+        # lines break only between knobs: a no-break space inside each knob's entry, back to spaces after
+        text = ", ".join(item.replace(" ", "\xa0") for item in text.split(", "))
+        lines += [line.replace("\xa0", " ") for line in
+                  textwrap.wrap(f"{name}: {text}", 100, initial_indent="  ", subsequent_indent="      ",
+                                break_on_hyphens=False)]
+    sub.epilog = "\n".join(lines)
+    sub.formatter_class = argparse.RawDescriptionHelpFormatter
+
+
+def _add_knobs(sub: argparse.ArgumentParser, knob_class) -> None:
+    """Add ``knob_class``'s knob flags to a subcommand's parser, once, as a group of their own in ``--help``."""
+    if getattr(sub, "knob_class", None) is knob_class:
+        return
+    if getattr(sub, "knob_class", None) is not None:  # a parser holds one method's knobs
+        sub.error(f"--method read as both {sub.knob_class.name} and {knob_class.name}")
+    knob_class.add_arguments(sub.add_argument_group(f"knobs of --method {knob_class.name}"))
+    sub.knob_class = knob_class
+    sub.epilog = f"other methods' knobs: {sub.prog} --help"
+
+
+def _prepare_help(parser: argparse.ArgumentParser, argv: list[str]) -> None:
+    """``--help`` of a subcommand taking method knobs: with ``--method NAME`` (read from the command line as it
+    stands), NAME's knob flags join the parser and are listed in full; without, each method's are summarised."""
+    if not any(a in ("-h", "--help") for a in argv):
+        return
+    sub = parser.commands.get(next((a for a in argv if not a.startswith("-")), None))
+    if sub is None or sub.get_default("_knob_class") is None:
+        return
+    method = None
+    for i, a in enumerate(argv):
+        if a == "--":
+            break
+        if a == "--method" and i + 1 < len(argv):
+            method = argv[i + 1]
+        elif a.startswith("--method="):
+            method = a.split("=", 1)[1]
+    cls = sub.get_default("_knob_class")(method) if method else None
+    if cls is not None:
+        _add_knobs(sub, cls)
+    else:
+        _describe_knobs(sub)
+
+
 def _parse(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespace | None:
     """Parsed arguments (None without a subcommand), with ``extra`` and ``knob_class`` set.
 
@@ -71,13 +128,16 @@ def _parse(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespa
     reject them as usual. Method knobs depend on --method: once it is known, the method's flags
     join the subcommand's parser and the command line is parsed again, so argparse checks the
     knobs, names them and the command in errors, and never takes a knob's value for a positional.
+    ``--help`` is answered during the first parse, so its knob listing is prepared before
+    (:func:`_prepare_help`).
     """
+    _prepare_help(parser, argv)
     args, extra = parser.parse_known_args(argv)
     if not getattr(args, "_run", None):
         return None
     knob_class = args._knob_class(args.method) if args._knob_class and getattr(args, "method", None) else None
     if knob_class is not None:
-        knob_class.add_arguments(args._parser)
+        _add_knobs(args._parser, knob_class)
         args, extra = parser.parse_known_args(argv)
     args.knob_class = knob_class
     if extra and not args._extra_ok:

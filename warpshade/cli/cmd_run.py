@@ -9,7 +9,7 @@ import sys
 import time
 
 from ..pipeline.refine import describe as describe_refined, refine_receivers
-from .cmd_transfer import knob_class  # noqa: F401 - --method's knobs, which warpshade.cli.main adds
+from .cmd_transfer import knob_class, knob_methods  # noqa: F401 - --method's knobs, which warpshade.cli.main adds
 
 HELP = "run a scene end to end (simulate, shade, write USD); no SCENE runs the shipped default scene"
 ACCEPTS_EXTRA = True  # method knobs, parsed once --method is known
@@ -94,7 +94,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
-    parser.epilog = "Method knobs (e.g. --rays for reference) follow --method; see docs/methods/ for each method's list."
 
 
 SETUP_NOTICE_SECONDS = 10.0
@@ -149,8 +148,9 @@ def run(args) -> int:
     from .cmd_transfer import parse_knobs
 
     method = args.method
-    if args.extra and args.knob_class is None:
-        raise ValueError(f"unknown option(s) {' '.join(args.extra)} (method knobs need --method)")
+    if args.extra and method is None:
+        raise ValueError(f"unknown option(s) {' '.join(args.extra)} (method knobs need --method; "
+                         f"warpshade run --help lists each method's)")
     knobs = parse_knobs(args)
     security = None
     if args.scheduler and args.scheduler != "local":

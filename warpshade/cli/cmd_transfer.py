@@ -22,7 +22,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--save", required=True, metavar="OUT.npz", help="output arrays")
     parser.add_argument("--json", default=None, metavar="STATS.json", help="write timing and knobs")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
-    parser.epilog = "Method knobs (e.g. --rays for reference) follow; see docs/methods/ for each method's list."
 
 
 def knob_class(method: str):
@@ -32,16 +31,27 @@ def knob_class(method: str):
     return get_method(method) if method in METHODS else None
 
 
+def knob_methods() -> list[str]:
+    """The ``--method`` names whose knobs ``--help`` summarises."""
+    from ..visibility import METHODS
+
+    return sorted(METHODS)
+
+
 def parse_knobs(args) -> dict:
     """The method's knobs from arguments parsed with them (:func:`warpshade.cli.main` adds the
     flags of ``args.knob_class``).
 
     Raises:
-        ValueError: naming the method and the flags, for flags the method does not know.
+        ValueError: naming the method, the flags it does not know and the ones it has.
     """
     if args.extra:
-        name = args.knob_class.name if args.knob_class is not None else args.method
-        raise ValueError(f"unknown option(s) for method '{name}': {' '.join(args.extra)}")
+        cls = args.knob_class
+        name = cls.name if cls is not None else args.method
+        flags = cls.knob_flags() if cls is not None else []
+        known = (f"its knobs: {', '.join(flags)}; warpshade {args.command} --method {name} --help describes them"
+                 if flags else "it has no knobs")
+        raise ValueError(f"unknown option(s) for method '{name}': {' '.join(args.extra)} ({known})")
     return args.knob_class.knobs_from_args(args) if args.knob_class is not None else {}
 
 

@@ -21,8 +21,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--save", required=True, metavar="OUT.npz", help="output arrays")
     parser.add_argument("--json", default=None, metavar="STATS.json", help="write timing and knobs")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
-    parser.epilog = ("Method knobs follow --method: --k K (light samples per side) and --offset for both; "
-                     "gears --grid G; reference --no-jitter --seed S.")
 
 
 def knob_class(method: str):
@@ -30,6 +28,13 @@ def knob_class(method: str):
     from ..visibility.gears import AREA_METHODS, get_area_method
 
     return get_area_method(method) if method in AREA_METHODS else None
+
+
+def knob_methods() -> list[str]:
+    """The ``--method`` names whose knobs ``--help`` summarises."""
+    from ..visibility.gears import AREA_METHODS
+
+    return list(AREA_METHODS)
 
 
 def run(args) -> int:

@@ -85,6 +85,16 @@ class VisibilityMethod(ABC):
         _knobs.add_arguments(cls.SCHEMA, parser)
 
     @classmethod
+    def knob_flags(cls) -> list[str]:
+        """This method's command-line knob flags (``--rays``, ``--no-cull``), in schema order."""
+        return _knobs.cli_flags(cls.SCHEMA)
+
+    @classmethod
+    def knob_summary(cls) -> str:
+        """This method's command-line knobs with their defaults in one line (``--rays 1024, --seed 0, ...``)."""
+        return _knobs.summary(cls.SCHEMA)
+
+    @classmethod
     def knobs_from_args(cls, args: argparse.Namespace) -> dict:
         """Pick this method's knobs out of parsed arguments."""
         return _knobs.from_args(cls.SCHEMA, args)

@@ -4,7 +4,7 @@ Each method class lists its knobs in ``KNOBS`` (name, type, range or choices, he
 each is the one of the constructor's keyword argument of the same name, read from its signature, so it
 is written in one place. Everything else is derived from the schema (:class:`Knob`):
 
-* the command-line flags (:func:`add_arguments`: ``--name`` with the default in the help, argparse
+* the command-line flags (:func:`add_arguments`: ``--name`` with range and default in the help, argparse
   types that check the range and name the flag in errors; a boolean defaulting to True is ``--no-name``),
 * the knobs picked out of parsed arguments (:func:`from_args`),
 * validation and normalisation of knobs given in Python or a scene (:func:`normalise`: every knob
@@ -41,7 +41,8 @@ class Knob:
     Attributes:
         name: Constructor keyword argument (the flag is ``--name`` with ``_`` as ``-``).
         type: ``int``, ``float``, ``str``, ``bool`` or ``"vec3"`` (three floats ``x,y,z``).
-        help: One line for ``--help`` (the default is appended).
+        help: One line for ``--help`` (the range and the default are appended); a boolean defaulting to
+            True is offered as ``--no-name``, so its help says what that flag does.
         default: Default value; left out, the constructor's default for ``name``.
         minimum, maximum: Inclusive range of a number (None: unbounded).
         choices: Allowed values (None: any of the type).
@@ -63,7 +64,39 @@ class Knob:
 
     @property
     def flag(self) -> str:
+        """``--name`` with ``_`` as ``-``."""
         return "--" + self.name.replace("_", "-")
+
+    @property
+    def cli_flag(self) -> str:
+        """The flag offered on the command line: :attr:`flag`, or ``--no-name`` for a boolean defaulting to True."""
+        return f"--no-{self.flag[2:]}" if self.type is bool and self.default else self.flag
+
+    def shown_default(self) -> str:
+        """The default as written on the command line (``0,0,1`` for a vec3, ``none`` for None, ``on``/``off``)."""
+        d = self.default
+        if d is None:
+            return "none"
+        if self.type is bool:
+            return "on" if d else "off"
+        if self.type == "vec3":
+            return ",".join(_num(x) for x in d)
+        return str(d)
+
+    def help_line(self) -> str:
+        """The ``--help`` text of :attr:`cli_flag`: meaning, range (choices are in the flag's metavar), default."""
+        if self.type is bool:
+            return f"{self.help} (default: {self.name} {self.shown_default()})"
+        rng = "" if self.choices is not None else self.describe_range()
+        if rng and self.nullable:
+            rng += " or unset"
+        return f"{self.help}{'; ' + rng if rng else ''} (default {self.shown_default()})"
+
+    def summary(self) -> str:
+        """Compact form for a per-method list: ``--mask 32``; a boolean by its flag, ``--no-cull (cull on)``."""
+        if self.type is bool:
+            return f"{self.cli_flag} ({self.name} {self.shown_default()})"
+        return f"{self.flag} {self.shown_default()}"
 
     def describe_range(self) -> str:
         """The constraint in words (``"an integer >= 1"``, ``"one of a, b"``), "" for none."""
@@ -179,22 +212,28 @@ def resolve_schema(cls, knobs) -> tuple[Knob, ...]:
 
 
 def add_arguments(schema, parser: argparse.ArgumentParser) -> None:
-    """Add the command-line knobs of ``schema`` to ``parser`` (``dest`` is the knob's name)."""
+    """Add the command-line knobs of ``schema`` to ``parser`` (or an argument group; ``dest`` is the knob's
+    name), each with :meth:`Knob.help_line` as its help."""
     for k in schema:
         if not k.cli:
             continue
+        text = k.help_line().replace("%", "%%")  # argparse formats help with %
         if k.type is bool:
-            if k.default:
-                parser.add_argument(f"--no-{k.name.replace('_', '-')}", dest=k.name, action="store_false",
-                                    help=k.help)
-            else:
-                parser.add_argument(k.flag, dest=k.name, action="store_true", help=k.help)
+            parser.add_argument(k.cli_flag, dest=k.name, action="store_false" if k.default else "store_true",
+                                help=text)
             continue
-        default = k.default
-        shown = ",".join(_num(x) for x in default) if k.type == "vec3" and default is not None else default
-        parser.add_argument(k.flag, dest=k.name, type=k.argparse_type(), default=default,
-                            choices=k.choices, metavar=None if k.choices else k.name.upper(),
-                            help=f"{k.help} (default {shown})")
+        parser.add_argument(k.flag, dest=k.name, type=k.argparse_type(), default=k.default,
+                            choices=k.choices, metavar=None if k.choices else k.name.upper(), help=text)
+
+
+def cli_flags(schema) -> list[str]:
+    """The command-line flags of ``schema``, in schema order."""
+    return [k.cli_flag for k in schema if k.cli]
+
+
+def summary(schema) -> str:
+    """Every command-line knob of ``schema`` with its default, compactly (:meth:`Knob.summary`), comma-separated."""
+    return ", ".join(k.summary() for k in schema if k.cli)
 
 
 def from_args(schema, args: argparse.Namespace) -> dict:
@@ -246,5 +285,5 @@ def check_sweep(schema, sweep: list[dict], method: str = "") -> None:
         normalise(schema, {k: v for k, v in entry.items() if k != "order"}, method)
 
 
-__all__ = ["Knob", "add_arguments", "changes", "check_sweep", "defaults", "from_args", "normalise", "parse_vec3",
-           "resolve_schema"]
+__all__ = ["Knob", "add_arguments", "changes", "check_sweep", "cli_flags", "defaults", "from_args", "normalise",
+           "parse_vec3", "resolve_schema", "summary"]
