@@ -19,7 +19,9 @@ DEFAULT_ORDER = 4
 
 RUN_KNOBS = {"reference": {"rays": 256}}
 """Knobs a run gives a method named with no knobs at all (reference: 256 rays, 3.6 % relative L2 error,
-measured in docs/methods/reference.md); other knobs take the method's own defaults (its ``KNOBS``)."""
+measured in docs/methods/reference.md); other knobs take the method's own defaults (its ``KNOBS``).
+``warpshade run --method M`` passes all of M's knobs (its flags' defaults), so this applies to methods
+named by a scene or by the Python API without knobs."""
 
 AREA_MODES = ("gears", "sh")
 """``--area-lights`` values: ``gears`` (:mod:`.area`) or ``sh`` (rect lights projected to SH like other local lights)."""
