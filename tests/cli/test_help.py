@@ -169,6 +169,17 @@ def test_unknown_knob_in_run(tmp_path, capsys):
     assert error_line(capsys, ["run", "--method", "none", "--rays=4", "--out", out]) == (
         "warpshade run: error: unknown option(s) for method 'none': --rays=4 (it has no knobs)")
     assert error_line(capsys, ["run", "--rays=4", "--out", out]) == (
-        "warpshade run: error: unknown option(s) --rays=4 (method knobs need --method; warpshade run --help lists "
-        "each method's)")
+        "warpshade run: error: unknown option(s) --rays=4 (not an option of warpshade run, and method knobs need "
+        "--method; warpshade run --help lists its options and each method's knobs)")
+    assert error_line(capsys, ["run", "--output", out]) == (
+        "warpshade run: error: unknown option(s) --output (not an option of warpshade run, and method knobs need "
+        "--method; warpshade run --help lists its options and each method's knobs)")
     assert not (tmp_path / "o.usda").exists()
+
+
+def test_run_output_short_flag():
+    # -o names the output, as in warpshade preview and export
+    from warpshade.cli import _parse, build_parser
+
+    assert _parse(build_parser(), ["run", "-o", "mine.usda"]).out == "mine.usda"
+    assert _parse(build_parser(), ["run", "--out", "mine.usda"]).out == "mine.usda"

@@ -46,7 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("scene", nargs="?", default=None, metavar="SCENE",
                         help="USD scene (default: usd_scenes/default.usda)")
-    parser.add_argument("--out", default=None, metavar="OUT.usda",
+    parser.add_argument("-o", "--out", default=None, metavar="OUT.usda",
                         help="output (default: <scene name>_shaded.usda in the current directory)")
     parser.add_argument("--frames", type=positive_int, default=None, help="frames to produce (default: the scene's)")
     parser.add_argument("--method", default=None, choices=sorted(METHODS) + ["none"],
@@ -149,8 +149,8 @@ def run(args) -> int:
 
     method = args.method
     if args.extra and method is None:
-        raise ValueError(f"unknown option(s) {' '.join(args.extra)} (method knobs need --method; "
-                         f"warpshade run --help lists each method's)")
+        raise ValueError(f"unknown option(s) {' '.join(args.extra)} (not an option of warpshade run, and method "
+                         f"knobs need --method; warpshade run --help lists its options and each method's knobs)")
     knobs = parse_knobs(args)
     security = None
     if args.scheduler and args.scheduler != "local":
