@@ -1191,6 +1191,20 @@ def rasterize_mid_group(
 
 
 @wp.func(inline=True)
+def list_cover(level: Refinement, sl: int, r: int):
+    """Add blocker ``r``'s ``cover`` row to the slot's set ``level.listed``."""
+    for u in range(level.listed.shape[1]):
+        level.listed[sl, u] = level.listed[sl, u] | level.cover[r, u]
+
+
+@wp.func(inline=True)
+def unlist_primary(level: Refinement, sl: int, r: int):
+    """Remove blocker ``r``'s ``primary`` row from the slot's set ``level.listed``."""
+    for u in range(level.listed.shape[1]):
+        level.listed[sl, u] = level.listed[sl, u] & (level.primary[r, u] ^ MaskChunk(~wp.uint64(0)))
+
+
+@wp.func(inline=True)
 def listed_set(sl: int, blockers: Blockers, groups: Refinement):
     """Finish the slot's set of the triangles listed by the refined blockers the far-field pass visited
     (``groups.listed``: the OR of their ``cover`` rows) by removing the primary triangles of the
@@ -1207,8 +1221,7 @@ def listed_set(sl: int, blockers: Blockers, groups: Refinement):
         while x != wp.uint64(0):
             t = w * 64 + lowest_bit(x)
             x = x & (x - wp.uint64(1))
-            for u in range(groups.listed.shape[1]):
-                groups.listed[sl, u] = groups.listed[sl, u] & (groups.primary[t, u] ^ MaskChunk(~wp.uint64(0)))
+            unlist_primary(groups, sl, t)
 
 
 @wp.func(inline=True)
@@ -1342,8 +1355,7 @@ def rasterize_mid_set(
                 m = base + lowest_bit(expand)
                 expand = expand & (expand - wp.uint64(1))
                 if sub.use_set != 0:
-                    for ch in range(sub.listed.shape[1]):
-                        sub.listed[sl, ch] = sub.listed[sl, ch] | sub.cover[m, ch]
+                    list_cover(sub, sl, m)
                 else:
                     nb = rasterize_mid_fine(m, -1, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
             # exact, as the fine triangles they stand for (a tiny-image cull here cost more than it saved)
@@ -1366,8 +1378,7 @@ def rasterize_mid_set(
                 for r in range(groups.start[t], groups.mid[t]):
                     o = groups.tris[r]
                     if mid_refined(o, sl, p, sub, mids):
-                        for ch in range(sub.listed.shape[1]):
-                            sub.listed[sl, ch] = sub.listed[sl, ch] & (sub.primary[o, ch] ^ MaskChunk(~wp.uint64(0)))
+                        unlist_primary(sub, sl, o)
     clear_visited(sl, groups)
     if sub.use_set != 0:
         nb = queue_fine_set(v, sl, p, n, fine, sub, frame, lut, mask, bt, nb)
@@ -1482,8 +1493,7 @@ def rasterize_far_chunk(
             # :func:`rasterize_fine_set`)
             t = t0 + k
             groups.visited[sl, t >> 6] = groups.visited[sl, t >> 6] | (wp.uint64(1) << wp.uint64(t & 63))
-            for u in range(groups.listed.shape[1]):
-                groups.listed[sl, u] = groups.listed[sl, u] | groups.cover[t, u]
+            list_cover(groups, sl, t)
         elif mids.on != 0:
             nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
         else:
