@@ -233,10 +233,8 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mi
         triangles assigned over the mid mesh as over a fine one; ``outline`` (Fm,) float32, the
         least deviation of each mid triangle (:func:`outline_deviation`).
     """
-    def level(pts, faces, target, fbase, fans=True):
-        # the surface is decimated (:func:`stitched_faces`): faces with vertices of their own along
-        # sharp edges (a box's rims) decimated apart let light through their seams
-        cp, cf = decimate(pts, stitched_faces(pts, faces), target)
+    def level(pts, faces, surface, target, fbase, fans=True):
+        cp, cf = decimate(pts, surface, target)
         f, b, o = bind_to_surface(cp, pts, faces)
         prim, extra = assign_to_coarse(pts, faces, cp, cf, fans=fans)
         return cp, cf, f + fbase, b, o, prim, extra
@@ -247,13 +245,16 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mi
     for k, ((pts, faces), target) in enumerate(zip(parts, targets)):
         pts = np.asarray(pts, dtype=np.float64)
         faces = np.asarray(faces, dtype=np.int64)
-        cp, cf, bf, bb, bo, prim, extra = level(pts, faces, target, fbase)
+        # the surface is decimated (:func:`stitched_faces`): faces with vertices of their own along
+        # sharp edges (a box's rims) decimated apart let light through their seams
+        surface = stitched_faces(pts, faces)
+        cp, cf, bf, bb, bo, prim, extra = level(pts, faces, surface, target, fbase)
         for key, val in zip(out, (cp, cf + cbase, bf, bb, bo, prim + cfbase, extra + np.array([fbase, cfbase]))):
             out[key].append(val)
         if mid is not None:
             # seam cover without the fan rule at both mid seams (coarse/mid, mid/fine): at a few fine
             # triangles per mid triangle it tripled their extras (docs/benchmarks/history.md)
-            mp, mf, mbf, mbb, mbo, mprim, mextra = level(pts, faces, mid_targets[k], fbase, fans=False)
+            mp, mf, mbf, mbb, mbo, mprim, mextra = level(pts, faces, surface, mid_targets[k], fbase, fans=False)
             # the mid mesh is to the coarse one what the fine mesh is to it
             cprim, cextra = assign_to_coarse(mp, mf, cp, cf, fans=False)
             outline = outline_deviation(pts, faces, mp, mf, mprim)
