@@ -471,8 +471,9 @@ def damp_bending(
 
 @wp.kernel
 def solve_tethers(
-    anchor: wp.array2d[int],
-    max_length: wp.array2d[float],
+    anchor: wp.array[int],
+    max_length: wp.array[float],
+    per_vertex: int,
     inv_mass: wp.array[float],
     x: wp.array[wp.vec3],
 ):
@@ -480,17 +481,18 @@ def solve_tethers(
 
     L bounds the rest geodesic distance to a kinematic vertex, so a tether only acts on stretch:
     it removes in one projection the sag that Gauss-Seidel sweeps leave in long hanging cloth
-    (their error grows with the square of the number of vertices along the hang).
+    (their error grows with the square of the number of vertices along the hang). ``anchor`` and
+    ``max_length`` are the model's (V, per_vertex) arrays flattened.
     """
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
-    for c in range(anchor.shape[1]):
-        a = anchor[i, c]
+    for c in range(per_vertex):
+        a = anchor[i * per_vertex + c]
         if a >= 0:
             d = x[i] - x[a]
             length = wp.length(d)
-            lmax = max_length[i, c]
+            lmax = max_length[i * per_vertex + c]
             if length > lmax and length > 0.0:
                 x[i] = x[i] - d * ((length - lmax) / length)
 

@@ -344,7 +344,8 @@ class XPBDSolver:
                                   inputs=[self._hinge_ids, m.hinge_rest_angle, m.hinge_compliance, m.inv_mass, off, h],
                                   outputs=[self._hinge_lambda, x], device=d, record_cmd=True))
         if self.tethers:
-            cons.append(wp.launch(k.solve_tethers, dim=n, inputs=[m.tether_anchor, m.tether_length, m.inv_mass],
+            cons.append(wp.launch(k.solve_tethers, dim=n, inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
+                                                                   m.tether_anchor.shape[1], m.inv_mass],
                                   outputs=[x], device=d, record_cmd=True))
         cmds["constraints"] = cons
         if self.stretch_limits:
