@@ -11,7 +11,8 @@ difference| of ``displayColor`` between hemiraster and the reference of the same
 method's error), and for the floor's top face near the crate (outside its footprint, within
 ``--band`` cm of it) the error of the hemiraster floor, interpolated over its own triangles, against a
 reference run at ``--truth-edge`` (what a picture shows: the method's and the tessellation's error
-together; the jagged contact edge of a coarse floor is in it). Setup and shading seconds are the run's
+together; the jagged contact edge of a coarse floor is in it), and the same for the reference run of
+that tessellation (the tessellation's error alone, with the rays' noise). Setup and shading seconds are the run's
 own (kernel compilation is cached after the first run; run the script twice and read the second).
 
 How to run::
@@ -101,7 +102,8 @@ def run(scene: str, out: str, method: str | None) -> dict:
     if method:
         cmd += ["--method", method]
     env = dict(os.environ, PYTHONPATH=os.environ.get("PYTHONPATH") or REPO)  # PYTHONPATH set: that code
-    res = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True)
+    # run outside any checkout: python -m puts the working directory first on sys.path
+    res = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True, cwd=os.path.dirname(out))
     times = {k: float(v) for k, v in re.findall(r"(setup|shade) ([0-9.]+) s", res.stderr)}
     return times
 
@@ -111,7 +113,8 @@ def colours(path: str) -> dict:
     from pxr import Usd, UsdGeom
 
     out = {}
-    for p in Usd.Stage.Open(path).Traverse():
+    stage = Usd.Stage.Open(path)  # held: its prims expire with it
+    for p in stage.Traverse():
         if p.IsA(UsdGeom.Mesh):
             m = UsdGeom.Mesh(p)
             out[p.GetName()] = (np.asarray(m.GetPointsAttr().Get(1), dtype=np.float64),
@@ -163,9 +166,12 @@ def main() -> None:
             hemi_t = run(scene, os.path.join(tmp, f"hemi_{edge}.usda"), None)
             ref_t = run(scene, os.path.join(tmp, f"ref_{edge}.usda"), "reference")
             hemi, ref = colours(os.path.join(tmp, f"hemi_{edge}.usda")), colours(os.path.join(tmp, f"ref_{edge}.usda"))
-            p, f, v = floor_top(hemi["Floor"])
-            interp = mtri.LinearTriInterpolator(mtri.Triangulation(p[:, 0], p[:, 1], f), v)
-            at = np.asarray(interp(tp[near, 0], tp[near, 1]))
+            def on_truth(mesh):  # a floor's values interpolated over its own triangles at the truth's points
+                p, f, v = floor_top(mesh)
+                interp = mtri.LinearTriInterpolator(mtri.Triangulation(p[:, 0], p[:, 1], f), v)
+                return np.asarray(interp(tp[near, 0], tp[near, 1]))
+
+            at, ref_at = on_truth(hemi["Floor"]), on_truth(ref["Floor"])
             row = {"edge": edge, "hemiraster_setup_s": hemi_t.get("setup"), "hemiraster_shade_s": hemi_t.get("shade"),
                    "reference_shade_s": ref_t.get("shade"),
                    "vertices": {k: len(val[0]) for k, val in hemi.items()},
@@ -173,6 +179,7 @@ def main() -> None:
                    "reference_mean": {k: float(np.mean(ref[k][2])) for k in hemi},
                    "floor_band_error_vs_fine_reference": float(np.mean(np.abs(at - tv[near]))),
                    "floor_band_p95_vs_fine_reference": float(np.percentile(np.abs(at - tv[near]), 95)),
+                   "floor_band_reference_error_vs_fine_reference": float(np.mean(np.abs(ref_at - tv[near]))),
                    "floor_band_points": int(near.sum())}
             rows.append(row)
             print(f"edge {edge}: vertices {row['vertices']}  hemiraster setup {row['hemiraster_setup_s']} s shade "
@@ -182,7 +189,8 @@ def main() -> None:
                       f"(reference mean {row['reference_mean'][k]:.4f})")
             print(f"    floor within {args.band:g} cm of the crate: mean |error| against the {args.truth_edge:g} cm "
                   f"reference {row['floor_band_error_vs_fine_reference']:.5f}, p95 {row['floor_band_p95_vs_fine_reference']:.5f} "
-                  f"({row['floor_band_points']} points)")
+                  f"({row['floor_band_points']} points); the reference of this tessellation "
+                  f"{row['floor_band_reference_error_vs_fine_reference']:.5f}")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump({"truth_edge": args.truth_edge, "band": args.band, "rows": rows}, fh, indent=1)
