@@ -10,13 +10,18 @@ as Blender's importer builds them from the output's ``UsdPreviewSurface``), appl
 docs/guide/dcc.md for Cycles (a back face is transparent, so ``<mesh>`` and ``<mesh>_back`` each
 show their own side), sets a black world (the colours are emission) and renders with Cycles on the
 CPU: ``<name>.png`` of the whole scene from a camera above, then each shaded mesh alone from that
-camera and, for two-sided meshes, the front, the back and the pair from above and from below. It
-prints, per mesh, the rendered pixels' mean linear RGB beside the mean ``displayColor`` of its
-vertices and the share of its pixels that are black beyond its black vertices, and exits non-zero
-if a mesh renders black (mean luminance below 1/4 of its colours' or 5 % more black pixels than
-black vertices), brighter than its brightest vertex (99th percentile of its pixels' luminance above
-1.25 times it: the scene's lights lit it again), or if fewer than 90 % of a two-sided pair's pixels show what the front alone or
-the back alone shows there (both sides drawn at once, or specks of one through the other).
+camera and, for two-sided meshes, the front, the back and the pair from above and from below. Each
+mesh alone is rendered twice from the same camera: through the imported material, and through a
+control material that emits the ``displayColor`` attribute itself (what the mesh's baked colours
+look like from there: the faces the camera sees, each at its share of the picture). It prints, per
+mesh, the rendered pixels' mean linear RGB beside the control's and the mean ``displayColor`` of its
+vertices, and the share of its pixels that are black beyond the control's, and exits non-zero if a
+mesh renders black (mean luminance below 1/4 of the control's or 5 % more black pixels than the
+control), brighter than its brightest vertex (99th percentile of its pixels' luminance above 1.25
+times it: the scene's lights lit it again), or if fewer than 90 % of a two-sided pair's pixels show
+what the front alone or the back alone shows there (both sides drawn at once, or specks of one
+through the other). (The vertices' mean is no yardstick for the picture: a crate under a cloth
+shows its black top and two sides, not its black bottom and the other two.)
 ``--no-recipe`` keeps the imported materials unchanged.
 """
 
@@ -122,13 +127,36 @@ def _alone(scene, meshes, show, path):
     return px, int(mask.sum()), (rgb.mean(axis=0) if len(rgb) else np.zeros(3))
 
 
-def _black_share(px, cols):
-    """Share of a mesh's pixels that are black, minus the share of its vertices that are (a side
-    may be dark by right, e.g. the underside of a drape lying on the ground)."""
+def _black_share(px) -> float:
+    """Share of a mesh's pixels that are black."""
     rgb = px[..., :3][px[..., 3] > 0.5]
-    if not len(rgb):
-        return 0.0
-    return float(np.mean(rgb @ LUM < 1e-3)) - float(np.mean(cols @ LUM < 1e-3))
+    return float(np.mean(rgb @ LUM < 1e-3)) if len(rgb) else 0.0
+
+
+def _control(scene, meshes, o, path, recipe):
+    """``o`` alone rendered with a material emitting its ``displayColor`` attribute (back faces
+    transparent with the recipe, as the check's render): the picture its baked colours make."""
+    mat = bpy.data.materials.get("check_control")
+    if mat is None:
+        mat = bpy.data.materials.new("check_control")
+        mat.use_nodes = True
+        nt = mat.node_tree
+        nt.nodes.clear()
+        attr, emit = nt.nodes.new("ShaderNodeAttribute"), nt.nodes.new("ShaderNodeEmission")
+        attr.attribute_name = "displayColor"
+        nt.links.new(attr.outputs["Color"], emit.inputs["Color"])
+        nt.links.new(emit.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+        if recipe:
+            _backface_transparent(mat)
+    own = list(o.data.materials)
+    o.data.materials.clear()
+    o.data.materials.append(mat)
+    try:
+        return _alone(scene, meshes, [o], path)
+    finally:
+        o.data.materials.clear()
+        for m in own:
+            o.data.materials.append(m)
 
 
 def _bright(px) -> float:
@@ -165,14 +193,15 @@ def check(usd, frame, out_dir, recipe=True) -> list[str]:
             px, n, mean = _alone(scene, meshes, [o], f"{stem}_{o.name}.exr")
             if n > 100:
                 break
-        want, black = cols.mean(axis=0), _black_share(px, cols)
-        print(f"  {o.name:24s} {n:6d} px  rendered {np.round(mean, 3)}  displayColor {np.round(want, 3)}  "
-              f"extra black {100 * black:.1f} %")
+        pc, _, want = _control(scene, meshes, o, f"{stem}_{o.name}_control.exr", recipe)
+        black = _black_share(px) - _black_share(pc)
+        print(f"  {o.name:24s} {n:6d} px  rendered {np.round(mean, 3)}  control {np.round(want, 3)}  "
+              f"displayColor {np.round(cols.mean(axis=0), 3)}  extra black {100 * black:.1f} %")
         if not n:
             failures.append(f"{o.name}: not in the picture (no pixel)")
         elif want @ LUM > 1e-3 and (mean @ LUM < 0.25 * (want @ LUM) or black > 0.05):
             failures.append(f"{o.name}: renders black (mean {mean.round(3).tolist()}, {100 * black:.0f} % more black "
-                            f"pixels than black vertices; its displayColor mean is {want.round(3).tolist()})")
+                            f"pixels than its displayColor emitted; that control's mean is {want.round(3).tolist()})")
         bright, brightest = _bright(px), float((cols @ LUM).max())
         if n and bright > 1.25 * brightest + 0.01:
             failures.append(f"{o.name}: renders brighter than its colours (99th percentile luminance {bright:.3f}, "

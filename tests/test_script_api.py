@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 import pytest
-from pxr import Usd, UsdGeom, UsdShade
+from pxr import Sdf, Usd, UsdGeom, UsdShade
 
 import warpshade as ws
 
@@ -151,6 +151,10 @@ def test_short_generator_names_the_frame(tmp_path):
                geometry=[{"Tri": pts}])
 
 
+EDGE = 0.05
+"""Target edge of the tessellations compared [m]: several rings along the shapes' profiles below."""
+
+
 def _usd_axial(shape, radius, height, axis, translate):
     """The USD reader's object for a Capsule/Cylinder/Cone gprim with PhysicsCollisionAPI."""
     from pxr import UsdPhysics
@@ -166,6 +170,7 @@ def _usd_axial(shape, radius, height, axis, translate):
     g.CreateAxisAttr(axis)
     UsdGeom.XformCommonAPI(g).SetTranslate(translate)
     UsdPhysics.CollisionAPI.Apply(g.GetPrim())
+    g.GetPrim().CreateAttribute("warpshade:edgeLength", Sdf.ValueTypeNames.Float).Set(EDGE)
     return scene_from_stage(st, source="t.usda").objects[0]
 
 
@@ -173,15 +178,16 @@ def _usd_axial(shape, radius, height, axis, translate):
                                                (ws.cone, "Cone", "Z")])
 def test_axial_shapes_are_the_usd_readers_gprims(make, shape, axis):
     """ws.capsule/cylinder/cone make what the USD reader makes of the same gprim with
-    PhysicsCollisionAPI: the same exact analytic collider and the same tessellation."""
+    PhysicsCollisionAPI: the same exact analytic collider and, for the same target edge, the same
+    tessellation."""
     centre, r, h = (0.3, 0.7, -0.2), 0.2, 0.6
-    obj = make(center=centre, radius=r, height=h, axis=axis)
+    obj = make(center=centre, radius=r, height=h, axis=axis, edge=EDGE)
     ref = _usd_axial(shape, r, h, axis, centre)
     kind = shape.lower()
     assert obj.params["collider"] == ref.params["collider"] == kind
     for key, value in ref.params[kind].items():
         np.testing.assert_allclose(obj.params[kind][key], value, atol=1e-12, err_msg=key)
-    np.testing.assert_allclose(obj.mesh.points, ref.mesh.points, atol=1e-9)  # same trimesh build, same frame
+    np.testing.assert_allclose(obj.mesh.points, ref.mesh.points, atol=1e-9)  # same build, same frame
     np.testing.assert_array_equal(obj.mesh.faces, ref.mesh.faces)
     assert "collider" not in make(collider=False).params
 

@@ -123,19 +123,29 @@ def ground(name: str = "Ground", size: float = 4.0, height: float = 0.0, resolut
                        params={"collider": "ground"})
 
 
-def box(name: str = "Box", center=None, size=1.0, collider: bool = True, albedo=None) -> SceneObject:
+def _edge(edge, longest: float, what: str) -> float:
+    """A shape's target edge length: ``edge`` (> 0), or None for its longest extent /
+    :data:`~warpshade.geometry.shapes.BOX_SEGMENTS`."""
+    from .geometry.shapes import BOX_SEGMENTS
+
+    return longest / BOX_SEGMENTS if edge is None else float(_positive(edge, f"{what}: edge")[0])
+
+
+def box(name: str = "Box", center=None, size=1.0, collider: bool = True, albedo=None, edge=None) -> SceneObject:
     """An axis-aligned box (an exact box collider unless ``collider=False``), tessellated as the USD
-    reader tessellates a Cube (:func:`warpshade.geometry.shapes.box_shape`: each face a grid of its own).
+    reader tessellates a Cube (:func:`warpshade.geometry.shapes.gprim_shape`: each face a grid of its own).
 
     Args:
         center: Centre [m]; default: standing on y = 0 at the origin.
         size: Edge lengths [m], a number or three.
+        edge: Target edge length of the tessellation [m] (as ``warpshade:edgeLength`` on a Cube);
+            default: the longest side / 22.
     """
-    from .geometry.shapes import box_shape
+    from .geometry.shapes import box_segments, box_shape
 
     ext = _positive(size, f"box '{name}': size", 3)
     c = np.array([0.0, ext[1] / 2, 0.0]) if center is None else _vec3(center, f"box '{name}': center")
-    verts, faces = box_shape(ext)
+    verts, faces = box_shape(ext, box_segments(ext, _edge(edge, float(ext.max()), f"box '{name}'")))
     params = {"collider": "box", "box": {"center": c, "half_extents": ext / 2, "rotation": np.array([0.0, 0, 0, 1])}}
     return _object(name, _mesh(name, verts + c, faces),
                        material=_material(albedo, f"box '{name}'"), params=params if collider else {})
@@ -171,9 +181,10 @@ def _axis_rotation(axis, what: str) -> np.ndarray:
     return trimesh.geometry.align_vectors([0.0, 0.0, 1.0], d / np.linalg.norm(d))[:3, :3]
 
 
-def _axial(kind: str, name: str, center, radius, height, axis, collider: bool, albedo, lift) -> SceneObject:
+def _axial(kind: str, name: str, center, radius, height, axis, collider: bool, albedo, edge, lift) -> SceneObject:
     """A capsule, cylinder or cone along ``axis`` through ``center``: tessellated as the USD reader
-    tessellates the gprim, and the exact analytic collider the reader makes of it."""
+    tessellates the gprim for the target ``edge`` (None: its longest extent / 22), and the exact
+    analytic collider the reader makes of it."""
     from .geometry.shapes import axial_shape
 
     what = f"{kind} '{name}'"
@@ -184,7 +195,8 @@ def _axial(kind: str, name: str, center, radius, height, axis, collider: bool, a
     rot = _axis_rotation(axis, f"{what}: axis")
     d = rot[:, 2]
     c = np.array([0.0, lift(r, h), 0.0]) if center is None else _vec3(center, f"{what}: center")
-    verts, faces = axial_shape(kind, r, h)
+    longest = max(2 * r, h + (2 * r if kind == "capsule" else 0.0))
+    verts, faces = axial_shape(kind, r, h, _edge(edge, longest, what))
     ends = (c - d * h / 2, c + d * h / 2)
     shape = {"base": ends[0], "apex": ends[1]} if kind == "cone" else {"p0": ends[0], "p1": ends[1]}
     params = {"collider": kind, kind: {**shape, "radius": r}}
@@ -193,7 +205,7 @@ def _axial(kind: str, name: str, center, radius, height, axis, collider: bool, a
 
 
 def capsule(name: str = "Capsule", center=None, radius: float = 0.25, height: float = 0.5, axis="Y",
-            collider: bool = True, albedo=None) -> SceneObject:
+            collider: bool = True, albedo=None, edge=None) -> SceneObject:
     """A capsule (an exact capsule collider unless ``collider=False``), as a USD Capsule gprim.
 
     Args:
@@ -202,23 +214,25 @@ def capsule(name: str = "Capsule", center=None, radius: float = 0.25, height: fl
         height: Length of the cylindrical part [m] (USD's Capsule ``height``; the whole capsule is
             ``height + 2 * radius`` long), >= 0.
         axis: ``"X"``, ``"Y"``, ``"Z"`` or a direction (3 numbers).
+        edge: Target edge length of the tessellation [m] (as ``warpshade:edgeLength`` on the gprim);
+            default: the longest extent / 22.
     """
-    return _axial("capsule", name, center, radius, height, axis, collider, albedo, lambda r, h: h / 2 + r)
+    return _axial("capsule", name, center, radius, height, axis, collider, albedo, edge, lambda r, h: h / 2 + r)
 
 
 def cylinder(name: str = "Cylinder", center=None, radius: float = 0.25, height: float = 0.5, axis="Y",
-             collider: bool = True, albedo=None) -> SceneObject:
+             collider: bool = True, albedo=None, edge=None) -> SceneObject:
     """A capped cylinder (an exact cylinder collider unless ``collider=False``), as a USD Cylinder
     gprim; the arguments as :func:`capsule`, ``height`` the whole length (> 0)."""
-    return _axial("cylinder", name, center, radius, height, axis, collider, albedo, lambda r, h: h / 2)
+    return _axial("cylinder", name, center, radius, height, axis, collider, albedo, edge, lambda r, h: h / 2)
 
 
 def cone(name: str = "Cone", center=None, radius: float = 0.25, height: float = 0.5, axis="Y",
-         collider: bool = True, albedo=None) -> SceneObject:
+         collider: bool = True, albedo=None, edge=None) -> SceneObject:
     """A cone (an exact cone collider unless ``collider=False``), as a USD Cone gprim: its base
     (``radius``) at ``center - axis * height / 2``, its apex at ``center + axis * height / 2``; the
     arguments as :func:`cylinder`."""
-    return _axial("cone", name, center, radius, height, axis, collider, albedo, lambda r, h: h / 2)
+    return _axial("cone", name, center, radius, height, axis, collider, albedo, edge, lambda r, h: h / 2)
 
 
 def mesh(name: str, points, faces, collider: bool = False, moving: bool = False, points_at=None,

@@ -78,26 +78,24 @@ def test_angle_weighting_is_tessellation_independent():
     np.testing.assert_allclose(np.abs(n), 1 / np.sqrt(3), atol=1e-12)
 
 
-def test_split_creases_unshares_cap_rims_not_smooth_sides():
-    """A cylinder split at its creases: its cap rims get a copy each (48 vertices a cap), its
-    7.5-degree side steps stay shared, the triangles are the same; a mesh without creases (an
-    icosphere) comes back unchanged."""
-    from warpshade.geometry.shapes import split_creases
+def test_axial_shapes_have_caps_of_their_own_and_stay_closed():
+    """A cylinder's caps have vertices of their own (each cap's rim 48 vertices, the side's rims 48
+    each, at the same positions), every vertex's normal is its cap's or horizontal, and the surface is
+    a closed solid wound outward. Counts for r = 0.5, height 1, edge 0.1: 48 sections (2 pi r / 0.1 =
+    32 < the 48 minimum), 5 rings and a centre a cap, 11 rings on the side."""
+    from warpshade.geometry import closed_orientation
+    from warpshade.geometry.shapes import axial_shape
 
-    cyl = trimesh.creation.cylinder(radius=0.5, height=1.0, sections=48)
-    v, f = split_creases(cyl.vertices, cyl.faces)
-    assert len(v) == len(cyl.vertices) + 2 * 48
-    np.testing.assert_array_equal(v[f], np.asarray(cyl.vertices)[cyl.faces])
-    np.testing.assert_array_equal(v[:len(cyl.vertices)], cyl.vertices)
+    v, f = axial_shape("cylinder", 0.5, 1.0, 0.1)
+    assert len(v) == 2 * (5 * 48 + 1) + 11 * 48
     n = vertex_normals_np(v, f)
     rim = (np.abs(np.abs(v[:, 2]) - 0.5) < 1e-9) & (np.abs(np.linalg.norm(v[:, :2], axis=1) - 0.5) < 1e-9)
     on_cap = np.abs(n[:, 2]) > 1 - 1e-9
     side = np.abs(n[:, 2]) < 1e-9
     assert (on_cap | side).all() and (rim & on_cap).sum() == (rim & side).sum() == 96
-    ico = trimesh.creation.icosphere(subdivisions=2)
-    sv, sf = split_creases(ico.vertices, ico.faces)
-    np.testing.assert_array_equal(sv, ico.vertices)
-    np.testing.assert_array_equal(sf, ico.faces)
+    assert closed_orientation(v, f) == 1
+    for kind in ("cone", "capsule"):
+        assert closed_orientation(*axial_shape(kind, 0.5, 1.0, 0.1)) == 1, kind
 
 
 def test_box_faces_are_grids_of_their_own():
@@ -107,7 +105,7 @@ def test_box_faces_are_grids_of_their_own():
     triangle spanning three rows draws a tooth at each rim vertex)."""
     from warpshade.geometry.shapes import box_shape
 
-    v, f = box_shape([1.2, 0.8, 0.8])
+    v, f = box_shape([1.2, 0.8, 0.8], [22, 15, 15])
     n = vertex_normals_np(v, f)
     np.testing.assert_allclose(np.abs(n).max(axis=1), 1.0, atol=1e-12)
     for axis in range(3):
@@ -124,7 +122,7 @@ def test_a_box_split_at_its_rims_is_still_a_closed_solid():
     from warpshade.geometry.shapes import box_shape
     from warpshade.visibility.spheres.fitting import fit_leaf_spheres
 
-    v, f = box_shape([1.0, 1.0, 1.0])
+    v, f = box_shape([1.0, 1.0, 1.0], [22, 22, 22])
     assert closed_orientation(v, f) == 1 and closed_orientation(v, f[:, ::-1]) == -1
     apart = v + 1e-3 * vertex_normals_np(v, f)  # each face moved out along its own normal
     assert closed_orientation(apart, f) == 0
@@ -146,5 +144,5 @@ def test_stitching_joins_open_borders_not_parts_touching_inside():
     faces = np.concatenate([ball.faces, ground_faces + len(ball.vertices)])
     assert np.array_equal(points[len(ball.vertices) + 4], points[bottom])
     np.testing.assert_array_equal(stitched_faces(points, faces), faces)
-    v, f = box_shape([1.0, 1.0, 1.0])
+    v, f = box_shape([1.0, 1.0, 1.0], [22, 22, 22])
     assert len(np.unique(stitched_faces(v, f))) == 6 * 23 * 23 - 12 * 23 + 8  # shared rims, corners once

@@ -406,7 +406,7 @@ def test_faces_with_vertices_of_their_own_block_like_the_welded_surface():
     from warpshade.geometry.mesh import weld_indices
     from warpshade.geometry.shapes import box_shape
 
-    cube = box_shape([1.0, 1.0, 1.0])
+    cube = box_shape([1.0, 1.0, 1.0], [22, 22, 22])
     table, floor = (cube[0] * [1.2, 0.8, 0.8], cube[1]), (cube[0] * [6.0, 0.1, 6.0], cube[1])  # scaled Cubes
     ball = trimesh.creation.icosphere(subdivisions=3, radius=0.15)
     sheet, sheet_faces = grid_sheet(30, 0.0, size=1.0)

@@ -6,7 +6,9 @@ What is read (docs/guide/quickstart.md, "Your own scene", documents every attrib
   if authored, else ``skinned`` for meshes bound to a UsdSkel skeleton, ``animated`` for meshes
   with time-sampled points, ``static`` otherwise.
 * ``UsdGeom.Sphere`` prims, tessellated for shading and kept analytic (``params["sphere"]``) for
-  colliders.
+  colliders; ``Cube``, ``Cylinder``, ``Capsule``, ``Cone``, ``Plane`` tessellated for shading. Every
+  gprim is tessellated for one target edge length (:func:`_gprim_edge`, the rule in
+  :mod:`warpshade.geometry.shapes`), once the whole stage is read.
 * UsdLux ``DomeLight`` (``inputs:texture:file`` -> environment map), ``DistantLight``,
   ``SphereLight``, ``RectLight`` -> :class:`warpshade.scene.LightSpec`.
 * ``UsdPreviewSurface`` ``diffuseColor`` / ``roughness`` of the bound material -> ``Material``
@@ -28,7 +30,7 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 
 from ..geometry.mesh import MeshError, TriMesh
-from ..geometry.shapes import AXIS_FROM_Z, axial_shape, box_shape
+from ..geometry.shapes import AXIS_FROM_Z, fit_budget, gprim_shape, scene_edge, sphere_shape
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
 from .assets import local_file
 from .mesh_io import outward_faces, triangulate, usd_error_message
@@ -43,7 +45,7 @@ _CONTAINERS = {"", "Xform", "Scope", "SkelRoot", "Skeleton", "SkelAnimation", "M
 _LIGHTS = {"DomeLight": "dome", "DistantLight": "distant", "SphereLight": "sphere", "RectLight": "rect"}
 #: Scene-wide ``warpshade:`` settings on the default prim and their Python types.
 SCENE_SETTINGS = {"frames": int, "fps": float, "order": int, "method": str, "writeTransfer": bool,
-                  "substeps": int, "reflections": bool, "refineEdge": float}
+                  "substeps": int, "reflections": bool, "refineEdge": float, "edgeLength": float}
 
 
 def read_scene(path: str) -> Scene:
@@ -114,6 +116,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
 
         default_method = fastest()
     unmarked = []  # meshes whose kind was not authored
+    gprims = []  # gprims in traversal order, read once the stage's size is known
     it = iter(Usd.PrimRange(stage.GetPseudoRoot(), _PRIMS))
     for prim in it:
         if prim.IsPseudoRoot():
@@ -134,14 +137,11 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
                         and UsdGeom.Imageable(sub).ComputeVisibility() != UsdGeom.Tokens.invisible):
                     if sub.IsA(UsdGeom.Mesh):
                         obj = _read_mesh(sub, source, cache, None)
-                    elif sub.IsA(UsdGeom.Sphere):
-                        obj = _read_sphere(sub, source, None)
-                    elif sub.GetTypeName() in _GPRIMS:
-                        obj = _read_gprim(sub, source, None)
-                    else:
-                        continue
-                    if obj.kind == "static" and obj.params.get("collider"):
-                        scene.collision_only.append(obj)
+                        if obj.kind == "static" and obj.params.get("collider"):
+                            scene.collision_only.append(obj)
+                    elif sub.IsA(UsdGeom.Sphere) or sub.GetTypeName() in _GPRIMS:
+                        gprims.append(_Gprim(sub, source, None, scene.collision_only, len(scene.collision_only)))
+                        scene.collision_only.append(None)
             it.PruneChildren()
             continue
         if prim.HasRelationship(BACK_SIDE_OF):
@@ -150,10 +150,9 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             scene.objects.append(_read_mesh(prim, source, cache, default_method))
             if not prim.HasAttribute("warpshade:kind"):
                 unmarked.append(scene.objects[-1])
-        elif prim.IsA(UsdGeom.Sphere):
-            scene.objects.append(_read_sphere(prim, source, default_method))
-        elif tname in _GPRIMS:
-            scene.objects.append(_read_gprim(prim, source, default_method))
+        elif prim.IsA(UsdGeom.Sphere) or tname in _GPRIMS:
+            gprims.append(_Gprim(prim, source, default_method, scene.objects, len(scene.objects)))
+            scene.objects.append(None)  # tessellated below, once the scene's size is known
         elif tname in _LIGHTS:
             scene.lights.append(_read_light(prim, _LIGHTS[tname], source, scene))
         elif tname not in _CONTAINERS and prim.IsA(UsdGeom.Imageable) and not prim.IsA(UsdPhysics.Joint):
@@ -161,6 +160,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             warnings.warn(f"{source}: skipping {prim.GetPath()} ({tname}): warpshade reads Mesh, Sphere, Cube, Cylinder, Capsule, Cone, Plane, "
                           "UsdLux Dome/Distant/Sphere/Rect lights and UsdSkel", SceneWarning, stacklevel=2)
             it.PruneChildren()
+    _read_gprims(scene, gprims, root)
     if not scene.objects:
         raise SceneError(f"{source}: no Mesh or gprim (Sphere, Cube, Cylinder, Capsule, Cone, Plane) to shade")
     for obj in unmarked:
@@ -297,21 +297,22 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> Scene
     return _object(prim, where, tri, kind, settings, params, default_method, _material(prim, where))
 
 
-def _read_sphere(prim, source: str, default_method) -> SceneObject:
-    import trimesh
-
+def _read_sphere(prim, source: str, default_method, edge: float) -> SceneObject:
     where = f"{source}:{prim.GetPath()}"
     settings = _namespace(prim, source)
+    settings.pop("edgeLength", None)  # in ``edge`` already (_gprim_edge)
     radius = float(UsdGeom.Sphere(prim).GetRadiusAttr().Get())
     if not radius > 0:
         raise SceneError(f"{where}: sphere radius must be > 0, got {radius}")
-    subdiv = int(settings.pop("subdivisions", 3))
-    ico = trimesh.creation.icosphere(subdivisions=subdiv, radius=radius)
     xf = _world(prim)
-    tri = TriMesh(_apply(xf, np.asarray(ico.vertices)), outward_faces(np.asarray(ico.faces), prim, xf), name=where)
+    if "subdivisions" in settings:
+        verts, faces = sphere_shape(radius, int(settings.pop("subdivisions")))
+    else:
+        verts, faces = gprim_shape("sphere", {"radius": radius}, np.linalg.norm(xf[:3, :3], axis=0), edge)
+    tri = TriMesh(_apply(xf, verts), outward_faces(faces, prim, xf), name=where)
     kind = _gprim_kind(prim, settings, where)
     if kind == "animated":
-        params = {"points_at": _moved_points(prim, np.asarray(ico.vertices))}
+        params = {"points_at": _moved_points(prim, verts)}
     else:
         scale = float(np.cbrt(abs(np.linalg.det(xf[:3, :3]))))
         params = {"sphere": {"center": xf[:3, 3].copy(), "radius": radius * scale}}
@@ -342,38 +343,116 @@ def _moved_points(prim, local: np.ndarray):
 _GPRIMS = ("Cube", "Cylinder", "Capsule", "Cone", "Plane")
 """UsdGeom gprims other than Sphere that are read: tessellated for shading, mesh colliders when marked."""
 
-def _gprim_mesh(prim, where):
-    """Tessellation of a Cube/Cylinder/Capsule/Cone/Plane gprim in its local frame: ``(vertices (V, 3),
-    triangles (F, 3))``, split at its creases (:mod:`warpshade.geometry.shapes`)."""
-    import trimesh
-
-    tname = prim.GetTypeName()
-    get = lambda name: float(prim.GetAttribute(name).Get())  # noqa: E731 - schema attributes with fallbacks
-    dims = {"Cube": ("size",), "Cylinder": ("radius", "height"), "Capsule": ("radius", "height"),
-            "Cone": ("radius", "height"), "Plane": ("width", "length")}[tname]
-    for name in dims:
-        if not get(name) > 0 and not (tname == "Capsule" and name == "height" and get(name) == 0):
-            raise SceneError(f"{where}: {tname} {name} must be > 0, got {get(name)}")
-    if tname == "Cube":
-        verts, faces = box_shape([get("size")] * 3)
-    elif tname == "Plane":
-        w, ln = get("width"), get("length")
-        verts = np.array([[-w / 2, -ln / 2, 0], [w / 2, -ln / 2, 0], [w / 2, ln / 2, 0], [-w / 2, ln / 2, 0]])
-        m = trimesh.Trimesh(verts, [[0, 1, 2], [0, 2, 3]], process=False).subdivide_to_size(max(w, ln) / 32.0,
-                                                                                            max_iter=8)
-        verts, faces = np.asarray(m.vertices), np.asarray(m.faces)
-    else:  # Cylinder, Capsule, Cone: USD centres them on the origin
-        verts, faces = axial_shape(tname.lower(), get("radius"), get("height"))
-    axis = str(prim.GetAttribute("axis").Get() or "Z") if tname != "Cube" else "Z"
-    if axis not in AXIS_FROM_Z:
-        raise SceneError(f"{where}: {tname} axis must be X, Y or Z, got {axis!r}")
-    return verts @ AXIS_FROM_Z[axis].T, faces
+_DIMS = {"Sphere": ("radius",), "Cube": ("size",), "Cylinder": ("radius", "height"), "Capsule": ("radius", "height"),
+         "Cone": ("radius", "height"), "Plane": ("width", "length")}
+"""A gprim's size attributes (UsdGeom's, with their schema fallbacks)."""
 
 
-def _read_gprim(prim, source: str, default_method) -> SceneObject:
+class _Gprim:
+    """A gprim met in the traversal, read once the stage's size is known: where its object goes
+    (``target[index]``), its shape for the tessellation rule (``kind``, ``dims``, ``scale``: world length
+    of a unit along each local axis of the shape built along +Z) and its own ``warpshade:edgeLength``."""
+
+    def __init__(self, prim, source: str, default_method, target: list, index: int):
+        self.prim, self.source, self.default_method, self.target, self.index = prim, source, default_method, target, index
+        self.where = where = f"{source}:{prim.GetPath()}"
+        tname = prim.GetTypeName()
+        get = lambda name: float(prim.GetAttribute(name).Get())  # noqa: E731 - schema attributes with fallbacks
+        self.dims = {name: get(name) for name in _DIMS[tname]}
+        if tname != "Sphere":
+            for name, value in self.dims.items():
+                if not value > 0 and not (tname == "Capsule" and name == "height" and value == 0):
+                    raise SceneError(f"{where}: {tname} {name} must be > 0, got {value}")
+        self.axis = str(prim.GetAttribute("axis").Get() or "Z") if tname not in ("Cube", "Sphere") else "Z"
+        if self.axis not in AXIS_FROM_Z:
+            raise SceneError(f"{where}: {tname} axis must be X, Y or Z, got {self.axis!r}")
+        self.kind = tname.lower()
+        self.scale = np.linalg.norm(_world(prim)[:3, :3] @ AXIS_FROM_Z[self.axis], axis=0)
+        attr = prim.GetAttribute("warpshade:edgeLength")
+        self.edge = _edge_length(attr.Get(), where) if attr and attr.HasAuthoredValue() else None
+        self.own = self.edge is not None or prim.HasAttribute("warpshade:subdivisions")  # not the scene's edge
+
+    def corners(self) -> np.ndarray:
+        """The 8 corners of its local bounds in world space (UsdGeom's computed extent)."""
+        lo, hi = (np.asarray(c, dtype=np.float64) for c in
+                  UsdGeom.Boundable.ComputeExtentFromPlugins(UsdGeom.Boundable(self.prim), Usd.TimeCode.EarliestTime()))
+        box = np.array([[(hi if (i >> k) & 1 else lo)[k] for k in range(3)] for i in range(8)])
+        return _apply(_world(self.prim), box)
+
+    def read(self, edge: float) -> None:
+        """Tessellate for ``edge`` (its own ``warpshade:edgeLength`` if authored) and put the object in place."""
+        edge = self.edge or edge
+        if self.kind == "sphere":
+            obj = _read_sphere(self.prim, self.source, self.default_method, edge)
+        else:
+            obj = _read_gprim(self.prim, self.source, self.default_method, self._mesh(edge))
+        self.target[self.index] = obj
+
+    def _mesh(self, edge: float):
+        verts, faces = gprim_shape(self.kind, self.dims, self.scale, edge)
+        return verts @ AXIS_FROM_Z[self.axis].T, faces
+
+
+def _edge_length(value, where: str) -> float:
+    """A ``warpshade:edgeLength`` value: a finite length > 0, else a SceneError naming the prim."""
+    try:
+        edge = float(value)
+    except (TypeError, ValueError):
+        edge = float("nan")
+    if not (np.isfinite(edge) and edge > 0) or isinstance(value, (bool, str)):
+        raise SceneError(f"{where}: warpshade:edgeLength must be a length > 0 [scene units], got {value!r}")
+    return edge
+
+
+def _gprim_edge(scene: Scene, gprims: list, root) -> float | None:
+    """The target edge of the scene's gprims [scene units]: the default prim's ``warpshade:edgeLength``
+    if authored, else :func:`~warpshade.geometry.shapes.scene_edge` of the bounding box of the shaded
+    objects and gprims and of the cloths' median edges; coarsened, with a :class:`SceneWarning`, until
+    the gprims without an edge of their own fit :data:`~warpshade.geometry.shapes.VERTEX_BUDGET`."""
+    chosen = scene.settings.get("edgeLength")
+    if chosen is not None:
+        return _edge_length(chosen, f"{scene.source}:{root.GetPath()}")
+    shaded = [g for g in gprims if g.target is scene.objects]
+    points = [o.mesh.points for o in scene.objects if o is not None] + [g.corners() for g in shaded]
+    if not points:
+        return None
+    diag = float(np.linalg.norm(np.ptp(np.concatenate(points), axis=0)))
+    cloth = []
+    for o in scene.objects:
+        if o is not None and o.kind == "cloth":
+            tri = o.mesh.points[o.mesh.faces].astype(np.float64)
+            cloth.append(float(np.median(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2))))
+    edge = scene_edge(diag, cloth)
+    auto = [g for g in shaded if not g.own]
+    fitted = fit_budget([(g.kind, g.dims, g.scale) for g in auto], edge) if edge else edge
+    if fitted != edge:
+        from ..geometry.shapes import VERTEX_BUDGET
+
+        warnings.warn(f"{scene.source}: gprims tessellated for edges of {fitted:.3g} instead of {edge:.3g} scene units "
+                      f"to stay within {VERTEX_BUDGET} vertices; warpshade:edgeLength on the default prim (every gprim) "
+                      "or on a gprim (that one) chooses", SceneWarning, stacklevel=3)
+    return fitted
+
+
+def _read_gprims(scene: Scene, gprims: list, root) -> None:
+    """Tessellate the gprims met in the traversal for the scene's target edge and put their objects in
+    place (collision-only ones only if they are static colliders, as meshes)."""
+    if not gprims:
+        return
+    edge = _gprim_edge(scene, gprims, root)
+    for g in gprims:
+        g.read(edge)
+    scene.collision_only[:] = [o for o in scene.collision_only
+                               if o is not None and o.kind == "static" and o.params.get("collider")]
+
+
+def _read_gprim(prim, source: str, default_method, mesh) -> SceneObject:
+    """A Cube/Cylinder/Capsule/Cone/Plane gprim's object, ``mesh`` = its tessellation in its local
+    frame ``(vertices (V, 3), triangles (F, 3))``."""
     where = f"{source}:{prim.GetPath()}"
     settings = _namespace(prim, source)
-    verts, faces = _gprim_mesh(prim, where)
+    settings.pop("edgeLength", None)  # in ``mesh`` already
+    verts, faces = mesh
     xf = _world(prim)
     tri = TriMesh(_apply(xf, verts), outward_faces(faces, prim, xf), name=where)
     kind = _gprim_kind(prim, settings, where)
@@ -436,7 +515,7 @@ def _axial_collider(prim, where) -> tuple[str, dict] | None:
     radius = float(prim.GetAttribute("radius").Get())
     height = float(prim.GetAttribute("height").Get())
     if axis not in _AXES or not radius > 0 or not (height > 0 or (tname == "Capsule" and height == 0)):
-        return None  # _gprim_mesh has already raised for these
+        return None  # _Gprim has already raised for these
     xf = _world(prim)
     lin = xf[:3, :3]
     scale = np.linalg.norm(lin, axis=0)
