@@ -274,13 +274,6 @@ def cube_cell_xyz(x: float, y: float, z: float, res: int) -> int:
 
 
 @wp.func(inline=True)
-def row_at(row: int, width: int, col: int) -> int:
-    """Index of entry (``row``, ``col``) of a row-major table of rows of ``width`` entries held as a
-    1-D array (kernels take their tables 1-D so that Warp's CPU code runs on its contiguous path)."""
-    return row * width + col
-
-
-@wp.func(inline=True)
 def lut_chunk(lut: PlaneLut, code: int, ch: int) -> MaskChunk:
     """Chunk ``ch`` of the row of ``code`` (:func:`cube_cell`), without the valid-pixel AND: the
     stored row, complemented for a negative face (XOR with all ones, no select). A negative face
@@ -548,7 +541,7 @@ def chunk_any(x: MaskChunk) -> bool:
 
 
 @wp.func(inline=False)
-def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: wp.array[wp.uint64], bt: Batch) -> int:
+def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: wp.array2d[wp.uint64], bt: Batch) -> int:
     """Rasterize the ``nb`` queued triangles of receiver ``v`` (:class:`Batch`); returns 0 (the new
     queue length). First all their LUT codes (straight-line arithmetic), then their images.
 
@@ -577,14 +570,14 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
         acc = acc & lut.valid[ch]
         for i in range(wp.min(CHUNK_WORDS, lut.words - ch * CHUNK_WORDS)):
             w = ch * CHUNK_WORDS + i
-            mask[row_at(v, lut.words, w)] = mask[row_at(v, lut.words, w)] | acc[i]
+            mask[v, w] = mask[v, w] | acc[i]
     bt.counts[v] = bt.counts[v] + done
     return 0
 
 
 @wp.func(inline=True)
 def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, src: int, skip: bool, area: float, fine_flag: int, nb: int, v: int,
-                  sl: int, frame: wp.mat33, lut: PlaneLut, mask: wp.array[wp.uint64], bt: Batch) -> int:
+                  sl: int, frame: wp.mat33, lut: PlaneLut, mask: wp.array2d[wp.uint64], bt: Batch) -> int:
     """Queue triangle (a, b, c) (corners relative to the receiver) for receiver ``v`` unless ``skip``
     or it is wholly at or below the horizon; flushes a full queue. Returns the new queue length.
 
@@ -606,7 +599,7 @@ def push_triangle(a: wp.vec3, b: wp.vec3, c: wp.vec3, src: int, skip: bool, area
 
 @wp.func(inline=True)
 def rasterize_fan(v: int, sl: int, p: wp.vec3, n: wp.vec3, fine: FineMesh, frame: wp.mat33, lut: PlaneLut,
-                  mask: wp.array[wp.uint64], bt: Batch, nb: int) -> int:
+                  mask: wp.array2d[wp.uint64], bt: Batch, nb: int) -> int:
     """Queue the receiver's own triangles as seen from just above it; returns the queue length.
 
     Seen from the vertex itself, a triangle through it subtends no solid angle; but where the surface
@@ -935,8 +928,7 @@ def mark_refined(
     blockers: Blockers,
     groups: Refinement,
     near_mode: int,
-    excl: wp.array[wp.uint32],
-    excl_words: int,
+    excl: wp.array2d[wp.uint32],
     cluster_start: wp.array[wp.int32],
     cluster_lo: wp.array[wp.vec3],
     cluster_hi: wp.array[wp.vec3],
@@ -959,8 +951,8 @@ def mark_refined(
     for w in range(blockers.refined.shape[1]):
         blockers.refined[sl, w] = wp.uint64(0)
     if near_mode == 2:
-        for w in range(excl_words):
-            x = excl[row_at(v, excl_words, w)]
+        for w in range(excl.shape[1]):
+            x = excl[v, w]
             while x != wp.uint32(0):
                 b = wp.bit_count((x & (~x + wp.uint32(1))) - wp.uint32(1))
                 x = x & (x - wp.uint32(1))
@@ -1025,7 +1017,7 @@ def queue_candidates(
     fine: FineMesh,
     frame: wp.mat33,
     lut: PlaneLut,
-    mask: wp.array[wp.uint64],
+    mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
 ) -> int:
@@ -1058,7 +1050,7 @@ def rasterize_group(
     blockers: Blockers,
     frame: wp.mat33,
     lut: PlaneLut,
-    mask: wp.array[wp.uint64],
+    mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
 ) -> int:
@@ -1114,7 +1106,7 @@ def rasterize_mid_fine(
     blockers: Blockers,
     frame: wp.mat33,
     lut: PlaneLut,
-    mask: wp.array[wp.uint64],
+    mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
 ) -> int:
@@ -1155,7 +1147,7 @@ def rasterize_mid_group(
     blockers: Blockers,
     frame: wp.mat33,
     lut: PlaneLut,
-    mask: wp.array[wp.uint64],
+    mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
 ) -> int:
@@ -1249,7 +1241,7 @@ def queue_fine_set(
     level: Refinement,
     frame: wp.mat33,
     lut: PlaneLut,
-    mask: wp.array[wp.uint64],
+    mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
 ) -> int:
@@ -1295,7 +1287,7 @@ def rasterize_fine_set(
     blockers: Blockers,
     frame: wp.mat33,
     lut: PlaneLut,
-    mask: wp.array[wp.uint64],
+    mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
 ) -> int:
@@ -1320,7 +1312,7 @@ def rasterize_mid_set(
     blockers: Blockers,
     frame: wp.mat33,
     lut: PlaneLut,
-    mask: wp.array[wp.uint64],
+    mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
 ) -> int:
@@ -1394,9 +1386,9 @@ def rasterize_mid_set(
 
 
 @wp.func
-def excluded(excl: wp.array[wp.uint32], excl_words: int, v: int, t: int) -> bool:
-    """Bit ``t`` of receiver ``v``'s exclusion set (rows of ``excl_words`` words)."""
-    return (excl[row_at(v, excl_words, t >> 5)] >> wp.uint32(t & 31)) & wp.uint32(1) != wp.uint32(0)
+def excluded(excl: wp.array2d[wp.uint32], v: int, t: int) -> bool:
+    """Bit ``t`` of receiver ``v``'s exclusion set."""
+    return (excl[v, t >> 5] >> wp.uint32(t & 31)) & wp.uint32(1) != wp.uint32(0)
 
 
 @wp.func(inline=True)
@@ -1408,7 +1400,7 @@ def queue_blocker(
     blockers: Blockers,
     frame: wp.mat33,
     lut: PlaneLut,
-    mask: wp.array[wp.uint64],
+    mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
 ) -> int:
@@ -1451,11 +1443,10 @@ def rasterize_far_chunk(
     mids: MidLevel,
     blockers: Blockers,
     use_excl: int,
-    excl: wp.array[wp.uint32],
-    excl_words: int,
+    excl: wp.array2d[wp.uint32],
     frame: wp.mat33,
     lut: PlaneLut,
-    mask: wp.array[wp.uint64],
+    mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
 ) -> int:
@@ -1490,7 +1481,7 @@ def rasterize_far_chunk(
     if use_excl == 1:
         # near-field exclusion bits of the paper scheme (no refinement): dropped
         for t in range(t0, t1):
-            ex = ex | wp.where(excluded(excl, excl_words, v, blockers.source[t]), wp.uint64(1) << wp.uint64(t - t0), zero)
+            ex = ex | wp.where(excluded(excl, v, blockers.source[t]), wp.uint64(1) << wp.uint64(t - t0), zero)
     keep = ~(ex | refine_bits | cull | tiny)
     if t1 - t0 < 64:
         keep = keep & ((wp.uint64(1) << wp.uint64(t1 - t0)) - wp.uint64(1))
@@ -1522,8 +1513,7 @@ def rasterize_masks(
     ring_tris: wp.array[wp.int32],
     blockers: Blockers,
     use_excl: int,
-    excl: wp.array[wp.uint32],
-    excl_words: int,
+    excl: wp.array2d[wp.uint32],
     groups: Refinement,
     sub: Refinement,
     mids: MidLevel,
@@ -1543,7 +1533,7 @@ def rasterize_masks(
     receivers: wp.array[wp.int32],
     num_receivers: int,
     num_slots: int,
-    mask: wp.array[wp.uint64],
+    mask: wp.array2d[wp.uint64],
     refined: wp.array[wp.int32],
 ):
     """Per receiver vertex: rasterize its blockers into its visibility mask (paper §3.1).
@@ -1570,7 +1560,7 @@ def rasterize_masks(
         n = normals[v]
         frame = orthonormal_basis(n)
         for w in range(lut.words):
-            mask[row_at(v, lut.words, w)] = wp.uint64(0)
+            mask[v, w] = wp.uint64(0)
         if groups.use_seen != 0:
             for w in range(groups.seen.shape[1]):
                 groups.seen[sl, w] = wp.uint64(0)
@@ -1584,7 +1574,7 @@ def rasterize_masks(
             mids.counts[v] = 0
         bt.counts[v] = 0
         refined[v] = 0
-        mark_refined(v, sl, p, n, lut, blockers, groups, use_excl, excl, excl_words, cluster_start, cluster_lo, cluster_hi,
+        mark_refined(v, sl, p, n, lut, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi,
                      cluster_reach)
         nb = int(0)
         if fine.fan != 0:
@@ -1604,7 +1594,7 @@ def rasterize_masks(
         if use_pvs != 0:
             for r in range(pvs_start[v], pvs_start[v + 1]):
                 t = pvs_tris[r]
-                nb = rasterize_far_chunk(t, t + 1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, excl_words, frame,
+                nb = rasterize_far_chunk(t, t + 1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame,
                                          lut, mask, bt, nb)
         elif use_cull != 0:
             for s in range(super_start.shape[0] - 1):
@@ -1613,12 +1603,12 @@ def rasterize_masks(
                         if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
                             for t0 in range(cluster_start[c], cluster_start[c + 1], FAR_CHUNK):
                                 t1 = wp.min(t0 + FAR_CHUNK, cluster_start[c + 1])
-                                nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, excl_words,
+                                nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl,
                                                          frame, lut, mask, bt, nb)
         else:
             for t0 in range(0, blockers.faces.shape[0], FAR_CHUNK):
                 t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
-                nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, excl_words, frame, lut,
+                nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame, lut,
                                          mask, bt, nb)
         if groups.use_set != 0 and bt.record == 0:
             if mids.on != 0:

@@ -761,13 +761,13 @@ class HemirasterTransfer(TransferMethod):
                 dim=min(self._slots, n),
                 inputs=[self._fine, self.normals, self._ring_start, self._ring_tris,
                         self._blockers,
-                        self._near_mode, self._excl.flatten(), self._excl.shape[1],
+                        self._near_mode, self._excl,
                         self._groups, self._sub, self._mids,
                         1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
                         self._super_start, *self._super_box,
                         use_pvs, self._pvs_start, self._pvs_tris,
                         self._lut, self._batch, part, n, self._slots],
-                outputs=[self._mask.flatten(), self._refined],
+                outputs=[self._mask, self._refined],
                 device=self.device,
             )
             start += n
