@@ -47,6 +47,88 @@ def edge_orientation(a: wp.vec3, b: wp.vec3, c: wp.vec3, d: wp.vec3) -> float:
     return 0.0
 
 
+@wp.func
+def triple(u: wp.vec3, v: wp.vec3, w: wp.vec3) -> float:
+    return wp.dot(wp.cross(u, v), w)
+
+
+@wp.func
+def coplanarity(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3, b1: wp.vec3, c1: wp.vec3,
+                d1: wp.vec3, t: float) -> float:
+    """det[b - a, d - c, c - a] of the four points moved linearly a fraction t from 0 to 1."""
+    a = a0 + (a1 - a0) * t
+    b = b0 + (b1 - b0) * t
+    c = c0 + (c1 - c0) * t
+    d = d0 + (d1 - d0) * t
+    return triple(b - a, d - c, c - a)
+
+
+@wp.func
+def crossing_in(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3, b1: wp.vec3, c1: wp.vec3,
+                d1: wp.vec3, lo: float, hi: float, tol: float) -> bool:
+    """Whether the segments cross at a sign change of their coplanarity on [lo, hi] (where it is
+    monotone): the root, found by bisection, has the segments within tol of each other."""
+    flo = coplanarity(a0, b0, c0, d0, a1, b1, c1, d1, lo)
+    fhi = coplanarity(a0, b0, c0, d0, a1, b1, c1, d1, hi)
+    if (flo > 0.0 and fhi > 0.0) or (flo < 0.0 and fhi < 0.0):
+        return False
+    for _ in range(32):
+        mid = 0.5 * (lo + hi)
+        fm = coplanarity(a0, b0, c0, d0, a1, b1, c1, d1, mid)
+        if (fm > 0.0 and flo > 0.0) or (fm < 0.0 and flo < 0.0):
+            lo = mid
+            flo = fm
+        else:
+            hi = mid
+    t = 0.5 * (lo + hi)
+    a = a0 + (a1 - a0) * t
+    b = b0 + (b1 - b0) * t
+    c = c0 + (c1 - c0) * t
+    d = d0 + (d1 - d0) * t
+    st = closest_segments(a, b, c, d)
+    return wp.length((a + (b - a) * st[0]) - (c + (d - c) * st[1])) <= tol
+
+
+@wp.func
+def segments_cross(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3, b1: wp.vec3, c1: wp.vec3,
+                   d1: wp.vec3, tol: float) -> bool:
+    """Whether segments ab and cd pass through each other (come within tol at a moment their four
+    points are coplanar) while every point moves linearly from its position 0 to its position 1
+    (continuous collision detection: the coplanarity det[b - a, d - c, c - a] is a cubic in time,
+    cut at its turning points into monotone pieces whose roots are found by bisection)."""
+    u0 = b0 - a0
+    du = (b1 - a1) - u0
+    v0 = d0 - c0
+    dv = (d1 - c1) - v0
+    w0 = c0 - a0
+    dw = (c1 - a1) - w0
+    k1 = triple(du, v0, w0) + triple(u0, dv, w0) + triple(u0, v0, dw)
+    k2 = triple(du, dv, w0) + triple(du, v0, dw) + triple(u0, dv, dw)
+    k3 = triple(du, dv, dw)
+    # turning points: roots of 3 k3 t^2 + 2 k2 t + k1 inside (0, 1), in order
+    r0 = float(1.0)
+    r1 = float(1.0)
+    qa = 3.0 * k3
+    qb = 2.0 * k2
+    if qa != 0.0:
+        disc = qb * qb - 4.0 * qa * k1
+        if disc > 0.0:
+            sq = wp.sqrt(disc)
+            ta = (-qb - sq) / (2.0 * qa)
+            tb = (-qb + sq) / (2.0 * qa)
+            r0 = wp.clamp(wp.min(ta, tb), 0.0, 1.0)
+            r1 = wp.clamp(wp.max(ta, tb), 0.0, 1.0)
+    elif qb != 0.0:
+        r0 = wp.clamp(-k1 / qb, 0.0, 1.0)
+    if crossing_in(a0, b0, c0, d0, a1, b1, c1, d1, 0.0, r0, tol):
+        return True
+    if r1 > r0 and crossing_in(a0, b0, c0, d0, a1, b1, c1, d1, r0, r1, tol):
+        return True
+    if r1 < 1.0:
+        return crossing_in(a0, b0, c0, d0, a1, b1, c1, d1, r1, 1.0, tol)
+    return False
+
+
 # ---------------------------------------------------------------------------------------------
 # Edge-edge self-contact
 # ---------------------------------------------------------------------------------------------
@@ -252,6 +334,42 @@ def solve_edge_contacts(
         wp.atomic_add(delta_count, i1, 1.0)
         wp.atomic_add(delta_count, j0, 1.0)
         wp.atomic_add(delta_count, j1, 1.0)
+
+
+@wp.kernel
+def update_edge_sides(
+    x_from: wp.array[wp.vec3],
+    x_to: wp.array[wp.vec3],
+    edges: wp.array2d[int],
+    contact_edge: wp.array2d[int],
+    contact_side: wp.array2d[float],
+    contact_count: wp.array[int],
+    tol: float,
+):
+    """Follow the edge pairs' stored sides along a motion from x_from to x_to (every vertex moving
+    linearly): a pair whose orientation sign was its stored side at x_from and is the other at
+    x_to takes the new sign unless the two edges passed through each other on the way
+    (:func:`segments_cross` within tol). Turning past parallel, or the lines passing through
+    each other beside an end of either edge, flips the sign without a crossing; a side kept
+    across such a flip would pull the edges back through whatever lies between them."""
+    e = wp.tid()
+    i0 = edges[e, 0]
+    i1 = edges[e, 1]
+    for k in range(contact_count[e]):
+        side = contact_side[e, k]
+        if side == 0.0:
+            continue
+        f = contact_edge[e, k]
+        j0 = edges[f, 0]
+        j1 = edges[f, 1]
+        now = edge_orientation(x_to[i0], x_to[i1], x_to[j0], x_to[j1])
+        if now == 0.0 or now == side:
+            continue
+        if edge_orientation(x_from[i0], x_from[i1], x_from[j0], x_from[j1]) != side:
+            continue  # already on the other side at x_from: a crossing in progress keeps its side
+        if not segments_cross(x_from[i0], x_from[i1], x_from[j0], x_from[j1],
+                              x_to[i0], x_to[i1], x_to[j0], x_to[j1], tol):
+            contact_side[e, k] = now
 
 
 # ---------------------------------------------------------------------------------------------

@@ -279,6 +279,8 @@ class XPBDSolver:
                 cmds["moved"].launch()
             for c in cmds["velocities"]:
                 c.launch()
+            if self._contacts_found and "sides" in cmds:
+                cmds["sides"].launch()
 
         if self.guard:
             self._guard_intersections(x, v, dt)
@@ -359,6 +361,8 @@ class XPBDSolver:
                                           outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
             contacts.append(wp.launch(k.apply_averaged_deltas, dim=n, inputs=[],
                                       outputs=[self._delta, self._delta_count, x], device=d, record_cmd=True))
+            if self.edge_contact:
+                cmds["sides"] = self._side_update(self._x_prev, x, record_cmd=True)
         cmds["contacts"] = contacts
         vel = [wp.launch(k.update_velocities, dim=n, inputs=[x, self._x_prev, h], outputs=[v], device=d,
                          record_cmd=True)]
@@ -540,12 +544,28 @@ class XPBDSolver:
             if col is not None:
                 col.collide(m.thickness, m.inv_mass, self._x_start, x)
         if self.guard_vertices:
+            if self.edge_contact and self._contacts_found:
+                self._side_update(self._x_unguarded, x)
             wp.launch(ck.reverted_velocities, dim=n, inputs=[self._reverted, self._x_start, x, dt], outputs=[v],
                       device=d)
             self.guard_vertices = int(self._reverted.numpy().sum())
         wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
         if self.guard_vertices:
             self.guard_longest_hold = max(self.guard_longest_hold, int(self._streak.numpy().max()))
+
+    SIDE_CROSSING_TOL = 1.0e-3
+    """Edges that come within this fraction of the thickness of each other at a moment their four
+    points are coplanar have passed through each other: an edge pair's stored side is kept across
+    such a motion and follows a sign flip without one (:func:`contact_kernels.update_edge_sides`)."""
+
+    def _side_update(self, x_from, x_to, record_cmd: bool = False):
+        """Launch (or record) :func:`contact_kernels.update_edge_sides` on the edge contact rows
+        for the motion from x_from to x_to."""
+        m = self.model
+        return wp.launch(ck.update_edge_sides, dim=m.edge_count,
+                         inputs=[x_from, x_to, m.edges, self._ee_rows["ids"], self._ee_rows["sides"],
+                                 self._contact_ecount, self.SIDE_CROSSING_TOL * m.thickness],
+                         device=self.device, record_cmd=record_cmd)
 
     PUSH_OFF_PASSES = 4
     """Extra sharp-edge and vertex passes the guard tries on a step whose intersections a moving
