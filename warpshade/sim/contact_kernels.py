@@ -129,6 +129,27 @@ def segments_cross(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.ve
     return False
 
 
+@wp.func
+def followed_side(side: float, a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3, b1: wp.vec3,
+                  c1: wp.vec3, d1: wp.vec3, tol: float) -> float:
+    """An edge pair's side after its four points moved linearly from 0 to 1: when the orientation
+    sign was `side` at 0 and is the other at 1, the new sign unless the edges passed through each
+    other on the way (:func:`segments_cross` within tol); else `side`. Turning past parallel, or
+    the lines passing through each other beside an end of either edge, flips the sign without a
+    crossing; a side kept across such a flip would pull the edges back through whatever lies
+    between them. A pair already on the other side at 0 (a crossing in progress) keeps its side."""
+    if side == 0.0:
+        return side
+    now = edge_orientation(a1, b1, c1, d1)
+    if now == 0.0 or now == side:
+        return side
+    if edge_orientation(a0, b0, c0, d0) != side:
+        return side
+    if segments_cross(a0, b0, c0, d0, a1, b1, c1, d1, tol):
+        return side
+    return now
+
+
 # ---------------------------------------------------------------------------------------------
 # Edge-edge self-contact
 # ---------------------------------------------------------------------------------------------
@@ -267,12 +288,15 @@ def solve_edge_contacts(
     contact_count: wp.array[int],
     thickness: float,
     friction: float,
+    side_tol: float,
     delta: wp.array[wp.vec3],
     delta_count: wp.array[float],
 ):
     """Edge-edge separation: the closest points of two edges (both strictly inside their edges)
-    are kept `thickness` apart along the edges' common normal, on the stored side, with
-    position-based Coulomb friction on their relative tangential motion over the substep."""
+    are kept `thickness` apart along the edges' common normal, on the stored side followed from
+    the substep's start (:func:`followed_side` within side_tol; the stored side itself is updated
+    at the substep's end, :func:`update_edge_sides`), with position-based Coulomb friction on
+    their relative tangential motion over the substep."""
     e = wp.tid()
     i0 = edges[e, 0]
     i1 = edges[e, 1]
@@ -301,6 +325,8 @@ def solve_edge_contacts(
             if side == 0.0:
                 continue
             contact_side[e, k] = side
+        else:
+            side = followed_side(side, x_prev[i0], x_prev[i1], x_prev[j0], x_prev[j1], a, b, c, d, side_tol)
         # side > 0: edge cd lies on the +n side of edge ab
         p = a + (b - a) * s
         q = c + (d - c) * t
@@ -346,12 +372,8 @@ def update_edge_sides(
     contact_count: wp.array[int],
     tol: float,
 ):
-    """Follow the edge pairs' stored sides along a motion from x_from to x_to (every vertex moving
-    linearly): a pair whose orientation sign was its stored side at x_from and is the other at
-    x_to takes the new sign unless the two edges passed through each other on the way
-    (:func:`segments_cross` within tol). Turning past parallel, or the lines passing through
-    each other beside an end of either edge, flips the sign without a crossing; a side kept
-    across such a flip would pull the edges back through whatever lies between them."""
+    """The edge pairs' stored sides followed along a motion from x_from to x_to
+    (:func:`followed_side`)."""
     e = wp.tid()
     i0 = edges[e, 0]
     i1 = edges[e, 1]
@@ -362,14 +384,8 @@ def update_edge_sides(
         f = contact_edge[e, k]
         j0 = edges[f, 0]
         j1 = edges[f, 1]
-        now = edge_orientation(x_to[i0], x_to[i1], x_to[j0], x_to[j1])
-        if now == 0.0 or now == side:
-            continue
-        if edge_orientation(x_from[i0], x_from[i1], x_from[j0], x_from[j1]) != side:
-            continue  # already on the other side at x_from: a crossing in progress keeps its side
-        if not segments_cross(x_from[i0], x_from[i1], x_from[j0], x_from[j1],
-                              x_to[i0], x_to[i1], x_to[j0], x_to[j1], tol):
-            contact_side[e, k] = now
+        contact_side[e, k] = followed_side(side, x_from[i0], x_from[i1], x_from[j0], x_from[j1],
+                                           x_to[i0], x_to[i1], x_to[j0], x_to[j1], tol)
 
 
 # ---------------------------------------------------------------------------------------------

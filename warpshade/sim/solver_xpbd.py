@@ -357,7 +357,7 @@ class XPBDSolver:
                 contacts.append(wp.launch(ck.solve_edge_contacts, dim=m.edge_count,
                                           inputs=[x, self._x_prev, m.inv_mass, m.edges, self._ee_rows["ids"],
                                                   self._ee_rows["sides"], self._contact_ecount, m.thickness,
-                                                  self.self_friction],
+                                                  self.self_friction, self.SIDE_CROSSING_TOL * m.thickness],
                                           outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
             contacts.append(wp.launch(k.apply_averaged_deltas, dim=n, inputs=[],
                                       outputs=[self._delta, self._delta_count, x], device=d, record_cmd=True))
