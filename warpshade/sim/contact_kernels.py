@@ -49,6 +49,7 @@ def edge_orientation(a: wp.vec3, b: wp.vec3, c: wp.vec3, d: wp.vec3) -> float:
 
 @wp.func
 def triple(u: wp.vec3, v: wp.vec3, w: wp.vec3) -> float:
+    """The triple product det[u, v, w]."""
     return wp.dot(wp.cross(u, v), w)
 
 
@@ -64,10 +65,10 @@ def coplanarity(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3,
 
 
 @wp.func
-def crossing_in(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3, b1: wp.vec3, c1: wp.vec3,
-                d1: wp.vec3, lo: float, hi: float, tol: float) -> bool:
-    """Whether the segments cross at a sign change of their coplanarity on [lo, hi] (where it is
-    monotone): the root, found by bisection, has the segments within tol of each other."""
+def crossing_root(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3, b1: wp.vec3, c1: wp.vec3,
+                  d1: wp.vec3, lo: float, hi: float, tol: float) -> bool:
+    """Whether the coplanarity changes sign on [lo, hi] (where it is monotone) with the segments
+    within tol of each other at the root (found by bisection)."""
     flo = coplanarity(a0, b0, c0, d0, a1, b1, c1, d1, lo)
     fhi = coplanarity(a0, b0, c0, d0, a1, b1, c1, d1, hi)
     if (flo > 0.0 and fhi > 0.0) or (flo < 0.0 and fhi < 0.0):
@@ -92,10 +93,10 @@ def crossing_in(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3,
 @wp.func
 def segments_cross(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3, b1: wp.vec3, c1: wp.vec3,
                    d1: wp.vec3, tol: float) -> bool:
-    """Whether segments ab and cd pass through each other (come within tol at a moment their four
-    points are coplanar) while every point moves linearly from its position 0 to its position 1
-    (continuous collision detection: the coplanarity det[b - a, d - c, c - a] is a cubic in time,
-    cut at its turning points into monotone pieces whose roots are found by bisection)."""
+    """Whether segments ab and cd pass through each other (come within tol of each other at a
+    moment their four points are coplanar) while every point moves linearly from its position 0
+    to its position 1: continuous collision detection, the coplanarity det[b - a, d - c, c - a]
+    being a cubic in time, cut at its turning points into monotone pieces."""
     u0 = b0 - a0
     du = (b1 - a1) - u0
     v0 = d0 - c0
@@ -120,32 +121,51 @@ def segments_cross(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.ve
             r1 = wp.clamp(wp.max(ta, tb), 0.0, 1.0)
     elif qb != 0.0:
         r0 = wp.clamp(-k1 / qb, 0.0, 1.0)
-    if crossing_in(a0, b0, c0, d0, a1, b1, c1, d1, 0.0, r0, tol):
+    if crossing_root(a0, b0, c0, d0, a1, b1, c1, d1, 0.0, r0, tol):
         return True
-    if r1 > r0 and crossing_in(a0, b0, c0, d0, a1, b1, c1, d1, r0, r1, tol):
+    if r1 > r0 and crossing_root(a0, b0, c0, d0, a1, b1, c1, d1, r0, r1, tol):
         return True
-    if r1 < 1.0:
-        return crossing_in(a0, b0, c0, d0, a1, b1, c1, d1, r1, 1.0, tol)
+    return r1 < 1.0 and crossing_root(a0, b0, c0, d0, a1, b1, c1, d1, r1, 1.0, tol)
+
+
+@wp.func
+def crosses_ring(x0: wp.array[wp.vec3], x1: wp.array[wp.vec3], ring_offsets: wp.array[int], ring: wp.array[int],
+                 v: int, p: int, q: int, tol: float) -> bool:
+    """Whether edge pq passed through an edge of vertex v's one ring (other than itself) moving
+    linearly from x0 to x1 (:func:`segments_cross`)."""
+    for r in range(ring_offsets[v], ring_offsets[v + 1]):
+        o = ring[r]
+        if o == p or o == q:
+            continue
+        if segments_cross(x0[v], x0[o], x0[p], x0[q], x1[v], x1[o], x1[p], x1[q], tol):
+            return True
     return False
 
 
 @wp.func
-def followed_side(side: float, a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3, b1: wp.vec3,
-                  c1: wp.vec3, d1: wp.vec3, tol: float) -> float:
-    """An edge pair's side after its four points moved linearly from 0 to 1: when the orientation
-    sign was `side` at 0 and is the other at 1, the new sign unless the edges passed through each
-    other on the way (:func:`segments_cross` within tol); else `side`. Turning past parallel, or
-    the lines passing through each other beside an end of either edge, flips the sign without a
-    crossing; a side kept across such a flip would pull the edges back through whatever lies
-    between them. A pair already on the other side at 0 (a crossing in progress) keeps its side."""
+def followed_side(side: float, x0: wp.array[wp.vec3], x1: wp.array[wp.vec3], ring_offsets: wp.array[int],
+                  ring: wp.array[int], i0: int, i1: int, j0: int, j1: int, tol: float) -> float:
+    """Edge pair (i0 i1, j0 j1)'s side after its points moved linearly from x0 to x1. When the
+    orientation sign was `side` at x0 and is the other at x1, the pair takes the new sign unless
+    the edges passed through each other on the way or one edge passed through an edge of the one
+    ring of an end of the other (:func:`segments_cross` within tol: the cloth beside that end,
+    which a flip beside an end goes past); else it keeps `side`. Turning past parallel, or the
+    lines passing through each other beside an end of either edge clear of the cloth there, flips
+    the sign without a crossing; a side kept across such a flip pulls the edges back through
+    whatever lies between them. A pair already on the other side at x0 (a crossing in progress)
+    keeps its side."""
     if side == 0.0:
         return side
-    now = edge_orientation(a1, b1, c1, d1)
+    now = edge_orientation(x1[i0], x1[i1], x1[j0], x1[j1])
     if now == 0.0 or now == side:
         return side
-    if edge_orientation(a0, b0, c0, d0) != side:
+    if edge_orientation(x0[i0], x0[i1], x0[j0], x0[j1]) != side:
         return side
-    if segments_cross(a0, b0, c0, d0, a1, b1, c1, d1, tol):
+    if segments_cross(x0[i0], x0[i1], x0[j0], x0[j1], x1[i0], x1[i1], x1[j0], x1[j1], tol):
+        return side
+    if crosses_ring(x0, x1, ring_offsets, ring, i0, j0, j1, tol) or crosses_ring(x0, x1, ring_offsets, ring, i1, j0, j1, tol):
+        return side
+    if crosses_ring(x0, x1, ring_offsets, ring, j0, i0, i1, tol) or crosses_ring(x0, x1, ring_offsets, ring, j1, i0, i1, tol):
         return side
     return now
 
@@ -283,6 +303,8 @@ def solve_edge_contacts(
     x_prev: wp.array[wp.vec3],
     inv_mass: wp.array[float],
     edges: wp.array2d[int],
+    ring_offsets: wp.array[int],
+    ring: wp.array[int],
     contact_edge: wp.array2d[int],
     contact_side: wp.array2d[float],
     contact_count: wp.array[int],
@@ -326,7 +348,7 @@ def solve_edge_contacts(
                 continue
             contact_side[e, k] = side
         else:
-            side = followed_side(side, x_prev[i0], x_prev[i1], x_prev[j0], x_prev[j1], a, b, c, d, side_tol)
+            side = followed_side(side, x_prev, x, ring_offsets, ring, i0, i1, j0, j1, side_tol)
         # side > 0: edge cd lies on the +n side of edge ab
         p = a + (b - a) * s
         q = c + (d - c) * t
@@ -367,6 +389,8 @@ def update_edge_sides(
     x_from: wp.array[wp.vec3],
     x_to: wp.array[wp.vec3],
     edges: wp.array2d[int],
+    ring_offsets: wp.array[int],
+    ring: wp.array[int],
     contact_edge: wp.array2d[int],
     contact_side: wp.array2d[float],
     contact_count: wp.array[int],
@@ -384,8 +408,7 @@ def update_edge_sides(
         f = contact_edge[e, k]
         j0 = edges[f, 0]
         j1 = edges[f, 1]
-        contact_side[e, k] = followed_side(side, x_from[i0], x_from[i1], x_from[j0], x_from[j1],
-                                           x_to[i0], x_to[i1], x_to[j0], x_to[j1], tol)
+        contact_side[e, k] = followed_side(side, x_from, x_to, ring_offsets, ring, i0, i1, j0, j1, tol)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -355,7 +355,7 @@ class XPBDSolver:
                                       outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
             if self.edge_contact:
                 contacts.append(wp.launch(ck.solve_edge_contacts, dim=m.edge_count,
-                                          inputs=[x, self._x_prev, m.inv_mass, m.edges, self._ee_rows["ids"],
+                                          inputs=[x, self._x_prev, m.inv_mass, m.edges, m.ring_offsets, m.ring, self._ee_rows["ids"],
                                                   self._ee_rows["sides"], self._contact_ecount, m.thickness,
                                                   self.self_friction, self.SIDE_CROSSING_TOL * m.thickness],
                                           outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
@@ -563,7 +563,7 @@ class XPBDSolver:
         for the motion from x_from to x_to."""
         m = self.model
         return wp.launch(ck.update_edge_sides, dim=m.edge_count,
-                         inputs=[x_from, x_to, m.edges, self._ee_rows["ids"], self._ee_rows["sides"],
+                         inputs=[x_from, x_to, m.edges, m.ring_offsets, m.ring, self._ee_rows["ids"], self._ee_rows["sides"],
                                  self._contact_ecount, self.SIDE_CROSSING_TOL * m.thickness],
                          device=self.device, record_cmd=record_cmd)
 
