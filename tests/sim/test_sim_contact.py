@@ -9,6 +9,7 @@ import trimesh
 import warp as wp
 
 from warpshade.sim import ClothBuilder, ColliderSet, IntersectionCounter, XPBDSolver, count_intersections
+from warpshade.sim.contact_kernels import segments_cross
 from warpshade.sim.intersections import triangles_meet
 from warpshade.sim.oracle import triangles_meet_np
 
@@ -535,3 +536,37 @@ def test_edges_turning_past_parallel_in_contact_are_not_pulled_through():
         assert counter.self_pairs(st.points)[0] == 0
     # the set-up is the one meant: cd did turn past parallel
     assert np.arctan2(p[b_ids[1], 2] - p[b_ids[0], 2], p[b_ids[1], 0] - p[b_ids[0], 0]) < 0
+
+
+@wp.kernel
+def _segments_cross_kernel(p0: wp.array2d[wp.vec3], p1: wp.array2d[wp.vec3], tol: float, out: wp.array[int]):
+    i = wp.tid()
+    out[i] = int(segments_cross(p0[i, 0], p0[i, 1], p0[i, 2], p0[i, 3], p1[i, 0], p1[i, 1], p1[i, 2], p1[i, 3], tol))
+
+
+def _rotated(theta: float, y: float) -> list:
+    """Edge cd of length 0.1 m at height y, turned by theta about the vertical through its middle."""
+    c, s = np.cos(theta), np.sin(theta)
+    return [[-0.05 * c, y, -0.05 * s], [0.05 * c, y, 0.05 * s]]
+
+
+@pytest.mark.parametrize("name, start, end, crossed", [
+    # ab along x on y = 0; cd crossing over it at 5 mm drops to 5 mm under it: passes through
+    ("through", [[-0.05, 0, 0], [0.05, 0, 0]] + _rotated(1.0, 0.005),
+     [[-0.05, 0, 0], [0.05, 0, 0]] + _rotated(1.0, -0.005), True),
+    # cd 5 mm above ab turns from +0.1 to -0.1 rad: parallel (and coplanar) halfway, 5 mm apart
+    ("past parallel", [[-0.05, 0, 0], [0.05, 0, 0]] + _rotated(0.1, 0.005),
+     [[-0.05, 0, 0], [0.05, 0, 0]] + _rotated(-0.1, 0.005), False),
+    # ab short (x in [-0.02, 0.02]); cd, at x = 0.04 (beyond b) and across it, drops from 5 mm above
+    # to 5 mm below ab's line: the lines pass through each other 20 mm beyond b
+    ("beside an end", [[-0.02, 0, 0], [0.02, 0, 0], [0.04, 0.005, -0.05], [0.04, 0.005, 0.05]],
+     [[-0.02, 0, 0], [0.02, 0, 0], [0.04, -0.005, -0.05], [0.04, -0.005, 0.05]], False),
+])
+def test_segments_cross_over_a_linear_motion(name, start, end, crossed):
+    """Continuous edge-edge crossing test (the stored side of an edge contact follows a sign flip
+    without a crossing): expected outcomes from the constructions, tolerance 10 um."""
+    p0 = wp.array(np.array([start], np.float32), dtype=wp.vec3)
+    p1 = wp.array(np.array([end], np.float32), dtype=wp.vec3)
+    out = wp.zeros(1, dtype=int)
+    wp.launch(_segments_cross_kernel, dim=1, inputs=[p0, p1, 1.0e-5], outputs=[out])
+    assert bool(out.numpy()[0]) == crossed
