@@ -507,8 +507,9 @@ def test_edges_turning_past_parallel_in_contact_are_not_pulled_through():
     that makes it parallel to ab 1.5 substeps later (1 substep per step, no gravity, no air, the
     guard off so that the contact solve alone is seen). Turning past parallel flips the pair's
     orientation sign with cd still 9 mm above ab and the closest points inside both edges:
-    nothing crossed, so cd must stay above ab (a side kept across the flip pulls cd down through
-    ab, 17 mm in one step, and the triangles intersect)."""
+    nothing crossed, so with ``follow_edge_sides`` cd must stay above ab (a side kept across the
+    flip, as without it, pulls cd down through ab, 17 mm in one step, and the triangles
+    intersect)."""
     t, gap, theta = 0.01, 0.009, 0.05
     h = 1.0 / 180.0
     b = ClothBuilder(thickness=t)
@@ -518,7 +519,8 @@ def test_edges_turning_past_parallel_in_contact_are_not_pulled_through():
                        np.array([[0, 1, 2]]), name="B")
     b.pin(a_ids)
     m = b.finalize()
-    solver = XPBDSolver(m, None, substeps=1, gravity=(0, 0, 0), air_density=0.0, guard=False)
+    solver = XPBDSolver(m, None, substeps=1, gravity=(0, 0, 0), air_density=0.0, guard=False,
+                        follow_edge_sides=True)
     x = m.rest_points.numpy().astype(np.float64)
     v = np.zeros_like(x)
     omega = theta / (1.5 * h)  # about +y, turning cd's angle atan2(dz, dx) down through 0

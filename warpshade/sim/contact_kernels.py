@@ -315,10 +315,10 @@ def solve_edge_contacts(
     delta_count: wp.array[float],
 ):
     """Edge-edge separation: the closest points of two edges (both strictly inside their edges)
-    are kept `thickness` apart along the edges' common normal, on the stored side followed from
-    the substep's start (:func:`followed_side` within side_tol; the stored side itself is updated
-    at the substep's end, :func:`update_edge_sides`), with position-based Coulomb friction on
-    their relative tangential motion over the substep."""
+    are kept `thickness` apart along the edges' common normal, on the stored side (with side_tol
+    >= 0, followed from the substep's start, :func:`followed_side` within side_tol; the stored
+    side itself is then updated at the substep's end, :func:`update_edge_sides`), with
+    position-based Coulomb friction on their relative tangential motion over the substep."""
     e = wp.tid()
     i0 = edges[e, 0]
     i1 = edges[e, 1]
@@ -347,7 +347,7 @@ def solve_edge_contacts(
             if side == 0.0:
                 continue
             contact_side[e, k] = side
-        else:
+        elif side_tol >= 0.0:
             side = followed_side(side, x_prev, x, ring_offsets, ring, i0, i1, j0, j1, side_tol)
         # side > 0: edge cd lies on the +n side of edge ab
         p = a + (b - a) * s
