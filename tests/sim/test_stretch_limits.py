@@ -107,7 +107,7 @@ def test_only_pieces_that_barely_stretch_get_limits():
 def _project(points, inv_mass, length, max_move, contacts=(0, 0), touched=(0, 0)):
     x = wp.array(np.asarray(points, np.float32), dtype=wp.vec3)
     wp.launch(k.solve_limits, dim=1,
-              inputs=[wp.array(np.array([[0, 1]], np.int32), dtype=wp.int32), wp.array([length], dtype=wp.float32),
+              inputs=[wp.array(np.array([[0, 1]], np.int32), dtype=wp.vec2i), wp.array([length], dtype=wp.float32),
                       wp.array(np.asarray(inv_mass, np.float32), dtype=wp.float32), max_move,
                       wp.array(np.asarray(contacts, np.int32), dtype=wp.int32),
                       wp.array(np.asarray(touched, np.int32), dtype=wp.int32), 0],

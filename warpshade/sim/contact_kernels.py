@@ -179,7 +179,7 @@ def followed_side(side: float, x0: wp.array[wp.vec3], x1: wp.array[wp.vec3], rin
 def compute_edge_bounds(
     x: wp.array[wp.vec3],
     v: wp.array[wp.vec3],
-    edges: wp.array2d[int],
+    edges: wp.array[wp.vec2i],
     horizon: float,
     pad: wp.array[float],
     lower: wp.array[wp.vec3],
@@ -188,12 +188,13 @@ def compute_edge_bounds(
     """Box around an edge now and after `horizon` seconds of its current velocity, each end
     padded by its own pad."""
     e = wp.tid()
-    p0 = x[edges[e, 0]]
-    p1 = x[edges[e, 1]]
-    q0 = p0 + v[edges[e, 0]] * horizon
-    q1 = p1 + v[edges[e, 1]] * horizon
-    r0 = wp.vec3(pad[edges[e, 0]])
-    r1 = wp.vec3(pad[edges[e, 1]])
+    ij = edges[e]
+    p0 = x[ij[0]]
+    p1 = x[ij[1]]
+    q0 = p0 + v[ij[0]] * horizon
+    q1 = p1 + v[ij[1]] * horizon
+    r0 = wp.vec3(pad[ij[0]])
+    r1 = wp.vec3(pad[ij[1]])
     lower[e] = wp.min(wp.min(p0, q0) - r0, wp.min(p1, q1) - r1)
     upper[e] = wp.max(wp.max(p0, q0) + r0, wp.max(p1, q1) + r1)
 
@@ -201,7 +202,7 @@ def compute_edge_bounds(
 @wp.kernel
 def mark_crease_edges(
     x: wp.array[wp.vec3],
-    hinges: wp.array2d[int],
+    hinges: wp.array[wp.vec4i],
     hinge_edge: wp.array[int],
     min_angle: float,
     active: wp.array[int],
@@ -210,7 +211,8 @@ def mark_crease_edges(
     (a fold's crease: with the border, where edge-edge contact can happen without a vertex
     meeting a triangle first)."""
     h = wp.tid()
-    theta = dihedral_angle(x[hinges[h, 0]], x[hinges[h, 1]], x[hinges[h, 2]], x[hinges[h, 3]])
+    ids = hinges[h]
+    theta = dihedral_angle(x[ids[0]], x[ids[1]], x[ids[2]], x[ids[3]])
     if wp.abs(theta) > min_angle:
         active[hinge_edge[h]] = 1
 

@@ -186,28 +186,27 @@ def v3d(p: wp.vec3) -> wp.vec3d:
 
 
 @wp.func
-def mark_triangle(mark: wp.array[int], tris: wp.array2d[int], t: int):
+def mark_triangle(mark: wp.array[int], tris: wp.array[wp.vec3i], t: int):
     """mark[v] = 1 for the three vertices of cloth triangle t (no-op for an empty mark)."""
     if mark.shape[0] > 0:
-        mark[tris[t, 0]] = 1
-        mark[tris[t, 1]] = 1
-        mark[tris[t, 2]] = 1
+        mark[tris[t][0]] = 1
+        mark[tris[t][1]] = 1
+        mark[tris[t][2]] = 1
 
 
 @wp.func
-def count_pair(x0: wp.array[wp.vec3], tris: wp.array2d[int], t: int, u: int, count: wp.array[int],
-               pairs: wp.array2d[int], mark: wp.array[int]):
+def count_pair(x0: wp.array[wp.vec3], tris: wp.array[wp.vec3i], t: int, u: int, count: wp.array[int],
+               pairs: wp.array[wp.vec2i], mark: wp.array[int]):
     """Count intersecting cloth pair (t, u) in count[0] and keep it; mark both triangles, unless
     x0 (positions at the start of the step; empty: no such test) is given and the pair met there
     too: such an inherited pair is counted in count[1] as well and not marked (sending its
     vertices back to x0 cannot remove it)."""
     k = wp.atomic_add(count, 0, 1)
     if k < pairs.shape[0]:
-        pairs[k, 0] = t
-        pairs[k, 1] = u
+        pairs[k] = wp.vec2i(t, u)
     if x0.shape[0] > 0:
-        if triangles_meet(v3d(x0[tris[t, 0]]), v3d(x0[tris[t, 1]]), v3d(x0[tris[t, 2]]), v3d(x0[tris[u, 0]]),
-                          v3d(x0[tris[u, 1]]), v3d(x0[tris[u, 2]])):
+        if triangles_meet(v3d(x0[tris[t][0]]), v3d(x0[tris[t][1]]), v3d(x0[tris[t][2]]), v3d(x0[tris[u][0]]),
+                          v3d(x0[tris[u][1]]), v3d(x0[tris[u][2]])):
             wp.atomic_add(count, 1, 1)
             return
     mark_triangle(mark, tris, t)
@@ -215,16 +214,16 @@ def count_pair(x0: wp.array[wp.vec3], tris: wp.array2d[int], t: int, u: int, cou
 
 
 @wp.func
-def test_self_pair(x: wp.array[wp.vec3], tris: wp.array2d[int], x0: wp.array[wp.vec3], t: int, u: int,
-                   count: wp.array[int], pairs: wp.array2d[int], mark: wp.array[int]):
+def test_self_pair(x: wp.array[wp.vec3], tris: wp.array[wp.vec3i], x0: wp.array[wp.vec3], t: int, u: int,
+                   count: wp.array[int], pairs: wp.array[wp.vec2i], mark: wp.array[int]):
     """The narrow phase of both cloth-cloth counts: triangles t and u (sharing no vertex) are counted by
     :func:`count_pair` when they meet (a separating plane of either rejects them first)."""
-    a = tris[t, 0]
-    b = tris[t, 1]
-    c = tris[t, 2]
-    d = tris[u, 0]
-    e = tris[u, 1]
-    f = tris[u, 2]
+    a = tris[t][0]
+    b = tris[t][1]
+    c = tris[t][2]
+    d = tris[u][0]
+    e = tris[u][1]
+    f = tris[u][2]
     if a == d or a == e or a == f or b == d or b == e or b == f or c == d or c == e or c == f:
         return
     pa = x[a]
@@ -243,18 +242,18 @@ def test_self_pair(x: wp.array[wp.vec3], tris: wp.array2d[int], x0: wp.array[wp.
 def count_self_pairs(
     mesh: wp.uint64,
     x: wp.array[wp.vec3],
-    tris: wp.array2d[int],
+    tris: wp.array[wp.vec3i],
     x0: wp.array[wp.vec3],
     count: wp.array[int],
-    pairs: wp.array2d[int],
+    pairs: wp.array[wp.vec2i],
     mark: wp.array[int],
 ):
     """Cloth-cloth intersecting pairs (t, u), t < u, no shared vertex; the first pairs are kept,
     and the vertices of both triangles marked (except inherited pairs, see :func:`count_pair`)."""
     t = wp.tid()
-    pa = x[tris[t, 0]]
-    pb = x[tris[t, 1]]
-    pc = x[tris[t, 2]]
+    pa = x[tris[t][0]]
+    pb = x[tris[t][1]]
+    pc = x[tris[t][2]]
     lo = wp.min(wp.min(pa, pb), pc)
     hi = wp.max(wp.max(pa, pb), pc)
     query = wp.mesh_query_aabb(mesh, lo, hi)
@@ -266,11 +265,11 @@ def count_self_pairs(
 
 
 @wp.kernel
-def triangle_boxes(x: wp.array[wp.vec3], tris: wp.array2d[int], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3]):
+def triangle_boxes(x: wp.array[wp.vec3], tris: wp.array[wp.vec3i], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3]):
     t = wp.tid()
-    pa = x[tris[t, 0]]
-    pb = x[tris[t, 1]]
-    pc = x[tris[t, 2]]
+    pa = x[tris[t][0]]
+    pb = x[tris[t][1]]
+    pc = x[tris[t][2]]
     lower[t] = wp.min(wp.min(pa, pb), pc)
     upper[t] = wp.max(wp.max(pa, pb), pc)
 
@@ -302,7 +301,7 @@ def bin_boxes(lower: wp.array[wp.vec3], origin: wp.vec3, inv: float, dims: wp.ve
 
 
 @wp.kernel
-def sort_boxes(cell: wp.array[int], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3], tris: wp.array2d[int],
+def sort_boxes(cell: wp.array[int], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3], tris: wp.array[wp.vec3i],
                cursor: wp.array[int], ids: wp.array[int], sorted_lower: wp.array[wp.vec3],
                sorted_upper: wp.array[wp.vec3], sorted_tris: wp.array[wp.vec3i]):
     """Counting sort of the triangles by cell (``cursor`` starts at each cell's first slot), their
@@ -312,7 +311,7 @@ def sort_boxes(cell: wp.array[int], lower: wp.array[wp.vec3], upper: wp.array[wp
     ids[s] = t
     sorted_lower[s] = lower[t]
     sorted_upper[s] = upper[t]
-    sorted_tris[s] = wp.vec3i(tris[t, 0], tris[t, 1], tris[t, 2])
+    sorted_tris[s] = tris[t]
 
 
 @wp.func
@@ -336,10 +335,10 @@ def count_self_pairs_grid(
     width_z: float,
     slack: float,
     x: wp.array[wp.vec3],
-    tris: wp.array2d[int],
+    tris: wp.array[wp.vec3i],
     x0: wp.array[wp.vec3],
     count: wp.array[int],
-    pairs: wp.array2d[int],
+    pairs: wp.array[wp.vec2i],
     mark: wp.array[int],
 ):
     """:func:`count_self_pairs` with a dense grid of the triangles' lower box corners as the
@@ -401,10 +400,10 @@ def count_mesh_pairs(
     mesh_tris: wp.array[int],
     closed: int,
     x: wp.array[wp.vec3],
-    tris: wp.array2d[int],
+    tris: wp.array[wp.vec3i],
     x0: wp.array[wp.vec3],
     count: wp.array[int],
-    pairs: wp.array2d[int],
+    pairs: wp.array[wp.vec2i],
     mark: wp.array[int],
 ):
     """Cloth triangle t against a collider mesh: crossing triangle pairs (t, collider triangle),
@@ -412,9 +411,9 @@ def count_mesh_pairs(
     marked, unless t at x0 (if given) meets the mesh too (inherited: its pairs also counted in
     count[1])."""
     t = wp.tid()
-    pa = x[tris[t, 0]]
-    pb = x[tris[t, 1]]
-    pc = x[tris[t, 2]]
+    pa = x[tris[t][0]]
+    pb = x[tris[t][1]]
+    pc = x[tris[t][2]]
     lo = wp.min(wp.min(pa, pb), pc)
     hi = wp.max(wp.max(pa, pb), pc)
     query = wp.mesh_query_aabb(mesh, lo, hi)
@@ -428,8 +427,7 @@ def count_mesh_pairs(
             crossed += 1
             k = wp.atomic_add(count, 0, 1)
             if k < pairs.shape[0]:
-                pairs[k, 0] = t
-                pairs[k, 1] = u
+                pairs[k] = wp.vec2i(t, u)
     hit = int(0)
     if crossed > 0:
         hit = crossed
@@ -438,11 +436,10 @@ def count_mesh_pairs(
             hit = 1
             k = wp.atomic_add(count, 0, 1)
             if k < pairs.shape[0]:
-                pairs[k, 0] = t
-                pairs[k, 1] = -1
+                pairs[k] = wp.vec2i(t, -1)
     if hit > 0:
         if x0.shape[0] > 0:
-            if mesh_meets(mesh, mesh_points, mesh_tris, closed, x0[tris[t, 0]], x0[tris[t, 1]], x0[tris[t, 2]]):
+            if mesh_meets(mesh, mesh_points, mesh_tris, closed, x0[tris[t][0]], x0[tris[t][1]], x0[tris[t][2]]):
                 wp.atomic_add(count, 1, hit)
                 return
         mark_triangle(mark, tris, t)
@@ -706,29 +703,28 @@ def count_shape_triangles(
     rot: wp.array[wp.quat],
     size: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
-    tris: wp.array2d[int],
+    tris: wp.array[wp.vec3i],
     x0: wp.array[wp.vec3],
     count: wp.array[int],
-    pairs: wp.array2d[int],
+    pairs: wp.array[wp.vec2i],
     mark: wp.array[int],
 ):
     """Cloth triangles meeting an analytic solid: pairs (cloth triangle, shape index); t's
     vertices are marked, unless t at x0 (if given) meets that solid too (inherited: also counted
     in count[1])."""
     t = wp.tid()
-    pa = x[tris[t, 0]]
-    pb = x[tris[t, 1]]
-    pc = x[tris[t, 2]]
+    pa = x[tris[t][0]]
+    pb = x[tris[t][1]]
+    pc = x[tris[t][2]]
     for s in range(kind.shape[0]):
         if shape_meets(kind[s], a[s], b[s], rot[s], size[s], pa, pb, pc):
             q = wp.atomic_add(count, 0, 1)
             if q < pairs.shape[0]:
-                pairs[q, 0] = t
-                pairs[q, 1] = s
+                pairs[q] = wp.vec2i(t, s)
             inherited = bool(False)
             if x0.shape[0] > 0:
-                inherited = shape_meets(kind[s], a[s], b[s], rot[s], size[s], x0[tris[t, 0]], x0[tris[t, 1]],
-                                        x0[tris[t, 2]])
+                inherited = shape_meets(kind[s], a[s], b[s], rot[s], size[s], x0[tris[t][0]], x0[tris[t][1]],
+                                        x0[tris[t][2]])
             if inherited:
                 wp.atomic_add(count, 1, 1)
             else:
@@ -755,7 +751,7 @@ class IntersectionCounter:
         if f.ndim != 2 or f.shape[1] != 3:
             raise ValueError(f"count_intersections: faces must have shape (F, 3), got {f.shape}")
         self.faces = f
-        self.tris = wp.array(f, dtype=wp.int32, device=self.device)
+        self.tris = wp.array(f, dtype=wp.vec3i, device=self.device)
         self._indices = wp.array(f.reshape(-1), dtype=wp.int32, device=self.device)
         self._x = None
         self._mesh = None
@@ -764,7 +760,7 @@ class IntersectionCounter:
         self._no_points = wp.zeros(0, dtype=wp.vec3, device=self.device)
         self.inherited = 0
         """Of the last count's pairs, how many also met at ``start`` (0 without ``start``)."""
-        self._pairs = wp.zeros((max(keep, 1), 2), dtype=wp.int32, device=self.device)
+        self._pairs = wp.zeros(max(keep, 1), dtype=wp.vec2i, device=self.device)
         self._no_mark = wp.zeros(0, dtype=wp.int32, device=self.device)
         self._lower = wp.zeros(len(f), dtype=wp.vec3, device=self.device)
         self._upper = wp.zeros(len(f), dtype=wp.vec3, device=self.device)

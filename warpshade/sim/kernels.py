@@ -7,6 +7,10 @@ and bending constraints are graph-coloured so that each launch updates disjoint 
 corrections (Macklin et al. 2014, "Unified particle physics", §4.2).
 
 Conventions: positions in metres, velocities in m/s, ``inv_mass`` in 1/kg (0 = kinematic).
+The per-substep kernels take their index tuples as one-dimensional arrays of vectors (``vec2i``
+edges, ``vec3i`` triangles, ``vec4i`` hinges: zero-copy views of the model's (n, k) arrays): on
+the CPU, Warp runs a kernel whose arrays are all one-dimensional without the per-thread index
+division and stride arithmetic of the general path.
 """
 
 from __future__ import annotations
@@ -216,7 +220,9 @@ def predict_positions(
         a = air_drag[i] * w * dt
         v1 = (v1 + gravity * dt + dv + wind * a) / (1.0 + a)
         # exact exponential decay of a linear drag, unconditionally stable for any drag * dt
-        v1 = v1 * wp.exp(-drag * dt)
+        # (none without drag: exp(-0) is exactly 1)
+        if drag != 0.0:
+            v1 = v1 * wp.exp(-drag * dt)
     v_out[i] = v1
     x_out[i] = x0 + v1 * dt
 
@@ -264,7 +270,7 @@ def update_velocities(
 
 @wp.kernel
 def solve_stretch(
-    edges: wp.array2d[int],
+    edges: wp.array[wp.vec2i],
     rest_length: wp.array[float],
     compliance: wp.array[float],
     inv_mass: wp.array[float],
@@ -280,8 +286,9 @@ def solve_stretch(
     factor only slows convergence; :func:`damp_stretch` damps velocities instead.
     """
     e = wp.tid() + offset
-    i = edges[e, 0]
-    j = edges[e, 1]
+    ij = edges[e]
+    i = ij[0]
+    j = ij[1]
     wi = inv_mass[i]
     wj = inv_mass[j]
     wsum = wi + wj
@@ -321,7 +328,7 @@ def dihedral_gradients(x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, x4: wp.vec3) -> wp
 
 @wp.kernel
 def solve_bending(
-    hinges: wp.array2d[int],
+    hinges: wp.array[wp.vec4i],
     rest_angle: wp.array[float],
     compliance: wp.array[float],
     inv_mass: wp.array[float],
@@ -337,10 +344,11 @@ def solve_bending(
     approximation; they sum to zero, so the correction conserves linear momentum.
     """
     h = wp.tid() + offset
-    i1 = hinges[h, 0]
-    i2 = hinges[h, 1]
-    i3 = hinges[h, 2]
-    i4 = hinges[h, 3]
+    ids = hinges[h]
+    i1 = ids[0]
+    i2 = ids[1]
+    i3 = ids[2]
+    i4 = ids[3]
     w1 = inv_mass[i1]
     w2 = inv_mass[i2]
     w3 = inv_mass[i3]
@@ -377,7 +385,7 @@ def solve_bending(
 
 @wp.kernel
 def damp_stretch(
-    edges: wp.array2d[int],
+    edges: wp.array[wp.vec2i],
     compliance: wp.array[float],
     inv_mass: wp.array[float],
     x: wp.array[wp.vec3],
@@ -392,8 +400,9 @@ def damp_stretch(
     Euler of the 1-D damper), stable for any k_d; an inextensible edge (k = inf) loses all of it.
     """
     e = wp.tid() + offset
-    i = edges[e, 0]
-    j = edges[e, 1]
+    ij = edges[e]
+    i = ij[0]
+    j = ij[1]
     wi = inv_mass[i]
     wj = inv_mass[j]
     wsum = wi + wj
@@ -415,7 +424,7 @@ def damp_stretch(
 
 @wp.kernel
 def damp_bending(
-    hinges: wp.array2d[int],
+    hinges: wp.array[wp.vec4i],
     compliance: wp.array[float],
     inv_mass: wp.array[float],
     x: wp.array[wp.vec3],
@@ -431,10 +440,11 @@ def damp_bending(
     """
     h = wp.tid() + offset
     c = compliance[h]
-    i1 = hinges[h, 0]
-    i2 = hinges[h, 1]
-    i3 = hinges[h, 2]
-    i4 = hinges[h, 3]
+    ids = hinges[h]
+    i1 = ids[0]
+    i2 = ids[1]
+    i3 = ids[2]
+    i4 = ids[3]
     g = dihedral_gradients(x[i1], x[i2], x[i3], x[i4])
     u1 = g[0]
     u2 = g[1]
@@ -461,8 +471,9 @@ def damp_bending(
 
 @wp.kernel
 def solve_tethers(
-    anchor: wp.array2d[int],
-    max_length: wp.array2d[float],
+    anchor: wp.array[int],
+    max_length: wp.array[float],
+    per_vertex: int,
     inv_mass: wp.array[float],
     x: wp.array[wp.vec3],
 ):
@@ -470,17 +481,18 @@ def solve_tethers(
 
     L bounds the rest geodesic distance to a kinematic vertex, so a tether only acts on stretch:
     it removes in one projection the sag that Gauss-Seidel sweeps leave in long hanging cloth
-    (their error grows with the square of the number of vertices along the hang).
+    (their error grows with the square of the number of vertices along the hang). ``anchor`` and
+    ``max_length`` are the model's (V, per_vertex) arrays flattened.
     """
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
-    for c in range(anchor.shape[1]):
-        a = anchor[i, c]
+    for c in range(per_vertex):
+        a = anchor[i * per_vertex + c]
         if a >= 0:
             d = x[i] - x[a]
             length = wp.length(d)
-            lmax = max_length[i, c]
+            lmax = max_length[i * per_vertex + c]
             if length > lmax and length > 0.0:
                 x[i] = x[i] - d * ((length - lmax) / length)
 
@@ -495,7 +507,7 @@ def flag_moved(before: wp.array[wp.vec3], x: wp.array[wp.vec3], flag: wp.array[i
 
 @wp.kernel
 def solve_limits(
-    pairs: wp.array2d[int],
+    pairs: wp.array[wp.vec2i],
     max_length: wp.array[float],
     inv_mass: wp.array[float],
     max_move: float,
@@ -509,8 +521,9 @@ def solve_limits(
     never pushes apart, moves neither vertex by more than ``max_move``, and is skipped while
     ``contacts`` or ``touched`` is non-zero at either vertex."""
     p = wp.tid() + offset
-    i = pairs[p, 0]
-    j = pairs[p, 1]
+    ij = pairs[p]
+    i = ij[0]
+    j = ij[1]
     wi = inv_mass[i]
     wj = inv_mass[j]
     wsum = wi + wj
@@ -534,7 +547,7 @@ def solve_limits(
 def accumulate_aero_forces(
     x: wp.array[wp.vec3],
     v: wp.array[wp.vec3],
-    tris: wp.array2d[int],
+    tris: wp.array[wp.vec3i],
     wind: wp.vec3,
     air_density: float,
     drag_coefficient: float,
@@ -551,9 +564,10 @@ def accumulate_aero_forces(
     integrate it implicitly (explicit drag on light cloth overshoots and blows up).
     """
     t = wp.tid()
-    i = tris[t, 0]
-    j = tris[t, 1]
-    k = tris[t, 2]
+    ijk = tris[t]
+    i = ijk[0]
+    j = ijk[1]
+    k = ijk[2]
     nn = wp.cross(x[j] - x[i], x[k] - x[i])
     ln = wp.length(nn)
     if ln == 0.0:
@@ -586,7 +600,7 @@ def accumulate_aero_forces(
 def compute_triangle_bounds(
     x: wp.array[wp.vec3],
     v: wp.array[wp.vec3],
-    tris: wp.array2d[int],
+    tris: wp.array[wp.vec3i],
     horizon: float,
     pad: wp.array[float],
     lower: wp.array[wp.vec3],
@@ -597,10 +611,12 @@ def compute_triangle_bounds(
     t = wp.tid()
     lo = wp.vec3(1.0e30)
     hi = wp.vec3(-1.0e30)
+    ids = tris[t]
     for c in range(3):
-        p = x[tris[t, c]]
-        q = p + v[tris[t, c]] * horizon
-        r = wp.vec3(pad[tris[t, c]])
+        vc = ids[c]
+        p = x[vc]
+        q = p + v[vc] * horizon
+        r = wp.vec3(pad[vc])
         lo = wp.min(lo, wp.min(p, q) - r)
         hi = wp.max(hi, wp.max(p, q) + r)
     lower[t] = lo

@@ -147,6 +147,11 @@ class XPBDSolver:
         self.guard_vertices = 0
 
         v, f, d = model.particle_count, model.tri_count, self.device
+        # the index tuples as one-dimensional arrays of vectors, as the per-substep kernels take them
+        self._edge_ids = model.edges.view(wp.vec2i)
+        self._hinge_ids = model.hinges.view(wp.vec4i)
+        self._tri_ids = model.tris.view(wp.vec3i)
+        self._limit_ids = model.limit_pairs.view(wp.vec2i)
         self._x_prev = wp.zeros(v, dtype=wp.vec3, device=d)
         self._lift = wp.zeros(v, dtype=wp.vec3, device=d)
         self._air_drag = wp.zeros(v, dtype=wp.float32, device=d)
@@ -321,7 +326,7 @@ class XPBDSolver:
         cmds: dict = {}
         if self.air_density > 0 and (self.drag_coefficient > 0 or self.lift_coefficient > 0):
             cmds["aero"] = wp.launch(k.accumulate_aero_forces, dim=m.tri_count,
-                                     inputs=[x, v, m.tris, zero3, self.air_density, self.drag_coefficient,
+                                     inputs=[x, v, self._tri_ids, zero3, self.air_density, self.drag_coefficient,
                                              self.lift_coefficient], outputs=[self._lift, self._air_drag],
                                      device=d, record_cmd=True)
         cmds["predict"] = wp.launch(k.predict_positions, dim=n,
@@ -331,24 +336,25 @@ class XPBDSolver:
         edge_batches, hinge_batches = self._batches(m.edge_colors), self._batches(m.hinge_colors)
         cons = []
         if self.stretch_limits:
-            cons.extend(wp.launch(k.solve_limits, dim=cnt, inputs=[m.limit_pairs, m.limit_length, m.inv_mass,
+            cons.extend(wp.launch(k.solve_limits, dim=cnt, inputs=[self._limit_ids, m.limit_length, m.inv_mass,
                                                                    self._limit_move,
                                                                    self._contact_count if self.self_collision
                                                                    else self._touched, self._touched, off],
                                   outputs=[x], device=d, record_cmd=True)
                         for off, cnt in self._batches(m.limit_colors))
         stretch = [wp.launch(k.solve_stretch, dim=cnt,
-                             inputs=[m.edges, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
+                             inputs=[self._edge_ids, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
                                      self.relaxation], outputs=[self._edge_lambda, x], device=d, record_cmd=True)
                    for off, cnt in edge_batches]
         # extra stretch sweeps: cheap (edges only) and the stretch residual is what shows as sag
         cons.extend(stretch * self.stretch_sweeps)
         for off, cnt in hinge_batches:
             cons.append(wp.launch(k.solve_bending, dim=cnt,
-                                  inputs=[m.hinges, m.hinge_rest_angle, m.hinge_compliance, m.inv_mass, off, h],
+                                  inputs=[self._hinge_ids, m.hinge_rest_angle, m.hinge_compliance, m.inv_mass, off, h],
                                   outputs=[self._hinge_lambda, x], device=d, record_cmd=True))
         if self.tethers:
-            cons.append(wp.launch(k.solve_tethers, dim=n, inputs=[m.tether_anchor, m.tether_length, m.inv_mass],
+            cons.append(wp.launch(k.solve_tethers, dim=n, inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
+                                                                   m.tether_anchor.shape[1], m.inv_mass],
                                   outputs=[x], device=d, record_cmd=True))
         cmds["constraints"] = cons
         if self.stretch_limits:
@@ -377,12 +383,12 @@ class XPBDSolver:
         if m.damping > 0:
             for off, cnt in edge_batches:
                 vel.append(wp.launch(k.damp_stretch, dim=cnt,
-                                     inputs=[m.edges, m.edge_compliance, m.inv_mass, x, off, h, m.damping],
+                                     inputs=[self._edge_ids, m.edge_compliance, m.inv_mass, x, off, h, m.damping],
                                      outputs=[v], device=d, record_cmd=True))
         if m.bend_damping > 0:
             for off, cnt in hinge_batches:
                 vel.append(wp.launch(k.damp_bending, dim=cnt,
-                                     inputs=[m.hinges, m.hinge_compliance, m.inv_mass, x, off, h, m.bend_damping],
+                                     inputs=[self._hinge_ids, m.hinge_compliance, m.inv_mass, x, off, h, m.bend_damping],
                                      outputs=[v], device=d, record_cmd=True))
         cmds["velocities"] = vel
         return cmds
@@ -467,7 +473,7 @@ class XPBDSolver:
         ahead = horizon if ahead is None else max(ahead, horizon)
         self._near.zero_()
         # boxes of both sides padded: overlap <=> gap < thickness
-        self._bvh, lower, upper = self._swept_bvh(self._bvh, k.compute_triangle_bounds, m.tris, self._tri_boxes, x, v,
+        self._bvh, lower, upper = self._swept_bvh(self._bvh, k.compute_triangle_bounds, self._tri_ids, self._tri_boxes, x, v,
                                                   horizon, ahead)
         self._vt_rows, grew = self._find_candidates(
             k.find_self_contacts, m.particle_count, self._vt_rows,
@@ -476,12 +482,12 @@ class XPBDSolver:
             self._contact_count, self._prev_count)
         if self.edge_contact:
             ne = m.edge_count
-            self._ebvh, elower, eupper = self._swept_bvh(self._ebvh, ck.compute_edge_bounds, m.edges, self._edge_boxes,
+            self._ebvh, elower, eupper = self._swept_bvh(self._ebvh, ck.compute_edge_bounds, self._edge_ids, self._edge_boxes,
                                                          x, v, horizon, ahead)
             wp.copy(self._eactive, m.edge_border)
             if m.hinge_count:
                 wp.launch(ck.mark_crease_edges, dim=m.hinge_count,
-                          inputs=[x, m.hinges, m.hinge_edge, self.CREASE_ANGLE], outputs=[self._eactive], device=d)
+                          inputs=[x, self._hinge_ids, m.hinge_edge, self.CREASE_ANGLE], outputs=[self._eactive], device=d)
             self._ee_rows, egrew = self._find_candidates(
                 ck.find_edge_contacts, ne, self._ee_rows,
                 [self._ebvh.id, x, v, horizon, ahead, m.edges, self._eactive, elower, eupper, self._edge_boxes[2],
