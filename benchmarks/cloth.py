@@ -388,14 +388,18 @@ def main(argv=None) -> int:
                          "and print the runs with intersections")
     ap.add_argument("--scene-frames", type=int, default=None,
                     help="frames per scene with --scenes (default: each scene's own length)")
+    ap.add_argument("--follow-edge-sides", action="store_true",
+                    help="every solver with follow_edge_sides (XPBDSolver.FOLLOW_EDGE_SIDES = True)")
     args = ap.parse_args(argv)
+    if args.follow_edge_sides:
+        XPBDSolver.FOLLOW_EDGE_SIDES = True
     wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     wp.init()
 
     res = run_warpshade(args.grid, args.frames, args.repeats, not args.no_self_collision)
     res["guard_off"] = run_warpshade(args.grid, args.frames, args.repeats, not args.no_self_collision, guard=False)
     res.update({"grid": args.grid, "frames": args.frames, "repeats": args.repeats, "frame_dt": 1.0 / FPS,
-                "device": "cpu", "warp": wp.__version__,
+                "device": "cpu", "warp": wp.__version__, "follow_edge_sides": XPBDSolver.FOLLOW_EDGE_SIDES,
                 "note": "median of repeats after a warm-up step (kernel compilation excluded); shared, loaded machine"})
     if not args.skip_baselines:
         res["warp_example_cloth"] = run_warp_example(args.grid, args.frames, args.repeats)

@@ -47,6 +47,129 @@ def edge_orientation(a: wp.vec3, b: wp.vec3, c: wp.vec3, d: wp.vec3) -> float:
     return 0.0
 
 
+@wp.func
+def triple(u: wp.vec3, v: wp.vec3, w: wp.vec3) -> float:
+    """The triple product det[u, v, w]."""
+    return wp.dot(wp.cross(u, v), w)
+
+
+@wp.func
+def coplanarity(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3, b1: wp.vec3, c1: wp.vec3,
+                d1: wp.vec3, t: float) -> float:
+    """det[b - a, d - c, c - a] of the four points moved linearly a fraction t from 0 to 1."""
+    a = a0 + (a1 - a0) * t
+    b = b0 + (b1 - b0) * t
+    c = c0 + (c1 - c0) * t
+    d = d0 + (d1 - d0) * t
+    return triple(b - a, d - c, c - a)
+
+
+@wp.func
+def crossing_root(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3, b1: wp.vec3, c1: wp.vec3,
+                  d1: wp.vec3, lo: float, hi: float, tol: float) -> bool:
+    """Whether the coplanarity changes sign on [lo, hi] (where it is monotone) with the segments
+    within tol of each other at the root (found by bisection)."""
+    flo = coplanarity(a0, b0, c0, d0, a1, b1, c1, d1, lo)
+    fhi = coplanarity(a0, b0, c0, d0, a1, b1, c1, d1, hi)
+    if (flo > 0.0 and fhi > 0.0) or (flo < 0.0 and fhi < 0.0):
+        return False
+    for _ in range(32):
+        mid = 0.5 * (lo + hi)
+        fm = coplanarity(a0, b0, c0, d0, a1, b1, c1, d1, mid)
+        if (fm > 0.0 and flo > 0.0) or (fm < 0.0 and flo < 0.0):
+            lo = mid
+            flo = fm
+        else:
+            hi = mid
+    t = 0.5 * (lo + hi)
+    a = a0 + (a1 - a0) * t
+    b = b0 + (b1 - b0) * t
+    c = c0 + (c1 - c0) * t
+    d = d0 + (d1 - d0) * t
+    st = closest_segments(a, b, c, d)
+    return wp.length((a + (b - a) * st[0]) - (c + (d - c) * st[1])) <= tol
+
+
+@wp.func
+def segments_cross(a0: wp.vec3, b0: wp.vec3, c0: wp.vec3, d0: wp.vec3, a1: wp.vec3, b1: wp.vec3, c1: wp.vec3,
+                   d1: wp.vec3, tol: float) -> bool:
+    """Whether segments ab and cd pass through each other (come within tol of each other at a
+    moment their four points are coplanar) while every point moves linearly from its position 0
+    to its position 1: continuous collision detection, the coplanarity det[b - a, d - c, c - a]
+    being a cubic in time, cut at its turning points into monotone pieces."""
+    u0 = b0 - a0
+    du = (b1 - a1) - u0
+    v0 = d0 - c0
+    dv = (d1 - c1) - v0
+    w0 = c0 - a0
+    dw = (c1 - a1) - w0
+    k1 = triple(du, v0, w0) + triple(u0, dv, w0) + triple(u0, v0, dw)
+    k2 = triple(du, dv, w0) + triple(du, v0, dw) + triple(u0, dv, dw)
+    k3 = triple(du, dv, dw)
+    # turning points: roots of 3 k3 t^2 + 2 k2 t + k1 inside (0, 1), in order
+    r0 = float(1.0)
+    r1 = float(1.0)
+    qa = 3.0 * k3
+    qb = 2.0 * k2
+    if qa != 0.0:
+        disc = qb * qb - 4.0 * qa * k1
+        if disc > 0.0:
+            sq = wp.sqrt(disc)
+            ta = (-qb - sq) / (2.0 * qa)
+            tb = (-qb + sq) / (2.0 * qa)
+            r0 = wp.clamp(wp.min(ta, tb), 0.0, 1.0)
+            r1 = wp.clamp(wp.max(ta, tb), 0.0, 1.0)
+    elif qb != 0.0:
+        r0 = wp.clamp(-k1 / qb, 0.0, 1.0)
+    if crossing_root(a0, b0, c0, d0, a1, b1, c1, d1, 0.0, r0, tol):
+        return True
+    if r1 > r0 and crossing_root(a0, b0, c0, d0, a1, b1, c1, d1, r0, r1, tol):
+        return True
+    return r1 < 1.0 and crossing_root(a0, b0, c0, d0, a1, b1, c1, d1, r1, 1.0, tol)
+
+
+@wp.func
+def crosses_ring(x0: wp.array[wp.vec3], x1: wp.array[wp.vec3], ring_offsets: wp.array[int], ring: wp.array[int],
+                 v: int, p: int, q: int, tol: float) -> bool:
+    """Whether edge pq passed through an edge of vertex v's one ring (other than itself) moving
+    linearly from x0 to x1 (:func:`segments_cross`)."""
+    for r in range(ring_offsets[v], ring_offsets[v + 1]):
+        o = ring[r]
+        if o == p or o == q:
+            continue
+        if segments_cross(x0[v], x0[o], x0[p], x0[q], x1[v], x1[o], x1[p], x1[q], tol):
+            return True
+    return False
+
+
+@wp.func
+def followed_side(side: float, x0: wp.array[wp.vec3], x1: wp.array[wp.vec3], ring_offsets: wp.array[int],
+                  ring: wp.array[int], i0: int, i1: int, j0: int, j1: int, tol: float) -> float:
+    """Edge pair (i0 i1, j0 j1)'s side after its points moved linearly from x0 to x1. When the
+    orientation sign was `side` at x0 and is the other at x1, the pair takes the new sign unless
+    the edges passed through each other on the way or one edge passed through an edge of the one
+    ring of an end of the other (:func:`segments_cross` within tol: the cloth beside that end,
+    which a flip beside an end goes past); else it keeps `side`. Turning past parallel, or the
+    lines passing through each other beside an end of either edge clear of the cloth there, flips
+    the sign without a crossing; a side kept across such a flip pulls the edges back through
+    whatever lies between them. A pair already on the other side at x0 (a crossing in progress)
+    keeps its side."""
+    if side == 0.0:
+        return side
+    now = edge_orientation(x1[i0], x1[i1], x1[j0], x1[j1])
+    if now == 0.0 or now == side:
+        return side
+    if edge_orientation(x0[i0], x0[i1], x0[j0], x0[j1]) != side:
+        return side
+    if segments_cross(x0[i0], x0[i1], x0[j0], x0[j1], x1[i0], x1[i1], x1[j0], x1[j1], tol):
+        return side
+    if crosses_ring(x0, x1, ring_offsets, ring, i0, j0, j1, tol) or crosses_ring(x0, x1, ring_offsets, ring, i1, j0, j1, tol):
+        return side
+    if crosses_ring(x0, x1, ring_offsets, ring, j0, i0, i1, tol) or crosses_ring(x0, x1, ring_offsets, ring, j1, i0, i1, tol):
+        return side
+    return now
+
+
 # ---------------------------------------------------------------------------------------------
 # Edge-edge self-contact
 # ---------------------------------------------------------------------------------------------
@@ -182,16 +305,21 @@ def solve_edge_contacts(
     x_prev: wp.array[wp.vec3],
     inv_mass: wp.array[float],
     edges: wp.array2d[int],
+    ring_offsets: wp.array[int],
+    ring: wp.array[int],
     contact_edge: wp.array2d[int],
     contact_side: wp.array2d[float],
     contact_count: wp.array[int],
     thickness: float,
     friction: float,
+    side_tol: float,
     delta: wp.array[wp.vec3],
     delta_count: wp.array[float],
 ):
     """Edge-edge separation: the closest points of two edges (both strictly inside their edges)
-    are kept `thickness` apart along the edges' common normal, on the stored side, with
+    are kept `thickness` apart along the edges' common normal, on the stored side (with side_tol
+    >= 0, followed from the substep's start, :func:`followed_side` within side_tol; the stored
+    side itself is then updated at the substep's end, :func:`update_edge_sides`), with
     position-based Coulomb friction on their relative tangential motion over the substep."""
     e = wp.tid()
     i0 = edges[e, 0]
@@ -221,6 +349,8 @@ def solve_edge_contacts(
             if side == 0.0:
                 continue
             contact_side[e, k] = side
+        elif side_tol >= 0.0:
+            side = followed_side(side, x_prev, x, ring_offsets, ring, i0, i1, j0, j1, side_tol)
         # side > 0: edge cd lies on the +n side of edge ab
         p = a + (b - a) * s
         q = c + (d - c) * t
@@ -254,6 +384,33 @@ def solve_edge_contacts(
         wp.atomic_add(delta_count, i1, 1.0)
         wp.atomic_add(delta_count, j0, 1.0)
         wp.atomic_add(delta_count, j1, 1.0)
+
+
+@wp.kernel
+def update_edge_sides(
+    x_from: wp.array[wp.vec3],
+    x_to: wp.array[wp.vec3],
+    edges: wp.array2d[int],
+    ring_offsets: wp.array[int],
+    ring: wp.array[int],
+    contact_edge: wp.array2d[int],
+    contact_side: wp.array2d[float],
+    contact_count: wp.array[int],
+    tol: float,
+):
+    """The edge pairs' stored sides followed along a motion from x_from to x_to
+    (:func:`followed_side`)."""
+    e = wp.tid()
+    i0 = edges[e, 0]
+    i1 = edges[e, 1]
+    for k in range(contact_count[e]):
+        side = contact_side[e, k]
+        if side == 0.0:
+            continue
+        f = contact_edge[e, k]
+        j0 = edges[f, 0]
+        j1 = edges[f, 1]
+        contact_side[e, k] = followed_side(side, x_from, x_to, ring_offsets, ring, i0, i1, j0, j1, tol)
 
 
 # ---------------------------------------------------------------------------------------------

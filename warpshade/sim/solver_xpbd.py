@@ -71,6 +71,10 @@ class XPBDSolver:
             layer or into a collider). Each moves a vertex by at most the thickness per sweep.
             They allow no stretch, so pieces soft enough to stretch under their own weight get
             none (:data:`~warpshade.sim.model.STIFF_STRAIN`).
+        follow_edge_sides: An edge-edge contact's stored side follows an orientation flip that
+            continuous collision detection shows was no crossing (edges turning past parallel, or
+            passing beside an end clear of the cloth there); off, a pair keeps the side it was
+            found on while in contact. None: :attr:`FOLLOW_EDGE_SIDES`.
         check_finite: Stop with :class:`SimulationError` when the state turns non-finite.
 
     Raises:
@@ -83,7 +87,8 @@ class XPBDSolver:
                  contact_interval: int | None = None, max_contacts: int = 128,
                  tethers: bool = True, check_finite: bool = True, relaxation: float = 1.0,
                  contact_iterations: int = 2, stretch_sweeps: int = 1, edge_contact: bool = True,
-                 guard: bool = True, self_friction: float = 0.3, stretch_limits: bool = True):
+                 guard: bool = True, self_friction: float = 0.3, stretch_limits: bool = True,
+                 follow_edge_sides: bool | None = None):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -104,6 +109,8 @@ class XPBDSolver:
         self.self_collision = bool(self_collision)
         self.edge_contact = bool(edge_contact) and self.self_collision
         self.guard = bool(guard)
+        self.follow_edge_sides = self.edge_contact and bool(
+            self.FOLLOW_EDGE_SIDES if follow_edge_sides is None else follow_edge_sides)
         self.self_friction = check_param("self_friction", self_friction)
         ci = min(self.substeps, 3) if contact_interval is None else contact_interval
         if int(ci) != ci or ci < 1:
@@ -284,6 +291,8 @@ class XPBDSolver:
                 cmds["moved"].launch()
             for c in cmds["velocities"]:
                 c.launch()
+            if self._contacts_found and "sides" in cmds:
+                cmds["sides"].launch()
 
         if self.guard:
             self._guard_intersections(x, v, dt)
@@ -359,12 +368,15 @@ class XPBDSolver:
                                       outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
             if self.edge_contact:
                 contacts.append(wp.launch(ck.solve_edge_contacts, dim=m.edge_count,
-                                          inputs=[x, self._x_prev, m.inv_mass, m.edges, self._ee_rows["ids"],
+                                          inputs=[x, self._x_prev, m.inv_mass, m.edges, m.ring_offsets, m.ring, self._ee_rows["ids"],
                                                   self._ee_rows["sides"], self._contact_ecount, m.thickness,
-                                                  self.self_friction],
+                                                  self.self_friction,
+                                                  self.SIDE_CROSSING_TOL * m.thickness if self.follow_edge_sides else -1.0],
                                           outputs=[self._delta, self._delta_count], device=d, record_cmd=True))
             contacts.append(wp.launch(k.apply_averaged_deltas, dim=n, inputs=[],
                                       outputs=[self._delta, self._delta_count, x], device=d, record_cmd=True))
+            if self.follow_edge_sides:
+                cmds["sides"] = self._side_update(self._x_prev, x, record_cmd=True)
         cmds["contacts"] = contacts
         vel = [wp.launch(k.update_velocities, dim=n, inputs=[x, self._x_prev, h], outputs=[v], device=d,
                          record_cmd=True)]
@@ -546,12 +558,31 @@ class XPBDSolver:
             if col is not None:
                 col.collide(m.thickness, m.inv_mass, self._x_start, x)
         if self.guard_vertices:
+            if self.follow_edge_sides and self._contacts_found:
+                self._side_update(self._x_unguarded, x)
             wp.launch(ck.reverted_velocities, dim=n, inputs=[self._reverted, self._x_start, x, dt], outputs=[v],
                       device=d)
             self.guard_vertices = int(self._reverted.numpy().sum())
         wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
         if self.guard_vertices:
             self.guard_longest_hold = max(self.guard_longest_hold, int(self._streak.numpy().max()))
+
+    FOLLOW_EDGE_SIDES = False
+    """Default of ``follow_edge_sides`` (off; what it does to the scenes is measured in
+    docs/benchmarks/index.md)."""
+    SIDE_CROSSING_TOL = 1.0e-3
+    """Edges that come within this fraction of the thickness of each other at a moment their four
+    points are coplanar have passed through each other: an edge pair's stored side is kept across
+    such a motion and follows a sign flip without one (:func:`contact_kernels.update_edge_sides`)."""
+
+    def _side_update(self, x_from, x_to, record_cmd: bool = False):
+        """Launch (or record) :func:`contact_kernels.update_edge_sides` on the edge contact rows
+        for the motion from x_from to x_to."""
+        m = self.model
+        return wp.launch(ck.update_edge_sides, dim=m.edge_count,
+                         inputs=[x_from, x_to, m.edges, m.ring_offsets, m.ring, self._ee_rows["ids"], self._ee_rows["sides"],
+                                 self._contact_ecount, self.SIDE_CROSSING_TOL * m.thickness],
+                         device=self.device, record_cmd=record_cmd)
 
     PUSH_OFF_PASSES = 4
     """Extra sharp-edge and vertex passes the guard tries on a step whose intersections a moving
@@ -673,6 +704,7 @@ class XPBDSolver:
                 "drag": self.drag, "air_density": self.air_density, "drag_coefficient": self.drag_coefficient,
                 "lift_coefficient": self.lift_coefficient, "self_collision": self.self_collision,
                 "contact_interval": self.contact_interval, "edge_contact": self.edge_contact,
+                "follow_edge_sides": self.follow_edge_sides,
                 "guard": self.guard, "self_friction": self.self_friction,
                 "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
                 "stretch_sweeps": self.stretch_sweeps,
