@@ -8,7 +8,7 @@ what Warp printed through to ``stderr`` unchanged; ``warpshade info`` still repo
 
 :func:`init_warp` also makes the processes that share a kernel cache take turns compiling a module
 that is missing from it (:func:`compile_one_at_a_time`): a run's workers shade with the same kernels,
-and with an empty cache each compiled every one of them at the same time.
+which with an empty cache each would otherwise compile at the same time.
 """
 
 from __future__ import annotations
