@@ -13,9 +13,14 @@ What it shows (issue 18, target 5: 120 frames <= 5 s warm wall, two workers >= 1
   rest (lights, exit radiance, between-group shadows), from timers around ``_Group.update`` and
   ``_Group.update_back``.
 
+* ``--cold ROUNDS``: instead, first runs as after installing (an empty Warp kernel cache and an empty
+  warpshade cache, two workers), wall and CPU time; ``--against CHECKOUT`` alternates them with another
+  checkout's (e.g. main's, to compare a change of the compile time).
+
 How to run::
 
     python benchmarks/default_run.py --repeat 3 --json benchmarks/results/default_run.json
+    python benchmarks/default_run.py --cold 3 --against ../main --json benchmarks/results/first_run.json
 
 Shared, loaded 2-core machine: read the ratios, and the stage split, more than the absolute times.
 """
@@ -29,6 +34,8 @@ import json
 import os
 import pstats
 import re
+import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -40,20 +47,47 @@ STAGES = re.compile(r"load ([\d.]+) s \| setup ([\d.]+) s \| simulate ([\d.]+) s
                     r"write ([\d.]+) s .*\| total ([\d.]+) s")
 
 
-def one_run(workers: int, frames: int | None, extra: list[str]) -> dict:
-    """One ``warpshade run`` in a fresh process: wall time and the printed stage times [s]."""
+def one_run(workers: int, frames: int | None, extra: list[str], repo: str = REPO, cold: bool = False) -> dict:
+    """One ``warpshade run`` of checkout ``repo`` in a fresh process: wall time, CPU time of the process and
+    its workers, and the printed stage times [s]. ``cold``: with an empty Warp kernel cache and an empty
+    warpshade cache (``WARP_CACHE_PATH``, ``WARPSHADE_CACHE`` in the run's temporary directory), as a
+    first run after installing."""
     with tempfile.TemporaryDirectory() as d:
         cmd = [sys.executable, "-m", "warpshade", "run", "--no-progress", "--out", os.path.join(d, "out.usda"),
                "--workers", str(workers)] + (["--frames", str(frames)] if frames else []) + extra
-        env = dict(os.environ, PYTHONPATH=REPO)
+        env = dict(os.environ, PYTHONPATH=repo)
+        if cold:
+            env.update(WARP_CACHE_PATH=os.path.join(d, "warp"), WARPSHADE_CACHE=os.path.join(d, "warpshade"))
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         p = subprocess.run(cmd, cwd=d, env=env, capture_output=True, text=True)
         wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode:
         raise RuntimeError(f"warpshade run failed ({p.returncode}): {p.stderr[-2000:]}")
     m = STAGES.search(p.stderr)
     stages = dict(zip(("load", "setup", "simulate", "shade", "write", "total"), map(float, m.groups()))) if m else {}
-    return {"workers": workers, "wall_seconds": wall, "stages": stages}
+    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+    return {"workers": workers, "wall_seconds": wall, "cpu_seconds": cpu, "stages": stages}
+
+
+def cold_rounds(rounds: int, against: str | None, frames: int | None, extra: list[str]) -> dict:
+    """``rounds`` cold first runs (two workers) of this checkout and, with ``against``, of that checkout
+    too, alternately (ABBA order: load drift hits both alike); the runs and the medians."""
+    trees = [REPO] + ([os.path.abspath(against)] if against else [])
+    runs = []
+    for r in range(rounds):
+        for repo in (trees if r % 2 == 0 else trees[::-1]):
+            runs.append({"repo": repo, **one_run(2, frames, extra, repo=repo, cold=True)})
+            print(f"cold round {r} {repo}: {runs[-1]['wall_seconds']:.1f} s wall, {runs[-1]['cpu_seconds']:.1f} s CPU",
+                  flush=True)
+    med = {}
+    for repo in trees:
+        mine = [x for x in runs if x["repo"] == repo]
+        med[repo] = {k: statistics.median(x[k] for x in mine) for k in ("wall_seconds", "cpu_seconds")}
+        print(f"median cold {repo}: {med[repo]['wall_seconds']:.1f} s wall, {med[repo]['cpu_seconds']:.1f} s CPU")
+    return {"command": "python -m warpshade run --no-progress --workers 2, WARP_CACHE_PATH and WARPSHADE_CACHE "
+                       "empty " + " ".join(extra), "runs": runs, "median": med}
 
 
 def profile_inline(frames: int | None, top: int = 25) -> dict:
@@ -109,8 +143,20 @@ def main(argv=None) -> int:
     ap.add_argument("--also", default=None, metavar="OPTIONS",
                     help="a third configuration in every round: --workers 2 with these run options as well "
                          "(e.g. '--reuse 2'), interleaved with the other two")
+    ap.add_argument("--cold", type=int, default=0, metavar="ROUNDS",
+                    help="instead: ROUNDS first runs with empty caches (two workers; wall and CPU time)")
+    ap.add_argument("--against", default=None, metavar="CHECKOUT",
+                    help="with --cold: another checkout's runs alternate with this one's (e.g. main's)")
     ap.add_argument("extra", nargs="*", help="more warpshade run options (after --)")
     args = ap.parse_args(argv)
+    if args.cold:
+        out = {**cold_rounds(args.cold, args.against, args.frames, args.extra),
+               "machine": "shared 2-core VM, other jobs running (loaded)"}
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(out, f, indent=2)
+            print(f"wrote {args.json}")
+        return 0
     warm = one_run(2, args.frames, args.extra)  # warms the kernel cache (and is timed, for the record)
     print(f"first run (kernel cache maybe cold): {warm['wall_seconds']:.1f} s wall {warm['stages']}", flush=True)
     also = args.also.split() if args.also else []

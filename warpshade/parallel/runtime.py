@@ -5,6 +5,10 @@ to the C ``stderr`` when it initialises on a machine without a GPU driver. warps
 CPU, so on such a machine that line is noise, and a run printed it once per worker process.
 :func:`init_warp` initialises Warp with file descriptor 2 captured and passes every other line of
 what Warp printed through to ``stderr`` unchanged; ``warpshade info`` still reports the devices.
+
+:func:`init_warp` also makes the processes that share a kernel cache take turns compiling a module
+that is missing from it (:func:`compile_one_at_a_time`): a run's workers shade with the same kernels,
+which with an empty cache each would otherwise compile at the same time.
 """
 
 from __future__ import annotations
@@ -25,8 +29,49 @@ def filter_startup_output(text: bytes) -> bytes:
     return b"".join(line for line in lines if not line.startswith(MISSING_DRIVER_NOTICE))
 
 
+def compile_lock_path(module_dir: str) -> str:
+    """The lock file of a module's cache entry ``module_dir`` (``<kernel cache>/wp_<module>_<hash>``)."""
+    return os.path.normpath(module_dir) + ".lock"
+
+
+def compile_one_at_a_time() -> None:
+    """Make this process compile a Warp module only while it holds the module's lock file
+    (:func:`compile_lock_path`, an exclusive ``flock``), so that of the processes needing a module
+    missing from the kernel cache one compiles it and the others wait, then load it from the cache.
+
+    A module whose binary is in the cache is loaded without touching the lock (a warm run waits for
+    nothing). Wraps ``warp``'s ``Module._compile`` (warp-lang 1.19), which after the lock is taken
+    finds the binary another process compiled meanwhile and returns without compiling. Without
+    ``fcntl`` (Windows) nothing changes. Idempotent.
+    """
+    try:
+        import fcntl
+    except ImportError:
+        return
+    from warp._src.context import Module
+
+    compile_binary = Module._compile
+    if getattr(compile_binary, "one_at_a_time", False):
+        return
+
+    def _compile(self, device=None, output_dir=None, output_name=None, *args, **kwargs):
+        if output_dir is None or output_name is None or os.path.exists(os.path.join(output_dir, output_name)):
+            return compile_binary(self, device, output_dir, output_name, *args, **kwargs)
+        path = compile_lock_path(os.fspath(output_dir))
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            return compile_binary(self, device, output_dir, output_name, *args, **kwargs)
+        finally:
+            os.close(fd)  # releases the lock; the empty lock file stays (removing it could race a waiter)
+
+    _compile.one_at_a_time = True
+    Module._compile = _compile
+
+
 def init_warp() -> None:
-    """Initialise Warp once: warnings and errors only, no CUDA-driver notice on CPU-only machines."""
+    """Initialise Warp once: warnings and errors only, no CUDA-driver notice on CPU-only machines, and
+    modules missing from the kernel cache compiled by one process at a time (:func:`compile_one_at_a_time`)."""
     import warp as wp
 
     wp.config.log_level = wp.LOG_WARNING  # stdout carries results: no init banner, no module-load lines
@@ -34,6 +79,7 @@ def init_warp() -> None:
     if _initialised:
         return
     _initialised = True  # wp.init() itself is idempotent; this only saves the capture
+    compile_one_at_a_time()
     try:
         sys.stderr.flush()
         saved = os.dup(2)
