@@ -24,8 +24,8 @@ during the casts (≈ 2 when both threads really ran; less when other processes 
 
 How to run::
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --json benchmarks/results/embree_peer.json
-    OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --parts gears --json benchmarks/results/embree_peer_gears.json
+    OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --parts transfer --json benchmarks/results/embree_peer_2threads.json
+    OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --parts gears --json benchmarks/results/embree_peer_gears_2threads.json
 
 Numbers come from a shared 2-core machine: A and B are timed alternately (hemiraster, embree on one
 thread, embree on two, hemiraster...), so drift hits all; compare within one run.
