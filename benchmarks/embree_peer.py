@@ -98,7 +98,9 @@ class EmbreeCaster:
         n = len(org)
         if threads <= 1:
             return self._cast(org, dirs, dists, 0, n)
-        pool = self.pools.get(threads) or self.pools.setdefault(threads, ThreadPoolExecutor(max_workers=threads))
+        if threads not in self.pools:
+            self.pools[threads] = ThreadPoolExecutor(max_workers=threads)
+        pool = self.pools[threads]
         cuts = np.linspace(0, n, self.PARTS_PER_THREAD * threads + 1).astype(int)
         parts = pool.map(lambda ab: self._cast(org, dirs, dists, *ab), zip(cuts[:-1], cuts[1:]))
         return np.concatenate(list(parts))
