@@ -5,12 +5,11 @@ from __future__ import annotations
 import importlib.util
 import os
 
+import embreex  # noqa: F401  (the test extra installs it: the embree peer's casting is under test)
 import numpy as np
 import pytest
 
 from helpers import REPO
-
-pytest.importorskip("embreex", reason="embreex (the optional 'embree' extra) is not installed; the embree peer needs it")
 
 
 @pytest.fixture(scope="module")
