@@ -104,3 +104,37 @@ def test_fill_from_neighbours_by_hand():
                                mesh_edges(np.array([[0, 1, 1], [1, 2, 2], [3, 1, 1]])),
                                np.array([False, True, True, False]))
     np.testing.assert_array_equal(out[:, 0], [2.0, 3.0, 3.0, 4.0])
+
+
+def test_back_of_a_sheet_lying_on_the_floor_is_filled_from_its_rim(monkeypatch):
+    """A two-sided 1.2 m sheet (9 × 9 vertices, x in [1.0, 2.2]) 2 cm above the ground (x up to 1.5): its back
+    faces the floor. Its far end (x = 1.0) sees sky only within atan(0.02 / 0.5) of the horizon towards the
+    ground's edge, under 0.16 % of the unoccluded light (sin² of it): buried; the part beyond the ground's
+    edge sees the sky below. The back rows that receive light are unchanged, the buried ones are no longer
+    black."""
+    from warpshade.pipeline.shading import back_key
+
+    n = 9
+    x = np.linspace(-0.6, 0.6, n)
+    X, Z = np.meshgrid(x, x, indexing="ij")
+    i = np.arange(n * n).reshape(n, n)
+    faces = np.concatenate([np.stack([i[:-1, :-1], i[:-1, 1:], i[1:, 1:]], -1).reshape(-1, 3),
+                            np.stack([i[:-1, :-1], i[1:, 1:], i[1:, :-1]], -1).reshape(-1, 3)])
+    sheet = TriMesh(np.stack([X.ravel() + 1.6, np.full(n * n, 0.02), Z.ravel()], 1), faces, name="sheet")
+
+    def back(fill):
+        if not fill:
+            monkeypatch.setattr(shading, "BURIED", -np.inf)
+        sc = Scene(objects=[SceneObject("ground", ground_mesh(), method="hemiraster"),
+                            SceneObject("sheet", sheet, method="hemiraster", two_sided=True)],
+                   frames=1, lights=[LightSpec("dome", "sky")])
+        out = Pipeline(sc, order=3, write_transfer=True).shader.build()(0, {})
+        monkeypatch.undo()
+        return out[back_key("sheet")][2], out[back_key("sheet")][3]
+
+    (c0, t0), (c1, t1) = back(False), back(True)
+    buried = t0[:, 0] <= shading.BURIED * T0
+    px = sheet.points[:, 0]
+    assert buried[px < 1.01].all() and not buried[px > 1.7].any()
+    assert np.array_equal(t1[~buried], t0[~buried]) and np.array_equal(c1[~buried], c0[~buried])
+    assert np.all(t1[buried, 0] >= t0[~buried, 0].min())  # means of the rim's values, none black
