@@ -29,8 +29,8 @@ BURIED = 5e-3
 one: (almost) no light reaches it from any direction (it lies under or inside a solid), so it is seen only
 through the triangles it shares with visible vertices. Not zero: hemiraster's rasterization leaks a pixel or
 two through the seams between a solid's triangles, one pixel of its default mask (32 across, about 804 on
-the cosine-weighted disk) being 1.2e-3 of the unoccluded DC; 5e-3 is four such pixels, 20 of 4096 reference
-rays, and a colour under 0.5 % of the unoccluded one, black to the eye either way."""
+the cosine-weighted disk) being 1.2e-3 of the unoccluded DC; 5e-3 is four such pixels, five of the reference
+method's default 1024 rays, and a colour under 0.5 % of the unoccluded one, black to the eye either way."""
 
 
 def fill_buried(transfer: np.ndarray, edges: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
@@ -94,9 +94,9 @@ class _Group:
         faces = np.concatenate([m.faces + off for m, off in zip(spec.meshes, self.offsets[:-1])])
         self.rest = np.concatenate([m.points for m in spec.meshes])
         self.mesh = TriMesh(self.rest, faces, name=f"group[{', '.join(spec.names)}]")
+        """Receivers: every member's vertices and triangles (normals come from all of them)."""
         self.edges = mesh_edges(faces)
         """Edges of every member's triangles (members share none): where :func:`fill_buried` fills."""
-        """Receivers: every member's vertices and triangles (normals come from all of them)."""
         self.blocker_faces = spec.blocker_faces()
         """Triangles that block light (members casting shadows), shape (F_c, 3), int32."""
         receivers_only = len(self.blocker_faces) < len(faces)
