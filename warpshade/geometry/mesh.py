@@ -103,6 +103,37 @@ def weld_indices(points: np.ndarray) -> np.ndarray:
     return first[inverse.reshape(-1)].astype(np.int64)
 
 
+def mesh_edges(faces: np.ndarray) -> np.ndarray:
+    """The undirected edges of triangles ``faces`` (F, 3), each once, shape (E, 2) int64, lower index first."""
+    e = np.sort(np.asarray(faces, dtype=np.int64)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    return np.unique(e, axis=0) if len(e) else e
+
+
+def fill_from_neighbours(values: np.ndarray, edges: np.ndarray, holes: np.ndarray) -> np.ndarray:
+    """``values`` (V, ...) with the rows ``holes`` (V,) bool filled inward from the others over ``edges``
+    (E, 2): in rounds, each hole row next to filled rows takes the mean of those (as they were at the
+    start of the round) and is filled from then on. Rows not in ``holes`` are returned unchanged; hole rows
+    with no path to a filled row (a part made only of holes) keep their values. Returns a new array."""
+    out = np.array(values, copy=True)
+    filled = ~np.asarray(holes, dtype=bool)
+    if filled.all() or not filled.any():
+        return out
+    e = edges[holes[edges[:, 0]] | holes[edges[:, 1]]]  # only edges touching a hole carry anything
+    a, b = np.concatenate([e[:, 0], e[:, 1]]), np.concatenate([e[:, 1], e[:, 0]])  # b's value flows to a
+    flat = out.reshape(len(out), -1)
+    while True:
+        take = filled[b] & ~filled[a]
+        if not take.any():
+            return out
+        dst, src = a[take], b[take]
+        count = np.bincount(dst, minlength=len(out))
+        rows = np.flatnonzero(count)
+        total = np.zeros((len(out), flat.shape[1]), dtype=np.float64)
+        np.add.at(total, dst, flat[src])
+        flat[rows] = (total[rows] / count[rows, None]).astype(flat.dtype)
+        filled[rows] = True
+
+
 def stitched_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """``faces`` (F, 3) with the vertices on open borders (ends of an edge of one triangle only) that lie
     at exactly the same position made one (the lowest index, :func:`weld_indices`): the surface of a

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from ..geometry.mesh import TriMesh
+from ..geometry.mesh import TriMesh, fill_from_neighbours, mesh_edges
 from ..geometry.normals import vertex_normals
 from ..sh.zonal import unoccluded_transfer as sh_unoccluded_transfer
 from .config import TWO_SIDED_MODES, GroupSpec, group_objects, is_two_sided
@@ -22,6 +22,29 @@ from .config import TWO_SIDED_MODES, GroupSpec, group_objects, is_two_sided
 def unoccluded_transfer(normals: np.ndarray, order: int) -> np.ndarray:
     """:func:`warpshade.sh.unoccluded_transfer` as float32, the pipeline's transfer dtype: shape (V, N*N)."""
     return sh_unoccluded_transfer(normals, order).astype(np.float32)
+
+
+BURIED = 5e-3
+"""A vertex is buried when the DC coefficient of its transfer is at most this fraction of the unoccluded
+one: (almost) no light reaches it from any direction (it lies under or inside a solid), so it is seen only
+through the triangles it shares with visible vertices. Not zero: hemiraster's rasterization leaks a pixel or
+two through the seams between a solid's triangles, one pixel of its default mask (32 across, about 804 on
+the cosine-weighted disk) being 1.2e-3 of the unoccluded DC; 5e-3 is four such pixels, five of the reference
+method's default 1024 rays, and a colour under 0.5 % of the unoccluded one, black to the eye either way."""
+
+
+def fill_buried(transfer: np.ndarray, edges: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """``transfer`` (V, N*N) with its :data:`BURIED` rows (among ``rows``, default all) given their non-buried
+    neighbours' transfer over the mesh ``edges`` (:func:`~warpshade.geometry.mesh.fill_from_neighbours`):
+    a buried vertex is black, and the triangles it shares with visible vertices would show a dark fringe
+    around whatever buries it. Other rows are unchanged; a part with no non-buried vertex keeps its own."""
+    unoccluded = np.sqrt(np.pi) / 2  # DC of the clamped cosine lobe, any normal (warpshade.sh.zonal)
+    buried = transfer[:, 0] <= BURIED * unoccluded
+    if rows is not None:
+        buried &= np.isin(np.arange(len(transfer)), rows)
+    if not buried.any():
+        return transfer
+    return fill_from_neighbours(transfer, edges, buried)
 
 
 BACK_PASS_WITH_OCCLUDERS = ("reference",)
@@ -72,6 +95,8 @@ class _Group:
         self.rest = np.concatenate([m.points for m in spec.meshes])
         self.mesh = TriMesh(self.rest, faces, name=f"group[{', '.join(spec.names)}]")
         """Receivers: every member's vertices and triangles (normals come from all of them)."""
+        self.edges = mesh_edges(faces)
+        """Edges of every member's triangles (members share none): where :func:`fill_buried` fills."""
         self.blocker_faces = spec.blocker_faces()
         """Triangles that block light (members casting shadows), shape (F_c, 3), int32."""
         receivers_only = len(self.blocker_faces) < len(faces)
@@ -144,6 +169,7 @@ class _Group:
         if self.method is not None:
             transfer = self.method.update(pts, normals).numpy().copy()  # the next update overwrites it
             normals = self.method.normals.numpy().copy()
+            transfer = fill_buried(transfer, self.edges)
         else:
             normals = normals.numpy().copy()
             transfer = unoccluded_transfer(normals, self.order)
@@ -168,6 +194,8 @@ class _Group:
             back[self._one_rows] = 0.0  # rows of members shaded on one side stay unused
         else:
             back = unoccluded_transfer(-normals, self.order)
+        if self.back_method is not None:
+            back = fill_buried(back, self.edges, self._two_rows)
         self.cached_back = back
         return True, back
 
@@ -569,5 +597,5 @@ def back_key(name: str) -> tuple:
     return ("back", name)
 
 
-__all__ = ["BACK_PASS_WITH_OCCLUDERS", "PROBE_RECEIVERS", "probe_transfer", "TWO_SIDED_MODES", "GroupSpec", "SceneShader", "back_key", "back_side_receivers", "flipped", "group_objects", "is_two_sided",
+__all__ = ["BACK_PASS_WITH_OCCLUDERS", "BURIED", "PROBE_RECEIVERS", "probe_transfer", "TWO_SIDED_MODES", "GroupSpec", "SceneShader", "back_key", "back_side_receivers", "fill_buried", "flipped", "group_objects", "is_two_sided",
            "unoccluded_transfer"]
