@@ -33,15 +33,16 @@ the cosine-weighted disk) being 1.2e-3 of the unoccluded DC; 5e-3 is four such p
 method's default 1024 rays, and a colour under 0.5 % of the unoccluded one, black to the eye either way."""
 
 
-def fill_buried(transfer: np.ndarray, edges: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
-    """``transfer`` (V, N*N) with its :data:`BURIED` rows (among ``rows``, default all) given their non-buried
+def fill_buried(transfer: np.ndarray, edges: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
+    """``transfer`` (V, N*N) with its :data:`BURIED` rows (among the rows where the (V,) bool ``among`` is
+    true, default all) given their non-buried
     neighbours' transfer over the mesh ``edges`` (:func:`~warpshade.geometry.mesh.fill_from_neighbours`):
     a buried vertex is black, and the triangles it shares with visible vertices would show a dark fringe
     around whatever buries it. Other rows are unchanged; a part with no non-buried vertex keeps its own."""
     unoccluded = np.sqrt(np.pi) / 2  # DC of the clamped cosine lobe, any normal (warpshade.sh.zonal)
     buried = transfer[:, 0] <= BURIED * unoccluded
-    if rows is not None:
-        buried &= np.isin(np.arange(len(transfer)), rows)
+    if among is not None:
+        buried &= among
     if not buried.any():
         return transfer
     return fill_from_neighbours(transfer, edges, buried)
@@ -128,6 +129,8 @@ class _Group:
             two[self.offsets[k]:self.offsets[k + 1]] = bool(t)
         self._two_rows, self._one_rows = np.flatnonzero(two).astype(np.int32), np.flatnonzero(~two)
         """Group rows of the two-sided members (the back pass's receivers) and of the others."""
+        self._two_sided = two
+        """The same as a (V,) mask: where the back side is filled (:func:`fill_buried`)."""
         self._faces = None
         if self.method is None or receivers_only:
             self._faces = wp.array(faces, dtype=wp.int32, device=device)
@@ -195,7 +198,7 @@ class _Group:
         else:
             back = unoccluded_transfer(-normals, self.order)
         if self.back_method is not None:
-            back = fill_buried(back, self.edges, self._two_rows)
+            back = fill_buried(back, self.edges, self._two_sided)
         self.cached_back = back
         return True, back
 
