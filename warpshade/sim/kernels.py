@@ -384,20 +384,21 @@ def solve_bending(
 
 
 @wp.kernel
-def moved_since(x: wp.array[wp.vec3], before: wp.array[wp.vec3]):
-    """before = x - before: the displacement since ``before`` was taken."""
+def add_moved(x: wp.array[wp.vec3], before: wp.array[wp.vec3], moved: wp.array[wp.vec3]):
+    """moved += x - before: adds the displacement since ``before`` was taken."""
     i = wp.tid()
-    before[i] = x[i] - before[i]
+    moved[i] = moved[i] + (x[i] - before[i])
 
 
 @wp.kernel
 def discount_moved(scale: float, moved: wp.array[wp.vec3], v: wp.array[wp.vec3]):
-    """v -= scale * moved: takes back the part of a correction's velocity that belongs to a step
+    """v -= scale * moved, then moved = 0: takes back the part of a correction's velocity that belongs to a step
     longer than the substep (``XPBDSolver(bend_interval=k)``: a bending sweep every k substeps is
     an XPBD step of k substeps, whose correction gives the velocity 1/k of what the substep's
     velocity update makes of it)."""
     i = wp.tid()
     v[i] = v[i] - moved[i] * scale
+    moved[i] = wp.vec3(0.0, 0.0, 0.0)
 
 
 @wp.kernel

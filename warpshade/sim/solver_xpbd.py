@@ -174,8 +174,10 @@ class XPBDSolver:
         self._air_drag = wp.zeros(v, dtype=wp.float32, device=d)
         self._edge_lambda = wp.zeros(model.edge_count, dtype=wp.float32, device=d)
         self._hinge_lambda = wp.zeros(max(model.hinge_count, 1), dtype=wp.float32, device=d)
-        # the bending sweep's displacement in its substep (bend_interval > 1; see discount_moved)
+        # the bending sweeps' displacement in their substep, and x before a sweep (bend_interval > 1;
+        # see discount_moved)
         self._bend_moved = wp.zeros(v if self.bend_interval > 1 else 1, dtype=wp.vec3, device=d)
+        self._bend_before = wp.zeros(v if self.bend_interval > 1 else 1, dtype=wp.vec3, device=d)
         self._attach_start = wp.zeros(max(model.attachment_count, 1), dtype=wp.vec3, device=d)
         self._first_bad = wp.zeros(1, dtype=wp.int32, device=d)
         self._x = wp.zeros(v, dtype=wp.vec3, device=d)
@@ -290,7 +292,7 @@ class XPBDSolver:
                     c.launch()
                 if (s + 1) % self.bend_interval == 0:
                     if self.bend_interval > 1:
-                        wp.copy(self._bend_moved, x)
+                        wp.copy(self._bend_before, x)
                     for c in cmds["bending"]:
                         c.launch()
                 for c in cmds["tethers"]:
@@ -386,15 +388,16 @@ class XPBDSolver:
                                              h * bi], outputs=[self._hinge_lambda, x], device=d, record_cmd=True)
                            for off, cnt in hinge_batches]
         if bi > 1:
-            cmds["bending"].append(wp.launch(k.moved_since, dim=n, inputs=[x], outputs=[self._bend_moved], device=d,
-                                             record_cmd=True))
-            cmds["bend_velocity"] = wp.launch(k.discount_moved, dim=n, inputs=[(1.0 - 1.0 / bi) / h, self._bend_moved],
-                                              outputs=[v], device=d, record_cmd=True)
+            cmds["bending"].append(wp.launch(k.add_moved, dim=n, inputs=[x, self._bend_before],
+                                             outputs=[self._bend_moved], device=d, record_cmd=True))
+            cmds["bend_velocity"] = wp.launch(k.discount_moved, dim=n, inputs=[(1.0 - 1.0 / bi) / h],
+                                              outputs=[self._bend_moved, v], device=d, record_cmd=True)
         cmds["tethers"] = []
         if self.tethers:
-            cmds["tethers"].append(wp.launch(k.solve_tethers, dim=n, inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
-                                                                   m.tether_anchor.shape[1], m.inv_mass],
-                                  outputs=[x], device=d, record_cmd=True))
+            cmds["tethers"].append(wp.launch(k.solve_tethers, dim=n,
+                                             inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
+                                                     m.tether_anchor.shape[1], m.inv_mass],
+                                             outputs=[x], device=d, record_cmd=True))
         if self.stretch_limits:
             cmds["moved"] = wp.launch(k.flag_moved, dim=n, inputs=[self._x_before, x], outputs=[self._touched], device=d,
                                       record_cmd=True)
