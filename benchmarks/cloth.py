@@ -390,16 +390,25 @@ def main(argv=None) -> int:
                     help="frames per scene with --scenes (default: each scene's own length)")
     ap.add_argument("--follow-edge-sides", action="store_true",
                     help="every solver with follow_edge_sides (XPBDSolver.FOLLOW_EDGE_SIDES = True)")
+    ap.add_argument("--aero-interval", type=int, default=None,
+                    help="every solver with this aero_interval (XPBDSolver.AERO_INTERVAL)")
+    ap.add_argument("--bend-interval", type=int, default=None,
+                    help="every solver with this bend_interval (XPBDSolver.BEND_INTERVAL)")
     args = ap.parse_args(argv)
     if args.follow_edge_sides:
         XPBDSolver.FOLLOW_EDGE_SIDES = True
+    if args.aero_interval is not None:
+        XPBDSolver.AERO_INTERVAL = args.aero_interval
+    if args.bend_interval is not None:
+        XPBDSolver.BEND_INTERVAL = args.bend_interval
     wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
     wp.init()
 
     res = run_warpshade(args.grid, args.frames, args.repeats, not args.no_self_collision)
     res["guard_off"] = run_warpshade(args.grid, args.frames, args.repeats, not args.no_self_collision, guard=False)
     res.update({"grid": args.grid, "frames": args.frames, "repeats": args.repeats, "frame_dt": 1.0 / FPS,
-                "device": "cpu", "warp": wp.__version__, "follow_edge_sides": XPBDSolver.FOLLOW_EDGE_SIDES,
+                "device": "cpu", "warp": wp.__version__, "follow_edge_sides": XPBDSolver.FOLLOW_EDGE_SIDES, "aero_interval": XPBDSolver.AERO_INTERVAL,
+                "bend_interval": XPBDSolver.BEND_INTERVAL,
                 "note": "median of repeats after a warm-up step (kernel compilation excluded); shared, loaded machine"})
     if not args.skip_baselines:
         res["warp_example_cloth"] = run_warp_example(args.grid, args.frames, args.repeats)

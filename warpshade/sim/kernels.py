@@ -337,7 +337,7 @@ def solve_bending(
     lam: wp.array[float],
     x: wp.array[wp.vec3],
 ):
-    """Dihedral-angle bending constraints C = theta - theta0.
+    """Dihedral-angle bending constraints C = theta - theta0, at XPBD step ``dt``.
 
     Hinge (x1, x2, x3, x4): wings x1, x2, shared edge x3-x4. The angle gradients are the exact
     ones of Bridson, Marino & Fedkiw 2003 (eq. 8, the "bending modes" u1..u4), not Müller 2007's
@@ -381,6 +381,24 @@ def solve_bending(
     x[i2] = x2 + u2 * (w2 * dlam)
     x[i3] = x3 + u3 * (w3 * dlam)
     x[i4] = x4 + u4 * (w4 * dlam)
+
+
+@wp.kernel
+def add_moved(x: wp.array[wp.vec3], before: wp.array[wp.vec3], moved: wp.array[wp.vec3]):
+    """moved += x - before: adds the displacement since ``before`` was taken."""
+    i = wp.tid()
+    moved[i] = moved[i] + (x[i] - before[i])
+
+
+@wp.kernel
+def discount_moved(scale: float, moved: wp.array[wp.vec3], v: wp.array[wp.vec3]):
+    """v -= scale * moved, then moved = 0: takes back the part of a correction's velocity that belongs to a step
+    longer than the substep (``XPBDSolver(bend_interval=k)``: a bending sweep every k substeps is
+    an XPBD step of k substeps, whose correction gives the velocity 1/k of what the substep's
+    velocity update makes of it)."""
+    i = wp.tid()
+    v[i] = v[i] - moved[i] * scale
+    moved[i] = wp.vec3(0.0, 0.0, 0.0)
 
 
 @wp.kernel

@@ -75,6 +75,14 @@ class XPBDSolver:
             continuous collision detection shows was no crossing (edges turning past parallel, or
             passing beside an end clear of the cloth there); off, a pair keeps the side it was
             found on while in contact. None: :attr:`FOLLOW_EDGE_SIDES`.
+        aero_interval: Substeps between evaluations of the aerodynamic forces (>= 1); in between,
+            the last evaluation's drag coefficients and lift forces are reused (drag stays
+            implicit in the current velocity). None: :attr:`AERO_INTERVAL`.
+        bend_interval: Substeps between bending sweeps (>= 1): the bending constraints are solved
+            in every ``bend_interval``-th substep as an XPBD step of H = ``bend_interval`` substeps
+            (compliance term alpha / H^2, and the correction changes the velocity by its
+            displacement over H, not over the substep), so the bending stiffness is the same as
+            H -> 0. None: :attr:`BEND_INTERVAL`.
         check_finite: Stop with :class:`SimulationError` when the state turns non-finite.
 
     Raises:
@@ -88,7 +96,8 @@ class XPBDSolver:
                  tethers: bool = True, check_finite: bool = True, relaxation: float = 1.0,
                  contact_iterations: int = 2, stretch_sweeps: int = 1, edge_contact: bool = True,
                  guard: bool = True, self_friction: float = 0.3, stretch_limits: bool = True,
-                 follow_edge_sides: bool | None = None):
+                 follow_edge_sides: bool | None = None, aero_interval: int | None = None,
+                 bend_interval: int | None = None):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -116,6 +125,14 @@ class XPBDSolver:
         if int(ci) != ci or ci < 1:
             raise ValueError(f"contact_interval must be an integer >= 1, got {contact_interval}")
         self.contact_interval = int(ci)
+        ai = self.AERO_INTERVAL if aero_interval is None else aero_interval
+        if int(ai) != ai or ai < 1:
+            raise ValueError(f"aero_interval must be an integer >= 1, got {aero_interval}")
+        self.aero_interval = int(ai)
+        bi = self.BEND_INTERVAL if bend_interval is None else bend_interval
+        if int(bi) != bi or bi < 1:
+            raise ValueError(f"bend_interval must be an integer >= 1, got {bend_interval}")
+        self.bend_interval = int(bi)
         if int(max_contacts) != max_contacts or max_contacts < 1:
             raise ValueError(f"max_contacts must be an integer >= 1, got {max_contacts}")
         self.max_contacts = int(max_contacts)
@@ -157,6 +174,10 @@ class XPBDSolver:
         self._air_drag = wp.zeros(v, dtype=wp.float32, device=d)
         self._edge_lambda = wp.zeros(model.edge_count, dtype=wp.float32, device=d)
         self._hinge_lambda = wp.zeros(max(model.hinge_count, 1), dtype=wp.float32, device=d)
+        # the bending sweeps' displacement in their substep, and x before a sweep (bend_interval > 1;
+        # see discount_moved)
+        self._bend_moved = wp.zeros(v if self.bend_interval > 1 else 1, dtype=wp.vec3, device=d)
+        self._bend_before = wp.zeros(v if self.bend_interval > 1 else 1, dtype=wp.vec3, device=d)
         self._attach_start = wp.zeros(max(model.attachment_count, 1), dtype=wp.vec3, device=d)
         self._first_bad = wp.zeros(1, dtype=wp.int32, device=d)
         self._x = wp.zeros(v, dtype=wp.vec3, device=d)
@@ -252,7 +273,7 @@ class XPBDSolver:
                                        if nxt < self.substeps else 0.0)
                     if self._detect_self_contacts(x, v, horizon, ahead):
                         cmds = self._commands(h, wind)  # the contact rows grew: the recorded launches are stale
-            if "aero" in cmds:
+            if "aero" in cmds and s % self.aero_interval == 0:
                 self._lift.zero_()
                 self._air_drag.zero_()
                 cmds["aero"].launch()
@@ -267,7 +288,14 @@ class XPBDSolver:
             self._edge_lambda.zero_()
             self._hinge_lambda.zero_()
             for _ in range(self.iterations):
-                for c in cmds["constraints"]:
+                for c in cmds["stretch"]:
+                    c.launch()
+                if (s + 1) % self.bend_interval == 0:
+                    if self.bend_interval > 1:
+                        wp.copy(self._bend_before, x)
+                    for c in cmds["bending"]:
+                        c.launch()
+                for c in cmds["tethers"]:
                     c.launch()
                 if self.stretch_limits:
                     wp.copy(self._x_before, x)
@@ -289,7 +317,10 @@ class XPBDSolver:
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             if self.stretch_limits:
                 cmds["moved"].launch()
-            for c in cmds["velocities"]:
+            cmds["velocities"][0].launch()
+            if "bend_velocity" in cmds and (s + 1) % self.bend_interval == 0:
+                cmds["bend_velocity"].launch()
+            for c in cmds["velocities"][1:]:
                 c.launch()
             if self._contacts_found and "sides" in cmds:
                 cmds["sides"].launch()
@@ -348,15 +379,25 @@ class XPBDSolver:
                    for off, cnt in edge_batches]
         # extra stretch sweeps: cheap (edges only) and the stretch residual is what shows as sag
         cons.extend(stretch * self.stretch_sweeps)
-        for off, cnt in hinge_batches:
-            cons.append(wp.launch(k.solve_bending, dim=cnt,
-                                  inputs=[self._hinge_ids, m.hinge_rest_angle, m.hinge_compliance, m.inv_mass, off, h],
-                                  outputs=[self._hinge_lambda, x], device=d, record_cmd=True))
+        cmds["stretch"] = cons
+        # a bending sweep every bend_interval substeps is an XPBD step of H = bend_interval * h: the
+        # velocity update after it keeps 1/bend_interval of the sweep's correction over h
+        bi = self.bend_interval
+        cmds["bending"] = [wp.launch(k.solve_bending, dim=cnt,
+                                     inputs=[self._hinge_ids, m.hinge_rest_angle, m.hinge_compliance, m.inv_mass, off,
+                                             h * bi], outputs=[self._hinge_lambda, x], device=d, record_cmd=True)
+                           for off, cnt in hinge_batches]
+        if bi > 1:
+            cmds["bending"].append(wp.launch(k.add_moved, dim=n, inputs=[x, self._bend_before],
+                                             outputs=[self._bend_moved], device=d, record_cmd=True))
+            cmds["bend_velocity"] = wp.launch(k.discount_moved, dim=n, inputs=[(1.0 - 1.0 / bi) / h],
+                                              outputs=[self._bend_moved, v], device=d, record_cmd=True)
+        cmds["tethers"] = []
         if self.tethers:
-            cons.append(wp.launch(k.solve_tethers, dim=n, inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
-                                                                   m.tether_anchor.shape[1], m.inv_mass],
-                                  outputs=[x], device=d, record_cmd=True))
-        cmds["constraints"] = cons
+            cmds["tethers"].append(wp.launch(k.solve_tethers, dim=n,
+                                             inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
+                                                     m.tether_anchor.shape[1], m.inv_mass],
+                                             outputs=[x], device=d, record_cmd=True))
         if self.stretch_limits:
             cmds["moved"] = wp.launch(k.flag_moved, dim=n, inputs=[self._x_before, x], outputs=[self._touched], device=d,
                                       record_cmd=True)
@@ -567,6 +608,10 @@ class XPBDSolver:
         if self.guard_vertices:
             self.guard_longest_hold = max(self.guard_longest_hold, int(self._streak.numpy().max()))
 
+    AERO_INTERVAL = 1
+    """Default of ``aero_interval`` (aerodynamics every substep)."""
+    BEND_INTERVAL = 1
+    """Default of ``bend_interval`` (bending every substep)."""
     FOLLOW_EDGE_SIDES = False
     """Default of ``follow_edge_sides`` (off; what it does to the scenes is measured in
     docs/benchmarks/index.md)."""
@@ -704,7 +749,8 @@ class XPBDSolver:
                 "drag": self.drag, "air_density": self.air_density, "drag_coefficient": self.drag_coefficient,
                 "lift_coefficient": self.lift_coefficient, "self_collision": self.self_collision,
                 "contact_interval": self.contact_interval, "edge_contact": self.edge_contact,
-                "follow_edge_sides": self.follow_edge_sides,
+                "follow_edge_sides": self.follow_edge_sides, "aero_interval": self.aero_interval,
+                "bend_interval": self.bend_interval,
                 "guard": self.guard, "self_friction": self.self_friction,
                 "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
                 "stretch_sweeps": self.stretch_sweeps,
