@@ -24,10 +24,12 @@ from ..geometry.mesh import TriMesh
 GROUND_TRUTH_SEED = 982451653
 """Seed of the ground-truth rays (independent of the ``reference`` method's default seed 0)."""
 
-TRUTH_VERSION = "t3"
+TRUTH_VERSION = "t4"
 """Version of the reference's ray tracing in the cache file names: bumped when it changes what it computes
 (t2: rays leave the vertex itself, ``trace_surface_ray``; files without it came from origins pushed along the
-normal, wrong for vertices resting on another surface), so stale files are not reused."""
+normal, wrong for vertices resting on another surface; t4: the vertex's own triangles block the cone of their edges
+and ``-n``, seen from the vertex lifted along its normal, where t3 tested each from its own side), so stale files are
+not reused."""
 
 DEFAULT_CACHE_DIR = ".warpshade-cache/reference"
 """Relative to the working directory; git-ignored in the repository."""

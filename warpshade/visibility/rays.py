@@ -102,15 +102,18 @@ def cross_triangle(mesh: wp.uint64, face: int, start: wp.vec3, d: wp.vec3, lengt
 
 
 @wp.func
-def under_corner(mesh: wp.uint64, f: int, p: wp.vec3, d: wp.vec3) -> wp.vec4:
-    """Whether the ray from ``p``, a corner of triangle ``f``, along ``d`` starts under ``f``: ``d`` points to its
-    back side of the plane (``d · nf < 0``) and lies in the triangle's angle at ``p`` (edges inclusive). Then the
-    triangle blocks it at the start, ``(0, u, v, +1)`` with ``(u, v)`` the corner's barycentrics as
-    :func:`cross_triangle` gives them (the ray meets the front, from the side ``nf`` points to); else t = -1.
+def under_corner(mesh: wp.uint64, f: int, p: wp.vec3, n: wp.vec3, d: wp.vec3) -> wp.vec4:
+    """Whether triangle ``f``, one of the receiver's own with a corner at ``p``, blocks the ray from ``p`` along
+    ``d`` as seen from ``p`` lifted along its unit normal ``n``: ``d`` lies in the cone spanned by the two
+    edges at that corner and ``-n`` (edges inclusive). Then the triangle blocks it at the start,
+    ``(0, u, v, +1)`` with ``(u, v)`` the corner's barycentrics as :func:`cross_triangle` gives them; else t = -1.
 
-    This is the limit, as the lift goes to zero, of testing ``f`` from ``p`` lifted off the surface: it depends
-    on directions only, so it does not change when the mesh is scaled or rounded (a finite lift made rays
-    nearly in ``f``'s plane flip with the rounding of ``p``, which is a sizeable fraction of the lift)."""
+    This is the limit, as the lift goes to zero, of testing ``f`` from ``p + lift n``: the rays from there to
+    the points of ``f`` near its corner fill that cone (``-n`` reaches the corner itself). It depends on
+    directions only, so it does not change when the mesh is scaled or rounded (a finite lift made rays
+    nearly in ``f``'s plane flip with the rounding of ``p``, which is a sizeable fraction of the lift). Where
+    the surface folds up around the vertex (valleys, creases) the cone rises above the horizon; where it folds
+    down (ridges, the outside of a fold) it stays below."""
     a = wp.mesh_get_point(mesh, f * 3)
     b = wp.mesh_get_point(mesh, f * 3 + 1)
     c = wp.mesh_get_point(mesh, f * 3 + 2)
@@ -130,8 +133,13 @@ def under_corner(mesh: wp.uint64, f: int, p: wp.vec3, d: wp.vec3) -> wp.vec4:
         e1 = a - c
         e2 = b - c
         cv = 1.0
-    nf = wp.cross(e1, e2)
-    if wp.dot(d, nf) < 0.0 and wp.dot(wp.cross(e1, d), nf) >= 0.0 and wp.dot(wp.cross(d, e2), nf) >= 0.0:
+    # d = x e1 + y e2 + z (-n) with x, y, z >= 0 (Cramer's rule; det = 0: a flat cone, no solid angle)
+    m = -n
+    det = wp.dot(e1, wp.cross(e2, m))
+    x = wp.dot(d, wp.cross(e2, m)) * det
+    y = wp.dot(d, wp.cross(m, e1)) * det
+    z = wp.dot(d, wp.cross(e1, e2)) * det
+    if det != 0.0 and x >= 0.0 and y >= 0.0 and z >= 0.0:
         return wp.vec4(0.0, cu, cv, 1.0)
     return wp.vec4(-1.0, 0.0, 0.0, 0.0)
 
@@ -211,7 +219,7 @@ def near_crossing(mesh: wp.uint64, f: int, own: bool, p: wp.vec3, n: wp.vec3, d:
     """Where triangle ``f`` blocks the ray by the near-field rules of :func:`trace_surface_ray`: ``(t, u, v, side)``
     as :func:`cross_triangle`, t = -1 when it does not."""
     if own:
-        return under_corner(mesh, f, p, d)
+        return under_corner(mesh, f, p, n, d)
     return cross_triangle(mesh, f, p - d * eps, d, 2.0 * eps, True)
 
 
