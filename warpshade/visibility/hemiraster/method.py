@@ -127,6 +127,12 @@ class HemirasterTransfer(TransferMethod):
             grown by more than this since the pose it was built on (0: never, the paper's scheme:
             decimated once at rest). A flat sheet decimated flat and crumpled departs by ~0.3.
             Needs the refinement (``refine`` > 0 with the hierarchy), whose deviations it reads.
+        border: Keep the vertices of the mesh's open boundary in the coarse (and mid) decimation
+            (``fast_simplification``'s ``preserve_border``): decimation otherwise rounds the outline
+            off, and a receiver far away sees through the missing part (under a draped cloth's hem),
+            where the refinement (``hierarchy.outline_deviation``) helps only near receivers. The
+            interior gets fewer vertices (a 64² cloth's 252 boundary vertices are nearly all of a
+            512-triangle coarse mesh's; raise ``coarse`` with it).
         mid: Triangle target of a mid level between the coarse and the fine mesh (0, the default: off;
             used when ``coarse < mid <`` the mesh's triangles, with the refinement). A second decimation
             of the mesh, bound to and assigned over the fine triangles like the coarse one: a refined
@@ -172,6 +178,8 @@ class HemirasterTransfer(TransferMethod):
                                   "(0: exact near field)", minimum=0.0),
         Knob("mid", int, "mid-level triangles between the coarse and the fine mesh for the refined near field "
                          "(0: off, refined coarse triangles are replaced by fine ones)", minimum=0, attr="mid_target"),
+        Knob("border", bool, "keep the open mesh's boundary vertices in the far-field decimation (the outline of a "
+                             "hem seen from afar; fewer triangles left for the interior)"),
         Knob("rim", bool, "skip blockers wholly below the lowest pixel centre", cli=False),
         Knob("fan", bool, "rasterize the receiver's own fan on open meshes", cli=False),
     )
@@ -181,14 +189,15 @@ class HemirasterTransfer(TransferMethod):
                  exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float | None = None,
                  refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
-                 fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0, mid: int = 0):
+                 fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0, mid: int = 0,
+                 border: bool = False):
         super().__init__(mesh, order, device)
         # every knob but the PVS, to rebuild the far field from another pose (:meth:`rebuild`)
         self._init_knobs = dict(mask=mask, lut=lut, downsample=downsample, ring=ring, coarse=coarse, cull=cull,
                                 cluster=cluster, exclude=exclude, backface=backface, mode=mode, view=view, phong=phong,
                                 lut_dir=lut_dir, min_image=min_image, refine=refine, occluders=occluders, rim=rim,
                                 fine_image=fine_image, fan=fan, redecimate=redecimate,
-                                interpolate=interpolate, mid=mid)
+                                interpolate=interpolate, mid=mid, border=border)
         if not (float(redecimate) >= 0.0 and np.isfinite(float(redecimate))):
             raise ValueError(f"hemiraster: redecimate must be a finite number >= 0, got {redecimate}")
         if float(redecimate) > 0.0 and pvs_frames is not None:
@@ -233,6 +242,7 @@ class HemirasterTransfer(TransferMethod):
         self.fine_image = float(fine_image)
         self.rim = bool(rim)
         self.fan = bool(fan)
+        self.border = bool(border)
         self.phong, self.lut_dir = float(phong), lut_dir
         t_start = time.perf_counter()
         d = device
@@ -301,7 +311,7 @@ class HemirasterTransfer(TransferMethod):
         far = None
         self._mid_bind = None
         if self.hierarchy:
-            far = hierarchy.far_field([(q.astype(np.float64), f) for q, f in parts], targets, mid_targets)
+            far = hierarchy.far_field([(q.astype(np.float64), f) for q, f in parts], targets, mid_targets, self.border)
             cpts, block_faces = far["points"], far["faces"]
             self._near_mode = 0  # 0: none, 1: exclusion bits (paper scheme), 2: forced refinement bits
             if self.ring:
