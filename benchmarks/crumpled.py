@@ -61,7 +61,8 @@ CRUMPLED = {"defaults": {}, "redecimate": {"redecimate": 0.1},
             "redecimate, coarse 1024, lut 96": {"redecimate": 0.1, "coarse": 1024, "lut": 96},
             "redecimate, coarse 2048, lut 96": {"redecimate": 0.1, "coarse": 2048, "lut": 96},
             "redecimate, border, lut 96": {"redecimate": 0.1, "border": True, "lut": 96},
-            "redecimate, border, coarse 1024, lut 96": {"redecimate": 0.1, "border": True, "coarse": 1024, "lut": 96}}
+            "redecimate, border, coarse 1024, lut 96": {"redecimate": 0.1, "border": True, "coarse": 1024, "lut": 96},
+            "redecimate, border, coarse 1536, lut 96": {"redecimate": 0.1, "border": True, "coarse": 1536, "lut": 96}}
 TABLE1 = {"defaults": {}, "tuned": TUNED["cloth"], "tuned+interpolate": {**TUNED["cloth"], "interpolate": 0.08},
           "tuned, refine 1.25, interpolate": {**TUNED["cloth"], "refine": 1.25, "interpolate": 0.08},
           "tuned, fan off (main)": {**TUNED["cloth"], "fan": False},

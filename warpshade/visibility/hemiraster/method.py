@@ -178,7 +178,7 @@ class HemirasterTransfer(TransferMethod):
                                   "(0: exact near field)", minimum=0.0),
         Knob("mid", int, "mid-level triangles between the coarse and the fine mesh for the refined near field "
                          "(0: off, refined coarse triangles are replaced by fine ones)", minimum=0, attr="mid_target"),
-        Knob("border", bool, "keep the open mesh's boundary vertices in the far-field decimation (the outline of a "
+        Knob("border", bool, "keep the open mesh's boundary vertices in the decimation of the far field (the outline of a "
                              "hem seen from afar; fewer triangles left for the interior)"),
         Knob("rim", bool, "skip blockers wholly below the lowest pixel centre", cli=False),
         Knob("fan", bool, "rasterize the receiver's own fan on open meshes", cli=False),
