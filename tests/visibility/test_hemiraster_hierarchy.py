@@ -119,6 +119,27 @@ def test_outline_deviation_covers_the_corners_decimation_rounds_off():
     assert (mid["outline"] == 0).sum() > len(mid["faces"]) // 2  # zero away from the boundary
 
 
+def test_border_keeps_the_outline_in_both_decimations():
+    # a crumpled sheet's boundary vertices: decimation drops most (it rounds the outline off);
+    # with border every one stays a vertex of the coarse and of the mid mesh, at its fine position
+    mesh = crumpled_sheet()
+    f = mesh.faces.astype(np.int64)
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    uniq, counts = np.unique(e, axis=0, return_counts=True)
+    outline = mesh.points[np.unique(uniq[counts == 1])].astype(np.float64)  # the 92 boundary vertices
+
+    def kept(points):
+        d = np.linalg.norm(outline[:, None] - np.asarray(points)[None], axis=2).min(axis=1)
+        return int((d < 1e-5).sum())  # decimation snaps to a grid of 2^-20 diagonals (1.4e-6 here)
+
+    plain = hierarchy.far_field([(mesh.points, f)], [128], [400])
+    kept_far = hierarchy.far_field([(mesh.points, f)], [128], [400], border=True)
+    assert kept(plain["points"]) < len(outline) // 2
+    assert kept(kept_far["points"]) == len(outline) and kept(kept_far["mid"]["points"]) == len(outline)
+    h = hemiraster(mesh, order=1, coarse=128, border=True)
+    assert h.knobs()["border"] and hemiraster(mesh, order=1, coarse=128).knobs()["border"] is False
+
+
 def test_refining_everything_with_the_mid_level_is_the_exact_far_field():
     # every coarse blocker refined, every mid triangle expanded: the primaries partition the fine
     # mesh at both levels, so the masks equal coarse=0's bit for bit

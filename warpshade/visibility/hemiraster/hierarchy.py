@@ -153,8 +153,9 @@ def closest_points_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: 
     return point, bary
 
 
-def decimate(points: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
-    """Quadric decimation to about ``target`` triangles (``fast_simplification``); degenerate faces dropped."""
+def decimate(points: np.ndarray, faces: np.ndarray, target: int, border: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Quadric decimation to about ``target`` triangles (``fast_simplification``); degenerate faces dropped.
+    With ``border``, no edge touching a vertex of an open boundary collapses (the outline is kept)."""
     import fast_simplification
 
     points = np.asarray(points, dtype=np.float64)
@@ -167,7 +168,8 @@ def decimate(points: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.nda
     # (snapped to a 2^-20 grid: float32 inputs at different scales differ in the last bits, and the
     # greedy collapse order would amplify that into a different coarse mesh)
     unit = np.round((points - lo) / scale * 2.0**20) / 2.0**20
-    pts, tris = fast_simplification.simplify(unit, faces.astype(np.int32), target_count=int(target))
+    pts, tris = fast_simplification.simplify(unit, faces.astype(np.int32), target_count=int(target),
+                                               preserve_border=bool(border))
     pts = np.asarray(pts) * scale + lo
     tris = tris[(tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2]) & (tris[:, 0] != tris[:, 2])]
     return np.asarray(pts, dtype=np.float64), np.asarray(tris, dtype=np.int64)
@@ -209,7 +211,8 @@ def bind_to_surface(query: np.ndarray, points: np.ndarray, faces: np.ndarray, ne
     return face, bary.astype(np.float32), off.astype(np.float32)
 
 
-def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mid_targets: list[int] | None = None):
+def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mid_targets: list[int] | None = None,
+              border: bool = False):
     """Coarse blocker mesh of several parts (receiver mesh, static occluders), each decimated alone.
 
     Each part is decimated to its target (kept whole when the target reaches its triangle count),
@@ -220,6 +223,7 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mi
         parts: ``(points (Vp, 3), faces (Fp, 3))`` per part, in scene order (the scene's fine
             vertices and faces are the parts' concatenated in this order).
         targets: Coarse triangle target per part.
+        border: Keep each part's open boundary vertices in both decimations (:func:`decimate`).
 
     Returns:
         dict with ``points`` (Vc, 3) float64, ``faces`` (Fc, 3) int64, ``bind_face`` (Vc,) int32 (scene
@@ -234,7 +238,7 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mi
         least deviation of each mid triangle (:func:`outline_deviation`).
     """
     def level(pts, faces, surface, target, fbase, fans=True):
-        cp, cf = decimate(pts, surface, target)
+        cp, cf = decimate(pts, surface, target, border)
         f, b, o = bind_to_surface(cp, pts, faces)
         prim, extra = assign_to_coarse(pts, faces, cp, cf, fans=fans)
         return cp, cf, f + fbase, b, o, prim, extra

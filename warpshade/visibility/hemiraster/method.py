@@ -106,7 +106,11 @@ class HemirasterTransfer(TransferMethod):
         min_image: Skip coarse far-field triangles whose projected solid angle (an upper bound from
             the Van Oosterom–Strackee formula) is below this many mask pixels: mostly triangles seen
             nearly edge-on, whose images rarely hold a pixel centre. 0 rasterizes all (exact); no
-            effect without the hierarchy (``coarse=0``), nor on the k-ring.
+            effect without the hierarchy (``coarse=0``), nor on the k-ring. None (the default):
+            0.5 on a closed mesh, 0 on an open one, where a sheet seen edge-on is a band of such
+            triangles that each hold no pixel centre but together block it (a draped cloth's skirt
+            seen from under its dome); a closed mesh's silhouette is also covered by the triangles
+            behind it.
         fine_image: The same tiny-image cull for the fine triangles that replace refined coarse
             blockers near a receiver (0, the default, rasterizes them all: the exact near field).
             Most of them are grazing slivers along the receiver's horizon whose images hold no
@@ -123,6 +127,12 @@ class HemirasterTransfer(TransferMethod):
             grown by more than this since the pose it was built on (0: never, the paper's scheme:
             decimated once at rest). A flat sheet decimated flat and crumpled departs by ~0.3.
             Needs the refinement (``refine`` > 0 with the hierarchy), whose deviations it reads.
+        border: Keep the vertices of the mesh's open boundary in the coarse (and mid) decimation
+            (``fast_simplification``'s ``preserve_border``): decimation otherwise rounds the outline
+            off, and a receiver far away sees through the missing part (under a draped cloth's hem),
+            where the refinement (``hierarchy.outline_deviation``) helps only near receivers. The
+            interior gets fewer vertices (a 64² cloth's 252 boundary vertices are nearly all of a
+            512-triangle coarse mesh's; raise ``coarse`` with it).
         mid: Triangle target of a mid level between the coarse and the fine mesh (0, the default: off;
             used when ``coarse < mid <`` the mesh's triangles, with the refinement). A second decimation
             of the mesh, bound to and assigned over the fine triangles like the coarse one: a refined
@@ -158,7 +168,7 @@ class HemirasterTransfer(TransferMethod):
         Knob("phong", float, "glossy: Phong exponent", minimum=0.0),
         Knob("lut_dir", str, "directory caching the plane LUT on disk", nullable=True),
         Knob("min_image", float, "skip far-field triangles whose image is smaller than this many mask pixels "
-                                 "(0: exact)", minimum=0.0),
+                                 "(0: exact; default 0.5 on closed meshes, 0 on open ones)", minimum=0.0, nullable=True),
         Knob("redecimate", float, "rebuild the coarse far field from the current pose when its deviation from the "
                                   "fine surface per triangle radius grew by more than this (0: never)", minimum=0.0),
         Knob("interpolate", float, "compute a subset of receivers, interpolate the others where their neighbours "
@@ -168,6 +178,8 @@ class HemirasterTransfer(TransferMethod):
                                   "(0: exact near field)", minimum=0.0),
         Knob("mid", int, "mid-level triangles between the coarse and the fine mesh for the refined near field "
                          "(0: off, refined coarse triangles are replaced by fine ones)", minimum=0, attr="mid_target"),
+        Knob("border", bool, "keep the open mesh's boundary vertices in the decimation of the far field (the outline of a "
+                             "hem seen from afar; fewer triangles left for the interior)"),
         Knob("rim", bool, "skip blockers wholly below the lowest pixel centre", cli=False),
         Knob("fan", bool, "rasterize the receiver's own fan on open meshes", cli=False),
     )
@@ -175,16 +187,17 @@ class HemirasterTransfer(TransferMethod):
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 48,
                  downsample: int = 1, ring: int = 1, coarse: int = 512, cull: bool = True, cluster: int = 16,
                  exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
-                 phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
+                 phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float | None = None,
                  refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
-                 fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0, mid: int = 0):
+                 fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0, mid: int = 0,
+                 border: bool = False):
         super().__init__(mesh, order, device)
         # every knob but the PVS, to rebuild the far field from another pose (:meth:`rebuild`)
         self._init_knobs = dict(mask=mask, lut=lut, downsample=downsample, ring=ring, coarse=coarse, cull=cull,
                                 cluster=cluster, exclude=exclude, backface=backface, mode=mode, view=view, phong=phong,
                                 lut_dir=lut_dir, min_image=min_image, refine=refine, occluders=occluders, rim=rim,
                                 fine_image=fine_image, fan=fan, redecimate=redecimate,
-                                interpolate=interpolate, mid=mid)
+                                interpolate=interpolate, mid=mid, border=border)
         if not (float(redecimate) >= 0.0 and np.isfinite(float(redecimate))):
             raise ValueError(f"hemiraster: redecimate must be a finite number >= 0, got {redecimate}")
         if float(redecimate) > 0.0 and pvs_frames is not None:
@@ -222,14 +235,14 @@ class HemirasterTransfer(TransferMethod):
         self.refine = float(refine)
         self.view = view / np.linalg.norm(view)
         self.backface = bool(backface)
-        if not (float(min_image) >= 0.0):
-            raise ValueError(f"hemiraster: min_image must be >= 0 pixels, got {min_image}")
-        self.min_image = float(min_image)
+        if min_image is not None and not (float(min_image) >= 0.0):
+            raise ValueError(f"hemiraster: min_image must be >= 0 pixels or None, got {min_image}")
         if not (float(fine_image) >= 0.0):
             raise ValueError(f"hemiraster: fine_image must be >= 0 pixels, got {fine_image}")
         self.fine_image = float(fine_image)
         self.rim = bool(rim)
         self.fan = bool(fan)
+        self.border = bool(border)
         self.phong, self.lut_dir = float(phong), lut_dir
         t_start = time.perf_counter()
         d = device
@@ -298,7 +311,7 @@ class HemirasterTransfer(TransferMethod):
         far = None
         self._mid_bind = None
         if self.hierarchy:
-            far = hierarchy.far_field([(q.astype(np.float64), f) for q, f in parts], targets, mid_targets)
+            far = hierarchy.far_field([(q.astype(np.float64), f) for q, f in parts], targets, mid_targets, self.border)
             cpts, block_faces = far["points"], far["faces"]
             self._near_mode = 0  # 0: none, 1: exclusion bits (paper scheme), 2: forced refinement bits
             if self.ring:
@@ -349,6 +362,7 @@ class HemirasterTransfer(TransferMethod):
         # of the enclosed volume says which side faces out
         side = closed_orientation(scene_pts, scene_faces)
         fine_closed = side != 0
+        self.min_image = float(min_image) if min_image is not None else (0.5 if fine_closed else 0.0)
         if self.hierarchy:
             cside = closed_orientation(rest_blockers, block_faces)
             side = side if side == cside else 0
