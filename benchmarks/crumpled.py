@@ -50,19 +50,14 @@ from warpshade.visibility import get_method  # noqa: E402
 ORDER = 5
 PEER_RAYS = 256
 CRUMPLED = {"defaults": {}, "redecimate": {"redecimate": 0.1},
-            "redecimate+refine1": {"redecimate": 0.1, "refine": 1.0},
-            "redecimate+interpolate": {"redecimate": 0.1, "interpolate": 0.1},
-            "fan off (main)": {"fan": False},
-            "redecimate, mid 2048": {"redecimate": 0.1, "mid": 2048},
             "redecimate, coarse 256, mid 2048": {"redecimate": 0.1, "coarse": 256, "mid": 2048},
             "redecimate, coarse 256, mid 2048, refine 1.5": {"redecimate": 0.1, "coarse": 256, "mid": 2048, "refine": 1.5},
-            "redecimate, min_image 0.5 (closed meshes' default)": {"redecimate": 0.1, "min_image": 0.5},
-            "redecimate, lut 96": {"redecimate": 0.1, "lut": 96},
-            "redecimate, coarse 1024, lut 96": {"redecimate": 0.1, "coarse": 1024, "lut": 96},
-            "redecimate, coarse 2048, lut 96": {"redecimate": 0.1, "coarse": 2048, "lut": 96},
-            "redecimate, border, lut 96": {"redecimate": 0.1, "border": True, "lut": 96},
-            "redecimate, border, coarse 1024, lut 96": {"redecimate": 0.1, "border": True, "coarse": 1024, "lut": 96},
-            "redecimate, border, coarse 1536, lut 96": {"redecimate": 0.1, "border": True, "coarse": 1536, "lut": 96}}
+            "redecimate, min_image 0": {"redecimate": 0.1, "min_image": 0.0},
+            "redecimate, min_image 0, lut 96": {"redecimate": 0.1, "min_image": 0.0, "lut": 96},
+            "drape: redecimate, min_image 0, border, coarse 1024, lut 96":
+                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1024, "lut": 96},
+            "redecimate, min_image 0, border, coarse 1536, lut 96":
+                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1536, "lut": 96}}
 TABLE1 = {"defaults": {}, "tuned": TUNED["cloth"], "tuned+interpolate": {**TUNED["cloth"], "interpolate": 0.08},
           "tuned, refine 1.25, interpolate": {**TUNED["cloth"], "refine": 1.25, "interpolate": 0.08},
           "tuned, fan off (main)": {**TUNED["cloth"], "fan": False},

@@ -38,7 +38,8 @@ import warp as wp  # noqa: E402
 FRAMES = (20, 60, 119)
 CONFIGS = {"defaults": {}, "coarse 256, mid 2048": {"coarse": 256, "mid": 2048},
            "coarse 256, mid 2048, refine 2.5": {"coarse": 256, "mid": 2048, "refine": 2.5},
-           "mid 2048": {"mid": 2048}, "min_image 0.5": {"min_image": 0.5}, "lut 96": {"lut": 96}}
+           "mid 2048": {"mid": 2048}, "min_image 0": {"min_image": 0.0},
+           "min_image 0, lut 96": {"min_image": 0.0, "lut": 96}}
 
 
 def main(argv=None) -> int:

@@ -551,30 +551,26 @@ def projected_solid_angle(poly):
     return abs(out)
 
 
-def test_open_mesh_keeps_a_sheet_seen_edge_on():
+def test_min_image_zero_keeps_a_sheet_seen_edge_on():
     # a 10 m x 10 m sheet 1 m above a receiver patch, 2-12 m away: every part of it is seen within
     # 27° of its plane, so each coarse triangle's image is a sliver below half a pixel, but together
-    # they block a band above the horizon. One open mesh (patch + sheet): the default keeps them.
+    # they block a band above the horizon. min_image 0 keeps them; the default cull drops most.
     rp, rf = flat_grid(-0.1, 0.1, -0.1, 0.1, 0.0, 2)  # vertex 4 at the origin, normal +z
     sp, sf = flat_grid(2.0, 12.0, -5.0, 5.0, 1.0, 40)
     mesh = TriMesh(np.concatenate([rp, sp]), np.concatenate([rf, sf + len(rp)]))
     corners = np.array([[2, -5, 1], [12, -5, 1], [12, 5, 1], [2, 5, 1]], float)
     exact = Y0 * projected_solid_angle(corners)  # blocked part of T_0 (diffuse transfer, conventions §2)
     free = hemiraster(TriMesh(rp, rf), order=1).update().numpy()[4, 0]
-    default = hemiraster(mesh, order=1)
-    culled = hemiraster(mesh, order=1, min_image=0.5)
-    got, lost = (free - h.update().numpy()[4, 0] for h in (default, culled))
-    # measured: default 1.13 x exact (the full mesh, coarse=0, 1.08 x: the LUT's quantised edge planes
-    # at 5-27° elevation over-block), min_image 0.5 0.30 x (all but ~0.1 coarse triangles per vertex culled)
+    kept = hemiraster(mesh, order=1, min_image=0.0)
+    culled = hemiraster(mesh, order=1)
+    got, lost = (free - h.update().numpy()[4, 0] for h in (kept, culled))
+    # measured: min_image 0 1.13 x exact (the full mesh, coarse=0, 1.08 x: the LUT's quantised edge
+    # planes at 5-27° elevation over-block), the default 0.5 0.30 x (all but ~0.1 coarse triangles per
+    # vertex culled): the known weakness on draped cloth (docs/methods/hemiraster.md)
     assert abs(got / exact - 1.0) < 0.2, got / exact
     assert lost / exact < 0.6, lost / exact
-    assert default.stats()["hierarchy"] and default.knobs()["min_image"] == 0.0
+    assert kept.stats()["hierarchy"] and culled.knobs()["min_image"] == 0.5
 
-
-def test_closed_mesh_keeps_the_tiny_image_cull():
-    ico = trimesh.creation.icosphere(3)
-    h = hemiraster(TriMesh(np.asarray(ico.vertices), np.asarray(ico.faces)), order=1, coarse=200)
-    assert h.stats()["hierarchy"] and h.stats()["min_image_active"] and h.knobs()["min_image"] == 0.5
 
 # ------------------------------------------------------------------------------- the receiver's own fan
 def valley(k=1.0, n=9):

@@ -106,11 +106,10 @@ class HemirasterTransfer(TransferMethod):
         min_image: Skip coarse far-field triangles whose projected solid angle (an upper bound from
             the Van Oosterom–Strackee formula) is below this many mask pixels: mostly triangles seen
             nearly edge-on, whose images rarely hold a pixel centre. 0 rasterizes all (exact); no
-            effect without the hierarchy (``coarse=0``), nor on the k-ring. None (the default):
-            0.5 on a closed mesh, 0 on an open one, where a sheet seen edge-on is a band of such
-            triangles that each hold no pixel centre but together block it (a draped cloth's skirt
-            seen from under its dome); a closed mesh's silhouette is also covered by the triangles
-            behind it.
+            effect without the hierarchy (``coarse=0``), nor on the k-ring. On an open mesh a sheet
+            seen edge-on is a band of such triangles that each hold no pixel centre but together
+            block it (a draped cloth's skirt seen from under its dome): 0 keeps it; a closed mesh's
+            silhouette is also covered by the triangles behind it.
         fine_image: The same tiny-image cull for the fine triangles that replace refined coarse
             blockers near a receiver (0, the default, rasterizes them all: the exact near field).
             Most of them are grazing slivers along the receiver's horizon whose images hold no
@@ -168,7 +167,7 @@ class HemirasterTransfer(TransferMethod):
         Knob("phong", float, "glossy: Phong exponent", minimum=0.0),
         Knob("lut_dir", str, "directory caching the plane LUT on disk", nullable=True),
         Knob("min_image", float, "skip far-field triangles whose image is smaller than this many mask pixels "
-                                 "(0: exact; default 0.5 on closed meshes, 0 on open ones)", minimum=0.0, nullable=True),
+                                 "(0: exact; a draped cloth wants 0)", minimum=0.0),
         Knob("redecimate", float, "rebuild the coarse far field from the current pose when its deviation from the "
                                   "fine surface per triangle radius grew by more than this (0: never)", minimum=0.0),
         Knob("interpolate", float, "compute a subset of receivers, interpolate the others where their neighbours "
@@ -187,7 +186,7 @@ class HemirasterTransfer(TransferMethod):
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 48,
                  downsample: int = 1, ring: int = 1, coarse: int = 512, cull: bool = True, cluster: int = 16,
                  exclude: float = 0.35, backface: bool = True, mode: str = "diffuse", view=(0.0, 0.0, 1.0),
-                 phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float | None = None,
+                 phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
                  refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
                  fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0, mid: int = 0,
                  border: bool = False):
@@ -235,8 +234,9 @@ class HemirasterTransfer(TransferMethod):
         self.refine = float(refine)
         self.view = view / np.linalg.norm(view)
         self.backface = bool(backface)
-        if min_image is not None and not (float(min_image) >= 0.0):
-            raise ValueError(f"hemiraster: min_image must be >= 0 pixels or None, got {min_image}")
+        if not (float(min_image) >= 0.0):
+            raise ValueError(f"hemiraster: min_image must be >= 0 pixels, got {min_image}")
+        self.min_image = float(min_image)
         if not (float(fine_image) >= 0.0):
             raise ValueError(f"hemiraster: fine_image must be >= 0 pixels, got {fine_image}")
         self.fine_image = float(fine_image)
@@ -362,7 +362,6 @@ class HemirasterTransfer(TransferMethod):
         # of the enclosed volume says which side faces out
         side = closed_orientation(scene_pts, scene_faces)
         fine_closed = side != 0
-        self.min_image = float(min_image) if min_image is not None else (0.5 if fine_closed else 0.0)
         if self.hierarchy:
             cside = closed_orientation(rest_blockers, block_faces)
             side = side if side == cside else 0
