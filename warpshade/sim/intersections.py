@@ -281,16 +281,16 @@ def before(lo_t: wp.vec3, t: int, lo_u: wp.vec3, u: int) -> bool:
 
 
 @wp.func
-def grid_cell(p: wp.vec3, origin: wp.vec3, inv: float, dims: wp.vec3i) -> wp.vec3i:
-    """Cell of point p in the dense grid of ``dims`` cells 1 / ``inv`` wide from ``origin``,
-    clamped to the grid (monotone along each axis)."""
-    q = (p - origin) * inv
+def grid_cell(p: wp.vec3, origin: wp.vec3, inv: wp.vec3, dims: wp.vec3i) -> wp.vec3i:
+    """Cell of point p in the dense grid of ``dims`` cells 1 / ``inv[k]`` wide along axis k from
+    ``origin``, clamped to the grid (monotone along each axis)."""
+    q = wp.cw_mul(p - origin, inv)
     return wp.vec3i(wp.clamp(int(wp.floor(q[0])), 0, dims[0] - 1), wp.clamp(int(wp.floor(q[1])), 0, dims[1] - 1),
                     wp.clamp(int(wp.floor(q[2])), 0, dims[2] - 1))
 
 
 @wp.kernel
-def bin_boxes(lower: wp.array[wp.vec3], origin: wp.vec3, inv: float, dims: wp.vec3i, cell: wp.array[int],
+def bin_boxes(lower: wp.array[wp.vec3], origin: wp.vec3, inv: wp.vec3, dims: wp.vec3i, cell: wp.array[int],
               cell_size: wp.array[int]):
     """Grid cell of each triangle's lower box corner (x fastest) and the cells' sizes."""
     t = wp.tid()
@@ -329,7 +329,7 @@ def count_self_pairs_grid(
     sorted_upper: wp.array[wp.vec3],
     sorted_tris: wp.array[wp.vec3i],
     origin: wp.vec3,
-    inv: float,
+    inv: wp.vec3,
     dims: wp.vec3i,
     width_y: float,
     width_z: float,
@@ -342,13 +342,14 @@ def count_self_pairs_grid(
     mark: wp.array[int],
 ):
     """:func:`count_self_pairs` with a dense grid of the triangles' lower box corners as the
-    broad phase (cells 1 / ``inv`` wide, at least the widest box; counting-sorted by
+    broad phase (cells 1 / ``inv[k]`` wide along axis k; counting-sorted by
     :func:`sort_boxes`, ``first[k]`` the first slot of cell k); ``width_y`` and ``width_z`` are at
     least every box's extent along y and z. A pair is tested from the triangle t that comes first
     in (lower x, index): the other's lower corner then lies in [lo.x, hi.x] x [lo.y - width_y,
     hi.y] x [lo.z - width_z, hi.z] of t's box, and t walks the cells covering that range widened
     by ``slack`` (the float32 rounding of the bounds), one contiguous run of slots per row of
-    cells along x, so every box-overlapping pair is tested exactly once."""
+    cells along x, so every box-overlapping pair is tested exactly once. Most slots of a cloth's walk
+    hold triangles sharing a vertex with t (its neighbours), so that test comes first."""
     s = wp.tid()
     t = ids[s]
     lo = sorted_lower[s]
@@ -360,13 +361,13 @@ def count_self_pairs_grid(
         for cy in range(c0[1], c1[1] + 1):
             row = (cz * dims[1] + cy) * dims[0]
             for r in range(first[row + c0[0]], first[row + c1[0] + 1]):
+                if share_vertex(vt, sorted_tris[r]):
+                    continue
                 ulo = sorted_lower[r]
                 u = ids[r]
                 if not before(lo, t, ulo, u):
                     continue
                 if not boxes_overlap(lo, hi, ulo, sorted_upper[r]):
-                    continue
-                if share_vertex(vt, sorted_tris[r]):
                     continue
                 test_self_pair(x, tris, x0, t, u, count, pairs, mark)
 
@@ -772,6 +773,11 @@ class IntersectionCounter:
         self._sorted_tris = wp.zeros(nf, dtype=wp.vec3i, device=self.device)
         self._cell_size = self._first = self._cell_width = None
 
+    X_CELL = 0.5
+    """Width of the cloth-cloth count's grid cells along x (the axis a walk reads as contiguous runs
+    of slots) against their width along y and z: narrower cells along x add no runs to a walk, only
+    table room, and leave fewer boxes that lie before the walking triangle's in its runs."""
+
     MAX_CELLS = 1 << 17
     """Most cells of the cloth-cloth count's grid (cells grow beyond the widest box past it);
     every count clears and scans them."""
@@ -835,16 +841,17 @@ class IntersectionCounter:
         if not (np.isfinite(size) and width * 1.0e5 > size):
             # cells too small against the coordinates for float32 cell arithmetic: the BVH
             return self._run(count_self_pairs, [self._mesh_id(), x, self.tris], mark, start)
-        # cells as wide as the widest box (a walk then covers 1-2 cells along x and 2-3 along y
-        # and z), wider when the grid would have more than MAX_CELLS; the walk's slack (2 % of a
-        # cell and the float32 rounding of the bounds, a few ulp of the largest coordinate) so no
-        # overlapping box is missed
+        # cells as wide as the widest box along y and z (a walk then covers 2-3 of them along
+        # each) and X_CELL of that along x, wider when the grid would have more than MAX_CELLS;
+        # the walk's slack (2 % of a cell and the float32 rounding of the bounds, a few ulp of the
+        # largest coordinate) so no overlapping box is missed
         origin = lo.min(axis=1).astype(np.float64)
         span = lo.max(axis=1) - origin
         cell = width
-        while np.prod(np.floor(span / cell) + 1) > self.MAX_CELLS:
+        shape = np.array([self.X_CELL, 1.0, 1.0])
+        while np.prod(np.floor(span / (cell * shape)) + 1) > self.MAX_CELLS:
             cell *= 1.25
-        dims = (np.floor(span / cell) + 1).astype(int)
+        dims = (np.floor(span / (cell * shape)) + 1).astype(int)
         cells = int(np.prod(dims))
         self._cell_width = cell
         if self._first is None or self._first.shape[0] < cells + 1:
@@ -853,7 +860,7 @@ class IntersectionCounter:
             self._first = wp.zeros(room, dtype=wp.int32, device=self.device)
             self._cursor = wp.zeros(room, dtype=wp.int32, device=self.device)
         nf, d = len(self.faces), self.device
-        o, inv, dm = wp.vec3(*origin), 1.0 / cell, wp.vec3i(*dims.tolist())
+        o, inv, dm = wp.vec3(*origin), wp.vec3(*(1.0 / (cell * shape))), wp.vec3i(*dims.tolist())
         sizes, first = self._cell_size[:cells + 1], self._first[:cells + 1]
         sizes.zero_()
         wp.launch(bin_boxes, dim=nf, inputs=[self._lower, o, inv, dm], outputs=[self._cell, sizes], device=d)
