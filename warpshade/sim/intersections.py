@@ -300,18 +300,28 @@ def bin_boxes(lower: wp.array[wp.vec3], origin: wp.vec3, inv: wp.vec3, dims: wp.
     wp.atomic_add(cell_size, k, 1)
 
 
+@wp.struct
+class GridSlot:
+    """A triangle in the grid's counting-sorted order: its box, vertices and index."""
+    lo: wp.vec3
+    hi: wp.vec3
+    tri: wp.vec3i
+    id: int
+
+
 @wp.kernel
 def sort_boxes(cell: wp.array[int], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3], tris: wp.array[wp.vec3i],
-               cursor: wp.array[int], ids: wp.array[int], sorted_lower: wp.array[wp.vec3],
-               sorted_upper: wp.array[wp.vec3], sorted_tris: wp.array[wp.vec3i]):
+               cursor: wp.array[int], slots: wp.array[GridSlot]):
     """Counting sort of the triangles by cell (``cursor`` starts at each cell's first slot), their
-    boxes and vertices copied alongside so that a walk along a row of cells reads them in order."""
+    boxes and vertices stored in the slot so that a walk along a row of cells reads them in order."""
     t = wp.tid()
     s = wp.atomic_add(cursor, cell[t], 1)
-    ids[s] = t
-    sorted_lower[s] = lower[t]
-    sorted_upper[s] = upper[t]
-    sorted_tris[s] = tris[t]
+    g = GridSlot()
+    g.lo = lower[t]
+    g.hi = upper[t]
+    g.tri = tris[t]
+    g.id = t
+    slots[s] = g
 
 
 @wp.func
@@ -324,10 +334,7 @@ def share_vertex(a: wp.vec3i, b: wp.vec3i) -> bool:
 @wp.kernel
 def count_self_pairs_grid(
     first: wp.array[int],
-    ids: wp.array[int],
-    sorted_lower: wp.array[wp.vec3],
-    sorted_upper: wp.array[wp.vec3],
-    sorted_tris: wp.array[wp.vec3i],
+    slots: wp.array[GridSlot],
     origin: wp.vec3,
     inv: wp.vec3,
     dims: wp.vec3i,
@@ -350,26 +357,25 @@ def count_self_pairs_grid(
     by ``slack`` (the float32 rounding of the bounds), one contiguous run of slots per row of
     cells along x, so every box-overlapping pair is tested exactly once. Most slots of a cloth's walk
     hold triangles sharing a vertex with t (its neighbours), so that test comes first."""
-    s = wp.tid()
-    t = ids[s]
-    lo = sorted_lower[s]
-    hi = sorted_upper[s]
-    vt = sorted_tris[s]
+    me = slots[wp.tid()]
+    t = me.id
+    lo = me.lo
+    hi = me.hi
+    vt = me.tri
     c0 = grid_cell(wp.vec3(lo[0] - slack, lo[1] - width_y - slack, lo[2] - width_z - slack), origin, inv, dims)
     c1 = grid_cell(hi + wp.vec3(slack), origin, inv, dims)
     for cz in range(c0[2], c1[2] + 1):
         for cy in range(c0[1], c1[1] + 1):
             row = (cz * dims[1] + cy) * dims[0]
             for r in range(first[row + c0[0]], first[row + c1[0] + 1]):
-                if share_vertex(vt, sorted_tris[r]):
+                other = slots[r]
+                if share_vertex(vt, other.tri):
                     continue
-                ulo = sorted_lower[r]
-                u = ids[r]
-                if not before(lo, t, ulo, u):
+                if not before(lo, t, other.lo, other.id):
                     continue
-                if not boxes_overlap(lo, hi, ulo, sorted_upper[r]):
+                if not boxes_overlap(lo, hi, other.lo, other.hi):
                     continue
-                test_self_pair(x, tris, x0, t, u, count, pairs, mark)
+                test_self_pair(x, tris, x0, t, other.id, count, pairs, mark)
 
 
 @wp.func
@@ -767,10 +773,7 @@ class IntersectionCounter:
         self._upper = wp.zeros(len(f), dtype=wp.vec3, device=self.device)
         nf = max(len(f), 1)
         self._cell = wp.zeros(nf, dtype=wp.int32, device=self.device)
-        self._ids = wp.zeros(nf, dtype=wp.int32, device=self.device)
-        self._sorted_lower = wp.zeros(nf, dtype=wp.vec3, device=self.device)
-        self._sorted_upper = wp.zeros(nf, dtype=wp.vec3, device=self.device)
-        self._sorted_tris = wp.zeros(nf, dtype=wp.vec3i, device=self.device)
+        self._slots = wp.zeros(nf, dtype=GridSlot, device=self.device)
         self._cell_size = self._first = self._cell_width = None
 
     X_CELL = 0.5
@@ -867,9 +870,8 @@ class IntersectionCounter:
         wp.utils.array_scan(sizes, first, inclusive=False)
         wp.copy(self._cursor, first, count=cells + 1)
         wp.launch(sort_boxes, dim=nf, inputs=[self._cell, self._lower, self._upper, self.tris, self._cursor],
-                  outputs=[self._ids, self._sorted_lower, self._sorted_upper, self._sorted_tris], device=d)
-        return self._run(count_self_pairs_grid, [first, self._ids, self._sorted_lower, self._sorted_upper,
-                                                 self._sorted_tris, o, inv, dm,
+                  outputs=[self._slots], device=d)
+        return self._run(count_self_pairs_grid, [first, self._slots, o, inv, dm,
                                                  float(extent[1]), float(extent[2]), 0.02 * cell + 1.0e-6 * size, x,
                                                  self.tris], mark, start)
 
