@@ -291,13 +291,14 @@ def grid_cell(p: wp.vec3, origin: wp.vec3, inv: wp.vec3, dims: wp.vec3i) -> wp.v
 
 @wp.kernel
 def bin_boxes(lower: wp.array[wp.vec3], origin: wp.vec3, inv: wp.vec3, dims: wp.vec3i, cell: wp.array[int],
-              cell_size: wp.array[int]):
-    """Grid cell of each triangle's lower box corner (x fastest) and the cells' sizes."""
+              rank: wp.array[int], cell_size: wp.array[int]):
+    """Grid cell of each triangle's lower box corner (x fastest), its rank among the cell's
+    triangles and the cells' sizes."""
     t = wp.tid()
     c = grid_cell(lower[t], origin, inv, dims)
     k = (c[2] * dims[1] + c[1]) * dims[0] + c[0]
     cell[t] = k
-    wp.atomic_add(cell_size, k, 1)
+    rank[t] = wp.atomic_add(cell_size, k, 1)
 
 
 @wp.struct
@@ -310,18 +311,17 @@ class GridSlot:
 
 
 @wp.kernel
-def sort_boxes(cell: wp.array[int], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3], tris: wp.array[wp.vec3i],
-               cursor: wp.array[int], slots: wp.array[GridSlot]):
-    """Counting sort of the triangles by cell (``cursor`` starts at each cell's first slot), their
+def sort_boxes(cell: wp.array[int], rank: wp.array[int], first: wp.array[int], lower: wp.array[wp.vec3],
+               upper: wp.array[wp.vec3], tris: wp.array[wp.vec3i], slots: wp.array[GridSlot]):
+    """Counting sort of the triangles by cell (``first[k]`` the first slot of cell k), their
     boxes and vertices stored in the slot so that a walk along a row of cells reads them in order."""
     t = wp.tid()
-    s = wp.atomic_add(cursor, cell[t], 1)
     g = GridSlot()
     g.lo = lower[t]
     g.hi = upper[t]
     g.tri = tris[t]
     g.id = t
-    slots[s] = g
+    slots[first[cell[t]] + rank[t]] = g
 
 
 @wp.func
@@ -773,6 +773,7 @@ class IntersectionCounter:
         self._upper = wp.zeros(len(f), dtype=wp.vec3, device=self.device)
         nf = max(len(f), 1)
         self._cell = wp.zeros(nf, dtype=wp.int32, device=self.device)
+        self._rank = wp.zeros(nf, dtype=wp.int32, device=self.device)
         self._slots = wp.zeros(nf, dtype=GridSlot, device=self.device)
         self._cell_size = self._first = self._cell_width = None
 
@@ -861,15 +862,14 @@ class IntersectionCounter:
             room = min(max(cells + 1, 2 * (0 if self._first is None else self._first.shape[0])), self.MAX_CELLS + 1)
             self._cell_size = wp.zeros(room, dtype=wp.int32, device=self.device)
             self._first = wp.zeros(room, dtype=wp.int32, device=self.device)
-            self._cursor = wp.zeros(room, dtype=wp.int32, device=self.device)
         nf, d = len(self.faces), self.device
         o, inv, dm = wp.vec3(*origin), wp.vec3(*(1.0 / (cell * shape))), wp.vec3i(*dims.tolist())
         sizes, first = self._cell_size[:cells + 1], self._first[:cells + 1]
         sizes.zero_()
-        wp.launch(bin_boxes, dim=nf, inputs=[self._lower, o, inv, dm], outputs=[self._cell, sizes], device=d)
+        wp.launch(bin_boxes, dim=nf, inputs=[self._lower, o, inv, dm], outputs=[self._cell, self._rank, sizes],
+                  device=d)
         wp.utils.array_scan(sizes, first, inclusive=False)
-        wp.copy(self._cursor, first, count=cells + 1)
-        wp.launch(sort_boxes, dim=nf, inputs=[self._cell, self._lower, self._upper, self.tris, self._cursor],
+        wp.launch(sort_boxes, dim=nf, inputs=[self._cell, self._rank, first, self._lower, self._upper, self.tris],
                   outputs=[self._slots], device=d)
         return self._run(count_self_pairs_grid, [first, self._slots, o, inv, dm,
                                                  float(extent[1]), float(extent[2]), 0.02 * cell + 1.0e-6 * size, x,
