@@ -9,7 +9,7 @@ and cones).
 
 The triangle-triangle test is orientation based, in float64: two non-coplanar triangles meet iff
 an edge of one meets the other (segment-triangle by the signs of five orientation determinants);
-coplanar ones by 2-D edge crossings and containment. Cloth-cloth candidates come from a uniform
+coplanar ones by 2-D edge crossings and containment. Cloth-cloth candidates come from a dense
 grid of the triangles' boxes (a BVH over them, ``wp.Mesh`` + ``mesh_query_aabb``, when the boxes
 are too small against the coordinates for float32 cells), so a 64 x 64 cloth counts in
 milliseconds.
@@ -806,7 +806,7 @@ class IntersectionCounter:
 
     def _mesh_id(self) -> int:
         """The BVH of the cloth's triangles at the points last given, built or refitted only when
-        a count uses it (the hash-grid count and the collider counts do not)."""
+        a count uses it (the grid count and the collider counts do not)."""
         if self._mesh is None:
             self._mesh = wp.Mesh(points=self._x, indices=self._indices)
         elif self._mesh_stale:
