@@ -9,7 +9,7 @@ and cones).
 
 The triangle-triangle test is orientation based, in float64: two non-coplanar triangles meet iff
 an edge of one meets the other (segment-triangle by the signs of five orientation determinants);
-coplanar ones by 2-D edge crossings and containment. Cloth-cloth candidates come from a uniform
+coplanar ones by 2-D edge crossings and containment. Cloth-cloth candidates come from a dense
 grid of the triangles' boxes (a BVH over them, ``wp.Mesh`` + ``mesh_query_aabb``, when the boxes
 are too small against the coordinates for float32 cells), so a 64 x 64 cloth counts in
 milliseconds.
@@ -281,37 +281,47 @@ def before(lo_t: wp.vec3, t: int, lo_u: wp.vec3, u: int) -> bool:
 
 
 @wp.func
-def grid_cell(p: wp.vec3, origin: wp.vec3, inv: float, dims: wp.vec3i) -> wp.vec3i:
-    """Cell of point p in the dense grid of ``dims`` cells 1 / ``inv`` wide from ``origin``,
-    clamped to the grid (monotone along each axis)."""
-    q = (p - origin) * inv
+def grid_cell(p: wp.vec3, origin: wp.vec3, inv: wp.vec3, dims: wp.vec3i) -> wp.vec3i:
+    """Cell of point p in the dense grid of ``dims`` cells 1 / ``inv[k]`` wide along axis k from
+    ``origin``, clamped to the grid (monotone along each axis)."""
+    q = wp.cw_mul(p - origin, inv)
     return wp.vec3i(wp.clamp(int(wp.floor(q[0])), 0, dims[0] - 1), wp.clamp(int(wp.floor(q[1])), 0, dims[1] - 1),
                     wp.clamp(int(wp.floor(q[2])), 0, dims[2] - 1))
 
 
 @wp.kernel
-def bin_boxes(lower: wp.array[wp.vec3], origin: wp.vec3, inv: float, dims: wp.vec3i, cell: wp.array[int],
-              cell_size: wp.array[int]):
-    """Grid cell of each triangle's lower box corner (x fastest) and the cells' sizes."""
+def bin_boxes(lower: wp.array[wp.vec3], origin: wp.vec3, inv: wp.vec3, dims: wp.vec3i, cell: wp.array[int],
+              rank: wp.array[int], cell_size: wp.array[int]):
+    """Grid cell of each triangle's lower box corner (x fastest), its rank among the cell's
+    triangles and the cells' sizes."""
     t = wp.tid()
     c = grid_cell(lower[t], origin, inv, dims)
     k = (c[2] * dims[1] + c[1]) * dims[0] + c[0]
     cell[t] = k
-    wp.atomic_add(cell_size, k, 1)
+    rank[t] = wp.atomic_add(cell_size, k, 1)
+
+
+@wp.struct
+class GridSlot:
+    """A triangle in the grid's counting-sorted order: its box, vertices and index."""
+    lo: wp.vec3
+    hi: wp.vec3
+    tri: wp.vec3i
+    id: int
 
 
 @wp.kernel
-def sort_boxes(cell: wp.array[int], lower: wp.array[wp.vec3], upper: wp.array[wp.vec3], tris: wp.array[wp.vec3i],
-               cursor: wp.array[int], ids: wp.array[int], sorted_lower: wp.array[wp.vec3],
-               sorted_upper: wp.array[wp.vec3], sorted_tris: wp.array[wp.vec3i]):
-    """Counting sort of the triangles by cell (``cursor`` starts at each cell's first slot), their
-    boxes and vertices copied alongside so that a walk along a row of cells reads them in order."""
+def sort_boxes(cell: wp.array[int], rank: wp.array[int], first: wp.array[int], lower: wp.array[wp.vec3],
+               upper: wp.array[wp.vec3], tris: wp.array[wp.vec3i], slots: wp.array[GridSlot]):
+    """Counting sort of the triangles by cell (``first[k]`` the first slot of cell k), their
+    boxes and vertices stored in the slot so that a walk along a row of cells reads them in order."""
     t = wp.tid()
-    s = wp.atomic_add(cursor, cell[t], 1)
-    ids[s] = t
-    sorted_lower[s] = lower[t]
-    sorted_upper[s] = upper[t]
-    sorted_tris[s] = tris[t]
+    g = GridSlot()
+    g.lo = lower[t]
+    g.hi = upper[t]
+    g.tri = tris[t]
+    g.id = t
+    slots[first[cell[t]] + rank[t]] = g
 
 
 @wp.func
@@ -324,12 +334,9 @@ def share_vertex(a: wp.vec3i, b: wp.vec3i) -> bool:
 @wp.kernel
 def count_self_pairs_grid(
     first: wp.array[int],
-    ids: wp.array[int],
-    sorted_lower: wp.array[wp.vec3],
-    sorted_upper: wp.array[wp.vec3],
-    sorted_tris: wp.array[wp.vec3i],
+    slots: wp.array[GridSlot],
     origin: wp.vec3,
-    inv: float,
+    inv: wp.vec3,
     dims: wp.vec3i,
     width_y: float,
     width_z: float,
@@ -342,33 +349,33 @@ def count_self_pairs_grid(
     mark: wp.array[int],
 ):
     """:func:`count_self_pairs` with a dense grid of the triangles' lower box corners as the
-    broad phase (cells 1 / ``inv`` wide, at least the widest box; counting-sorted by
+    broad phase (cells 1 / ``inv[k]`` wide along axis k; counting-sorted by
     :func:`sort_boxes`, ``first[k]`` the first slot of cell k); ``width_y`` and ``width_z`` are at
     least every box's extent along y and z. A pair is tested from the triangle t that comes first
     in (lower x, index): the other's lower corner then lies in [lo.x, hi.x] x [lo.y - width_y,
     hi.y] x [lo.z - width_z, hi.z] of t's box, and t walks the cells covering that range widened
     by ``slack`` (the float32 rounding of the bounds), one contiguous run of slots per row of
-    cells along x, so every box-overlapping pair is tested exactly once."""
-    s = wp.tid()
-    t = ids[s]
-    lo = sorted_lower[s]
-    hi = sorted_upper[s]
-    vt = sorted_tris[s]
+    cells along x, so every box-overlapping pair is tested exactly once. Most slots of a cloth's walk
+    hold triangles sharing a vertex with t (its neighbours), so that test comes first."""
+    me = slots[wp.tid()]
+    t = me.id
+    lo = me.lo
+    hi = me.hi
+    vt = me.tri
     c0 = grid_cell(wp.vec3(lo[0] - slack, lo[1] - width_y - slack, lo[2] - width_z - slack), origin, inv, dims)
     c1 = grid_cell(hi + wp.vec3(slack), origin, inv, dims)
     for cz in range(c0[2], c1[2] + 1):
         for cy in range(c0[1], c1[1] + 1):
             row = (cz * dims[1] + cy) * dims[0]
             for r in range(first[row + c0[0]], first[row + c1[0] + 1]):
-                ulo = sorted_lower[r]
-                u = ids[r]
-                if not before(lo, t, ulo, u):
+                other = slots[r]
+                if share_vertex(vt, other.tri):
                     continue
-                if not boxes_overlap(lo, hi, ulo, sorted_upper[r]):
+                if not before(lo, t, other.lo, other.id):
                     continue
-                if share_vertex(vt, sorted_tris[r]):
+                if not boxes_overlap(lo, hi, other.lo, other.hi):
                     continue
-                test_self_pair(x, tris, x0, t, u, count, pairs, mark)
+                test_self_pair(x, tris, x0, t, other.id, count, pairs, mark)
 
 
 @wp.func
@@ -766,11 +773,14 @@ class IntersectionCounter:
         self._upper = wp.zeros(len(f), dtype=wp.vec3, device=self.device)
         nf = max(len(f), 1)
         self._cell = wp.zeros(nf, dtype=wp.int32, device=self.device)
-        self._ids = wp.zeros(nf, dtype=wp.int32, device=self.device)
-        self._sorted_lower = wp.zeros(nf, dtype=wp.vec3, device=self.device)
-        self._sorted_upper = wp.zeros(nf, dtype=wp.vec3, device=self.device)
-        self._sorted_tris = wp.zeros(nf, dtype=wp.vec3i, device=self.device)
+        self._rank = wp.zeros(nf, dtype=wp.int32, device=self.device)
+        self._slots = wp.zeros(nf, dtype=GridSlot, device=self.device)
         self._cell_size = self._first = self._cell_width = None
+
+    X_CELL = 0.5
+    """Width of the cloth-cloth count's grid cells along x (the axis a walk reads as contiguous runs
+    of slots) against their width along y and z: narrower cells along x add no runs to a walk, only
+    table room, and leave fewer boxes that lie before the walking triangle's in its runs."""
 
     MAX_CELLS = 1 << 17
     """Most cells of the cloth-cloth count's grid (cells grow beyond the widest box past it);
@@ -796,7 +806,7 @@ class IntersectionCounter:
 
     def _mesh_id(self) -> int:
         """The BVH of the cloth's triangles at the points last given, built or refitted only when
-        a count uses it (the hash-grid count and the collider counts do not)."""
+        a count uses it (the grid count and the collider counts do not)."""
         if self._mesh is None:
             self._mesh = wp.Mesh(points=self._x, indices=self._indices)
         elif self._mesh_stale:
@@ -835,34 +845,33 @@ class IntersectionCounter:
         if not (np.isfinite(size) and width * 1.0e5 > size):
             # cells too small against the coordinates for float32 cell arithmetic: the BVH
             return self._run(count_self_pairs, [self._mesh_id(), x, self.tris], mark, start)
-        # cells as wide as the widest box (a walk then covers 1-2 cells along x and 2-3 along y
-        # and z), wider when the grid would have more than MAX_CELLS; the walk's slack (2 % of a
-        # cell and the float32 rounding of the bounds, a few ulp of the largest coordinate) so no
-        # overlapping box is missed
+        # cells as wide as the widest box along y and z (a walk then covers 2-3 of them along
+        # each) and X_CELL of that along x, wider when the grid would have more than MAX_CELLS;
+        # the walk's slack (2 % of a cell and the float32 rounding of the bounds, a few ulp of the
+        # largest coordinate) so no overlapping box is missed
         origin = lo.min(axis=1).astype(np.float64)
         span = lo.max(axis=1) - origin
         cell = width
-        while np.prod(np.floor(span / cell) + 1) > self.MAX_CELLS:
+        shape = np.array([self.X_CELL, 1.0, 1.0])
+        while np.prod(np.floor(span / (cell * shape)) + 1) > self.MAX_CELLS:
             cell *= 1.25
-        dims = (np.floor(span / cell) + 1).astype(int)
+        dims = (np.floor(span / (cell * shape)) + 1).astype(int)
         cells = int(np.prod(dims))
         self._cell_width = cell
         if self._first is None or self._first.shape[0] < cells + 1:
             room = min(max(cells + 1, 2 * (0 if self._first is None else self._first.shape[0])), self.MAX_CELLS + 1)
             self._cell_size = wp.zeros(room, dtype=wp.int32, device=self.device)
             self._first = wp.zeros(room, dtype=wp.int32, device=self.device)
-            self._cursor = wp.zeros(room, dtype=wp.int32, device=self.device)
         nf, d = len(self.faces), self.device
-        o, inv, dm = wp.vec3(*origin), 1.0 / cell, wp.vec3i(*dims.tolist())
+        o, inv, dm = wp.vec3(*origin), wp.vec3(*(1.0 / (cell * shape))), wp.vec3i(*dims.tolist())
         sizes, first = self._cell_size[:cells + 1], self._first[:cells + 1]
         sizes.zero_()
-        wp.launch(bin_boxes, dim=nf, inputs=[self._lower, o, inv, dm], outputs=[self._cell, sizes], device=d)
+        wp.launch(bin_boxes, dim=nf, inputs=[self._lower, o, inv, dm], outputs=[self._cell, self._rank, sizes],
+                  device=d)
         wp.utils.array_scan(sizes, first, inclusive=False)
-        wp.copy(self._cursor, first, count=cells + 1)
-        wp.launch(sort_boxes, dim=nf, inputs=[self._cell, self._lower, self._upper, self.tris, self._cursor],
-                  outputs=[self._ids, self._sorted_lower, self._sorted_upper, self._sorted_tris], device=d)
-        return self._run(count_self_pairs_grid, [first, self._ids, self._sorted_lower, self._sorted_upper,
-                                                 self._sorted_tris, o, inv, dm,
+        wp.launch(sort_boxes, dim=nf, inputs=[self._cell, self._rank, first, self._lower, self._upper, self.tris],
+                  outputs=[self._slots], device=d)
+        return self._run(count_self_pairs_grid, [first, self._slots, o, inv, dm,
                                                  float(extent[1]), float(extent[2]), 0.02 * cell + 1.0e-6 * size, x,
                                                  self.tris], mark, start)
 
