@@ -317,10 +317,10 @@ class XPBDSolver:
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             if self.stretch_limits:
                 cmds["moved"].launch()
-            cmds["velocities"][0].launch()
+            cmds["velocities"].launch()
             if "bend_velocity" in cmds and (s + 1) % self.bend_interval == 0:
                 cmds["bend_velocity"].launch()
-            for c in cmds["velocities"][1:]:
+            for c in cmds["damping"]:
                 c.launch()
             if self._contacts_found and "sides" in cmds:
                 cmds["sides"].launch()
@@ -419,19 +419,21 @@ class XPBDSolver:
             if self.follow_edge_sides:
                 cmds["sides"] = self._side_update(self._x_prev, x, record_cmd=True)
         cmds["contacts"] = contacts
-        vel = [wp.launch(k.update_velocities, dim=n, inputs=[x, self._x_prev, h], outputs=[v], device=d,
-                         record_cmd=True)]
+        cmds["velocities"] = wp.launch(k.update_velocities, dim=n, inputs=[x, self._x_prev, h], outputs=[v], device=d,
+                                       record_cmd=True)
+        damping = []
         if m.damping > 0:
             for off, cnt in edge_batches:
-                vel.append(wp.launch(k.damp_stretch, dim=cnt,
-                                     inputs=[self._edge_ids, m.edge_compliance, m.inv_mass, x, off, h, m.damping],
-                                     outputs=[v], device=d, record_cmd=True))
+                damping.append(wp.launch(k.damp_stretch, dim=cnt,
+                                             inputs=[self._edge_ids, m.edge_compliance, m.inv_mass, x, off, h, m.damping],
+                                         outputs=[v], device=d, record_cmd=True))
         if m.bend_damping > 0:
             for off, cnt in hinge_batches:
-                vel.append(wp.launch(k.damp_bending, dim=cnt,
-                                     inputs=[self._hinge_ids, m.hinge_compliance, m.inv_mass, x, off, h, m.bend_damping],
-                                     outputs=[v], device=d, record_cmd=True))
-        cmds["velocities"] = vel
+                damping.append(wp.launch(k.damp_bending, dim=cnt,
+                                         inputs=[self._hinge_ids, m.hinge_compliance, m.inv_mass, x, off, h,
+                                                 m.bend_damping],
+                                         outputs=[v], device=d, record_cmd=True))
+        cmds["damping"] = damping
         return cmds
 
     def _batches(self, colors: list) -> list:
