@@ -142,6 +142,10 @@ def start_resource_tracker_quietly() -> None:
         os.close(devnull)
 
 
+def _started() -> None:
+    """A task that does nothing (:meth:`_ProcessBackend._new_pool` submits one per worker)."""
+
+
 class _ProcessBackend:
     worker_errors = (BrokenProcessPool,)
 
@@ -158,9 +162,15 @@ class _ProcessBackend:
         self.pool = self._new_pool()
 
     def _new_pool(self):
+        """A pool whose workers are all starting: a pool spawns a process per task submitted while none
+        is idle, and a chunk is submitted only once all its frames are simulated."""
         start_resource_tracker_quietly()
-        return ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=init_worker_from_file,
+        pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=init_worker_from_file,
                                    initargs=(self.token, self.spec_file, os.getpid()))
+        with _sigint_blocked():
+            for _ in range(self.workers):
+                pool.submit(_started)
+        return pool
 
     def _remove_spec_file(self) -> None:
         with contextlib.suppress(OSError):
