@@ -192,6 +192,11 @@ def test_dask_local_cluster_matches_inline(spec, blob, inline):
     assert not [str(w.message) for w in caught if "8787" in str(w.message)]
 
 
+def test_dask_local_cluster_shades_chunks(frozen, blob, inline):
+    out = list(shade_frames(frozen, wobble_frames(blob, 8), workers=2, scheduler="local", chunk=3))
+    assert_chunk_starts(out, inline, 3)
+
+
 def test_dask_local_cluster_reports_a_build_error_as_itself(blob):
     """The run's own cluster prints only critical worker logs (its workers' other lines followed the
     run's last line); a spec whose build fails in the workers still stops the run with the build's
