@@ -116,11 +116,35 @@ def sequence(name: str, frames: int = 120, cache_dir: str | None = SEQUENCE_CACH
     raise ValueError(f"unknown animation {name!r} (known: {', '.join(ANIMATIONS)})")
 
 
-def configurations(tolerances=DEFAULT_TOLERANCES, peer_rays: int = 256) -> list[dict]:
+def parse_variant(text: str) -> dict:
+    """hemiraster knobs of a ``--variant`` text, ``"name=value,name=value"`` (``"min_image=0,lut=96"``),
+    coerced to the knobs' types; only the ones that differ from the defaults are kept.
+
+    Raises:
+        ValueError: a part without ``=``, an unknown knob or a bad value (naming it).
+    """
+    from ..visibility import get_method
+    from ..visibility.knobs import changes, normalise
+
+    pairs = {}
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        name, eq, value = part.partition("=")
+        if not eq:
+            raise ValueError(f"--variant {text!r}: {part!r} is not name=value")
+        pairs[name.strip().replace("-", "_")] = value.strip()
+    schema = get_method("hemiraster").SCHEMA
+    return changes(schema, normalise(schema, pairs, "hemiraster"))
+
+
+def configurations(tolerances=DEFAULT_TOLERANCES, peer_rays: int = 256, variants=()) -> list[dict]:
     """Configurations measured: hemiraster at its defaults, recomputed every frame and with temporal
-    reuse at each tolerance, and the ray-traced reference at ``peer_rays`` rays."""
+    reuse at each tolerance, hemiraster with each of ``variants`` (knob dicts) recomputed every frame,
+    and the ray-traced reference at ``peer_rays`` rays."""
     out = [{"method": "hemiraster", "knobs": {}, "reuse": None}]
     out += [{"method": "hemiraster", "knobs": {}, "reuse": float(t)} for t in tolerances]
+    out += [{"method": "hemiraster", "knobs": dict(v), "reuse": None} for v in variants]
     out += [{"method": "reference", "knobs": {"rays": peer_rays}, "reuse": None}]
     return out
 
@@ -215,4 +239,4 @@ def format_animation(result: dict) -> str:
 
 
 __all__ = ["ANIMATIONS", "DEFAULT_TOLERANCES", "Sequence", "configurations", "format_animation", "label",
-           "run_animation", "sequence"]
+           "parse_variant", "run_animation", "sequence"]

@@ -40,6 +40,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     anim.add_argument("--order", type=int, default=4, help="SH order of the animation mode (default 4, as warpshade run)")
     anim.add_argument("--reuse-tolerances", default=None, metavar="RAD,...",
                       help="temporal reuse tolerances measured (default 0,0.05,0.1,0.2,0.5,1)")
+    anim.add_argument("--variant", action="append", default=[], metavar="KNOBS",
+                      help="also measure hemiraster with these knobs, recomputed every frame "
+                           "(name=value,...; e.g. min_image=0,lut=96; repeatable)")
     anim.add_argument("--json", default=None, metavar="PATH", help="write the animation result as JSON")
 
 
@@ -48,7 +51,7 @@ def _csv(text, conv=str):
 
 
 def run_animation(args) -> int:
-    from ..bench.animation import DEFAULT_TOLERANCES, format_animation, run_animation
+    from ..bench.animation import DEFAULT_TOLERANCES, configurations, format_animation, parse_variant, run_animation
     from ..bench.report import write_json
     from ..bench.runner import machine_note
 
@@ -56,9 +59,10 @@ def run_animation(args) -> int:
         if value < 1:
             raise ValueError(f"{flag} must be >= 1, got {value}")
     tolerances = _csv(args.reuse_tolerances, float) or list(DEFAULT_TOLERANCES)
+    configs = configurations(tolerances, variants=[parse_variant(v) for v in args.variant])
     cache = args.cache_dir
     result = run_animation(args.animation, frames=args.frames, every=args.every, order=args.order,
-                           rays=args.ground_truth_rays or 4096, tolerances=tolerances, device=args.device,
+                           rays=args.ground_truth_rays or 4096, configs=configs, device=args.device,
                            cache_dir=".warpshade-cache/reference" if cache is None else
                            (None if cache.lower() == "none" else cache))
     result["machine"] = f"{machine_note()}; wall and process CPU time of update() per frame, compile excluded"
