@@ -150,12 +150,13 @@ def test_animation_bench_judges_every_kth_frame_and_reuse_zero_matches():
 def test_animation_bench_variant_knobs_are_parsed_checked_and_run():
     from warpshade.bench.animation import configurations, label, parse_variant, run_animation
 
-    assert parse_variant("min_image=0, lut=96") == {"min_image": 0.0, "lut": 96}
-    assert parse_variant("lut=48") == {}  # the default: nothing differs
-    for bad in ("lut96", "no_such_knob=1", "lut=many"):
+    assert parse_variant("min_image=0, lut=96") == {"method": "hemiraster", "knobs": {"min_image": 0.0, "lut": 96},
+                                                    "reuse": None}
+    assert parse_variant("lut=48,reuse=2") == {"method": "hemiraster", "knobs": {}, "reuse": 2.0}  # lut 48 is the default
+    for bad in ("lut96", "no_such_knob=1", "lut=many", "reuse=often"):
         with pytest.raises(ValueError):
             parse_variant(bad)
-    cfgs = configurations([], peer_rays=16, variants=[{"mask": 16}])
+    cfgs = configurations([], peer_rays=16, variants=[parse_variant("mask=16")])
     assert [(c["method"], c["knobs"], c["reuse"]) for c in cfgs] == [
         ("hemiraster", {}, None), ("hemiraster", {"mask": 16}, None), ("reference", {"rays": 16}, None)]
     res = run_animation("walk", frames=2, every=1, order=3, rays=64, cache_dir=None, configs=cfgs[:2], log=lambda m: None)

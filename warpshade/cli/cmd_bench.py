@@ -41,8 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     anim.add_argument("--reuse-tolerances", default=None, metavar="RAD,...",
                       help="temporal reuse tolerances measured (default 0,0.05,0.1,0.2,0.5,1)")
     anim.add_argument("--variant", action="append", default=[], metavar="KNOBS",
-                      help="also measure hemiraster with these knobs, recomputed every frame "
-                           "(name=value,...; e.g. min_image=0,lut=96; repeatable)")
+                      help="also measure hemiraster with these knobs and, with reuse=RAD, temporal reuse "
+                           "(name=value,...; e.g. min_image=0,lut=96,reuse=2; repeatable)")
     anim.add_argument("--json", default=None, metavar="PATH", help="write the animation result as JSON")
 
 
