@@ -301,14 +301,18 @@ class XPBDSolver:
                     wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
                 # more than one Jacobi pass to stop a fast layer within one substep
-                for _c in range(self.contact_iterations):
-                    if self._contacts_found:  # (no candidate anywhere: the contact launches change nothing)
-                        for c in cmds["contacts"]:
-                            c.launch()
-                    if self.colliders is not None:
-                        self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
-                        # collider corners (box corners, cone apexes, pointed mesh tips) against the cloth
-                        self.colliders.collide_corners(m.thickness, m.inv_mass, m.tris, x, self._x_prev)
+                if self._contacts_found or (self.colliders is not None and self.colliders.corner_count):
+                    for _c in range(self.contact_iterations):
+                        if self._contacts_found:  # (no candidate anywhere: the contact launches change nothing)
+                            for c in cmds["contacts"]:
+                                c.launch()
+                        if self.colliders is not None:
+                            self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+                            # collider corners (box corners, cone apexes, pointed mesh tips) against the cloth
+                            self.colliders.collide_corners(m.thickness, m.inv_mass, m.tris, x, self._x_prev)
+                elif self.colliders is not None:
+                    # nothing between the collider passes: all of them in one call
+                    self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x, self.contact_iterations)
             if self.colliders is not None and self.colliders.has_sharp_edges:
                 # sharp collider edges and corners against cloth edges and triangles, then the
                 # vertices again
