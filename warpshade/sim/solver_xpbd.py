@@ -215,6 +215,8 @@ class XPBDSolver:
             self._mark2 = wp.zeros(v, dtype=wp.int32, device=d)
             self._reverted = wp.zeros(v, dtype=wp.int32, device=d)
             self._streak = wp.zeros(v, dtype=wp.int32, device=d)
+            self._streak_clear = True
+            """Every vertex's streak is 0."""
             self._x_unguarded = wp.zeros(v, dtype=wp.vec3, device=d)
 
     # ------------------------------------------------------------------------------------------
@@ -471,8 +473,11 @@ class XPBDSolver:
         """Run a candidate search into `rows` after saving the previous detection; while rows
         overflow and may still grow, double them and search again. Returns the rows used and
         whether they grew."""
-        wp.launch(k.save_rows, dim=dim, inputs=[count, rows["ids"], rows["sides"]],
-                  outputs=[prev_count, rows["prev_ids"], rows["prev_sides"]], device=self.device)
+        if self._contacts_found:
+            wp.launch(k.save_rows, dim=dim, inputs=[count, rows["ids"], rows["sides"]],
+                      outputs=[prev_count, rows["prev_ids"], rows["prev_sides"]], device=self.device)
+        else:  # every count is 0: the rows past them are never read
+            prev_count.zero_()
         grew = False
         while True:
             before = int(self._overflow.numpy()[0])
@@ -610,7 +615,9 @@ class XPBDSolver:
             wp.launch(ck.reverted_velocities, dim=n, inputs=[self._reverted, self._x_start, x, dt], outputs=[v],
                       device=d)
             self.guard_vertices = int(self._reverted.numpy().sum())
-        wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
+        if self.guard_vertices or not self._streak_clear:  # (else every streak stays 0)
+            wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
+        self._streak_clear = not self.guard_vertices
         if self.guard_vertices:
             self.guard_longest_hold = max(self.guard_longest_hold, int(self._streak.numpy().max()))
 
