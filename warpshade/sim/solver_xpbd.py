@@ -200,6 +200,8 @@ class XPBDSolver:
             self._delta = wp.zeros(v, dtype=wp.vec3, device=d)
             self._delta_count = wp.zeros(v, dtype=wp.float32, device=d)
             self._pad = wp.full(v, 0.5 * model.thickness, dtype=wp.float32, device=d)
+            self._group_span = self.GROUP_SPAN * float(np.median(model.edge_rest_length.numpy()))
+            self._query_boxes = [wp.zeros(v, dtype=wp.vec3, device=d) for _ in range(2)]  # the detection's look-up boxes
         if self.edge_contact:
             ne, mc = model.edge_count, self.max_contacts
             self._edge_boxes = [wp.zeros(ne, dtype=wp.vec3, device=d) for _ in range(4)]
@@ -469,10 +471,11 @@ class XPBDSolver:
                 "prev_ids": wp.zeros((rows, width), dtype=wp.int32, device=d),
                 "prev_sides": wp.zeros((rows, width), dtype=wp.float32, device=d)}
 
-    def _find_candidates(self, kernel, dim: int, rows: dict, inputs: list, count, prev_count) -> tuple[dict, bool]:
-        """Run a candidate search into `rows` after saving the previous detection; while rows
-        overflow and may still grow, double them and search again. Returns the rows used and
-        whether they grew."""
+    def _find_candidates(self, kernel, dim: int, rows: dict, inputs: list, count, prev_count,
+                         threads: int | None = None) -> tuple[dict, bool]:
+        """Run a candidate search (`threads` threads, default `dim`) into the `dim` `rows` after
+        saving the previous detection; while rows overflow and may still grow, double them and
+        search again. Returns the rows used and whether they grew."""
         if self._contacts_found:
             wp.launch(k.save_rows, dim=dim, inputs=[count, rows["ids"], rows["sides"]],
                       outputs=[prev_count, rows["prev_ids"], rows["prev_sides"]], device=self.device)
@@ -481,7 +484,8 @@ class XPBDSolver:
         grew = False
         while True:
             before = int(self._overflow.numpy()[0])
-            wp.launch(kernel, dim=dim, inputs=inputs + [rows["prev_ids"], rows["prev_sides"], prev_count],
+            wp.launch(kernel, dim=dim if threads is None else threads,
+                      inputs=inputs + [rows["prev_ids"], rows["prev_sides"], prev_count],
                       outputs=[rows["ids"], rows["sides"], count, rows["dists"], self._overflow, self._near],
                       device=self.device)
             width = rows["ids"].shape[1]
@@ -527,11 +531,12 @@ class XPBDSolver:
         # boxes of both sides padded: overlap <=> gap < thickness
         self._bvh, lower, upper = self._swept_bvh(self._bvh, k.compute_triangle_bounds, self._tri_ids, self._tri_boxes, x, v,
                                                   horizon, ahead)
+        g = self.DETECTION_GROUP
         self._vt_rows, grew = self._find_candidates(
             k.find_self_contacts, m.particle_count, self._vt_rows,
             [self._bvh.id, x, m.rest_points, v, m.tris, m.ring_offsets, m.ring, horizon, ahead, lower, upper,
-             self._pad, m.thickness],
-            self._contact_count, self._prev_count)
+             self._pad, m.thickness, self._tri_boxes[2], self._tri_boxes[3], g, self._group_span, *self._query_boxes],
+            self._contact_count, self._prev_count, threads=(m.particle_count + g - 1) // g)
         if self.edge_contact:
             ne = m.edge_count
             self._ebvh, elower, eupper = self._swept_bvh(self._ebvh, ck.compute_edge_bounds, self._edge_ids, self._edge_boxes,
@@ -553,6 +558,12 @@ class XPBDSolver:
             self._cmd_cache = None
         return grew
 
+    DETECTION_GROUP = 4
+    """Consecutive vertices that share one BVH query in the vertex-triangle detection when their
+    look-up boxes lie within :attr:`GROUP_SPAN` rest edge lengths (the same candidates, in the
+    same order, as one query each; see :func:`~warpshade.sim.kernels.find_self_contacts`)."""
+    GROUP_SPAN = 8.0
+    """How wide [median rest edge lengths] the box around a group's look-up boxes may be for one query."""
     CREASE_ANGLE = 0.25
     """Hinges bent by more than this [rad] make their edge a crease: edge-edge contact is looked
     for from border and crease edges (where two layers' edges can cross without a vertex
