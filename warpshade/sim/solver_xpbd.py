@@ -378,6 +378,7 @@ class XPBDSolver:
         edge_batches, hinge_batches = self._batches(m.edge_colors), self._batches(m.hinge_colors)
         cons = []
         if self.limit_sliding:
+            # (without self-collision no vertex has candidates: _touched stays 0 in this mode)
             cons.extend(wp.launch(k.solve_limits_sliding, dim=cnt,
                                   inputs=[self._limit_ids, m.limit_length, m.inv_mass, self._limit_move,
                                           self._contact_count if self.self_collision else self._touched,
