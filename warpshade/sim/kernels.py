@@ -556,6 +556,59 @@ def solve_limits(
     x[j] = x[j] + corr * wj
 
 
+@wp.kernel
+def record_moved(before: wp.array[wp.vec3], x: wp.array[wp.vec3], moved: wp.array[wp.vec3]):
+    """moved[i] = x[i] - before[i]: how the contact projections moved vertex i."""
+    i = wp.tid()
+    moved[i] = x[i] - before[i]
+
+
+@wp.func
+def slide(dx: wp.vec3, pushed: wp.vec3) -> wp.vec3:
+    """dx without its component against ``pushed`` (how the contacts moved the vertex), so a
+    correction moves a vertex along the surface that pushed it (a collider's, another layer's)
+    rather than into it."""
+    if wp.dot(pushed, pushed) > 0.0:
+        n = wp.normalize(pushed)
+        a = wp.dot(dx, n)
+        if a < 0.0:
+            return dx - n * a
+    return dx
+
+
+@wp.kernel
+def solve_limits_sliding(
+    pairs: wp.array[wp.vec2i],
+    max_length: wp.array[float],
+    inv_mass: wp.array[float],
+    max_move: float,
+    contacts: wp.array[int],
+    pushed: wp.array[wp.vec3],
+    offset: int,
+    x: wp.array[wp.vec3],
+):
+    """Stretch limits as :func:`solve_limits`, skipped only while either vertex has self-contact
+    candidates (``contacts``): a vertex the contact projections moved in the last substep
+    (``pushed``, their displacement of it) takes its share of the correction without the
+    component against that push (:func:`slide`)."""
+    p = wp.tid() + offset
+    ij = pairs[p]
+    i = ij[0]
+    j = ij[1]
+    wi = inv_mass[i]
+    wj = inv_mass[j]
+    wsum = wi + wj
+    d = x[i] - x[j]
+    length = wp.length(d)
+    lmax = max_length[p]
+    if wsum == 0.0 or length <= lmax or contacts[i] + contacts[j] > 0:
+        return
+    step = wp.min((length - lmax) / wsum, max_move / wp.max(wi, wj))
+    corr = d * (step / length)
+    x[i] = x[i] + slide(-corr * wi, pushed[i])
+    x[j] = x[j] + slide(corr * wj, pushed[j])
+
+
 # ---------------------------------------------------------------------------------------------
 # Aerodynamics
 # ---------------------------------------------------------------------------------------------

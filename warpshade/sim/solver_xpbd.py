@@ -71,6 +71,12 @@ class XPBDSolver:
             layer or into a collider). Each moves a vertex by at most the thickness per sweep.
             They allow no stretch, so pieces soft enough to stretch under their own weight get
             none (:data:`~warpshade.sim.model.STIFF_STRAIN`).
+        limit_sliding: With stretch limits, a limit is skipped only while either vertex has
+            self-contact candidates; a vertex the contact projections moved in the last substep
+            (a collider, or a layer it touches as a triangle or edge) takes its share of the
+            correction without the component against that move, so the limit pulls it along the
+            surface that pushed it rather than into it (draped cloth: the cap on a collider is
+            then bounded too). None: :attr:`LIMIT_SLIDING`.
         follow_edge_sides: An edge-edge contact's stored side follows an orientation flip that
             continuous collision detection shows was no crossing (edges turning past parallel, or
             passing beside an end clear of the cloth there); off, a pair keeps the side it was
@@ -97,7 +103,7 @@ class XPBDSolver:
                  contact_iterations: int = 2, stretch_sweeps: int = 1, edge_contact: bool = True,
                  guard: bool = True, self_friction: float = 0.3, stretch_limits: bool = True,
                  follow_edge_sides: bool | None = None, aero_interval: int | None = None,
-                 bend_interval: int | None = None):
+                 bend_interval: int | None = None, limit_sliding: bool | None = None):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -152,6 +158,11 @@ class XPBDSolver:
             # vertices the contact projections moved in the last substep (limits skip them)
             self._touched = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
             self._x_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
+        self.limit_sliding = self.stretch_limits and bool(
+            self.LIMIT_SLIDING if limit_sliding is None else limit_sliding)
+        if self.limit_sliding:
+            # how the contact projections moved each vertex in the last substep
+            self._pushed = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
         self.check_finite = bool(check_finite)
         self.relaxation = check_param("relaxation", relaxation, 0.0, False)
         if self.relaxation >= 2.0:
@@ -374,7 +385,14 @@ class XPBDSolver:
                                     outputs=[self._x_prev, x, v], device=d, record_cmd=True)
         edge_batches, hinge_batches = self._batches(m.edge_colors), self._batches(m.hinge_colors)
         cons = []
-        if self.stretch_limits:
+        if self.limit_sliding:
+            # (without self-collision no vertex has candidates: _touched stays 0 in this mode)
+            cons.extend(wp.launch(k.solve_limits_sliding, dim=cnt,
+                                  inputs=[self._limit_ids, m.limit_length, m.inv_mass, self._limit_move,
+                                          self._contact_count if self.self_collision else self._touched,
+                                          self._pushed, off], outputs=[x], device=d, record_cmd=True)
+                        for off, cnt in self._batches(m.limit_colors))
+        elif self.stretch_limits:
             cons.extend(wp.launch(k.solve_limits, dim=cnt, inputs=[self._limit_ids, m.limit_length, m.inv_mass,
                                                                    self._limit_move,
                                                                    self._contact_count if self.self_collision
@@ -406,7 +424,10 @@ class XPBDSolver:
                                              inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
                                                      m.tether_anchor.shape[1], m.inv_mass],
                                              outputs=[x], device=d, record_cmd=True))
-        if self.stretch_limits:
+        if self.limit_sliding:
+            cmds["moved"] = wp.launch(k.record_moved, dim=n, inputs=[self._x_before, x], outputs=[self._pushed],
+                                      device=d, record_cmd=True)
+        elif self.stretch_limits:
             cmds["moved"] = wp.launch(k.flag_moved, dim=n, inputs=[self._x_before, x], outputs=[self._touched], device=d,
                                       record_cmd=True)
         contacts = []
@@ -639,6 +660,9 @@ class XPBDSolver:
     FOLLOW_EDGE_SIDES = False
     """Default of ``follow_edge_sides`` (off; what it does to the scenes is measured in
     docs/benchmarks/index.md)."""
+    LIMIT_SLIDING = False
+    """Default of ``limit_sliding`` (off; what it does to the scenes is measured in
+    docs/benchmarks/index.md)."""
     SIDE_CROSSING_TOL = 1.0e-3
     """Edges that come within this fraction of the thickness of each other at a moment their four
     points are coplanar have passed through each other: an edge pair's stored side is kept across
@@ -778,6 +802,7 @@ class XPBDSolver:
                 "guard": self.guard, "self_friction": self.self_friction,
                 "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
                 "stretch_sweeps": self.stretch_sweeps,
-                "relaxation": self.relaxation, "tethers": self.tethers, "stretch_limits": self.stretch_limits, "check_finite": self.check_finite,
+                "relaxation": self.relaxation, "tethers": self.tethers, "stretch_limits": self.stretch_limits,
+                "limit_sliding": self.limit_sliding, "check_finite": self.check_finite,
                 "thickness": self.model.thickness, "damping": self.model.damping,
                 "bend_damping": self.model.bend_damping}
