@@ -394,7 +394,11 @@ def main(argv=None) -> int:
                     help="every solver with this aero_interval (XPBDSolver.AERO_INTERVAL)")
     ap.add_argument("--bend-interval", type=int, default=None,
                     help="every solver with this bend_interval (XPBDSolver.BEND_INTERVAL)")
+    ap.add_argument("--limit-sliding", action="store_true",
+                    help="every solver with limit_sliding (XPBDSolver.LIMIT_SLIDING = True)")
     args = ap.parse_args(argv)
+    if args.limit_sliding:
+        XPBDSolver.LIMIT_SLIDING = True
     if args.follow_edge_sides:
         XPBDSolver.FOLLOW_EDGE_SIDES = True
     if args.aero_interval is not None:
@@ -408,7 +412,7 @@ def main(argv=None) -> int:
     res["guard_off"] = run_warpshade(args.grid, args.frames, args.repeats, not args.no_self_collision, guard=False)
     res.update({"grid": args.grid, "frames": args.frames, "repeats": args.repeats, "frame_dt": 1.0 / FPS,
                 "device": "cpu", "warp": wp.__version__, "follow_edge_sides": XPBDSolver.FOLLOW_EDGE_SIDES, "aero_interval": XPBDSolver.AERO_INTERVAL,
-                "bend_interval": XPBDSolver.BEND_INTERVAL,
+                "bend_interval": XPBDSolver.BEND_INTERVAL, "limit_sliding": XPBDSolver.LIMIT_SLIDING,
                 "note": "median of repeats after a warm-up step (kernel compilation excluded); shared, loaded machine"})
     if not args.skip_baselines:
         res["warp_example_cloth"] = run_warp_example(args.grid, args.frames, args.repeats)

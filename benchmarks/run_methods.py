@@ -11,6 +11,7 @@ Success criteria: the default method (``warpshade.pipeline.METHOD_PREFERENCE``) 
 whose error is close to reference@256's.
 
 Run:  python benchmarks/run_methods.py [--scene usd_scenes/default.usda] [--json out.json]
+      [--variant min_image=0,lut=96]   (hemiraster with other knobs beside its defaults; repeatable)
 
 Times: median seconds per frame over the 3 frames after the first (the first frame absorbs kernel
 compilation and caches), structure building excluded; a shared, loaded 2-core machine.
@@ -53,7 +54,17 @@ def main(argv=None) -> int:
     p.add_argument("--scene", default=os.path.join(here, "usd_scenes", "default.usda"))
     p.add_argument("--order", type=int, default=4)
     p.add_argument("--json", default=None)
+    p.add_argument("--variant", action="append", default=[], metavar="KNOBS",
+                   help="also run hemiraster with these knobs (name=value,...; e.g. min_image=0,lut=96; repeatable)")
     args = p.parse_args(argv)
+    from warpshade.bench.animation import parse_variant
+
+    variants = []
+    for text in args.variant:
+        v = parse_variant(text)
+        if v["reuse"] is not None:
+            raise ValueError(f"--variant {text!r}: reuse needs consecutive frames; run_methods shades frames {FRAMES}")
+        variants.append(("hemiraster " + " ".join(f"{k}={x}" for k, x in v["knobs"].items()), "hemiraster", v["knobs"]))
 
     scene = read_scene(args.scene)
     frames = [f for f in FRAMES if f < scene.frames] or [0]
@@ -68,6 +79,7 @@ def main(argv=None) -> int:
 
     configs = [("reference@4096", "reference", {"rays": 4096}), ("reference@256", "reference", {"rays": 256})]
     configs += [(m, m, {}) for m in sorted(METHODS) if m != "reference"]
+    configs += variants
     configs.append(("unshadowed", None, {}))
     radiance, rows = {}, []
     for label, method, knobs in configs:
@@ -92,9 +104,9 @@ def main(argv=None) -> int:
         r["radiance_error_mean"] = float(np.mean(errs))
     print(f"{os.path.basename(args.scene)}: frames {list(geos)}, SH order {args.order}, "
           f"{sum(o.mesh.num_vertices for o in scene.objects)} vertices; shared, loaded 2-core machine")
-    print(f"{'method':<16}{'build s':>9}{'s/frame':>10}{'radiance error (mean)':>24}")
+    print(f"{'method':<34}{'build s':>9}{'s/frame':>10}{'radiance error (mean)':>24}")
     for r in rows:
-        print(f"{r['method']:<16}{r['build_s']:>9.2f}{r['seconds_per_frame']:>10.3f}{r['radiance_error_mean']:>24.4f}")
+        print(f"{r['method']:<34}{r['build_s']:>9.2f}{r['seconds_per_frame']:>10.3f}{r['radiance_error_mean']:>24.4f}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"scene": args.scene, "note": "shared, loaded 2-core machine", "results": rows}, f, indent=2)

@@ -436,6 +436,48 @@ def test_contact_launches_are_skipped_only_when_nothing_was_found():
     assert states[0][0][64:, 1].max() < 0.1  # the upper sheet came down onto the lower one
 
 
+def test_grouped_vertex_triangle_queries_find_the_same_candidates():
+    """The vertex-triangle detection's shared BVH queries (XPBDSolver.DETECTION_GROUP vertices a
+    query) give the candidates, sides and order of one query a vertex: a sheet falling onto a
+    pinned sheet steps bit for bit alike and fills the same contact rows at every detection with
+    one query a vertex, with groups of 4 that always share a query (GROUP_SPAN unbounded) and
+    groups of 4 that never do (GROUP_SPAN 0)."""
+    def build():
+        b = ClothBuilder(thickness=0.01)
+        low = b.add_grid(8, 8, 0.4, 0.4, origin=(0.0, 0.0, 0.0))
+        b.pin([low[0, 0], low[0, -1], low[-1, 0], low[-1, -1]])
+        b.add_grid(7, 7, 0.3, 0.3, origin=(0.05, 0.15, 0.05))
+        return b.finalize()
+
+    runs = []
+    for group, span in ((1, 0.0), (4, 1.0e9), (4, 0.0)):
+        rows = []
+
+        class Spy(XPBDSolver):
+            DETECTION_GROUP = group
+            GROUP_SPAN = span
+
+            def _detect_self_contacts(self, *args):
+                grew = super()._detect_self_contacts(*args)
+                count = self._contact_count.numpy()
+                ids, sides = self._vt_rows["ids"].numpy(), self._vt_rows["sides"].numpy()
+                rows.append([(ids[i, :c].tolist(), sides[i, :c].tolist()) for i, c in enumerate(count)])
+                return grew
+
+        m = build()
+        s = Spy(m, None)
+        a, b = m.state(), m.state()
+        for _ in range(40):
+            s.step(a, b, DT)
+            a, b = b, a
+        runs.append((rows, a.points.numpy().copy(), a.velocities.numpy().copy()))
+    assert XPBDSolver.DETECTION_GROUP > 1  # the default shares queries
+    assert sum(len(r[0]) for r in runs[0][0][-1]) > 0  # the sheets are in contact at the end
+    for rows, x, v in runs[1:]:
+        assert rows == runs[0][0]
+        assert np.array_equal(x, runs[0][1]) and np.array_equal(v, runs[0][2])
+
+
 def test_sharp_corners_of_mesh_colliders():
     """Pointed convex vertices of closed meshes are corners: a 32-sided cone's apex (its faces'
     angles there sum to 134 degrees), a 4-sided pyramid's; not a box's corners (270), a cylinder's

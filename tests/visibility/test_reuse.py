@@ -162,3 +162,21 @@ def test_animation_bench_judges_every_kth_frame_and_reuse_zero_matches():
     # a 64-ray truth is itself ~1/sqrt(64) = 12 % off: the bound says the errors are a comparison, not garbage
     assert 0.0 < plain["error_mean"] < 0.2 and reused["computed_fraction"] == 1.0  # the walker moves every frame
     assert "reuse 0" in format_animation(res)
+
+
+def test_animation_bench_variant_knobs_are_parsed_checked_and_run():
+    from warpshade.bench.animation import configurations, label, parse_variant, run_animation
+
+    assert parse_variant("min_image=0, lut=96") == {"method": "hemiraster", "knobs": {"min_image": 0.0, "lut": 96},
+                                                    "reuse": None}
+    assert parse_variant("lut=48,reuse=2") == {"method": "hemiraster", "knobs": {}, "reuse": 2.0}  # lut 48 is the default
+    for bad in ("lut96", "no_such_knob=1", "lut=many", "reuse=often"):
+        with pytest.raises(ValueError):
+            parse_variant(bad)
+    cfgs = configurations([], peer_rays=16, variants=[parse_variant("mask=16")])
+    assert [(c["method"], c["knobs"], c["reuse"]) for c in cfgs] == [
+        ("hemiraster", {}, None), ("hemiraster", {"mask": 16}, None), ("reference", {"rays": 16}, None)]
+    res = run_animation("walk", frames=2, every=1, order=3, rays=64, cache_dir=None, configs=cfgs[:2], log=lambda m: None)
+    plain, variant = res["records"]
+    assert label(variant) == "hemiraster mask=16"
+    assert plain["errors"] != variant["errors"]  # a 16-pixel mask is another transfer, not the default's

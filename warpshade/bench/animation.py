@@ -116,11 +116,43 @@ def sequence(name: str, frames: int = 120, cache_dir: str | None = SEQUENCE_CACH
     raise ValueError(f"unknown animation {name!r} (known: {', '.join(ANIMATIONS)})")
 
 
-def configurations(tolerances=DEFAULT_TOLERANCES, peer_rays: int = 256) -> list[dict]:
+def parse_variant(text: str) -> dict:
+    """The configuration of a ``--variant`` text, ``"name=value,..."``: hemiraster knobs coerced to their
+    types (only those that differ from the defaults are kept), and ``reuse=RAD`` for temporal reuse
+    (``"min_image=0,lut=96,reuse=2"``). Returns ``{"method", "knobs", "reuse"}``.
+
+    Raises:
+        ValueError: a part without ``=``, an unknown knob or a bad value (naming it).
+    """
+    from ..visibility import get_method
+    from ..visibility.knobs import changes, normalise
+
+    pairs, reuse = {}, None
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        name, eq, value = part.partition("=")
+        if not eq:
+            raise ValueError(f"--variant {text!r}: {part!r} is not name=value")
+        name = name.strip().replace("-", "_")
+        if name == "reuse":
+            try:
+                reuse = float(value)
+            except ValueError:
+                raise ValueError(f"--variant {text!r}: reuse must be a number [rad], got {value.strip()!r}") from None
+        else:
+            pairs[name] = value.strip()
+    schema = get_method("hemiraster").SCHEMA
+    return {"method": "hemiraster", "knobs": changes(schema, normalise(schema, pairs, "hemiraster")), "reuse": reuse}
+
+
+def configurations(tolerances=DEFAULT_TOLERANCES, peer_rays: int = 256, variants=()) -> list[dict]:
     """Configurations measured: hemiraster at its defaults, recomputed every frame and with temporal
-    reuse at each tolerance, and the ray-traced reference at ``peer_rays`` rays."""
+    reuse at each tolerance, each of ``variants`` (configurations of :func:`parse_variant`), and the
+    ray-traced reference at ``peer_rays`` rays."""
     out = [{"method": "hemiraster", "knobs": {}, "reuse": None}]
     out += [{"method": "hemiraster", "knobs": {}, "reuse": float(t)} for t in tolerances]
+    out += [dict(v) for v in variants]
     out += [{"method": "reference", "knobs": {"rays": peer_rays}, "reuse": None}]
     return out
 
@@ -220,4 +252,4 @@ def format_animation(result: dict) -> str:
 
 
 __all__ = ["ANIMATIONS", "DEFAULT_TOLERANCES", "Sequence", "configurations", "format_animation", "label",
-           "run_animation", "sequence"]
+           "parse_variant", "run_animation", "sequence"]

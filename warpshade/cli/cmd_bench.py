@@ -43,6 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     anim.add_argument("--reuse-chunk", type=int, default=None, metavar="FRAMES",
                       help="temporal reuse starts afresh every FRAMES frames, as in a run's chunks "
                            "(warpshade run --reuse-chunk; default: once, at frame 0)")
+    anim.add_argument("--variant", action="append", default=[], metavar="KNOBS",
+                      help="also measure hemiraster with these knobs and, with reuse=RAD, temporal reuse "
+                           "(name=value,...; e.g. min_image=0,lut=96,reuse=2; repeatable)")
     anim.add_argument("--json", default=None, metavar="PATH", help="write the animation result as JSON")
 
 
@@ -51,7 +54,7 @@ def _csv(text, conv=str):
 
 
 def run_animation(args) -> int:
-    from ..bench.animation import DEFAULT_TOLERANCES, format_animation, run_animation
+    from ..bench.animation import DEFAULT_TOLERANCES, configurations, format_animation, parse_variant, run_animation
     from ..bench.report import write_json
     from ..bench.runner import machine_note
 
@@ -59,9 +62,10 @@ def run_animation(args) -> int:
         if value < 1:
             raise ValueError(f"{flag} must be >= 1, got {value}")
     tolerances = _csv(args.reuse_tolerances, float) or list(DEFAULT_TOLERANCES)
+    configs = configurations(tolerances, variants=[parse_variant(v) for v in args.variant])
     cache = args.cache_dir
     result = run_animation(args.animation, frames=args.frames, every=args.every, order=args.order,
-                           rays=args.ground_truth_rays or 4096, tolerances=tolerances, device=args.device,
+                           rays=args.ground_truth_rays or 4096, configs=configs, device=args.device,
                            chunk=args.reuse_chunk,
                            cache_dir=".warpshade-cache/reference" if cache is None else
                            (None if cache.lower() == "none" else cache))

@@ -568,24 +568,29 @@ class ColliderSet:
                       rows["sides"], rows["count"], float(thickness)], [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, n, [], [self._edge_delta, self._edge_count, x])
 
-    def collide(self, thickness: float, inv_mass, x_prev, x) -> None:
-        """Project the vertices x out of every collider as posed by :meth:`pose_substep`.
+    def collide(self, thickness: float, inv_mass, x_prev, x, passes: int = 1) -> None:
+        """Project the vertices x out of every collider as posed by :meth:`pose_substep`,
+        ``passes`` times (the same as as many calls).
 
         Args:
             thickness: Distance to keep from the surfaces [m].
             inv_mass: Inverse masses, shape (V,), dtype float32 (kinematic vertices are skipped).
             x_prev: Positions at the start of the substep [m], shape (V,), dtype vec3 (for friction).
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
+            passes: Projections (>= 1); without mesh colliders one launch runs them all.
         """
         n = x.shape[0]
-        if self._arrays is not None:
-            ar = self._arrays
-            self._launch(ck.collide_shapes, n, [ar["kind"], ar["a0"], ar["a1"], ar["b0"], ar["b1"], ar["r0"], ar["r1"],
-                                                ar["size"], ar["friction"], thickness, inv_mass, x_prev], [x])
-        for m in self.meshes:
-            self._launch(ck.collide_mesh, n, [m.mesh.id, m.points_prev, m.indices, int(m.closed),
-                                              thickness + self.mesh_query_distance, thickness, m.friction, inv_mass,
-                                              x_prev], [x])
+        shape_passes, rounds = (passes, 1) if not self.meshes else (1, passes)
+        for _ in range(rounds):
+            if self._arrays is not None:
+                ar = self._arrays
+                self._launch(ck.collide_shapes, n, [ar["kind"], ar["a0"], ar["a1"], ar["b0"], ar["b1"], ar["r0"],
+                                                    ar["r1"], ar["size"], ar["friction"], thickness, shape_passes,
+                                                    inv_mass, x_prev], [x])
+            for m in self.meshes:
+                self._launch(ck.collide_mesh, n, [m.mesh.id, m.points_prev, m.indices, int(m.closed),
+                                                  thickness + self.mesh_query_distance, thickness, m.friction, inv_mass,
+                                                  x_prev], [x])
 
     mesh_query_distance = 0.25
     """How far [m] beyond the thickness a vertex is still looked up against a mesh collider; a

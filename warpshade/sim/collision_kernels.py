@@ -241,25 +241,33 @@ def collide_shapes(
     size: wp.array[wp.vec3],
     friction: wp.array[float],
     thickness: float,
+    passes: int,
     inv_mass: wp.array[float],
     x_prev: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
 ):
     """Push each free vertex out of every analytic shape posed (a1, b1, r1) at the substep's end;
-    (a0, b0, r0), the pose at its start, gives the surface motion for friction."""
+    (a0, b0, r0), the pose at its start, gives the surface motion for friction. ``passes`` passes
+    over the shapes, the same as as many launches of one pass (a vertex depends on itself only);
+    after a pass that pushed the vertex nowhere, the rest would repeat it and are not run."""
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
     p = x[i]
-    for s in range(kind.shape[0]):
-        k = kind[s]
-        sd = shape_distance(k, p, a1[s], b1[s], r1[s], size[s])
-        depth = thickness - sd[3]
-        if depth > 0.0:
-            n = wp.vec3(sd[0], sd[1], sd[2])
-            p = p + n * depth
-            motion = shape_point_motion(k, p, a0[s], a1[s], b0[s], b1[s], r0[s], r1[s])
-            p = p + apply_friction((p - x_prev[i]) - motion, n, depth, friction[s])
+    for _pass in range(passes):
+        pushed = bool(False)
+        for s in range(kind.shape[0]):
+            k = kind[s]
+            sd = shape_distance(k, p, a1[s], b1[s], r1[s], size[s])
+            depth = thickness - sd[3]
+            if depth > 0.0:
+                pushed = True
+                n = wp.vec3(sd[0], sd[1], sd[2])
+                p = p + n * depth
+                motion = shape_point_motion(k, p, a0[s], a1[s], b0[s], b1[s], r0[s], r1[s])
+                p = p + apply_friction((p - x_prev[i]) - motion, n, depth, friction[s])
+        if not pushed:
+            break
     x[i] = p
 
 

@@ -556,6 +556,59 @@ def solve_limits(
     x[j] = x[j] + corr * wj
 
 
+@wp.kernel
+def record_moved(before: wp.array[wp.vec3], x: wp.array[wp.vec3], moved: wp.array[wp.vec3]):
+    """moved[i] = x[i] - before[i]: how the contact projections moved vertex i."""
+    i = wp.tid()
+    moved[i] = x[i] - before[i]
+
+
+@wp.func
+def slide(dx: wp.vec3, pushed: wp.vec3) -> wp.vec3:
+    """dx without its component against ``pushed`` (how the contacts moved the vertex), so a
+    correction moves a vertex along the surface that pushed it (a collider's, another layer's)
+    rather than into it."""
+    if wp.dot(pushed, pushed) > 0.0:
+        n = wp.normalize(pushed)
+        a = wp.dot(dx, n)
+        if a < 0.0:
+            return dx - n * a
+    return dx
+
+
+@wp.kernel
+def solve_limits_sliding(
+    pairs: wp.array[wp.vec2i],
+    max_length: wp.array[float],
+    inv_mass: wp.array[float],
+    max_move: float,
+    contacts: wp.array[int],
+    pushed: wp.array[wp.vec3],
+    offset: int,
+    x: wp.array[wp.vec3],
+):
+    """Stretch limits as :func:`solve_limits`, skipped only while either vertex has self-contact
+    candidates (``contacts``): a vertex the contact projections moved in the last substep
+    (``pushed``, their displacement of it) takes its share of the correction without the
+    component against that push (:func:`slide`)."""
+    p = wp.tid() + offset
+    ij = pairs[p]
+    i = ij[0]
+    j = ij[1]
+    wi = inv_mass[i]
+    wj = inv_mass[j]
+    wsum = wi + wj
+    d = x[i] - x[j]
+    length = wp.length(d)
+    lmax = max_length[p]
+    if wsum == 0.0 or length <= lmax or contacts[i] + contacts[j] > 0:
+        return
+    step = wp.min((length - lmax) / wsum, max_move / wp.max(wi, wj))
+    corr = d * (step / length)
+    x[i] = x[i] + slide(-corr * wi, pushed[i])
+    x[j] = x[j] + slide(corr * wj, pushed[j])
+
+
 # ---------------------------------------------------------------------------------------------
 # Aerodynamics
 # ---------------------------------------------------------------------------------------------
@@ -679,6 +732,93 @@ def neighbour_flat(i: int, a: int, b: int, c: int, dist: float, rest_x: wp.array
     return False
 
 
+@wp.func
+def vertex_query_box(x: wp.array[wp.vec3], v: wp.array[wp.vec3], pad: wp.array[float], i: int, ahead: float) -> wp.mat33:
+    """Rows: lower and upper corner of vertex i's box swept over ``ahead`` seconds and padded by
+    its pad (the box it looks up the triangles with), and its position."""
+    p = x[i]
+    qa = p + v[i] * ahead
+    return wp.matrix_from_rows(wp.min(p, qa) - wp.vec3(pad[i]), wp.max(p, qa) + wp.vec3(pad[i]), p)
+
+
+@wp.func
+def vertex_triangle_candidate(
+    i: int,
+    t: int,
+    count: int,
+    x: wp.array[wp.vec3],
+    rest_x: wp.array[wp.vec3],
+    v: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    ring_offsets: wp.array[int],
+    ring: wp.array[int],
+    horizon: float,
+    later: float,
+    lower: wp.array[wp.vec3],
+    upper: wp.array[wp.vec3],
+    pad: wp.array[float],
+    thickness: float,
+    prev_tri: wp.array2d[int],
+    prev_side: wp.array2d[float],
+    prev_count: wp.array[int],
+    contact_tri: wp.array2d[int],
+    contact_side: wp.array2d[float],
+    contact_dist: wp.array2d[float],
+    overflow: wp.array[int],
+    near: wp.array[int],
+) -> int:
+    """The test of :func:`find_self_contacts` for vertex i and triangle t, whose boxes swept over
+    the look-ahead overlap: pushes the pair into row i when it is a candidate (returns the row's
+    new count) and sets near[0] when the look-ahead foresees it."""
+    a = tris[t, 0]
+    b = tris[t, 1]
+    c = tris[t, 2]
+    if i == a or i == b or i == c:
+        return count
+    p = x[i]
+    vi = v[i]
+    q = p + vi * horizon
+    lo = wp.min(p, q) - wp.vec3(pad[i])
+    hi = wp.max(p, q) + wp.vec3(pad[i])
+    now = boxes_overlap(lo, hi, lower[t], upper[t])
+    look = later > 0.0 and near[0] == 0
+    if not now and not look:
+        return count
+    speed = wp.max(wp.max(wp.length(vi - v[a]), wp.length(vi - v[b])), wp.length(vi - v[c]))
+    close = speed * horizon
+    reach = 1.5 * (thickness + speed * later)
+    # (the pair's distance changes by at most `close` until the next detection, and is at
+    # least the vertex's distance to the triangle's box, which holds it)
+    if not now and wp.length(wp.max(wp.max(lower[t] - p, p - upper[t]), wp.vec3(0.0))) - close > reach:
+        return count
+    bc = closest_on_triangle(p, x[a], x[b], x[c])
+    dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
+    if look and dist - close <= reach:
+        ta = x[a] + v[a] * horizon
+        tb = x[b] + v[b] * horizon
+        tc = x[c] + v[c] * horizon
+        bt = closest_on_triangle(q, ta, tb, tc)
+        dist_next = wp.length(q - (ta * bt[0] + tb * bt[1] + tc * bt[2]))
+        if dist_next <= reach and not neighbour_flat(i, a, b, c, dist_next, rest_x, ring_offsets, ring):
+            near[0] = 1
+    if not now or dist > 1.5 * (thickness + close):
+        return count  # (tested first: it rejects most triangles, and the neighbour test costs more)
+    if neighbour_flat(i, a, b, c, dist, rest_x, ring_offsets, ring):
+        return count
+    xa = x[a]
+    nn = wp.cross(x[b] - xa, x[c] - xa)
+    d = wp.dot(p - xa, nn)
+    side = float(0.0)
+    # an in-plane vertex has no side yet: the solve decides at first contact
+    if d > 1.0e-9 * wp.length_sq(nn):
+        side = 1.0
+    elif d < -1.0e-9 * wp.length_sq(nn):
+        side = -1.0
+    if wp.abs(d) < thickness * wp.sqrt(wp.length_sq(nn)):
+        side = stored_side(prev_tri, prev_side, prev_count, i, t, side)
+    return push_candidate(contact_tri, contact_side, contact_dist, i, count, t, side, dist, overflow)
+
+
 @wp.kernel
 def find_self_contacts(
     bvh: wp.uint64,
@@ -694,6 +834,12 @@ def find_self_contacts(
     upper: wp.array[wp.vec3],
     pad: wp.array[float],
     thickness: float,
+    bvh_lower: wp.array[wp.vec3],
+    bvh_upper: wp.array[wp.vec3],
+    group: int,
+    max_span: float,
+    query_lower: wp.array[wp.vec3],
+    query_upper: wp.array[wp.vec3],
     prev_tri: wp.array2d[int],
     prev_side: wp.array2d[float],
     prev_count: wp.array[int],
@@ -721,62 +867,49 @@ def find_self_contacts(
     with; the BVH's leaf order is the same for both, so the candidates and their order are those
     of a search over the ``horizon`` boxes alone), and near[0] is set to 1 when some pair, moved
     on with its velocities to the next detection, would be a candidate of it.
+
+    A thread takes ``group`` consecutive vertices (the launch has ceil(V / group) threads). When
+    the box around their look-up boxes is at most ``max_span`` wide, it makes one BVH query
+    with it and passes each triangle found to the vertices whose own boxes overlap the
+    triangle's BVH box (``bvh_lower``/``bvh_upper``, the BVH's items): the same pairs, in the
+    same order (the BVH's), as one query per vertex, which it makes otherwise.
     """
-    i = wp.tid()
-    p = x[i]
-    vi = v[i]
-    q = p + vi * horizon
-    lo = wp.min(p, q) - wp.vec3(pad[i])
-    hi = wp.max(p, q) + wp.vec3(pad[i])
-    qa = p + vi * ahead
+    n = x.shape[0]
+    first = wp.tid() * group
+    last = wp.min(first + group, n)
     later = ahead - horizon
-    count = int(0)
-    query = wp.bvh_query_aabb(bvh, wp.min(p, qa) - wp.vec3(pad[i]), wp.max(p, qa) + wp.vec3(pad[i]))
-    t = int(0)
-    while wp.bvh_query_next(query, t):
-        a = tris[t, 0]
-        b = tris[t, 1]
-        c = tris[t, 2]
-        if i == a or i == b or i == c:
-            continue
-        now = boxes_overlap(lo, hi, lower[t], upper[t])
-        look = later > 0.0 and near[0] == 0
-        if not now and not look:
-            continue
-        speed = wp.max(wp.max(wp.length(vi - v[a]), wp.length(vi - v[b])), wp.length(vi - v[c]))
-        close = speed * horizon
-        reach = 1.5 * (thickness + speed * later)
-        # (the pair's distance changes by at most `close` until the next detection, and is at
-        # least the vertex's distance to the triangle's box, which holds it)
-        if not now and wp.length(wp.max(wp.max(lower[t] - p, p - upper[t]), wp.vec3(0.0))) - close > reach:
-            continue
-        bc = closest_on_triangle(p, x[a], x[b], x[c])
-        dist = wp.length(p - (x[a] * bc[0] + x[b] * bc[1] + x[c] * bc[2]))
-        if look and dist - close <= reach:
-            ta = x[a] + v[a] * horizon
-            tb = x[b] + v[b] * horizon
-            tc = x[c] + v[c] * horizon
-            bt = closest_on_triangle(q, ta, tb, tc)
-            dist_next = wp.length(q - (ta * bt[0] + tb * bt[1] + tc * bt[2]))
-            if dist_next <= reach and not neighbour_flat(i, a, b, c, dist_next, rest_x, ring_offsets, ring):
-                near[0] = 1
-        if not now or dist > 1.5 * (thickness + close):
-            continue  # (tested first: it rejects most triangles, and the neighbour test costs more)
-        if neighbour_flat(i, a, b, c, dist, rest_x, ring_offsets, ring):
-            continue
-        xa = x[a]
-        nn = wp.cross(x[b] - xa, x[c] - xa)
-        d = wp.dot(p - xa, nn)
-        side = float(0.0)
-        # an in-plane vertex has no side yet: the solve decides at first contact
-        if d > 1.0e-9 * wp.length_sq(nn):
-            side = 1.0
-        elif d < -1.0e-9 * wp.length_sq(nn):
-            side = -1.0
-        if wp.abs(d) < thickness * wp.sqrt(wp.length_sq(nn)):
-            side = stored_side(prev_tri, prev_side, prev_count, i, t, side)
-        count = push_candidate(contact_tri, contact_side, contact_dist, i, count, t, side, dist, overflow)
-    contact_count[i] = count
+    glo = wp.vec3(1.0e30)
+    ghi = wp.vec3(-1.0e30)
+    for i in range(first, last):
+        box = vertex_query_box(x, v, pad, i, ahead)
+        query_lower[i] = box[0]
+        query_upper[i] = box[1]
+        glo = wp.min(glo, box[0])
+        ghi = wp.max(ghi, box[1])
+        contact_count[i] = 0
+    span = ghi - glo
+    if last - first > 1 and wp.max(wp.max(span[0], span[1]), span[2]) <= max_span:
+        query = wp.bvh_query_aabb(bvh, glo, ghi)
+        t = int(0)
+        while wp.bvh_query_next(query, t):
+            tlo = bvh_lower[t]
+            thi = bvh_upper[t]
+            for i in range(first, last):
+                if boxes_overlap(query_lower[i], query_upper[i], tlo, thi):
+                    contact_count[i] = vertex_triangle_candidate(
+                        i, t, contact_count[i], x, rest_x, v, tris, ring_offsets, ring, horizon, later, lower, upper,
+                        pad, thickness, prev_tri, prev_side, prev_count, contact_tri, contact_side, contact_dist,
+                        overflow, near)
+    else:
+        for i in range(first, last):
+            count = int(0)
+            query = wp.bvh_query_aabb(bvh, query_lower[i], query_upper[i])
+            t = int(0)
+            while wp.bvh_query_next(query, t):
+                count = vertex_triangle_candidate(
+                    i, t, count, x, rest_x, v, tris, ring_offsets, ring, horizon, later, lower, upper, pad, thickness,
+                    prev_tri, prev_side, prev_count, contact_tri, contact_side, contact_dist, overflow, near)
+            contact_count[i] = count
 
 
 @wp.kernel

@@ -71,6 +71,12 @@ class XPBDSolver:
             layer or into a collider). Each moves a vertex by at most the thickness per sweep.
             They allow no stretch, so pieces soft enough to stretch under their own weight get
             none (:data:`~warpshade.sim.model.STIFF_STRAIN`).
+        limit_sliding: With stretch limits, a limit is skipped only while either vertex has
+            self-contact candidates; a vertex the contact projections moved in the last substep
+            (a collider, or a layer it touches as a triangle or edge) takes its share of the
+            correction without the component against that move, so the limit pulls it along the
+            surface that pushed it rather than into it (draped cloth: the cap on a collider is
+            then bounded too). None: :attr:`LIMIT_SLIDING`.
         follow_edge_sides: An edge-edge contact's stored side follows an orientation flip that
             continuous collision detection shows was no crossing (edges turning past parallel, or
             passing beside an end clear of the cloth there); off, a pair keeps the side it was
@@ -97,7 +103,7 @@ class XPBDSolver:
                  contact_iterations: int = 2, stretch_sweeps: int = 1, edge_contact: bool = True,
                  guard: bool = True, self_friction: float = 0.3, stretch_limits: bool = True,
                  follow_edge_sides: bool | None = None, aero_interval: int | None = None,
-                 bend_interval: int | None = None):
+                 bend_interval: int | None = None, limit_sliding: bool | None = None):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -152,6 +158,11 @@ class XPBDSolver:
             # vertices the contact projections moved in the last substep (limits skip them)
             self._touched = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
             self._x_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
+        self.limit_sliding = self.stretch_limits and bool(
+            self.LIMIT_SLIDING if limit_sliding is None else limit_sliding)
+        if self.limit_sliding:
+            # how the contact projections moved each vertex in the last substep
+            self._pushed = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
         self.check_finite = bool(check_finite)
         self.relaxation = check_param("relaxation", relaxation, 0.0, False)
         if self.relaxation >= 2.0:
@@ -200,6 +211,8 @@ class XPBDSolver:
             self._delta = wp.zeros(v, dtype=wp.vec3, device=d)
             self._delta_count = wp.zeros(v, dtype=wp.float32, device=d)
             self._pad = wp.full(v, 0.5 * model.thickness, dtype=wp.float32, device=d)
+            self._group_span = self.GROUP_SPAN * float(np.median(model.edge_rest_length.numpy()))
+            self._query_boxes = [wp.zeros(v, dtype=wp.vec3, device=d) for _ in range(2)]  # the detection's look-up boxes
         if self.edge_contact:
             ne, mc = model.edge_count, self.max_contacts
             self._edge_boxes = [wp.zeros(ne, dtype=wp.vec3, device=d) for _ in range(4)]
@@ -215,6 +228,8 @@ class XPBDSolver:
             self._mark2 = wp.zeros(v, dtype=wp.int32, device=d)
             self._reverted = wp.zeros(v, dtype=wp.int32, device=d)
             self._streak = wp.zeros(v, dtype=wp.int32, device=d)
+            self._streak_clear = True
+            """Every vertex's streak is 0."""
             self._x_unguarded = wp.zeros(v, dtype=wp.vec3, device=d)
 
     # ------------------------------------------------------------------------------------------
@@ -301,14 +316,18 @@ class XPBDSolver:
                     wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
                 # more than one Jacobi pass to stop a fast layer within one substep
-                for _c in range(self.contact_iterations):
-                    if self._contacts_found:  # (no candidate anywhere: the contact launches change nothing)
-                        for c in cmds["contacts"]:
-                            c.launch()
-                    if self.colliders is not None:
-                        self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
-                        # collider corners (box corners, cone apexes, pointed mesh tips) against the cloth
-                        self.colliders.collide_corners(m.thickness, m.inv_mass, m.tris, x, self._x_prev)
+                if self._contacts_found or (self.colliders is not None and self.colliders.corner_count):
+                    for _c in range(self.contact_iterations):
+                        if self._contacts_found:  # (no candidate anywhere: the contact launches change nothing)
+                            for c in cmds["contacts"]:
+                                c.launch()
+                        if self.colliders is not None:
+                            self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
+                            # collider corners (box corners, cone apexes, pointed mesh tips) against the cloth
+                            self.colliders.collide_corners(m.thickness, m.inv_mass, m.tris, x, self._x_prev)
+                elif self.colliders is not None:
+                    # nothing between the collider passes: all of them in one call
+                    self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x, self.contact_iterations)
             if self.colliders is not None and self.colliders.has_sharp_edges:
                 # sharp collider edges and corners against cloth edges and triangles, then the
                 # vertices again
@@ -366,7 +385,14 @@ class XPBDSolver:
                                     outputs=[self._x_prev, x, v], device=d, record_cmd=True)
         edge_batches, hinge_batches = self._batches(m.edge_colors), self._batches(m.hinge_colors)
         cons = []
-        if self.stretch_limits:
+        if self.limit_sliding:
+            # (without self-collision no vertex has candidates: _touched stays 0 in this mode)
+            cons.extend(wp.launch(k.solve_limits_sliding, dim=cnt,
+                                  inputs=[self._limit_ids, m.limit_length, m.inv_mass, self._limit_move,
+                                          self._contact_count if self.self_collision else self._touched,
+                                          self._pushed, off], outputs=[x], device=d, record_cmd=True)
+                        for off, cnt in self._batches(m.limit_colors))
+        elif self.stretch_limits:
             cons.extend(wp.launch(k.solve_limits, dim=cnt, inputs=[self._limit_ids, m.limit_length, m.inv_mass,
                                                                    self._limit_move,
                                                                    self._contact_count if self.self_collision
@@ -398,7 +424,10 @@ class XPBDSolver:
                                              inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
                                                      m.tether_anchor.shape[1], m.inv_mass],
                                              outputs=[x], device=d, record_cmd=True))
-        if self.stretch_limits:
+        if self.limit_sliding:
+            cmds["moved"] = wp.launch(k.record_moved, dim=n, inputs=[self._x_before, x], outputs=[self._pushed],
+                                      device=d, record_cmd=True)
+        elif self.stretch_limits:
             cmds["moved"] = wp.launch(k.flag_moved, dim=n, inputs=[self._x_before, x], outputs=[self._touched], device=d,
                                       record_cmd=True)
         contacts = []
@@ -463,16 +492,21 @@ class XPBDSolver:
                 "prev_ids": wp.zeros((rows, width), dtype=wp.int32, device=d),
                 "prev_sides": wp.zeros((rows, width), dtype=wp.float32, device=d)}
 
-    def _find_candidates(self, kernel, dim: int, rows: dict, inputs: list, count, prev_count) -> tuple[dict, bool]:
-        """Run a candidate search into `rows` after saving the previous detection; while rows
-        overflow and may still grow, double them and search again. Returns the rows used and
-        whether they grew."""
-        wp.launch(k.save_rows, dim=dim, inputs=[count, rows["ids"], rows["sides"]],
-                  outputs=[prev_count, rows["prev_ids"], rows["prev_sides"]], device=self.device)
+    def _find_candidates(self, kernel, dim: int, rows: dict, inputs: list, count, prev_count,
+                         threads: int | None = None) -> tuple[dict, bool]:
+        """Run a candidate search (`threads` threads, default `dim`) into the `dim` `rows` after
+        saving the previous detection; while rows overflow and may still grow, double them and
+        search again. Returns the rows used and whether they grew."""
+        if self._contacts_found:
+            wp.launch(k.save_rows, dim=dim, inputs=[count, rows["ids"], rows["sides"]],
+                      outputs=[prev_count, rows["prev_ids"], rows["prev_sides"]], device=self.device)
+        else:  # every count is 0: the rows past them are never read
+            prev_count.zero_()
         grew = False
         while True:
             before = int(self._overflow.numpy()[0])
-            wp.launch(kernel, dim=dim, inputs=inputs + [rows["prev_ids"], rows["prev_sides"], prev_count],
+            wp.launch(kernel, dim=dim if threads is None else threads,
+                      inputs=inputs + [rows["prev_ids"], rows["prev_sides"], prev_count],
                       outputs=[rows["ids"], rows["sides"], count, rows["dists"], self._overflow, self._near],
                       device=self.device)
             width = rows["ids"].shape[1]
@@ -518,11 +552,12 @@ class XPBDSolver:
         # boxes of both sides padded: overlap <=> gap < thickness
         self._bvh, lower, upper = self._swept_bvh(self._bvh, k.compute_triangle_bounds, self._tri_ids, self._tri_boxes, x, v,
                                                   horizon, ahead)
+        g = self.DETECTION_GROUP
         self._vt_rows, grew = self._find_candidates(
             k.find_self_contacts, m.particle_count, self._vt_rows,
             [self._bvh.id, x, m.rest_points, v, m.tris, m.ring_offsets, m.ring, horizon, ahead, lower, upper,
-             self._pad, m.thickness],
-            self._contact_count, self._prev_count)
+             self._pad, m.thickness, self._tri_boxes[2], self._tri_boxes[3], g, self._group_span, *self._query_boxes],
+            self._contact_count, self._prev_count, threads=(m.particle_count + g - 1) // g)
         if self.edge_contact:
             ne = m.edge_count
             self._ebvh, elower, eupper = self._swept_bvh(self._ebvh, ck.compute_edge_bounds, self._edge_ids, self._edge_boxes,
@@ -544,6 +579,12 @@ class XPBDSolver:
             self._cmd_cache = None
         return grew
 
+    DETECTION_GROUP = 4
+    """Consecutive vertices that share one BVH query in the vertex-triangle detection when their
+    look-up boxes lie within :attr:`GROUP_SPAN` rest edge lengths (the same candidates, in the
+    same order, as one query each; see :func:`~warpshade.sim.kernels.find_self_contacts`)."""
+    GROUP_SPAN = 8.0
+    """How wide [median rest edge lengths] the box around a group's look-up boxes may be for one query."""
     CREASE_ANGLE = 0.25
     """Hinges bent by more than this [rad] make their edge a crease: edge-edge contact is looked
     for from border and crease edges (where two layers' edges can cross without a vertex
@@ -606,7 +647,9 @@ class XPBDSolver:
             wp.launch(ck.reverted_velocities, dim=n, inputs=[self._reverted, self._x_start, x, dt], outputs=[v],
                       device=d)
             self.guard_vertices = int(self._reverted.numpy().sum())
-        wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
+        if self.guard_vertices or not self._streak_clear:  # (else every streak stays 0)
+            wp.launch(ck.update_streaks, dim=n, inputs=[self._reverted], outputs=[self._streak], device=d)
+        self._streak_clear = not self.guard_vertices
         if self.guard_vertices:
             self.guard_longest_hold = max(self.guard_longest_hold, int(self._streak.numpy().max()))
 
@@ -616,6 +659,9 @@ class XPBDSolver:
     """Default of ``bend_interval`` (bending every substep)."""
     FOLLOW_EDGE_SIDES = False
     """Default of ``follow_edge_sides`` (off; what it does to the scenes is measured in
+    docs/benchmarks/index.md)."""
+    LIMIT_SLIDING = False
+    """Default of ``limit_sliding`` (off; what it does to the scenes is measured in
     docs/benchmarks/index.md)."""
     SIDE_CROSSING_TOL = 1.0e-3
     """Edges that come within this fraction of the thickness of each other at a moment their four
@@ -756,6 +802,7 @@ class XPBDSolver:
                 "guard": self.guard, "self_friction": self.self_friction,
                 "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
                 "stretch_sweeps": self.stretch_sweeps,
-                "relaxation": self.relaxation, "tethers": self.tethers, "stretch_limits": self.stretch_limits, "check_finite": self.check_finite,
+                "relaxation": self.relaxation, "tethers": self.tethers, "stretch_limits": self.stretch_limits,
+                "limit_sliding": self.limit_sliding, "check_finite": self.check_finite,
                 "thickness": self.model.thickness, "damping": self.model.damping,
                 "bend_damping": self.model.bend_damping}
