@@ -66,15 +66,16 @@ def test_back_pressure_limits_frames_ahead(spec, blob):
     assert seen == 8
 
 
-def shade_killing_a_worker(spec, blob, wait_until_broken: bool) -> list:
+def shade_killing_a_worker(spec, blob, wait_until_broken: bool, **kw) -> list:
     """Two workers shade 8 frames; one is SIGKILLed after frame 1 is yielded (then, with
-    ``wait_until_broken``, the loop waits until the pool has noticed, before it submits more)."""
+    ``wait_until_broken``, the loop waits until the pool has noticed, before it submits more);
+    ``kw``: more :func:`shade_frames` arguments."""
     import time
 
     backend_box = []
     out = []
-    for f, r in shade_frames(spec, wobble_frames(blob, 8), workers=2, max_in_flight=4,
-                             on_backend=backend_box.append):
+    for f, r in shade_frames(spec, wobble_frames(blob, 8), workers=2, on_backend=backend_box.append,
+                             **{"max_in_flight": 4, **kw}):
         out.append((f, r))
         if f == 1:
             pool = backend_box[0].pool
@@ -121,6 +122,58 @@ def test_resume_from_written_frames(spec, blob, inline):
         assert np.array_equal(r["blob"], inline[f]["blob"])
 
 
+# Temporal reuse with a tolerance no motion reaches: a receiver is computed only where its state starts
+# afresh, so every frame of a chunk has the transfer of the chunk's first frame, exactly as the method
+# without reuse computes it there (the ``inline`` fixture).
+NEVER_DUE = 1e6  # [rad]; the wobble moves the blob's clusters by well under 1 rad a frame
+
+
+@pytest.fixture(scope="module")
+def frozen(blob):
+    return TransferSpec({"blob": blob}, method="reference", order=3, knobs={"rays": 256}, reuse=NEVER_DUE)
+
+
+def assert_chunk_starts(results, inline, chunk):
+    """Frame ``f`` of ``results`` holds ``inline``'s transfer of the first frame of ``f``'s chunk."""
+    assert [f for f, _ in results] == sorted(inline), "frames out of order, lost or duplicated"
+    assert not np.array_equal(inline[0]["blob"], inline[1]["blob"])  # the wobble changes the transfer
+    for f, r in results:
+        assert np.array_equal(r["blob"], inline[f - f % chunk]["blob"]), f"frame {f}"
+
+
+@pytest.mark.parametrize("workers", [0, 1, 2])
+def test_chunks_restart_reuse_at_their_first_frame_whatever_the_workers(frozen, blob, inline, workers):
+    # frames 0-2, 3-5, 6-7; with 2 workers one chunk each at first, the third to whichever is free
+    out = list(shade_frames(frozen, wobble_frames(blob, 8), workers=workers, chunk=3))
+    assert_chunk_starts(out, inline, 3)
+
+
+def test_chunk_back_pressure_counts_frames(frozen, blob):
+    pulled = []
+
+    def frames():
+        for f, g in wobble_frames(blob, 8):
+            pulled.append(f)
+            yield f, g
+
+    seen = 0
+    for f, _ in shade_frames(frozen, frames(), workers=2, chunk=2, max_in_flight=4):
+        seen += 1
+        assert len(pulled) - seen <= 4 - 1  # two chunks of two frames at most, less the one yielded
+    assert seen == 8
+
+
+def test_killed_worker_mid_chunk_reshades_the_chunk_from_its_start(frozen, blob, inline):
+    # the kill comes after frame 1 is yielded: the chunks 2-3 and 4-5 in flight are lost and shaded again,
+    # each from its first frame
+    assert_chunk_starts(shade_killing_a_worker(frozen, blob, wait_until_broken=True, chunk=2), inline, 2)
+
+
+def test_chunk_error_names_the_frames():
+    with pytest.raises(FrameShadingError, match="frames 2-3: .*vertex 7"):
+        list(shade_frames(_Boom(), ((f, {}) for f in range(6)), workers=0, chunk=2))
+
+
 def test_dask_local_cluster_matches_inline(spec, blob, inline):
     # Dask's default HTTP port busy (another cluster, another test): the run's own cluster must not
     # take it or warn about it (it serves no dashboard; was a three-line warning after the run's output)
@@ -137,6 +190,11 @@ def test_dask_local_cluster_matches_inline(spec, blob, inline):
         out = list(shade_frames(spec, wobble_frames(blob, 8), workers=2, scheduler="local"))
     assert_same(out, inline)
     assert not [str(w.message) for w in caught if "8787" in str(w.message)]
+
+
+def test_dask_local_cluster_shades_chunks(frozen, blob, inline):
+    out = list(shade_frames(frozen, wobble_frames(blob, 8), workers=2, scheduler="local", chunk=3))
+    assert_chunk_starts(out, inline, 3)
 
 
 def test_dask_local_cluster_reports_a_build_error_as_itself(blob):

@@ -49,6 +49,23 @@ def test_static_scene_reuses_everything():
     assert m.stats()["reuse_computed_fraction"] == pytest.approx(1 / 4)
 
 
+@pytest.mark.parametrize("method,knobs", [("hemiraster", {}), ("reference", {"rays": 16})])
+def test_reset_starts_afresh(method, knobs):
+    # a tolerance no motion reaches: without the reset frame 4 would keep frame 0's transfer
+    rest, frames = _sequence()
+    cls = get_method(method)
+    plain, reused = cls(rest, order=ORDER, **knobs), TemporalReuse(cls(rest, order=ORDER, **knobs), 1e6)
+    for f in frames[:3]:
+        reused.update(f)
+    assert reused.last_computed == 0
+    reused.reset()
+    b = reused.update(frames[4]).numpy().copy()
+    assert reused.last_computed == rest.num_vertices
+    a = plain.update(frames[4]).numpy().copy()  # a view of what the next update overwrites
+    assert not np.array_equal(a, plain.update(frames[0]).numpy())  # the sequence changes the transfer
+    assert np.array_equal(a, b)
+
+
 def test_moved_vertex_is_recomputed_far_ones_reused():
     n = 20
     pts, faces = grid(n)

@@ -159,10 +159,11 @@ def configurations(tolerances=DEFAULT_TOLERANCES, peer_rays: int = 256, variants
 
 def run_animation(name: str, frames: int = 120, every: int = 10, order: int = 4, rays: int = 4096,
                   tolerances=DEFAULT_TOLERANCES, cache_dir: str | None = DEFAULT_CACHE_DIR,
-                  configs: list[dict] | None = None, device: str = "cpu", log=None) -> dict:
+                  configs: list[dict] | None = None, device: str = "cpu", log=None, chunk: int | None = None) -> dict:
     """Measure every configuration on the whole sequence; returns ``{"animation", "description",
-    "frames", "every", "judged_frames", "order", "ground_truth", "records"}`` with one record per
-    configuration (its errors over time, ``errors``: per judged frame)."""
+    "frames", "every", "judged_frames", "order", "ground_truth", "chunk", "records"}`` with one record per
+    configuration (its errors over time, ``errors``: per judged frame). ``chunk``: temporal reuse starts
+    afresh every ``chunk`` frames, as in a run's chunks (``warpshade run --reuse-chunk``); None: once."""
     from ..visibility import get_method
     from ..visibility.reuse import with_reuse
 
@@ -188,6 +189,8 @@ def run_animation(name: str, frames: int = 120, every: int = 10, order: int = 4,
         for cfg, run in zip(cfgs, runs):
             m = run["method"]
             w0, c0 = time.perf_counter(), time.process_time()
+            if chunk and f % chunk == 0 and cfg["reuse"] is not None:
+                m.reset()
             m.update(seq.frames[f])
             wp.synchronize()
             run["walls"].append(time.perf_counter() - w0)
@@ -216,7 +219,8 @@ def run_animation(name: str, frames: int = 120, every: int = 10, order: int = 4,
             f"computed {rec['computed_fraction'] * 100:5.1f} %")
     return {"animation": name, "description": seq.description, "frames": frames, "every": every,
             "judged_frames": judged_frames, "order": order, "vertices": seq.rest.num_vertices,
-            "ground_truth": {"method": "reference", "rays": rays, "seed": GROUND_TRUTH_SEED}, "records": records}
+            "ground_truth": {"method": "reference", "rays": rays, "seed": GROUND_TRUTH_SEED}, "chunk": chunk,
+            "records": records}
 
 
 def label(rec: dict) -> str:
@@ -232,7 +236,8 @@ def format_animation(result: dict) -> str:
     base = next((r for r in recs if r["method"] == "hemiraster" and r["reuse"] is None), recs[0])
     lines = [f"{result['animation']}: {result['description']}",
              f"order {result['order']}, {result['frames']} frames, judged every {result['every']} "
-             f"({len(result['judged_frames'])} frames) against reference at {result['ground_truth']['rays']} rays",
+             f"({len(result['judged_frames'])} frames) against reference at {result['ground_truth']['rays']} rays"
+             + (f", reuse afresh every {result['chunk']} frames" if result.get("chunk") else ""),
              f"{'configuration':<32} {'ms/frame':>9} {'cpu ms':>8} {'saved':>7} {'err mean':>9} {'err p95':>8} "
              f"{'worst frame':>11} {'+err':>7} {'computed':>9}"]
     for r in recs:

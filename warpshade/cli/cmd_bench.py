@@ -40,6 +40,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     anim.add_argument("--order", type=int, default=4, help="SH order of the animation mode (default 4, as warpshade run)")
     anim.add_argument("--reuse-tolerances", default=None, metavar="RAD,...",
                       help="temporal reuse tolerances measured (default 0,0.05,0.1,0.2,0.5,1)")
+    anim.add_argument("--reuse-chunk", type=int, default=None, metavar="FRAMES",
+                      help="temporal reuse starts afresh every FRAMES frames, as in a run's chunks "
+                           "(warpshade run --reuse-chunk; default: once, at frame 0)")
     anim.add_argument("--variant", action="append", default=[], metavar="KNOBS",
                       help="also measure hemiraster with these knobs and, with reuse=RAD, temporal reuse "
                            "(name=value,...; e.g. min_image=0,lut=96,reuse=2; repeatable)")
@@ -55,7 +58,7 @@ def run_animation(args) -> int:
     from ..bench.report import write_json
     from ..bench.runner import machine_note
 
-    for flag, value in (("--frames", args.frames), ("--every", args.every)):
+    for flag, value in (("--frames", args.frames), ("--every", args.every), ("--reuse-chunk", args.reuse_chunk or 1)):
         if value < 1:
             raise ValueError(f"{flag} must be >= 1, got {value}")
     tolerances = _csv(args.reuse_tolerances, float) or list(DEFAULT_TOLERANCES)
@@ -63,6 +66,7 @@ def run_animation(args) -> int:
     cache = args.cache_dir
     result = run_animation(args.animation, frames=args.frames, every=args.every, order=args.order,
                            rays=args.ground_truth_rays or 4096, configs=configs, device=args.device,
+                           chunk=args.reuse_chunk,
                            cache_dir=".warpshade-cache/reference" if cache is None else
                            (None if cache.lower() == "none" else cache))
     result["machine"] = f"{machine_note()}; wall and process CPU time of update() per frame, compile excluded"

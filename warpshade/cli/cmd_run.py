@@ -90,6 +90,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--reuse", type=float, default=None, metavar="RAD",
                         help="temporal reuse: recompute a vertex cluster's transfer only when geometry it sees moved "
                              "by more than this angle [rad] since its last computation (default: every frame)")
+    from ..pipeline.config import REUSE_CHUNK
+
+    parser.add_argument("--reuse-chunk", type=positive_int, default=None, metavar="FRAMES",
+                        help="with --reuse: frames per chunk; a chunk is shaded in order by one worker and starts "
+                             "with every vertex computed, so the output depends on this and not on --workers "
+                             f"(default {REUSE_CHUNK})")
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -159,6 +165,8 @@ def run(args) -> int:
         security = scheduler_security(args.scheduler, args.tls_ca_file, args.tls_cert, args.tls_key)
     elif args.tls_ca_file or args.tls_cert or args.tls_key:
         raise ValueError("--tls-ca-file/--tls-cert/--tls-key need --scheduler tls://HOST:PORT")
+    if args.reuse_chunk is not None and args.reuse is None:
+        raise ValueError("--reuse-chunk needs --reuse")
     t0 = time.perf_counter()
     scene_path = args.scene or shipped_scene()
     scene = read_scene(scene_path)
@@ -194,13 +202,17 @@ def run(args) -> int:
                     between=None if args.between == "none" else args.between,
                     reflections=reflections, albedo=parse_albedo(args.albedo), area_lights=args.area_lights,
                     area_knobs={} if args.area_k is None else {"k": args.area_k},
-                    refine_receivers=args.refine_receivers, security=security, two_sided=args.two_sided, reuse=args.reuse)
+                    refine_receivers=args.refine_receivers, security=security, two_sided=args.two_sided, reuse=args.reuse,
+                    reuse_chunk=args.reuse_chunk)
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,
                                        "groups": "; ".join(f"{g.method} {g.label}" for g in pipe.groups),
                                        "between": args.between, "area_lights": args.area_lights,
-                                       "reflections": str(bool(pipe.reflections is not None))})
+                                       "reflections": str(bool(pipe.reflections is not None)),
+                                       # only with reuse: outputs without it keep main's metadata
+                                       **({"reuse": f"{args.reuse} rad, chunks of {pipe.chunk} frames"}
+                                          if pipe.chunk is not None else {})})
     estimate = setup_estimate(scene, method, knobs, pipe.order, args, workers)
     if estimate is not None and estimate >= SETUP_NOTICE_SECONDS:
         print(f"warpshade run: setup estimated at {estimate:.1f} s (warpshade plan prices it) before the first "

@@ -12,6 +12,10 @@ same order while worker processes shade ahead:
   (NumPy arrays), never pickled Warp state.
 * **Faults**: a worker that dies mid-frame costs only a retry of the frames it had not returned;
   a frame that fails ``retries + 1`` times raises an error naming the frame.
+* **Chunks** (``chunk=C``): frames ``kC .. kC+C-1`` go to one worker as one task, shaded in order after
+  the built shader's ``reset()`` (when it has one). A shader that keeps state from frame to frame
+  (temporal reuse) then gives results that depend on ``C`` alone: not on the number of workers, on
+  which worker took which chunk, or on retries (a retried chunk is shaded again from its first frame).
 
 Backends: ``workers=0`` shades inline (no processes); ``workers>=1`` uses a pool of spawned worker
 processes; ``scheduler="local"`` starts a local ``dask.distributed`` cluster with ``workers``
@@ -39,8 +43,8 @@ from typing import Any
 
 import numpy as np
 
-from .worker import (BuildFailed, FrameGeometry, FrameShaderSpec, ShadeFn, init_worker_from_file,
-                     shade_in_worker)
+from .worker import (BuildFailed, FrameGeometry, FrameShaderSpec, ShadeFn, init_worker_from_file, shade_chunk,
+                     shade_chunk_in_worker, shade_in_worker)
 
 
 class FrameShadingError(RuntimeError):
@@ -91,11 +95,16 @@ class _InlineBackend:
         self._shade = spec.build()
 
     def submit(self, frame, geometry):
-        from concurrent.futures import Future
+        return self._now(self._shade, frame, geometry)
 
+    def submit_chunk(self, frames, geometries):
+        return self._now(shade_chunk, self._shade, frames, geometries)
+
+    @staticmethod
+    def _now(fn, *args):
         fut = Future()
         try:
-            fut.set_result(self._shade(frame, geometry))
+            fut.set_result(fn(*args))
         except Exception as exc:  # surfaced by .result() like the other backends
             fut.set_exception(exc)
         return fut
@@ -133,6 +142,10 @@ def start_resource_tracker_quietly() -> None:
         os.close(devnull)
 
 
+def _started() -> None:
+    """A task that does nothing (:meth:`_ProcessBackend._new_pool` submits one per worker)."""
+
+
 class _ProcessBackend:
     worker_errors = (BrokenProcessPool,)
 
@@ -149,19 +162,31 @@ class _ProcessBackend:
         self.pool = self._new_pool()
 
     def _new_pool(self):
+        """A pool whose workers are all starting: a pool spawns a process per task submitted while none
+        is idle, and a chunk is submitted only once all its frames are simulated."""
         start_resource_tracker_quietly()
-        return ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=init_worker_from_file,
+        pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=init_worker_from_file,
                                    initargs=(self.token, self.spec_file, os.getpid()))
+        with _sigint_blocked():
+            for _ in range(self.workers):
+                pool.submit(_started)
+        return pool
 
     def _remove_spec_file(self) -> None:
         with contextlib.suppress(OSError):
             os.remove(self.spec_file)
 
     def submit(self, frame, geometry):
+        return self._submit(shade_in_worker, self.token, frame, geometry)
+
+    def submit_chunk(self, frames, geometries):
+        return self._submit(shade_chunk_in_worker, self.token, frames, geometries)
+
+    def _submit(self, fn, *args):
         if len(self.pool._processes or {}) >= self.workers:
-            return self.pool.submit(shade_in_worker, self.token, frame, geometry)
+            return self.pool.submit(fn, *args)
         with _sigint_blocked():  # this submit may spawn a worker
-            return self.pool.submit(shade_in_worker, self.token, frame, geometry)
+            return self.pool.submit(fn, *args)
 
     def worker_pids(self) -> list[int]:
         """PIDs of the live worker processes (for tests and monitoring)."""
@@ -259,6 +284,10 @@ class _DaskBackend:
         return self.client.submit(shade_in_worker, self.token, frame, geometry, pure=False,
                                   key=f"warpshade-{self.token}-{frame}-{uuid.uuid4().hex[:8]}")
 
+    def submit_chunk(self, frames, geometries):
+        return self.client.submit(shade_chunk_in_worker, self.token, frames, geometries, pure=False,
+                                  key=f"warpshade-{self.token}-{frames[0]}-{frames[-1]}-{uuid.uuid4().hex[:8]}")
+
     def recover(self) -> bool:
         return False  # the scheduler keeps running tasks; only failed futures need resubmitting
 
@@ -283,6 +312,56 @@ def _make_backend(spec, token, workers, scheduler, retries, security=None):
 
 
 # -- the ordered, bounded loop -----------------------------------------------------------------
+class _Task:
+    """Frames submitted as one unit: one frame, or one chunk (shaded in order after a ``reset()``)."""
+
+    __slots__ = ("frames", "geometries", "chunked")
+
+    def __init__(self, pairs, chunked: bool):
+        self.frames = tuple(f for f, _ in pairs)
+        self.geometries = tuple(g for _, g in pairs)
+        self.chunked = chunked
+
+    @property
+    def label(self) -> str:
+        """``frame F`` or ``frames A-B``: how an error names the task."""
+        a, b = self.frames[0], self.frames[-1]
+        return f"frames {a}-{b}" if self.chunked and b != a else f"frame {a}"
+
+    def submit(self, backend):
+        if self.chunked:
+            return backend.submit_chunk(self.frames, self.geometries)
+        return backend.submit(self.frames[0], self.geometries[0])
+
+    def results(self, result) -> list:
+        return list(result) if self.chunked else [result]
+
+
+def _tasks(frames: Iterator, chunk: int | None) -> Iterator[_Task]:
+    """``frames`` as tasks: one per frame, or per chunk of frames ``f`` with the same ``f // chunk``."""
+    if chunk is None:
+        for pair in frames:
+            yield _Task((pair,), False)
+        return
+    buf: list = []
+    for f, g in frames:
+        if buf and f // chunk != buf[0][0] // chunk:  # frames that skip: the chunk ends early
+            yield _Task(buf, True)
+            buf = []
+        buf.append((f, g))
+        if (f + 1) % chunk == 0:
+            yield _Task(buf, True)
+            buf = []
+    if buf:
+        yield _Task(buf, True)
+
+
+def chunk_start(frame: int, chunk: int | None) -> int:
+    """First frame of ``frame``'s chunk (``frame`` itself without chunks): where a run that must produce
+    ``frame`` first (``--resume``) starts shading, so that its chunks are those of a whole run."""
+    return frame if not chunk else frame - frame % int(chunk)
+
+
 def shade_frames(
     spec: FrameShaderSpec,
     frames: Iterable[tuple[int, FrameGeometry]],
@@ -292,6 +371,7 @@ def shade_frames(
     retries: int = 2,
     on_backend: Callable[[Any], None] | None = None,
     security=None,
+    chunk: int | None = None,
 ) -> Iterator[tuple[int, Any]]:
     """Shade frames in parallel and yield ``(frame, result)`` in input order.
 
@@ -303,45 +383,58 @@ def shade_frames(
             scheduler address ``tcp://HOST:PORT`` / ``tls://HOST:PORT``. An unencrypted address that
             is not loopback gives a :class:`ClusterWarning` (Dask's pickles run code; see
             :mod:`warpshade.parallel.cluster`).
-        max_in_flight: Frames submitted but not yet yielded (default ``2 * workers``, at least 2).
-        retries: How often a frame is resubmitted after its worker died.
+        max_in_flight: Frames taken from ``frames`` and not yet yielded (default ``2 * workers``, at
+            least 2, times ``chunk``; at least ``chunk``).
+        retries: How often a frame (a chunk) is resubmitted after its worker died.
         on_backend: Called with the backend once it is up (tests use it to kill a worker).
         security: ``distributed.Security`` for a scheduler address (TLS certificates,
             :func:`warpshade.parallel.cluster.scheduler_security`); None uses Dask's configuration.
+        chunk: None: every frame is a task of its own. Else frames ``f`` with the same ``f // chunk`` are
+            one task, shaded in order by one worker after the shader's ``reset()`` (module doc). A chunk
+            is submitted once all its frames are taken, and its frames are yielded once all are shaded.
 
     Raises:
-        FrameShadingError: naming the frame, when shading raised or workers died too often.
+        FrameShadingError: naming the frame (the chunk), when shading raised or workers died too often.
     """
     workers = default_workers() if workers is None else int(workers)
     if workers < 0:
         raise ValueError(f"workers must be >= 0, got {workers}")
+    if chunk is not None:
+        chunk = int(chunk)
+        if chunk < 1:
+            raise ValueError(f"chunk must be >= 1 frames, got {chunk}")
     if scheduler and workers == 0:
         workers = default_workers()
-    max_in_flight = max(2, 2 * max(workers, 1)) if max_in_flight is None else int(max_in_flight)
+    size = chunk or 1
+    max_in_flight = (max(2, 2 * max(workers, 1)) * size if max_in_flight is None
+                     else max(int(max_in_flight), size))  # a whole chunk must fit
     token = uuid.uuid4().hex[:12]
     backend = _make_backend(spec, token, workers, scheduler, retries, security)
     if on_backend is not None:
         on_backend(backend)
-    it = iter(frames)
+    it = _tasks(iter(frames), chunk)
     order: deque[int] = deque()
-    pending: dict[int, list] = {}  # frame -> [geometry, future, failures]
+    pending: dict[int, list] = {}  # first frame -> [task, future, failures]
+    ahead = 0  # frames taken and not yet yielded
     failed = False  # an error or interruption: close without waiting for frames being shaded
     shaded_any = False
     try:
         while True:
-            while len(order) < max_in_flight:
-                nxt = next(it, None)
-                if nxt is None:
+            while ahead + size <= max_in_flight:
+                task = next(it, None)
+                if task is None:
                     break
-                frame, geometry = nxt
-                if frame in pending:
-                    raise ValueError(f"frame {frame} submitted twice")
-                pending[frame] = [geometry, _submit(backend, frame, geometry), 0]
-                order.append(frame)
+                key = task.frames[0]
+                if key in pending:
+                    raise ValueError(f"{task.label} submitted twice")
+                pending[key] = [task, _submit(backend, task), 0]
+                order.append(key)
+                ahead += len(task.frames)
             if not order:
                 return
-            frame = order[0]
-            entry = pending[frame]
+            key = order[0]
+            entry = pending[key]
+            task = entry[0]
             try:
                 result = entry[1].result()
             except backend.worker_errors as exc:
@@ -350,11 +443,13 @@ def shade_frames(
             except BuildFailed as exc:  # the spec is wrong (e.g. a knob out of range): no retry helps
                 raise exc.args[0] from None
             except Exception as exc:
-                raise FrameShadingError(f"frame {frame}: shading failed: {type(exc).__name__}: {exc}") from exc
+                raise FrameShadingError(f"{task.label}: shading failed: {type(exc).__name__}: {exc}") from exc
             order.popleft()
-            del pending[frame]
+            del pending[key]
             shaded_any = True
-            yield frame, _aligned(result)
+            for frame, res in zip(task.frames, task.results(result)):
+                ahead -= 1
+                yield frame, _aligned(res)
     except BaseException:
         failed = True
         raise
@@ -399,17 +494,17 @@ def _resubmit_failed(backend, order, pending, retries, exc, shaded_any: bool = T
         entry[2] += 1
         if entry[2] > retries:
             hint = "" if shaded_any else f"; {STARTUP_DEATHS_HINT}"
-            raise FrameShadingError(f"frame {f}: worker died {entry[2]} times while shading it "
+            raise FrameShadingError(f"{entry[0].label}: worker died {entry[2]} times while shading it "
                                     f"(last: {type(exc).__name__}: {exc}){hint}") from exc
-        entry[1] = _submit(backend, f, entry[0])
+        entry[1] = _submit(backend, entry[0])
 
 
-def _submit(backend, frame, geometry):
-    """``backend.submit``, or a future holding the error when a worker death has already broken the
-    backend (a process pool refuses new work once it has seen a worker die): the frame is then
+def _submit(backend, task: _Task):
+    """``task`` submitted to ``backend``, or a future holding the error when a worker death has already
+    broken the backend (a process pool refuses new work once it has seen a worker die): the task is then
     resubmitted like the others that death lost, when the loop reaches it."""
     try:
-        return backend.submit(frame, geometry)
+        return task.submit(backend)
     except backend.worker_errors as exc:
         fut = Future()
         fut.set_exception(exc)
@@ -424,24 +519,32 @@ class TransferSpec:
         method: Method name (``warpshade.visibility.METHODS``).
         order: SH order.
         knobs: Method keyword arguments.
+        reuse: Temporal reuse tolerance [rad] (:class:`~warpshade.visibility.reuse.TemporalReuse`), or None.
 
-    The built shader maps ``(frame, {name: points (V, 3)})`` to ``{name: transfer (V, N*N) float32}``.
+    The built shader maps ``(frame, {name: points (V, 3)})`` to ``{name: transfer (V, N*N) float32}``;
+    with ``reuse`` its ``reset()`` forgets the frames seen.
     """
 
-    def __init__(self, meshes: dict, method: str = "reference", order: int = 5, knobs: dict | None = None):
+    def __init__(self, meshes: dict, method: str = "reference", order: int = 5, knobs: dict | None = None,
+                 reuse: float | None = None):
         self.meshes = dict(meshes)
         self.method = method
         self.order = order
         self.knobs = dict(knobs or {})
+        self.reuse = reuse
 
     def build(self) -> ShadeFn:
         from ..visibility import get_method
+        from ..visibility.reuse import with_reuse
 
         cls = get_method(self.method)
-        methods = {name: cls(mesh, order=self.order, **self.knobs) for name, mesh in self.meshes.items()}
+        methods = {name: with_reuse(cls(mesh, order=self.order, **self.knobs), self.reuse)
+                   for name, mesh in self.meshes.items()}
 
         def shade(frame: int, geometry: FrameGeometry):
             # .numpy() of a CPU array is a view of memory the next frame overwrites: copy
             return {name: m.update(geometry[name]).numpy().copy() for name, m in methods.items()}
 
+        if self.reuse is not None:
+            shade.reset = lambda: [m.reset() for m in methods.values()]
         return shade

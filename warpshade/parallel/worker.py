@@ -19,7 +19,9 @@ class FrameShaderSpec(Protocol):
     """What a worker needs to shade frames: picklable, and ``build()`` returns the per-frame function.
 
     ``build()`` runs once per worker and constructs every static structure; the returned callable
-    ``shade(frame, geometry) -> result`` is called for each frame. Results must be picklable.
+    ``shade(frame, geometry) -> result`` is called for each frame. Results must be picklable. A shader
+    that keeps state from one frame to the next has a ``reset()`` attribute, which :func:`shade_chunk`
+    calls before the first frame of each chunk.
     """
 
     def build(self) -> ShadeFn: ...
@@ -90,3 +92,19 @@ def shade_in_worker(token: str, frame: int, geometry: FrameGeometry):
     if token in WORKER_BUILD_ERRORS:
         raise BuildFailed(WORKER_BUILD_ERRORS[token])
     return WORKER_SHADERS[token](frame, geometry)
+
+
+def shade_chunk(shade: ShadeFn, frames, geometries) -> list:
+    """``shade``'s results for ``frames`` (consecutive, in order) after ``shade.reset()`` when it has one:
+    a chunk's results depend on its frames alone, not on what the shader saw before."""
+    reset = getattr(shade, "reset", None)
+    if reset is not None:
+        reset()
+    return [shade(f, g) for f, g in zip(frames, geometries)]
+
+
+def shade_chunk_in_worker(token: str, frames, geometries) -> list:
+    """:func:`shade_chunk` with run ``token``'s shader; :class:`BuildFailed` when building it raised."""
+    if token in WORKER_BUILD_ERRORS:
+        raise BuildFailed(WORKER_BUILD_ERRORS[token])
+    return shade_chunk(WORKER_SHADERS[token], frames, geometries)

@@ -32,7 +32,7 @@ from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
 from .refine import refine_receivers as refine
 from ..visibility import METHOD_PREFERENCE, default_method
-from .config import DEFAULT_ORDER, RUN_KNOBS, RunConfig, resolve_run
+from .config import DEFAULT_ORDER, REUSE_CHUNK, RUN_KNOBS, RunConfig, resolve_run
 from .shading import GroupSpec, SceneShader, back_key, unoccluded_transfer
 
 DEFAULT_KNOBS = RUN_KNOBS
@@ -158,6 +158,10 @@ class Pipeline:
         reuse: Temporal reuse: recompute a receiver's transfer only when geometry it sees moved by more
             than this angle [rad] since it was last computed (:mod:`warpshade.visibility.reuse`); None
             (default) recomputes every frame.
+        reuse_chunk: With ``reuse``: frames per chunk (default :data:`~.config.REUSE_CHUNK`). Frames
+            ``k*reuse_chunk`` on are shaded in order by one worker, the first computed in full, so the
+            output depends on ``reuse_chunk``, not on ``workers``; ``--resume`` starts shading at the
+            chunk's first frame and writes from where it resumes.
     """
 
     def __init__(self, scene: Scene, frames: int | None = None, method: str | None = None,
@@ -165,7 +169,8 @@ class Pipeline:
                  lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu",
                  between: str | None = "spheres", reflections: bool | dict | None = None, albedo=None,
                  area_lights: str = "gears", area_knobs: dict | None = None, refine_receivers="auto",
-                 security=None, two_sided: str = "auto", reuse: float | None = None):
+                 security=None, two_sided: str = "auto", reuse: float | None = None,
+                 reuse_chunk: int | None = None):
         from ..parallel.runtime import init_warp
 
         init_warp()  # a script's run starts as quietly as the CLI's (no banner, no CUDA-driver notice)
@@ -186,6 +191,10 @@ class Pipeline:
             raise SceneError(f"{scene.source}: no shaded object")
         self.shader = SceneShader.from_config(self.config, scene, lights, device,
                                               None if reuse is None else float(reuse))
+        self.chunk = None if reuse is None else int(REUSE_CHUNK if reuse_chunk is None else reuse_chunk)
+        """Frames per chunk (:func:`warpshade.parallel.shade_frames`), or None without temporal reuse."""
+        if self.chunk is not None and self.chunk < 1:
+            raise ValueError(f"reuse chunk must be >= 1 frames, got {self.chunk}")
         self._check_lights()
         self._warn_static_scene(lights)
         self._warn_inward_meshes()
@@ -251,14 +260,18 @@ class Pipeline:
         """Yield ``(frame, {name: points})`` for every moving object from ``start`` on, timing the simulation.
 
         Frames before ``start`` (already written by an interrupted run) are simulated, since the
-        simulation is sequential and deterministic, but not shaded.
+        simulation is sequential and deterministic, but not shaded (with chunks, from the first frame of
+        ``start``'s chunk on they are shaded, for the chunk to be as in a whole run, and not written).
 
         An error ends the iteration and is put in ``failure`` instead of being raised here, so the
         frames already in flight are still shaded and written before the run stops with it.
         """
         try:
+            from ..parallel.frames import chunk_start
+
+            first = chunk_start(start, self.chunk)
             for f, geo in self._geometry_frames(sims, secs):
-                if f >= start:
+                if f >= first:
                     yield f, geo
         except Exception as exc:  # noqa: BLE001 - re-raised by run() after the in-flight frames
             failure.append(exc)
@@ -346,8 +359,11 @@ class Pipeline:
             passes: list = []
             frame_seconds: list = []
             results = shade_frames(self.shader, self._geometry(sims, secs, failure, start), workers=self.workers,
-                                   scheduler=self.scheduler, security=self.security)
+                                   scheduler=self.scheduler, security=self.security, chunk=self.chunk)
             for f, res in results:
+                if f < start:  # shaded for its chunk (--resume), written already
+                    secs["setup"] += res.pop("_build_seconds", 0.0)
+                    continue
                 t = time.perf_counter()
                 frame_seconds.append(res.pop("_seconds"))
                 secs["shade"] += frame_seconds[-1]
@@ -401,6 +417,6 @@ def _group_line(g: GroupSpec) -> str:
             + (f" (two-sided: {', '.join(both)})" if both else ""))
 
 
-__all__ = ["check_output", "DEFAULT_KNOBS", "DEFAULT_ORDER", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
+__all__ = ["check_output", "DEFAULT_KNOBS", "DEFAULT_ORDER", "REUSE_CHUNK", "METHOD_PREFERENCE", "ClothSimulation", "GroupSpec", "Pipeline",
            "RUN_KNOBS", "RunConfig", "RunReport", "resolve_run", "SceneShader", "default_method", "light_from_spec", "sky_light_specs",
            "unoccluded_transfer"]

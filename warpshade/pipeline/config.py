@@ -23,6 +23,12 @@ measured in docs/methods/reference.md); other knobs take the method's own defaul
 ``warpshade run --method M`` passes all of M's knobs (its flags' defaults), so this applies to methods
 named by a scene or by the Python API without knobs."""
 
+REUSE_CHUNK = 30
+"""Frames per chunk of a run with temporal reuse (``--reuse-chunk``): each chunk is shaded in order by one
+worker and starts with every receiver computed (:func:`warpshade.parallel.shade_frames`), so the output
+depends on this number and not on the workers. Half a second at 60 frames/s: a restart costs one full
+frame in 30, and 120 frames make four chunks, two per worker on two cores."""
+
 AREA_MODES = ("gears", "sh")
 """``--area-lights`` values: ``gears`` (:mod:`.area`) or ``sh`` (rect lights projected to SH like other local lights)."""
 

@@ -157,6 +157,13 @@ class _Group:
         else:
             self.back_method = cls(flipped(self.method.mesh), order=order, device=device, **spec.knobs)
 
+    def reset_reuse(self) -> None:
+        """Temporal reuse forgets the frames seen (:meth:`~warpshade.visibility.reuse.TemporalReuse.reset`):
+        the next frame computes every receiver, as the first one does."""
+        for m in (self.method, self.back_method):
+            if hasattr(m, "reset"):
+                m.reset()
+
     def update(self, geometry: dict) -> tuple[bool, tuple]:
         """``(computed, (points (V, 3), transfer (V, N*N), unit normals (V, 3)))`` of the group this frame;
         ``computed`` is False when the first frame's result is reused (nothing in the group moves)."""
@@ -429,7 +436,9 @@ class SceneShader:
         the same points, negated normals, the back side's colours and transfer), plus the keys
         ``"_seconds"`` (time spent shading the frame), ``"_passes"`` (``{Pass.key: seconds}`` of the
         passes of :meth:`passes` computed this frame, reused ones left out) and, in the first result of
-        this build, ``"_build_seconds"`` (method structures and lights)."""
+        this build, ``"_build_seconds"`` (method structures and lights). With :attr:`reuse`, ``shade.reset()``
+        makes the next frame compute every receiver, as the first one does (a chunk's start,
+        :func:`warpshade.parallel.shade_frames`)."""
         from ..lighting import lights_sh
         from ..radiance import exit_radiance
 
@@ -548,6 +557,8 @@ class SceneShader:
             out["_seconds"] = time.perf_counter() - t0
             return out
 
+        if self.reuse is not None:  # temporal reuse keeps state: a chunk of frames starts afresh
+            shade.reset = lambda: [g.reset_reuse() for g in groups]
         return shade
 
 

@@ -133,6 +133,13 @@ class TemporalReuse:
     def transfer_numpy(self) -> np.ndarray:
         return self.transfer.numpy()
 
+    def reset(self) -> None:
+        """Forget the frames seen: the next :meth:`update` computes every receiver, as the first one does.
+        The counters (``frames``, ``computed``) go on."""
+        self._account[:] = 0.0
+        self._previous = None
+        self._values = None
+
     def due(self, points: np.ndarray) -> np.ndarray:
         """Advance the clusters' accounts by the step from the previous frame to ``points`` (module doc);
         returns the receivers due for recomputation, sorted int32 (all of them on the first frame)."""
