@@ -572,29 +572,6 @@ def test_min_image_zero_keeps_a_sheet_seen_edge_on():
     assert kept.stats()["hierarchy"] and culled.knobs()["min_image"] == 0.5
 
 
-@pytest.mark.parametrize("coarse", [0, 512])
-def test_a_full_mask_skips_the_rest_of_the_blockers(coarse):
-    # A 20 m x 20 m ceiling of two triangles 10 cm above the receiver covers every pixel centre (its rim
-    # is below 0.6° elevation, the lowest pixel centre at 4.4°; the shared diagonal's masks are exact
-    # complements), so the mask is full whatever else there is. A 10 m x 10 m grid of 1800 triangles 1 m
-    # up is wholly above the horizon and, at min_image 0, culled by nothing else: rasterizing every
-    # blocker queues all 1800 (or, at coarse 512, the coarse triangles standing for them); stopping once
-    # the mask is full (kernels.Batch.full) leaves some of them out (at coarse 512, where the refined
-    # receiver patch and the ceiling go first, nearly all), with the same full mask.
-    rp, rf = flat_grid(-0.01, 0.01, -0.01, 0.01, 0.0, 2)  # vertex 4 at the origin, normal +z
-    cp, cf = flat_grid(-10.0, 10.0, -10.0, 10.0, 0.1, 1)
-    gp, gf = flat_grid(-5.0, 5.0, -5.0, 5.0, 1.0, 30)
-    mesh = TriMesh(np.concatenate([rp, cp, gp]), np.concatenate([rf, cf + len(rp), gf + len(rp) + len(cp)]))
-    h = hemiraster(mesh, order=2, coarse=coarse, min_image=0.0)
-    h.set_points(mesh.points)
-    h.compute_rows(np.array([4], np.int32))
-    mask, valid = h._mask.numpy()[4], h._lut.valid.numpy().reshape(-1)[:h._mask.shape[1]]
-    assert np.array_equal(mask, valid)  # every valid pixel blocked, nothing else set
-    far = len(gf) if coarse == 0 else h.num_blockers - len(rf) - len(cf)
-    assert h._counts.numpy()[4] < far, (h._counts.numpy()[4], far)
-    assert h.stats()["hierarchy"] == (coarse > 0)
-
-
 # ------------------------------------------------------------------------------- the receiver's own fan
 def valley(k=1.0, n=9):
     """Open sheet folded into a V along the x axis, z = k |y|; the crease is the middle row of vertices."""

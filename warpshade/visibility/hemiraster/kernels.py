@@ -227,10 +227,6 @@ class Batch:
     """Triangles rasterized per receiver (not culled by the exact tests), shape (V,)."""
     refined: wp.array[wp.int32]
     """Fine triangles of refined blockers queued per receiver (not incident, image not tiny), shape (V,)."""
-    full: wp.array[wp.int32]
-    """Per slot, 1 once its current receiver's mask holds every valid pixel (:func:`flush_batch`; never
-    while recording a PVS): no further image can change it, so the rest of its blockers is skipped
-    (:func:`rasterize_masks`), the same mask with fewer triangles. Shape (slots,)."""
 
 
 @wp.func
@@ -555,12 +551,10 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
     Paper §3.1.1: a triangle's image is the AND of its three edge-plane masks; images fuse by OR
     (no depth, any order). Each chunk of the batch's images is ORed in a register
     (:class:`MaskChunk`), the valid-pixel AND is applied once, and the mask row is updated once per
-    chunk (whole chunks, no branch; docs/benchmarks/history.md has what this replaced). Sets
-    ``bt.full[sl]`` when the mask then holds every valid pixel.
+    chunk (whole chunks, no branch; docs/benchmarks/history.md has what this replaced).
     """
     done = batch_codes(bt.a, bt.b, bt.c, bt.area, bt.fine_flag, bt.src, bt.codes, bt.refined, v, sl, nb, frame,
                        lut.backface, lut.res)
-    full = int(1)  # whether the mask holds every valid pixel afterwards (:attr:`Batch.full`)
     for ch in range(lut.chunks):
         acc = MaskChunk()
         if bt.record == 0:
@@ -576,15 +570,11 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
                 src = bt.src[sl, k]
                 if src >= 0 and chunk_any(m & lut.valid[ch]):
                     bt.hits[v, src >> 5] = bt.hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
-        valid = lut.valid[ch]
-        acc = acc & valid
+        acc = acc & lut.valid[ch]
         for i in range(wp.min(CHUNK_WORDS, lut.words - ch * CHUNK_WORDS)):
             w = ch * CHUNK_WORDS + i
-            word = mask[v, w] | acc[i]
-            mask[v, w] = word
-            full = full & wp.where((word | ~valid[i]) == ~wp.uint64(0), 1, 0)
+            mask[v, w] = mask[v, w] | acc[i]
     bt.counts[v] = bt.counts[v] + done
-    bt.full[sl] = wp.where(bt.record == 0, full, 0)
     return 0
 
 
@@ -1245,33 +1235,6 @@ def clear_visited(sl: int, groups: Refinement):
 
 
 @wp.func(inline=True)
-def visit_refined(t: int, sl: int, groups: Refinement):
-    """Mark refined blocker ``t`` visited for the slot's receiver and add what it lists to the slot's set."""
-    groups.visited[sl, t >> 6] = groups.visited[sl, t >> 6] | (wp.uint64(1) << wp.uint64(t & 63))
-    list_cover(groups, sl, t)
-
-
-@wp.func(inline=True)
-def collect_refined(t0: int, t1: int, sl: int, blockers: Blockers, groups: Refinement):
-    """:func:`visit_refined` for the blockers ``t0 .. t1-1`` refined for the slot's receiver (what the
-    far-field pass does with them, :func:`rasterize_far_chunk`, done before it)."""
-    for c0 in range(t0, t1, FAR_CHUNK):
-        bits = slot_bits(blockers.refined, sl, c0, wp.min(c0 + FAR_CHUNK, t1))
-        while bits != wp.uint64(0):
-            k = lowest_bit(bits)
-            bits = bits & (bits - wp.uint64(1))
-            visit_refined(c0 + k, sl, groups)
-
-
-@wp.func(inline=True)
-def clear_set(sl: int, groups: Refinement):
-    """Clear the slot's set of listed triangles and visited blockers unhandled (the mask is already full)."""
-    for u in range(groups.listed.shape[1]):
-        groups.listed[sl, u] = MaskChunk()
-    clear_visited(sl, groups)
-
-
-@wp.func(inline=True)
 def queue_fine_set(
     v: int,
     sl: int,
@@ -1286,8 +1249,7 @@ def queue_fine_set(
     nb: int,
 ) -> int:
     """Queue the fine triangles of the slot's set ``level.listed`` (bits over the fine mesh) and clear it;
-    returns the queue length (none once the mask is full, :attr:`Batch.full`). Each fine triangle is
-    handled once, in index order: 64 at a time
+    returns the queue length. Each fine triangle is handled once, in index order: 64 at a time
     classified from per-frame data (:func:`skip_early`, as :func:`stage_fine`), then the kept ones
     gathered and queued unless incident to the receiver (as :func:`queue_candidates`; the tiny-image
     test with ``lut.fine_area`` and the count in ``refined`` wait for :func:`batch_codes`)."""
@@ -1297,8 +1259,7 @@ def queue_fine_set(
         level.listed[sl, u] = MaskChunk()
         for i in range(CHUNK_WORDS):
             base = (u * CHUNK_WORDS + i) * 64
-            # nothing more once the receiver's mask is full (:attr:`Batch.full`)
-            x = wp.where(bt.full[sl] != 0, zero, chunk[i])
+            x = chunk[i]
             keep = zero
             while x != zero:
                 k = lowest_bit(x)
@@ -1491,7 +1452,6 @@ def rasterize_far_chunk(
     mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
-    with_refined: int,
 ) -> int:
     """Far-field blockers ``t0 .. t1-1`` (at most :data:`FAR_CHUNK`, consecutive; the PVS path passes
     one at a time): each is rasterized itself, or replaced by its fine triangles near the receiver
@@ -1528,15 +1488,15 @@ def rasterize_far_chunk(
     keep = ~(ex | refine_bits | cull | tiny)
     if t1 - t0 < 64:
         keep = keep & ((wp.uint64(1) << wp.uint64(t1 - t0)) - wp.uint64(1))
-    if with_refined == 0:
-        refine_bits = zero  # handled before the far field (:func:`collect_refined`)
     while refine_bits != wp.uint64(0):
         k = lowest_bit(refine_bits)
         refine_bits = refine_bits & (refine_bits - wp.uint64(1))
         if groups.use_set != 0 and bt.record == 0:
             # queued with the other visited ones' after the far field (:func:`rasterize_mid_set`,
             # :func:`rasterize_fine_set`)
-            visit_refined(t0 + k, sl, groups)
+            t = t0 + k
+            groups.visited[sl, t >> 6] = groups.visited[sl, t >> 6] | (wp.uint64(1) << wp.uint64(t & 63))
+            list_cover(groups, sl, t)
         elif mids.on != 0:
             nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
         else:
@@ -1591,10 +1551,7 @@ def rasterize_masks(
     coarse mesh, or the fine mesh itself when the hierarchy is off), traversed through the
     culled super-cluster / cluster hierarchy, linearly, or through the receiver's PVS list. With
     ``refine > 0`` a coarse blocker near the receiver is replaced by the fine triangles it stands
-    for (``group_*``, :func:`refine_here`), so contact and folds see the exact surface. Those fine
-    triangles (the near field, the largest images) are rasterized before the kept far field, and once
-    the mask holds every valid pixel the receiver's remaining blockers are skipped (:attr:`Batch.full`):
-    the same mask, any order (OR fusion).
+    for (``group_*``, :func:`refine_here`), so contact and folds see the exact surface.
 
     The masks are integrated into SH transfer by the per-order kernels of :mod:`.integrate`.
     """
@@ -1619,7 +1576,6 @@ def rasterize_masks(
                 mids.ring_bits[sl, m >> 6] = mids.ring_bits[sl, m >> 6] | (wp.uint64(1) << wp.uint64(m & 63))
             mids.counts[v] = 0
         bt.counts[v] = 0
-        bt.full[sl] = 0
         refined[v] = 0
         mark_refined(v, sl, p, n, lut, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi,
                      cluster_reach)
@@ -1638,59 +1594,27 @@ def rasterize_masks(
                                mask, bt)
         # far field: coarse blockers, replaced by their fine triangles near the receiver
         offset = wp.dot(n, p)
-        # with the set (``groups.use_set``), the triangles standing for the refined blockers go first: the
-        # near field holds the largest images, so a mask that ends up full (a receiver facing a surface
-        # close by) is full before most of the far field, which is then skipped (:attr:`Batch.full`)
-        set_first = 0
-        if groups.use_set != 0 and bt.record == 0 and use_pvs == 0:
-            set_first = 1
-            # the refined blockers the far-field pass below would visit
-            if use_cull != 0:
-                for s in range(super_start.shape[0] - 1):
-                    if box_above_plane(super_lo[s], super_hi[s], n, offset):
-                        for c in range(super_start[s], super_start[s + 1]):
-                            if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
-                                collect_refined(cluster_start[c], cluster_start[c + 1], sl, blockers, groups)
-            else:
-                collect_refined(0, blockers.faces.shape[0], sl, blockers, groups)
-            if mids.on != 0:
-                nb = rasterize_mid_set(v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
-            else:
-                nb = rasterize_fine_set(v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb)
-            if nb > 0:
-                nb = flush_batch(nb, v, sl, frame, lut, mask, bt)
         if use_pvs != 0:
             for r in range(pvs_start[v], pvs_start[v + 1]):
                 t = pvs_tris[r]
-                if bt.full[sl] != 0:
-                    break
                 nb = rasterize_far_chunk(t, t + 1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame,
-                                         lut, mask, bt, nb, 1)
+                                         lut, mask, bt, nb)
         elif use_cull != 0:
             for s in range(super_start.shape[0] - 1):
                 if box_above_plane(super_lo[s], super_hi[s], n, offset):
                     for c in range(super_start[s], super_start[s + 1]):
-                        if bt.full[sl] != 0:
-                            break
                         if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
                             for t0 in range(cluster_start[c], cluster_start[c + 1], FAR_CHUNK):
                                 t1 = wp.min(t0 + FAR_CHUNK, cluster_start[c + 1])
                                 nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl,
-                                                         frame, lut, mask, bt, nb, 1 - set_first)
+                                                         frame, lut, mask, bt, nb)
         else:
             for t0 in range(0, blockers.faces.shape[0], FAR_CHUNK):
-                if bt.full[sl] != 0:
-                    break
                 t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
                 nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame, lut,
-                                         mask, bt, nb, 1 - set_first)
-        if groups.use_set != 0 and bt.record == 0 and set_first == 0:
-            # (a PVS's far field: the set after it)
-            if nb > 0:  # the far field into the mask first: when that fills it, the set is skipped
-                nb = flush_batch(nb, v, sl, frame, lut, mask, bt)
-            if bt.full[sl] != 0:
-                clear_set(sl, groups)
-            elif mids.on != 0:
+                                         mask, bt, nb)
+        if groups.use_set != 0 and bt.record == 0:
+            if mids.on != 0:
                 nb = rasterize_mid_set(v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
             else:
                 nb = rasterize_fine_set(v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb)

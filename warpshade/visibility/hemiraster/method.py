@@ -571,7 +571,6 @@ class HemirasterTransfer(TransferMethod):
         self._batch.fine_flag = wp.zeros((ns, nq), dtype=wp.int32, device=d)
         self._batch.counts = self._counts
         self._batch.refined = self._refined
-        self._batch.full = wp.zeros(ns, dtype=wp.int32, device=d)
         self._all = wp.array(np.arange(nv, dtype=np.int32), dtype=wp.int32, device=d)
         self._interp, self._redone = None, 0
         if self.interpolate > 0.0:
