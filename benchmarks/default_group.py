@@ -8,7 +8,9 @@ knob set: process CPU seconds of the front and of the back pass (median of ``--r
 rounds after a warm-up round: every knob set once per round, so load drift hits all alike; compile
 excluded; one Warp CPU thread) and the mean relative L2 error of the front transfer
 (:mod:`warpshade.bench.metrics`) against the ray-traced reference at 4096 rays
-(:func:`warpshade.bench.reference_cache.ground_truth`, cached).
+(:func:`warpshade.bench.reference_cache.ground_truth`, cached); also the triangles rasterized per
+cloth receiver in either pass and the share of the cloth's receivers whose back-pass mask ends full
+(every pixel blocked).
 
 Success criteria: none of its own; it is the per-pass view of issue 18's target 5 (the default scene
 in <= 5 s warm), whose wall time ``benchmarks/default_run.py`` measures.
@@ -92,16 +94,25 @@ def main(argv=None) -> int:
                 cpu[i, 1, r] = time.process_time() - t
         for i, (label, g) in enumerate(groups.items()):
             _, (_, transfer, _) = g.update(geometry[f])
+            g.update_back()
+            two = g._two_rows
+            back = g.back_method
+            mask = back._mask.numpy()[two]
+            valid = back._lut.valid.numpy().reshape(-1)[:mask.shape[1]]
             st = g.method.stats()
             rows.append({"frame": f, "label": label, "knobs": CONFIGS[label],
                          "front_cpu_seconds": float(np.median(cpu[i, 0])), "back_cpu_seconds": float(np.median(cpu[i, 1])),
                          "error_mean": float(transfer_errors(transfer, truth).mean()),
                          "triangles_per_vertex": st.get("triangles_per_vertex"),
-                         "refined_per_vertex": st.get("refined_per_vertex"), "mid_per_vertex": st.get("mid_per_vertex")})
+                         "refined_per_vertex": st.get("refined_per_vertex"), "mid_per_vertex": st.get("mid_per_vertex"),
+                         "front_triangles_per_cloth_receiver": float(g.method._counts.numpy()[two].mean()),
+                         "back_triangles_per_cloth_receiver": float(back._counts.numpy()[two].mean()),
+                         "back_full_fraction": float(((mask | ~valid) == np.uint64(2**64 - 1)).all(axis=1).mean())})
             x = rows[-1]
             print(f"frame {f:3d} {label:34s} front {x['front_cpu_seconds'] * 1e3:6.1f} ms  back "
                   f"{x['back_cpu_seconds'] * 1e3:6.1f} ms  error {x['error_mean'] * 100:.2f} %  "
-                  f"tris/vertex {x['triangles_per_vertex']:.0f}", flush=True)
+                  f"tris/vertex {x['triangles_per_vertex']:.0f}, cloth front {x['front_triangles_per_cloth_receiver']:.0f} "
+                  f"back {x['back_triangles_per_cloth_receiver']:.0f} ({x['back_full_fraction'] * 100:.0f} % full)", flush=True)
     if args.json:
         with open(args.json, "w") as fh:
             json.dump({"scene": "usd_scenes/default.usda", "order": args.order, "truth_rays": 4096,
