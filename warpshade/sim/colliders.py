@@ -13,6 +13,7 @@ import warp as wp
 from ..geometry.mesh import first_nonfinite, weld_indices
 from . import collision_kernels as ck
 from .kernels import apply_averaged_deltas, save_rows
+from .launches import RecordedLaunches
 
 
 def _vec(name: str, value, n: int = 3) -> np.ndarray:
@@ -172,7 +173,7 @@ class ColliderSet:
         self.meshes: list[MeshCollider] = []
         self._dirty = True
         self._arrays = None
-        self._cmds: dict = {}
+        self._recorded = RecordedLaunches(self.device)
 
     # -- building ---------------------------------------------------------------------------
 
@@ -342,21 +343,9 @@ class ColliderSet:
         for m in self.meshes:
             wp.copy(m.points_start, m.points_end)
 
-    MAX_RECORDED = 256
-    """Most recorded launches :meth:`_launch` keeps (it starts afresh beyond)."""
-
     def _launch(self, kernel, dim: int, inputs: list, outputs: list) -> None:
-        """``wp.launch`` of the per-substep kernels through recorded launches, one per kernel,
-        dimension and arguments (arrays by identity, which the record keeps alive): a recorded
-        launch skips most of ``wp.launch``'s Python cost (tens of microseconds a call)."""
-        key = (kernel, dim, *(id(a) if isinstance(a, wp.array) else a for a in (*inputs, *outputs)))
-        cmd = self._cmds.get(key)
-        if cmd is None:
-            if len(self._cmds) >= self.MAX_RECORDED:
-                self._cmds.clear()
-            cmd = self._cmds[key] = wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=self.device,
-                                              record_cmd=True)
-        cmd.launch()
+        """``wp.launch`` of the per-substep kernels through their recorded launches (:class:`RecordedLaunches`)."""
+        self._recorded.launch(kernel, dim, inputs, outputs)
 
     def pose_substep(self, alpha0: float, alpha1: float) -> None:
         """Pose the colliders for the substep spanning fractions alpha0..alpha1 of the step."""

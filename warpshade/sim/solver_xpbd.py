@@ -29,6 +29,7 @@ from . import contact_kernels as ck
 from . import kernels as k
 from .colliders import ColliderSet
 from .intersections import IntersectionCounter
+from .launches import RecordedLaunches
 from .model import ClothModel, SimulationError, check_param
 from .state import ClothControl, ClothState
 
@@ -194,6 +195,7 @@ class XPBDSolver:
         self._x = wp.zeros(v, dtype=wp.vec3, device=d)
         self._v = wp.zeros(v, dtype=wp.vec3, device=d)
         self._cmd_cache = None
+        self._recorded = RecordedLaunches(self.device)  # the detections' and checks' launches
         self._contacts_found = True
         """The last self-contact detection found a candidate (vertex-triangle or edge-edge)."""
         self._clear_ahead = False
@@ -498,17 +500,16 @@ class XPBDSolver:
         saving the previous detection; while rows overflow and may still grow, double them and
         search again. Returns the rows used and whether they grew."""
         if self._contacts_found:
-            wp.launch(k.save_rows, dim=dim, inputs=[count, rows["ids"], rows["sides"]],
-                      outputs=[prev_count, rows["prev_ids"], rows["prev_sides"]], device=self.device)
+            self._recorded.launch(k.save_rows, dim, [count, rows["ids"], rows["sides"]],
+                                  [prev_count, rows["prev_ids"], rows["prev_sides"]])
         else:  # every count is 0: the rows past them are never read
             prev_count.zero_()
         grew = False
         while True:
             before = int(self._overflow.numpy()[0])
-            wp.launch(kernel, dim=dim if threads is None else threads,
-                      inputs=inputs + [rows["prev_ids"], rows["prev_sides"], prev_count],
-                      outputs=[rows["ids"], rows["sides"], count, rows["dists"], self._overflow, self._near],
-                      device=self.device)
+            self._recorded.launch(kernel, dim if threads is None else threads,
+                                  inputs + [rows["prev_ids"], rows["prev_sides"], prev_count],
+                                  [rows["ids"], rows["sides"], count, rows["dists"], self._overflow, self._near])
             width = rows["ids"].shape[1]
             if int(self._overflow.numpy()[0]) == before or width >= self.max_contacts:
                 return rows, grew
@@ -526,19 +527,19 @@ class XPBDSolver:
         ones (built at the first detection from that detection's `horizon` boxes, refitted after:
         its leaf order, which orders the candidates, is fixed then). Returns the BVH and the
         `horizon` boxes."""
-        d, n = self.device, prims.shape[0]
+        n, launch = prims.shape[0], self._recorded.launch
         lo, hi, alo, ahi = boxes
         if bvh is None:
-            wp.launch(kernel, dim=n, inputs=[x, v, prims, horizon, self._pad], outputs=[alo, ahi], device=d)
+            launch(kernel, n, [x, v, prims, horizon, self._pad], [alo, ahi])
             bvh = wp.Bvh(alo, ahi)
             if ahead == horizon:
                 return bvh, alo, ahi
         if ahead == horizon:
-            wp.launch(kernel, dim=n, inputs=[x, v, prims, horizon, self._pad], outputs=[alo, ahi], device=d)
+            launch(kernel, n, [x, v, prims, horizon, self._pad], [alo, ahi])
             bvh.refit()
             return bvh, alo, ahi
-        wp.launch(kernel, dim=n, inputs=[x, v, prims, horizon, self._pad], outputs=[lo, hi], device=d)
-        wp.launch(kernel, dim=n, inputs=[x, v, prims, ahead, self._pad], outputs=[alo, ahi], device=d)
+        launch(kernel, n, [x, v, prims, horizon, self._pad], [lo, hi])
+        launch(kernel, n, [x, v, prims, ahead, self._pad], [alo, ahi])
         bvh.refit()
         return bvh, lo, hi
 
@@ -546,7 +547,7 @@ class XPBDSolver:
         """Candidate pairs for the next contact interval (`horizon` seconds); with `ahead` >
         horizon, the next detection comes after `horizon` seconds with horizon `ahead - horizon`,
         and ``_clear_ahead`` tells whether it would find none. True when the contact rows grew."""
-        m, d = self.model, self.device
+        m = self.model
         ahead = horizon if ahead is None else max(ahead, horizon)
         self._near.zero_()
         # boxes of both sides padded: overlap <=> gap < thickness
@@ -564,8 +565,8 @@ class XPBDSolver:
                                                          x, v, horizon, ahead)
             wp.copy(self._eactive, m.edge_border)
             if m.hinge_count:
-                wp.launch(ck.mark_crease_edges, dim=m.hinge_count,
-                          inputs=[x, self._hinge_ids, m.hinge_edge, self.CREASE_ANGLE], outputs=[self._eactive], device=d)
+                self._recorded.launch(ck.mark_crease_edges, m.hinge_count,
+                                      [x, self._hinge_ids, m.hinge_edge, self.CREASE_ANGLE], [self._eactive])
             self._ee_rows, egrew = self._find_candidates(
                 ck.find_edge_contacts, ne, self._ee_rows,
                 [self._ebvh.id, x, v, horizon, ahead, m.edges, self._eactive, elower, eupper, self._edge_boxes[2],
@@ -760,7 +761,7 @@ class XPBDSolver:
     def _first_nonfinite(self, x, v) -> int:
         n = self.model.particle_count
         self._first_bad.fill_(n)
-        wp.launch(k.find_nonfinite, dim=n, inputs=[x, v], outputs=[self._first_bad], device=self.device)
+        self._recorded.launch(k.find_nonfinite, n, [x, v], [self._first_bad])
         bad = int(self._first_bad.numpy()[0])
         return bad if bad < n else -1
 
