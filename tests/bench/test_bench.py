@@ -183,3 +183,9 @@ def test_draped_pose_is_simulated_deterministically_and_cached(tmp_path):
     # it fell from 0.6 m onto the ball (top at 0.5 m; 12 frames of free fall would be 0.2 m): no
     # vertex is left more than 3 cm above the ball's top (measured 1.8 cm with the intersection guard)
     assert a.frame[:, 1].max() < 0.5 + 0.03
+
+
+@pytest.mark.parametrize("flag", ["--frames", "--every", "--reuse-chunk"])
+def test_animation_counts_below_one_are_refused_by_name(capsys, flag):
+    assert cli_main(["bench", "--animation", "walk", flag, "0"]) != 0
+    assert f"{flag} must be >= 1, got 0" in capsys.readouterr().err

@@ -58,7 +58,8 @@ def run_animation(args) -> int:
     from ..bench.report import write_json
     from ..bench.runner import machine_note
 
-    for flag, value in (("--frames", args.frames), ("--every", args.every), ("--reuse-chunk", args.reuse_chunk or 1)):
+    for flag, value in (("--frames", args.frames), ("--every", args.every),
+                        ("--reuse-chunk", 1 if args.reuse_chunk is None else args.reuse_chunk)):
         if value < 1:
             raise ValueError(f"{flag} must be >= 1, got {value}")
     tolerances = _csv(args.reuse_tolerances, float) or list(DEFAULT_TOLERANCES)
