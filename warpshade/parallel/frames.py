@@ -546,5 +546,9 @@ class TransferSpec:
             return {name: m.update(geometry[name]).numpy().copy() for name, m in methods.items()}
 
         if self.reuse is not None:
-            shade.reset = lambda: [m.reset() for m in methods.values()]
+            def reset():
+                for m in methods.values():
+                    m.reset()
+
+            shade.reset = reset
         return shade

@@ -558,7 +558,11 @@ class SceneShader:
             return out
 
         if self.reuse is not None:  # temporal reuse keeps state: a chunk of frames starts afresh
-            shade.reset = lambda: [g.reset_reuse() for g in groups]
+            def reset():
+                for g in groups:
+                    g.reset_reuse()
+
+            shade.reset = reset
         return shade
 
 

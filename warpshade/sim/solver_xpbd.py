@@ -456,7 +456,7 @@ class XPBDSolver:
         if m.damping > 0:
             for off, cnt in edge_batches:
                 damping.append(wp.launch(k.damp_stretch, dim=cnt,
-                                             inputs=[self._edge_ids, m.edge_compliance, m.inv_mass, x, off, h, m.damping],
+                                         inputs=[self._edge_ids, m.edge_compliance, m.inv_mass, x, off, h, m.damping],
                                          outputs=[v], device=d, record_cmd=True))
         if m.bend_damping > 0:
             for off, cnt in hinge_batches:
