@@ -8,8 +8,10 @@ same order while worker processes shade ahead:
 * **Back-pressure**: at most ``max_in_flight`` frames are submitted and not yet yielded, so memory
   stays bounded when shading falls behind, and the simulation pauses instead of racing ahead.
 * **Static structures once per worker**: workers receive a picklable *spec* once and call its
-  ``build()`` (LUTs, hierarchies, BVHs...) when they start; per frame they receive only geometry
-  (NumPy arrays), never pickled Warp state.
+  ``build()`` (LUTs, hierarchies, BVHs...) before their first frame; per frame they receive only
+  geometry (NumPy arrays), never pickled Warp state. A :class:`WorkerPool` may be started before the
+  spec exists (the ``warpshade`` command starts it before reading the scene), its workers starting
+  Warp and importing meanwhile.
 * **Faults**: a worker that dies mid-frame costs only a retry of the frames it had not returned;
   a frame that fails ``retries + 1`` times raises an error naming the frame.
 * **Chunks** (``chunk=C``): frames ``kC .. kC+C-1`` go to one worker as one task, shaded in order after
