@@ -24,7 +24,7 @@ How to run::
 
     python benchmarks/default_run.py --repeat 3 --json benchmarks/results/default_run.json
     python benchmarks/default_run.py --cold 3 --against ../main --json benchmarks/results/first_run.json
-    python benchmarks/default_run.py --repeat 3 --against ../main
+    python benchmarks/default_run.py --repeat 3 --against ../main --json benchmarks/results/default_run_startup.json
 
 Shared, loaded 2-core machine: read the ratios, and the stage split, more than the absolute times.
 """
