@@ -16,11 +16,15 @@ What it shows (issue 18, target 5: 120 frames <= 5 s warm wall, two workers >= 1
 * ``--cold ROUNDS``: instead, first runs as after installing (an empty Warp kernel cache and an empty
   warpshade cache, two workers), wall and CPU time; ``--against CHECKOUT`` alternates them with another
   checkout's (e.g. main's, to compare a change of the compile time).
+* ``--against CHECKOUT`` without ``--cold``: warm runs with one and two workers of both checkouts, in
+  alternate order from round to round, with the load average before each run; medians of wall and
+  CPU time per checkout and worker count.
 
 How to run::
 
     python benchmarks/default_run.py --repeat 3 --json benchmarks/results/default_run.json
     python benchmarks/default_run.py --cold 3 --against ../main --json benchmarks/results/first_run.json
+    python benchmarks/default_run.py --repeat 3 --against ../main --json benchmarks/results/default_run_startup.json
 
 Shared, loaded 2-core machine: read the ratios, and the stage split, more than the absolute times.
 """
@@ -90,6 +94,35 @@ def cold_rounds(rounds: int, against: str | None, frames: int | None, extra: lis
                        "empty " + " ".join(extra), "runs": runs, "median": med}
 
 
+def warm_rounds(rounds: int, against: str, frames: int | None, extra: list[str]) -> dict:
+    """``rounds`` rounds of warm runs with one and two workers of this checkout and of ``against``, the two
+    checkouts in alternate order from round to round (load drift hits both alike); one untimed run of each
+    first warms the kernel cache. The runs, the load average before each, and per checkout and worker
+    count the medians of wall and CPU time (the run's and its workers')."""
+    trees = [REPO, os.path.abspath(against)]
+    for repo in trees:
+        one_run(2, frames, extra, repo=repo)
+    runs = []
+    for r in range(rounds):
+        for repo in (trees if r % 2 == 0 else trees[::-1]):
+            for w in (1, 2):
+                load = os.getloadavg()[0]
+                runs.append({"repo": repo, "load_average": load, **one_run(w, frames, extra, repo=repo)})
+                print(f"round {r} {repo} workers {w}: {runs[-1]['wall_seconds']:.2f} s wall, "
+                      f"{runs[-1]['cpu_seconds']:.2f} s CPU (load {load:.2f})", flush=True)
+    med = {}
+    for repo in trees:
+        for w in (1, 2):
+            mine = [x for x in runs if x["repo"] == repo and x["workers"] == w]
+            med[f"{repo} workers {w}"] = {k: statistics.median(x[k] for x in mine) for k in ("wall_seconds", "cpu_seconds")}
+        m1, m2 = med[f"{repo} workers 1"], med[f"{repo} workers 2"]
+        print(f"median {repo}: 1 worker {m1['wall_seconds']:.2f} s wall {m1['cpu_seconds']:.2f} s CPU, 2 workers "
+              f"{m2['wall_seconds']:.2f} s wall {m2['cpu_seconds']:.2f} s CPU, "
+              f"{m1['wall_seconds'] / m2['wall_seconds']:.2f}x")
+    return {"command": "python -m warpshade run --no-progress --workers W " + " ".join(extra), "frames": frames or 120,
+            "checkouts": trees, "runs": runs, "median": med}
+
+
 def profile_inline(frames: int | None, top: int = 25) -> dict:
     """cProfile of an inline run (``workers=0``) and the split of the group passes' time."""
     sys.path.insert(0, REPO)
@@ -146,11 +179,20 @@ def main(argv=None) -> int:
     ap.add_argument("--cold", type=int, default=0, metavar="ROUNDS",
                     help="instead: ROUNDS first runs with empty caches (two workers; wall and CPU time)")
     ap.add_argument("--against", default=None, metavar="CHECKOUT",
-                    help="with --cold: another checkout's runs alternate with this one's (e.g. main's)")
+                    help="another checkout's runs alternate with this one's (e.g. main's): with --cold the cold "
+                         "runs, else --repeat rounds of warm runs with one and two workers (no profile)")
     ap.add_argument("extra", nargs="*", help="more warpshade run options (after --)")
     args = ap.parse_args(argv)
     if args.cold:
         out = {**cold_rounds(args.cold, args.against, args.frames, args.extra),
+               "machine": "shared 2-core VM, other jobs running (loaded)"}
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(out, f, indent=2)
+            print(f"wrote {args.json}")
+        return 0
+    if args.against:
+        out = {**warm_rounds(args.repeat, args.against, args.frames, args.extra),
                "machine": "shared 2-core VM, other jobs running (loaded)"}
         if args.json:
             with open(args.json, "w") as f:

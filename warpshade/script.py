@@ -154,13 +154,13 @@ def box(name: str = "Box", center=None, size=1.0, collider: bool = True, albedo=
 def sphere(name: str = "Sphere", center=(0.0, 0.5, 0.0), radius: float = 0.5, collider: bool = True,
            albedo=None) -> SceneObject:
     """A sphere (an exact sphere collider unless ``collider=False``), an icosphere for shading."""
-    import trimesh
+    from .geometry.shapes import sphere_shape
 
     r = float(_positive(radius, f"sphere '{name}': radius")[0])
     c = _vec3(center, f"sphere '{name}': center")
-    m = trimesh.creation.icosphere(subdivisions=3, radius=r)
+    verts, faces = sphere_shape(r, 3)
     params = {"collider": "sphere", "sphere": {"center": c, "radius": r}}
-    return _object(name, _mesh(name, np.asarray(m.vertices) + c, m.faces),
+    return _object(name, _mesh(name, verts + c, faces),
                        material=_material(albedo, f"sphere '{name}'"), params=params if collider else {})
 
 

@@ -152,6 +152,8 @@ def test_ctrl_c_during_setup_is_one_line_and_ends_the_workers(tmp_path):
                             start_new_session=True)
     kids = set()
     try:
+        # the workers may start before the scene is read; the notice is printed once it is read
+        notice = proc.stderr.readline()
         deadline = time.monotonic() + 120
         while len(kids) < 3 and time.monotonic() < deadline and proc.poll() is None:
             kids |= children_of(proc.pid)  # two workers and the resource tracker
@@ -161,7 +163,7 @@ def test_ctrl_c_during_setup_is_one_line_and_ends_the_workers(tmp_path):
         assert proc.poll() is None
         t = time.monotonic()
         os.killpg(proc.pid, signal.SIGINT)
-        err = proc.communicate(timeout=60)[1]
+        err = notice + proc.communicate(timeout=60)[1]
         seconds = time.monotonic() - t
     finally:
         if proc.poll() is None:
@@ -181,6 +183,59 @@ def test_ctrl_c_during_setup_is_one_line_and_ends_the_workers(tmp_path):
         time.sleep(0.1)
     assert alive(kids) == set()
     assert not out.exists()
+
+
+def _reading_the_scene(monkeypatch, then):
+    """Make ``warpshade.usd.read_scene`` record the run's live child processes, then call ``then()``
+    (raising, to stop the run there) or read the scene; returns the list of the counts recorded."""
+    import multiprocessing
+
+    import warpshade.usd
+
+    seen = []
+    real = warpshade.usd.read_scene
+
+    def read_scene(path, *a, **k):
+        seen.append(len(multiprocessing.active_children()))
+        then()
+        return real(path, *a, **k)
+
+    monkeypatch.setattr(warpshade.usd, "read_scene", read_scene)
+    return seen
+
+
+def test_the_workers_start_before_the_scene_is_read(tmp_path, capsys, monkeypatch):
+    # they start Warp and import the shading modules while the run reads its scene
+    seen = _reading_the_scene(monkeypatch, lambda: None)
+    argv = ["run", SCENE, "--frames", "2", "--order", "2", "--workers", "2", "--no-progress"]
+    assert main(argv + ["--out", str(tmp_path / "a.usda")]) == 0
+    assert seen == [2]
+
+
+@pytest.mark.parametrize("stop, code, line", [
+    (KeyboardInterrupt, 130, "warpshade run: interrupted"),
+    (ValueError("no such scene"), 1, "warpshade run: error: no such scene"),
+])
+def test_an_interrupt_or_error_before_the_spec_ends_the_started_workers(tmp_path, capsys, monkeypatch, stop, code,
+                                                                        line):
+    import multiprocessing
+    import time
+
+    def then():
+        raise stop
+
+    seen = _reading_the_scene(monkeypatch, then)
+    argv = ["run", SCENE, "--frames", "2", "--workers", "2", "--no-progress", "--out", str(tmp_path / "a.usda")]
+    assert main(argv) == code
+    assert seen == [2]
+    assert capsys.readouterr().err.splitlines() == [line]
+    # ended by the run (this process lives on, so no worker's watchdog fires); a worker SIGTERMed as it
+    # starts may need the run's SIGKILL, 5 s later
+    deadline = time.monotonic() + 10
+    while multiprocessing.active_children() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert multiprocessing.active_children() == []
+    assert not list(tmp_path.iterdir())
 
 
 def test_a_long_setup_is_announced_with_the_planners_estimate(tmp_path, capsys, monkeypatch):

@@ -148,9 +148,7 @@ def parse_albedo(text: str | None):
 
 
 def run(args) -> int:
-    from ..pipeline import Pipeline, check_output
-    from ..usd import AnimationWriter, read_scene
-    from . import exit_code, interrupted_by
+    from ..parallel import default_workers
     from .cmd_transfer import parse_knobs
 
     method = args.method
@@ -167,6 +165,34 @@ def run(args) -> int:
         raise ValueError("--tls-ca-file/--tls-cert/--tls-key need --scheduler tls://HOST:PORT")
     if args.reuse_chunk is not None and args.reuse is None:
         raise ValueError("--reuse-chunk needs --reuse")
+    workers = default_workers() if args.workers is None else args.workers
+    pool = start_pool(workers, method) if workers and not args.scheduler else None
+    try:
+        return _run(args, method, knobs, security, workers, pool)
+    finally:
+        if pool is not None:  # closed by the run once it took the pool; here after an error before that
+            pool.close(abandon=True)
+
+
+def start_pool(workers: int, method: str | None):
+    """The run's shading workers, started before the scene is read (:class:`~warpshade.parallel.WorkerPool`):
+    meanwhile they start Warp and import the pipeline's shading and the visibility method (``--method``,
+    else the default one)."""
+    from ..parallel import WorkerPool
+    from ..visibility import METHODS, default_method
+
+    preload = ["warpshade.pipeline.shading"]
+    if method != "none":
+        preload.append(METHODS[method or default_method()].split(":")[0])
+    return WorkerPool(workers, preload=tuple(preload))
+
+
+def _run(args, method, knobs, security, workers: int, pool) -> int:
+    from ..parallel import FrameShadingError
+    from ..pipeline import Pipeline, check_output
+    from ..usd import AnimationWriter, read_scene
+    from . import exit_code, interrupted_by
+
     t0 = time.perf_counter()
     scene_path = args.scene or shipped_scene()
     scene = read_scene(scene_path)
@@ -188,9 +214,6 @@ def run(args) -> int:
     out = args.out or f"{os.path.splitext(os.path.basename(scene_path))[0]}_shaded.usda"
     check_output(scene, out)
     load = time.perf_counter() - t0
-    from ..parallel import FrameShadingError, default_workers
-
-    workers = default_workers() if args.workers is None else args.workers
     reflections = args.reflections
     if reflections is None and scene.settings.get("reflections"):
         reflections = True
@@ -204,6 +227,8 @@ def run(args) -> int:
                     area_knobs={} if args.area_k is None else {"k": args.area_k},
                     refine_receivers=args.refine_receivers, security=security, two_sided=args.two_sided, reuse=args.reuse,
                     reuse_chunk=args.reuse_chunk)
+    if pool is not None:
+        pool.prepare(pipe.shader)  # the workers build while this process sets up the writer and simulates
     writer = AnimationWriter(out, fps=scene.fps, up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit,
                              chunk=args.chunk, resume=args.resume,
                              metadata={"scene": os.path.abspath(scene_path), "order": pipe.order,
@@ -220,7 +245,7 @@ def run(args) -> int:
     if writer.resume_frame:
         print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
     try:
-        report = pipe.run(writer, progress=not args.no_progress, setup_estimate=estimate)
+        report = pipe.run(writer, progress=not args.no_progress, setup_estimate=estimate, pool=pool)
     except (KeyboardInterrupt, OSError, FrameShadingError) as exc:
         kept = writer.frames_committed
         where = (f"{kept} complete frames kept in {writer.path} (--resume continues it)" if kept

@@ -8,8 +8,10 @@ same order while worker processes shade ahead:
 * **Back-pressure**: at most ``max_in_flight`` frames are submitted and not yet yielded, so memory
   stays bounded when shading falls behind, and the simulation pauses instead of racing ahead.
 * **Static structures once per worker**: workers receive a picklable *spec* once and call its
-  ``build()`` (LUTs, hierarchies, BVHs...) when they start; per frame they receive only geometry
-  (NumPy arrays), never pickled Warp state.
+  ``build()`` (LUTs, hierarchies, BVHs...) before their first frame; per frame they receive only
+  geometry (NumPy arrays), never pickled Warp state. A :class:`WorkerPool` may be started before the
+  spec exists (the ``warpshade`` command starts it before reading the scene), its workers starting
+  Warp and importing meanwhile.
 * **Faults**: a worker that dies mid-frame costs only a retry of the frames it had not returned;
   a frame that fails ``retries + 1`` times raises an error naming the frame.
 * **Chunks** (``chunk=C``): frames ``kC .. kC+C-1`` go to one worker as one task, shaded in order after
@@ -43,8 +45,8 @@ from typing import Any
 
 import numpy as np
 
-from .worker import (BuildFailed, FrameGeometry, FrameShaderSpec, ShadeFn, init_worker_from_file, shade_chunk,
-                     shade_chunk_in_worker, shade_in_worker)
+from .worker import (BuildFailed, FrameGeometry, FrameShaderSpec, ShadeFn, build_from_file, shade_chunk,
+                     shade_chunk_in_worker, shade_in_worker, start_worker)
 
 
 class FrameShadingError(RuntimeError):
@@ -143,44 +145,79 @@ def start_resource_tracker_quietly() -> None:
 
 
 def _started() -> None:
-    """A task that does nothing (:meth:`_ProcessBackend._new_pool` submits one per worker)."""
+    """A task that does nothing (:meth:`WorkerPool._new_pool` submits one per worker)."""
 
 
-class _ProcessBackend:
+class WorkerPool:
+    """Worker processes for :func:`shade_frames` (``pool=``), started before the spec they will shade with
+    is known: spawned at once, they start Warp and import the modules ``preload`` names (those the spec's
+    ``build()`` imports) while this process goes on (the ``warpshade`` command reads its scene meanwhile).
+    :meth:`prepare` hands them the spec: each builds its shader as soon as it is free, before any frame is
+    simulated. A pool serves one :func:`shade_frames` call, which closes it; :meth:`close` a pool no call
+    took. Workers spawn with SIGINT blocked (Ctrl-C reaches the run only, which ends them) and end with
+    this process, whatever ends it.
+
+    Args:
+        workers: Worker processes (>= 1).
+        preload: Modules each worker imports while it waits for the spec.
+    """
+
     worker_errors = (BrokenProcessPool,)
 
-    def __init__(self, spec: FrameShaderSpec, token: str, workers: int):
-        self.spec, self.token, self.workers = spec, token, workers
-        # the spec goes to the workers as a file (init_worker_from_file says why), removed by close()
-        fd, self.spec_file = tempfile.mkstemp(prefix=f"warpshade-{token}-", suffix=".spec")
+    def __init__(self, workers: int, preload: tuple[str, ...] = ()):
+        if int(workers) < 1:
+            raise ValueError(f"a worker pool needs workers >= 1, got {workers}")
+        self.workers, self.preload = int(workers), tuple(preload)
+        self.spec = self.token = self.spec_file = None
+        self.pool = self._new_pool()
+
+    def prepare(self, spec: FrameShaderSpec) -> None:
+        """Hand ``spec`` to the workers: pickled to a file (a path keeps every message to a worker small: a
+        spec in the pipe that starts a worker blocked the run for ever when the worker died as it started),
+        removed by :meth:`close`; each worker builds its shader from it on its first task, and one build
+        task per worker is submitted now. A pool prepares one spec."""
+        if self.spec is not None:
+            raise ValueError("this worker pool has a spec already (a pool serves one run)")
+        token = uuid.uuid4().hex[:12]
+        fd, path = tempfile.mkstemp(prefix=f"warpshade-{token}-", suffix=".spec")
         try:
             with os.fdopen(fd, "wb") as f:
                 pickle.dump(spec, f, protocol=pickle.HIGHEST_PROTOCOL)
         except BaseException:
-            self._remove_spec_file()
+            with contextlib.suppress(OSError):
+                os.remove(path)
             raise
-        self.pool = self._new_pool()
+        self.spec, self.token, self.spec_file = spec, token, path
+        self._submit_builds()
+
+    def _submit_builds(self) -> None:
+        """One build task per worker (a worker that takes a second one finds its shader built), so the
+        workers build while the run simulates its first frames; a failed build is reported with a frame."""
+        with _sigint_blocked(), contextlib.suppress(*self.worker_errors):
+            for _ in range(self.workers):
+                self.pool.submit(build_from_file, self.token, self.spec_file)
 
     def _new_pool(self):
         """A pool whose workers are all starting: a pool spawns a process per task submitted while none
-        is idle, and a chunk is submitted only once all its frames are simulated."""
+        is idle."""
         start_resource_tracker_quietly()
-        pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=init_worker_from_file,
-                                   initargs=(self.token, self.spec_file, os.getpid()))
+        pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=start_worker,
+                                   initargs=(os.getpid(), self.preload))
         with _sigint_blocked():
             for _ in range(self.workers):
                 pool.submit(_started)
         return pool
 
     def _remove_spec_file(self) -> None:
-        with contextlib.suppress(OSError):
-            os.remove(self.spec_file)
+        if self.spec_file is not None:
+            with contextlib.suppress(OSError):
+                os.remove(self.spec_file)
 
     def submit(self, frame, geometry):
-        return self._submit(shade_in_worker, self.token, frame, geometry)
+        return self._submit(shade_in_worker, self.token, frame, geometry, self.spec_file)
 
     def submit_chunk(self, frames, geometries):
-        return self._submit(shade_chunk_in_worker, self.token, frames, geometries)
+        return self._submit(shade_chunk_in_worker, self.token, frames, geometries, self.spec_file)
 
     def _submit(self, fn, *args):
         if len(self.pool._processes or {}) >= self.workers:
@@ -196,6 +233,8 @@ class _ProcessBackend:
         """A worker died and broke the pool: start a fresh one. Unfinished frames are lost (True)."""
         self.pool.shutdown(wait=False, cancel_futures=True)
         self.pool = self._new_pool()
+        if self.spec is not None:
+            self._submit_builds()
         return True
 
     def close(self, abandon: bool = False):
@@ -303,12 +342,22 @@ class _DaskBackend:
                 self.cluster.close()
 
 
-def _make_backend(spec, token, workers, scheduler, retries, security=None):
+def _make_backend(spec, token, workers, scheduler, retries, security=None, pool: WorkerPool | None = None):
+    if pool is not None:
+        if pool.spec is not spec:
+            pool.prepare(spec)
+        return pool
     if scheduler:
         return _DaskBackend(spec, token, workers, scheduler, retries, security)
     if workers == 0:
         return _InlineBackend(spec, token)
-    return _ProcessBackend(spec, token, workers)
+    pool = WorkerPool(workers)
+    try:
+        pool.prepare(spec)
+    except BaseException:
+        pool.close(abandon=True)
+        raise
+    return pool
 
 
 # -- the ordered, bounded loop -----------------------------------------------------------------
@@ -372,6 +421,7 @@ def shade_frames(
     on_backend: Callable[[Any], None] | None = None,
     security=None,
     chunk: int | None = None,
+    pool: WorkerPool | None = None,
 ) -> Iterator[tuple[int, Any]]:
     """Shade frames in parallel and yield ``(frame, result)`` in input order.
 
@@ -392,24 +442,33 @@ def shade_frames(
         chunk: None: every frame is a task of its own. Else frames ``f`` with the same ``f // chunk`` are
             one task, shaded in order by one worker after the shader's ``reset()`` (module doc). A chunk
             is submitted once all its frames are taken, and its frames are yielded once all are shaded.
+        pool: Shade on this :class:`WorkerPool` (started earlier; ``workers`` and ``scheduler`` are then
+            ignored), prepared with ``spec`` here unless it was already; the call closes it.
 
     Raises:
         FrameShadingError: naming the frame (the chunk), when shading raised or workers died too often.
     """
-    workers = default_workers() if workers is None else int(workers)
+    workers = pool.workers if pool is not None else default_workers() if workers is None else int(workers)
     if workers < 0:
         raise ValueError(f"workers must be >= 0, got {workers}")
     if chunk is not None:
         chunk = int(chunk)
         if chunk < 1:
             raise ValueError(f"chunk must be >= 1 frames, got {chunk}")
+    if pool is not None:
+        scheduler = None
     if scheduler and workers == 0:
         workers = default_workers()
     size = chunk or 1
     max_in_flight = (max(2, 2 * max(workers, 1)) * size if max_in_flight is None
                      else max(int(max_in_flight), size))  # a whole chunk must fit
     token = uuid.uuid4().hex[:12]
-    backend = _make_backend(spec, token, workers, scheduler, retries, security)
+    try:
+        backend = _make_backend(spec, token, workers, scheduler, retries, security, pool)
+    except BaseException:
+        if pool is not None:
+            pool.close(abandon=True)
+        raise
     if on_backend is not None:
         on_backend(backend)
     it = _tasks(iter(frames), chunk)

@@ -1,8 +1,10 @@
 """The worker side of :mod:`warpshade.parallel`: a spec's shader built once per worker, then frames.
 
-A worker process (of the process pool or a Dask worker, through :mod:`.dask_plugin`) calls
-:func:`init_worker` once with the run's token and spec; every frame task is then
-:func:`shade_in_worker`. The state is per process, keyed by the run's token.
+A Dask worker (through :mod:`.dask_plugin`) calls :func:`init_worker` once with the run's token and
+spec. A process pool's worker starts before the spec exists (:func:`start_worker`: Warp and the modules
+the build will need, while the run reads its scene) and builds the shader from the spec's file on its
+first task (:func:`build_from_file`). Every frame task is then :func:`shade_in_worker` (a chunk:
+:func:`shade_chunk_in_worker`). The state is per process, keyed by the run's token.
 """
 
 from __future__ import annotations
@@ -54,6 +56,24 @@ def exit_with_parent(parent: int, interval: float = 0.5) -> None:
     threading.Thread(target=watch, name="warpshade-parent-watchdog", daemon=True).start()
 
 
+def start_worker(parent: int | None = None, preload: tuple[str, ...] = ()) -> None:
+    """A process pool's worker start-up, before any spec is known: with ``parent``, this process ends when
+    process ``parent`` does; Warp is started and the modules ``preload`` names are imported (those a spec's
+    ``build()`` will import; one that fails to import is left to fail there, where the error is reported)."""
+    if parent is not None:
+        exit_with_parent(parent)
+    from .runtime import init_warp
+
+    init_warp()
+    import importlib
+
+    for name in preload:
+        try:
+            importlib.import_module(name)
+        except Exception:  # noqa: BLE001 - the build imports it again and reports the error with the first frame
+            pass
+
+
 def init_worker(token: str, spec: FrameShaderSpec, parent: int | None = None) -> None:
     """Start Warp and build ``spec``'s shader for run ``token`` in this worker (a failure is kept for the
     first frame); with ``parent``, this process ends when process ``parent`` does."""
@@ -68,30 +88,37 @@ def init_worker(token: str, spec: FrameShaderSpec, parent: int | None = None) ->
         WORKER_BUILD_ERRORS[token] = exc  # breaks the pool, and the cause would read as a dead worker
 
 
-def init_worker_from_file(token: str, path: str, parent: int | None = None) -> None:
-    """:func:`init_worker` with the spec read from ``path``, a pickle the parent wrote. A process pool sends
-    its initializer's arguments through the pipe that starts each worker, and a worker that dies while
-    it starts (a script without ``if __name__ == "__main__":`` runs itself again in it and fails) leaves
-    the parent blocked for ever on a pipe fuller than its buffer: a path keeps that message small. A spec
+def build_from_file(token: str, path: str) -> None:
+    """Build run ``token``'s shader in this worker (:func:`init_worker`) from the spec pickled at ``path``,
+    unless it is built already or its build failed. A process pool's worker starts before the spec exists
+    (:func:`start_worker`) and builds on the first task naming ``path``; a path keeps the tasks small. A spec
     that cannot be read here (an object of the script's own) is kept for the first frame, as a build error."""
+    if token in WORKER_SHADERS or token in WORKER_BUILD_ERRORS:
+        return
     import pickle
 
     try:
         with open(path, "rb") as f:
             spec = pickle.load(f)
     except Exception as exc:  # noqa: BLE001 - reported with the first frame, as a build failure
-        if parent is not None:
-            exit_with_parent(parent)
         WORKER_BUILD_ERRORS[token] = exc
         return
-    init_worker(token, spec, parent)
+    init_worker(token, spec)
 
 
-def shade_in_worker(token: str, frame: int, geometry: FrameGeometry):
-    """Shade ``frame`` with run ``token``'s shader; :class:`BuildFailed` when building it raised."""
+def _shader(token: str, spec_file: str | None) -> ShadeFn:
+    """Run ``token``'s shader, built first from ``spec_file`` if this worker has not built it yet;
+    :class:`BuildFailed` when building it raised."""
+    if spec_file is not None:
+        build_from_file(token, spec_file)
     if token in WORKER_BUILD_ERRORS:
         raise BuildFailed(WORKER_BUILD_ERRORS[token])
-    return WORKER_SHADERS[token](frame, geometry)
+    return WORKER_SHADERS[token]
+
+
+def shade_in_worker(token: str, frame: int, geometry: FrameGeometry, spec_file: str | None = None):
+    """Shade ``frame`` with run ``token``'s shader (built from ``spec_file`` first if needed, :func:`_shader`)."""
+    return _shader(token, spec_file)(frame, geometry)
 
 
 def shade_chunk(shade: ShadeFn, frames, geometries) -> list:
@@ -103,8 +130,6 @@ def shade_chunk(shade: ShadeFn, frames, geometries) -> list:
     return [shade(f, g) for f, g in zip(frames, geometries)]
 
 
-def shade_chunk_in_worker(token: str, frames, geometries) -> list:
-    """:func:`shade_chunk` with run ``token``'s shader; :class:`BuildFailed` when building it raised."""
-    if token in WORKER_BUILD_ERRORS:
-        raise BuildFailed(WORKER_BUILD_ERRORS[token])
-    return shade_chunk(WORKER_SHADERS[token], frames, geometries)
+def shade_chunk_in_worker(token: str, frames, geometries, spec_file: str | None = None) -> list:
+    """:func:`shade_chunk` with run ``token``'s shader (built from ``spec_file`` first if needed, :func:`_shader`)."""
+    return shade_chunk(_shader(token, spec_file), frames, geometries)

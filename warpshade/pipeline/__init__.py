@@ -297,14 +297,16 @@ class Pipeline:
         sims = ClothSimulation(self.scene, self.device) if any(o.kind == "cloth" for o in self.scene.objects) else None
         yield from self._geometry_frames(sims, dict.fromkeys(("simulate",), 0.0))
 
-    def run(self, writer, progress: bool = True, setup_estimate: float | None = None) -> RunReport:
+    def run(self, writer, progress: bool = True, setup_estimate: float | None = None, pool=None) -> RunReport:
         """Produce every frame into ``writer`` (an :class:`warpshade.usd.AnimationWriter`-like object).
 
         The writer is closed on success and aborted (keeping complete frames) on error. A writer
         opened with ``resume=True`` on an interrupted output has ``resume_frame > 0``: the run then
         produces only the frames from there on (``--resume``). With ``progress``, a bar counts frames;
         until the first frame it says "setting up", with the seconds elapsed against
-        ``setup_estimate`` [s] (the planner's) when given, redrawn every second.
+        ``setup_estimate`` [s] (the planner's) when given, redrawn every second. With ``pool`` (a
+        :class:`~warpshade.parallel.WorkerPool` started earlier) the frames are shaded there instead of
+        on ``workers`` new processes, and the run closes it.
         """
         from ..parallel import shade_frames
 
@@ -359,7 +361,7 @@ class Pipeline:
             passes: list = []
             frame_seconds: list = []
             results = shade_frames(self.shader, self._geometry(sims, secs, failure, start), workers=self.workers,
-                                   scheduler=self.scheduler, security=self.security, chunk=self.chunk)
+                                   scheduler=self.scheduler, security=self.security, chunk=self.chunk, pool=pool)
             for f, res in results:
                 if f < start:  # shaded for its chunk (--resume), written already
                     secs["setup"] += res.pop("_build_seconds", 0.0)

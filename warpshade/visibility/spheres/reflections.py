@@ -50,9 +50,9 @@ from .tables import sphere_tables
 
 def sample_directions(subdivisions: int = 1) -> np.ndarray:
     """Evenly spaced unit directions: vertices of an icosahedral geodesic sphere (thesis Fig. 4.10), (m, 3)."""
-    import trimesh
+    from ...geometry.shapes import sphere_shape
 
-    return np.asarray(trimesh.creation.icosphere(subdivisions).vertices, dtype=np.float64)
+    return sphere_shape(1.0, subdivisions)[0]
 
 
 def voronoi_sh(directions: np.ndarray, order: int, fine: int = 16384, seed: int = 0) -> np.ndarray:
