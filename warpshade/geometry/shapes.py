@@ -198,42 +198,13 @@ def sphere_subdivisions(radius: float, edge: float) -> int:
     return s
 
 
-_ICOSAHEDRON_A, _ICOSAHEDRON_B = 0.5257311121191336, 0.85065080835204
-_ICOSAHEDRON_POINTS = np.array([[-_ICOSAHEDRON_A, _ICOSAHEDRON_B, 0.0], [_ICOSAHEDRON_A, _ICOSAHEDRON_B, 0.0],
-                                [-_ICOSAHEDRON_A, -_ICOSAHEDRON_B, 0.0], [_ICOSAHEDRON_A, -_ICOSAHEDRON_B, 0.0],
-                                [0.0, -_ICOSAHEDRON_A, _ICOSAHEDRON_B], [0.0, _ICOSAHEDRON_A, _ICOSAHEDRON_B],
-                                [0.0, -_ICOSAHEDRON_A, -_ICOSAHEDRON_B], [0.0, _ICOSAHEDRON_A, -_ICOSAHEDRON_B],
-                                [_ICOSAHEDRON_B, 0.0, -_ICOSAHEDRON_A], [_ICOSAHEDRON_B, 0.0, _ICOSAHEDRON_A],
-                                [-_ICOSAHEDRON_B, 0.0, -_ICOSAHEDRON_A], [-_ICOSAHEDRON_B, 0.0, _ICOSAHEDRON_A]])
-_ICOSAHEDRON_FACES = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-                               [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
-                               [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]], dtype=np.int64)
-
-
 def sphere_shape(radius: float, subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (float64) and triangles (int64) of an icosphere of ``radius`` centred on the origin: the
-    unit-circumradius icosahedron, each triangle split in four at its edges' midpoints ``subdivisions``
-    times, the vertices pushed onto the sphere after each split (or once, without a split): the same
-    arrays, bit for bit, as ``trimesh.creation.icosphere`` (vertex and triangle order included), without
-    importing trimesh (about 0.5 s with the SciPy modules it loads)."""
-    radius = float(radius)
+    """Vertices (float64) and triangles (int64) of an icosphere of ``radius`` centred on the origin
+    (``trimesh.creation.icosphere``; trimesh is imported on the first call)."""
+    import trimesh
 
-    def onto_sphere(points):
-        scalar = np.sqrt(np.dot(points**2, [1, 1, 1]))
-        return points + points / scalar.reshape((-1, 1)) * (radius - scalar).reshape((-1, 1))
-
-    points, faces = _ICOSAHEDRON_POINTS, _ICOSAHEDRON_FACES
-    if int(subdivisions) <= 0:
-        return onto_sphere(points), faces.copy()
-    for _ in range(int(subdivisions)):
-        edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape((-1, 2)), axis=1)
-        # one midpoint per edge, numbered in the order of (larger, smaller) vertex index
-        _, first, inverse = np.unique(edges[:, 1] * (1 << 32) + edges[:, 0], return_index=True, return_inverse=True)
-        mid = inverse.reshape((-1, 3)) + len(points)
-        faces = np.column_stack([faces[:, 0], mid[:, 0], mid[:, 2], mid[:, 0], faces[:, 1], mid[:, 1],
-                                 mid[:, 2], mid[:, 1], faces[:, 2], mid[:, 0], mid[:, 1], mid[:, 2]]).reshape((-1, 3))
-        points = onto_sphere(np.vstack((points, points[edges[first]].mean(axis=1))))
-    return points, faces
+    m = trimesh.creation.icosphere(subdivisions=int(subdivisions), radius=float(radius))
+    return np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces, dtype=np.int64)
 
 
 def gprim_shape(kind: str, dims: dict, scale, edge: float) -> tuple[np.ndarray, np.ndarray]:
