@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warpshade.sim import ClothBuilder, XPBDSolver
+from warpshade.sim import ClothBuilder, ClothControl, XPBDSolver
 from warpshade.sim import kernels as k
 from warpshade.sim import lane_kernels as lk
 
@@ -97,9 +97,39 @@ def test_stretch_and_damping_lanes_equal_the_scalar_sweeps_bit_for_bit(rng):
         assert np.array_equal(a.view(np.uint32), b.view(np.uint32))
 
 
+def test_aero_lanes_equal_the_scalar_kernel_bit_for_bit(rng):
+    """Drag and lift from crumpled positions and random velocities with wind (a degenerate
+    triangle, a triangle moving with the wind, a triangle count not a multiple of LANES), added
+    on top of earlier sums: the same floats, in the same order."""
+    m, x0 = _crumpled_model(rng, n=14)
+    tris = m.tris.numpy()
+    x0[tris[3, 1]] = x0[tris[3, 0]]  # triangle 3 is degenerate: no force
+    wind = np.array([0.3, -0.1, 0.7], dtype=np.float32)
+    v0 = rng.normal(scale=2.0, size=x0.shape).astype(np.float32)
+    v0[tris[9]] = wind  # triangle 9 is at rest in the air: no force from it
+    assert m.tri_count % lk.LANES
+    ids = m.tris.view(wp.vec3i)
+    lift0 = rng.normal(size=x0.shape).astype(np.float32)
+    drag0 = rng.random(m.particle_count).astype(np.float32)
+    outs = []
+    for kernel, dim in ((k.accumulate_aero_forces, m.tri_count),
+                        (lk.accumulate_aero_forces_lanes, -(-m.tri_count // lk.LANES))):
+        lift = wp.array(lift0, dtype=wp.vec3, device="cpu")
+        drag = wp.array(drag0, dtype=float, device="cpu")
+        wp.launch(kernel, dim=dim, inputs=[wp.array(x0, dtype=wp.vec3, device="cpu"),
+                                           wp.array(v0, dtype=wp.vec3, device="cpu"), ids, wp.vec3(*wind),
+                                           1.2, 0.8, 0.3], outputs=[lift, drag], device="cpu")
+        outs.append((lift.numpy(), drag.numpy()))
+    (ls, ds), (ll, dl) = outs
+    assert np.abs(ds - drag0).max() > 1e-3 and np.abs(ls - lift0).max() > 1e-3  # forces were added
+    assert np.array_equal(ls.view(np.uint32), ll.view(np.uint32))
+    assert np.array_equal(ds.view(np.uint32), dl.view(np.uint32))
+
+
 def test_solver_steps_with_lanes_equal_the_scalar_kernels(rng):
-    """The solver's CPU stretch, damping and bending sweeps (lanes) against the scalar per-colour
-    launches: 20 steps of a rumpled cloth falling from two pins, positions and velocities bit for bit."""
+    """The solver's CPU stretch, damping and bending sweeps and air forces (lanes) against the scalar
+    kernels: 20 steps of a rumpled cloth falling from two pins in wind, positions and velocities bit
+    for bit."""
     results = []
     for lanes in (True, False):
         m, x0 = _crumpled_model(np.random.default_rng(7), scale=0.01)
@@ -108,11 +138,14 @@ def test_solver_steps_with_lanes_equal_the_scalar_kernels(rng):
             assert solver._hinge_groups is not None and solver._edge_groups is not None  # the CPU solver takes the lanes
         else:
             solver._hinge_groups = solver._edge_groups = None
+            solver._lanes = lambda *arrays: False
             solver._batches = lambda colours: list(colours)
         s = m.state()
         s.points.assign(x0)
+        control = ClothControl(m)
+        control.wind = (2.0, 0.0, 1.0)
         for _ in range(20):
-            solver.step(s, s, 1.0 / 60.0)
+            solver.step(s, s, 1.0 / 60.0, control)
         results.append((s.points.numpy(), s.velocities.numpy()))
     (xa, va), (xb, vb) = results
     assert np.abs(xa - x0).max() > 0.1  # the cloth fell

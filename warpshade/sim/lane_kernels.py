@@ -16,6 +16,7 @@ import warp as wp
 
 LANES = 8
 """Constraints a thread solves side by side (one vector register of 8 floats with AVX)."""
+_LANES = wp.constant(LANES)
 
 _PRELUDE = r"""
 typedef float V __attribute__((ext_vector_type(8)));
@@ -111,6 +112,71 @@ for (int k = 0; k < count; ++k) {
     if (wsum[k] == 0.0f || len[k] < 1.0e-12f) continue;
     vs[ei[k]] = wp::vec_t<3, float>(oix[k], oiy[k], oiz[k]);
     vs[ej[k]] = wp::vec_t<3, float>(ojx[k], ojy[k], ojz[k]);
+}
+"""
+
+_AERO_LANES = _PRELUDE + r"""
+auto cross_x = [](V ay, V az, V by, V bz) -> V { return ay * bz - az * by; };
+const wp::vec_t<3, int>* ts = (const wp::vec_t<3, int>*)tris.data;
+const wp::vec_t<3, float>* xs = (const wp::vec_t<3, float>*)x.data;
+const wp::vec_t<3, float>* vs = (const wp::vec_t<3, float>*)v.data;
+float* dr = (float*)drag.data;
+wp::vec_t<3, float>* lf = (wp::vec_t<3, float>*)lift.data;
+int ids[L][3];
+V xix, xiy, xiz, xjx, xjy, xjz, xkx, xky, xkz, vix, viy, viz, vjx, vjy, vjz, vkx, vky, vkz;
+for (int k = 0; k < L; ++k) {
+    int t = start + (k < count ? k : 0);
+    wp::vec_t<3, int> q = ts[t];
+    ids[k][0] = q[0]; ids[k][1] = q[1]; ids[k][2] = q[2];
+    wp::vec_t<3, float> pa = xs[q[0]], pb = xs[q[1]], pc = xs[q[2]];
+    wp::vec_t<3, float> va = vs[q[0]], vb = vs[q[1]], vc = vs[q[2]];
+    xix[k] = pa[0]; xiy[k] = pa[1]; xiz[k] = pa[2];
+    xjx[k] = pb[0]; xjy[k] = pb[1]; xjz[k] = pb[2];
+    xkx[k] = pc[0]; xky[k] = pc[1]; xkz[k] = pc[2];
+    vix[k] = va[0]; viy[k] = va[1]; viz[k] = va[2];
+    vjx[k] = vb[0]; vjy[k] = vb[1]; vjz[k] = vb[2];
+    vkx[k] = vc[0]; vky[k] = vc[1]; vkz[k] = vc[2];
+}
+V ax = xjx - xix; V ay = xjy - xiy; V az = xjz - xiz;
+V bx = xkx - xix; V by = xky - xiy; V bz = xkz - xiz;
+V nnx = cross_x(ay, az, by, bz);
+V nny = cross_x(az, ax, bz, bx);
+V nnz = cross_x(ax, ay, bx, by);
+V ln = __builtin_elementwise_sqrt(nnx * nnx + nny * nny + nnz * nnz);
+V area = 0.5f * ln;
+V nx = nnx / ln; V ny = nny / ln; V nz = nnz / ln;
+V sx = vix + vjx; V sy = viy + vjy; V sz = viz + vjz;
+V s3x = sx + vkx; V s3y = sy + vky; V s3z = sz + vkz;
+V mx = s3x / 3.0f; V my = s3y / 3.0f; V mz = s3z / 3.0f;
+V ux = mx - wind[0]; V uy = my - wind[1]; V uz = mz - wind[2];
+V speed = __builtin_elementwise_sqrt(ux * ux + uy * uy + uz * uz);
+V uhx = ux / speed; V uhy = uy / speed; V uhz = uz / speed;
+V cs = dot3(uhx, uhy, uhz, nx, ny, nz);
+float hr = 0.5f * air_density;
+V q0 = hr * area;
+V qq = q0 * speed;
+V d0 = qq * drag_coefficient;
+V acs = __builtin_elementwise_abs(cs);
+V d1 = d0 * acs;
+V d = d1 / 3.0f;
+V wx = uhx * cs; V wy = uhy * cs; V wz = uhz * cs;
+V gx = nx - wx; V gy = ny - wy; V gz = nz - wz;
+V hx = -gx; V hy = -gy; V hz = -gz;
+V e0 = qq * speed;
+V e1 = e0 * lift_coefficient;
+V e2 = e1 * cs;
+V e3 = e2 / 3.0f;
+V flx = hx * e3; V fly = hy * e3; V flz = hz * e3;
+for (int k = 0; k < count; ++k) {
+    // the scalar kernel returns early for a degenerate triangle and one at rest in the air
+    if (ln[k] == 0.0f || speed[k] == 0.0f) continue;
+    dr[ids[k][0]] += d[k];
+    dr[ids[k][1]] += d[k];
+    dr[ids[k][2]] += d[k];
+    for (int c = 0; c < 3; ++c) {
+        wp::vec_t<3, float>& o = lf[ids[k][c]];
+        o[0] += flx[k]; o[1] += fly[k]; o[2] += flz[k];
+    }
 }
 """
 
@@ -278,10 +344,27 @@ def damp_stretch_lanes(groups: wp.array[wp.vec2i], edges: wp.array[wp.vec2i], co
     _damp_stretch_lanes(edges, compliance, inv_mass, x, g[0], g[1], dt, damping, v)
 
 
+@wp.func_native(_AERO_LANES)
+def _aero_lanes(x: wp.array[wp.vec3], v: wp.array[wp.vec3], tris: wp.array[wp.vec3i], start: int, count: int,
+                wind: wp.vec3, air_density: float, drag_coefficient: float, lift_coefficient: float,
+                lift: wp.array[wp.vec3], drag: wp.array[float]): ...
+
+
+@wp.kernel
+def accumulate_aero_forces_lanes(x: wp.array[wp.vec3], v: wp.array[wp.vec3], tris: wp.array[wp.vec3i], wind: wp.vec3,
+                                 air_density: float, drag_coefficient: float, lift_coefficient: float,
+                                 lift: wp.array[wp.vec3], drag: wp.array[float]):
+    """:func:`~warpshade.sim.kernels.accumulate_aero_forces`, ``LANES`` consecutive triangles a
+    thread, their sums added in triangle order (the same floats, for contiguous arrays)."""
+    start = wp.tid() * _LANES
+    _aero_lanes(x, v, tris, start, wp.min(_LANES, tris.shape[0] - start), wind, air_density, drag_coefficient,
+                lift_coefficient, lift, drag)
+
+
 def lane_groups(colors: list, device) -> wp.array:
     """(start, count) of runs of at most :data:`LANES` constraints within each colour (offset, count)."""
     out = [(off + s, min(LANES, cnt - s)) for off, cnt in colors for s in range(0, cnt, LANES)]
     return wp.array(np.asarray(out, dtype=np.int32).reshape(-1, 2), dtype=wp.vec2i, device=device)
 
 
-__all__ = ["LANES", "damp_stretch_lanes", "lane_groups", "solve_bending_lanes", "solve_stretch_lanes"]
+__all__ = ["LANES", "accumulate_aero_forces_lanes", "damp_stretch_lanes", "lane_groups", "solve_bending_lanes", "solve_stretch_lanes"]

@@ -384,7 +384,9 @@ class XPBDSolver:
         zero3 = wp.vec3(0.0, 0.0, 0.0)
         cmds: dict = {}
         if self.air_density > 0 and (self.drag_coefficient > 0 or self.lift_coefficient > 0):
-            cmds["aero"] = wp.launch(k.accumulate_aero_forces, dim=m.tri_count,
+            lanes = self._lanes(self._tri_ids)
+            cmds["aero"] = wp.launch(lk.accumulate_aero_forces_lanes if lanes else k.accumulate_aero_forces,
+                                     dim=(m.tri_count + lk.LANES - 1) // lk.LANES if lanes else m.tri_count,
                                      inputs=[x, v, self._tri_ids, zero3, self.air_density, self.drag_coefficient,
                                              self.lift_coefficient], outputs=[self._lift, self._air_drag],
                                      device=d, record_cmd=True)
@@ -502,11 +504,14 @@ class XPBDSolver:
             assert off + cnt == nxt, "colours are stored contiguously"
         return [(colors[0][0], sum(cnt for _, cnt in colors))]
 
+    def _lanes(self, *arrays) -> bool:
+        """The lane kernels (:mod:`~warpshade.sim.lane_kernels`) apply: on the CPU, with contiguous arrays."""
+        return self.device.is_cpu and all(a.is_contiguous for a in arrays)
+
     def _lane_groups(self, colors: list, ids, *per_constraint):
         """Groups (start, count) of at most :data:`~warpshade.sim.lane_kernels.LANES` constraints
-        of one colour for the lane kernels, on the CPU with contiguous arrays; else None."""
-        arrays = (ids, *per_constraint, self.model.inv_mass)
-        if not self.device.is_cpu or not colors or not all(a.is_contiguous for a in arrays):
+        of one colour for the lane kernels where they apply; else None."""
+        if not colors or not self._lanes(ids, *per_constraint, self.model.inv_mass):
             return None
         return lk.lane_groups(colors, self.device)
 
