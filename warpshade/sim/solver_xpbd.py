@@ -30,7 +30,7 @@ from . import kernels as k
 from . import lane_kernels as lk
 from .colliders import ColliderSet
 from .intersections import IntersectionCounter
-from .launches import RecordedLaunches
+from .launches import RecordedLaunches, recorded
 from .model import ClothModel, SimulationError, check_param
 from .state import ClothControl, ClothState
 
@@ -491,7 +491,8 @@ class XPBDSolver:
                                                  m.bend_damping],
                                          outputs=[v], device=d, record_cmd=True))
         cmds["damping"] = damping
-        return cmds
+        return {name: [recorded(c) for c in cmd] if isinstance(cmd, list) else recorded(cmd)
+                for name, cmd in cmds.items()}
 
     def _batches(self, colors: list) -> list:
         """Launch ranges (offset, count) of the coloured constraints: one range per colour on a GPU; on
