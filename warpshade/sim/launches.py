@@ -3,7 +3,7 @@
 ``wp.launch`` packs its arguments in Python on every call (about 20 us for a kernel of a dozen
 arguments on this machine's CPU); a recorded launch (``wp.launch(..., record_cmd=True)``) keeps
 them packed, but its ``launch()`` on the CPU still builds the ctypes structure of the arguments
-from them on every call (about 5 us). :func:`recorded` wraps a recorded CPU launch in a
+from them on every call. :func:`recorded` wraps a recorded CPU launch in a
 :class:`CpuLaunch`, which builds that structure once and calls the kernel's compiled entry point
 with it, as ``Launch.launch`` does. :class:`RecordedLaunches` keeps one record per kernel,
 dimension and arguments, so a loop that launches the same kernel on the same arrays with the same
