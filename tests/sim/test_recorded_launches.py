@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warpshade.sim.launches import RecordedLaunches
+from warpshade.sim.launches import CpuLaunch, RecordedLaunches, recorded
 
 
 @wp.kernel
@@ -43,3 +43,43 @@ def test_the_records_start_afresh_beyond_max_recorded():
         rec.launch(axpy, 2, [a, x], [y])
     assert len(rec) == 1  # cleared at the fourth, which is then the only record
     np.testing.assert_array_equal(y.numpy(), [10.0, 10.0])
+
+
+def test_cpu_launch_runs_the_recorded_launch_and_follows_set_param_by_name():
+    x = wp.array(np.arange(4, dtype=np.float32), device="cpu")
+    y = wp.zeros(4, dtype=float, device="cpu")
+    cmd = wp.launch(axpy, dim=4, inputs=[2.0, x], outputs=[y], device="cpu", record_cmd=True)
+    fast = recorded(cmd)
+    assert isinstance(fast, CpuLaunch)
+    fast.launch()
+    np.testing.assert_array_equal(y.numpy(), 2.0 * np.arange(4))
+    fast.set_param_by_name("a", -1.0)  # the structure follows the record's new argument
+    fast.launch()
+    np.testing.assert_array_equal(y.numpy(), np.arange(4))
+    cmd.launch()  # the record itself holds it too
+    np.testing.assert_array_equal(y.numpy(), 0.0 * np.arange(4))
+    x.assign(np.ones(4, dtype=np.float32))  # arrays are read when launched
+    fast.launch()
+    np.testing.assert_array_equal(y.numpy(), -np.ones(4))
+
+
+def test_solver_feels_wind_through_its_recorded_launches():
+    """The wind is set on the recorded prediction and air-force launches every step: a cloth in
+    a side wind drifts along it, and a change of wind between steps is felt."""
+    from warpshade.sim import ClothBuilder, ClothControl, XPBDSolver
+    b = ClothBuilder()
+    b.add_grid(6, 6, 0.5, 0.5, origin=(-0.25, 1.0, -0.25))
+    m = b.finalize()
+    solver = XPBDSolver(m, self_collision=False, guard=False)
+    control = ClothControl(m)
+    s = m.state()
+    x0 = s.points.numpy()[:, 0].mean()
+    control.wind = (5.0, 0.0, 0.0)
+    for _ in range(10):
+        solver.step(s, s, 1.0 / 60.0, control)
+    x1 = s.points.numpy()[:, 0].mean()
+    control.wind = (-20.0, 0.0, 0.0)
+    for _ in range(10):
+        solver.step(s, s, 1.0 / 60.0, control)
+    x2 = s.points.numpy()[:, 0].mean()
+    assert x1 > x0 + 1e-4 and x2 < x1 - 1e-4

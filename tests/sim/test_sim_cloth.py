@@ -177,8 +177,10 @@ def test_hanging_cloth_edge_strain_below_one_percent():
 
 def test_one_launch_over_all_colours_is_the_per_colour_sweep():
     """On the CPU the coloured stretch, bending and damping sweeps run as one launch over all
-    colours (XPBDSolver._batches); a launch runs its threads in index order there, so the result
-    must be bit-for-bit the per-colour launches' (damping on, so the damping sweeps are covered)."""
+    colours (XPBDSolver._batches; for stretch, stretch damping and bending the lane kernels over
+    groups within each colour); a launch runs its threads in index order there, so the result
+    must be bit-for-bit the scalar kernels' per-colour launches' (damping on, so the damping sweeps
+    are covered)."""
     def build():
         b = ClothBuilder(damping=0.1, bend_damping=0.1)
         ids = b.add_grid(12, 12, 1.0, 1.0, origin=(-0.5, 1.0, -0.5))
@@ -187,6 +189,7 @@ def test_one_launch_over_all_colours_is_the_per_colour_sweep():
     merged_model, colour_model = build(), build()
     merged, per_colour = XPBDSolver(merged_model), XPBDSolver(colour_model)
     per_colour._batches = lambda colours: list(colours)
+    per_colour._edge_groups = per_colour._hinge_groups = None  # the scalar kernels
     assert len(merged_model.edge_colors) > 1 and len(merged_model.hinge_colors) > 1
     a, b = merged_model.state(), colour_model.state()
     xa, xb = _run(merged, a, 30), _run(per_colour, b, 30)

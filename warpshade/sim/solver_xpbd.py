@@ -27,9 +27,10 @@ import warp as wp
 
 from . import contact_kernels as ck
 from . import kernels as k
+from . import lane_kernels as lk
 from .colliders import ColliderSet
 from .intersections import IntersectionCounter
-from .launches import RecordedLaunches
+from .launches import RecordedLaunches, recorded
 from .model import ClothModel, SimulationError, check_param
 from .state import ClothControl, ClothState
 
@@ -179,6 +180,12 @@ class XPBDSolver:
         # the index tuples as one-dimensional arrays of vectors, as the per-substep kernels take them
         self._edge_ids = model.edges.view(wp.vec2i)
         self._hinge_ids = model.hinges.view(wp.vec4i)
+        # on the CPU the stretch, stretch damping and bending sweeps solve LANES constraints of a
+        # colour per thread (the same floats; None: the scalar kernels)
+        self._edge_groups = self._lane_groups(model.edge_colors, self._edge_ids, model.edge_rest_length,
+                                              model.edge_compliance)
+        self._hinge_groups = self._lane_groups(model.hinge_colors, self._hinge_ids, model.hinge_rest_angle,
+                                               model.hinge_compliance)
         self._tri_ids = model.tris.view(wp.vec3i)
         self._limit_ids = model.limit_pairs.view(wp.vec2i)
         self._x_prev = wp.zeros(v, dtype=wp.vec3, device=d)
@@ -377,7 +384,9 @@ class XPBDSolver:
         zero3 = wp.vec3(0.0, 0.0, 0.0)
         cmds: dict = {}
         if self.air_density > 0 and (self.drag_coefficient > 0 or self.lift_coefficient > 0):
-            cmds["aero"] = wp.launch(k.accumulate_aero_forces, dim=m.tri_count,
+            lanes = self._lanes(self._tri_ids)
+            cmds["aero"] = wp.launch(lk.accumulate_aero_forces_lanes if lanes else k.accumulate_aero_forces,
+                                     dim=(m.tri_count + lk.LANES - 1) // lk.LANES if lanes else m.tri_count,
                                      inputs=[x, v, self._tri_ids, zero3, self.air_density, self.drag_coefficient,
                                              self.lift_coefficient], outputs=[self._lift, self._air_drag],
                                      device=d, record_cmd=True)
@@ -401,20 +410,33 @@ class XPBDSolver:
                                                                    else self._touched, self._touched, off],
                                   outputs=[x], device=d, record_cmd=True)
                         for off, cnt in self._batches(m.limit_colors))
-        stretch = [wp.launch(k.solve_stretch, dim=cnt,
-                             inputs=[self._edge_ids, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
-                                     self.relaxation], outputs=[self._edge_lambda, x], device=d, record_cmd=True)
-                   for off, cnt in edge_batches]
+        eg = self._edge_groups
+        if eg is not None:
+            stretch = [wp.launch(lk.solve_stretch_lanes, dim=eg.shape[0],
+                                 inputs=[eg, self._edge_ids, m.edge_rest_length, m.edge_compliance, m.inv_mass, h,
+                                         self.relaxation], outputs=[self._edge_lambda, x], device=d, record_cmd=True)]
+        else:
+            stretch = [wp.launch(k.solve_stretch, dim=cnt,
+                                 inputs=[self._edge_ids, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
+                                         self.relaxation], outputs=[self._edge_lambda, x], device=d, record_cmd=True)
+                       for off, cnt in edge_batches]
         # extra stretch sweeps: cheap (edges only) and the stretch residual is what shows as sag
         cons.extend(stretch * self.stretch_sweeps)
         cmds["stretch"] = cons
         # a bending sweep every bend_interval substeps is an XPBD step of H = bend_interval * h: the
         # velocity update after it keeps 1/bend_interval of the sweep's correction over h
         bi = self.bend_interval
-        cmds["bending"] = [wp.launch(k.solve_bending, dim=cnt,
-                                     inputs=[self._hinge_ids, m.hinge_rest_angle, m.hinge_compliance, m.inv_mass, off,
-                                             h * bi], outputs=[self._hinge_lambda, x], device=d, record_cmd=True)
-                           for off, cnt in hinge_batches]
+        if self._hinge_groups is not None:
+            cmds["bending"] = [wp.launch(lk.solve_bending_lanes, dim=self._hinge_groups.shape[0],
+                                         inputs=[self._hinge_groups, self._hinge_ids, m.hinge_rest_angle,
+                                                 m.hinge_compliance, m.inv_mass, h * bi],
+                                         outputs=[self._hinge_lambda, x], device=d, record_cmd=True)]
+        else:
+            cmds["bending"] = [wp.launch(k.solve_bending, dim=cnt,
+                                         inputs=[self._hinge_ids, m.hinge_rest_angle, m.hinge_compliance, m.inv_mass,
+                                                 off, h * bi], outputs=[self._hinge_lambda, x], device=d,
+                                         record_cmd=True)
+                               for off, cnt in hinge_batches]
         if bi > 1:
             cmds["bending"].append(wp.launch(k.add_moved, dim=n, inputs=[x, self._bend_before],
                                              outputs=[self._bend_moved], device=d, record_cmd=True))
@@ -453,7 +475,11 @@ class XPBDSolver:
         cmds["velocities"] = wp.launch(k.update_velocities, dim=n, inputs=[x, self._x_prev, h], outputs=[v], device=d,
                                        record_cmd=True)
         damping = []
-        if m.damping > 0:
+        if m.damping > 0 and eg is not None:
+            damping.append(wp.launch(lk.damp_stretch_lanes, dim=eg.shape[0],
+                                     inputs=[eg, self._edge_ids, m.edge_compliance, m.inv_mass, x, h, m.damping],
+                                     outputs=[v], device=d, record_cmd=True))
+        elif m.damping > 0:
             for off, cnt in edge_batches:
                 damping.append(wp.launch(k.damp_stretch, dim=cnt,
                                          inputs=[self._edge_ids, m.edge_compliance, m.inv_mass, x, off, h, m.damping],
@@ -465,7 +491,8 @@ class XPBDSolver:
                                                  m.bend_damping],
                                          outputs=[v], device=d, record_cmd=True))
         cmds["damping"] = damping
-        return cmds
+        return {name: [recorded(c) for c in cmd] if isinstance(cmd, list) else recorded(cmd)
+                for name, cmd in cmds.items()}
 
     def _batches(self, colors: list) -> list:
         """Launch ranges (offset, count) of the coloured constraints: one range per colour on a GPU; on
@@ -477,6 +504,17 @@ class XPBDSolver:
         for (off, cnt), (nxt, _) in zip(colors, colors[1:]):
             assert off + cnt == nxt, "colours are stored contiguously"
         return [(colors[0][0], sum(cnt for _, cnt in colors))]
+
+    def _lanes(self, *arrays) -> bool:
+        """The lane kernels (:mod:`~warpshade.sim.lane_kernels`) apply: on the CPU, with contiguous arrays."""
+        return self.device.is_cpu and all(a.is_contiguous for a in arrays)
+
+    def _lane_groups(self, colors: list, ids, *per_constraint):
+        """Groups (start, count) of at most :data:`~warpshade.sim.lane_kernels.LANES` constraints
+        of one colour for the lane kernels where they apply; else None."""
+        if not colors or not self._lanes(ids, *per_constraint, self.model.inv_mass):
+            return None
+        return lk.lane_groups(colors, self.device)
 
     SHARP_PASSES = 1
     """Passes per substep of the sharp-edge and corner projection (each followed by the vertices')."""
