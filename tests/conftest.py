@@ -15,8 +15,8 @@ wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
 
 # the disk cache (warpshade._cache) of this test process: its own empty directory, so no test reads the
 # user's cache or leaves entries there (subprocesses and workers inherit it)
-os.environ["WARPSHADE_CACHE_DIR"] = tempfile.mkdtemp(prefix="warpshade-test-cache-")
-atexit.register(shutil.rmtree, os.environ["WARPSHADE_CACHE_DIR"], ignore_errors=True)
+os.environ["WARPSHADE_CACHE"] = tempfile.mkdtemp(prefix="warpshade-test-cache-")
+atexit.register(shutil.rmtree, os.environ["WARPSHADE_CACHE"], ignore_errors=True)
 
 WARP_ASSETS = os.path.join(os.path.dirname(wp.__file__), "examples", "assets")
 

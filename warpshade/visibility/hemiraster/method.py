@@ -101,7 +101,7 @@ class HemirasterTransfer(TransferMethod):
         view: Glossy mode: unit direction towards the viewer, world space (distant viewer).
         phong: Glossy mode: Phong exponent e of ``(e+2)/(2π) cos^e α``.
         lut_dir: Root of the disk cache for the plane LUT (None: the per-user cache of :mod:`warpshade._cache`,
-            where the coarse far field is kept too; ``WARPSHADE_CACHE_DIR=none`` turns it off).
+            where the coarse far field is kept too; ``WARPSHADE_CACHE=none`` turns it off).
         pvs_frames: Optional recorded animation, shape (T, V, 3): builds a potentially-visible set
             (blocker triangles that set a bit in any frame) and rasterizes only those.
         min_image: Skip coarse far-field triangles whose projected solid angle (an upper bound from

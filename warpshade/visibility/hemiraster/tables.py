@@ -211,7 +211,7 @@ def build_lut(mask: int, lut: int, cache_dir: str | None = None, device: str = "
         mask: Mask resolution M.
         lut: Cube-map resolution R (>= 2).
         cache_dir: Root of the disk cache to use; None: the per-user cache (:func:`warpshade._cache.root`,
-            off with ``WARPSHADE_CACHE_DIR=none``). The entry is keyed by M, R, this file's source and
+            off with ``WARPSHADE_CACHE=none``). The entry is keyed by M, R, this file's source and
             the Warp version; an unreadable entry or an unwritable directory means building as without it.
         device: Warp device that builds it (the table is returned on the host either way).
 
