@@ -4,7 +4,7 @@ An entry is one ``.npz`` file ``<root>/<kind>/<key>.npz``; ``key`` is a sha256 h
 that the caller builds over everything the entry's arrays depend on (inputs, knobs, the source of the
 code that computes them, library versions), so an entry is either valid for a request or never found.
 
-* **Root**: ``$WARPSHADE_CACHE_DIR`` when set (``none`` or ``0``: the cache is off, nothing is read or
+* **Root**: ``$WARPSHADE_CACHE`` when set (``none`` or ``0``: the cache is off, nothing is read or
   written), else the platform's user cache directory (:func:`default_root`).
 * **Writes** are atomic (:func:`warpshade._atomic.replace_atomically`: a temporary name per process, then a
   rename), so concurrent writers of one entry (two workers building the same structure) each leave a
@@ -30,7 +30,7 @@ import numpy as np
 
 from ._atomic import replace_atomically
 
-ENV = "WARPSHADE_CACHE_DIR"
+ENV = "WARPSHADE_CACHE"
 """Environment variable naming the cache root (``none`` or ``0``: off)."""
 
 OFF = ("none", "0")
