@@ -166,7 +166,7 @@ class HemirasterTransfer(TransferMethod):
              choices=("diffuse", "glossy")),
         Knob("view", "vec3", "glossy: direction towards the viewer x,y,z (world)"),
         Knob("phong", float, "glossy: Phong exponent", minimum=0.0),
-        Knob("lut_dir", str, "directory caching the plane LUT on disk", nullable=True),
+        Knob("lut_dir", str, "another directory for the plane LUT's disk cache (default: $WARPSHADE_CACHE)", nullable=True),
         Knob("min_image", float, "skip far-field triangles whose image is smaller than this many mask pixels "
                                  "(0: exact; a draped cloth wants 0)", minimum=0.0),
         Knob("redecimate", float, "rebuild the coarse far field from the current pose when its deviation from the "
