@@ -235,7 +235,8 @@ class StaticPart:
 
     A mask is the OR of the images of the triangles rasterized for the receiver, each decided from that
     triangle's and the receiver's geometry alone, and the set of a visited refined blocker's triangles splits
-    the same way (:func:`listed_set`: a triangle has one primary blocker), so a receiver's mask is the OR of
+    the same way (:func:`listed_set`: a triangle has one primary blocker, so the set is the stored part's and
+    what the rest lists besides), so a receiver's mask is the OR of
     what the blockers in ``blockers`` give and what the others give. Where the receiver, its fan and k-ring
     and those blockers (their vertices, bound fine triangles and fine triangles) have not moved since the
     first part was stored, only the second is rasterized."""
@@ -247,13 +248,17 @@ class StaticPart:
     blockers: wp.array2d[wp.uint64]
     """Bits of the unmoved blockers (reordered index), shape (1, ceil(Fc/64))."""
     receiver: wp.array[wp.int32]
-    """1 for an unmoved receiver whose part is stored, shape (V,)."""
+    """Per receiver: 1 + its row of ``listed`` where its part is stored, else 0, shape (V,)."""
     mask: wp.array2d[wp.uint64]
     """The stored part of each flagged receiver's mask, shape (V, words)."""
     counts: wp.array[wp.int32]
     """Triangles the stored part rasterized per receiver (:attr:`Batch.counts`), shape (V,)."""
     refined: wp.array[wp.int32]
     """Fine triangles of refined blockers the stored part queued per receiver (:attr:`Batch.refined`), shape (V,)."""
+    listed: wp.array2d[MaskChunk]
+    """Per stored receiver, the fine triangles of the stored part's refined blockers (:func:`rasterize_fine_set`),
+    left out of the rest: a seam triangle listed by a stored and a moving blocker is handled once, as without
+    the split; shape (stored receivers, ceil(F/1024)) ((1, 1) without the refinement)."""
 
 
 @wp.func
@@ -1320,12 +1325,23 @@ def rasterize_fine_set(
     mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
+    part: int,
+    st: StaticPart,
 ) -> int:
     """Queue the fine triangles of the refined blockers the far-field pass visited (the set of
     :func:`listed_set`), as :func:`rasterize_group` would blocker by blocker, without walking the
-    groups' lists or a rasterized-once table (:func:`queue_fine_set`); returns the queue length."""
+    groups' lists or a rasterized-once table (:func:`queue_fine_set`); returns the queue length.
+    ``part`` 1 stores the set in ``st.listed``, 2 leaves out what is stored there (:class:`StaticPart`)."""
     listed_set(sl, blockers, groups)
     clear_visited(sl, groups)
+    if part == 1:
+        r = st.receiver[v] - 1
+        for u in range(groups.listed.shape[1]):
+            st.listed[r, u] = groups.listed[sl, u]
+    elif part == 2:
+        r = st.receiver[v] - 1
+        for u in range(groups.listed.shape[1]):
+            groups.listed[sl, u] = groups.listed[sl, u] & (st.listed[r, u] ^ MaskChunk(~wp.uint64(0)))
     return queue_fine_set(v, sl, p, n, fine, groups, frame, lut, mask, bt, nb)
 
 
@@ -1661,7 +1677,7 @@ def rasterize_masks(
             if mids.on != 0:
                 nb = rasterize_mid_set(v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
             else:
-                nb = rasterize_fine_set(v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb)
+                nb = rasterize_fine_set(v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb, part, st)
         if nb > 0:
             flush_batch(nb, v, sl, frame, lut, mask, bt)
         if mids.on != 0:

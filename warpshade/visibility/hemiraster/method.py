@@ -40,6 +40,10 @@ blocker: ~130k fine triangles at 512 coarse blockers; rows per mid triangle: ~32
 each refined group is walked instead (kernels.rasterize_group, kernels.rasterize_mid_fine): the same
 masks, without tables and a per-receiver scan that grow with the mesh."""
 
+STATIC_BYTES = 64 * 1024 * 1024
+"""Largest table of the stored part's fine-triangle sets (``keep_static``: stored receivers × ceil(F/1024)
+chunks of 128 bytes) the method allocates; above it nothing is stored."""
+
 BATCH = 64
 """Triangles queued per slot before they are rasterized together (kernels.Batch; 4 KiB per
 slot). Measured on the Table 1 cloth (interleaved runs, ratios of CPU time): 1 -> 1.28, 4 -> 1.06,
@@ -164,9 +168,9 @@ class HemirasterTransfer(TransferMethod):
         keep_static: Store the part of each unmoved receiver's mask that unmoved blockers give and, while
             none of them moves, rasterize only the rest (:meth:`_static_mode`; the same masks). Receivers
             and blockers count as unmoved when their positions (and the receiver's normal) are bit for
-            bit those of the previous frame; the part is stored on the second frame that finds them so
-            and dropped when one of them moves. Not with the mid level or a PVS. On by default; off only
-            to measure it.
+            bit those of the previous frame while others moved (a pose repeated whole stores nothing);
+            the part is stored on that frame and dropped when one of them moves. Not with the mid level
+            or a PVS. On by default; off only to measure it.
     """
 
     name = "hemiraster"
@@ -620,6 +624,7 @@ class HemirasterTransfer(TransferMethod):
         self._static.mask = wp.zeros((nv, self._words), dtype=wp.uint64, device=d)
         self._static.counts = wp.zeros(nv, dtype=wp.int32, device=d)
         self._static.refined = wp.zeros(nv, dtype=wp.int32, device=d)
+        self._static.listed = wp.zeros((1, 1), dtype=MaskChunk, device=d)
         self._static_last = None  # (points, normals) of the last frame, until a part is stored
         self._static_check = None  # (vertices, receivers, their points, their normals) the stored part depends on
         self._static_receivers, self._static_stores = 0, 0
@@ -806,15 +811,17 @@ class HemirasterTransfer(TransferMethod):
 
     def _static_mode(self, record: int, use_pvs: int, wanted: np.ndarray | None) -> int:
         """The :class:`~.kernels.StaticPart` mode of this frame's rasterization (0 or 2), after storing the part
-        of the unmoved receivers' masks that the unmoved blockers give when this frame is the second to find
-        them so (``keep_static``), among the receivers ``wanted`` (None: all).
+        of the unmoved receivers' masks that the unmoved blockers give when this frame finds them as the last
+        one left them while others moved (``keep_static``), for the receivers ``wanted`` (None: all).
 
         Unmoved: bit for bit the positions of the last frame (receivers: also their normals). A receiver
         qualifies with its fan and k-ring; a blocker with the fine triangles its vertices are bound to and
         those it stands for (its box, deviation and refined set). The stored part stays in use while all of
         these stay as they were; when one moves it is dropped and this frame's points are the new
-        comparison. Off with a PVS (recording one included) and with the mid level."""
-        if not self.keep_static or record or use_pvs or self._use_mid:
+        comparison. Off with a PVS (recording one included), with the mid level, where the refined blockers'
+        triangles are walked group by group (no ``use_set``) and where the stored sets of those triangles
+        would exceed :data:`STATIC_BYTES`."""
+        if not self.keep_static or record or use_pvs or self._use_mid or (self._use_refine and not self._groups.use_set):
             self._static_check = self._static_last = None
             return 0
         pts, nrm = self._spoints.numpy(), self.normals.numpy()
@@ -830,6 +837,8 @@ class HemirasterTransfer(TransferMethod):
         nv = self.mesh.num_vertices
         same = _same_rows(pts, last[0])
         recv = same[:nv] & _same_rows(nrm, last[1])
+        if recv.all() and same.all():
+            return 0  # nothing moved: a pose repeated whole is the caller's to reuse (a timing loop, a still group)
         if wanted is not None:
             recv &= np.isin(np.arange(nv), wanted)
         if not recv.any():
@@ -851,10 +860,11 @@ class HemirasterTransfer(TransferMethod):
                 dep_tris.append((rows, tris))
         else:
             blockers = same[bfaces].all(axis=1)
-        if not recv.any():
+        recv_idx = np.flatnonzero(recv)
+        chunks = self._groups.listed.shape[1] if self._use_refine else 0
+        if not len(recv_idx) or len(recv_idx) * chunks * 128 > STATIC_BYTES:
             return 0
         dep = np.zeros(len(pts), dtype=bool)
-        recv_idx = np.flatnonzero(recv)
         dep[recv_idx] = True
         for k, (rows, tris) in enumerate(dep_tris):
             dep[sfaces[tris[(recv if k < 2 else blockers)[rows]]]] = True
@@ -868,7 +878,11 @@ class HemirasterTransfer(TransferMethod):
         bits = np.zeros(self._static.blockers.shape[1] * 64, np.uint8)
         bits[:len(blockers)] = blockers
         self._static.blockers.assign(np.packbits(bits, bitorder="little").view("<u8")[None, :])
-        self._static.receiver.assign(recv.astype(np.int32))
+        slot = np.zeros(nv, np.int32)
+        slot[recv_idx] = np.arange(1, len(recv_idx) + 1)
+        self._static.receiver.assign(slot)
+        if self._use_refine:
+            self._static.listed = wp.zeros((len(recv_idx), chunks), dtype=MaskChunk, device=self.device)
         # the stored part: the kernel's outputs are the StaticPart's arrays for this launch
         batch = (self._batch.counts, self._batch.refined)
         self._batch.counts, self._batch.refined = self._static.counts, self._static.refined
