@@ -616,14 +616,13 @@ class HemirasterTransfer(TransferMethod):
         self._static_seconds = time.perf_counter() - t_start
         self._rebuilds, self._rebuild_seconds = 0, 0.0
         self._built_departure = self._departure() if self.redecimate > 0.0 and self._use_refine else 0.0
-        # kernels.StaticPart: off until a frame finds receivers unmoved (_static_mode)
+        # kernels.StaticPart: off (and its arrays placeholders) until a frame finds receivers unmoved (_static_mode)
         self._static = StaticPart()
         self._static.mode = 0
-        self._static.blockers = wp.zeros((1, bwords), dtype=wp.uint64, device=d)
-        self._static.receiver = wp.zeros(nv, dtype=wp.int32, device=d)
-        self._static.mask = wp.zeros((nv, self._words), dtype=wp.uint64, device=d)
-        self._static.counts = wp.zeros(nv, dtype=wp.int32, device=d)
-        self._static.refined = wp.zeros(nv, dtype=wp.int32, device=d)
+        self._static.blockers = wp.zeros((1, 1), dtype=wp.uint64, device=d)
+        self._static.receiver = wp.zeros(1, dtype=wp.int32, device=d)
+        self._static.mask = wp.zeros((1, 1), dtype=wp.uint64, device=d)
+        self._static.counts, self._static.refined = (wp.zeros(1, dtype=wp.int32, device=d) for _ in range(2))
         self._static.listed = wp.zeros((1, 1), dtype=MaskChunk, device=d)
         self._static_last = None  # (points, normals) of the last frame, until a part is stored
         self._static_check = None  # (vertices, receivers, their points, their normals) the stored part depends on
@@ -845,51 +844,57 @@ class HemirasterTransfer(TransferMethod):
             return 0
         sfaces = self._sfaces.numpy()
         tri_same = same[sfaces].all(axis=1)
-        dep_tris = []  # fine triangles the stored part depends on
-        for start, items in ((self._ring_start, self._ring_tris), (self._fine.fan_start, self._fine.fan_tris)):
-            ok, rows, tris = _rows_all(start.numpy(), items.numpy(), tri_same)
-            recv &= ok
-            dep_tris.append((rows, tris))
+        # the receivers' fans and k-rings, the blockers' fine triangles: (row of each item, item)
+        ring = _rows_all(self._ring_start.numpy(), self._ring_tris.numpy(), tri_same)
+        fan = _rows_all(self._fine.fan_start.numpy(), self._fine.fan_tris.numpy(), tri_same)
+        recv &= ring[0] & fan[0]
         bfaces = self._bfaces.numpy()
         if self.hierarchy:
             bind = self._bind[0].numpy()  # fine triangle each coarse vertex rides
             blockers = tri_same[bind][bfaces].all(axis=1)
-            if self._use_refine:
-                ok, rows, tris = _rows_all(self._group_start.numpy(), self._group_tris.numpy(), tri_same)
-                blockers &= ok
-                dep_tris.append((rows, tris))
+            group = _rows_all(self._group_start.numpy(), self._group_tris.numpy(), tri_same) if self._use_refine else None
+            if group is not None:
+                blockers &= group[0]
         else:
             blockers = same[bfaces].all(axis=1)
         recv_idx = np.flatnonzero(recv)
         chunks = self._groups.listed.shape[1] if self._use_refine else 0
         if not len(recv_idx) or len(recv_idx) * chunks * 128 > STATIC_BYTES:
             return 0
+        # the vertices the stored part depends on: checked every frame while it is in use
         dep = np.zeros(len(pts), dtype=bool)
         dep[recv_idx] = True
-        for k, (rows, tris) in enumerate(dep_tris):
-            dep[sfaces[tris[(recv if k < 2 else blockers)[rows]]]] = True
+        for _, rows, tris in (ring, fan):
+            dep[sfaces[tris[recv[rows]]]] = True
         if self.hierarchy:
             dep[sfaces[bind[bfaces[blockers]]]] = True
+            if group is not None:
+                dep[sfaces[group[2][blockers[group[1]]]]] = True
         else:
             dep[bfaces[blockers]] = True
         verts = np.flatnonzero(dep)
         self._static_check = (verts, recv_idx, pts[verts].copy(), nrm[recv_idx].copy())
         self._static_last = None
-        bits = np.zeros(self._static.blockers.shape[1] * 64, np.uint8)
+        st, d = self._static, self.device
+        if st.mask.shape[0] != nv:
+            st.mask = wp.zeros((nv, self._words), dtype=wp.uint64, device=d)
+            st.counts, st.refined, st.receiver = (wp.zeros(nv, dtype=wp.int32, device=d) for _ in range(3))
+        bwords = (self.num_blockers + 63) // 64
+        bits = np.zeros(bwords * 64, np.uint8)
         bits[:len(blockers)] = blockers
-        self._static.blockers.assign(np.packbits(bits, bitorder="little").view("<u8")[None, :])
+        st.blockers = wp.array(np.packbits(bits, bitorder="little").view("<u8")[None, :], dtype=wp.uint64, device=d)
         slot = np.zeros(nv, np.int32)
         slot[recv_idx] = np.arange(1, len(recv_idx) + 1)
-        self._static.receiver.assign(slot)
+        st.receiver.assign(slot)
         if self._use_refine:
-            self._static.listed = wp.zeros((len(recv_idx), chunks), dtype=MaskChunk, device=self.device)
+            st.listed = wp.zeros((len(recv_idx), chunks), dtype=MaskChunk, device=d)
         # the stored part: the kernel's outputs are the StaticPart's arrays for this launch
         batch = (self._batch.counts, self._batch.refined)
-        self._batch.counts, self._batch.refined = self._static.counts, self._static.refined
-        self._static.mode = 1
+        self._batch.counts, self._batch.refined = st.counts, st.refined
+        st.mode = 1
         try:
-            self._rasterize(wp.array(recv_idx.astype(np.int32), dtype=wp.int32, device=self.device), len(recv_idx), 0,
-                            mask=self._static.mask, refined=self._static.refined)
+            self._rasterize(wp.array(recv_idx.astype(np.int32), dtype=wp.int32, device=d), len(recv_idx), 0,
+                            mask=st.mask, refined=st.refined)
         finally:
             self._batch.counts, self._batch.refined = batch
         self._static_receivers = len(recv_idx)
