@@ -1620,10 +1620,16 @@ def rasterize_masks(
         frame = orthonormal_basis(n)
         part = int(0)
         if st.mode != 0:
-            part = wp.where(st.receiver[v] != 0, st.mode, 0)
+            if st.receiver[v] != 0:
+                part = st.mode
         stored = part == 2
-        for w in range(lut.words):
-            mask[v, w] = wp.where(stored, st.mask[v, w], wp.uint64(0))
+        # (branches, not selects: the StaticPart's arrays are placeholders while it is off)
+        if stored:
+            for w in range(lut.words):
+                mask[v, w] = st.mask[v, w]
+        else:
+            for w in range(lut.words):
+                mask[v, w] = wp.uint64(0)
         if groups.use_seen != 0:
             for w in range(groups.seen.shape[1]):
                 groups.seen[sl, w] = wp.uint64(0)
@@ -1635,8 +1641,12 @@ def rasterize_masks(
                 m = mids.ring_tris[r]
                 mids.ring_bits[sl, m >> 6] = mids.ring_bits[sl, m >> 6] | (wp.uint64(1) << wp.uint64(m & 63))
             mids.counts[v] = 0
-        bt.counts[v] = wp.where(stored, st.counts[v], 0)
-        refined[v] = wp.where(stored, st.refined[v], 0)
+        if stored:
+            bt.counts[v] = st.counts[v]
+            refined[v] = st.refined[v]
+        else:
+            bt.counts[v] = 0
+            refined[v] = 0
         mark_refined(v, sl, p, n, lut, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi,
                      cluster_reach)
         nb = int(0)
