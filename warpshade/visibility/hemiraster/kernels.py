@@ -229,6 +229,38 @@ class Batch:
     """Fine triangles of refined blockers queued per receiver (not incident, image not tiny), shape (V,)."""
 
 
+@wp.struct
+class StaticPart:
+    """The part of unmoved receivers' masks that unmoved blockers give (:meth:`.method.HemirasterTransfer._static_mode`).
+
+    A mask is the OR of the images of the triangles rasterized for the receiver, each decided from that
+    triangle's and the receiver's geometry alone, and the set of a visited refined blocker's triangles splits
+    the same way (:func:`listed_set`: a triangle has one primary blocker, so the set is the stored part's and
+    what the rest lists besides), so a receiver's mask is the OR of
+    what the blockers in ``blockers`` give and what the others give. Where the receiver, its fan and k-ring
+    and those blockers (their vertices, bound fine triangles and fine triangles) have not moved since the
+    first part was stored, only the second is rasterized."""
+
+    mode: int
+    """0: off; 1: rasterize the receivers' fan, k-ring and the ``blockers`` only (stored into ``mask``,
+    ``counts``, ``refined`` by the caller passing them as the outputs); 2: receivers flagged in
+    ``receiver`` start from ``mask``, ``counts`` and ``refined`` and rasterize the other blockers only."""
+    blockers: wp.array2d[wp.uint64]
+    """Bits of the unmoved blockers (reordered index), shape (1, ceil(Fc/64))."""
+    receiver: wp.array[wp.int32]
+    """Per receiver: 1 + its row of ``listed`` where its part is stored, else 0, shape (V,)."""
+    mask: wp.array2d[wp.uint64]
+    """The stored part of each flagged receiver's mask, shape (V, words)."""
+    counts: wp.array[wp.int32]
+    """Triangles the stored part rasterized per receiver (:attr:`Batch.counts`), shape (V,)."""
+    refined: wp.array[wp.int32]
+    """Fine triangles of refined blockers the stored part queued per receiver (:attr:`Batch.refined`), shape (V,)."""
+    listed: wp.array2d[MaskChunk]
+    """Per stored receiver, the fine triangles of the stored part's refined blockers (:func:`rasterize_fine_set`),
+    left out of the rest: a seam triangle listed by a stored and a moving blocker is handled once, as without
+    the split; shape (stored receivers, ceil(F/1024)) ((1, 1) without the refinement)."""
+
+
 @wp.func
 def popcount64(x: wp.uint64) -> int:
     """Number of set bits (SWAR; Warp has no popcount intrinsic)."""
@@ -1293,12 +1325,23 @@ def rasterize_fine_set(
     mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
+    part: int,
+    st: StaticPart,
 ) -> int:
     """Queue the fine triangles of the refined blockers the far-field pass visited (the set of
     :func:`listed_set`), as :func:`rasterize_group` would blocker by blocker, without walking the
-    groups' lists or a rasterized-once table (:func:`queue_fine_set`); returns the queue length."""
+    groups' lists or a rasterized-once table (:func:`queue_fine_set`); returns the queue length.
+    ``part`` 1 stores the set in ``st.listed``, 2 leaves out what is stored there (:class:`StaticPart`)."""
     listed_set(sl, blockers, groups)
     clear_visited(sl, groups)
+    if part == 1:
+        r = st.receiver[v] - 1
+        for u in range(groups.listed.shape[1]):
+            st.listed[r, u] = groups.listed[sl, u]
+    elif part == 2:
+        r = st.receiver[v] - 1
+        for u in range(groups.listed.shape[1]):
+            groups.listed[sl, u] = groups.listed[sl, u] & (st.listed[r, u] ^ MaskChunk(~wp.uint64(0)))
     return queue_fine_set(v, sl, p, n, fine, groups, frame, lut, mask, bt, nb)
 
 
@@ -1452,10 +1495,14 @@ def rasterize_far_chunk(
     mask: wp.array2d[wp.uint64],
     bt: Batch,
     nb: int,
+    part: int,
+    st: StaticPart,
 ) -> int:
     """Far-field blockers ``t0 .. t1-1`` (at most :data:`FAR_CHUNK`, consecutive; the PVS path passes
     one at a time): each is rasterized itself, or replaced by its fine triangles near the receiver
-    (:func:`rasterize_group`). Returns the receiver's queue length.
+    (:func:`rasterize_group`). Returns the receiver's queue length. ``part`` 1: only the blockers of
+    ``st.blockers``, 2: only the others, 0: all (:class:`StaticPart`; a refined blocker left out counts as
+    not visited).
 
     First a branch-free pass over all of them classifies each from per-frame data alone: dropped
     (near-field exclusion of the paper scheme), refined (the receiver's bits, :func:`mark_refined`),
@@ -1488,6 +1535,11 @@ def rasterize_far_chunk(
     keep = ~(ex | refine_bits | cull | tiny)
     if t1 - t0 < 64:
         keep = keep & ((wp.uint64(1) << wp.uint64(t1 - t0)) - wp.uint64(1))
+    if part != 0:
+        sb = slot_bits(st.blockers, 0, t0, t1)
+        sel = wp.where(part == 1, sb, ~sb)
+        keep = keep & sel
+        refine_bits = refine_bits & sel
     while refine_bits != wp.uint64(0):
         k = lowest_bit(refine_bits)
         refine_bits = refine_bits & (refine_bits - wp.uint64(1))
@@ -1533,6 +1585,7 @@ def rasterize_masks(
     pvs_tris: wp.array[wp.int32],
     lut: PlaneLut,
     bt: Batch,
+    st: StaticPart,
     receivers: wp.array[wp.int32],
     num_receivers: int,
     num_slots: int,
@@ -1553,6 +1606,9 @@ def rasterize_masks(
     ``refine > 0`` a coarse blocker near the receiver is replaced by the fine triangles it stands
     for (``group_*``, :func:`refine_here`), so contact and folds see the exact surface.
 
+    With ``st.mode`` (:class:`StaticPart`) the flagged receivers get only the part of the blockers the
+    mode selects (1: the stored part with their fan and k-ring; 2: the rest, ORed into the stored part).
+
     The masks are integrated into SH transfer by the per-order kernels of :mod:`.integrate`.
     """
     sl = wp.tid()
@@ -1562,8 +1618,18 @@ def rasterize_masks(
         p = fine.points[v]
         n = normals[v]
         frame = orthonormal_basis(n)
-        for w in range(lut.words):
-            mask[v, w] = wp.uint64(0)
+        part = int(0)
+        if st.mode != 0:
+            if st.receiver[v] != 0:
+                part = st.mode
+        stored = part == 2
+        # (branches, not selects: the StaticPart's arrays are placeholders while it is off)
+        if stored:
+            for w in range(lut.words):
+                mask[v, w] = st.mask[v, w]
+        else:
+            for w in range(lut.words):
+                mask[v, w] = wp.uint64(0)
         if groups.use_seen != 0:
             for w in range(groups.seen.shape[1]):
                 groups.seen[sl, w] = wp.uint64(0)
@@ -1575,15 +1641,19 @@ def rasterize_masks(
                 m = mids.ring_tris[r]
                 mids.ring_bits[sl, m >> 6] = mids.ring_bits[sl, m >> 6] | (wp.uint64(1) << wp.uint64(m & 63))
             mids.counts[v] = 0
-        bt.counts[v] = 0
-        refined[v] = 0
+        if stored:
+            bt.counts[v] = st.counts[v]
+            refined[v] = st.refined[v]
+        else:
+            bt.counts[v] = 0
+            refined[v] = 0
         mark_refined(v, sl, p, n, lut, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi,
                      cluster_reach)
         nb = int(0)
-        if fine.fan != 0:
+        if fine.fan != 0 and not stored:
             nb = rasterize_fan(v, sl, p, n, fine, frame, lut, mask, bt, nb)
-        # near field at full resolution
-        for r in range(ring_start[v], ring_start[v + 1]):
+        # near field at full resolution (in the stored part when there is one)
+        for r in range(ring_start[v], wp.where(stored, ring_start[v], ring_start[v + 1])):
             t = ring_tris[r]
             if skip_early(fine.plane[t], fine.sphere[t], p, n, lut.backface, lut.rim):
                 continue
@@ -1598,7 +1668,7 @@ def rasterize_masks(
             for r in range(pvs_start[v], pvs_start[v + 1]):
                 t = pvs_tris[r]
                 nb = rasterize_far_chunk(t, t + 1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame,
-                                         lut, mask, bt, nb)
+                                         lut, mask, bt, nb, part, st)
         elif use_cull != 0:
             for s in range(super_start.shape[0] - 1):
                 if box_above_plane(super_lo[s], super_hi[s], n, offset):
@@ -1607,17 +1677,17 @@ def rasterize_masks(
                             for t0 in range(cluster_start[c], cluster_start[c + 1], FAR_CHUNK):
                                 t1 = wp.min(t0 + FAR_CHUNK, cluster_start[c + 1])
                                 nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl,
-                                                         frame, lut, mask, bt, nb)
+                                                         frame, lut, mask, bt, nb, part, st)
         else:
             for t0 in range(0, blockers.faces.shape[0], FAR_CHUNK):
                 t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
                 nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame, lut,
-                                         mask, bt, nb)
+                                         mask, bt, nb, part, st)
         if groups.use_set != 0 and bt.record == 0:
             if mids.on != 0:
                 nb = rasterize_mid_set(v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
             else:
-                nb = rasterize_fine_set(v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb)
+                nb = rasterize_fine_set(v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb, part, st)
         if nb > 0:
             flush_batch(nb, v, sl, frame, lut, mask, bt)
         if mids.on != 0:

@@ -24,7 +24,7 @@ from ..base import TransferMethod
 from ..knobs import Knob
 from . import cache, hierarchy, integrate, tables
 from .kernels import (CANDIDATES, PRECULL_BLOCKERS, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement,
-                      follow_coarse_points, rasterize_masks, raise_deviation, refit_blocker_boxes, triangle_bounds,
+                      StaticPart, follow_coarse_points, rasterize_masks, raise_deviation, refit_blocker_boxes, triangle_bounds,
                       union_boxes, union_child_boxes)
 
 
@@ -39,6 +39,10 @@ replaced near a receiver, kernels.rasterize_mid_set, rows per mid triangle); abo
 blocker: ~130k fine triangles at 512 coarse blockers; rows per mid triangle: ~32k at 2048 mid triangles)
 each refined group is walked instead (kernels.rasterize_group, kernels.rasterize_mid_fine): the same
 masks, without tables and a per-receiver scan that grow with the mesh."""
+
+STATIC_BYTES = 64 * 1024 * 1024
+"""Largest table of the stored part's fine-triangle sets (``keep_static``: stored receivers × ceil(F/1024)
+chunks of 128 bytes) the method allocates; above it nothing is stored."""
 
 BATCH = 64
 """Triangles queued per slot before they are rasterized together (kernels.Batch; 4 KiB per
@@ -55,6 +59,22 @@ LAUNCH_SECONDS = 0.5
 """Target duration of one CPU rasterization launch [s] (a receiver costs from ~10 us on a smooth
 drape to ~470 us on a deeply crumpled 400 x 400 sheet, so a fixed block would be either many
 launches or many seconds)."""
+
+
+def _same_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per row: ``a`` and ``b`` (float32, same shape) equal bit for bit."""
+    return (a.view(np.uint32) == b.view(np.uint32)).reshape(len(a), -1).all(axis=1)
+
+
+def _rows_all(start: np.ndarray, items: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For CSR lists (``start``, ``items``) of indices into ``ok``: whether every item of each row is ok, and
+    each item's row and value (the lists without their padding)."""
+    n = len(start) - 1
+    items = items[:start[-1]]
+    rows = np.repeat(np.arange(n), np.diff(start))
+    good = np.ones(n, dtype=bool)
+    good[rows[~ok[items]]] = False
+    return good, rows, items
 
 
 def scratch_slots(device, num_receivers: int) -> int:
@@ -146,6 +166,12 @@ class HemirasterTransfer(TransferMethod):
             transfer of its own normal minus the mean blocked part of its computed neighbours, unless
             their blocked parts differ from that mean by more than ``interpolate`` times the
             unoccluded transfer's norm: then it is computed too (0: every receiver computed, exact).
+        keep_static: Store the part of each unmoved receiver's mask that unmoved blockers give and, while
+            none of them moves, rasterize only the rest (:meth:`_static_mode`; the same masks). Receivers
+            and blockers count as unmoved when their positions (and the receiver's normal) are bit for
+            bit those of the previous frame while others moved (a pose repeated whole stores nothing);
+            the part is stored on that frame and dropped when one of them moves. Not with the mid level
+            or a PVS. On by default; off only to measure it.
     """
 
     name = "hemiraster"
@@ -182,6 +208,7 @@ class HemirasterTransfer(TransferMethod):
                              "hem seen from afar; fewer triangles left for the interior)"),
         Knob("rim", bool, "skip blockers wholly below the lowest pixel centre", cli=False),
         Knob("fan", bool, "rasterize the receiver's own fan on open meshes", cli=False),
+        Knob("keep_static", bool, "store the part of unmoved receivers' masks that unmoved blockers give", cli=False),
     )
 
     def __init__(self, mesh: TriMesh, order: int = 5, device: str = "cpu", mask: int = 32, lut: int = 48,
@@ -190,14 +217,14 @@ class HemirasterTransfer(TransferMethod):
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
                  refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
                  fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0, mid: int = 0,
-                 border: bool = False):
+                 border: bool = False, keep_static: bool = True):
         super().__init__(mesh, order, device)
         # every knob but the PVS, to rebuild the far field from another pose (:meth:`rebuild`)
         self._init_knobs = dict(mask=mask, lut=lut, downsample=downsample, ring=ring, coarse=coarse, cull=cull,
                                 cluster=cluster, exclude=exclude, backface=backface, mode=mode, view=view, phong=phong,
                                 lut_dir=lut_dir, min_image=min_image, refine=refine, occluders=occluders, rim=rim,
                                 fine_image=fine_image, fan=fan, redecimate=redecimate,
-                                interpolate=interpolate, mid=mid, border=border)
+                                interpolate=interpolate, mid=mid, border=border, keep_static=keep_static)
         if not (float(redecimate) >= 0.0 and np.isfinite(float(redecimate))):
             raise ValueError(f"hemiraster: redecimate must be a finite number >= 0, got {redecimate}")
         if float(redecimate) > 0.0 and pvs_frames is not None:
@@ -244,6 +271,7 @@ class HemirasterTransfer(TransferMethod):
         self.rim = bool(rim)
         self.fan = bool(fan)
         self.border = bool(border)
+        self.keep_static = bool(keep_static)
         self.phong, self.lut_dir = float(phong), lut_dir
         t_start = time.perf_counter()
         d = device
@@ -589,6 +617,17 @@ class HemirasterTransfer(TransferMethod):
         self._static_seconds = time.perf_counter() - t_start
         self._rebuilds, self._rebuild_seconds = 0, 0.0
         self._built_departure = self._departure() if self.redecimate > 0.0 and self._use_refine else 0.0
+        # kernels.StaticPart: off (and its arrays placeholders) until a frame finds receivers unmoved (_static_mode)
+        self._static = StaticPart()
+        self._static.mode = 0
+        self._static.blockers = wp.zeros((1, 1), dtype=wp.uint64, device=d)
+        self._static.receiver = wp.zeros(1, dtype=wp.int32, device=d)
+        self._static.mask = wp.zeros((1, 1), dtype=wp.uint64, device=d)
+        self._static.counts, self._static.refined = (wp.zeros(1, dtype=wp.int32, device=d) for _ in range(2))
+        self._static.listed = wp.zeros((1, 1), dtype=MaskChunk, device=d)
+        self._static_last = None  # (points, normals) of the last frame, until a part is stored
+        self._static_check = None  # (vertices, receivers, their points, their normals) the stored part depends on
+        self._static_receivers, self._static_stores = 0, 0
         if pvs_frames is not None:
             self.build_pvs(pvs_frames)
 
@@ -644,6 +683,8 @@ class HemirasterTransfer(TransferMethod):
             "computed_fraction": (1.0 if self._interp is None else
                                   (self._interp[0].shape[0] + self._redone) / self.mesh.num_vertices),
             "rebuild_seconds": self._rebuild_seconds,
+            "static_receivers": self._static_receivers,
+            "static_stores": self._static_stores,
             "pvs_triangles_per_vertex": (float(self._pvs_start.numpy()[-1]) / self.mesh.num_vertices
                                          if self._pvs_frames else None),
         }
@@ -700,6 +741,13 @@ class HemirasterTransfer(TransferMethod):
                       outputs=[self._mids.plane, self._mids.sphere, self._mid_nlen], device=d)
         self._batch.record = record
         self._batch.hits = self._hits
+        if rows is not None:  # the receivers this frame computes (the part is stored for those only)
+            wanted = rows.numpy()
+        elif interp_rows is not None:
+            wanted = self._interp_rows(interp_rows)[0].numpy()
+        else:
+            wanted = None if self._interp is None else self._interp[0].numpy()
+        self._static.mode = self._static_mode(record, use_pvs, wanted)
         if rows is not None:  # these receivers only (compute_rows)
             self._rasterize(rows, rows.shape[0], use_pvs)
             self._integrate_diffuse(rows, rows.shape[0])
@@ -761,8 +809,105 @@ class HemirasterTransfer(TransferMethod):
                                        wp.array(t, dtype=wp.int32, device=self.device))
         return self._interp_parts[key]
 
-    def _rasterize(self, receivers: wp.array, count: int, use_pvs: int) -> None:
-        """Rasterize the masks of ``receivers[:count]``; on the CPU in launches of about :data:`LAUNCH_SECONDS`."""
+    def _static_mode(self, record: int, use_pvs: int, wanted: np.ndarray | None) -> int:
+        """The :class:`~.kernels.StaticPart` mode of this frame's rasterization (0 or 2), after storing the part
+        of the unmoved receivers' masks that the unmoved blockers give when this frame finds them as the last
+        one left them while others moved (``keep_static``), for the receivers ``wanted`` (None: all).
+
+        Unmoved: bit for bit the positions of the last frame (receivers: also their normals). A receiver
+        qualifies with its fan and k-ring; a blocker with the fine triangles its vertices are bound to and
+        those it stands for (its box, deviation and refined set). The stored part stays in use while all of
+        these stay as they were; when one moves it is dropped and this frame's points are the new
+        comparison. Off with a PVS (recording one included), with the mid level, where the refined blockers'
+        triangles are walked group by group (no ``use_set``) and where the stored sets of those triangles
+        would exceed :data:`STATIC_BYTES`."""
+        if not self.keep_static or record or use_pvs or self._use_mid or (self._use_refine and not self._groups.use_set):
+            self._static_check = self._static_last = None
+            return 0
+        pts, nrm = self._spoints.numpy(), self.normals.numpy()
+        if self._static_check is not None:
+            verts, recv, p0, n0 = self._static_check
+            if _same_rows(pts[verts], p0).all() and _same_rows(nrm[recv], n0).all():
+                return 2
+            self._static_check = None
+            self._static_receivers = 0
+        last, self._static_last = self._static_last, (pts.copy(), nrm.copy())
+        if last is None:
+            return 0
+        nv = self.mesh.num_vertices
+        same = _same_rows(pts, last[0])
+        recv = same[:nv] & _same_rows(nrm, last[1])
+        if recv.all() and same.all():
+            return 0  # nothing moved: a pose repeated whole is the caller's to reuse (a timing loop, a still group)
+        if wanted is not None:
+            recv &= np.isin(np.arange(nv), wanted)
+        if not recv.any():
+            return 0
+        sfaces = self._sfaces.numpy()
+        tri_same = same[sfaces].all(axis=1)
+        # the receivers' fans and k-rings, the blockers' fine triangles: (row of each item, item)
+        ring = _rows_all(self._ring_start.numpy(), self._ring_tris.numpy(), tri_same)
+        fan = _rows_all(self._fine.fan_start.numpy(), self._fine.fan_tris.numpy(), tri_same)
+        recv &= ring[0] & fan[0]
+        bfaces = self._bfaces.numpy()
+        if self.hierarchy:
+            bind = self._bind[0].numpy()  # fine triangle each coarse vertex rides
+            blockers = tri_same[bind][bfaces].all(axis=1)
+            group = _rows_all(self._group_start.numpy(), self._group_tris.numpy(), tri_same) if self._use_refine else None
+            if group is not None:
+                blockers &= group[0]
+        else:
+            blockers = same[bfaces].all(axis=1)
+        recv_idx = np.flatnonzero(recv)
+        chunks = self._groups.listed.shape[1] if self._use_refine else 0
+        if not len(recv_idx) or len(recv_idx) * chunks * 128 > STATIC_BYTES:
+            return 0
+        # the vertices the stored part depends on: checked every frame while it is in use
+        dep = np.zeros(len(pts), dtype=bool)
+        dep[recv_idx] = True
+        for _, rows, tris in (ring, fan):
+            dep[sfaces[tris[recv[rows]]]] = True
+        if self.hierarchy:
+            dep[sfaces[bind[bfaces[blockers]]]] = True
+            if group is not None:
+                dep[sfaces[group[2][blockers[group[1]]]]] = True
+        else:
+            dep[bfaces[blockers]] = True
+        verts = np.flatnonzero(dep)
+        self._static_check = (verts, recv_idx, pts[verts].copy(), nrm[recv_idx].copy())
+        self._static_last = None
+        st, d = self._static, self.device
+        if st.mask.shape[0] != nv:
+            st.mask = wp.zeros((nv, self._words), dtype=wp.uint64, device=d)
+            st.counts, st.refined, st.receiver = (wp.zeros(nv, dtype=wp.int32, device=d) for _ in range(3))
+        bwords = (self.num_blockers + 63) // 64
+        bits = np.zeros(bwords * 64, np.uint8)
+        bits[:len(blockers)] = blockers
+        st.blockers = wp.array(np.packbits(bits, bitorder="little").view("<u8")[None, :], dtype=wp.uint64, device=d)
+        slot = np.zeros(nv, np.int32)
+        slot[recv_idx] = np.arange(1, len(recv_idx) + 1)
+        st.receiver.assign(slot)
+        if self._use_refine:
+            st.listed = wp.zeros((len(recv_idx), chunks), dtype=MaskChunk, device=d)
+        # the stored part: the kernel's outputs are the StaticPart's arrays for this launch
+        batch = (self._batch.counts, self._batch.refined)
+        self._batch.counts, self._batch.refined = st.counts, st.refined
+        st.mode = 1
+        try:
+            self._rasterize(wp.array(recv_idx.astype(np.int32), dtype=wp.int32, device=d), len(recv_idx), 0,
+                            mask=st.mask, refined=st.refined)
+        finally:
+            self._batch.counts, self._batch.refined = batch
+        self._static_receivers = len(recv_idx)
+        self._static_stores += 1
+        return 2
+
+    def _rasterize(self, receivers: wp.array, count: int, use_pvs: int, mask: wp.array | None = None,
+                   refined: wp.array | None = None) -> None:
+        """Rasterize the masks of ``receivers[:count]`` (into :attr:`_mask` and :attr:`_refined`, or the arrays
+        given); on the CPU in launches of about :data:`LAUNCH_SECONDS`."""
+        mask = self._mask if mask is None else mask
+        refined = self._refined if refined is None else refined
         cpu = wp.get_device(self.device).is_cpu
         block = RECEIVERS_PER_LAUNCH if cpu else max(1, count)
         start = 0
@@ -780,8 +925,8 @@ class HemirasterTransfer(TransferMethod):
                         1 if self.cull else 0, self._cluster_start, *self._cluster_box, self._cluster_reach,
                         self._super_start, *self._super_box,
                         use_pvs, self._pvs_start, self._pvs_tris,
-                        self._lut, self._batch, part, n, self._slots],
-                outputs=[self._mask, self._refined],
+                        self._lut, self._batch, self._static, part, n, self._slots],
+                outputs=[mask, refined],
                 device=self.device,
             )
             start += n
