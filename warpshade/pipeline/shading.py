@@ -125,9 +125,11 @@ class _Group:
         self.two_sided = any(spec.two_sided)
         if self.two_sided and self.method is not None:
             self._build_back_method(type(self.method), order, device)
-        for m in (self.method, self.back_method):
-            if hasattr(m, "stop_when_dark"):  # every row it computes is filled where buried (update, update_back)
-                m.stop_when_dark(buried_dc())
+        for m, near_first in ((self.method, False), (self.back_method, True)):
+            # every row it computes is filled where buried (update, update_back); a back side mostly lies on
+            # what it faces (most of its receivers buried), a front mostly not
+            if hasattr(m, "stop_when_dark"):
+                m.stop_when_dark(buried_dc(), near_first=near_first)
         if reuse is not None:  # temporal reuse (warpshade.visibility.reuse), both sides alike
             from ..visibility.reuse import with_reuse
 

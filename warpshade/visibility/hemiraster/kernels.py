@@ -234,6 +234,9 @@ class Batch:
     """It stops once the summed ``dark`` shares of its free pixels are at most this."""
     dark: wp.array[float]
     """Per mask bit, its share of the transfer's DC coefficient (0 for invalid bits), shape (64 W,)."""
+    near_first: int
+    """1: with the stop, the refined blockers' fine triangles are queued before the far field
+    (:func:`refined_first`)."""
     halt: wp.array[wp.int32]
     """Per slot, the current receiver's stop state: -1 no stop, 0 running, 1 stopped (its later
     triangles are neither rasterized nor counted), shape (slots,)."""
@@ -1768,9 +1771,9 @@ def rasterize_masks(
             nb = push_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, -1, False, 0.0, 0, nb, v, sl, frame, lut,
                                mask, bt)
         # far field: coarse blockers, replaced by their fine triangles near the receiver; with the early
-        # stop (Batch.halt) those fine triangles first: the near field is what buries a receiver
+        # stop (Batch.halt) and near_first those fine triangles first: the near field is what buries a receiver
         fine_first = int(0)
-        if bt.halt[sl] == 0 and groups.use_set != 0 and mids.on == 0 and use_pvs == 0:
+        if bt.halt[sl] == 0 and bt.near_first != 0 and groups.use_set != 0 and mids.on == 0 and use_pvs == 0:
             fine_first = 1
             nb = refined_first(v, sl, p, n, fine, groups, blockers, use_cull, cluster_start, cluster_lo, cluster_hi,
                                super_start, super_lo, super_hi, frame, lut, mask, bt, nb, part, st)

@@ -600,7 +600,7 @@ class HemirasterTransfer(TransferMethod):
         self._batch.fine_flag = wp.zeros((ns, nq), dtype=wp.int32, device=d)
         self._batch.counts = self._counts
         self._batch.refined = self._refined
-        self._batch.stop_free, self._batch.stop_dc = -1, 0.0
+        self._batch.stop_free, self._batch.stop_dc, self._batch.near_first = -1, 0.0, 0
         self._batch.dark = wp.zeros(1, dtype=float, device=d)
         self._batch.halt = wp.zeros(ns, dtype=wp.int32, device=d)
         self._all = wp.array(np.arange(nv, dtype=np.int32), dtype=wp.int32, device=d)
@@ -693,7 +693,7 @@ class HemirasterTransfer(TransferMethod):
         }
 
     # -- per frame ---------------------------------------------------------------------------
-    def stop_when_dark(self, dc: float) -> int:
+    def stop_when_dark(self, dc: float, near_first: bool = False) -> int:
         """Let each receiver stop rasterizing once its transfer's DC coefficient is certainly at most ``dc``
         (absolute): once the DC shares of the pixels still free in its mask sum to at most ``dc`` less an
         allowance for float32 rounding. Blockers only ever block more pixels, so a receiver that stops has
@@ -703,6 +703,12 @@ class HemirasterTransfer(TransferMethod):
         the stop. For callers that overwrite every row whose DC is at most ``dc``
         (:func:`warpshade.pipeline.shading.fill_buried`). Diffuse mode without ``interpolate`` only (that
         reads its computed neighbours' rows); otherwise, or with ``dc`` 0, nothing stops.
+
+        ``near_first``: queue the fine triangles of the refined blockers (the near field, which is what
+        buries a receiver) before the coarse far field, so that a buried receiver stops before the far
+        field (the same triangles in another order: the same masks and counts where nothing stops). It
+        pays where most receivers are buried (an underside lying on what it faces), and costs the
+        extra pass over the clusters elsewhere (figures: docs/benchmarks/index.md).
 
         Returns the most free pixels a receiver can stop with (-1: none)."""
         free, limit = -1, 0.0
@@ -718,6 +724,7 @@ class HemirasterTransfer(TransferMethod):
             limit -= max(free, 0) * float(np.finfo(np.float32).eps) * float(shares[-1]) * 2
             self._batch.dark = wp.array(self._pixel_dc.astype(np.float32), dtype=float, device=self.device)
         self._batch.stop_free, self._batch.stop_dc = free, float(limit)
+        self._batch.near_first = int(bool(near_first) and free >= 0)
         return free
 
     def _follow(self) -> None:
