@@ -138,3 +138,26 @@ def test_back_of_a_sheet_lying_on_the_floor_is_filled_from_its_rim(monkeypatch):
     assert buried[px < 1.01].all() and not buried[px > 1.7].any()
     assert np.array_equal(t1[~buried], t0[~buried]) and np.array_equal(c1[~buried], c0[~buried])
     assert np.all(t1[buried, 0] >= t0[~buried, 0].min())  # means of the rim's values, none black
+
+
+def test_the_early_stop_leaves_the_output_as_it_was(runs, monkeypatch):
+    """The pipeline lets hemiraster stop rasterizing at receivers it will fill anyway
+    (``stop_when_dark``): the output is the same bit for bit as without the stop, which did stop somewhere."""
+    from warpshade.visibility.hemiraster.method import HemirasterTransfer
+
+    calls = []
+    stop_when_dark = HemirasterTransfer.stop_when_dark
+    monkeypatch.setattr(HemirasterTransfer, "stop_when_dark",
+                        lambda self, dc, near_first=False: calls.append(stop_when_dark(self, dc, near_first)) or calls[-1])
+    sc = Scene(objects=[SceneObject("ground", ground_mesh(), method="hemiraster"),
+                        SceneObject("box", box_mesh(), method="hemiraster")],
+               frames=1, lights=[LightSpec("dome", "sky")])
+    pipe = Pipeline(sc, order=3, write_transfer=True)
+    out = pipe.shader.build()(0, {})
+    monkeypatch.undo()
+    assert calls and all(c >= 1 for c in calls)  # the stop was on
+    monkeypatch.setattr(HemirasterTransfer, "stop_when_dark", lambda self, dc, near_first=False: -1)
+    plain = Pipeline(sc, order=3, write_transfer=True).shader.build()(0, {})
+    for k in ("ground", "box"):
+        for a, b in zip(out[k], plain[k]):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))

@@ -33,14 +33,19 @@ the cosine-weighted disk) being 1.2e-3 of the unoccluded DC; 5e-3 is four such p
 method's default 1024 rays, and a colour under 0.5 % of the unoccluded one, black to the eye either way."""
 
 
+def buried_dc() -> float:
+    """The DC coefficient at or below which a vertex is buried: :data:`BURIED` times the DC of the clamped
+    cosine lobe (any normal, :mod:`warpshade.sh.zonal`)."""
+    return BURIED * (np.sqrt(np.pi) / 2)
+
+
 def fill_buried(transfer: np.ndarray, edges: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
     """``transfer`` (V, N*N) with its :data:`BURIED` rows (among the rows where the (V,) bool ``among`` is
     true, default all) given their non-buried
     neighbours' transfer over the mesh ``edges`` (:func:`~warpshade.geometry.mesh.fill_from_neighbours`):
     a buried vertex is black, and the triangles it shares with visible vertices would show a dark fringe
     around whatever buries it. Other rows are unchanged; a part with no non-buried vertex keeps its own."""
-    unoccluded = np.sqrt(np.pi) / 2  # DC of the clamped cosine lobe, any normal (warpshade.sh.zonal)
-    buried = transfer[:, 0] <= BURIED * unoccluded
+    buried = transfer[:, 0] <= buried_dc()
     if among is not None:
         buried &= among
     if not buried.any():
@@ -120,6 +125,11 @@ class _Group:
         self.two_sided = any(spec.two_sided)
         if self.two_sided and self.method is not None:
             self._build_back_method(type(self.method), order, device)
+        for m, near_first in ((self.method, False), (self.back_method, True)):
+            # every row it computes is filled where buried (update, update_back); a back side mostly lies on
+            # what it faces (most of its receivers buried), a front mostly not
+            if hasattr(m, "stop_when_dark"):
+                m.stop_when_dark(buried_dc(), near_first=near_first)
         if reuse is not None:  # temporal reuse (warpshade.visibility.reuse), both sides alike
             from ..visibility.reuse import with_reuse
 
@@ -615,5 +625,5 @@ def back_key(name: str) -> tuple:
     return ("back", name)
 
 
-__all__ = ["BACK_PASS_WITH_OCCLUDERS", "BURIED", "PROBE_RECEIVERS", "probe_transfer", "TWO_SIDED_MODES", "GroupSpec", "SceneShader", "back_key", "back_side_receivers", "fill_buried", "flipped", "group_objects", "is_two_sided",
+__all__ = ["BACK_PASS_WITH_OCCLUDERS", "BURIED", "buried_dc", "PROBE_RECEIVERS", "probe_transfer", "TWO_SIDED_MODES", "GroupSpec", "SceneShader", "back_key", "back_side_receivers", "fill_buried", "flipped", "group_objects", "is_two_sided",
            "unoccluded_transfer"]

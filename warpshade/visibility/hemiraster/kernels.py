@@ -227,6 +227,19 @@ class Batch:
     """Triangles rasterized per receiver (not culled by the exact tests), shape (V,)."""
     refined: wp.array[wp.int32]
     """Fine triangles of refined blockers queued per receiver (not incident, image not tiny), shape (V,)."""
+    stop_free: int
+    """A receiver may stop rasterizing only while at most this many valid pixels of its mask are free
+    (-1: never; :meth:`.method.HemirasterTransfer.stop_when_dark`)."""
+    stop_dc: float
+    """It stops once the summed ``dark`` shares of its free pixels are at most this."""
+    dark: wp.array[float]
+    """Per mask bit, its share of the transfer's DC coefficient (0 for invalid bits), shape (64 W,)."""
+    near_first: int
+    """1: with the stop, the refined blockers' fine triangles are queued before the far field
+    (:func:`refined_first`)."""
+    halt: wp.array[wp.int32]
+    """Per slot, the current receiver's stop state: -1 no stop, 0 running, 1 stopped (its later
+    triangles are neither rasterized nor counted), shape (slots,)."""
 
 
 @wp.struct
@@ -585,8 +598,12 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
     (:class:`MaskChunk`), the valid-pixel AND is applied once, and the mask row is updated once per
     chunk (whole chunks, no branch; docs/benchmarks/history.md has what this replaced).
     """
+    if bt.halt[sl] > 0:
+        return 0
     done = batch_codes(bt.a, bt.b, bt.c, bt.area, bt.fine_flag, bt.src, bt.codes, bt.refined, v, sl, nb, frame,
                        lut.backface, lut.res)
+    counting = bt.halt[sl] == 0
+    free = int(0)
     for ch in range(lut.chunks):
         acc = MaskChunk()
         if bt.record == 0:
@@ -602,11 +619,26 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
                 src = bt.src[sl, k]
                 if src >= 0 and chunk_any(m & lut.valid[ch]):
                     bt.hits[v, src >> 5] = bt.hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
-        acc = acc & lut.valid[ch]
+        valid = lut.valid[ch]
+        acc = acc & valid
         for i in range(wp.min(CHUNK_WORDS, lut.words - ch * CHUNK_WORDS)):
             w = ch * CHUNK_WORDS + i
-            mask[v, w] = mask[v, w] | acc[i]
+            word = mask[v, w] | acc[i]
+            mask[v, w] = word
+            if counting:
+                free += wp.bit_count(valid[i] & ~word)
     bt.counts[v] = bt.counts[v] + done
+    if counting and free <= bt.stop_free:
+        # few pixels free: stop when their DC shares sum to at most stop_dc
+        dc = float(0.0)
+        for w in range(lut.words):
+            x = lut.valid[w // CHUNK_WORDS][w % CHUNK_WORDS] & ~mask[v, w]
+            while x != wp.uint64(0):
+                k = wp.bit_count((x & (~x + wp.uint64(1))) - wp.uint64(1))
+                x = x & (x - wp.uint64(1))
+                dc += bt.dark[w * 64 + k]
+        if dc <= bt.stop_dc:
+            bt.halt[sl] = 1
     return 0
 
 
@@ -1291,7 +1323,7 @@ def queue_fine_set(
         level.listed[sl, u] = MaskChunk()
         for i in range(CHUNK_WORDS):
             base = (u * CHUNK_WORDS + i) * 64
-            x = chunk[i]
+            x = wp.where(bt.halt[sl] > 0, zero, chunk[i])  # a stopped receiver only clears the set
             keep = zero
             while x != zero:
                 k = lowest_bit(x)
@@ -1331,7 +1363,13 @@ def rasterize_fine_set(
     """Queue the fine triangles of the refined blockers the far-field pass visited (the set of
     :func:`listed_set`), as :func:`rasterize_group` would blocker by blocker, without walking the
     groups' lists or a rasterized-once table (:func:`queue_fine_set`); returns the queue length.
-    ``part`` 1 stores the set in ``st.listed``, 2 leaves out what is stored there (:class:`StaticPart`)."""
+    ``part`` 1 stores the set in ``st.listed``, 2 leaves out what is stored there (:class:`StaticPart`).
+    A stopped receiver (``bt.halt``) only clears the set."""
+    if bt.halt[sl] > 0:
+        clear_visited(sl, groups)
+        for u in range(groups.listed.shape[1]):
+            groups.listed[sl, u] = MaskChunk()
+        return nb
     listed_set(sl, blockers, groups)
     clear_visited(sl, groups)
     if part == 1:
@@ -1476,6 +1514,27 @@ def lowest_bit(x: wp.uint64) -> int:
 
 
 @wp.func(inline=True)
+def visit_refined(x: wp.uint64, t0: int, sl: int, groups: Refinement):
+    """Mark the refined blockers ``t0 + k`` of the bits ``k`` of ``x`` visited and list their groups'
+    triangles in the slot's set (:func:`listed_set`)."""
+    while x != wp.uint64(0):
+        t = t0 + lowest_bit(x)
+        x = x & (x - wp.uint64(1))
+        groups.visited[sl, t >> 6] = groups.visited[sl, t >> 6] | (wp.uint64(1) << wp.uint64(t & 63))
+        list_cover(groups, sl, t)
+
+
+@wp.func(inline=True)
+def refined_bits(t0: int, t1: int, sl: int, blockers: Blockers, part: int, st: StaticPart) -> wp.uint64:
+    """Bits of the refined blockers among ``t0 .. t1-1`` (at most 64; ``part`` as :func:`rasterize_far_chunk`)."""
+    x = slot_bits(blockers.refined, sl, t0, t1)
+    if part != 0:
+        sb = slot_bits(st.blockers, 0, t0, t1)
+        x = x & wp.where(part == 1, sb, ~sb)
+    return x
+
+
+@wp.func(inline=True)
 def rasterize_far_chunk(
     t0: int,
     t1: int,
@@ -1497,12 +1556,14 @@ def rasterize_far_chunk(
     nb: int,
     part: int,
     st: StaticPart,
+    fine_done: int,
 ) -> int:
     """Far-field blockers ``t0 .. t1-1`` (at most :data:`FAR_CHUNK`, consecutive; the PVS path passes
     one at a time): each is rasterized itself, or replaced by its fine triangles near the receiver
     (:func:`rasterize_group`). Returns the receiver's queue length. ``part`` 1: only the blockers of
     ``st.blockers``, 2: only the others, 0: all (:class:`StaticPart`; a refined blocker left out counts as
-    not visited).
+    not visited; ``fine_done`` 1: the refined blockers were handled before the far field, by
+    :func:`refined_first`, and are left out here).
 
     First a branch-free pass over all of them classifies each from per-frame data alone: dropped
     (near-field exclusion of the paper scheme), refined (the receiver's bits, :func:`mark_refined`),
@@ -1526,7 +1587,7 @@ def rasterize_far_chunk(
             cull = cull | wp.where(skip_early(pln, sph, p, n, lut.backface, lut.rim), bit, zero)
             if lut.min_area > 0.0:  # the same for every blocker: predicted
                 tiny = tiny | wp.where(bounds_below(pln, sph, blockers.nlen[t], p, n, lut.min_area), bit, zero)
-    refine_bits = slot_bits(blockers.refined, sl, t0, t1)
+    refine_bits = refined_bits(t0, t1, sl, blockers, part, st)
     ex = zero
     if use_excl == 1:
         # near-field exclusion bits of the paper scheme (no refinement): dropped
@@ -1537,27 +1598,69 @@ def rasterize_far_chunk(
         keep = keep & ((wp.uint64(1) << wp.uint64(t1 - t0)) - wp.uint64(1))
     if part != 0:
         sb = slot_bits(st.blockers, 0, t0, t1)
-        sel = wp.where(part == 1, sb, ~sb)
-        keep = keep & sel
-        refine_bits = refine_bits & sel
-    while refine_bits != wp.uint64(0):
-        k = lowest_bit(refine_bits)
-        refine_bits = refine_bits & (refine_bits - wp.uint64(1))
-        if groups.use_set != 0 and bt.record == 0:
-            # queued with the other visited ones' after the far field (:func:`rasterize_mid_set`,
-            # :func:`rasterize_fine_set`)
-            t = t0 + k
-            groups.visited[sl, t >> 6] = groups.visited[sl, t >> 6] | (wp.uint64(1) << wp.uint64(t & 63))
-            list_cover(groups, sl, t)
-        elif mids.on != 0:
-            nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
-        else:
-            nb = rasterize_group(t0 + k, v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb)
+        keep = keep & wp.where(part == 1, sb, ~sb)
+    if groups.use_set != 0 and bt.record == 0:
+        # queued with the other visited ones' after the far field (:func:`rasterize_mid_set`,
+        # :func:`rasterize_fine_set`), or before it (``fine_done``)
+        if fine_done == 0:
+            visit_refined(refine_bits, t0, sl, groups)
+    else:
+        while refine_bits != wp.uint64(0):
+            k = lowest_bit(refine_bits)
+            refine_bits = refine_bits & (refine_bits - wp.uint64(1))
+            if mids.on != 0:
+                nb = rasterize_mid_group(t0 + k, v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
+            else:
+                nb = rasterize_group(t0 + k, v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb)
     while keep != wp.uint64(0):
         k = lowest_bit(keep)
         keep = keep & (keep - wp.uint64(1))
         nb = queue_blocker(t0 + k, v, sl, p, blockers, frame, lut, mask, bt, nb)
     return nb
+
+
+@wp.func(inline=True)
+def refined_first(
+    v: int,
+    sl: int,
+    p: wp.vec3,
+    n: wp.vec3,
+    fine: FineMesh,
+    groups: Refinement,
+    blockers: Blockers,
+    use_cull: int,
+    cluster_start: wp.array[wp.int32],
+    cluster_lo: wp.array[wp.vec3],
+    cluster_hi: wp.array[wp.vec3],
+    super_start: wp.array[wp.int32],
+    super_lo: wp.array[wp.vec3],
+    super_hi: wp.array[wp.vec3],
+    frame: wp.mat33,
+    lut: PlaneLut,
+    mask: wp.array2d[wp.uint64],
+    bt: Batch,
+    nb: int,
+    part: int,
+    st: StaticPart,
+) -> int:
+    """Queue the fine triangles of the refined blockers the far-field pass would visit (those of the
+    clusters reaching above the tangent plane with ``use_cull``, else all; ``part`` as
+    :func:`rasterize_far_chunk`) before that pass, as :func:`rasterize_fine_set` does after it; returns the
+    queue length. The same set, so the same images and counts in another order."""
+    if use_cull != 0:
+        offset = wp.dot(n, p)
+        for s in range(super_start.shape[0] - 1):
+            if box_above_plane(super_lo[s], super_hi[s], n, offset):
+                for c in range(super_start[s], super_start[s + 1]):
+                    if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
+                        for t0 in range(cluster_start[c], cluster_start[c + 1], FAR_CHUNK):
+                            t1 = wp.min(t0 + FAR_CHUNK, cluster_start[c + 1])
+                            visit_refined(refined_bits(t0, t1, sl, blockers, part, st), t0, sl, groups)
+    else:
+        for t0 in range(0, blockers.faces.shape[0], FAR_CHUNK):
+            t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
+            visit_refined(refined_bits(t0, t1, sl, blockers, part, st), t0, sl, groups)
+    return rasterize_fine_set(v, sl, p, n, fine, groups, blockers, frame, lut, mask, bt, nb, part, st)
 
 
 @wp.kernel
@@ -1647,6 +1750,11 @@ def rasterize_masks(
         else:
             bt.counts[v] = 0
             refined[v] = 0
+        # the early stop (Batch.stop_free): not while recording a PVS or storing a static part, which
+        # later frames build on
+        bt.halt[sl] = -1
+        if bt.stop_free >= 0 and bt.record == 0 and part != 1:
+            bt.halt[sl] = 0
         mark_refined(v, sl, p, n, lut, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi,
                      cluster_reach)
         nb = int(0)
@@ -1662,28 +1770,40 @@ def rasterize_masks(
             k = fine.faces[t, 2]
             nb = push_triangle(fine.points[i] - p, fine.points[j] - p, fine.points[k] - p, -1, False, 0.0, 0, nb, v, sl, frame, lut,
                                mask, bt)
-        # far field: coarse blockers, replaced by their fine triangles near the receiver
+        # far field: coarse blockers, replaced by their fine triangles near the receiver; with the early
+        # stop (Batch.halt) and near_first those fine triangles first: the near field is what buries a receiver
+        fine_first = int(0)
+        if bt.halt[sl] == 0 and bt.near_first != 0 and groups.use_set != 0 and mids.on == 0 and use_pvs == 0:
+            fine_first = 1
+            nb = refined_first(v, sl, p, n, fine, groups, blockers, use_cull, cluster_start, cluster_lo, cluster_hi,
+                               super_start, super_lo, super_hi, frame, lut, mask, bt, nb, part, st)
         offset = wp.dot(n, p)
         if use_pvs != 0:
             for r in range(pvs_start[v], pvs_start[v + 1]):
                 t = pvs_tris[r]
+                if bt.halt[sl] > 0:
+                    break
                 nb = rasterize_far_chunk(t, t + 1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame,
-                                         lut, mask, bt, nb, part, st)
+                                         lut, mask, bt, nb, part, st, 0)
         elif use_cull != 0:
             for s in range(super_start.shape[0] - 1):
                 if box_above_plane(super_lo[s], super_hi[s], n, offset):
                     for c in range(super_start[s], super_start[s + 1]):
                         if box_above_plane(cluster_lo[c], cluster_hi[c], n, offset):
                             for t0 in range(cluster_start[c], cluster_start[c + 1], FAR_CHUNK):
+                                if bt.halt[sl] > 0:
+                                    break
                                 t1 = wp.min(t0 + FAR_CHUNK, cluster_start[c + 1])
                                 nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl,
-                                                         frame, lut, mask, bt, nb, part, st)
+                                                         frame, lut, mask, bt, nb, part, st, fine_first)
         else:
             for t0 in range(0, blockers.faces.shape[0], FAR_CHUNK):
+                if bt.halt[sl] > 0:
+                    break
                 t1 = wp.min(t0 + FAR_CHUNK, blockers.faces.shape[0])
                 nb = rasterize_far_chunk(t0, t1, v, sl, p, n, fine, groups, sub, mids, blockers, use_excl, excl, frame, lut,
-                                         mask, bt, nb, part, st)
-        if groups.use_set != 0 and bt.record == 0:
+                                         mask, bt, nb, part, st, fine_first)
+        if groups.use_set != 0 and bt.record == 0 and fine_first == 0:
             if mids.on != 0:
                 nb = rasterize_mid_set(v, sl, p, n, fine, groups, sub, mids, blockers, frame, lut, mask, bt, nb)
             else:

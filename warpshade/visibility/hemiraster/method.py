@@ -299,6 +299,7 @@ class HemirasterTransfer(TransferMethod):
         if self.mode == "diffuse":
             pix = integrate.pixel_weights(blocks["weights"], blocks["valid"], pvalid, self.downsample)
             self._nibbles = wp.array(integrate.nibble_table(pix).astype(np.float32), dtype=vec_sh, device=d)
+            self._pixel_dc = pix[:, 0]  # per-pixel shares of the DC (stop_when_dark)
         else:
             self._block_weights = wp.array(blocks["weights"].astype(np.float32), dtype=vec_sh, device=d)
             self._block_valid = wp.array(blocks["valid"], dtype=wp.int32, device=d)
@@ -600,6 +601,9 @@ class HemirasterTransfer(TransferMethod):
         self._batch.fine_flag = wp.zeros((ns, nq), dtype=wp.int32, device=d)
         self._batch.counts = self._counts
         self._batch.refined = self._refined
+        self._batch.stop_free, self._batch.stop_dc, self._batch.near_first = -1, 0.0, 0
+        self._batch.dark = wp.zeros(1, dtype=float, device=d)
+        self._batch.halt = wp.zeros(ns, dtype=wp.int32, device=d)
         self._all = wp.array(np.arange(nv, dtype=np.int32), dtype=wp.int32, device=d)
         self._interp, self._redone = None, 0
         if self.interpolate > 0.0:
@@ -690,6 +694,40 @@ class HemirasterTransfer(TransferMethod):
         }
 
     # -- per frame ---------------------------------------------------------------------------
+    def stop_when_dark(self, dc: float, near_first: bool = False) -> int:
+        """Let each receiver stop rasterizing once its transfer's DC coefficient is certainly at most ``dc``
+        (absolute): once the DC shares of the pixels still free in its mask sum to at most ``dc`` less an
+        allowance for float32 rounding. Blockers only ever block more pixels, so a receiver that stops has
+        its full transfer's DC within ``dc`` too; the transfer written for it is the one of the mask so far
+        (more light than the full mask gives, still at most ``dc``), and the triangle counts of
+        :meth:`stats` count only what was rasterized. Every other receiver is computed exactly as without
+        the stop. For callers that overwrite every row whose DC is at most ``dc``
+        (:func:`warpshade.pipeline.shading.fill_buried`). Diffuse mode without ``interpolate`` only (that
+        reads its computed neighbours' rows); otherwise, or with ``dc`` 0, nothing stops.
+
+        ``near_first``: queue the fine triangles of the refined blockers (the near field, which is what
+        buries a receiver) before the coarse far field, so that a buried receiver stops before the far
+        field (the same triangles in another order: the same masks and counts where nothing stops). It
+        pays where most receivers are buried (an underside lying on what it faces), and costs the
+        extra pass over the clusters elsewhere (figures: docs/benchmarks/index.md).
+
+        Returns the most free pixels a receiver can stop with (-1: none)."""
+        free, limit = -1, 0.0
+        if self.mode == "diffuse" and self.interpolate == 0.0 and dc > 0.0:
+            # the local DC of a mask is the unoccluded DC minus the blocked pixels' shares summed in
+            # float32 (one term per nibble, .integrate), then rotated to world (exact for band 0 but for
+            # rounding): allow each term a rounding of the unoccluded DC's ulp, and 1e-3 relative
+            terms = self._words * 16 + 1
+            limit = dc - terms * float(np.finfo(np.float32).eps) * float(self._unoccluded[0]) - 1e-3 * dc
+            shares = np.sort(self._pixel_dc[self._pixel_dc > 0.0])
+            free = int(np.searchsorted(np.cumsum(shares), limit, side="right")) if limit > 0.0 else -1
+            # the kernel sums in float32: the limit lowered by that sum's rounding too
+            limit -= max(free, 0) * float(np.finfo(np.float32).eps) * float(shares[-1]) * 2
+            self._batch.dark = wp.array(self._pixel_dc.astype(np.float32), dtype=float, device=self.device)
+        self._batch.stop_free, self._batch.stop_dc = free, float(limit)
+        self._batch.near_first = int(bool(near_first) and free >= 0)
+        return free
+
     def _follow(self) -> None:
         if self._bind is not None:
             wp.launch(follow_coarse_points, dim=self._bpoints.shape[0], inputs=[self._spoints, self._sfaces, *self._bind],
