@@ -2,13 +2,21 @@
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
+import tempfile
 
 import numpy as np
 import pytest
 import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
+
+# the disk cache (warpshade._cache) of this test process: its own empty directory, so no test reads the
+# user's cache or leaves entries there (subprocesses and workers inherit it)
+os.environ["WARPSHADE_CACHE"] = tempfile.mkdtemp(prefix="warpshade-test-cache-")
+atexit.register(shutil.rmtree, os.environ["WARPSHADE_CACHE"], ignore_errors=True)
 
 WARP_ASSETS = os.path.join(os.path.dirname(wp.__file__), "examples", "assets")
 

@@ -20,6 +20,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "warpshade"
 # or of lower layers only:
 #   _version: the package version, imports nothing; _startup: the command's Ctrl-C guard, stdlib only;
 #   _atomic: write-then-rename file replacement (every atomic write), stdlib only;
+#   _cache: the per-user disk cache of derived arrays (hemiraster's far field and LUT), numpy and _atomic only;
 #   scene: the scene description (lights, materials, objects) the pipeline consumes; it needs
 #     only geometry;
 #   radiance: lights · transfer · BRDF, above visibility;
@@ -30,7 +31,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "warpshade"
 # usd and bench sit above pipeline/planner (the USD boundary reads scenes into and writes runs out
 # of the pipeline's types; the bench drives the methods); the CLI and the facade are on top.
 LAYERS = [
-    {"sh", "geometry", "_version", "_startup", "_atomic"},
+    {"sh", "geometry", "_version", "_startup", "_atomic", "_cache"},
     {"lighting", "sim", "scene"},
     {"visibility"},
     {"radiance", "parallel", "preview"},

@@ -1,11 +1,11 @@
-"""``warpshade info``: versions, Warp devices and the kernel cache location."""
+"""``warpshade info``: versions, Warp devices, the kernel cache and warpshade's own disk cache."""
 
 from __future__ import annotations
 
 import json
 import platform
 
-HELP = "print versions, Warp devices and the kernel cache location"
+HELP = "print versions, Warp devices, the kernel cache and warpshade's disk cache location"
 
 
 def add_arguments(parser) -> None:
@@ -16,7 +16,7 @@ def collect() -> dict:
     import numpy
     import warp as wp
 
-    from .. import __version__
+    from .. import __version__, _cache
     from ..usd import usd_version
 
     wp.init()
@@ -30,6 +30,8 @@ def collect() -> dict:
         "devices": [str(d) for d in wp.get_devices()],
         "preferred_device": str(wp.get_preferred_device()),
         "kernel_cache": wp.config.kernel_cache_dir,
+        # warpshade._cache.root(): hemiraster's far fields and plane LUTs, spheres' log tables; "off" with WARPSHADE_CACHE=none
+        "cache": _cache.root() or "off",
     }
 
 

@@ -22,7 +22,7 @@ import warp as wp
 from ...geometry.mesh import TriMesh, closed_orientation
 from ..base import TransferMethod
 from ..knobs import Knob
-from . import hierarchy, integrate, tables
+from . import cache, hierarchy, integrate, tables
 from .kernels import (CANDIDATES, PRECULL_BLOCKERS, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement,
                       StaticPart, follow_coarse_points, rasterize_masks, raise_deviation, refit_blocker_boxes, triangle_bounds,
                       union_boxes, union_child_boxes)
@@ -120,7 +120,8 @@ class HemirasterTransfer(TransferMethod):
         mode: ``"diffuse"`` (docs/conventions.md §2) or ``"glossy"`` (eq. 3 with a normalised Phong lobe).
         view: Glossy mode: unit direction towards the viewer, world space (distant viewer).
         phong: Glossy mode: Phong exponent e of ``(e+2)/(2π) cos^e α``.
-        lut_dir: Optional directory caching the LUT on disk between processes.
+        lut_dir: Root of the disk cache for the plane LUT (None: the per-user cache of :mod:`warpshade._cache`,
+            where the coarse far field is kept too; ``WARPSHADE_CACHE=none`` turns it off).
         pvs_frames: Optional recorded animation, shape (T, V, 3): builds a potentially-visible set
             (blocker triangles that set a bit in any frame) and rasterizes only those.
         min_image: Skip coarse far-field triangles whose projected solid angle (an upper bound from
@@ -191,7 +192,7 @@ class HemirasterTransfer(TransferMethod):
              choices=("diffuse", "glossy")),
         Knob("view", "vec3", "glossy: direction towards the viewer x,y,z (world)"),
         Knob("phong", float, "glossy: Phong exponent", minimum=0.0),
-        Knob("lut_dir", str, "directory caching the plane LUT on disk", nullable=True),
+        Knob("lut_dir", str, "another directory for the plane LUT's disk cache (default: $WARPSHADE_CACHE)", nullable=True),
         Knob("min_image", float, "skip far-field triangles whose image is smaller than this many mask pixels "
                                  "(0: exact; a draped cloth wants 0)", minimum=0.0),
         Knob("redecimate", float, "rebuild the coarse far field from the current pose when its deviation from the "
@@ -340,7 +341,7 @@ class HemirasterTransfer(TransferMethod):
         far = None
         self._mid_bind = None
         if self.hierarchy:
-            far = hierarchy.far_field([(q.astype(np.float64), f) for q, f in parts], targets, mid_targets, self.border)
+            far = cache.far_field([(q.astype(np.float64), f) for q, f in parts], targets, mid_targets, self.border)
             cpts, block_faces = far["points"], far["faces"]
             self._near_mode = 0  # 0: none, 1: exclusion bits (paper scheme), 2: forced refinement bits
             if self.ring:

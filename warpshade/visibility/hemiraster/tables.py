@@ -30,13 +30,12 @@ with visible fraction ``f_b`` (visible valid pixels / valid pixels) contributes 
 from __future__ import annotations
 
 import functools
-import os
 import time
 
 import numpy as np
 import warp as wp
 
-from ..._atomic import replace_atomically
+from ... import _cache
 from ...geometry.polygons import projected_solid_angle_np  # noqa: F401  (moved to geometry; re-exported)
 from ...sh.basis import sh_eval
 
@@ -200,13 +199,20 @@ _LUT_CACHE: dict[tuple[int, int], np.ndarray] = {}
 _LUT_BUILD_SECONDS: dict[tuple[int, int], float] = {}
 
 
+LUT_KIND = "hemiraster_lut"
+"""Subdirectory of the disk cache (:mod:`warpshade._cache`) holding plane LUTs."""
+
+
 def build_lut(mask: int, lut: int, cache_dir: str | None = None, device: str = "cpu") -> tuple[np.ndarray, float, str]:
-    """The plane LUT for ``(mask, lut)``: from memory, else from ``cache_dir``, else built with Warp.
+    """The plane LUT for ``(mask, lut)``: from memory, else from the disk cache, else built with Warp (and
+    stored there).
 
     Args:
         mask: Mask resolution M.
         lut: Cube-map resolution R (>= 2).
-        cache_dir: Optional directory for ``hemiraster_lut_v3_M{M}_R{R}.npy`` files.
+        cache_dir: Root of the disk cache to use; None: the per-user cache (:func:`warpshade._cache.root`,
+            off with ``WARPSHADE_CACHE=none``). The entry is keyed by M, R, this file's source and
+            the Warp version; an unreadable entry or an unwritable directory means building as without it.
         device: Warp device that builds it (the table is returned on the host either way).
 
     Returns:
@@ -219,23 +225,20 @@ def build_lut(mask: int, lut: int, cache_dir: str | None = None, device: str = "
     if key in _LUT_CACHE:
         return _LUT_CACHE[key], _LUT_BUILD_SECONDS[key], "memory"
     t0 = time.perf_counter()
-    path = os.path.join(cache_dir, f"hemiraster_lut_v3_M{mask}_R{lut}.npy") if cache_dir else None
-    table, source = None, "built"
-    if path and os.path.isfile(path):
-        loaded = np.load(path)
-        if loaded.shape == (6 * lut * lut, words_per_mask(mask)) and loaded.dtype == np.uint64:
-            table, source = loaded, "disk"
+    shape = (6 * lut * lut, words_per_mask(mask))
+    disk_key = _cache.Key("plane lut 1", _cache.source_digest(__file__), wp.__version__, *key).hexdigest()
+    entry = _cache.load(LUT_KIND, disk_key, where=cache_dir,
+                        check=lambda a: set(a) == {"table"} and a["table"].shape == shape and a["table"].dtype == np.uint64)
+    table, source = (entry["table"], "disk") if entry is not None else (None, "built")
     if table is None:
         dirs, _ = pixel_directions(mask)
         normals = wp.array(cube_cell_normals(lut).astype(np.float32), dtype=wp.vec3, device=device)
-        out = wp.zeros((6 * lut * lut, words_per_mask(mask)), dtype=wp.uint64, device=device)
+        out = wp.zeros(shape, dtype=wp.uint64, device=device)
         wp.launch(fill_plane_lut, dim=out.shape[0],
                   inputs=[normals, wp.array(dirs.astype(np.float32), dtype=wp.vec3, device=device)],
                   outputs=[out], device=device)
         table = out.numpy()
-        if path:
-            os.makedirs(cache_dir, exist_ok=True)
-            replace_atomically(lambda tmp: np.save(tmp, table), path)
+        _cache.save(LUT_KIND, disk_key, {"table": table}, where=cache_dir)
     _LUT_CACHE[key] = table
     _LUT_BUILD_SECONDS[key] = time.perf_counter() - t0
     return table, _LUT_BUILD_SECONDS[key], source

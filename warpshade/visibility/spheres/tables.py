@@ -18,6 +18,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.polynomial import legendre
 
+from ... import _cache
 from ..._atomic import replace_atomically
 from ...sh.exp import ol_table, sh_exp, zh_log
 from ...sh.products import sh_product
@@ -163,11 +164,13 @@ def sh_exp_np(f, order, mode="hyb", tau=0.5):
     return out
 
 
-def _cache_path(name: str) -> str:
+def _cache_path(name: str) -> str | None:
+    """The file of table ``name`` in warpshade's disk cache root (:func:`warpshade._cache.root`); None when the
+    cache is off."""
     import os
 
-    root = os.environ.get("WARPSHADE_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "warpshade"))
-    return os.path.join(root, f"{name}.v{TABLES_VERSION}.npy")
+    root = _cache.root()
+    return None if root is None else os.path.join(root, f"{name}.v{TABLES_VERSION}.npy")
 
 
 @lru_cache(maxsize=None)
@@ -180,7 +183,8 @@ def log_blocker_table(order: int, mode: str = "hyb", tau: float = 0.5) -> np.nda
     linear) in a coefficient. Each entry is therefore refined by damped least squares against the
     host twin of the run-time exponential, ``min ||exp_mode(f) - B_θ||² + λ²||f - log(B_θ)||²``
     (λ = 1e-2, :data:`LOG_FIT_POINTS` radii, linear interpolation between them). Cached on disk
-    (``$WARPSHADE_CACHE`` or ``~/.cache/warpshade``) because the fit takes seconds.
+    (:func:`warpshade._cache.root`: ``$WARPSHADE_CACHE``, else the user cache directory) because the fit
+    takes seconds.
     """
     import os
 
@@ -193,7 +197,7 @@ def log_blocker_table(order: int, mode: str = "hyb", tau: float = 0.5) -> np.nda
     key = hashlib.sha1(ol.log_a.tobytes() + ol.c.tobytes() + repr((TABLE_SIZE, LOG_EPS, LOG_FIT_POINTS,
                                                                    LOG_FIT_REG, EXP_BLEND)).encode()).hexdigest()[:10]
     path = _cache_path(f"spheres_log_o{order}_{mode}_t{tau:g}_{key}")
-    if os.path.isfile(path):
+    if path is not None and os.path.isfile(path):
         table = np.load(path)
         if table.shape == (TABLE_SIZE, order):
             return table
@@ -209,8 +213,9 @@ def log_blocker_table(order: int, mode: str = "hyb", tau: float = 0.5) -> np.nda
     thetas = np.linspace(0.0, THETA_MAX, TABLE_SIZE)
     table = np.stack([np.interp(thetas, fit_t, fits[:, l]) for l in range(order)], axis=1)
     try:
-        os.makedirs(os.path.dirname(path), exist_ok=True)
-        replace_atomically(lambda tmp: np.save(tmp, table), path)
+        if path is not None:
+            os.makedirs(os.path.dirname(path), exist_ok=True)
+            replace_atomically(lambda tmp: np.save(tmp, table), path)
     except OSError:  # a read-only home only costs the fit again next time
         pass
     return table
