@@ -11,6 +11,7 @@ from ._startup import guard_startup
 guard_startup()  # Ctrl-C while the package loads, in the warpshade command: one line, exit code 130
 
 import importlib
+from typing import TYPE_CHECKING
 
 _LAZY = {
     "geometry": ("MeshError", "TriMesh"),
@@ -33,6 +34,25 @@ _LAZY = {
 """Submodule -> the public names it defines, each imported from there on first use."""
 
 _SOURCE = {name: module for module, names in _LAZY.items() for name in names}
+
+if TYPE_CHECKING:  # the same names for type checkers and the API docs (tests/test_package_names.py checks)
+    from . import script  # noqa: F401
+    from .geometry import MeshError, TriMesh  # noqa: F401
+    from .lighting import (ConstantEnvironment, DirectionalLight, EnvironmentMap, PointLight, RectLight, Sky,  # noqa: F401
+                           SphereLight, default_environment)
+    from .pipeline import Pipeline, RunConfig, RunReport, resolve_run  # noqa: F401
+    from .pipeline.area import AreaLightShading  # noqa: F401
+    from .planner import Plan, apply_plan, make_plan  # noqa: F401
+    from .radiance import exit_radiance, shade  # noqa: F401
+    from .scene import LightSpec, Material, Scene, SceneError, SceneObject  # noqa: F401
+    from .script import (box, capsule, cloth, cloth_grid, cone, cylinder, distant, dome, ground, make_scene, mesh, run,  # noqa: F401
+                         sky, sphere)
+    from .sh import n_coeffs, sh_eval  # noqa: F401
+    from .sim import (ClothBuilder, ClothControl, ClothModel, ClothState, ColliderSet, LBSSkinner, MeshCollider,  # noqa: F401
+                      SimulationError, WalkingFigure, XPBDSolver)
+    from .visibility import METHODS, REGISTRY, TransferMethod, VisibilityMethod, get_method  # noqa: F401
+    from .visibility.gears import AreaVisibilityMethod, LightRect, get_area_method  # noqa: F401
+    from .visibility.knobs import Knob  # noqa: F401
 
 __all__ = sorted([*_SOURCE, "__version__", "load_mesh", "script"])
 
