@@ -183,17 +183,10 @@ def main(argv=None) -> int:
                          "runs, else --repeat rounds of warm runs with one and two workers (no profile)")
     ap.add_argument("extra", nargs="*", help="more warpshade run options (after --)")
     args = ap.parse_args(argv)
-    if args.cold:
-        out = {**cold_rounds(args.cold, args.against, args.frames, args.extra),
-               "machine": "shared 2-core VM, other jobs running (loaded)"}
-        if args.json:
-            with open(args.json, "w") as f:
-                json.dump(out, f, indent=2)
-            print(f"wrote {args.json}")
-        return 0
-    if args.against:
-        out = {**warm_rounds(args.repeat, args.against, args.frames, args.extra),
-               "machine": "shared 2-core VM, other jobs running (loaded)"}
+    if args.cold or args.against:
+        rounds = (cold_rounds(args.cold, args.against, args.frames, args.extra) if args.cold
+                  else warm_rounds(args.repeat, args.against, args.frames, args.extra))
+        out = {**rounds, "machine": "shared 2-core VM, other jobs running (loaded)"}
         if args.json:
             with open(args.json, "w") as f:
                 json.dump(out, f, indent=2)

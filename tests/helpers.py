@@ -9,6 +9,7 @@ import os
 import numpy as np
 from pxr import Usd, UsdGeom
 
+from warpshade.geometry import TriMesh
 from warpshade.sh import sh_eval
 from warpshade.usd import AnimationWriter
 
@@ -137,3 +138,15 @@ def level_bounds(level_points, level_faces, fine_points, fine_faces, start, mid,
             want = max(want, outline[t])
         dev.append(want)
     return np.array(lo), np.array(hi), np.array(dev)
+
+
+def bumpy_grid(n=7, seed=0, name=None):
+    """An open n x n sheet with folds and noise (a seeded random bump per vertex)."""
+    rng = np.random.default_rng(seed)
+    x, y = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
+    z = 0.25 * np.sin(5 * x) * np.cos(4 * y) + 0.05 * rng.normal(size=x.shape)
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    points = np.stack([x, y, z], -1).reshape(-1, 3)
+    return TriMesh(points, faces) if name is None else TriMesh(points, faces, name=name)

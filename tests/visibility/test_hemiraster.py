@@ -11,7 +11,7 @@ import trimesh
 import warp as wp
 
 from conftest import warp_asset
-from helpers import rel_err, unoccluded_transfer
+from helpers import bumpy_grid, rel_err, unoccluded_transfer
 from warpshade.cli import main as cli_main
 from warpshade.geometry import TriMesh
 from warpshade.usd import load_mesh
@@ -246,14 +246,6 @@ def test_glossy_matches_quadrature_with_a_wall():
 
 
 # ------------------------------------------------------------------------------- reference rasterizer
-def bumpy_grid(n=7, seed=0):
-    rng = np.random.default_rng(seed)
-    x, y = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
-    z = 0.25 * np.sin(5 * x) * np.cos(4 * y) + 0.05 * rng.normal(size=x.shape)
-    idx = np.arange(n * n).reshape(n, n)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
-    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-    return TriMesh(np.stack([x, y, z], -1).reshape(-1, 3), faces)
 
 
 @pytest.mark.parametrize("mask", tables.MASK_SIZES)

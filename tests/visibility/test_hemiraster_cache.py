@@ -10,6 +10,7 @@ import warnings
 import numpy as np
 import pytest
 
+from helpers import bumpy_grid
 from warpshade import _cache
 from warpshade.geometry import TriMesh
 from warpshade.visibility import get_method
@@ -19,13 +20,7 @@ from warpshade.visibility.hemiraster import hierarchy, tables
 
 def wavy_sheet(n=14, seed=0):
     """An open sheet with folds: the far field (coarse 64 / mid 200 of its 338 triangles) has extras and an outline."""
-    rng = np.random.default_rng(seed)
-    x, y = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
-    z = 0.25 * np.sin(5 * x) * np.cos(4 * y) + 0.05 * rng.normal(size=x.shape)
-    idx = np.arange(n * n).reshape(n, n)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
-    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-    return TriMesh(np.stack([x, y, z], -1).reshape(-1, 3), faces, name="wavy")
+    return bumpy_grid(n, seed, name="wavy")
 
 
 KNOBS = dict(coarse=64, mid=200)
