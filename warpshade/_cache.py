@@ -95,6 +95,21 @@ class Key:
         return self._h.hexdigest()
 
 
+@functools.cache
+def versions(*dists: str) -> tuple:
+    """``"<distribution> <version>"`` of each installed distribution named (``"<name> ?"`` when it is not
+    installed): key parts for entries computed by those libraries, read without importing them."""
+    from importlib import metadata
+
+    out = []
+    for dist in dists:
+        try:
+            out.append(f"{dist} {metadata.version(dist)}")
+        except metadata.PackageNotFoundError:
+            out.append(f"{dist} ?")
+    return tuple(out)
+
+
 @functools.lru_cache(maxsize=None)
 def source_digest(path: str) -> str:
     """sha256 of a source file's bytes (a key part that changes whenever that code changes)."""
@@ -188,4 +203,4 @@ def _warn_once(what, message: str) -> None:
         warnings.warn(message, RuntimeWarning, stacklevel=3)
 
 
-__all__ = ["ENV", "Key", "MAX_BYTES", "OFF", "default_root", "load", "prune", "root", "save", "source_digest", "stats"]
+__all__ = ["ENV", "Key", "MAX_BYTES", "OFF", "default_root", "load", "prune", "root", "save", "source_digest", "stats", "versions"]

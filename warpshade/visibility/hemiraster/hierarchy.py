@@ -417,12 +417,12 @@ def ring_groups(ring_start: np.ndarray, ring_tris: np.ndarray, faces: np.ndarray
         shape (V, ceil(Fc/32)) uint32; bit t of row v set = refine coarse triangle t (original index).
     """
     nv = len(ring_start) - 1
-    vf = vertex_faces(faces, nv)
     nw = (num_coarse + 31) // 32
     bits = np.zeros((nv, nw * 32), dtype=bool)
-    for v in range(nv):
-        tris = np.concatenate([ring_tris[ring_start[v]:ring_start[v + 1]], vf[v]])
-        bits[v, owner[tris]] = True
+    # (receiver, fine triangle) pairs: its k-ring's triangles, and those incident to it
+    faces = np.asarray(faces, dtype=np.int64)
+    bits[np.repeat(np.arange(nv), np.diff(ring_start)), owner[ring_tris[:ring_start[-1]]]] = True
+    bits[faces.ravel(), owner[np.repeat(np.arange(len(faces)), faces.shape[1])]] = True
     words = bits.reshape(nv, nw, 32).astype(np.uint64) << np.arange(32, dtype=np.uint64)
     return words.sum(axis=-1, dtype=np.uint64).astype(np.uint32)
 
