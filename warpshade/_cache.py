@@ -102,6 +102,20 @@ def source_digest(path: str) -> str:
         return hashlib.sha256(f.read()).hexdigest()
 
 
+def versions(*dists: str) -> tuple[str, ...]:
+    """``"<distribution> <version>"`` of each installed distribution (``"<name> ?"`` when it is not installed):
+    key parts for entries whose arrays a library computes."""
+    from importlib import metadata
+
+    out = []
+    for dist in dists:
+        try:
+            out.append(f"{dist} {metadata.version(dist)}")
+        except metadata.PackageNotFoundError:
+            out.append(f"{dist} ?")
+    return tuple(out)
+
+
 def _path(kind: str, key: str, where: str | None) -> str | None:
     base = where if where is not None else root()
     return None if base is None else os.path.join(base, kind, f"{key}.npz")
@@ -188,4 +202,4 @@ def _warn_once(what, message: str) -> None:
         warnings.warn(message, RuntimeWarning, stacklevel=3)
 
 
-__all__ = ["ENV", "Key", "MAX_BYTES", "OFF", "default_root", "load", "prune", "root", "save", "source_digest", "stats"]
+__all__ = ["ENV", "Key", "MAX_BYTES", "OFF", "default_root", "load", "prune", "root", "save", "source_digest", "stats", "versions"]

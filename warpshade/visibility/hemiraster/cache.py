@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import functools
 import platform
-from importlib import metadata
 
 import numpy as np
 
@@ -33,14 +32,8 @@ _MID = _BASE + ("coarse_owner", "coarse_extra", "outline")
 
 @functools.lru_cache(maxsize=None)
 def _environment() -> tuple:
-    versions = []
-    for dist in ("numpy", "scipy", "fast-simplification"):
-        try:
-            versions.append(f"{dist} {metadata.version(dist)}")
-        except metadata.PackageNotFoundError:
-            versions.append(f"{dist} ?")
     return (FORMAT, _cache.source_digest(hierarchy.__file__), _cache.source_digest(_mesh_module.__file__),
-            platform.machine(), *versions)
+            platform.machine(), *_cache.versions("numpy", "scipy", "fast-simplification"))
 
 
 def far_field_key(parts, targets, mid_targets=None, border: bool = False) -> str:
