@@ -13,10 +13,14 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING  # no init banner or module-load lines
 
-# the disk cache (warpshade._cache) of this test process: its own empty directory, so no test reads the
-# user's cache or leaves entries there (subprocesses and workers inherit it)
-os.environ["WARPSHADE_CACHE"] = tempfile.mkdtemp(prefix="warpshade-test-cache-")
-atexit.register(shutil.rmtree, os.environ["WARPSHADE_CACHE"], ignore_errors=True)
+# the disk cache (warpshade._cache) of this test session: its own empty directory, so no test reads the
+# user's cache or leaves entries there. The session's first process makes it and removes it at exit; pytest-xdist
+# workers and subprocesses inherit it (the workers share its entries, e.g. the spheres' fitted log tables)
+if os.environ.get("PYTEST_XDIST_WORKER") and os.environ.get("WARPSHADE_TEST_SESSION_CACHE"):
+    os.environ["WARPSHADE_CACHE"] = os.environ["WARPSHADE_TEST_SESSION_CACHE"]
+else:
+    os.environ["WARPSHADE_CACHE"] = os.environ["WARPSHADE_TEST_SESSION_CACHE"] = tempfile.mkdtemp(prefix="warpshade-test-cache-")
+    atexit.register(shutil.rmtree, os.environ["WARPSHADE_CACHE"], ignore_errors=True)
 
 WARP_ASSETS = os.path.join(os.path.dirname(wp.__file__), "examples", "assets")
 
@@ -27,6 +31,18 @@ def warp_asset(name: str) -> str:
     if not os.path.isfile(path):
         pytest.fail(f"Warp asset {path} is missing: the warp-lang install is incomplete")
     return path
+
+
+@pytest.fixture
+def cache_root(tmp_path, monkeypatch):
+    """An empty disk-cache root (warpshade._cache) for one test, with the per-process counters and warnings reset."""
+    from warpshade import _cache
+
+    root = tmp_path / "cache"
+    monkeypatch.setenv(_cache.ENV, str(root))
+    _cache.stats.clear()
+    _cache._warned.clear()
+    return root
 
 
 @pytest.fixture

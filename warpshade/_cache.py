@@ -95,10 +95,16 @@ class Key:
         return self._h.hexdigest()
 
 
-@functools.cache
-def versions(*dists: str) -> tuple:
-    """``"<distribution> <version>"`` of each installed distribution named (``"<name> ?"`` when it is not
-    installed): key parts for entries computed by those libraries, read without importing them."""
+@functools.lru_cache(maxsize=None)
+def source_digest(path: str) -> str:
+    """sha256 of a source file's bytes (a key part that changes whenever that code changes)."""
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def versions(*dists: str) -> tuple[str, ...]:
+    """``"<distribution> <version>"`` of each installed distribution (``"<name> ?"`` when it is not installed):
+    key parts for entries whose arrays a library computes."""
     from importlib import metadata
 
     out = []
@@ -108,13 +114,6 @@ def versions(*dists: str) -> tuple:
         except metadata.PackageNotFoundError:
             out.append(f"{dist} ?")
     return tuple(out)
-
-
-@functools.lru_cache(maxsize=None)
-def source_digest(path: str) -> str:
-    """sha256 of a source file's bytes (a key part that changes whenever that code changes)."""
-    with open(path, "rb") as f:
-        return hashlib.sha256(f.read()).hexdigest()
 
 
 def _path(kind: str, key: str, where: str | None) -> str | None:

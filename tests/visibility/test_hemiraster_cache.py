@@ -26,15 +26,6 @@ def wavy_sheet(n=14, seed=0):
 KNOBS = dict(coarse=64, mid=200)
 
 
-@pytest.fixture
-def cache_root(tmp_path, monkeypatch):
-    root = tmp_path / "cache"
-    monkeypatch.setenv(_cache.ENV, str(root))
-    _cache.stats.clear()
-    _cache._warned.clear()
-    return root
-
-
 def counts(kind=hr_cache.KIND):
     return {what: _cache.stats[kind, what] for what in ("hit", "miss", "write", "bad")}
 

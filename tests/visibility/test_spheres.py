@@ -404,3 +404,31 @@ def test_reflection_per_vertex_albedo():
         (e_near_black, e_far_black)
     with pytest.raises(ValueError, match="albedo"):
         refl.update(WHITE_SKY, [np.ones((5, 3))])
+
+
+def test_log_tables_from_the_disk_cache(cache_root):
+    """The fitted log tables (seconds of least squares) are stored in warpshade's disk cache: a second process
+    (here: the in-process cache cleared) reads back the fitted array bit for bit, a damaged entry is refitted
+    with one warning, and another exponential is another entry."""
+    from warpshade import _cache
+    from warpshade.visibility.spheres import tables
+
+    def fresh(order=3, mode="hyb"):
+        tables.log_blocker_table.cache_clear()
+        return tables.log_blocker_table(order, mode)
+
+    def counts():
+        return {w: _cache.stats[tables.CACHE_KIND, w] for w in ("hit", "miss", "write", "bad")}
+
+    first = fresh()
+    assert counts() == {"hit": 0, "miss": 1, "write": 1, "bad": 0}
+    (entry,) = (cache_root / tables.CACHE_KIND).iterdir()
+    again = fresh()
+    assert counts()["hit"] == 1 and again.tobytes() == first.tobytes()
+    entry.write_bytes(entry.read_bytes()[:100])  # truncated, as by a full disk
+    with pytest.warns(RuntimeWarning, match="rebuilding"):
+        refit = fresh()
+    assert counts()["bad"] == 1 and counts()["write"] == 2 and refit.tobytes() == first.tobytes()
+    fresh(3, "ol")
+    assert counts()["write"] == 3 and len(list((cache_root / tables.CACHE_KIND).iterdir())) == 2
+    tables.log_blocker_table.cache_clear()

@@ -19,7 +19,8 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from ... import _cache
-from ..._atomic import replace_atomically
+from ...sh import exp as _exp_module
+from ...sh import zonal as _zonal_module
 from ...sh.exp import ol_table, sh_exp, zh_log
 from ...sh.products import sh_product
 from ...sh.zonal import clamped_cosine_zh, sh_to_zh, sphere_visibility_zh, zh_band_factors, zh_expand_index, zh_to_sh
@@ -36,8 +37,9 @@ of a large cap indefinite, and a small clip turns those directions into huge log
 
 LOG_FIT_POINTS = 64
 LOG_FIT_REG = 1e-2
-TABLES_VERSION = 4
-"""Bump when anything that feeds the cached tables changes."""
+
+CACHE_KIND = "spheres_log"
+"""Kind of the fitted log tables' entries in warpshade's disk cache (:mod:`warpshade._cache`)."""
 
 EXP_BLEND = 0.125
 """Octaves of ``||f̂||`` over which results with ``p`` and ``p+1`` squarings are blended (kernels.EXP_BLEND)."""
@@ -164,13 +166,14 @@ def sh_exp_np(f, order, mode="hyb", tau=0.5):
     return out
 
 
-def _cache_path(name: str) -> str | None:
-    """The file of table ``name`` in warpshade's disk cache root (:func:`warpshade._cache.root`); None when the
-    cache is off."""
-    import os
-
-    root = _cache.root()
-    return None if root is None else os.path.join(root, f"{name}.v{TABLES_VERSION}.npy")
+def log_table_key(order: int, mode: str, tau: float) -> str:
+    """The disk-cache key of :func:`log_blocker_table`: everything the fit reads (the SH core's optimal-linear
+    table, this module's constants), the sources of the code that computes it (this module, the SH core's
+    exponentials and zonal functions) and the NumPy and SciPy versions."""
+    ol = ol_table(order)
+    return _cache.Key(order, mode, float(tau), ol.log_a, ol.c, TABLE_SIZE, LOG_EPS, LOG_FIT_POINTS, LOG_FIT_REG,
+                      EXP_BLEND, *(_cache.source_digest(f) for f in (__file__, _exp_module.__file__, _zonal_module.__file__)),
+                      *_cache.versions("numpy", "scipy")).hexdigest()
 
 
 @lru_cache(maxsize=None)
@@ -184,23 +187,14 @@ def log_blocker_table(order: int, mode: str = "hyb", tau: float = 0.5) -> np.nda
     host twin of the run-time exponential, ``min ||exp_mode(f) - B_θ||² + λ²||f - log(B_θ)||²``
     (λ = 1e-2, :data:`LOG_FIT_POINTS` radii, linear interpolation between them). Cached on disk
     (:func:`warpshade._cache.root`: ``$WARPSHADE_CACHE``, else the user cache directory) because the fit
-    takes seconds.
+    takes seconds; the entry's key is :func:`log_table_key`.
     """
-    import os
-
     from scipy.optimize import least_squares
 
-    import hashlib
-
-    # key on everything the fit reads, so a change in the SH core's optimal-linear table invalidates it
-    ol = ol_table(order)
-    key = hashlib.sha1(ol.log_a.tobytes() + ol.c.tobytes() + repr((TABLE_SIZE, LOG_EPS, LOG_FIT_POINTS,
-                                                                   LOG_FIT_REG, EXP_BLEND)).encode()).hexdigest()[:10]
-    path = _cache_path(f"spheres_log_o{order}_{mode}_t{tau:g}_{key}")
-    if path is not None and os.path.isfile(path):
-        table = np.load(path)
-        if table.shape == (TABLE_SIZE, order):
-            return table
+    key = log_table_key(order, mode, tau)
+    hit = _cache.load(CACHE_KIND, key, check=lambda a: a.get("table") is not None and a["table"].shape == (TABLE_SIZE, order))
+    if hit is not None:
+        return hit["table"]
     fit_t = np.linspace(0.0, THETA_MAX, LOG_FIT_POINTS)
     blockers = sphere_visibility_zh(fit_t, order)
     anchors = zh_log(blockers, eps=LOG_EPS)
@@ -212,12 +206,7 @@ def log_blocker_table(order: int, mode: str = "hyb", tau: float = 0.5) -> np.nda
     fits = np.array(fits)
     thetas = np.linspace(0.0, THETA_MAX, TABLE_SIZE)
     table = np.stack([np.interp(thetas, fit_t, fits[:, l]) for l in range(order)], axis=1)
-    try:
-        if path is not None:
-            os.makedirs(os.path.dirname(path), exist_ok=True)
-            replace_atomically(lambda tmp: np.save(tmp, table), path)
-    except OSError:  # a read-only home only costs the fit again next time
-        pass
+    _cache.save(CACHE_KIND, key, {"table": table})  # an unwritable root only costs the fit again next time
     return table
 
 
