@@ -16,15 +16,6 @@ from warpshade import _cache
 from warpshade.geometry.shapes import SPHERE_CACHE, sphere_shape
 
 
-@pytest.fixture
-def cache_root(tmp_path, monkeypatch):
-    root = tmp_path / "cache"
-    monkeypatch.setenv(_cache.ENV, str(root))
-    _cache.stats.clear()
-    _cache._warned.clear()
-    return root
-
-
 def trimesh_sphere(radius, subdivisions):
     m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
     return np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces, dtype=np.int64)
