@@ -444,3 +444,54 @@ def test_faces_with_vertices_of_their_own_block_like_the_welded_surface():
     t_welded = hemiraster(welded, order=4).update().numpy()[rows, 0]
     assert t_welded.mean() < 0.9 * UNOCCLUDED_T0  # the sheet shades the ball
     assert abs(t_split.mean() - t_welded.mean()) < 0.01 * UNOCCLUDED_T0, (t_split.mean(), t_welded.mean())
+
+
+def _k_ring_by_search(faces, num_vertices, v, k):
+    """The k-ring of ``v`` by breadth-first search over the triangles' edges (plain Python sets), and the
+    triangles touching it that do not have ``v`` as a corner: an independent statement of what
+    :func:`hierarchy.ring_triangles` lists."""
+    nbrs = [set() for _ in range(num_vertices)]
+    for f in faces.tolist():
+        for a in f:
+            nbrs[a].update(f)
+    ring, frontier = {v}, {v}
+    for _ in range(k):
+        frontier = {u for w in frontier for u in nbrs[w]} - ring
+        ring |= frontier
+    tris = sorted(t for t, f in enumerate(faces.tolist()) if set(f) & ring and v not in f)
+    return ring, tris
+
+
+def ring_test_meshes():
+    """Closed and open meshes, one with a degenerate triangle (a corner listed twice) and an isolated vertex."""
+    sheet = crumpled_sheet(n=7)
+    odd = np.array([[0, 1, 2], [2, 1, 3], [3, 1, 1], [3, 4, 2], [4, 5, 2], [5, 0, 2]], np.int64)  # vertex 6 unused
+    return [(trimesh.creation.icosphere(2).faces.astype(np.int64), 162), (sheet.faces.astype(np.int64), sheet.num_vertices),
+            (odd, 7)]
+
+
+@pytest.mark.parametrize("k", [1, 2, 3])
+def test_ring_triangles_match_a_breadth_first_search(k):
+    for faces, nv in ring_test_meshes():
+        start, tris, rings = hierarchy.ring_triangles(faces, nv, k)
+        assert start.dtype == np.int32 and tris.dtype == np.int32 and start.shape == (nv + 1,) and len(rings) == nv
+        for v in range(nv):
+            ring, want = _k_ring_by_search(faces, nv, v, k)
+            assert tris[start[v]:start[v + 1]].tolist() == want, (nv, v)
+            assert sorted(rings[v].tolist()) == sorted(ring), (nv, v)
+
+
+def test_ring_groups_hold_the_owners_of_the_ring_and_incident_triangles():
+    rng = np.random.default_rng(3)
+    for faces, nv in ring_test_meshes():
+        start, tris, _ = hierarchy.ring_triangles(faces, nv, 2)
+        for num_coarse in (5, 40):  # one word and two words of bits
+            owner = rng.integers(0, num_coarse, len(faces))
+            bits = hierarchy.ring_groups(start, tris, faces, owner, num_coarse)
+            assert bits.dtype == np.uint32 and bits.shape == (nv, (num_coarse + 31) // 32)
+            for v in range(nv):
+                listed = [int(t) for t in tris[start[v]:start[v + 1]]] + [t for t, f in enumerate(faces.tolist()) if v in f]
+                want = np.zeros(bits.shape[1] * 32, bool)
+                want[owner[listed]] = True
+                have = (bits[v][:, None] >> np.arange(32, dtype=np.uint32)) & 1
+                np.testing.assert_array_equal(have.reshape(-1).astype(bool), want, err_msg=f"receiver {v}")

@@ -30,7 +30,7 @@ def collect() -> dict:
         "devices": [str(d) for d in wp.get_devices()],
         "preferred_device": str(wp.get_preferred_device()),
         "kernel_cache": wp.config.kernel_cache_dir,
-        # warpshade._cache.root(): hemiraster's far fields and plane LUTs, spheres' log tables; "off" with WARPSHADE_CACHE=none
+        # warpshade._cache.root(): hemiraster's far fields and plane LUTs, spheres' log tables, gprim icospheres; "off" with WARPSHADE_CACHE=none
         "cache": _cache.root() or "off",
     }
 

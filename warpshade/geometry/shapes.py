@@ -198,13 +198,36 @@ def sphere_subdivisions(radius: float, edge: float) -> int:
     return s
 
 
+SPHERE_CACHE = "icosphere"
+"""Kind of the disk cache entries (:mod:`warpshade._cache`) holding :func:`sphere_shape`'s tessellations."""
+
+
 def sphere_shape(radius: float, subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (float64) and triangles (int64) of an icosphere of ``radius`` centred on the origin
-    (``trimesh.creation.icosphere``; trimesh is imported on the first call)."""
+    (``trimesh.creation.icosphere``, imported on the first call that is not a hit). Kept in the per-user
+    disk cache (:mod:`warpshade._cache`), keyed on ``radius``, ``subdivisions``, the trimesh and numpy
+    versions and the machine: reading the scene then does not import trimesh (and the scipy modules it
+    imports), which is most of the command's start-up cost for a scene with a Sphere."""
+    import platform
+
+    from .. import _cache
+
+    radius, subdivisions = float(radius), int(subdivisions)
+    nf = 20 * 4 ** subdivisions
+    nv = nf // 2 + 2
+    key = _cache.Key(SPHERE_CACHE, radius, subdivisions, platform.machine(), *_cache.versions("trimesh", "numpy")).hexdigest()
+    hit = _cache.load(SPHERE_CACHE, key, check=lambda a: (
+        set(a) == {"points", "faces"} and a["points"].shape == (nv, 3) and a["points"].dtype == np.float64
+        and a["faces"].shape == (nf, 3) and a["faces"].dtype == np.int64
+        and 0 <= a["faces"].min() and a["faces"].max() < nv))
+    if hit is not None:
+        return hit["points"], hit["faces"]
     import trimesh
 
-    m = trimesh.creation.icosphere(subdivisions=int(subdivisions), radius=float(radius))
-    return np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces, dtype=np.int64)
+    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+    points, faces = np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces, dtype=np.int64)
+    _cache.save(SPHERE_CACHE, key, {"points": points, "faces": faces})
+    return points, faces
 
 
 def gprim_shape(kind: str, dims: dict, scale, edge: float) -> tuple[np.ndarray, np.ndarray]:

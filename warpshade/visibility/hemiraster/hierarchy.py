@@ -85,27 +85,29 @@ def ring_triangles(faces: np.ndarray, num_vertices: int, k: int) -> tuple[np.nda
         ``(offsets, tris, ring_vertices)``: offsets shape (V+1,) int32, tris int32 (incident triangles
         excluded), ring_vertices a list of int arrays (the k-ring vertices, receiver included).
     """
-    vf = vertex_faces(faces, num_vertices)
-    nbrs = [np.unique(faces[f].ravel()) if len(f) else np.zeros(0, np.int64) for f in vf]
-    offsets = [0]
-    out, rings = [], []
-    for v in range(num_vertices):
-        ring = {v}
-        frontier = {v}
-        for _ in range(k):
-            nxt = set()
-            for u in frontier:
-                nxt.update(nbrs[u].tolist())
-            frontier = nxt - ring
-            ring |= nxt
-        ringv = np.fromiter(ring, dtype=np.int64)
-        tris = np.unique(np.concatenate([vf[u] for u in ringv]))
-        tris = tris[(faces[tris] != v).all(axis=1)]
-        out.append(tris)
-        rings.append(ringv)
-        offsets.append(offsets[-1] + len(tris))
-    tri_arr = np.concatenate(out).astype(np.int32) if out else np.zeros(0, np.int32)
-    return np.array(offsets, dtype=np.int32), tri_arr, rings
+    from scipy import sparse
+
+    faces = np.asarray(faces, dtype=np.int64)
+    nf = len(faces)
+    # vertex-triangle incidence, and the vertices within one edge (a shared triangle) of each vertex
+    inc = sparse.csr_matrix((np.ones(3 * nf, np.int32), (faces.ravel(), np.repeat(np.arange(nf), 3))),
+                            shape=(num_vertices, nf))
+    inc.sum_duplicates()
+    inc.data[:] = 1  # a triangle listing a vertex twice (degenerate) is incident once
+    step = (inc @ inc.T + sparse.identity(num_vertices, dtype=np.int32, format="csr")).tocsr()
+    ring = sparse.identity(num_vertices, dtype=np.int32, format="csr")
+    for _ in range(k):
+        ring = (ring @ step).tocsr()
+        ring.data[:] = 1  # keep the counts small: only the pattern matters
+    # the triangles touching a ring vertex, less those incident to the receiver (entry counts > 0 alike)
+    near = (ring @ inc).tocsr()
+    near.data[:] = 1
+    near = (near - inc).tocsr()
+    near.eliminate_zeros()
+    near.sort_indices()
+    ring.sort_indices()
+    rings = np.split(ring.indices.astype(np.int64), ring.indptr[1:-1])
+    return near.indptr.astype(np.int32), near.indices.astype(np.int32), rings
 
 
 def closest_points_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -415,12 +417,12 @@ def ring_groups(ring_start: np.ndarray, ring_tris: np.ndarray, faces: np.ndarray
         shape (V, ceil(Fc/32)) uint32; bit t of row v set = refine coarse triangle t (original index).
     """
     nv = len(ring_start) - 1
-    vf = vertex_faces(faces, nv)
     nw = (num_coarse + 31) // 32
     bits = np.zeros((nv, nw * 32), dtype=bool)
-    for v in range(nv):
-        tris = np.concatenate([ring_tris[ring_start[v]:ring_start[v + 1]], vf[v]])
-        bits[v, owner[tris]] = True
+    # (receiver, fine triangle) pairs: its k-ring's triangles, and those incident to it
+    faces = np.asarray(faces, dtype=np.int64)
+    bits[np.repeat(np.arange(nv), np.diff(ring_start)), owner[ring_tris[:ring_start[-1]]]] = True
+    bits[faces.ravel(), owner[np.repeat(np.arange(len(faces)), faces.shape[1])]] = True
     words = bits.reshape(nv, nw, 32).astype(np.uint64) << np.arange(32, dtype=np.uint64)
     return words.sum(axis=-1, dtype=np.uint64).astype(np.uint32)
 
