@@ -30,9 +30,10 @@ def _sheet(n, xy_to_xyz):
 
 @pytest.mark.parametrize("gap_edges, contact", [(0.5, True), (3.0, False)])
 def test_receiver_classes_two_layers(gap_edges, contact):
-    # two flat 9 x 9 sheets (edge h = 1/8) stacked gap_edges * h apart, as one mesh: within the classes'
-    # 1.5 edge lengths every vertex touches the other layer; at 3 none does (and a flat sheet's own
-    # neighbours, 1 edge away, never count as contact)
+    # two flat 9 x 9 sheets (grid step h = 1/8, mean edge 1.14 h with the diagonals) stacked gap_edges * h
+    # apart, as one mesh: at 0.5 h every vertex has the other layer within the classes' 1.5 mean edges
+    # (1.71 h); at 3 h none does, and a flat sheet's own vertices within 1.71 h (1 and sqrt(2) h away, the
+    # 1-ring) never count as contact
     from warpshade.bench.metrics import receiver_classes
 
     h = 1 / 8
