@@ -13,6 +13,9 @@ Meshes (``warpshade.bench.meshes``): ``cloth``, the benchmark's crumpled 64² cl
 onto a ball and simulated for 60 frames (cached); ``table1``, the 1378-vertex travelling-wrinkle
 cloth of ``benchmarks/hemiraster.py`` (3 frames, rest = frame 0).
 
+Per row the error is also split by receiver class (:func:`warpshade.bench.metrics.receiver_classes`:
+contact, fold, open; the mean error within each class), to say where the error sits.
+
 The mid level (``mid``) rows: refined coarse triangles are replaced by mid triangles and only the
 nearest of those by fine ones ("fine, mid": refined fine and mid triangles rasterized per vertex).
 
@@ -38,26 +41,34 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 sys.path.insert(0, HERE)
 
-import warp as wp  # noqa: E402
+import warp as wp
+from hemiraster import TUNED, scene
 
-from hemiraster import TUNED, scene  # noqa: E402
-from warpshade.bench.meshes import draped_cloth, wrinkled_cloth  # noqa: E402
-from warpshade.bench.reference_cache import ground_truth  # noqa: E402
-from warpshade.geometry import TriMesh  # noqa: E402
-from warpshade.bench.metrics import transfer_errors  # noqa: E402
-from warpshade.visibility import get_method  # noqa: E402
+from warpshade.bench.meshes import draped_cloth, wrinkled_cloth
+from warpshade.bench.metrics import RECEIVER_CLASSES, receiver_classes, transfer_errors
+from warpshade.bench.reference_cache import ground_truth
+from warpshade.geometry import TriMesh
+from warpshade.visibility import get_method
 
 ORDER = 5
 PEER_RAYS = 256
 CRUMPLED = {"defaults": {}, "redecimate": {"redecimate": 0.1},
             "redecimate, coarse 256, mid 2048": {"redecimate": 0.1, "coarse": 256, "mid": 2048},
             "redecimate, coarse 256, mid 2048, refine 1.5": {"redecimate": 0.1, "coarse": 256, "mid": 2048, "refine": 1.5},
+            "redecimate, coarse 192, mid 1024, refine 1.25, lut 64":
+                {"redecimate": 0.1, "coarse": 192, "mid": 1024, "refine": 1.25, "lut": 64},
+            "redecimate, coarse 256, mid 2048, refine 1.5, interpolate 0.08":
+                {"redecimate": 0.1, "coarse": 256, "mid": 2048, "refine": 1.5, "interpolate": 0.08},
             "redecimate, min_image 0": {"redecimate": 0.1, "min_image": 0.0},
             "redecimate, min_image 0, lut 96": {"redecimate": 0.1, "min_image": 0.0, "lut": 96},
             "drape: redecimate, min_image 0, border, coarse 1024, lut 96":
                 {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1024, "lut": 96},
             "redecimate, min_image 0, border, coarse 1536, lut 96":
-                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1536, "lut": 96}}
+                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1536, "lut": 96},
+            "redecimate, min_image 0, border, coarse 1280, refine 3, lut 128":
+                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1280, "refine": 3.0, "lut": 128},
+            "redecimate, min_image 0, border, coarse 768, lut 64, mask 64":
+                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 768, "lut": 64, "mask": 64}}
 TABLE1 = {"defaults": {}, "tuned": TUNED["cloth"], "tuned+interpolate": {**TUNED["cloth"], "interpolate": 0.08},
           "tuned, refine 1.25, interpolate": {**TUNED["cloth"], "refine": 1.25, "interpolate": 0.08},
           "tuned, fan off (main)": {**TUNED["cloth"], "fan": False},
@@ -76,8 +87,14 @@ def inputs(name: str):
     return mesh, frames, truths
 
 
-def run(methods: list, frames, truths, repeat: int) -> list[dict]:
-    """Round-robin CPU time per frame (median of rounds, median over frames) and mean error over frames."""
+def classes_of(mesh, frames) -> list[dict]:
+    """Receiver classes (contact, fold, open) of each judged frame."""
+    return [receiver_classes(f, mesh.faces) for f in frames]
+
+
+def run(methods: list, frames, truths, repeat: int, classes: list[dict]) -> list[dict]:
+    """Round-robin CPU time per frame (median of rounds, median over frames), mean error over frames and the
+    mean error within each receiver class (over the frames' receivers of that class; None for an empty class)."""
     for m in methods:
         for f in frames:
             m.update(f)
@@ -93,15 +110,21 @@ def run(methods: list, frames, truths, repeat: int) -> list[dict]:
                 cpu[i, j, rnd] = time.process_time() - c0
     rows = []
     for i, m in enumerate(methods):
-        errs = []
+        errs, per_vertex = [], []
         for f, t in zip(frames, truths):
             m.update(f)
-            errs.append(transfer_errors(m.transfer_numpy(), t).mean())
+            per_vertex.append(transfer_errors(m.transfer_numpy(), t))
+            errs.append(per_vertex[-1].mean())
+        by_class = {}
+        for c in RECEIVER_CLASSES:
+            e = np.concatenate([pv[cl[c]] for pv, cl in zip(per_vertex, classes)])
+            by_class[c] = float(e.mean()) if len(e) else None
         st = m.stats()
         rows.append({"cpu_seconds": float(np.median(np.median(cpu[i], axis=1))), "error_mean": float(np.mean(errs)),
                      "triangles_per_vertex": st.get("triangles_per_vertex"), "rebuilds": st.get("rebuilds"),
                      "refined_per_vertex": st.get("refined_per_vertex"), "mid_per_vertex": st.get("mid_per_vertex"),
-                     "rebuild_seconds": st.get("rebuild_seconds"), "computed_fraction": st.get("computed_fraction")})
+                     "rebuild_seconds": st.get("rebuild_seconds"), "computed_fraction": st.get("computed_fraction"),
+                     "error_by_class": by_class})
     return rows
 
 
@@ -119,10 +142,12 @@ def main(argv=None) -> int:
         configs = TABLE1 if name == "table1" else CRUMPLED
         methods = [cls(mesh, order=ORDER, **k) for k in configs.values()]
         methods.append(ref(mesh, order=ORDER, rays=PEER_RAYS, seed=1))
-        rows = run(methods, frames, truths, args.repeat)
+        classes = classes_of(mesh, frames)
+        rows = run(methods, frames, truths, args.repeat, classes)
         labels = list(configs) + [f"reference {PEER_RAYS} rays"]
         knobs = list(configs.values()) + [{"rays": PEER_RAYS}]
         out["meshes"][name] = {"vertices": mesh.num_vertices, "frames": len(frames),
+                               "class_sizes": {c: int(sum(cl[c].sum() for cl in classes)) for c in RECEIVER_CLASSES},
                                "rows": [{"label": lb, "knobs": k, **r} for lb, k, r in zip(labels, knobs, rows)]}
         del methods
     print("\nOrder 5, one Warp CPU thread; CPU ms per frame (median after warm-up, round-robin), mean error vs 4096 rays")
@@ -136,6 +161,14 @@ def main(argv=None) -> int:
             rb = f"{r['rebuild_seconds']:.2f} s" if r["rebuilds"] else "-"
             print(f"| {name} ({e['vertices']}) | {r['label']} | {r['cpu_seconds'] * 1e3:.1f} | {1 / r['cpu_seconds']:.1f} | "
                   f"{r['error_mean'] * 100:.2f} % | {tv} | {cf} | {rb} |")
+    print("\nMean error within each receiver class (warpshade.bench.metrics.receiver_classes; receivers per class)")
+    print("| mesh | configuration | " + " | ".join(RECEIVER_CLASSES) + " |")
+    print("|---|---|" + "---|" * len(RECEIVER_CLASSES))
+    for name, e in out["meshes"].items():
+        sizes = ", ".join(f"{c} {n}" for c, n in e["class_sizes"].items())
+        for r in e["rows"]:
+            cells = ["-" if r["error_by_class"][c] is None else f"{r['error_by_class'][c] * 100:.2f} %" for c in RECEIVER_CLASSES]
+            print(f"| {name} ({sizes}) | {r['label']} | " + " | ".join(cells) + " |")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=2, default=float)
