@@ -580,9 +580,10 @@ def batch_codes(a: wp.array2d[wp.vec3], b: wp.array2d[wp.vec3], c: wp.array2d[wp
 
 
 _OR_IMAGES = r"""
-// lanes of 8 mask words (512 bits; a chunk is two); loads through memcpy: rows need only 8-byte alignment
-typedef unsigned long long U8 __attribute__((ext_vector_type(8)));
-auto load8 = [](const unsigned long long* p) -> U8 { U8 x; __builtin_memcpy(&x, p, sizeof(U8)); return x; };
+// lanes of 4 mask words (256 bits, 4 per chunk): 512-bit vectors here made clang use them in the whole
+// rasterizer (batch_codes too) and the kernel slower; loads through memcpy: rows need only 8-byte alignment
+typedef unsigned long long U4 __attribute__((ext_vector_type(4)));
+auto load4 = [](const unsigned long long* p) -> U4 { U4 x; __builtin_memcpy(&x, p, sizeof(U4)); return x; };
 const int nc = rows.shape[1];
 const long rs = rows.strides[0] / 8;  // words per LUT row: nc chunks of 16
 const unsigned long long* __restrict__ rb = (const unsigned long long*)rows.data;
@@ -593,21 +594,23 @@ unsigned long long* __restrict__ pm = (unsigned long long*)((char*)mask.data + v
 unsigned int* ph = (unsigned int*)((char*)hits.data + v * hits.strides[0]);
 int nfree = 0;
 for (int ch = 0; ch < nc; ++ch) {
-    const U8 v0 = load8(pv + 16 * ch), v1 = load8(pv + 16 * ch + 8);
-    U8 lo = 0, hi = 0;
-    // :func:`lut_chunk` of triangle k's three codes: the stored row of ``code >> 1``, complemented when ``code & 1``
+    const unsigned long long* vc = pv + 16 * ch;
+    U4 acc[4] = {0, 0, 0, 0};
+    // :func:`lut_chunk` of triangle k's three codes: the stored row of ``code >> 1``, complemented when
+    // ``code & 1``; the AND of the three, lane group j of the chunk
 #define WS_IMAGE(K) \
         const int c0 = pc[3 * (K)], c1 = pc[3 * (K) + 1], c2 = pc[3 * (K) + 2]; \
         const unsigned long long* r0 = rb + (c0 >> 1) * rs + 16 * ch; \
         const unsigned long long* r1 = rb + (c1 >> 1) * rs + 16 * ch; \
         const unsigned long long* r2 = rb + (c2 >> 1) * rs + 16 * ch; \
-        const U8 s0 = 0ull - (unsigned long long)(c0 & 1); \
-        const U8 s1 = 0ull - (unsigned long long)(c1 & 1); \
-        const U8 s2 = 0ull - (unsigned long long)(c2 & 1); \
-        const U8 mlo = (load8(r0) ^ s0) & (load8(r1) ^ s1) & (load8(r2) ^ s2); \
-        const U8 mhi = (load8(r0 + 8) ^ s0) & (load8(r1 + 8) ^ s1) & (load8(r2 + 8) ^ s2); \
-        lo |= mlo; \
-        hi |= mhi;
+        const U4 s0 = 0ull - (unsigned long long)(c0 & 1); \
+        const U4 s1 = 0ull - (unsigned long long)(c1 & 1); \
+        const U4 s2 = 0ull - (unsigned long long)(c2 & 1); \
+        U4 m[4]; \
+        for (int j = 0; j < 4; ++j) { \
+            m[j] = (load4(r0 + 4 * j) ^ s0) & (load4(r1 + 4 * j) ^ s1) & (load4(r2 + 4 * j) ^ s2); \
+            acc[j] |= m[j]; \
+        }
     if (!record) {
         for (int k = 0; k < done; ++k) {
             WS_IMAGE(k)
@@ -616,20 +619,18 @@ for (int ch = 0; ch < nc; ++ch) {
         for (int k = 0; k < done; ++k) {
             WS_IMAGE(k)
             // recording a PVS: the triangle's source gets its bit when the image holds a valid pixel
-            const U8 any = (mlo & v0) | (mhi & v1);
-            const unsigned long long a = any[0] | any[1] | any[2] | any[3] | any[4] | any[5] | any[6] | any[7];
+            U4 any = 0;
+            for (int j = 0; j < 4; ++j) any |= m[j] & load4(vc + 4 * j);
             const int s = ps[k];
-            if (s >= 0 && a != 0ull) ph[s >> 5] |= 1u << (s & 31);
+            if (s >= 0 && (any[0] | any[1] | any[2] | any[3]) != 0ull) ph[s >> 5] |= 1u << (s & 31);
         }
     }
 #undef WS_IMAGE
-    lo &= v0;
-    hi &= v1;
     const int n = words - 16 * ch < 16 ? words - 16 * ch : 16;
     for (int i = 0; i < n; ++i) {
-        const unsigned long long word = pm[16 * ch + i] | (i < 8 ? lo[i & 7] : hi[i & 7]);
+        const unsigned long long word = pm[16 * ch + i] | (acc[i >> 2][i & 3] & vc[i]);
         pm[16 * ch + i] = word;
-        nfree += __builtin_popcountll(pv[16 * ch + i] & ~word);
+        nfree += __builtin_popcountll(vc[i] & ~word);
     }
 }
 return nfree;
@@ -650,7 +651,7 @@ def or_images(rows: wp.array2d[MaskChunk], valid: wp.array[MaskChunk], codes: wp
     With ``record``, each triangle whose image holds a valid pixel sets the bit of its ``src`` (unless -1)
     in ``hits[v]`` (PVS recording).
 
-    Native C++ in clang vector lanes of 8 words (512 bits, two per chunk): a triangle's row loads, XORs
+    Native C++ in clang vector lanes of 4 words (256 bits, four per chunk): a triangle's row loads, XORs
     and ANDs are vector operations, its row addresses plain pointer arithmetic (``rows``, ``valid`` and the
     rows of ``codes``, ``src``, ``mask`` must be contiguous), the free pixels a hardware popcount."""
 
