@@ -24,9 +24,9 @@ from .tables import CHUNK_WORDS
 wp.set_module_options({"enable_backward": False, "optimization_level": 3, "fuse_fp": False, "max_unroll": 8})
 
 class MaskChunk(wp.types.vector(length=CHUNK_WORDS, dtype=wp.uint64)):
-    """16 mask words handled as one value: ``&``, ``|``, ``^`` of two chunks compile to two AVX-512
-    (or four AVX2) instructions on the CPU, so an edge plane's whole row is fetched and combined
-    without a loop or a branch per word."""
+    """16 mask words handled as one value: ``&``, ``|``, ``^`` of two chunks compile to four 256-bit
+    instructions on the CPU (clang's tuning for this host prefers 256-bit vectors to AVX-512's), so a
+    whole chunk is fetched and combined without a loop or a branch per word."""
 
 
 @wp.struct
