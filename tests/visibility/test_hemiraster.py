@@ -771,3 +771,71 @@ def test_batch_codes_match_triangle_codes_bit_for_bit(backface):
     for s in range(slots):
         np.testing.assert_array_equal(native.numpy()[s, :d[s, 0]], ref.numpy()[s, :d[s, 0]])
         np.testing.assert_array_equal(src.numpy()[s, :d[s, 0]], ref_src.numpy()[s, :d[s, 0]])
+
+
+# ------------------------------------------------------------------------------ native OR of images
+@wp.kernel
+def _or_images(rows: wp.array2d[hr_kernels.MaskChunk], valid: wp.array[hr_kernels.MaskChunk],
+               codes: wp.array2d[wp.vec3i], src: wp.array2d[wp.int32], done: wp.array[wp.int32], words: int,
+               record: int, mask: wp.array2d[wp.uint64], hits: wp.array2d[wp.uint32], free: wp.array[wp.int32]):
+    sl = wp.tid()
+    free[sl] = hr_kernels.or_images(rows, valid, codes, src, mask, hits, sl, sl, done[sl], words, record)
+
+
+@pytest.mark.parametrize("words", [1, 4, 16, 64])  # masks of 8, 16, 32, 64 pixels across: 1, 1, 1, 4 chunks
+@pytest.mark.parametrize("record", [0, 1])
+def test_or_images_is_the_or_of_three_row_ands_bit_for_bit(words, record):
+    """kernels.or_images (native, 512-bit lanes) against the rule it implements, written here in NumPy word by
+    word: a triangle's image is the AND of its three LUT rows (the stored row of ``code >> 1``, complemented
+    for an odd code), the images of the first ``done`` queued triangles are ORed, ANDed with the valid
+    pixels and ORed into the receiver's mask row; the return is the row's free valid pixels, and with
+    ``record`` a triangle whose image holds a valid pixel sets its source's bit. Random 64-bit rows, valid
+    words and prior masks, so a word or lane taken from the wrong place, a lost complement or a missing
+    AND changes bits."""
+    rng = np.random.default_rng(words + 10 * record)
+    nrows, slots, nq = 50, 9, 64
+    chunks = -(-words // 16)
+
+    def rand64(*shape):
+        return rng.integers(0, 2**64, size=shape, dtype=np.uint64, endpoint=False)
+
+    rows = rand64(nrows, chunks * 16)
+    # real rows are half-disks, whose three-way ANDs are often empty: bias the bits towards ones so that
+    # images hold bits (checked below), as the rasterizer's do
+    rows |= rand64(nrows, chunks * 16)
+    valid = rand64(chunks * 16)
+    valid[words:] = 0  # the padding of the last chunk holds no valid pixel (tables.chunked_rows)
+    codes = rng.integers(0, 2 * nrows, size=(slots, nq, 3)).astype(np.int32)
+    done = np.array([0, 1, 2, 7, 8, 9, 31, 63, 64], dtype=np.int32)  # the rest of each queue is stale
+    src = rng.integers(-1, 200, size=(slots, nq)).astype(np.int32)
+    prior = rand64(slots, words) & rand64(slots, words) & rand64(slots, words)  # leave most pixels free
+    hits_prior = rng.integers(0, 2**32, size=(slots, 7), dtype=np.uint32) & np.uint32(0x11111111)
+
+    want_mask, want_free, want_hits = prior.copy(), np.zeros(slots, np.int64), hits_prior.copy()
+    for s in range(slots):
+        acc = np.zeros(chunks * 16, np.uint64)
+        for k in range(done[s]):
+            img = np.full(chunks * 16, np.uint64(2**64 - 1))
+            for c in codes[s, k]:
+                img &= rows[c >> 1] ^ (np.uint64(2**64 - 1) if c & 1 else np.uint64(0))
+            acc |= img
+            if record and src[s, k] >= 0 and (img & valid).any():
+                want_hits[s, src[s, k] >> 5] |= np.uint32(1 << (src[s, k] & 31))
+        want_mask[s] |= (acc & valid)[:words]
+        want_free[s] = sum(int(x).bit_count() for x in valid[:words] & ~want_mask[s])
+
+    mask = wp.array(prior, dtype=wp.uint64)
+    hits = wp.array(hits_prior, dtype=wp.uint32)
+    free = wp.zeros(slots, dtype=wp.int32)
+    wp.launch(_or_images, dim=slots,
+              inputs=[wp.array(rows.reshape(nrows, chunks, 16), dtype=hr_kernels.MaskChunk),
+                      wp.array(valid.reshape(chunks, 16), dtype=hr_kernels.MaskChunk),
+                      wp.array(codes, dtype=wp.vec3i), wp.array(src, dtype=wp.int32), wp.array(done, dtype=wp.int32),
+                      words, record],
+              outputs=[mask, hits, free])
+    assert (want_mask != prior).any(axis=1)[done > 0].all()  # every non-empty queue set bits
+    np.testing.assert_array_equal(mask.numpy(), want_mask)
+    np.testing.assert_array_equal(free.numpy(), want_free)
+    np.testing.assert_array_equal(hits.numpy(), want_hits)
+    if record:
+        assert (want_hits != hits_prior).sum() > slots  # the recording set bits

@@ -24,9 +24,9 @@ from .tables import CHUNK_WORDS
 wp.set_module_options({"enable_backward": False, "optimization_level": 3, "fuse_fp": False, "max_unroll": 8})
 
 class MaskChunk(wp.types.vector(length=CHUNK_WORDS, dtype=wp.uint64)):
-    """16 mask words handled as one value: ``&``, ``|``, ``^`` of two chunks compile to two AVX-512
-    (or four AVX2) instructions on the CPU, so an edge plane's whole row is fetched and combined
-    without a loop or a branch per word."""
+    """16 mask words handled as one value: ``&``, ``|``, ``^`` of two chunks compile to four 256-bit
+    instructions on the CPU (clang's tuning for this host prefers 256-bit vectors to AVX-512's), so a
+    whole chunk is fetched and combined without a loop or a branch per word."""
 
 
 @wp.struct
@@ -579,13 +579,81 @@ def batch_codes(a: wp.array2d[wp.vec3], b: wp.array2d[wp.vec3], c: wp.array2d[wp
     instruction), then a compaction loop; the rows must be contiguous."""
 
 
-@wp.func(inline=True)
-def chunk_any(x: MaskChunk) -> bool:
-    """Whether any bit of the chunk is set."""
-    acc = wp.uint64(0)
-    for w in range(CHUNK_WORDS):
-        acc = acc | x[w]
-    return acc != wp.uint64(0)
+_OR_IMAGES = r"""
+// lanes of 4 mask words (256 bits, 4 per chunk): 512-bit vectors here made clang use them in the whole
+// rasterizer (batch_codes too) and the kernel slower; loads through memcpy: rows need only 8-byte alignment
+typedef unsigned long long U4 __attribute__((ext_vector_type(4)));
+auto load4 = [](const unsigned long long* p) -> U4 { U4 x; __builtin_memcpy(&x, p, sizeof(U4)); return x; };
+const int nc = rows.shape[1];
+const long rs = rows.strides[0] / 8;  // words per LUT row: nc chunks of 16
+const unsigned long long* __restrict__ rb = (const unsigned long long*)rows.data;
+const unsigned long long* __restrict__ pv = (const unsigned long long*)valid.data;
+const int* __restrict__ pc = (const int*)((const char*)codes.data + sl * codes.strides[0]);
+const int* __restrict__ ps = (const int*)((const char*)src.data + sl * src.strides[0]);
+unsigned long long* __restrict__ pm = (unsigned long long*)((char*)mask.data + v * mask.strides[0]);
+unsigned int* ph = (unsigned int*)((char*)hits.data + v * hits.strides[0]);
+int nfree = 0;
+for (int ch = 0; ch < nc; ++ch) {
+    const unsigned long long* vc = pv + 16 * ch;
+    U4 acc[4] = {0, 0, 0, 0};
+    // :func:`lut_chunk` of triangle k's three codes: the stored row of ``code >> 1``, complemented when
+    // ``code & 1``; the AND of the three, lane group j of the chunk
+#define WS_IMAGE(K) \
+        const int c0 = pc[3 * (K)], c1 = pc[3 * (K) + 1], c2 = pc[3 * (K) + 2]; \
+        const unsigned long long* r0 = rb + (c0 >> 1) * rs + 16 * ch; \
+        const unsigned long long* r1 = rb + (c1 >> 1) * rs + 16 * ch; \
+        const unsigned long long* r2 = rb + (c2 >> 1) * rs + 16 * ch; \
+        const U4 s0 = 0ull - (unsigned long long)(c0 & 1); \
+        const U4 s1 = 0ull - (unsigned long long)(c1 & 1); \
+        const U4 s2 = 0ull - (unsigned long long)(c2 & 1); \
+        U4 m[4]; \
+        for (int j = 0; j < 4; ++j) { \
+            m[j] = (load4(r0 + 4 * j) ^ s0) & (load4(r1 + 4 * j) ^ s1) & (load4(r2 + 4 * j) ^ s2); \
+            acc[j] |= m[j]; \
+        }
+    if (!record) {
+        for (int k = 0; k < done; ++k) {
+            WS_IMAGE(k)
+        }
+    } else {
+        for (int k = 0; k < done; ++k) {
+            WS_IMAGE(k)
+            // recording a PVS: the triangle's source gets its bit when the image holds a valid pixel
+            U4 any = 0;
+            for (int j = 0; j < 4; ++j) any |= m[j] & load4(vc + 4 * j);
+            const int s = ps[k];
+            if (s >= 0 && (any[0] | any[1] | any[2] | any[3]) != 0ull) ph[s >> 5] |= 1u << (s & 31);
+        }
+    }
+#undef WS_IMAGE
+    const int n = words - 16 * ch < 16 ? words - 16 * ch : 16;
+    for (int i = 0; i < n; ++i) {
+        const unsigned long long word = pm[16 * ch + i] | (acc[i >> 2][i & 3] & vc[i]);
+        pm[16 * ch + i] = word;
+        nfree += __builtin_popcountll(vc[i] & ~word);
+    }
+}
+return nfree;
+"""
+
+
+@wp.func_native(_OR_IMAGES)
+def or_images(rows: wp.array2d[MaskChunk], valid: wp.array[MaskChunk], codes: wp.array2d[wp.vec3i],
+              src: wp.array2d[wp.int32], mask: wp.array2d[wp.uint64], hits: wp.array2d[wp.uint32], v: int, sl: int,
+              done: int, words: int, record: int) -> int:
+    """ORs the images of the ``done`` triangles whose LUT codes lead slot ``sl``'s row of ``codes``
+    (:func:`batch_codes`) into receiver ``v``'s mask row (``words`` words); returns how many valid pixels
+    of that row are still free.
+
+    Paper §3.1.1: a triangle's image is the AND of its three edge-plane rows (:func:`lut_chunk`: a negative
+    face's code takes the complement); images fuse by OR (no depth, any order), so each chunk of the batch
+    is ORed in registers, ANDed with the valid pixels once, and the mask row is updated once per chunk.
+    With ``record``, each triangle whose image holds a valid pixel sets the bit of its ``src`` (unless -1)
+    in ``hits[v]`` (PVS recording).
+
+    Native C++ in clang vector lanes of 4 words (256 bits, four per chunk): a triangle's row loads, XORs
+    and ANDs are vector operations, its row addresses plain pointer arithmetic (``rows``, ``valid`` and the
+    rows of ``codes``, ``src``, ``mask`` must be contiguous), the free pixels a hardware popcount."""
 
 
 @wp.func(inline=False)
@@ -593,40 +661,16 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
     """Rasterize the ``nb`` queued triangles of receiver ``v`` (:class:`Batch`); returns 0 (the new
     queue length). First all their LUT codes (straight-line arithmetic), then their images.
 
-    Paper §3.1.1: a triangle's image is the AND of its three edge-plane masks; images fuse by OR
-    (no depth, any order). Each chunk of the batch's images is ORed in a register
-    (:class:`MaskChunk`), the valid-pixel AND is applied once, and the mask row is updated once per
-    chunk (whole chunks, no branch; docs/benchmarks/history.md has what this replaced).
+    The images (:func:`or_images`: the AND of each triangle's three LUT rows, ORed into the mask row
+    chunk by chunk; docs/benchmarks/history.md has what this replaced), then, when few pixels are
+    left free, the ``stop_when_dark`` test.
     """
     if bt.halt[sl] > 0:
         return 0
     done = batch_codes(bt.a, bt.b, bt.c, bt.area, bt.fine_flag, bt.src, bt.codes, bt.refined, v, sl, nb, frame,
                        lut.backface, lut.res)
     counting = bt.halt[sl] == 0
-    free = int(0)
-    for ch in range(lut.chunks):
-        acc = MaskChunk()
-        if bt.record == 0:
-            for k in range(done):
-                codes = bt.codes[sl, k]
-                acc = acc | (lut_chunk(lut, codes[0], ch) & lut_chunk(lut, codes[1], ch) & lut_chunk(lut, codes[2], ch))
-        else:
-            # recording a PVS: which triangles set a bit
-            for k in range(done):
-                codes = bt.codes[sl, k]
-                m = lut_chunk(lut, codes[0], ch) & lut_chunk(lut, codes[1], ch) & lut_chunk(lut, codes[2], ch)
-                acc = acc | m
-                src = bt.src[sl, k]
-                if src >= 0 and chunk_any(m & lut.valid[ch]):
-                    bt.hits[v, src >> 5] = bt.hits[v, src >> 5] | (wp.uint32(1) << wp.uint32(src & 31))
-        valid = lut.valid[ch]
-        acc = acc & valid
-        for i in range(wp.min(CHUNK_WORDS, lut.words - ch * CHUNK_WORDS)):
-            w = ch * CHUNK_WORDS + i
-            word = mask[v, w] | acc[i]
-            mask[v, w] = word
-            if counting:
-                free += wp.bit_count(valid[i] & ~word)
+    free = or_images(lut.rows, lut.valid, bt.codes, bt.src, mask, bt.hits, v, sl, done, lut.words, bt.record)
     bt.counts[v] = bt.counts[v] + done
     if counting and free <= bt.stop_free:
         # few pixels free: stop when their DC shares sum to at most stop_dc
