@@ -245,8 +245,8 @@ SWEEP_KNOBS = (
     {}, {"min_image": 0.0}, {"lut": 96}, {"min_image": 0.0, "lut": 96}, {"refine": 1.0}, {"refine": 4.0},
     {"ring": 4, "refine": 0.0}, {"ring": 0}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 2048},
     {"mask": 16}, {"mask": 64}, {"mask": 64, "lut": 96}, {"mask": 64, "min_image": 0.0, "lut": 96},
-    {"mask": 64, "min_image": 0.0, "lut": 128, "coarse": 1024}, {"mask": 64, "ring": 4, "refine": 0.0},
-    {"interpolate": 0.05},
+    {"mask": 64, "min_image": 0.0, "lut": 128, "coarse": 1024}, {"mask": 64, "min_image": 0.0, "lut": 128, "refine": 4.0},
+    {"mask": 64, "ring": 4, "refine": 0.0}, {"ring": 0, "refine": 1.0}, {"fine_image": 0.5}, {"interpolate": 0.05},
 )
 """hemiraster's knob sets swept (changes from the defaults): the error floor (mask, LUT, min_image), the far
 field (coarse), the near field (refine, ring) and the receivers computed (interpolate)."""
