@@ -334,38 +334,61 @@ def rays_at_error(rays, errors, target: float) -> float | None:
 
 
 def pareto(points: list[dict]) -> list[dict]:
-    """The configurations no other is both faster than and as accurate as (``seconds``, ``error_mean``),
+    """The configurations no other is both faster than and as accurate as (``cpu_seconds``, ``error_mean``),
     fastest first."""
     out = []
-    for p in sorted(points, key=lambda q: (q["seconds"], q["error_mean"])):
+    for p in sorted(points, key=lambda q: (q["cpu_seconds"], q["error_mean"])):
         if not out or p["error_mean"] < out[-1]["error_mean"]:
             out.append(p)
     return out
 
 
+def embree_seconds(curve: list[dict], n: float, th: str, h: dict) -> tuple[float, float]:
+    """embree's casting time at ``n`` rays per vertex on ``th`` ("1thread" / "2threads"), for comparison with
+    hemiraster's configuration ``h``: (wall, CPU). Wall: the curve's time at ``n`` (linear in rays between
+    its points) relative to its time at the anchor, times the anchor's wall time measured alternately with
+    ``h``. CPU: the curve's process CPU time at ``n``, divided by the threads (two threads counted as
+    perfectly parallel: the idle VM measured 1.91–1.97 cores, so this is the strict figure), load-proof."""
+    rays = [r["rays"] for r in curve]
+    wall = float(np.interp(n, rays, [r[f"cast_seconds_{th}"] for r in curve])
+                 / h[f"anchor_curve_seconds_{th}"] * h[f"anchor_seconds_{th}"])
+    cpu = float(np.interp(n, rays, [r[f"cast_seconds_{th}"] * r[f"threads_used_{th}"] for r in curve]))
+    return wall, cpu / (2 if th == "2threads" else 1)
+
+
+def at_equal_error(h: dict, curve: list[dict]) -> None:
+    """Set on hemiraster's configuration ``h`` the rays embree needs for its error (``embree_rays_at_equal_error``,
+    :func:`rays_at_error`) and embree's casting time there over ``h``'s, by wall and by CPU time
+    (``speedup_*``, ``cpu_speedup_*``; None where the curve does not bracket ``h``'s error)."""
+    n = rays_at_error([r["rays"] for r in curve], [r["error_mean"] for r in curve], h["error_mean"])
+    h["embree_rays_at_equal_error"] = n
+    for th in ("1thread", "2threads"):
+        wall, cpu = (None, None) if n is None else embree_seconds(curve, n, th, h)
+        h[f"speedup_{th}"] = None if n is None else wall / h["seconds"]
+        h[f"cpu_speedup_{th}"] = None if n is None else cpu / h["cpu_seconds"]
+
+
 def ratio_table(hemi: list[dict], curve: list[dict], levels=SWEEP_LEVELS) -> list[dict]:
-    """Per error level: hemiraster's fastest configuration at or below it (measured, no interpolation) and
-    embree's casting time at that level (:func:`rays_at_error` on ``curve``, the time interpolated linearly
-    in rays between the curve's points and taken at the anchor's interleaved load, ``seconds_per_anchor``);
-    the ratios on two threads and on one. A level no configuration reaches, or embree's curve does not
-    bracket, gives None ratios."""
+    """Per error level: hemiraster's fastest configuration (by CPU time) at or below it (measured, no
+    interpolation) and embree's casting time at that level (:func:`rays_at_error` on ``curve``,
+    :func:`embree_seconds`); the ratios on two threads and on one, by wall time and by CPU time. A level no
+    configuration reaches, or embree's curve does not bracket, gives None."""
     rays = [r["rays"] for r in curve]
     rows = []
     for level in levels:
         ok = [h for h in hemi if h["error_mean"] <= level]
-        best = min(ok, key=lambda h: h["seconds"]) if ok else None
+        best = min(ok, key=lambda h: h["cpu_seconds"]) if ok else None
         n = rays_at_error(rays, [r["error_mean"] for r in curve], level)
-        row = {"level": level, "hemiraster": best and {k: best[k] for k in ("knobs", "seconds", "error_mean")},
-               "embree_rays": n}
+        row = {"level": level, "embree_rays": n, "hemiraster": best and {
+            k: best[k] for k in ("knobs", "seconds", "cpu_seconds", "error_mean")}}
         for th in ("1thread", "2threads"):
             if best is None or n is None:
                 row[f"embree_seconds_{th}"] = row[f"ratio_{th}"] = None
+                row[f"embree_cpu_seconds_{th}"] = row[f"cpu_ratio_{th}"] = None
                 continue
-            # the curve's time at n rays, relative to its time at the anchor, times the anchor's time measured
-            # alternately with this configuration
-            rel = np.interp(n, rays, [r[f"cast_seconds_{th}"] for r in curve]) / best["anchor_curve_seconds_" + th]
-            row[f"embree_seconds_{th}"] = float(rel * best[f"anchor_seconds_{th}"])
-            row[f"ratio_{th}"] = row[f"embree_seconds_{th}"] / best["seconds"]
+            wall, cpu = embree_seconds(curve, n, th, best)
+            row[f"embree_seconds_{th}"], row[f"ratio_{th}"] = wall, wall / best["seconds"]
+            row[f"embree_cpu_seconds_{th}"], row[f"cpu_ratio_{th}"] = cpu, cpu / best["cpu_seconds"]
         rows.append(row)
     return rows
 
@@ -455,12 +478,8 @@ def sweep_peer(name: str, repeat: int, log) -> dict:
                "anchor_seconds_1thread": a1, "anchor_seconds_2threads": a2,
                "anchor_curve_seconds_1thread": anchor["cast_seconds_1thread"],
                "anchor_curve_seconds_2threads": anchor["cast_seconds_2threads"]}
-        n = rays_at_error([r["rays"] for r in curve], [r["error_mean"] for r in curve], row["error_mean"])
-        row["embree_rays_at_equal_error"] = n
-        for th in ("1thread", "2threads"):
-            row[f"speedup_{th}"] = (None if n is None else float(
-                np.interp(n, [r["rays"] for r in curve], [r[f"cast_seconds_{th}"] for r in curve])
-                / row[f"anchor_curve_seconds_{th}"] * row[f"anchor_seconds_{th}"] / hw))
+        at_equal_error(row, curve)
+        n = row["embree_rays_at_equal_error"]
         hemi.append(row)
         sp = row["speedup_2threads"]
         log(f"  hemiraster {knobs or 'defaults'}: {hw * 1e3:.1f} ms, error {row['error_mean'] * 100:.3f} % "
@@ -529,24 +548,26 @@ def print_sweep(transfer: list[dict]) -> None:
               f"{pct(tr['reference_vs_sweep_truth'])} % from the {tr['sweep_truth_rays']}-ray one; an independent "
               f"embree {tr['sweep_truth_rays']}-ray estimate {pct(tr['independent_embree_vs_sweep_truth'])} % "
               f"(each truth ~{pct(tr['sweep_truth_error_estimate'])} %)")
-        print(f"{'hemiraster knobs':44} {'ms':>7} {'err %':>6} {'4096-truth %':>12} {'tri/vtx':>7} "
-              f"{'embree rays':>11} {'x 2 thr':>7} {'x 1 thr':>7}")
+        print(f"{'hemiraster knobs':44} {'ms':>7} {'cpu ms':>7} {'err %':>6} {'4096-truth %':>12} {'tri/vtx':>7} "
+              f"{'embree rays':>11} {'x 2 thr':>7} {'x 1 thr':>7} {'cpu x 2':>7} {'cpu x 1':>7}")
         front = [k for k in t["frontier"]]
         for h in t["hemiraster"]:
             knobs = " ".join(f"{k}={v}" for k, v in h["knobs"].items()) or "defaults"
             print(f"{knobs + (' *' if h['knobs'] in front else ''):44} {h['seconds'] * 1e3:7.1f} "
-                  f"{pct(h['error_mean']):>6} {pct(h['error_mean_reference_truth']):>12} "
+                  f"{h['cpu_seconds'] * 1e3:7.1f} {pct(h['error_mean']):>6} {pct(h['error_mean_reference_truth']):>12} "
                   f"{h['triangles_per_vertex']:7.0f} {num(h['embree_rays_at_equal_error'], '.0f'):>11} "
-                  f"{num(h['speedup_2threads']):>7} {num(h['speedup_1thread']):>7}")
-        print(f"{'level %':>7} {'hemiraster (fastest at or below)':44} {'ms':>7} {'embree rays':>11} "
-              f"{'2 thr ms':>8} {'x':>6} {'1 thr ms':>8} {'x':>6}")
+                  f"{num(h['speedup_2threads']):>7} {num(h['speedup_1thread']):>7} "
+                  f"{num(h['cpu_speedup_2threads']):>7} {num(h['cpu_speedup_1thread']):>7}")
+        print(f"{'level %':>7} {'hemiraster (least CPU at or below)':44} {'ms':>7} {'cpu ms':>7} {'embree rays':>11} "
+              f"{'2 thr ms':>8} {'x':>6} {'1 thr ms':>8} {'x':>6} {'cpu x 2':>7} {'cpu x 1':>7}")
         for r in t["ratio_table"]:
             h = r["hemiraster"]
             knobs = "-" if h is None else (" ".join(f"{k}={v}" for k, v in h["knobs"].items()) or "defaults")
             ms = lambda x: "-" if x is None else f"{x * 1e3:.1f}"
-            print(f"{r['level'] * 100:7.2f} {knobs:44} {ms(h and h['seconds']):>7} {num(r['embree_rays'], '.0f'):>11} "
-                  f"{ms(r['embree_seconds_2threads']):>8} {num(r['ratio_2threads']):>6} "
-                  f"{ms(r['embree_seconds_1thread']):>8} {num(r['ratio_1thread']):>6}")
+            print(f"{r['level'] * 100:7.2f} {knobs:44} {ms(h and h['seconds']):>7} {ms(h and h['cpu_seconds']):>7} "
+                  f"{num(r['embree_rays'], '.0f'):>11} {ms(r['embree_seconds_2threads']):>8} {num(r['ratio_2threads']):>6} "
+                  f"{ms(r['embree_seconds_1thread']):>8} {num(r['ratio_1thread']):>6} "
+                  f"{num(r['cpu_ratio_2threads']):>7} {num(r['cpu_ratio_1thread']):>7}")
 
 
 def main(argv=None) -> int:
@@ -560,11 +581,25 @@ def main(argv=None) -> int:
     ap.add_argument("--sweep", action="store_true",
                     help="transfer: hemiraster's knob sets and embree's curve against a 65536-ray truth, the ratio "
                          "against error level (instead of the defaults at equal error)")
+    ap.add_argument("--tables", default=None, metavar="PATH",
+                    help="recompute and print the equal-error figures and ratio tables of a --sweep JSON (rewritten)")
     ap.add_argument("--json", default=None, metavar="PATH")
     args = ap.parse_args(argv)
     parts = {p for p in args.parts.split(",") if p}
     if not parts <= {"transfer", "gears"}:
         ap.error(f"--parts: transfer and/or gears, got {args.parts!r}")
+    if args.tables:
+        with open(args.tables) as f:
+            saved = json.load(f)
+        for t in saved["transfer"]:
+            for h in t["hemiraster"]:
+                at_equal_error(h, t["embree_curve"])
+            t["frontier"] = [h["knobs"] for h in pareto(t["hemiraster"])]
+            t["ratio_table"] = ratio_table(t["hemiraster"], t["embree_curve"])
+        print_sweep(saved["transfer"])
+        with open(args.tables, "w") as f:
+            json.dump(saved, f, indent=2)
+        return 0
     wp.config.log_level = wp.LOG_WARNING
     wp.init()
 
