@@ -242,11 +242,9 @@ CHUNK_RAYS = 1 << 23
 SWEEP_LEVELS = (0.005, 0.0075, 0.01, 0.0125, 0.015, 0.02, 0.03)
 """Error levels of the ratio table (mean relative L2 against the sweep's truth)."""
 SWEEP_KNOBS = (
-    {}, {"min_image": 0.0}, {"lut": 96}, {"min_image": 0.0, "lut": 96}, {"refine": 1.0}, {"refine": 4.0},
-    {"ring": 4, "refine": 0.0}, {"ring": 0}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 2048},
-    {"mask": 16}, {"mask": 64}, {"mask": 64, "lut": 96}, {"mask": 64, "min_image": 0.0, "lut": 96},
-    {"mask": 64, "min_image": 0.0, "lut": 128, "coarse": 1024}, {"mask": 64, "min_image": 0.0, "lut": 128, "refine": 4.0},
-    {"mask": 64, "ring": 4, "refine": 0.0}, {"ring": 0, "refine": 1.0}, {"fine_image": 0.5}, {"interpolate": 0.05},
+    {}, {"min_image": 0.0}, {"lut": 96}, {"min_image": 0.0, "lut": 96}, {"refine": 1.0}, {"ring": 4, "refine": 0.0},
+    {"ring": 0, "refine": 1.0}, {"coarse": 256}, {"coarse": 1024}, {"mask": 16}, {"mask": 64}, {"mask": 64, "lut": 96},
+    {"mask": 64, "min_image": 0.0, "lut": 96}, {"mask": 64, "min_image": 0.0, "lut": 128, "refine": 4.0},
 )
 """hemiraster's knob sets swept (changes from the defaults): the error floor (mask, LUT, min_image), the far
 field (coarse), the near field (refine, ring) and the receivers computed (interpolate)."""
@@ -393,8 +391,8 @@ def ratio_table(hemi: list[dict], curve: list[dict], levels=SWEEP_LEVELS) -> lis
     return rows
 
 
-def sweep_peer(name: str, repeat: int, log) -> dict:
-    """hemiraster's configurations (:data:`SWEEP_KNOBS`) and embree's curve (:data:`SWEEP_STRATA`) against the
+def sweep_peer(name: str, repeat: int, log, strata=SWEEP_STRATA) -> dict:
+    """hemiraster's configurations (:data:`SWEEP_KNOBS`) and embree's curve (``strata``) against the
     :data:`SWEEP_TRUTH_RAYS` truth; the truths' own errors; the ratio table (:func:`ratio_table`)."""
     import warp as wp
 
@@ -431,7 +429,7 @@ def sweep_peer(name: str, repeat: int, log) -> dict:
         f"{truths['embree_1156_patterns_vs_sweep_truth'] * 100:.3f} %")
 
     curve = []
-    for s in SWEEP_STRATA:
+    for s in strata:
         walls, cpus, res = {1: [], 2: []}, {1: [], 2: []}, {}
         for r in range(repeat + 1):  # the first round warms up, untimed
             for th in (1, 2):
@@ -581,6 +579,8 @@ def main(argv=None) -> int:
     ap.add_argument("--sweep", action="store_true",
                     help="transfer: hemiraster's knob sets and embree's curve against a 65536-ray truth, the ratio "
                          "against error level (instead of the defaults at equal error)")
+    ap.add_argument("--strata", default=",".join(map(str, SWEEP_STRATA)),
+                    help="--sweep: embree's s×s rays per vertex, s comma-separated (must include 32, the anchor)")
     ap.add_argument("--tables", default=None, metavar="PATH",
                     help="recompute and print the equal-error figures and ratio tables of a --sweep JSON (rewritten)")
     ap.add_argument("--json", default=None, metavar="PATH")
@@ -608,8 +608,15 @@ def main(argv=None) -> int:
 
     meshes = [m for m in args.meshes.split(",") if m]
     load0 = os.getloadavg()[0]
-    peer = sweep_peer if args.sweep else transfer_peer
-    transfer = [peer(m, args.repeat, log) for m in meshes] if "transfer" in parts else []
+    strata = tuple(int(x) for x in args.strata.split(",") if x)
+    if ANCHOR_STRATA not in strata:
+        ap.error(f"--strata must include the anchor, {ANCHOR_STRATA}")
+    if "transfer" not in parts:
+        transfer = []
+    elif args.sweep:
+        transfer = [sweep_peer(m, args.repeat, log, strata) for m in meshes]
+    else:
+        transfer = [transfer_peer(m, args.repeat, log) for m in meshes]
     gears = [gears_peer(m, args.k, args.repeat, log) for m in meshes] if "gears" in parts else []
     if transfer and args.sweep:
         print_sweep(transfer)
