@@ -22,10 +22,19 @@ independent of the thread that casts it: the run checks that the two-thread answ
 one-thread answers, ray for ray. Each timing reports ``threads_used``, process CPU time over wall time
 during the casts (≈ 2 when both threads really ran; less when other processes held a core).
 
+* **The ratio against the error level** (``--sweep``): hemiraster's knob sets (:data:`SWEEP_KNOBS`) and
+  embree's curve (``--strata``, s×s rays per vertex) judged against a :data:`SWEEP_TRUTH_RAYS`-ray truth,
+  whose own error is measured (the 4096-ray truth against it; an independent embree estimate at as many
+  rays, unless ``--no-truth-check``); embree's rays at each error interpolated on its curve
+  (:func:`rays_at_error`), its time there by wall (from an anchor cast alternately with each
+  configuration) and by CPU (two threads counted as perfectly parallel); the table against the error
+  level (:func:`ratio_table`). ``--tables PATH`` recomputes a saved sweep's figures.
+
 How to run::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --parts transfer --json benchmarks/results/embree_peer_2threads.json
     OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --parts gears --json benchmarks/results/embree_peer_gears_2threads.json
+    OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --sweep --meshes bear --strata 16,24,32,48,64 --parts transfer --json out.json
 
 Numbers come from a shared 2-core machine: A and B are timed alternately (hemiraster, embree on one
 thread, embree on two, hemiraster...), so drift hits all; compare within one run.
@@ -586,8 +595,8 @@ def main(argv=None) -> int:
                          "against error level (instead of the defaults at equal error)")
     ap.add_argument("--strata", default=",".join(map(str, SWEEP_STRATA)),
                     help="--sweep: embree's s×s rays per vertex, s comma-separated (must include the anchor's)")
-    ap.add_argument("--truth-check", action=argparse.BooleanOptionalAction, default=True,
-                    help="--sweep: cast the independent embree truth and the estimator check (minutes on the bunny)")
+    ap.add_argument("--no-truth-check", dest="truth_check", action="store_false",
+                    help="--sweep: skip the independent embree truth and the estimator check (minutes on the bunny)")
     ap.add_argument("--tables", default=None, metavar="PATH",
                     help="recompute and print the equal-error figures and ratio tables of a --sweep JSON (rewritten)")
     ap.add_argument("--json", default=None, metavar="PATH")
