@@ -33,9 +33,15 @@ def start_pool(workers: int, method: str | None):
     return WorkerPool(workers, preload=shading_preload(method))
 
 
+def _refuse(message: str):
+    raise ValueError(message)
+
+
 def _pool_flags() -> argparse.ArgumentParser:
-    """The flags of ``run`` a worker pool depends on, as values only (``run``'s own parser checks them)."""
-    parser = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
+    """The flags of ``run`` a worker pool depends on, as values only (``run``'s own parser checks them);
+    it raises ValueError instead of printing a usage error."""
+    parser = argparse.ArgumentParser(add_help=False, allow_abbrev=False, exit_on_error=False)
+    parser.error = _refuse
     for flag in ("--workers", "--scheduler", "--method"):
         parser.add_argument(flag, default=None)
     return parser
@@ -56,7 +62,7 @@ def early_pool(argv: list[str]):
         workers = default_workers() if flags.workers is None else int(flags.workers)
         if workers < 1 or flags.scheduler is not None or flags.method not in (None, "none", *METHODS):
             return None
-    except (SystemExit, ValueError):  # a flag without its value, a count that is no number
+    except (argparse.ArgumentError, ValueError):  # a flag without its value, a count that is no number
         return None
     return start_pool(workers, flags.method)
 
