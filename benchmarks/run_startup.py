@@ -10,7 +10,7 @@ Linux only.
 
 How to run::
 
-    python benchmarks/run_startup.py --repeat 6 --against ../main --json benchmarks/results/run_startup.json
+    python benchmarks/run_startup.py --repeat 6 --against ../main --json benchmarks/results/run_startup_startup2.json
 
 Shared, loaded machine: read the CPU times; the wall times stretch with the load.
 """
