@@ -16,6 +16,7 @@ import warnings
 
 from .._startup import end_startup_guard
 from ..parallel.runtime import init_warp
+from .run_pool import early_pool
 
 
 def _subcommands():
@@ -148,17 +149,30 @@ def _parse(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespa
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``warpshade`` console script."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    pool = None
     try:
-        end_startup_guard()  # from here on Ctrl-C is a KeyboardInterrupt, answered below
-        init_warp()
-        parser = build_parser()
-        args = _parse(parser, sys.argv[1:] if argv is None else list(argv))
-    except KeyboardInterrupt as exc:  # Ctrl-C while the kernels load or the flags are read
-        print("warpshade: interrupted", file=sys.stderr)
-        return exit_code(exc)
-    if args is None:
-        parser.print_help()
-        return 2
+        try:
+            end_startup_guard()  # from here on Ctrl-C is a KeyboardInterrupt, answered below
+            pool = early_pool(argv)  # `run`'s workers start beside Warp's start and the parser's imports
+            init_warp()
+            parser = build_parser()
+            args = _parse(parser, argv)
+        except KeyboardInterrupt as exc:  # Ctrl-C while the kernels load or the flags are read
+            print("warpshade: interrupted", file=sys.stderr)
+            return exit_code(exc)
+        if args is None:
+            parser.print_help()
+            return 2
+        args.early_pool = pool  # the run adopts it or closes it (warpshade.cli.run_pool.adopt)
+        return _run_command(args)
+    finally:
+        if pool is not None:  # no-op once the run closed it; here after a parse error, an exit, a signal
+            pool.close(abandon=True)
+
+
+def _run_command(args: argparse.Namespace) -> int:
+    """Run the parsed subcommand: user errors and signals as one line and an exit code."""
     # warnings as one line naming the command (replacing formatwarning keeps pytest's recording)
     formatwarning = warnings.formatwarning
     warnings.formatwarning = lambda message, *_a, **_k: f"warpshade {args.command}: warning: {message}\n"

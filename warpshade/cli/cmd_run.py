@@ -148,8 +148,12 @@ def parse_albedo(text: str | None):
 
 
 def run(args) -> int:
+    # the pool warpshade.cli.main started before Warp and this parser, if any: ended on the way out by
+    # main, whatever happens here; adopted below if it is the one these flags ask for
+    early = getattr(args, "early_pool", None)
     from ..parallel import default_workers
     from .cmd_transfer import parse_knobs
+    from .run_pool import adopt
 
     method = args.method
     if args.extra and method is None:
@@ -166,25 +170,12 @@ def run(args) -> int:
     if args.reuse_chunk is not None and args.reuse is None:
         raise ValueError("--reuse-chunk needs --reuse")
     workers = default_workers() if args.workers is None else args.workers
-    pool = start_pool(workers, method) if workers and not args.scheduler else None
+    pool = adopt(early, workers, method, args.scheduler)
     try:
         return _run(args, method, knobs, security, workers, pool)
     finally:
         if pool is not None:  # closed by the run once it took the pool; here after an error before that
             pool.close(abandon=True)
-
-
-def start_pool(workers: int, method: str | None):
-    """The run's shading workers, started before the scene is read (:class:`~warpshade.parallel.WorkerPool`):
-    meanwhile they start Warp and import the pipeline's shading and the visibility method (``--method``,
-    else the default one)."""
-    from ..parallel import WorkerPool
-    from ..visibility import METHODS, default_method
-
-    preload = ["warpshade.pipeline.shading"]
-    if method != "none":
-        preload.append(METHODS[method or default_method()].split(":")[0])
-    return WorkerPool(workers, preload=tuple(preload))
 
 
 def _run(args, method, knobs, security, workers: int, pool) -> int:

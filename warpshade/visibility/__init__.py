@@ -9,8 +9,10 @@ built through :func:`get_method` (the pipeline included), and declares its knobs
 from __future__ import annotations
 
 import importlib
+from typing import TYPE_CHECKING
 
-from .base import TransferMethod, VisibilityMethod
+if TYPE_CHECKING:
+    from .base import TransferMethod, VisibilityMethod
 
 REGISTRY = {
     "transfer": {
@@ -40,6 +42,17 @@ Only methods measured accurate on the shipped scenes belong here (``benchmarks/r
 radiance error against reference transfer at 4096 rays, order 4; the numbers behind this order are in
 docs/benchmarks/history.md). ``disks`` and ``spheres`` (made for closed blockers) are not. A method goes
 in front once it is measured close to the one it replaces."""
+
+
+def __getattr__(name: str):
+    """:class:`TransferMethod` and :class:`VisibilityMethod` load on first use (they import Warp), so the
+    registry above is read without Warp (``warpshade run`` names its workers' method before starting Warp)."""
+    if name in ("TransferMethod", "VisibilityMethod"):
+        from . import base
+
+        return getattr(base, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 def default_method() -> str:
     """The method a run uses when neither the scene nor the command line names one."""

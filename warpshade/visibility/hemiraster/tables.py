@@ -30,6 +30,7 @@ with visible fraction ``f_b`` (visible valid pixels / valid pixels) contributes 
 from __future__ import annotations
 
 import functools
+import platform
 import time
 
 import numpy as np
@@ -37,6 +38,7 @@ import warp as wp
 
 from ... import _cache
 from ...geometry.polygons import projected_solid_angle_np  # noqa: F401  (moved to geometry; re-exported)
+from ...sh import basis as _sh_basis
 from ...sh.basis import sh_eval
 
 MASK_SIZES = (8, 16, 32, 64)
@@ -254,8 +256,33 @@ def _read_only(arrays: dict) -> dict:
     return arrays
 
 
+BLOCKS_KIND = "hemiraster_blocks"
+"""Subdirectory of the disk cache (:mod:`warpshade._cache`) holding :func:`block_tables`' arrays."""
+
+
 @functools.lru_cache(maxsize=None)
 def block_tables(mask: int, downsample: int, order: int, supersample: int = 512) -> dict:
+    """:func:`build_block_tables` (same arguments, the same arrays bit for bit), read from the disk cache
+    when it holds them, else built and stored there. The entry is keyed by the arguments, the source of
+    this file and of ``sh/basis.py`` (the SH evaluation), the NumPy version and the machine; one that
+    does not have the tables' names, shapes and dtypes is rebuilt. Cached per arguments in memory as
+    well; the arrays are read-only."""
+    check_mask(mask, downsample)
+    blocks, n = (mask // downsample) ** 2, order * order
+    layout = {"valid": ((blocks,), np.int32), "weights": ((blocks, n), np.float64), "dirs": ((blocks, 3), np.float64),
+              "area": ((blocks,), np.float64)}
+    key = _cache.Key("block tables 1", _cache.source_digest(__file__), _cache.source_digest(_sh_basis.__file__),
+                     platform.machine(), *_cache.versions("numpy"), int(mask), int(downsample), int(order),
+                     int(supersample)).hexdigest()
+    arrays = _cache.load(BLOCKS_KIND, key, check=lambda a: set(a) == set(layout) and all(
+        a[k].shape == shape and a[k].dtype == dtype for k, (shape, dtype) in layout.items()))
+    if arrays is None:
+        arrays = build_block_tables(mask, downsample, order, supersample)
+        _cache.save(BLOCKS_KIND, key, arrays)
+    return _read_only(arrays)
+
+
+def build_block_tables(mask: int, downsample: int, order: int, supersample: int = 512) -> dict:
     """Per-block tables for downsampled integration, over all ``(M/D)²`` blocks in Morton block order.
 
     Block ``b`` owns mask bits ``b·D² .. (b+1)·D² - 1`` (Morton contiguity), i.e. word
@@ -268,8 +295,6 @@ def block_tables(mask: int, downsample: int, order: int, supersample: int = 512)
         downsample: Block size D in pixels (power of two, D² <= 64).
         order: SH order N.
         supersample: Integration grid across the disk for the block integrals.
-
-    Cached per arguments; the arrays are read-only.
 
     Returns:
         dict: ``valid`` (B,) int32 (valid pixels per block), ``weights`` (B, N*N) float64
@@ -316,7 +341,7 @@ def block_tables(mask: int, downsample: int, order: int, supersample: int = 512)
         area[b] = 0.0
     ln = np.linalg.norm(dsum, axis=1, keepdims=True)
     dirs = np.where(ln > 0, dsum / np.where(ln > 0, ln, 1.0), 0.0)
-    return _read_only({"valid": counts.astype(np.int32), "weights": weights, "dirs": dirs, "area": area})
+    return {"valid": counts.astype(np.int32), "weights": weights, "dirs": dirs, "area": area}
 
 
 @functools.lru_cache(maxsize=None)

@@ -1,0 +1,128 @@
+"""``warpshade run``'s start-up: the parent's CPU time before its worker processes exist.
+
+Each run is ``python -m warpshade run --no-progress --workers 2 --frames F`` on the default scene in a fresh
+process, watched through ``/proc`` every 5 ms: when its first worker process appears (a child spawned by
+``multiprocessing``, not the resource tracker), the run's own CPU time (utime + stime, 10 ms ticks) and the
+wall time since launch are read; at the end the wall time and the CPU time of the run and its children.
+With ``--against CHECKOUT`` the two checkouts alternate (ABBA), after one untimed run of each (Warp kernels
+compiled and the disk cache filled before anything is timed); the load average is recorded before each run.
+Linux only.
+
+How to run::
+
+    python benchmarks/run_startup.py --repeat 6 --against ../main --json benchmarks/results/run_startup_startup2.json
+
+Shared, loaded machine: read the CPU times; the wall times stretch with the load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+TICK = os.sysconf("SC_CLK_TCK")
+
+
+def cpu_seconds(pid: int) -> float | None:
+    """utime + stime of process ``pid`` [s], None once it is gone."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / TICK  # fields 14 and 15 of stat(5), counted after the name
+
+
+def workers_of(pid: int) -> list[int]:
+    """Child processes of ``pid`` started by multiprocessing's spawn, less its resource tracker."""
+    kids = []
+    try:
+        for task in os.listdir(f"/proc/{pid}/task"):
+            with open(f"/proc/{pid}/task/{task}/children") as f:
+                kids += [int(k) for k in f.read().split()]
+    except OSError:
+        return []
+    found = []
+    for k in kids:
+        try:
+            with open(f"/proc/{k}/cmdline", "rb") as f:
+                cmd = f.read()
+        except OSError:
+            continue
+        if b"multiprocessing" in cmd and b"resource_tracker" not in cmd:
+            found.append(k)
+    return found
+
+
+def one_run(repo: str, frames: int, workers: int) -> dict:
+    """One run of checkout ``repo``: the parent's CPU time and the wall time when its first worker appeared,
+    and the run's wall and CPU time (children included)."""
+    with tempfile.TemporaryDirectory() as d:
+        cmd = [sys.executable, "-m", "warpshade", "run", "--no-progress", "--workers", str(workers),
+               "--frames", str(frames), "--out", os.path.join(d, "out.usda")]
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        p = subprocess.Popen(cmd, cwd=d, env=dict(os.environ, PYTHONPATH=repo), stdout=subprocess.DEVNULL,
+                             stderr=subprocess.PIPE, text=True)
+        at_spawn = None
+        while p.poll() is None:
+            if at_spawn is None and workers_of(p.pid):
+                at_spawn = {"parent_cpu_seconds": cpu_seconds(p.pid), "wall_seconds": time.perf_counter() - t0}
+            time.sleep(0.005)
+        wall = time.perf_counter() - t0
+        err = p.stderr.read()
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if p.returncode:
+        raise RuntimeError(f"warpshade run failed ({p.returncode}): {err[-2000:]}")
+    return {"at_workers": at_spawn, "wall_seconds": wall,
+            "cpu_seconds": after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=4, help="rounds (each: one run of each checkout)")
+    ap.add_argument("--frames", type=int, default=10)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--against", default=None, metavar="CHECKOUT", help="another checkout, alternated with this one")
+    ap.add_argument("--json", default=None, metavar="PATH")
+    args = ap.parse_args(argv)
+    trees = [REPO] + ([os.path.abspath(args.against)] if args.against else [])
+    for repo in trees:  # untimed: kernels compiled, disk cache filled
+        one_run(repo, args.frames, args.workers)
+    runs = []
+    for r in range(args.repeat):
+        for repo in (trees if r % 2 == 0 else trees[::-1]):
+            load = os.getloadavg()[0]
+            run = {"repo": repo, "load_average": load, **one_run(repo, args.frames, args.workers)}
+            runs.append(run)
+            s = run["at_workers"] or {}
+            print(f"round {r} {repo}: parent CPU before the workers {s.get('parent_cpu_seconds')} s "
+                  f"(wall {s.get('wall_seconds', float('nan')):.2f} s); run {run['wall_seconds']:.2f} s wall, "
+                  f"{run['cpu_seconds']:.2f} s CPU (load {load:.2f})", flush=True)
+    med = {}
+    for repo in trees:
+        mine = [x for x in runs if x["repo"] == repo and x["at_workers"]]
+        med[repo] = {"parent_cpu_before_workers": statistics.median(x["at_workers"]["parent_cpu_seconds"] for x in mine),
+                     "wall_before_workers": statistics.median(x["at_workers"]["wall_seconds"] for x in mine),
+                     "wall_seconds": statistics.median(x["wall_seconds"] for x in mine),
+                     "cpu_seconds": statistics.median(x["cpu_seconds"] for x in mine)}
+        print(f"median {repo}: " + ", ".join(f"{k} {v:.2f} s" for k, v in med[repo].items()))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"what": __doc__.split("\n\n")[1], "command": f"python -m warpshade run --no-progress --workers "
+                       f"{args.workers} --frames {args.frames}", "checkouts": trees, "runs": runs, "median": med},
+                      f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
