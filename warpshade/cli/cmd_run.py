@@ -260,6 +260,10 @@ def _run(args, method, knobs, security, workers: int, pool) -> int:
           f"({s['simulate'] * per:.1f} ms/frame) | shade {s['shade']:.2f} s ({s['shade'] * per:.1f} ms/frame) | "
           f"write {s['write']:.2f} s ({s['write'] * per:.1f} ms/frame) | total {s['total'] + load:.2f} s",
           file=sys.stderr)
+    if workers or args.scheduler:  # the sums can exceed the wall time: say so where they are printed
+        where = "scheduler's workers" if args.scheduler else f"{workers} worker process{'es' if workers != 1 else ''}"
+        print(f"  (setup and shade are summed over the {where}, which run beside the simulation; total is wall time from reading the scene)",
+              file=sys.stderr)
     # a command to copy and paste: paths quoted for the shell (spaces, quotes)
     print(f"  preview: warpshade preview {shlex.quote(report.path)} --contact-sheet : "
           f"-o {shlex.quote(os.path.splitext(report.path)[0] + '.png')}", file=sys.stderr)
