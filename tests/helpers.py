@@ -150,3 +150,17 @@ def bumpy_grid(n=7, seed=0, name=None):
     faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
     points = np.stack([x, y, z], -1).reshape(-1, 3)
     return TriMesh(points, faces) if name is None else TriMesh(points, faces, name=name)
+
+
+def swaying_frames(mesh, first, count, up=2, across=1):
+    """``count`` poses of ``mesh`` whose points from ``first`` on sway: +0.01 per frame along x and
+    ``0.02 sin(0.7 f) cos(3 x_across)`` along axis ``up``; the points before ``first`` stay (so unmoved
+    receivers keep a stored part from the second frame). float32."""
+    out = []
+    for f in range(count):
+        p = mesh.points.copy()
+        s = p[first:]
+        s[:, 0] += 0.01 * f
+        s[:, up] += 0.02 * np.sin(0.7 * f) * np.cos(3 * s[:, across])
+        out.append(p.astype(np.float32))
+    return out

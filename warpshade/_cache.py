@@ -116,6 +116,13 @@ def versions(*dists: str) -> tuple[str, ...]:
     return tuple(out)
 
 
+def has_layout(arrays: dict, layout: dict) -> bool:
+    """Whether ``arrays`` holds exactly the names of ``layout`` (name -> ``(shape, dtype)``) with those shapes
+    and dtypes: the usual ``check`` of :func:`load` for entries of a known shape."""
+    return set(arrays) == set(layout) and all(arrays[k].shape == tuple(shape) and arrays[k].dtype == np.dtype(dtype)
+                                              for k, (shape, dtype) in layout.items())
+
+
 def _path(kind: str, key: str, where: str | None) -> str | None:
     base = where if where is not None else root()
     return None if base is None else os.path.join(base, kind, f"{key}.npz")
@@ -202,4 +209,4 @@ def _warn_once(what, message: str) -> None:
         warnings.warn(message, RuntimeWarning, stacklevel=3)
 
 
-__all__ = ["ENV", "Key", "MAX_BYTES", "OFF", "default_root", "load", "prune", "root", "save", "source_digest", "stats", "versions"]
+__all__ = ["ENV", "Key", "MAX_BYTES", "OFF", "default_root", "has_layout", "load", "prune", "root", "save", "source_digest", "stats", "versions"]

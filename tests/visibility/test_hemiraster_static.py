@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from helpers import swaying_frames
 from warpshade.geometry import TriMesh
 from warpshade.visibility import get_method
 
@@ -30,14 +31,7 @@ def ground_and_sheet(n=9, m=10):
 
 def frames(mesh, ng, count):
     """The ground stays, the sheet sways and sinks a little every frame."""
-    out = []
-    for f in range(count):
-        p = mesh.points.copy()
-        s = p[ng:]
-        s[:, 0] += 0.01 * f
-        s[:, 2] += 0.02 * np.sin(0.7 * f) * np.cos(3 * s[:, 1])
-        out.append(p.astype(np.float32))
-    return out
+    return swaying_frames(mesh, ng, count, up=2, across=1)
 
 
 def same_state(a, b):

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from helpers import swaying_frames
 from warpshade.geometry import TriMesh
 from warpshade.geometry.shapes import box_shape
 from warpshade.visibility import get_method
@@ -39,14 +40,7 @@ def ground_box_sheet(n=13, m=8):
 
 def frames(mesh, first_sheet, count):
     """Ground and box stay, the sheet sways (so unmoved receivers keep a stored part from the second frame)."""
-    out = []
-    for f in range(count):
-        p = mesh.points.copy()
-        s = p[first_sheet:]
-        s[:, 0] += 0.01 * f
-        s[:, 1] += 0.02 * np.sin(0.7 * f) * np.cos(3 * s[:, 2])
-        out.append(p.astype(np.float32))
-    return out
+    return swaying_frames(mesh, first_sheet, count, up=1, across=2)
 
 
 @pytest.mark.parametrize("near_first", [False, True])

@@ -217,8 +217,7 @@ def sphere_shape(radius: float, subdivisions: int) -> tuple[np.ndarray, np.ndarr
     nv = nf // 2 + 2
     key = _cache.Key(SPHERE_CACHE, radius, subdivisions, platform.machine(), *_cache.versions("trimesh", "numpy")).hexdigest()
     hit = _cache.load(SPHERE_CACHE, key, check=lambda a: (
-        set(a) == {"points", "faces"} and a["points"].shape == (nv, 3) and a["points"].dtype == np.float64
-        and a["faces"].shape == (nf, 3) and a["faces"].dtype == np.int64
+        _cache.has_layout(a, {"points": ((nv, 3), np.float64), "faces": ((nf, 3), np.int64)})
         and 0 <= a["faces"].min() and a["faces"].max() < nv))
     if hit is not None:
         return hit["points"], hit["faces"]

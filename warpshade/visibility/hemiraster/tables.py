@@ -230,7 +230,7 @@ def build_lut(mask: int, lut: int, cache_dir: str | None = None, device: str = "
     shape = (6 * lut * lut, words_per_mask(mask))
     disk_key = _cache.Key("plane lut 1", _cache.source_digest(__file__), wp.__version__, *key).hexdigest()
     entry = _cache.load(LUT_KIND, disk_key, where=cache_dir,
-                        check=lambda a: set(a) == {"table"} and a["table"].shape == shape and a["table"].dtype == np.uint64)
+                        check=lambda a: _cache.has_layout(a, {"table": (shape, np.uint64)}))
     table, source = (entry["table"], "disk") if entry is not None else (None, "built")
     if table is None:
         dirs, _ = pixel_directions(mask)
@@ -274,8 +274,7 @@ def block_tables(mask: int, downsample: int, order: int, supersample: int = 512)
     key = _cache.Key("block tables 1", _cache.source_digest(__file__), _cache.source_digest(_sh_basis.__file__),
                      platform.machine(), *_cache.versions("numpy"), int(mask), int(downsample), int(order),
                      int(supersample)).hexdigest()
-    arrays = _cache.load(BLOCKS_KIND, key, check=lambda a: set(a) == set(layout) and all(
-        a[k].shape == shape and a[k].dtype == dtype for k, (shape, dtype) in layout.items()))
+    arrays = _cache.load(BLOCKS_KIND, key, check=lambda a: _cache.has_layout(a, layout))
     if arrays is None:
         arrays = build_block_tables(mask, downsample, order, supersample)
         _cache.save(BLOCKS_KIND, key, arrays)

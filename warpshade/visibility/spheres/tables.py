@@ -192,7 +192,7 @@ def log_blocker_table(order: int, mode: str = "hyb", tau: float = 0.5) -> np.nda
     from scipy.optimize import least_squares
 
     key = log_table_key(order, mode, tau)
-    hit = _cache.load(CACHE_KIND, key, check=lambda a: a.get("table") is not None and a["table"].shape == (TABLE_SIZE, order))
+    hit = _cache.load(CACHE_KIND, key, check=lambda a: _cache.has_layout(a, {"table": ((TABLE_SIZE, order), np.float64)}))
     if hit is not None:
         return hit["table"]
     fit_t = np.linspace(0.0, THETA_MAX, LOG_FIT_POINTS)
