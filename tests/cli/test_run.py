@@ -187,6 +187,57 @@ def test_run_default_scene_few_frames(tmp_path, capsys):
 
 
 
+@pytest.mark.parametrize("cached", [False, True])
+def test_run_says_when_its_setup_compiles_warp_kernels(tmp_path, capsys, monkeypatch, cached):
+    """A first run with an empty kernel cache spends a minute compiling: the run says so before its setup and
+    under its timings (which include it); with the kernels cached it says nothing of the kind."""
+    import warpshade.parallel.runtime as runtime
+
+    monkeypatch.setattr(runtime, "kernel_cache_holds_warpshade", lambda: cached)
+    out = tmp_path / "out.usda"
+    assert main(["run", "--frames", "2", "--out", str(out), "--no-progress", "--workers", "0", "--method",
+                 "reference", "--rays", "16"]) == 0
+    err = capsys.readouterr().err
+    assert ("holds no warpshade kernels: this first run compiles them" in err) == (not cached)
+    assert ("(this run compiled Warp's kernels" in err) == (not cached)
+
+
+def test_kernel_cache_check_counts_compiled_warpshade_modules_only(tmp_path, monkeypatch):
+    """Lock files, build directories still being written and other programs' modules are not compiled
+    warpshade kernels; a finished module directory is (names as Warp 1.19 writes them)."""
+    import warp as wp
+
+    from warpshade.parallel.runtime import init_warp, kernel_cache_holds_warpshade
+
+    init_warp()
+    monkeypatch.setattr(wp.config, "kernel_cache_dir", str(tmp_path))
+    assert not kernel_cache_holds_warpshade()
+    for name in ("wp_warpshade.geometry.normals_e65b463.lock", "wp_warpshade.geometry.normals_e65b463_p81_t1407",
+                 "wp_test_hemiraster_e065bc9", "wp_warp.sim_0a1b2c3"):
+        (tmp_path / name).mkdir()
+        assert not kernel_cache_holds_warpshade(), name
+    (tmp_path / "wp_warpshade.geometry.normals_e65b463").mkdir()
+    assert kernel_cache_holds_warpshade()
+    monkeypatch.setattr(wp.config, "kernel_cache_dir", str(tmp_path / "missing"))
+    assert not kernel_cache_holds_warpshade()
+
+
+def test_setup_ticker_says_it_compiles():
+    from warpshade.pipeline import _SetupTicker
+
+    class Bar:
+        def set_description_str(self, text):
+            pass
+
+    for estimate in (None, 6.0):
+        quiet, first = _SetupTicker(Bar(), estimate), _SetupTicker(Bar(), estimate, compiling=True)
+        try:
+            assert "compiling" not in quiet.text() and "compiling Warp kernels (first run)" in first.text()
+            assert ("of ~6 s estimated" in first.text()) == (estimate is not None)
+        finally:
+            quiet.stop(), first.stop()
+
+
 def test_groups_with_different_methods_shadow_each_other_through_spheres(tmp_path):
     """Objects shaded by different methods form separate groups; sphere sets carry shadows between them."""
 

@@ -230,6 +230,11 @@ def _run(args, method, knobs, security, workers: int, pool) -> int:
                                        **({"reuse": f"{args.reuse} rad, chunks of {pipe.chunk} frames"}
                                           if pipe.chunk is not None else {})})
     estimate = setup_estimate(scene, method, knobs, pipe.order, args, workers)
+    if pipe.compiles:
+        import warp as wp
+
+        print(f"warpshade run: Warp's kernel cache ({wp.config.kernel_cache_dir}) holds no warpshade kernels: "
+              f"this first run compiles them during its setup, once (later runs load them from the cache)", file=sys.stderr)
     if estimate is not None and estimate >= SETUP_NOTICE_SECONDS:
         print(f"warpshade run: setup estimated at {estimate:.1f} s (warpshade plan prices it) before the first "
               f"frame; Ctrl-C stops it", file=sys.stderr)
@@ -260,6 +265,9 @@ def _run(args, method, knobs, security, workers: int, pool) -> int:
           f"({s['simulate'] * per:.1f} ms/frame) | shade {s['shade']:.2f} s ({s['shade'] * per:.1f} ms/frame) | "
           f"write {s['write']:.2f} s ({s['write'] * per:.1f} ms/frame) | total {s['total'] + load:.2f} s",
           file=sys.stderr)
+    if report.compiled:
+        print("  (this run compiled Warp's kernels: its setup and first frames include that; later runs skip it)",
+              file=sys.stderr)
     if workers or args.scheduler:  # the sums can exceed the wall time: say so where they are printed
         where = "scheduler's workers" if args.scheduler else f"{workers} worker process{'es' if workers != 1 else ''}"
         print(f"  (setup and shade are summed over the {where}, which run beside the simulation; total is wall time from reading the scene)",

@@ -14,6 +14,7 @@ which with an empty cache each would otherwise compile at the same time.
 from __future__ import annotations
 
 import os
+import re
 import sys
 import tempfile
 
@@ -67,6 +68,26 @@ def compile_one_at_a_time() -> None:
 
     _compile.one_at_a_time = True
     Module._compile = _compile
+
+
+COMPILED_MODULE = re.compile(r"wp_warpshade\.[\w.]+_[0-9a-f]+")
+"""A compiled warpshade module's directory in Warp's kernel cache, ``wp_<module>_<hash>`` (not a lock
+file, not a build directory ``..._p<pid>_t<thread>`` still being written)."""
+
+
+def kernel_cache_holds_warpshade() -> bool:
+    """Whether Warp's kernel cache (``warp.config.kernel_cache_dir``, after :func:`init_warp`) holds any
+    compiled warpshade module. False on a machine's (or a fresh ``WARP_CACHE_PATH``'s) first run, when
+    the run's setup includes compiling every kernel it uses. A cache filled by another warpshade version also counts as holding them, though
+    modules whose code changed compile again."""
+    import warp as wp
+
+    init_warp()
+    try:
+        names = os.listdir(wp.config.kernel_cache_dir)
+    except (OSError, TypeError):  # no cache directory (yet): nothing is compiled
+        return False
+    return any(COMPILED_MODULE.fullmatch(n) for n in names)
 
 
 def init_warp() -> None:

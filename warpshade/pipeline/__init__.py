@@ -54,6 +54,8 @@ class RunReport:
         groups: One line per shading group (method, knobs, objects).
         resumed_from: First frame produced by this run (> 0 after ``--resume``).
         area_lights: How rect lights were shaded ("" when the scene has none).
+        compiled: Whether Warp's kernel cache held no warpshade kernels at the start, so that the
+            setup and the first frames' times include compiling them.
     """
 
     path: str
@@ -65,6 +67,7 @@ class RunReport:
     area_lights: str = ""
     passes: list = field(default_factory=list)
     frame_seconds: list = field(default_factory=list)
+    compiled: bool = False
 
 
 def check_output(scene: Scene, out: str) -> None:
@@ -99,10 +102,10 @@ class _SetupTicker:
     elapsed, against the planner's estimate when there is one (the bar's own count stays at 0 until the
     first frame, which can take minutes on a large scene)."""
 
-    def __init__(self, bar, estimate: float | None, every: float = 1.0):
+    def __init__(self, bar, estimate: float | None, every: float = 1.0, compiling: bool = False):
         import threading
 
-        self.bar, self.estimate, self.t0 = bar, estimate, time.monotonic()
+        self.bar, self.estimate, self.compiling, self.t0 = bar, estimate, compiling, time.monotonic()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._tick, args=(every,), name="warpshade-setup-ticker", daemon=True)
         self._thread.start()
@@ -110,6 +113,8 @@ class _SetupTicker:
     def text(self) -> str:
         elapsed = time.monotonic() - self.t0
         of = f" of ~{self.estimate:.0f} s estimated" if self.estimate else ""
+        if self.compiling:  # the planner prices the work, not Warp compiling it on a first run
+            of += (" + compiling Warp kernels (first run)" if of else ", compiling Warp kernels (first run)")
         return f"warpshade run: setting up, {elapsed:.0f} s{of}"
 
     def _tick(self, every: float) -> None:
@@ -171,9 +176,12 @@ class Pipeline:
                  area_lights: str = "gears", area_knobs: dict | None = None, refine_receivers="auto",
                  security=None, two_sided: str = "auto", reuse: float | None = None,
                  reuse_chunk: int | None = None):
-        from ..parallel.runtime import init_warp
+        from ..parallel.runtime import init_warp, kernel_cache_holds_warpshade
 
         init_warp()  # a script's run starts as quietly as the CLI's (no banner, no CUDA-driver notice)
+        self.compiles = not kernel_cache_holds_warpshade()
+        """Whether Warp's kernel cache held no warpshade kernels when the pipeline was made: the run's
+        setup then compiles them (a machine's first run; the progress bar and the report say so)."""
         self.scene = scene
         self.refined = refine(scene, refine_receivers)
         """Static objects subdivided for shading (:mod:`warpshade.pipeline.refine`)."""
@@ -328,7 +336,7 @@ class Pipeline:
 
                 bar = tqdm(total=self.frames, initial=min(start, self.frames), desc="warpshade run: setting up",
                            unit="frame")
-                ticker = _SetupTicker(bar, setup_estimate)
+                ticker = _SetupTicker(bar, setup_estimate, compiling=self.compiles)
             sims = ClothSimulation(self.scene, self.device) if any(o.kind == "cloth" for o in self.scene.objects) else None
             static = {o.name for o in self.scene.objects if o.kind == "static"}
             names = {}
@@ -406,7 +414,7 @@ class Pipeline:
                                 vertices=sum(m.num_vertices for g in self.groups for m in g.meshes),
                                 groups=[_group_line(g) for g in self.groups],
                                 area_lights=self.area_description, passes=passes,
-                                frame_seconds=frame_seconds)
+                                frame_seconds=frame_seconds, compiled=self.compiles)
         return self.report
 
 
