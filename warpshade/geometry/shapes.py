@@ -159,7 +159,7 @@ class Grading:
         b = self.boxes
         if side:
             far, near = (b[:, 1], b[:, 0]) if side > 0 else (b[:, 0], b[:, 1])
-            front = side * (far[:, normal] - plane) > -1e-6 * max(self.diagonal, 1e-30)
+            front = side * (far[:, normal] - plane) > 1e-6 * self.diagonal  # touching from behind: not in front
             height = np.maximum(side * (near[front, normal] - plane), 0.0)
             b = b[front]
         else:
@@ -170,6 +170,17 @@ class Grading:
         along = np.maximum(np.maximum(b[None, :, 0, axis] - t, t - b[None, :, 1, axis]), 0.0)
         d = np.hypot(along, height[None, :]).min(axis=1)
         return np.clip(GRADE_SLOPE * d, edge, most)
+
+
+def cloth_region(box, up: int, lowest: float) -> np.ndarray:
+    """The world box ((2, 3) lower and upper corners) a simulated cloth can occupy, from its rest bounds
+    ``box``: widened on every side by :data:`GRADE_CLOTH_MARGIN` of the rest bounds' diagonal and swept
+    down along the ``up`` axis to ``lowest`` (the scene's lowest point: it falls onto the colliders
+    below)."""
+    box = np.array(box, dtype=np.float64)
+    box += GRADE_CLOTH_MARGIN * float(np.linalg.norm(box[1] - box[0])) * np.array([[-1.0], [1.0]])
+    box[0, up] = lowest
+    return box
 
 
 def frame_boxes(boxes, to_world: np.ndarray) -> np.ndarray:
