@@ -96,9 +96,9 @@ def build(path: str, edge: float | None) -> None:
     stage.Save()
 
 
-def run(scene: str, out: str, method: str | None) -> dict:
-    """``warpshade run`` of frame 1 inline; its setup and shading seconds."""
-    cmd = [sys.executable, "-m", "warpshade", "run", scene, "--frames", "1", "--workers", "0", "-o", out, "--no-progress"]
+def run(scene: str, out: str, method: str | None, frames: int = 1) -> dict:
+    """``warpshade run`` of the first ``frames`` frames inline; its setup and shading seconds."""
+    cmd = [sys.executable, "-m", "warpshade", "run", scene, "--frames", str(frames), "--workers", "0", "-o", out, "--no-progress"]
     if method:
         cmd += ["--method", method]
     env = dict(os.environ, PYTHONPATH=os.environ.get("PYTHONPATH") or REPO)  # PYTHONPATH set: that code
@@ -108,8 +108,8 @@ def run(scene: str, out: str, method: str | None) -> dict:
     return times
 
 
-def colours(path: str) -> dict:
-    """Per mesh: points, triangles and luminance of ``displayColor`` at time 1."""
+def colours(path: str, time: float = 1) -> dict:
+    """Per mesh: points, triangles and luminance of ``displayColor`` at ``time``."""
     from pxr import Usd, UsdGeom
 
     out = {}
@@ -117,9 +117,9 @@ def colours(path: str) -> dict:
     for p in stage.Traverse():
         if p.IsA(UsdGeom.Mesh):
             m = UsdGeom.Mesh(p)
-            out[p.GetName()] = (np.asarray(m.GetPointsAttr().Get(1), dtype=np.float64),
+            out[p.GetName()] = (np.asarray(m.GetPointsAttr().Get(time), dtype=np.float64),
                                 np.asarray(m.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3),
-                                np.asarray(UsdGeom.PrimvarsAPI(p).GetPrimvar("displayColor").Get(1)) @ LUM)
+                                np.asarray(UsdGeom.PrimvarsAPI(p).GetPrimvar("displayColor").Get(time)) @ LUM)
     return out
 
 
