@@ -40,7 +40,7 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from gprim_density import colours, run  # noqa: E402  (benchmarks/ is not a package)
+from gprim_density import colours, run, sheet  # noqa: E402  (benchmarks/ is not a package)
 
 
 EDGE = 0.025
@@ -53,7 +53,7 @@ PEDESTAL_RADIUS = 0.25
 def build(path: str, graded: bool, cloth_points=None) -> None:
     """Write the pedestal scene to ``path``: graded or not; with ``cloth_points`` the cloth is a static
     mesh there (a still snapshot, target edge :data:`EDGE`) instead of a simulated sheet at rest."""
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdPhysics
 
     stage = Usd.Stage.CreateNew(path)
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
@@ -82,18 +82,7 @@ def build(path: str, graded: bool, cloth_points=None) -> None:
     pts = [Gf.Vec3f(-size / 2 + size * i / n, -size / 2 + size * j / n, 0.75) for j in range(n + 1) for i in range(n + 1)]
     if cloth_points is not None:
         pts = [Gf.Vec3f(*map(float, p)) for p in cloth_points]
-    cloth = UsdGeom.Mesh.Define(stage, "/World/Cloth")
-    cloth.GetPointsAttr().Set(pts)
-    cloth.GetFaceVertexCountsAttr().Set([4] * (n * n))
-    cloth.GetFaceVertexIndicesAttr().Set([v for j in range(n) for i in range(n) for v in
-                                          (j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i)])
-    cloth.GetPrim().CreateAttribute("warpshade:kind", Sdf.ValueTypeNames.Token).Set("static" if cloth_points is not None else "cloth")
-    mat = UsdShade.Material.Define(stage, "/World/Looks/Red")
-    sh = UsdShade.Shader.Define(stage, "/World/Looks/Red/PBR")
-    sh.CreateIdAttr("UsdPreviewSurface")
-    sh.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0.8, 0.15, 0.1))
-    mat.CreateSurfaceOutput().ConnectToSource(sh.ConnectableAPI(), "surface")
-    UsdShade.MaterialBindingAPI.Apply(cloth.GetPrim()).Bind(mat)
+    sheet(stage, "/World/Cloth", pts, n, "static" if cloth_points is not None else "cloth", (0.8, 0.15, 0.1))
     sun = UsdLux.DistantLight.Define(stage, "/World/Sun")
     sun.CreateIntensityAttr(3.0)
     sun.CreateAngleAttr(10.0)

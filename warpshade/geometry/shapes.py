@@ -11,6 +11,17 @@ sections around (their silhouettes and normals), every count is at most :data:`M
 scene's target edge (:func:`scene_edge`) and the vertex budget (:func:`fit_budget`) are decided here
 too; the USD reader supplies the scene's sizes and the per-prim overrides.
 
+Graded (a :class:`Grading`, what the USD reader gives a shaded Cube or Plane unless
+``warpshade:graded`` is false): the transfer at a point varies on a length scale of about its
+distance ``d`` to the nearest occluder, so the edge there may be ``GRADE_SLOPE * d``, within [target
+edge, :meth:`Grading.most`], ``d`` measured to the region the scene's other objects can occupy (their
+bounds; a cloth's :func:`cloth_region`). Each face keeps those of its uniform grid's rows that the
+rule allows (:func:`_graded_rows`: dyadic levels, so a face is fine where rows and columns pass over
+the region and coarse elsewhere; a face with nothing in front of it, a floor slab's bottom and sides,
+is coarsest), the rows along a rim are the union of both faces' (cells with extra rows on a side are
+fans about their centre), so the surface stays closed vertex to vertex. The curved gprims and
+:mod:`warpshade.script`'s shapes (made without a scene) stay uniform.
+
 A vertex shared by two faces meeting at a sharp edge would get one normal between them and shade
 like neither face (a dark or bright seam along every rim of a cube). So each face of a box and the
 caps of a cylinder or cone have vertices of their own, as a renderer shades the gprims (flat faces,
