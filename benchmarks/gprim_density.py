@@ -47,20 +47,9 @@ CRATE_TURN, CRATE_HALF = 20.0, 30.0  # degrees, cm
 def build(path: str, edge: float | None, graded: bool = True) -> None:
     """Write the crate scene to ``path`` (``warpshade:edgeLength`` = ``edge`` on the default prim if given;
     ``warpshade:graded = false`` there unless ``graded``)."""
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdPhysics
+    from pxr import Gf, UsdGeom, UsdLux, UsdPhysics
 
-    stage = Usd.Stage.CreateNew(path)
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
-    stage.SetTimeCodesPerSecond(30)
-    stage.SetStartTimeCode(1)
-    stage.SetEndTimeCode(30)
-    world = UsdGeom.Xform.Define(stage, "/Scene")
-    stage.SetDefaultPrim(world.GetPrim())
-    if edge is not None:
-        world.GetPrim().CreateAttribute("warpshade:edgeLength", Sdf.ValueTypeNames.Float).Set(edge)
-    if not graded:
-        world.GetPrim().CreateAttribute("warpshade:graded", Sdf.ValueTypeNames.Bool).Set(False)
+    stage = z_up_stage(path, "/Scene", 0.01, 30, 30, edge, graded)
     floor = UsdGeom.Cube.Define(stage, "/Scene/Floor")
     floor.CreateSizeAttr(1.0)
     floor.AddTranslateOp().Set(Gf.Vec3d(0, 0, -2.5))
@@ -88,6 +77,26 @@ def build(path: str, edge: float | None, graded: bool = True) -> None:
     rect.AddRotateXOp().Set(-15.0)
     UsdLux.DomeLight.Define(stage, "/Scene/Sky").CreateIntensityAttr(0.4)
     stage.Save()
+
+
+def z_up_stage(path: str, root: str, meters_per_unit: float, fps: float, last: int, edge: float | None, graded: bool):
+    """A new stage at ``path``, Z up, frames 1 to ``last``, default prim the Xform ``root`` carrying
+    ``warpshade:edgeLength`` = ``edge`` if given and ``warpshade:graded = false`` unless ``graded``."""
+    from pxr import Sdf, Usd, UsdGeom
+
+    stage = Usd.Stage.CreateNew(path)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, meters_per_unit)
+    stage.SetTimeCodesPerSecond(fps)
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(last)
+    world = UsdGeom.Xform.Define(stage, root).GetPrim()
+    stage.SetDefaultPrim(world)
+    if edge is not None:
+        world.CreateAttribute("warpshade:edgeLength", Sdf.ValueTypeNames.Float).Set(edge)
+    if not graded:
+        world.CreateAttribute("warpshade:graded", Sdf.ValueTypeNames.Bool).Set(False)
+    return stage
 
 
 def sheet(stage, path: str, points, n: int, kind: str, colour) -> None:

@@ -40,7 +40,7 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from gprim_density import colours, run, sheet  # noqa: E402  (benchmarks/ is not a package)
+from gprim_density import colours, run, sheet, z_up_stage  # noqa: E402  (benchmarks/ is not a package)
 
 
 EDGE = 0.025
@@ -53,20 +53,9 @@ PEDESTAL_RADIUS = 0.25
 def build(path: str, graded: bool, cloth_points=None) -> None:
     """Write the pedestal scene to ``path``: graded or not; with ``cloth_points`` the cloth is a static
     mesh there (a still snapshot, target edge :data:`EDGE`) instead of a simulated sheet at rest."""
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdPhysics
+    from pxr import Gf, UsdGeom, UsdLux, UsdPhysics
 
-    stage = Usd.Stage.CreateNew(path)
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-    stage.SetStartTimeCode(1)
-    stage.SetEndTimeCode(48)
-    stage.SetTimeCodesPerSecond(24)
-    world = UsdGeom.Xform.Define(stage, "/World")
-    stage.SetDefaultPrim(world.GetPrim())
-    if not graded:
-        world.GetPrim().CreateAttribute("warpshade:graded", Sdf.ValueTypeNames.Bool).Set(False)
-    if cloth_points is not None:
-        world.GetPrim().CreateAttribute("warpshade:edgeLength", Sdf.ValueTypeNames.Float).Set(EDGE)
+    stage = z_up_stage(path, "/World", 1.0, 24, 48, EDGE if cloth_points is not None else None, graded)
     floor = UsdGeom.Cube.Define(stage, "/World/Floor")
     floor.GetSizeAttr().Set(1.0)
     UsdGeom.XformCommonAPI(floor).SetScale(Gf.Vec3f(3, 3, 0.05))
