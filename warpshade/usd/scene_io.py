@@ -462,7 +462,10 @@ def _gradings(scene: Scene, gprims: list, root) -> None:
     regions = _regions(scene, shaded, float(np.concatenate(points)[:, up].min()))
     for g in graded:
         boxes = [box for owner, box in regions if owner is not g]
-        g.grading = Grading(frame_boxes(boxes, g.to_world()) if boxes else np.zeros((0, 2, 3)), diag)
+        to_world = g.to_world()
+        if not abs(np.linalg.det(to_world[:3, :3])) > 0:
+            continue  # flattened to nothing by its transform: no frame to grade in, uniform
+        g.grading = Grading(frame_boxes(boxes, to_world) if boxes else np.zeros((0, 2, 3)), diag)
 
 
 def _edge_length(value, where: str) -> float:
