@@ -100,6 +100,8 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
     for key, value in list(scene.settings.items()):
         if key in SCENE_SETTINGS:
             scene.settings[key] = _cast(value, SCENE_SETTINGS[key], source, root, key)
+    if "graded" in scene.settings:
+        scene.settings["graded"] = _graded_flag(scene.settings["graded"], f"{source}:{root.GetPath()}")
     if "frames" in scene.settings:
         scene.frames = scene.settings["frames"]
     if "fps" in scene.settings:
@@ -421,7 +423,7 @@ def _regions(scene: Scene, gprims: list, lowest: float) -> list:
     as ``(owner, box)``, ``owner`` the object or the :class:`_Gprim` (``gprims``: the shaded ones): a static object's bounds; a
     cloth's :func:`~warpshade.geometry.shapes.cloth_region` (down to ``lowest`` along the up axis);
     an animated or skinned object's bounds at up to :data:`_REGION_SAMPLES` frames."""
-    up = {"X": 0, "Y": 1, "Z": 2}.get(scene.up_axis, 1)
+    up = _AXES.get(scene.up_axis, 1)
     codes = scene.start_time + np.unique(np.linspace(0, scene.frames - 1, min(scene.frames, _REGION_SAMPLES)).round())
 
     def bounds(pts):
@@ -445,21 +447,19 @@ def _regions(scene: Scene, gprims: list, lowest: float) -> list:
     return out
 
 
-def _gradings(scene: Scene, gprims: list, root) -> None:
+def _gradings(scene: Scene, gprims: list) -> None:
     """Give each shaded Cube and Plane gprim to be graded (``warpshade:graded``, its own else the
     default prim's, true unless authored false) its :class:`~warpshade.geometry.shapes.Grading`: the
     regions of the scene's other shaded objects (:func:`_regions`) in its frame. Collision-only
     gprims stay uniform."""
-    default = scene.settings.get("graded")
-    default = True if default is None else _graded_flag(default, f"{scene.source}:{root.GetPath()}")
+    default = scene.settings.get("graded", True)
     shaded = [g for g in gprims if g.target is scene.objects]
     graded = [g for g in shaded if g.kind in GRADED_KINDS and (default if g.graded is None else g.graded)]
     if not graded:
         return
-    diag = _diagonal(scene, shaded)
-    points = [o.mesh.points for o in scene.objects if o is not None] + [g.corners() for g in shaded]
-    up = {"X": 0, "Y": 1, "Z": 2}.get(scene.up_axis, 1)
-    regions = _regions(scene, shaded, float(np.concatenate(points)[:, up].min()))
+    points = _shaded_points(scene, shaded)
+    diag = float(np.linalg.norm(np.ptp(points, axis=0)))
+    regions = _regions(scene, shaded, float(points[:, _AXES.get(scene.up_axis, 1)].min()))
     for g in graded:
         boxes = [box for owner, box in regions if owner is not g]
         to_world = g.to_world()
@@ -479,11 +479,11 @@ def _edge_length(value, where: str) -> float:
     return edge
 
 
-def _diagonal(scene: Scene, shaded: list) -> float | None:
-    """The bounding-box diagonal of the shaded objects read so far and of the ``shaded`` gprims (None
-    if there are none)."""
+def _shaded_points(scene: Scene, shaded: list) -> np.ndarray | None:
+    """The points of the shaded objects read so far and the corners of the ``shaded`` gprims (None if
+    there are none)."""
     points = [o.mesh.points for o in scene.objects if o is not None] + [g.corners() for g in shaded]
-    return float(np.linalg.norm(np.ptp(np.concatenate(points), axis=0))) if points else None
+    return np.concatenate(points) if points else None
 
 
 def _gprim_edge(scene: Scene, gprims: list, root) -> float | None:
@@ -495,9 +495,10 @@ def _gprim_edge(scene: Scene, gprims: list, root) -> float | None:
     if chosen is not None:
         return _edge_length(chosen, f"{scene.source}:{root.GetPath()}")
     shaded = [g for g in gprims if g.target is scene.objects]
-    diag = _diagonal(scene, shaded)
-    if diag is None:
+    points = _shaded_points(scene, shaded)
+    if points is None:
         return None
+    diag = float(np.linalg.norm(np.ptp(points, axis=0)))
     cloth = []
     for o in scene.objects:
         if o is not None and o.kind == "cloth":
@@ -520,7 +521,7 @@ def _read_gprims(scene: Scene, gprims: list, root) -> None:
     place (collision-only ones only if they are static colliders, as meshes)."""
     if not gprims:
         return
-    _gradings(scene, gprims, root)
+    _gradings(scene, gprims)
     edge = _gprim_edge(scene, gprims, root)
     for g in gprims:
         g.read(edge)
