@@ -5,7 +5,8 @@ scaled unit ``Cube``, a 60 cm ``Cube`` crate turned 20 degrees standing on it, a
 cloth of 5 cm edges 90 cm up, a ``RectLight`` and a ``DomeLight``, all colliders marked with
 ``UsdPhysics.CollisionAPI`` only) is built with pxr and run with ``warpshade run --frames 1 --workers 0``
 (frame 1: the cloth still flat, the crate on the floor) once per target edge given (``warpshade:edgeLength``
-on the default prim; ``auto``: none, the reader's rule), with hemiraster (the default) and with
+on the default prim; ``auto``: none, the reader's rule; ``--grading``: the reader's graded tessellation, on or
+``warpshade:graded = false``, the truth always uniform), with hemiraster (the default) and with
 ``--method reference`` (1024 rays). Per object it prints the vertex count and the mean |luminance
 difference| of ``displayColor`` between hemiraster and the reference of the same tessellation (the
 method's error), and for the floor's top face near the crate (outside its footprint, within
@@ -17,7 +18,7 @@ own (kernel compilation is cached after the first run; run the script twice and 
 
 How to run::
 
-    python benchmarks/gprim_density.py [--edges auto,2.5] [--truth-edge 1.25] [--band 20] [--truth OUT.usda] [--json PATH]
+    python benchmarks/gprim_density.py [--edges auto,2.5] [--grading on,off] [--truth-edge 1.25] [--band 20] [--truth OUT.usda] [--json PATH]
 
 ``--truth OUT.usda`` keeps the fine reference run there and reuses it when it exists, so another
 version's tessellation (``PYTHONPATH`` set to another checkout: its subprocess runs use that code) can
@@ -43,20 +44,12 @@ LUM = np.array([0.2126, 0.7152, 0.0722])
 CRATE_TURN, CRATE_HALF = 20.0, 30.0  # degrees, cm
 
 
-def build(path: str, edge: float | None) -> None:
-    """Write the crate scene to ``path`` (``warpshade:edgeLength`` = ``edge`` on the default prim if given)."""
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade
+def build(path: str, edge: float | None, graded: bool = True) -> None:
+    """Write the crate scene to ``path`` (``warpshade:edgeLength`` = ``edge`` on the default prim if given;
+    ``warpshade:graded = false`` there unless ``graded``)."""
+    from pxr import Gf, UsdGeom, UsdLux, UsdPhysics
 
-    stage = Usd.Stage.CreateNew(path)
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
-    stage.SetTimeCodesPerSecond(30)
-    stage.SetStartTimeCode(1)
-    stage.SetEndTimeCode(30)
-    world = UsdGeom.Xform.Define(stage, "/Scene")
-    stage.SetDefaultPrim(world.GetPrim())
-    if edge is not None:
-        world.GetPrim().CreateAttribute("warpshade:edgeLength", Sdf.ValueTypeNames.Float).Set(edge)
+    stage = z_up_stage(path, "/Scene", 0.01, 30, 30, edge, graded)
     floor = UsdGeom.Cube.Define(stage, "/Scene/Floor")
     floor.CreateSizeAttr(1.0)
     floor.AddTranslateOp().Set(Gf.Vec3d(0, 0, -2.5))
@@ -73,19 +66,9 @@ def build(path: str, edge: float | None) -> None:
     for g in (floor, crate, cone):
         UsdPhysics.CollisionAPI.Apply(g.GetPrim())
     n, size, h = 24, 120.0, 90.0
-    cloth = UsdGeom.Mesh.Define(stage, "/Scene/Sheet")
     step = size / n
-    cloth.CreatePointsAttr([Gf.Vec3f(-size / 2 + i * step, -size / 2 + j * step, h) for j in range(n + 1) for i in range(n + 1)])
-    cloth.CreateFaceVertexCountsAttr([4] * (n * n))
-    cloth.CreateFaceVertexIndicesAttr([v for j in range(n) for i in range(n) for v in
-                                       (j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i)])
-    cloth.GetPrim().CreateAttribute("warpshade:kind", Sdf.ValueTypeNames.Token, custom=True).Set("cloth")
-    mat = UsdShade.Material.Define(stage, "/Scene/Looks/Red")
-    sh = UsdShade.Shader.Define(stage, "/Scene/Looks/Red/PBR")
-    sh.CreateIdAttr("UsdPreviewSurface")
-    sh.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0.7, 0.15, 0.1))
-    mat.CreateSurfaceOutput().ConnectToSource(sh.ConnectableAPI(), "surface")
-    UsdShade.MaterialBindingAPI.Apply(cloth.GetPrim()).Bind(mat)
+    sheet(stage, "/Scene/Sheet", [Gf.Vec3f(-size / 2 + i * step, -size / 2 + j * step, h) for j in range(n + 1) for i in range(n + 1)],
+          n, "cloth", (0.7, 0.15, 0.1))
     rect = UsdLux.RectLight.Define(stage, "/Scene/Softbox")
     rect.CreateWidthAttr(80.0)
     rect.CreateHeightAttr(80.0)
@@ -96,9 +79,49 @@ def build(path: str, edge: float | None) -> None:
     stage.Save()
 
 
-def run(scene: str, out: str, method: str | None) -> dict:
-    """``warpshade run`` of frame 1 inline; its setup and shading seconds."""
-    cmd = [sys.executable, "-m", "warpshade", "run", scene, "--frames", "1", "--workers", "0", "-o", out, "--no-progress"]
+def z_up_stage(path: str, root: str, meters_per_unit: float, fps: float, last: int, edge: float | None, graded: bool):
+    """A new stage at ``path``, Z up, frames 1 to ``last``, default prim the Xform ``root`` carrying
+    ``warpshade:edgeLength`` = ``edge`` if given and ``warpshade:graded = false`` unless ``graded``."""
+    from pxr import Sdf, Usd, UsdGeom
+
+    stage = Usd.Stage.CreateNew(path)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, meters_per_unit)
+    stage.SetTimeCodesPerSecond(fps)
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(last)
+    world = UsdGeom.Xform.Define(stage, root).GetPrim()
+    stage.SetDefaultPrim(world)
+    if edge is not None:
+        world.CreateAttribute("warpshade:edgeLength", Sdf.ValueTypeNames.Float).Set(edge)
+    if not graded:
+        world.CreateAttribute("warpshade:graded", Sdf.ValueTypeNames.Bool).Set(False)
+    return stage
+
+
+def sheet(stage, path: str, points, n: int, kind: str, colour) -> None:
+    """An ``n`` x ``n`` quad mesh at ``path`` (``points`` row by row) of ``warpshade:kind`` ``kind``, with a
+    UsdPreviewSurface material of ``colour`` (at its parent's ``Looks/Red``) bound."""
+    from pxr import Gf, Sdf, UsdGeom, UsdShade
+
+    root = path.rsplit("/", 1)[0]
+    cloth = UsdGeom.Mesh.Define(stage, path)
+    cloth.CreatePointsAttr(points)
+    cloth.CreateFaceVertexCountsAttr([4] * (n * n))
+    cloth.CreateFaceVertexIndicesAttr([v for j in range(n) for i in range(n) for v in
+                                       (j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i)])
+    cloth.GetPrim().CreateAttribute("warpshade:kind", Sdf.ValueTypeNames.Token, custom=True).Set(kind)
+    mat = UsdShade.Material.Define(stage, f"{root}/Looks/Red")
+    sh = UsdShade.Shader.Define(stage, f"{root}/Looks/Red/PBR")
+    sh.CreateIdAttr("UsdPreviewSurface")
+    sh.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*colour))
+    mat.CreateSurfaceOutput().ConnectToSource(sh.ConnectableAPI(), "surface")
+    UsdShade.MaterialBindingAPI.Apply(cloth.GetPrim()).Bind(mat)
+
+
+def run(scene: str, out: str, method: str | None, frames: int = 1) -> dict:
+    """``warpshade run`` of the first ``frames`` frames inline; its setup and shading seconds."""
+    cmd = [sys.executable, "-m", "warpshade", "run", scene, "--frames", str(frames), "--workers", "0", "-o", out, "--no-progress"]
     if method:
         cmd += ["--method", method]
     env = dict(os.environ, PYTHONPATH=os.environ.get("PYTHONPATH") or REPO)  # PYTHONPATH set: that code
@@ -108,8 +131,8 @@ def run(scene: str, out: str, method: str | None) -> dict:
     return times
 
 
-def colours(path: str) -> dict:
-    """Per mesh: points, triangles and luminance of ``displayColor`` at time 1."""
+def colours(path: str, time: float = 1) -> dict:
+    """Per mesh: points, triangles and luminance of ``displayColor`` at ``time``."""
     from pxr import Usd, UsdGeom
 
     out = {}
@@ -117,9 +140,9 @@ def colours(path: str) -> dict:
     for p in stage.Traverse():
         if p.IsA(UsdGeom.Mesh):
             m = UsdGeom.Mesh(p)
-            out[p.GetName()] = (np.asarray(m.GetPointsAttr().Get(1), dtype=np.float64),
+            out[p.GetName()] = (np.asarray(m.GetPointsAttr().Get(time), dtype=np.float64),
                                 np.asarray(m.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3),
-                                np.asarray(UsdGeom.PrimvarsAPI(p).GetPrimvar("displayColor").Get(1)) @ LUM)
+                                np.asarray(UsdGeom.PrimvarsAPI(p).GetPrimvar("displayColor").Get(time)) @ LUM)
     return out
 
 
@@ -144,6 +167,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--edges", default="auto,2.5", help="target edges [cm], 'auto' for the reader's rule")
     ap.add_argument("--truth-edge", type=float, default=1.25, help="edge [cm] of the reference run the floor is judged by")
+    ap.add_argument("--grading", default="on", help="graded tessellation: on, off or on,off (each edge with each)")
     ap.add_argument("--band", type=float, default=20.0, help="floor band around the crate [cm]")
     ap.add_argument("--truth", default=None, metavar="OUT.usda", help="keep (or reuse) the fine reference run here")
     ap.add_argument("--json", default=None)
@@ -155,24 +179,25 @@ def main() -> None:
         truth = args.truth or os.path.join(tmp, "truth_out.usda")
         if not os.path.exists(truth):
             truth_scene = os.path.join(tmp, "truth.usda")
-            build(truth_scene, args.truth_edge)
+            build(truth_scene, args.truth_edge, graded=False)
             run(truth_scene, os.path.abspath(truth), "reference")
         tp, tf, tv = floor_top(colours(truth)["Floor"])
         tmask = np.isclose(tp[:, 2], tp[:, 2].max())
         near = tmask & band(tp, args.band)
-        for edge in args.edges.split(","):
-            scene = os.path.join(tmp, f"crate_{edge}.usda")
-            build(scene, None if edge == "auto" else float(edge))
-            hemi_t = run(scene, os.path.join(tmp, f"hemi_{edge}.usda"), None)
-            ref_t = run(scene, os.path.join(tmp, f"ref_{edge}.usda"), "reference")
-            hemi, ref = colours(os.path.join(tmp, f"hemi_{edge}.usda")), colours(os.path.join(tmp, f"ref_{edge}.usda"))
+        for edge, grading in [(e, g) for e in args.edges.split(",") for g in args.grading.split(",")]:
+            tag = f"{edge}_{grading}"
+            scene = os.path.join(tmp, f"crate_{tag}.usda")
+            build(scene, None if edge == "auto" else float(edge), graded=grading == "on")
+            hemi_t = run(scene, os.path.join(tmp, f"hemi_{tag}.usda"), None)
+            ref_t = run(scene, os.path.join(tmp, f"ref_{tag}.usda"), "reference")
+            hemi, ref = colours(os.path.join(tmp, f"hemi_{tag}.usda")), colours(os.path.join(tmp, f"ref_{tag}.usda"))
             def on_truth(mesh):  # a floor's values interpolated over its own triangles at the truth's points
                 p, f, v = floor_top(mesh)
                 interp = mtri.LinearTriInterpolator(mtri.Triangulation(p[:, 0], p[:, 1], f), v)
                 return np.asarray(interp(tp[near, 0], tp[near, 1]))
 
             at, ref_at = on_truth(hemi["Floor"]), on_truth(ref["Floor"])
-            row = {"edge": edge, "hemiraster_setup_s": hemi_t.get("setup"), "hemiraster_shade_s": hemi_t.get("shade"),
+            row = {"edge": edge, "graded": grading == "on", "hemiraster_setup_s": hemi_t.get("setup"), "hemiraster_shade_s": hemi_t.get("shade"),
                    "reference_shade_s": ref_t.get("shade"),
                    "vertices": {k: len(val[0]) for k, val in hemi.items()},
                    "error_vs_reference": {k: float(np.mean(np.abs(hemi[k][2] - ref[k][2]))) for k in hemi},
@@ -182,7 +207,7 @@ def main() -> None:
                    "floor_band_reference_error_vs_fine_reference": float(np.mean(np.abs(ref_at - tv[near]))),
                    "floor_band_points": int(near.sum())}
             rows.append(row)
-            print(f"edge {edge}: vertices {row['vertices']}  hemiraster setup {row['hemiraster_setup_s']} s shade "
+            print(f"edge {edge}, grading {grading}: vertices {row['vertices']}  hemiraster setup {row['hemiraster_setup_s']} s shade "
                   f"{row['hemiraster_shade_s']} s  reference shade {row['reference_shade_s']} s")
             for k in hemi:
                 print(f"    {k:12s} mean |hemiraster - reference| {row['error_vs_reference'][k]:.5f} "

@@ -133,7 +133,9 @@ def _edge(edge, longest: float, what: str) -> float:
 
 def box(name: str = "Box", center=None, size=1.0, collider: bool = True, albedo=None, edge=None) -> SceneObject:
     """An axis-aligned box (an exact box collider unless ``collider=False``), tessellated as the USD
-    reader tessellates a Cube (:func:`warpshade.geometry.shapes.gprim_shape`: each face a grid of its own).
+    reader tessellates a Cube (:func:`warpshade.geometry.shapes.gprim_shape`: each face a grid of its own)
+    with ``warpshade:graded = false``: uniform, since a shape is made here without the scene it will be
+    in (the reader grades a Cube by the other objects' regions).
 
     Args:
         center: Centre [m]; default: standing on y = 0 at the origin.

@@ -10,12 +10,16 @@ from warpshade.scene import SceneError, SceneWarning
 from warpshade.usd.scene_io import scene_from_stage
 
 
-def _stage(edge=None):
+def _stage(edge=None, graded=False):
+    """A Z-up metre stage; uniform tessellation (``warpshade:graded = false``) unless ``graded``: these
+    tests are of the uniform rule (tests/usd/test_graded_gprims.py: the graded one)."""
     st = Usd.Stage.CreateInMemory()
     UsdGeom.SetStageUpAxis(st, UsdGeom.Tokens.z)
     UsdGeom.SetStageMetersPerUnit(st, 1.0)
     root = UsdGeom.Xform.Define(st, "/World").GetPrim()
     st.SetDefaultPrim(root)
+    if not graded:
+        root.CreateAttribute("warpshade:graded", Sdf.ValueTypeNames.Bool).Set(False)
     if edge is not None:
         root.CreateAttribute("warpshade:edgeLength", Sdf.ValueTypeNames.Float).Set(edge)
     return st

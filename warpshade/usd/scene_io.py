@@ -30,7 +30,8 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 
 from ..geometry.mesh import MeshError, TriMesh
-from ..geometry.shapes import AXIS_FROM_Z, fit_budget, gprim_shape, scene_edge, sphere_shape
+from ..geometry.shapes import (AXIS_FROM_Z, GRADED_KINDS, Grading, cloth_region, fit_budget, frame_boxes, gprim_shape,
+                               scene_edge, sphere_shape)
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
 from .assets import local_file
 from .mesh_io import outward_faces, triangulate, usd_error_message
@@ -99,6 +100,8 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
     for key, value in list(scene.settings.items()):
         if key in SCENE_SETTINGS:
             scene.settings[key] = _cast(value, SCENE_SETTINGS[key], source, root, key)
+    if "graded" in scene.settings:
+        scene.settings["graded"] = _graded_flag(scene.settings["graded"], f"{source}:{root.GetPath()}")
     if "frames" in scene.settings:
         scene.frames = scene.settings["frames"]
     if "fps" in scene.settings:
@@ -301,6 +304,7 @@ def _read_sphere(prim, source: str, default_method, edge: float) -> SceneObject:
     where = f"{source}:{prim.GetPath()}"
     settings = _namespace(prim, source)
     settings.pop("edgeLength", None)  # in ``edge`` already (_gprim_edge)
+    settings.pop("graded", None)  # a Sphere is not graded (GRADED_KINDS)
     radius = float(UsdGeom.Sphere(prim).GetRadiusAttr().Get())
     if not radius > 0:
         raise SceneError(f"{where}: sphere radius must be > 0, got {radius}")
@@ -371,13 +375,22 @@ class _Gprim:
         attr = prim.GetAttribute("warpshade:edgeLength")
         self.edge = _edge_length(attr.Get(), where) if attr and attr.HasAuthoredValue() else None
         self.own = self.edge is not None or prim.HasAttribute("warpshade:subdivisions")  # not the scene's edge
+        attr = prim.GetAttribute("warpshade:graded")
+        self.graded = _graded_flag(attr.Get(), where) if attr and attr.HasAuthoredValue() else None
+        self.grading = None  # set by _read_gprims when graded
 
-    def corners(self) -> np.ndarray:
-        """The 8 corners of its local bounds in world space (UsdGeom's computed extent)."""
+    def to_world(self, t=Usd.TimeCode.EarliestTime()) -> np.ndarray:
+        """The world transform of its shape as built (along +Z) at time code ``t``."""
+        xf = _world(self.prim, t)
+        xf[:3, :3] = xf[:3, :3] @ AXIS_FROM_Z[self.axis]
+        return xf
+
+    def corners(self, t=Usd.TimeCode.EarliestTime()) -> np.ndarray:
+        """The 8 corners of its local bounds in world space (UsdGeom's computed extent) at time code ``t``."""
         lo, hi = (np.asarray(c, dtype=np.float64) for c in
                   UsdGeom.Boundable.ComputeExtentFromPlugins(UsdGeom.Boundable(self.prim), Usd.TimeCode.EarliestTime()))
         box = np.array([[(hi if (i >> k) & 1 else lo)[k] for k in range(3)] for i in range(8)])
-        return _apply(_world(self.prim), box)
+        return _apply(_world(self.prim, t), box)
 
     def read(self, edge: float) -> None:
         """Tessellate for ``edge`` (its own ``warpshade:edgeLength`` if authored) and put the object in place."""
@@ -389,8 +402,70 @@ class _Gprim:
         self.target[self.index] = obj
 
     def _mesh(self, edge: float):
-        verts, faces = gprim_shape(self.kind, self.dims, self.scale, edge)
+        verts, faces = gprim_shape(self.kind, self.dims, self.scale, edge, self.grading)
         return verts @ AXIS_FROM_Z[self.axis].T, faces
+
+
+def _graded_flag(value, where: str) -> bool:
+    """A ``warpshade:graded`` value: a bool, else a SceneError naming the prim."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise SceneError(f"{where}: warpshade:graded must be a bool (true or false), got {value!r}")
+    return bool(value)
+
+
+_REGION_SAMPLES = 25
+"""Most frames (evenly spread over the scene's) at which a moving object's bounds are taken for the
+region graded gprims are fine near (:func:`_regions`)."""
+
+
+def _regions(scene: Scene, gprims: list, lowest: float) -> list:
+    """The world boxes ((2, 3) lower and upper corners) of the region each shaded object can occupy,
+    as ``(owner, box)``, ``owner`` the object or the :class:`_Gprim` (``gprims``: the shaded ones): a static object's bounds; a
+    cloth's :func:`~warpshade.geometry.shapes.cloth_region` (down to ``lowest`` along the up axis);
+    an animated or skinned object's bounds at up to :data:`_REGION_SAMPLES` frames."""
+    up = _AXES.get(scene.up_axis, 1)
+    codes = scene.start_time + np.unique(np.linspace(0, scene.frames - 1, min(scene.frames, _REGION_SAMPLES)).round())
+
+    def bounds(pts):
+        pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+        return np.stack([pts.min(axis=0), pts.max(axis=0)])
+
+    out = []
+    for o in scene.objects:
+        if o is None:
+            continue
+        box = bounds(o.mesh.points)
+        if o.kind == "cloth":
+            box = cloth_region(box, up, lowest)
+        elif "points_at" in o.params:
+            box = bounds(np.concatenate([box] + [bounds(o.params["points_at"](float(c))) for c in codes]))
+        out.append((o, box))
+    for g in gprims:
+        moving = _xform_varies(g.prim)
+        out.append((g, bounds(np.concatenate([g.corners(Usd.TimeCode(float(c))) for c in codes] if moving
+                                             else [g.corners()]))))
+    return out
+
+
+def _gradings(scene: Scene, gprims: list) -> None:
+    """Give each shaded Cube and Plane gprim to be graded (``warpshade:graded``, its own else the
+    default prim's, true unless authored false) its :class:`~warpshade.geometry.shapes.Grading`: the
+    regions of the scene's other shaded objects (:func:`_regions`) in its frame. Collision-only
+    gprims stay uniform."""
+    default = scene.settings.get("graded", True)
+    shaded = [g for g in gprims if g.target is scene.objects]
+    graded = [g for g in shaded if g.kind in GRADED_KINDS and (default if g.graded is None else g.graded)]
+    if not graded:
+        return
+    points = _shaded_points(scene, shaded)
+    diag = float(np.linalg.norm(np.ptp(points, axis=0)))
+    regions = _regions(scene, shaded, float(points[:, _AXES.get(scene.up_axis, 1)].min()))
+    for g in graded:
+        boxes = [box for owner, box in regions if owner is not g]
+        to_world = g.to_world()
+        if not abs(np.linalg.det(to_world[:3, :3])) > 0:
+            continue  # flattened to nothing by its transform: no frame to grade in, uniform
+        g.grading = Grading(frame_boxes(boxes, to_world) if boxes else np.zeros((0, 2, 3)), diag)
 
 
 def _edge_length(value, where: str) -> float:
@@ -404,6 +479,13 @@ def _edge_length(value, where: str) -> float:
     return edge
 
 
+def _shaded_points(scene: Scene, shaded: list) -> np.ndarray | None:
+    """The points of the shaded objects read so far and the corners of the ``shaded`` gprims (None if
+    there are none)."""
+    points = [o.mesh.points for o in scene.objects if o is not None] + [g.corners() for g in shaded]
+    return np.concatenate(points) if points else None
+
+
 def _gprim_edge(scene: Scene, gprims: list, root) -> float | None:
     """The target edge of the scene's gprims [scene units]: the default prim's ``warpshade:edgeLength``
     if authored, else :func:`~warpshade.geometry.shapes.scene_edge` of the bounding box of the shaded
@@ -413,10 +495,10 @@ def _gprim_edge(scene: Scene, gprims: list, root) -> float | None:
     if chosen is not None:
         return _edge_length(chosen, f"{scene.source}:{root.GetPath()}")
     shaded = [g for g in gprims if g.target is scene.objects]
-    points = [o.mesh.points for o in scene.objects if o is not None] + [g.corners() for g in shaded]
-    if not points:
+    points = _shaded_points(scene, shaded)
+    if points is None:
         return None
-    diag = float(np.linalg.norm(np.ptp(np.concatenate(points), axis=0)))
+    diag = float(np.linalg.norm(np.ptp(points, axis=0)))
     cloth = []
     for o in scene.objects:
         if o is not None and o.kind == "cloth":
@@ -424,7 +506,7 @@ def _gprim_edge(scene: Scene, gprims: list, root) -> float | None:
             cloth.append(float(np.median(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2))))
     edge = scene_edge(diag, cloth)
     auto = [g for g in shaded if not g.own]
-    fitted = fit_budget([(g.kind, g.dims, g.scale) for g in auto], edge) if edge else edge
+    fitted = fit_budget([(g.kind, g.dims, g.scale, g.grading) for g in auto], edge) if edge else edge
     if fitted != edge:
         from ..geometry.shapes import VERTEX_BUDGET
 
@@ -439,6 +521,7 @@ def _read_gprims(scene: Scene, gprims: list, root) -> None:
     place (collision-only ones only if they are static colliders, as meshes)."""
     if not gprims:
         return
+    _gradings(scene, gprims)
     edge = _gprim_edge(scene, gprims, root)
     for g in gprims:
         g.read(edge)
@@ -452,6 +535,7 @@ def _read_gprim(prim, source: str, default_method, mesh) -> SceneObject:
     where = f"{source}:{prim.GetPath()}"
     settings = _namespace(prim, source)
     settings.pop("edgeLength", None)  # in ``mesh`` already
+    settings.pop("graded", None)
     verts, faces = mesh
     xf = _world(prim)
     tri = TriMesh(_apply(xf, verts), outward_faces(faces, prim, xf), name=where)
