@@ -24,7 +24,8 @@ class ClothSimulation:
     """Every cloth object of a scene in one :mod:`warpshade.sim` model, with the scene's colliders.
 
     Colliders (``warpshade:collider``): ``ground`` -> a plane at the mesh's mean height facing up;
-    ``sphere`` -> the analytic sphere of a Sphere prim; ``box`` -> the oriented box of a Cube prim
+    ``sphere`` -> the analytic sphere of a Sphere prim (moved frame by frame when its transform is
+    time-sampled and keeps it a sphere of one radius; else its tessellated mesh); ``box`` -> the oriented box of a Cube prim
     (UsdPhysics PhysicsCollisionAPI on a Cube); ``capsule``, ``cylinder``, ``cone`` -> the exact
     analytic solid of a Capsule, Cylinder or Cone prim (the tessellated mesh when its transform
     does not keep the shape exact); ``mesh`` -> the triangle mesh, which may
@@ -55,6 +56,7 @@ class ClothSimulation:
         first = cloth[0].params.get("cloth", {})
         self.attachments = []  # (target name, target vertex per slot (A,), rest offset (A, 3))
         self.moving_colliders = []  # (object name, MeshCollider)
+        self.moving_spheres = []  # (shape index, centre [m] per frame (F, 3))
         globals_ = {k2: float(first[k]) for k, k2 in CLOTH_GLOBAL.items() if k in first}
         builder = ClothBuilder(**globals_)
         self.ranges = {}
@@ -83,6 +85,10 @@ class ClothSimulation:
             elif kind == "sphere" and "sphere" in o.params:
                 colliders.add_sphere(self._si(o.params["sphere"]["center"]), float(o.params["sphere"]["radius"]) * m,
                                      friction=friction)
+            elif kind == "sphere" and (path := self._sphere_path(scene, o)) is not None:
+                centers, radius = path
+                index = colliders.add_sphere(self._si(centers[0]), radius * m, friction=friction)
+                self.moving_spheres.append((index, self._si(centers)))
             elif kind in ("capsule", "cylinder") and kind in o.params:
                 c = o.params[kind]
                 add = colliders.add_capsule if kind == "capsule" else colliders.add_cylinder
@@ -120,6 +126,21 @@ class ClothSimulation:
         self._frame = 0
         self._points = self.state.points.numpy()
 
+    @staticmethod
+    def _sphere_path(scene: Scene, obj) -> tuple[np.ndarray, float] | None:
+        """An animated Sphere's centre at every frame (F, 3) and its radius [scene units], or None
+        (a mesh collider then) when its transform does not keep it a sphere of one radius at every frame."""
+        sphere_at = obj.params.get("sphere_at")
+        if sphere_at is None:
+            return None
+        poses = [sphere_at(scene.start_time + f) for f in range(max(scene.frames, 1))]
+        if any(p is None for p in poses):
+            return None
+        radius = float(poses[0]["radius"])
+        if any(abs(float(p["radius"]) - radius) > 1.0e-6 * radius for p in poses):
+            return None
+        return np.array([p["center"] for p in poses], dtype=np.float64), radius
+
     def _attach(self, builder, scene: Scene, obj, ids) -> None:
         target_name = obj.params.get("attachTarget")
         if target_name is None:
@@ -148,6 +169,8 @@ class ClothSimulation:
         while self._frame < frame:
             for name, mc in self.moving_colliders:
                 mc.set_points(self._si(geometry[name]))  # pose at the end of this step
+            for index, centers in self.moving_spheres:
+                self.solver.colliders.set_sphere(index, centers[min(self._frame + 1, len(centers) - 1)])
             if self.attachments:
                 self.control.set_targets(np.concatenate(
                     [self._si(geometry[name][idx]) + off for name, idx, off in self.attachments]))
