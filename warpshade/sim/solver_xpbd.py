@@ -157,7 +157,12 @@ class XPBDSolver:
             # median edge without thickness), so a correction never jumps a vertex through a layer
             rest = model.edge_rest_length.numpy()
             self._limit_move = model.thickness if model.thickness > 0 else 0.25 * float(np.median(rest))
-            # vertices the contact projections moved in the last substep (limits skip them)
+        self._round_move = 0.0
+        if colliders is not None and colliders.has_round_shapes:
+            self._round_move = self.ROUND_MOVE * colliders.smallest_round_radius
+        self._track_contacts = self.stretch_limits or self.tethers
+        if self._track_contacts:
+            # vertices the contact projections moved in the last substep (limits and tethers skip them)
             self._touched = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
             self._x_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
         self.limit_sliding = self.stretch_limits and bool(
@@ -173,6 +178,7 @@ class XPBDSolver:
         self.contact_overflow = 0
         self.guard_steps = 0
         self.guard_unresolved = 0
+        self.collider_yields = 0
         self.guard_longest_hold = 0
         self.guard_vertices = 0
 
@@ -321,7 +327,11 @@ class XPBDSolver:
                         c.launch()
                 for c in cmds["tethers"]:
                     c.launch()
-                if self.stretch_limits:
+                if self._round_move > 0.0:
+                    # the round colliders' projections are exact for moves shorter than their size only
+                    wp.launch(k.limit_motion, dim=m.particle_count, inputs=[self._x_prev, m.inv_mass, self._round_move],
+                              outputs=[x], device=d)
+                if self._track_contacts:
                     wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
                 # more than one Jacobi pass to stop a fast layer within one substep
@@ -337,14 +347,17 @@ class XPBDSolver:
                 elif self.colliders is not None:
                     # nothing between the collider passes: all of them in one call
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x, self.contact_iterations)
+            if self.colliders is not None and self.colliders.has_round_shapes:
+                # cloth triangles cutting into a sphere or capsule (their vertices held outside) pushed out
+                self.colliders.collide_round_faces(m.thickness, m.inv_mass, m.tris, x, self._x_prev)
             if self.colliders is not None and self.colliders.has_sharp_edges:
                 # sharp collider edges and corners against cloth edges and triangles, then the
                 # vertices again
                 for _c in range(self.SHARP_PASSES):
                     self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris, self._x_prev)
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
-            if self.stretch_limits:
-                cmds["moved"].launch()
+            for c in cmds["moved"]:
+                c.launch()
             cmds["velocities"].launch()
             if "bend_velocity" in cmds and (s + 1) % self.bend_interval == 0:
                 cmds["bend_velocity"].launch()
@@ -446,14 +459,15 @@ class XPBDSolver:
         if self.tethers:
             cmds["tethers"].append(wp.launch(k.solve_tethers, dim=n,
                                              inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
-                                                     m.tether_anchor.shape[1], m.inv_mass],
+                                                     m.tether_anchor.shape[1], m.inv_mass, self._touched],
                                              outputs=[x], device=d, record_cmd=True))
+        cmds["moved"] = []
         if self.limit_sliding:
-            cmds["moved"] = wp.launch(k.record_moved, dim=n, inputs=[self._x_before, x], outputs=[self._pushed],
-                                      device=d, record_cmd=True)
-        elif self.stretch_limits:
-            cmds["moved"] = wp.launch(k.flag_moved, dim=n, inputs=[self._x_before, x], outputs=[self._touched], device=d,
-                                      record_cmd=True)
+            cmds["moved"].append(wp.launch(k.record_moved, dim=n, inputs=[self._x_before, x], outputs=[self._pushed],
+                                           device=d, record_cmd=True))
+        if self._track_contacts and (self.tethers or not self.limit_sliding):
+            cmds["moved"].append(wp.launch(k.flag_moved, dim=n, inputs=[self._x_before, x], outputs=[self._touched],
+                                           device=d, record_cmd=True))
         contacts = []
         if self.self_collision:
             contacts.append(wp.launch(k.solve_self_contacts, dim=n,
@@ -667,8 +681,10 @@ class XPBDSolver:
                 if not self._push_off_sharp_edges(x):
                     wp.copy(x, self._x_unguarded)
                     if not self._push_off_contacts(x, v, dt):
-                        self.guard_unresolved += 1
                         wp.copy(x, self._x_unguarded)
+                        if not self._yield_to_colliders(x):
+                            self.guard_unresolved += 1
+                            wp.copy(x, self._x_unguarded)
                 break
             if r == self.GUARD_ROUNDS:
                 self._mark.fill_(1)
@@ -731,6 +747,35 @@ class XPBDSolver:
             col.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
             col.collide(m.thickness, m.inv_mass, self._x_unguarded, x)
             if self._new_pairs(x) == 0:
+                return True
+        return False
+
+    ROUND_MOVE = 0.25
+    """Longest move of a cloth vertex in one substep, as a fraction of the smallest sphere or
+    capsule radius among the colliders (their projections push a vertex out on the side it is
+    nearest, so a vertex yanked past a ball's centre in one substep by a stretched edge would
+    leave on the far side)."""
+
+    YIELD_PASSES = 16
+    """Most passes of the colliders' edge (spheres and capsules included) and vertex projections
+    the guard runs on a step whose cloth-collider intersections nothing else removed (the cloth
+    stretches over the collider instead of crossing it: :meth:`_yield_to_colliders`)."""
+
+    def _yield_to_colliders(self, x) -> bool:
+        """Push the cloth out of the colliders with the colliders' projections alone (vertices,
+        edges against every solid, corners), up to :attr:`YIELD_PASSES` passes: the cloth's own
+        constraints do not take part, so a collider driven against pinned or attached cloth
+        stretches it instead of crossing it. True (counted in ``stats()["collider_yields"]``) as
+        soon as x has no new intersecting pair."""
+        m, col = self.model, self.colliders
+        if col is None or not (col.has_sharp_edges or col.has_round_shapes):
+            return False
+        for _ in range(self.YIELD_PASSES):
+            col.collide_round_faces(m.thickness, m.inv_mass, m.tris, x, self._x_start)
+            col.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
+            col.collide(m.thickness, m.inv_mass, self._x_unguarded, x)
+            if self._new_pairs(x) == 0:
+                self.collider_yields += 1
                 return True
         return False
 
@@ -827,6 +872,7 @@ class XPBDSolver:
         if self.guard:
             out["guard_steps"] = self.guard_steps
             out["guard_unresolved"] = self.guard_unresolved
+            out["collider_yields"] = self.collider_yields
             out["guard_longest_hold"] = self.guard_longest_hold
         return out
 
