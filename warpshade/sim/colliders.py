@@ -419,28 +419,28 @@ class ColliderSet:
                  if kd in (int(ck.SHAPE_SPHERE), int(ck.SHAPE_CAPSULE))]
         return min(radii, default=float("inf"))
 
-    def collide_round_faces(self, thickness: float, inv_mass, tris, x, x_prev) -> None:
-        """Push cloth triangles that cut into a sphere or capsule while their vertices are held
-        outside (an edge drawn across it, or its dome poking through a stretched triangle) out to
-        ``thickness``, on the side they were on at ``x_prev``
-        (:func:`~warpshade.sim.collision_kernels.collide_round_faces`), corrections averaged per
-        vertex. A triangle that stays out of the solid is left alone, so cloth lying on a round
-        collider (its triangles within the thickness of it) moves exactly as without this pass.
+    def collide_round_faces(self, thickness: float, inv_mass, tris, x, x_start) -> None:
+        """Push cloth triangles that cut into a sphere or capsule (posed as at the end of the last
+        substep) while their vertices are held outside (an edge drawn across it, or its dome
+        poking through a stretched triangle) out to ``thickness``, on the side they were on at the
+        start of the step (``x_start`` against the step's start pose;
+        :func:`~warpshade.sim.collision_kernels.collide_round_faces`), corrections averaged per
+        vertex. A triangle that stays out of the solid is left alone.
 
         Args:
             thickness: Distance to keep [m].
             inv_mass: Inverse masses, shape (V,), dtype float32.
             tris: Cloth triangles, shape (F, 3), dtype int32.
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
-            x_prev: Earlier positions [m] (the start of the substep): the side each triangle came from.
+            x_start: Positions at the start of the step [m]: the side each triangle came from.
         """
         if not self.has_round_shapes:
             return
         self._edge_accumulators(x.shape[0])
         ar = self._arrays
         self._launch(ck.collide_round_faces, tris.shape[0],
-                     [ar["kind"], ar["a0"], ar["b0"], ar["a1"], ar["b1"], ar["size"], x_prev, x, tris, inv_mass,
-                      thickness], [self._edge_delta, self._edge_count])
+                     [ar["kind"], ar["a_start"], ar["b_start"], ar["a1"], ar["b1"], ar["size"], x_start, x, tris,
+                      inv_mass, thickness], [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, x.shape[0], [], [self._edge_delta, self._edge_count, x])
 
     def _edge_accumulators(self, n: int) -> None:

@@ -263,17 +263,6 @@ def collide_shapes(
             if depth > 0.0:
                 pushed = True
                 n = wp.vec3(sd[0], sd[1], sd[2])
-                if (k == SHAPE_SPHERE or k == SHAPE_CAPSULE) and sd[3] < 0.0:
-                    # a vertex that crossed the core of a round solid within the substep (a
-                    # stretched edge yanked it past a ball's centre) leaves on the side it came from
-                    e0 = x_prev[i] - wp.lerp(a0[s], b0[s], segment_parameter(x_prev[i], a0[s], b0[s]))
-                    core = wp.lerp(a1[s], b1[s], segment_parameter(p, a1[s], b1[s]))
-                    if k == SHAPE_SPHERE:
-                        e0 = x_prev[i] - a0[s]
-                        core = a1[s]
-                    if wp.dot(e0, p - core) < 0.0 and wp.length(e0) > 0.0:
-                        p = core + wp.normalize(e0) * (size[s][0] + thickness)
-                        continue
                 p = p + n * depth
                 motion = shape_point_motion(k, p, a0[s], a1[s], b0[s], b1[s], r0[s], r1[s])
                 p = p + apply_friction((p - x_prev[i]) - motion, n, depth, friction[s])
@@ -568,11 +557,11 @@ def collide_round_faces(
     """Cloth triangles that cut into a sphere or capsule (pose a1, b1) while their vertices are
     held outside (an edge drawn across a ball, or the ball's dome poking through a stretched
     triangle's inside): the triangle's point closest to the core is moved out to ``thickness``
-    from the surface on the side the triangle was on at the start of the substep (x_prev against
-    the pose a0, b0), not along the normal where it is now (a triangle pulled past the core goes
-    back the way it came instead of through), the push split between the three vertices by their
-    barycentric weights (as :func:`solve_corner_contacts` does). A triangle outside the solid, or
-    deepest at a vertex (the vertex projection holds it), is left alone."""
+    from the surface on the side the triangle was on earlier (x_prev against the pose a0, b0),
+    not along the normal where it is now (a triangle pulled past the core goes back the way it
+    came instead of through), the push split between the three vertices by their barycentric
+    weights (as :func:`solve_corner_contacts` does). A triangle outside the solid, or deepest at
+    a vertex (the vertex projection holds it), is left alone."""
     k = wp.tid()
     i0 = tris[k, 0]
     i1 = tris[k, 1]

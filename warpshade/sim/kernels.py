@@ -505,7 +505,6 @@ def solve_tethers(
     max_length: wp.array[float],
     per_vertex: int,
     inv_mass: wp.array[float],
-    touched: wp.array[int],
     x: wp.array[wp.vec3],
 ):
     """Long-range attachments (Kim, Chentanez & Müller 2012, eq. 3): |x - x_anchor| <= L.
@@ -513,13 +512,10 @@ def solve_tethers(
     L bounds the rest geodesic distance to a kinematic vertex, so a tether only acts on stretch:
     it removes in one projection the sag that Gauss-Seidel sweeps leave in long hanging cloth
     (their error grows with the square of the number of vertices along the hang). ``anchor`` and
-    ``max_length`` are the model's (V, per_vertex) arrays flattened. A vertex the contact
-    projections moved in the last substep (``touched`` != 0) is skipped: its straight pull
-    towards the anchor would drag it into the collider or layer that holds it (a ball pushing
-    cloth pinned on two sides up: the tethers pulled the cloth through it).
+    ``max_length`` are the model's (V, per_vertex) arrays flattened.
     """
     i = wp.tid()
-    if inv_mass[i] == 0.0 or touched[i] != 0:
+    if inv_mass[i] == 0.0:
         return
     for c in range(per_vertex):
         a = anchor[i * per_vertex + c]

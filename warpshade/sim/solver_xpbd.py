@@ -152,17 +152,15 @@ class XPBDSolver:
         self.stretch_sweeps = int(stretch_sweeps)
         self.tethers = bool(tethers) and bool((model.tether_anchor.numpy() >= 0).any())
         self.stretch_limits = bool(stretch_limits) and len(model.limit_pairs_np) > 0
+        self._round_move = 0.0
+        if colliders is not None and colliders.has_round_shapes:
+            self._round_move = self.ROUND_MOVE * colliders.smallest_round_radius
         if self.stretch_limits:
             # a limit moves a vertex by at most the contact thickness per sweep (a quarter of the
             # median edge without thickness), so a correction never jumps a vertex through a layer
             rest = model.edge_rest_length.numpy()
             self._limit_move = model.thickness if model.thickness > 0 else 0.25 * float(np.median(rest))
-        self._round_move = 0.0
-        if colliders is not None and colliders.has_round_shapes:
-            self._round_move = self.ROUND_MOVE * colliders.smallest_round_radius
-        self._track_contacts = self.stretch_limits or self.tethers
-        if self._track_contacts:
-            # vertices the contact projections moved in the last substep (limits and tethers skip them)
+            # vertices the contact projections moved in the last substep (limits skip them)
             self._touched = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
             self._x_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
         self.limit_sliding = self.stretch_limits and bool(
@@ -331,7 +329,7 @@ class XPBDSolver:
                     # the round colliders' projections are exact for moves shorter than their size only
                     wp.launch(k.limit_motion, dim=m.particle_count, inputs=[self._x_prev, m.inv_mass, self._round_move],
                               outputs=[x], device=d)
-                if self._track_contacts:
+                if self.stretch_limits:
                     wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
                 # more than one Jacobi pass to stop a fast layer within one substep
@@ -347,17 +345,14 @@ class XPBDSolver:
                 elif self.colliders is not None:
                     # nothing between the collider passes: all of them in one call
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x, self.contact_iterations)
-            if self.colliders is not None and self.colliders.has_round_shapes:
-                # cloth triangles cutting into a sphere or capsule (their vertices held outside) pushed out
-                self.colliders.collide_round_faces(m.thickness, m.inv_mass, m.tris, x, self._x_prev)
             if self.colliders is not None and self.colliders.has_sharp_edges:
                 # sharp collider edges and corners against cloth edges and triangles, then the
                 # vertices again
                 for _c in range(self.SHARP_PASSES):
                     self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris, self._x_prev)
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
-            for c in cmds["moved"]:
-                c.launch()
+            if self.stretch_limits:
+                cmds["moved"].launch()
             cmds["velocities"].launch()
             if "bend_velocity" in cmds and (s + 1) % self.bend_interval == 0:
                 cmds["bend_velocity"].launch()
@@ -459,15 +454,14 @@ class XPBDSolver:
         if self.tethers:
             cmds["tethers"].append(wp.launch(k.solve_tethers, dim=n,
                                              inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
-                                                     m.tether_anchor.shape[1], m.inv_mass, self._touched],
+                                                     m.tether_anchor.shape[1], m.inv_mass],
                                              outputs=[x], device=d, record_cmd=True))
-        cmds["moved"] = []
         if self.limit_sliding:
-            cmds["moved"].append(wp.launch(k.record_moved, dim=n, inputs=[self._x_before, x], outputs=[self._pushed],
-                                           device=d, record_cmd=True))
-        if self._track_contacts and (self.tethers or not self.limit_sliding):
-            cmds["moved"].append(wp.launch(k.flag_moved, dim=n, inputs=[self._x_before, x], outputs=[self._touched],
-                                           device=d, record_cmd=True))
+            cmds["moved"] = wp.launch(k.record_moved, dim=n, inputs=[self._x_before, x], outputs=[self._pushed],
+                                      device=d, record_cmd=True)
+        elif self.stretch_limits:
+            cmds["moved"] = wp.launch(k.flag_moved, dim=n, inputs=[self._x_before, x], outputs=[self._touched], device=d,
+                                      record_cmd=True)
         contacts = []
         if self.self_collision:
             contacts.append(wp.launch(k.solve_self_contacts, dim=n,
