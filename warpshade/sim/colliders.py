@@ -412,12 +412,16 @@ class ColliderSet:
             # corner also gets, the corner's push would be diluted
             self.collide_corners(thickness, inv_mass, tris, x, x_prev)
 
-    @property
-    def smallest_round_radius(self) -> float:
-        """The smallest sphere or capsule radius [m] (inf without any)."""
-        radii = [float(sz[0]) for kd, sz in zip(self._kind, self._size)
-                 if kd in (int(ck.SHAPE_SPHERE), int(ck.SHAPE_CAPSULE))]
-        return min(radii, default=float("inf"))
+    def limit_round_motion(self, fraction: float, thickness: float, inv_mass, x_prev, x) -> None:
+        """Shorten each free vertex's move x_prev -> x over the substep to ``fraction`` of the radius
+        of a sphere or capsule (posed by :meth:`pose_substep`) that the move passes within
+        ``thickness`` of (:func:`~warpshade.sim.collision_kernels.limit_round_motion`)."""
+        if not self.has_round_shapes:
+            return
+        ar = self._arrays
+        self._launch(ck.limit_round_motion, x.shape[0],
+                     [ar["kind"], ar["a1"], ar["b1"], ar["size"], float(fraction), float(thickness), inv_mass, x_prev],
+                     [x])
 
     def collide_round_faces(self, thickness: float, inv_mass, tris, x, x_start) -> None:
         """Push cloth triangles that cut into a sphere or capsule (posed as at the end of the last

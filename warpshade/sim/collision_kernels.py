@@ -518,6 +518,47 @@ def collide_shape_edges(
         wp.atomic_add(delta_count, i1, 1.0)
 
 
+@wp.kernel
+def limit_round_motion(
+    kind: wp.array[int],
+    a1: wp.array[wp.vec3],
+    b1: wp.array[wp.vec3],
+    size: wp.array[wp.vec3],
+    fraction: float,
+    thickness: float,
+    inv_mass: wp.array[float],
+    x_prev: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+):
+    """Shorten a free vertex's move over the substep (x_prev -> x) to ``fraction`` of a sphere's or
+    capsule's radius when the move passes within ``thickness`` of that solid (posed a1, b1): the
+    vertex projection pushes a vertex out on the side it is nearest, so one yanked past the core
+    in one substep would leave on the far side. Moves that stay clear of the round solids are
+    left alone."""
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    p0 = x_prev[i]
+    p = x[i]
+    for s in range(kind.shape[0]):
+        kd = kind[s]
+        if kd != SHAPE_SPHERE and kd != SHAPE_CAPSULE:
+            continue
+        cap = fraction * size[s][0]
+        d = p - p0
+        ld = wp.length(d)
+        if ld <= cap:
+            continue
+        b = b1[s]
+        if kd == SHAPE_SPHERE:
+            b = a1[s]
+        st = closest_segments(p0, p, a1[s], b)
+        gap = wp.length(wp.lerp(p0, p, st[0]) - wp.lerp(a1[s], b, st[1])) - size[s][0]
+        if gap < thickness:
+            p = p0 + d * (cap / ld)
+    x[i] = p
+
+
 ROUND_CORE_ROUNDS = wp.constant(4)
 """Alternating projections (triangle <-> capsule axis) that find a triangle's point closest to a capsule's axis."""
 

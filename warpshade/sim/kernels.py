@@ -252,18 +252,6 @@ def gather_points(
 
 
 @wp.kernel
-def limit_motion(x_prev: wp.array[wp.vec3], inv_mass: wp.array[float], max_move: float, x: wp.array[wp.vec3]):
-    """Shorten a free vertex's move over the substep (x_prev -> x) to at most ``max_move``."""
-    i = wp.tid()
-    if inv_mass[i] == 0.0:
-        return
-    d = x[i] - x_prev[i]
-    ld = wp.length(d)
-    if ld > max_move:
-        x[i] = x_prev[i] + d * (max_move / ld)
-
-
-@wp.kernel
 def update_velocities(
     x: wp.array[wp.vec3],
     x_prev: wp.array[wp.vec3],

@@ -152,9 +152,6 @@ class XPBDSolver:
         self.stretch_sweeps = int(stretch_sweeps)
         self.tethers = bool(tethers) and bool((model.tether_anchor.numpy() >= 0).any())
         self.stretch_limits = bool(stretch_limits) and len(model.limit_pairs_np) > 0
-        self._round_move = 0.0
-        if colliders is not None and colliders.has_round_shapes:
-            self._round_move = self.ROUND_MOVE * colliders.smallest_round_radius
         if self.stretch_limits:
             # a limit moves a vertex by at most the contact thickness per sweep (a quarter of the
             # median edge without thickness), so a correction never jumps a vertex through a layer
@@ -325,10 +322,9 @@ class XPBDSolver:
                         c.launch()
                 for c in cmds["tethers"]:
                     c.launch()
-                if self._round_move > 0.0:
-                    # the round colliders' projections are exact for moves shorter than their size only
-                    wp.launch(k.limit_motion, dim=m.particle_count, inputs=[self._x_prev, m.inv_mass, self._round_move],
-                              outputs=[x], device=d)
+                if self.colliders is not None and self.colliders.has_round_shapes:
+                    # moves into a ball or capsule shortened: its projection is right for short moves only
+                    self.colliders.limit_round_motion(self.ROUND_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
                 if self.stretch_limits:
                     wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
@@ -745,10 +741,10 @@ class XPBDSolver:
         return False
 
     ROUND_MOVE = 0.25
-    """Longest move of a cloth vertex in one substep, as a fraction of the smallest sphere or
-    capsule radius among the colliders (their projections push a vertex out on the side it is
-    nearest, so a vertex yanked past a ball's centre in one substep by a stretched edge would
-    leave on the far side)."""
+    """Longest move of a cloth vertex in one substep that passes near a sphere or capsule, as a
+    fraction of its radius (their projections push a vertex out on the side it is nearest, so a
+    vertex yanked past a ball's centre in one substep by a stretched edge would leave on the far
+    side): :meth:`~warpshade.sim.colliders.ColliderSet.limit_round_motion`."""
 
     YIELD_PASSES = 16
     """Most passes of the colliders' edge (spheres and capsules included) and vertex projections
