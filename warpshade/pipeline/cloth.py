@@ -135,14 +135,15 @@ class ClothSimulation:
         self._frame = 0
         self._points = self.state.points.numpy()
         self.frames = scene.frames
-        self._rest = self.model.edge_rest_length.numpy().astype(np.float64)
+        inv_rest2 = (1.0 / self.model.edge_rest_length.numpy().astype(np.float64) ** 2).astype(np.float32)
         inv_mass = self.model.inv_mass.numpy()
         edges = self.model.edges_np
-        self._stretch = {}  # cloth name -> its edges, whether it has kinematic vertices, frames over STRAIN_WARNING, worst
+        self._stretch = {}  # cloth name -> its edges' ends and 1 / rest length², kinematic vertices?, frames over, worst
         for name, (a, b) in self.ranges.items():
             mine = np.flatnonzero((edges[:, 0] >= a) & (edges[:, 0] < b))
-            self._stretch[name] = {"edges": mine, "held": bool((inv_mass[a:b] == 0).any()), "frames": [],
-                                   "worst": (0.0, -1), "warned": False}
+            self._stretch[name] = {"ends": (edges[mine, 0].copy(), edges[mine, 1].copy()), "inv_rest2": inv_rest2[mine],
+                                   "held": bool((inv_mass[a:b] == 0).any()), "frames": [], "worst": (0.0, -1),
+                                   "warned": False}
 
     @staticmethod
     def _sphere_path(scene: Scene, obj) -> tuple[np.ndarray, float] | None:
@@ -202,15 +203,15 @@ class ClothSimulation:
         """After a step: note each cloth's frames whose worst edge strain passes
         :data:`STRAIN_WARNING`, and warn once per cloth (a :class:`SceneWarning` naming it, the
         frames, the worst strain and the likely cause) when such a run of frames ends or at the
-        scene's last frame. Costs one pass over the edges in numpy (about 0.2 ms on a 64 x 64 cloth)."""
+        scene's last frame. Costs one float32 pass over the edges in numpy (0.3 ms on a 64 x 64
+        cloth's 12033 edges at a load average of 20)."""
         x = self._points
-        edges = self.model.edges_np
-        strain = np.linalg.norm(x[edges[:, 0]].astype(np.float64) - x[edges[:, 1]], axis=1) / self._rest - 1.0
         last = self._frame >= self.frames - 1
         for name, w in self._stretch.items():
-            if w["warned"] or not len(w["edges"]):
+            if w["warned"] or not len(w["inv_rest2"]):
                 continue
-            worst = float(strain[w["edges"]].max())
+            d = x[w["ends"][0]] - x[w["ends"][1]]
+            worst = float(np.sqrt((np.einsum("ij,ij->i", d, d) * w["inv_rest2"]).max())) - 1.0
             if worst > STRAIN_WARNING:
                 w["frames"].append(self._frame)
                 if worst > w["worst"][0]:
@@ -226,14 +227,17 @@ class ClothSimulation:
         colliders = col is not None and (col.shape_count > 0 or bool(col.meshes))
         if w["held"] and colliders:
             cause = ("a collider pushing it against its pinned or attached vertices (a moving collider cannot pass "
-                     "cloth held on two sides without stretching it; the cloth stretches rather than passing through)")
+                     "cloth held on two sides without stretching it far)")
         elif w["held"]:
             cause = "its pinned or attached vertices pulling it apart"
         else:
             cause = "a collider driving it faster than it can follow"
+        unresolved = getattr(self.solver, "guard_unresolved", 0)
+        left = (f"; {unresolved} steps so far ended with intersections the guard could not remove"
+                if unresolved else "")
         return (f"{name}: the cloth cannot follow the scene: edges stretched past {STRAIN_WARNING + 1:.0f}x their rest "
                 f"length in {span} (worst edge strain {w['worst'][0]:.0%} at frame {w['worst'][1]}); likely "
-                f"{cause}. Its shading there shows the stretch (docs/guide/cloth.md, 'When constraints conflict')")
+                f"{cause}{left}. Its shading there shows the stretch (docs/guide/cloth.md, 'When constraints conflict')")
 
     def _si(self, x):
         """Scene-unit lengths in metres (float64; unchanged values on a metre stage)."""
