@@ -5,7 +5,8 @@ One :meth:`XPBDSolver.step` advances ``dt`` seconds in ``substeps`` substeps of 
 constraint sweeps each (small steps, Macklin et al. 2019: substeps buy more accuracy per cost than
 iterations). Per substep: aerodynamic forces, symplectic-Euler prediction, attachments driven to
 their interpolated targets, then per iteration: multi-scale stretch limits, coloured stretch and
-bending sweeps, long-range tethers, self-contacts, colliders (last, so collider contacts hold at
+bending sweeps, long-range tethers, a cap on moves that pass near a sphere or capsule
+(:attr:`XPBDSolver.ROUND_MOVE`), self-contacts, colliders (last, so collider contacts hold at
 the end of every substep);
 finally velocities from positions. Self-contact candidates are found every ``contact_interval``
 substeps with a swept-box BVH query; a detection is skipped when the one before it in the step
@@ -643,7 +644,9 @@ class XPBDSolver:
         that also met at the start of the step (inherited from an earlier step) is left alone:
         sending vertices back to where it already existed cannot remove it. When even the last round leaves new
         intersections (made by kinematic vertices or colliders), the step is kept as the contacts
-        left it (no vertex sent back) and counted in ``stats()["guard_unresolved"]``."""
+        left it (no vertex sent back), pushed off the colliders by extra passes if that frees it
+        (:meth:`_push_off_sharp_edges`, :meth:`_push_off_contacts`, :meth:`_yield_to_colliders`),
+        else counted in ``stats()["guard_unresolved"]``."""
         m, d, n = self.model, self.device, self.model.particle_count
         col = self.colliders
         self._reverted.zero_()
@@ -747,13 +750,15 @@ class XPBDSolver:
     side): :meth:`~warpshade.sim.colliders.ColliderSet.limit_round_motion`."""
 
     YIELD_PASSES = 16
-    """Most passes of the colliders' edge (spheres and capsules included) and vertex projections
-    the guard runs on a step whose cloth-collider intersections nothing else removed (the cloth
-    stretches over the collider instead of crossing it: :meth:`_yield_to_colliders`)."""
+    """Most passes of the colliders' own projections (cloth triangles off spheres and capsules,
+    sharp edges and corners, vertices) the guard runs on a step whose cloth-collider
+    intersections nothing else removed (the cloth stretches over the collider instead of crossing
+    it: :meth:`_yield_to_colliders`)."""
 
     def _yield_to_colliders(self, x) -> bool:
-        """Push the cloth out of the colliders with the colliders' projections alone (vertices,
-        edges against every solid, corners), up to :attr:`YIELD_PASSES` passes: the cloth's own
+        """Push the cloth out of the colliders with the colliders' projections alone (cloth
+        triangles off spheres and capsules on the side they were on at the start of the step,
+        sharp edges and corners, vertices), up to :attr:`YIELD_PASSES` passes: the cloth's own
         constraints do not take part, so a collider driven against pinned or attached cloth
         stretches it instead of crossing it. True (counted in ``stats()["collider_yields"]``) as
         soon as x has no new intersecting pair."""
