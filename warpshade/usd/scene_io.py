@@ -7,7 +7,8 @@ What is read (docs/guide/quickstart.md, "Your own scene", documents every attrib
   with time-sampled points, ``static`` otherwise.
 * ``UsdGeom.Sphere`` prims, tessellated for shading and kept analytic (``params["sphere"]``, or
   ``params["sphere_at"](time)`` when the transform is time-sampled) for colliders; ``Cube``,
-  ``Cylinder``, ``Capsule``, ``Cone``, ``Plane`` tessellated for shading. Every gprim is tessellated for one target edge length (:func:`_gprim_edge`, the rule in
+  ``Cylinder``, ``Capsule``, ``Cone``, ``Plane`` tessellated for shading. Every gprim is
+  tessellated for one target edge length (:func:`_gprim_edge`, the rule in
   :mod:`warpshade.geometry.shapes`), once the whole stage is read.
 * UsdLux ``DomeLight`` (``inputs:texture:file`` -> environment map), ``DistantLight``,
   ``SphereLight``, ``RectLight`` -> :class:`warpshade.scene.LightSpec`.
