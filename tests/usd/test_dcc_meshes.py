@@ -239,8 +239,17 @@ def test_gprims_keyed_by_their_transform(tmp_path):
     assert np.allclose(b.mesh.points.mean(axis=0), (0.1, 0.25, 0), atol=1e-6)
     for t in (1, 3, 5):
         assert np.allclose(b.params["points_at"](t).mean(axis=0), (0.1 * t, 0.25, 0), atol=1e-5)
-    # it collides as a moving collider (its tessellated mesh, posed every frame)
-    assert [name for name, _ in ClothSimulation(scene).moving_colliders] == ["/Ball"]
+    # it collides as the analytic sphere, moved to its keyed centre every frame (not its tessellated mesh)
+    sim = ClothSimulation(scene)
+    assert sim.moving_colliders == [] and len(sim.moving_spheres) == 1
+    index, centers = sim.moving_spheres[0]
+    assert np.allclose(centers, [(0.1 * t, 0.25, 0) for t in range(1, 6)], atol=1e-12)  # frame f at time code 1 + f
+    assert sim.solver.colliders._size[index][0] == 0.25
+    # a key that squashes it (a non-uniform scale) leaves it a moving mesh collider
+    UsdGeom.Xformable(ball).AddScaleOp().Set(Gf.Vec3f(1.0, 0.5, 1.0), 3)
+    st.Save()
+    squashed = ClothSimulation(read_scene(str(tmp_path / "keys.usda")))
+    assert [name for name, _ in squashed.moving_colliders] == ["/Ball"] and squashed.moving_spheres == []
 
 
 def _sun_scene(path, angles, sun_path="/World/Sun"):

@@ -373,6 +373,11 @@ class ColliderSet:
     _SHARP = (int(ck.SHAPE_BOX), int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE))
     """Analytic kinds with sharp edges (box edges, rims, apex)."""
 
+    @property
+    def has_round_shapes(self) -> bool:
+        """Whether there are spheres or capsules (:meth:`collide_round_faces` has work)."""
+        return any(k in (int(ck.SHAPE_SPHERE), int(ck.SHAPE_CAPSULE)) for k in self._kind)
+
     def collide_edges(self, thickness: float, inv_mass, edges, x, tris=None, x_prev=None) -> None:
         """Push cloth edges out of the mesh colliders' edges, the edges of boxes and the rims of
         cylinders and cones (sharp edges cutting between two cloth vertices), and cloth triangles
@@ -391,9 +396,7 @@ class ColliderSet:
         if not self.has_sharp_edges:
             return
         n = x.shape[0]
-        if getattr(self, "_edge_delta", None) is None or self._edge_delta.shape[0] != n:
-            self._edge_delta = wp.zeros(n, dtype=wp.vec3, device=self.device)
-            self._edge_count = wp.zeros(n, dtype=wp.float32, device=self.device)
+        self._edge_accumulators(n)
         if any(k in self._SHARP for k in self._kind):
             ar = self._arrays
             self._launch(ck.collide_shape_edges, edges.shape[0],
@@ -408,6 +411,47 @@ class ColliderSet:
             # a pass of its own: averaged with the many small edge corrections a vertex near a
             # corner also gets, the corner's push would be diluted
             self.collide_corners(thickness, inv_mass, tris, x, x_prev)
+
+    def limit_round_motion(self, fraction: float, thickness: float, inv_mass, x_prev, x) -> None:
+        """Shorten each free vertex's move x_prev -> x over the substep to ``fraction`` of the radius
+        of a sphere or capsule (posed by :meth:`pose_substep`) that the move passes within
+        ``thickness`` of (:func:`~warpshade.sim.collision_kernels.limit_round_motion`)."""
+        if not self.has_round_shapes:
+            return
+        ar = self._arrays
+        self._launch(ck.limit_round_motion, x.shape[0],
+                     [ar["kind"], ar["a1"], ar["b1"], ar["size"], float(fraction), float(thickness), inv_mass, x_prev],
+                     [x])
+
+    def collide_round_faces(self, thickness: float, inv_mass, tris, x, x_start) -> None:
+        """Push cloth triangles that cut into a sphere or capsule (posed as at the end of the last
+        substep) while their vertices are held outside (an edge drawn across it, or its dome
+        poking through a stretched triangle) out to ``thickness``, on the side they were on at the
+        start of the step (``x_start`` against the step's start pose;
+        :func:`~warpshade.sim.collision_kernels.collide_round_faces`), corrections averaged per
+        vertex. A triangle that stays out of the solid is left alone.
+
+        Args:
+            thickness: Distance to keep [m].
+            inv_mass: Inverse masses, shape (V,), dtype float32.
+            tris: Cloth triangles, shape (F, 3), dtype int32.
+            x: Positions [m], shape (V,), dtype vec3, corrected in place.
+            x_start: Positions at the start of the step [m]: the side each triangle came from.
+        """
+        if not self.has_round_shapes:
+            return
+        self._edge_accumulators(x.shape[0])
+        ar = self._arrays
+        self._launch(ck.collide_round_faces, tris.shape[0],
+                     [ar["kind"], ar["a_start"], ar["b_start"], ar["a1"], ar["b1"], ar["size"], x_start, x, tris,
+                      inv_mass, thickness], [self._edge_delta, self._edge_count])
+        self._launch(apply_averaged_deltas, x.shape[0], [], [self._edge_delta, self._edge_count, x])
+
+    def _edge_accumulators(self, n: int) -> None:
+        """The per-vertex correction sums of the edge and corner passes, for n cloth vertices."""
+        if getattr(self, "_edge_delta", None) is None or self._edge_delta.shape[0] != n:
+            self._edge_delta = wp.zeros(n, dtype=wp.vec3, device=self.device)
+            self._edge_count = wp.zeros(n, dtype=wp.float32, device=self.device)
 
     # -- corners: box corners, cone apexes, sharp mesh vertices against cloth triangles ------
 
@@ -545,9 +589,7 @@ class ColliderSet:
             self.detect_corner_contacts(x, None, tris, 0.0, thickness)
             rows = self._corner_rows
         n = x.shape[0]
-        if getattr(self, "_edge_delta", None) is None or self._edge_delta.shape[0] != n:
-            self._edge_delta = wp.zeros(n, dtype=wp.vec3, device=self.device)
-            self._edge_count = wp.zeros(n, dtype=wp.float32, device=self.device)
+        self._edge_accumulators(n)
         if x_prev is None:
             x_prev = self._no_prev if getattr(self, "_no_prev", None) is not None else wp.zeros(0, dtype=wp.vec3,
                                                                                                   device=self.device)

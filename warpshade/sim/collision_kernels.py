@@ -518,6 +518,134 @@ def collide_shape_edges(
         wp.atomic_add(delta_count, i1, 1.0)
 
 
+@wp.kernel
+def limit_round_motion(
+    kind: wp.array[int],
+    a1: wp.array[wp.vec3],
+    b1: wp.array[wp.vec3],
+    size: wp.array[wp.vec3],
+    fraction: float,
+    thickness: float,
+    inv_mass: wp.array[float],
+    x_prev: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+):
+    """Shorten a free vertex's move over the substep (x_prev -> x) to ``fraction`` of a sphere's or
+    capsule's radius when the move passes within ``thickness`` of that solid (posed a1, b1): the
+    vertex projection pushes a vertex out on the side it is nearest, so one yanked past the core
+    in one substep would leave on the far side. Moves that stay clear of the round solids are
+    left alone."""
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    p0 = x_prev[i]
+    p = x[i]
+    for s in range(kind.shape[0]):
+        kd = kind[s]
+        if kd != SHAPE_SPHERE and kd != SHAPE_CAPSULE:
+            continue
+        cap = fraction * size[s][0]
+        d = p - p0
+        ld = wp.length(d)
+        if ld <= cap:
+            continue
+        b = b1[s]
+        if kd == SHAPE_SPHERE:
+            b = a1[s]
+        st = closest_segments(p0, p, a1[s], b)
+        gap = wp.length(wp.lerp(p0, p, st[0]) - wp.lerp(a1[s], b, st[1])) - size[s][0]
+        if gap < thickness:
+            p = p0 + d * (cap / ld)
+    x[i] = p
+
+
+ROUND_CORE_ROUNDS = wp.constant(4)
+"""Alternating projections (triangle <-> capsule axis) that find a triangle's point closest to a capsule's axis."""
+
+
+@wp.func
+def round_closest(kind: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, a: wp.vec3, b: wp.vec3) -> wp.mat33:
+    """The point of triangle p0 p1 p2 closest to the core of a sphere (its centre a) or capsule
+    (its axis a-b; alternating projections, :data:`ROUND_CORE_ROUNDS`): rows (its barycentric
+    coordinates, the point, the core point closest to it)."""
+    c = a
+    bary = closest_on_triangle(c, p0, p1, p2)
+    if kind == SHAPE_CAPSULE:
+        for _r in range(ROUND_CORE_ROUNDS):
+            q = p0 * bary[0] + p1 * bary[1] + p2 * bary[2]
+            c = wp.lerp(a, b, segment_parameter(q, a, b))
+            bary = closest_on_triangle(c, p0, p1, p2)
+    q = p0 * bary[0] + p1 * bary[1] + p2 * bary[2]
+    return wp.mat33(bary[0], bary[1], bary[2], q[0], q[1], q[2], c[0], c[1], c[2])
+
+
+@wp.kernel
+def collide_round_faces(
+    kind: wp.array[int],
+    a0: wp.array[wp.vec3],
+    b0: wp.array[wp.vec3],
+    a1: wp.array[wp.vec3],
+    b1: wp.array[wp.vec3],
+    size: wp.array[wp.vec3],
+    x_prev: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    inv_mass: wp.array[float],
+    thickness: float,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Cloth triangles that cut into a sphere or capsule (pose a1, b1) while their vertices are
+    held outside (an edge drawn across a ball, or the ball's dome poking through a stretched
+    triangle's inside): the triangle's point closest to the core is moved out to ``thickness``
+    from the surface on the side the triangle was on earlier (x_prev against the pose a0, b0),
+    not along the normal where it is now (a triangle pulled past the core goes back the way it
+    came instead of through), the push split between the three vertices by their barycentric
+    weights (as :func:`solve_corner_contacts` does). A triangle outside the solid, or deepest at
+    a vertex (the vertex projection holds it), is left alone."""
+    k = wp.tid()
+    i0 = tris[k, 0]
+    i1 = tris[k, 1]
+    i2 = tris[k, 2]
+    w0 = inv_mass[i0]
+    w1 = inv_mass[i1]
+    w2 = inv_mass[i2]
+    if w0 + w1 + w2 == 0.0:
+        return
+    for s in range(kind.shape[0]):
+        kd = kind[s]
+        if kd != SHAPE_SPHERE and kd != SHAPE_CAPSULE:
+            continue
+        rad = size[s][0]
+        cl = round_closest(kd, x[i0], x[i1], x[i2], a1[s], b1[s])
+        bary = cl[0]
+        d = cl[1] - cl[2]
+        ld = wp.length(d)
+        if ld >= rad or wp.max(bary) >= 1.0 - 1.0e-3:
+            continue
+        cl0 = round_closest(kd, x_prev[i0], x_prev[i1], x_prev[i2], a0[s], b0[s])
+        d0 = cl0[1] - cl0[2]
+        n = wp.vec3(0.0, 1.0, 0.0)
+        if wp.length(d0) > 0.0:
+            n = wp.normalize(d0)
+        elif ld > 0.0:
+            n = d / ld
+        # move the point along n until it is rad + thickness from the core point
+        dn = wp.dot(d, n)
+        reach = rad + thickness
+        t = -dn + wp.sqrt(wp.max(dn * dn - ld * ld + reach * reach, 0.0))
+        denom = bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2
+        if denom == 0.0:
+            continue
+        push = n * (t / denom)
+        wp.atomic_add(delta, i0, push * (bary[0] * w0))
+        wp.atomic_add(delta, i1, push * (bary[1] * w1))
+        wp.atomic_add(delta, i2, push * (bary[2] * w2))
+        wp.atomic_add(delta_count, i0, 1.0)
+        wp.atomic_add(delta_count, i1, 1.0)
+        wp.atomic_add(delta_count, i2, 1.0)
+
+
 CORNER_INSIDE_TOL = wp.constant(0.01)
 """A corner's projection counts as inside a cloth triangle down to this barycentric coordinate: a
 corner right under the edge between two triangles would otherwise fall between them through

@@ -5,7 +5,8 @@ One :meth:`XPBDSolver.step` advances ``dt`` seconds in ``substeps`` substeps of 
 constraint sweeps each (small steps, Macklin et al. 2019: substeps buy more accuracy per cost than
 iterations). Per substep: aerodynamic forces, symplectic-Euler prediction, attachments driven to
 their interpolated targets, then per iteration: multi-scale stretch limits, coloured stretch and
-bending sweeps, long-range tethers, self-contacts, colliders (last, so collider contacts hold at
+bending sweeps, long-range tethers, a cap on moves that pass near a sphere or capsule
+(:attr:`XPBDSolver.ROUND_MOVE`), self-contacts, colliders (last, so collider contacts hold at
 the end of every substep);
 finally velocities from positions. Self-contact candidates are found every ``contact_interval``
 substeps with a swept-box BVH query; a detection is skipped when the one before it in the step
@@ -173,6 +174,7 @@ class XPBDSolver:
         self.contact_overflow = 0
         self.guard_steps = 0
         self.guard_unresolved = 0
+        self.collider_yields = 0
         self.guard_longest_hold = 0
         self.guard_vertices = 0
 
@@ -321,6 +323,9 @@ class XPBDSolver:
                         c.launch()
                 for c in cmds["tethers"]:
                     c.launch()
+                if self.colliders is not None and self.colliders.has_round_shapes:
+                    # moves into a ball or capsule shortened: its projection is right for short moves only
+                    self.colliders.limit_round_motion(self.ROUND_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
                 if self.stretch_limits:
                     wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
@@ -639,7 +644,9 @@ class XPBDSolver:
         that also met at the start of the step (inherited from an earlier step) is left alone:
         sending vertices back to where it already existed cannot remove it. When even the last round leaves new
         intersections (made by kinematic vertices or colliders), the step is kept as the contacts
-        left it (no vertex sent back) and counted in ``stats()["guard_unresolved"]``."""
+        left it (no vertex sent back), pushed off the colliders by extra passes if that frees it
+        (:meth:`_push_off_sharp_edges`, :meth:`_push_off_contacts`, :meth:`_yield_to_colliders`),
+        else counted in ``stats()["guard_unresolved"]``."""
         m, d, n = self.model, self.device, self.model.particle_count
         col = self.colliders
         self._reverted.zero_()
@@ -667,8 +674,10 @@ class XPBDSolver:
                 if not self._push_off_sharp_edges(x):
                     wp.copy(x, self._x_unguarded)
                     if not self._push_off_contacts(x, v, dt):
-                        self.guard_unresolved += 1
                         wp.copy(x, self._x_unguarded)
+                        if not self._yield_to_colliders(x):
+                            self.guard_unresolved += 1
+                            wp.copy(x, self._x_unguarded)
                 break
             if r == self.GUARD_ROUNDS:
                 self._mark.fill_(1)
@@ -731,6 +740,37 @@ class XPBDSolver:
             col.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
             col.collide(m.thickness, m.inv_mass, self._x_unguarded, x)
             if self._new_pairs(x) == 0:
+                return True
+        return False
+
+    ROUND_MOVE = 0.25
+    """Longest move of a cloth vertex in one substep that passes near a sphere or capsule, as a
+    fraction of its radius (their projections push a vertex out on the side it is nearest, so a
+    vertex yanked past a ball's centre in one substep by a stretched edge would leave on the far
+    side): :meth:`~warpshade.sim.colliders.ColliderSet.limit_round_motion`."""
+
+    YIELD_PASSES = 16
+    """Most passes of the colliders' own projections (cloth triangles off spheres and capsules,
+    sharp edges and corners, vertices) the guard runs on a step whose cloth-collider
+    intersections nothing else removed (the cloth stretches over the collider instead of crossing
+    it: :meth:`_yield_to_colliders`)."""
+
+    def _yield_to_colliders(self, x) -> bool:
+        """Push the cloth out of the colliders with the colliders' projections alone (cloth
+        triangles off spheres and capsules on the side they were on at the start of the step,
+        sharp edges and corners, vertices), up to :attr:`YIELD_PASSES` passes: the cloth's own
+        constraints do not take part, so a collider driven against pinned or attached cloth
+        stretches it instead of crossing it. True (counted in ``stats()["collider_yields"]``) as
+        soon as x has no new intersecting pair."""
+        m, col = self.model, self.colliders
+        if col is None or not (col.has_sharp_edges or col.has_round_shapes):
+            return False
+        for _ in range(self.YIELD_PASSES):
+            col.collide_round_faces(m.thickness, m.inv_mass, m.tris, x, self._x_start)
+            col.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
+            col.collide(m.thickness, m.inv_mass, self._x_unguarded, x)
+            if self._new_pairs(x) == 0:
+                self.collider_yields += 1
                 return True
         return False
 
@@ -827,6 +867,7 @@ class XPBDSolver:
         if self.guard:
             out["guard_steps"] = self.guard_steps
             out["guard_unresolved"] = self.guard_unresolved
+            out["collider_yields"] = self.collider_yields
             out["guard_longest_hold"] = self.guard_longest_hold
         return out
 

@@ -5,9 +5,10 @@ What is read (docs/guide/quickstart.md, "Your own scene", documents every attrib
 * ``UsdGeom.Mesh`` prims, world transform applied, n-gons fan-triangulated. Kind: ``warpshade:kind``
   if authored, else ``skinned`` for meshes bound to a UsdSkel skeleton, ``animated`` for meshes
   with time-sampled points, ``static`` otherwise.
-* ``UsdGeom.Sphere`` prims, tessellated for shading and kept analytic (``params["sphere"]``) for
-  colliders; ``Cube``, ``Cylinder``, ``Capsule``, ``Cone``, ``Plane`` tessellated for shading. Every
-  gprim is tessellated for one target edge length (:func:`_gprim_edge`, the rule in
+* ``UsdGeom.Sphere`` prims, tessellated for shading and kept analytic (``params["sphere"]``, or
+  ``params["sphere_at"](time)`` when the transform is time-sampled) for colliders; ``Cube``,
+  ``Cylinder``, ``Capsule``, ``Cone``, ``Plane`` tessellated for shading. Every gprim is
+  tessellated for one target edge length (:func:`_gprim_edge`, the rule in
   :mod:`warpshade.geometry.shapes`), once the whole stage is read.
 * UsdLux ``DomeLight`` (``inputs:texture:file`` -> environment map), ``DistantLight``,
   ``SphereLight``, ``RectLight`` -> :class:`warpshade.scene.LightSpec`.
@@ -316,11 +317,39 @@ def _read_sphere(prim, source: str, default_method, edge: float) -> SceneObject:
     tri = TriMesh(_apply(xf, verts), outward_faces(faces, prim, xf), name=where)
     kind = _gprim_kind(prim, settings, where)
     if kind == "animated":
-        params = {"points_at": _moved_points(prim, verts)}
+        params = {"points_at": _moved_points(prim, verts), "sphere_at": _moved_sphere(prim, radius)}
     else:
         scale = float(np.cbrt(abs(np.linalg.det(xf[:3, :3]))))
         params = {"sphere": {"center": xf[:3, 3].copy(), "radius": radius * scale}}
     return _object(prim, where, tri, kind, settings, params, default_method, _material(prim, where))
+
+
+SPHERE_SCALE_TOL = 1.0e-6
+"""Largest entry of ``M^T M / s^2 - I`` (M a transform's linear part, s its mean scale) that still
+keeps a sphere a sphere (float32 round-off of an authored uniform scale and rotation is ~1e-7)."""
+
+
+def _sphere_of(xf: np.ndarray, radius: float) -> dict | None:
+    """``{"center", "radius"}`` of a sphere of ``radius`` under the transform ``xf``, or None when
+    ``xf`` does not keep it a sphere (a non-uniform scale or a shear; a static Sphere takes the
+    mean scale instead)."""
+    m = xf[:3, :3]
+    scale = float(np.cbrt(abs(np.linalg.det(m))))
+    if not scale > 0 or np.abs(m.T @ m / scale**2 - np.eye(3)).max() > SPHERE_SCALE_TOL:
+        return None
+    return {"center": xf[:3, 3].copy(), "radius": radius * scale}
+
+
+def _moved_sphere(prim, radius: float):
+    """``sphere_at(time)``: an animated Sphere's :func:`_sphere_of` at that time code (None at a time
+    its transform does not keep it a sphere)."""
+    stage = prim.GetStage()  # the closure keeps the stage alive
+
+    def sphere_at(time: float) -> dict | None:
+        assert stage
+        return _sphere_of(_world(prim, Usd.TimeCode(time)), radius)
+
+    return sphere_at
 
 
 def _gprim_kind(prim, settings: dict, where: str) -> str:
