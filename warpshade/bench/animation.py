@@ -9,6 +9,8 @@ Sequences (:func:`sequence`):
 * ``walk``: the skinned :class:`warpshade.sim.figure.WalkingFigure` walking along +z at 60 frames/s;
   vertices buried inside another capsule in a judged frame are not judged (as the bench's
   ``character`` mesh).
+* a USD file's path: its first shading group with a moving member, simulated and merged alike, front
+  sides only.
 
 Each configuration (method, knobs, temporal reuse tolerance) runs the whole sequence on a fresh
 instance after a warm-up instance compiled its kernels, the configurations taking turns frame by
@@ -61,37 +63,42 @@ class Sequence:
     description: str = ""
 
 
-def _default_scene(frames: int, cache_dir: str | None) -> Sequence:
+def _scene(path: str, label: str, frames: int, cache_dir: str | None) -> Sequence:
+    """The frames of a USD scene's first moving shading group, simulated as ``warpshade run`` simulates
+    them (cached under ``cache_dir`` by the scene file's content and ``frames``)."""
+    import hashlib
+
     from ..pipeline import Pipeline
     from ..usd import read_scene
-    from ..usd.shipped import shipped_scene
 
-    scene = read_scene(shipped_scene("default.usda"))
+    scene = read_scene(path)
     pipe = Pipeline(scene, frames=frames, two_sided="off")
-    group = next(g for g in pipe.groups if g.method is not None)
+    shaded = [g for g in pipe.groups if g.method is not None]
+    if not shaded:
+        raise ValueError(f"{path}: no shading group with a visibility method")
+    group = next((g for g in shaded if any(g.moving)), shaded[0])
     offsets = np.cumsum([0] + [m.num_vertices for m in group.meshes])
     faces = np.concatenate([m.faces + o for m, o in zip(group.meshes, offsets[:-1])]).astype(np.int32)
     rest = np.concatenate([m.points for m in group.meshes]).astype(np.float32)
-    path = os.path.join(cache_dir, f"animation_default_f{frames}.npz") if cache_dir else None
-    if path and os.path.isfile(path):
-        z = np.load(path)
+    with open(path, "rb") as fh:
+        digest = hashlib.sha256(fh.read()).hexdigest()[:12]
+    stem = os.path.splitext(os.path.basename(path))[0]
+    cached = os.path.join(cache_dir, f"animation_{stem}_{digest}_f{frames}.npz") if cache_dir else None
+    description = (f"{label}, {frames} simulated frames: {', '.join(group.names)} as one receiver "
+                   f"({len(rest)} vertices), front sides")
+    mesh = TriMesh(rest, faces, name=f"{stem} scene group")
+    if cached and os.path.isfile(cached):
+        z = np.load(cached)
         if z["frames"].shape == (frames, len(rest), 3) and np.array_equal(z["faces"], faces):
-            return Sequence("default", TriMesh(rest, faces, name="default scene group"), z["frames"],
-                            description=_describe_default(group, len(rest), frames))
+            return Sequence(stem, mesh, z["frames"], description=description)
     out = np.empty((frames, len(rest), 3), dtype=np.float32)
     for f, geo in pipe.simulate():
         out[f] = np.concatenate([geo[n] if mv else group.meshes[k].points
                                  for k, (n, mv) in enumerate(zip(group.names, group.moving))])
-    if path:
+    if cached:
         os.makedirs(cache_dir, exist_ok=True)
-        replace_atomically(lambda tmp: np.savez(tmp, frames=out, faces=faces), path)
-    return Sequence("default", TriMesh(rest, faces, name="default scene group"), out,
-                    description=_describe_default(group, len(rest), frames))
-
-
-def _describe_default(group, vertices: int, frames: int) -> str:
-    return (f"usd_scenes/default.usda, {frames} simulated frames: {', '.join(group.names)} as one receiver "
-            f"({vertices} vertices), front sides")
+        replace_atomically(lambda tmp: np.savez(tmp, frames=out, faces=faces), cached)
+    return Sequence(stem, mesh, out, description=description)
 
 
 def _walk(frames: int, fps: float = 60.0) -> Sequence:
@@ -108,12 +115,23 @@ def _walk(frames: int, fps: float = 60.0) -> Sequence:
 
 
 def sequence(name: str, frames: int = 120, cache_dir: str | None = SEQUENCE_CACHE) -> Sequence:
-    """The named animation (:data:`ANIMATIONS`) with ``frames`` frames."""
+    """The named animation (:data:`ANIMATIONS`), or the scene of a USD file path (:func:`is_scene_path`),
+    with ``frames`` frames."""
     if name == "default":
-        return _default_scene(frames, cache_dir)
+        from ..usd.shipped import shipped_scene
+
+        return _scene(shipped_scene("default.usda"), "usd_scenes/default.usda", frames, cache_dir)
     if name == "walk":
         return _walk(frames)
-    raise ValueError(f"unknown animation {name!r} (known: {', '.join(ANIMATIONS)})")
+    if is_scene_path(name):
+        return _scene(name, name, frames, cache_dir)
+    raise ValueError(f"unknown animation {name!r} (known: {', '.join(ANIMATIONS)}, or a USD file)")
+
+
+def is_scene_path(name: str) -> bool:
+    """Whether an animation name is a USD file (``.usd``, ``.usda``, ``.usdc``): its first moving
+    shading group is the sequence."""
+    return os.path.splitext(name)[1].lower() in (".usd", ".usda", ".usdc")
 
 
 def parse_variant(text: str) -> dict:
@@ -251,5 +269,5 @@ def format_animation(result: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["ANIMATIONS", "DEFAULT_TOLERANCES", "Sequence", "configurations", "format_animation", "label",
-           "parse_variant", "run_animation", "sequence"]
+__all__ = ["ANIMATIONS", "DEFAULT_TOLERANCES", "Sequence", "configurations", "format_animation", "is_scene_path",
+           "label", "parse_variant", "run_animation", "sequence"]

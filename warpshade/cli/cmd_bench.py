@@ -31,9 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from ..bench.animation import ANIMATIONS
 
     anim = parser.add_argument_group("whole animations (--animation)")
-    anim.add_argument("--animation", choices=ANIMATIONS, default=None,
+    anim.add_argument("--animation", type=_animation, default=None, metavar="|".join(ANIMATIONS) + "|SCENE.usda",
                       help="instead of the sweep: shade every frame of a sequence (default: the default scene's drape; "
-                           "walk: the skinned walking figure), judge every --every-th frame against its ray-traced "
+                           "walk: the skinned walking figure; a USD file: its first moving shading group), judge every --every-th frame against its ray-traced "
                            "truth, with temporal reuse at several tolerances beside recomputation")
     anim.add_argument("--frames", type=int, default=120, help="frames of the sequence (default 120)")
     anim.add_argument("--every", type=int, default=10, help="judge every k-th frame (default 10)")
@@ -47,6 +47,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="also measure hemiraster with these knobs and, with reuse=RAD, temporal reuse "
                            "(name=value,...; e.g. min_image=0,lut=96,reuse=2; repeatable)")
     anim.add_argument("--json", default=None, metavar="PATH", help="write the animation result as JSON")
+
+
+def _animation(text: str) -> str:
+    """An ``--animation`` value: a sequence name or a USD file that exists."""
+    import argparse
+    import os
+
+    from ..bench.animation import ANIMATIONS, is_scene_path
+
+    if text in ANIMATIONS or (is_scene_path(text) and os.path.isfile(text)):
+        return text
+    raise argparse.ArgumentTypeError(f"{text!r} is neither {' nor '.join(ANIMATIONS)} nor a USD file that exists")
 
 
 def _csv(text, conv=str):
