@@ -17,8 +17,9 @@ the transfer of their last computation. So the tolerance is a budget in radians 
 motion: a neighbour turning the normals by 0.05 rad spends 0.05, a small distant blocker moving by
 the same angle far less. Only relative motion counts: a rigid translation of the whole mesh spends
 nothing (the transfer is unchanged by it). ``tolerance = 0`` recomputes every receiver whenever
-anything moved, which is the method itself, value for value. Methods with a ``compute_rows(rows)``
-(hemiraster in its diffuse mode without ``interpolate``) compute only the receivers due; others
+anything moved, which is the method itself, value for value. Methods with a ``compute_rows(rows, later)``
+(hemiraster in its diffuse mode without ``interpolate``) compute only the receivers due (``later``: the
+receivers read, which later frames may compute); others
 compute all of them when any is due, and the reuse saves time only on frames where none is.
 """
 
@@ -71,6 +72,18 @@ def median_edge(points: np.ndarray, faces: np.ndarray) -> float:
     return float(np.median(e)) if len(e) else 0.0
 
 
+def check_tolerance(tolerance) -> float:
+    """``tolerance`` as a float [rad].
+
+    Raises:
+        ValueError: it is negative or not finite.
+    """
+    value = float(tolerance)
+    if not (value >= 0.0 and np.isfinite(value)):
+        raise ValueError(f"reuse tolerance must be a finite angle >= 0 [rad], got {tolerance}")
+    return value
+
+
 def _row_norms(v: np.ndarray) -> np.ndarray:
     """Euclidean norm of each row of ``v`` (n, 3), summed ``(x² + y²) + z²`` as ``np.linalg.norm(v, axis=1)``
     sums it (the same values bit for bit), without its temporaries."""
@@ -109,10 +122,7 @@ class TemporalReuse:
     """
 
     def __init__(self, method: TransferMethod, tolerance: float, cluster: int | None = None):
-        tolerance = float(tolerance)
-        if not (tolerance >= 0.0 and np.isfinite(tolerance)):
-            raise ValueError(f"reuse tolerance must be a finite angle >= 0 [rad], got {tolerance}")
-        self.method, self.tolerance = method, tolerance
+        self.method, self.tolerance = method, check_tolerance(tolerance)
         self.mesh, self.order, self.device = method.mesh, method.order, method.device
         nv = self.mesh.num_vertices
         size = int(cluster) if cluster else max(MIN_CLUSTER, -(-nv // MAX_CLUSTERS))
@@ -124,6 +134,7 @@ class TemporalReuse:
         self._count = np.diff(self._start).astype(np.float64)
         self._h = median_edge(self.mesh.points, self.mesh.faces) or 1.0
         self._account = np.zeros(len(self._start) - 1)
+        self._all = np.arange(nv, dtype=np.int32)
         self._previous = None
         self._values = None
         self.transfer = wp.zeros_like(method.transfer)
@@ -213,7 +224,8 @@ class TemporalReuse:
         nv = self.mesh.num_vertices
         can_rows = hasattr(m, "compute_rows")
         if needed is not None and can_rows:
-            rows = np.intersect1d(rows, np.asarray(needed, dtype=np.int32)).astype(np.int32)
+            needed = np.asarray(needed, dtype=np.int32)
+            rows = np.intersect1d(rows, needed).astype(np.int32)
         if len(rows) and (not can_rows or (needed is None and len(rows) == nv)):
             values = m.update(pts, normals).numpy()
             rows = np.arange(nv, dtype=np.int32)
@@ -222,8 +234,8 @@ class TemporalReuse:
             m.set_points(pts, normals)  # normals stay current everywhere, reused or not
             if self._values is None:
                 self._values = np.zeros((nv, self.order * self.order), dtype=np.float32)
-            if len(rows):
-                values = m.compute_rows(rows).numpy()
+            if len(rows):  # later frames may compute any receiver read (hemiraster keeps its static part for them)
+                values = m.compute_rows(rows, later=self._all if needed is None else needed).numpy()
                 self._values[rows] = values[rows]
         self.transfer.assign(self._values)
         self._account[np.unique(self.labels[rows])] = 0.0
@@ -251,4 +263,4 @@ def with_reuse(method, tolerance: float | None):
     return method if tolerance is None or method is None else TemporalReuse(method, tolerance)
 
 
-__all__ = ["MAX_CLUSTERS", "MIN_CLUSTER", "TemporalReuse", "kd_clusters", "median_edge", "update_rows", "with_reuse"]
+__all__ = ["MAX_CLUSTERS", "MIN_CLUSTER", "TemporalReuse", "check_tolerance", "kd_clusters", "median_edge", "update_rows", "with_reuse"]
