@@ -211,3 +211,17 @@ def test_animation_bench_variant_knobs_are_parsed_checked_and_run():
     plain, variant = res["records"]
     assert label(variant) == "hemiraster mask=16"
     assert plain["errors"] != variant["errors"]  # a 16-pixel mask is another transfer, not the default's
+
+
+def test_animation_bench_back_side_is_the_flipped_group_judged_at_its_two_sided_members(tmp_path):
+    from warpshade.bench.animation import sequence
+
+    front = sequence("default", frames=2, cache_dir=str(tmp_path))
+    back = sequence("default", frames=2, cache_dir=str(tmp_path), side="back")
+    assert np.array_equal(back.frames, front.frames) and np.array_equal(back.rest.faces, front.rest.faces[:, ::-1])
+    assert front.judged(0) is None
+    mask = back.judged(0)
+    assert mask.dtype == bool and mask.sum() == 33 * 33  # the cloth (33 x 33 vertices) is the two-sided member
+    assert not mask[:mask.argmax()].any()  # ground and ball come first in the group, one-sided
+    with pytest.raises(ValueError, match="back side"):
+        sequence("walk", frames=2, side="back")

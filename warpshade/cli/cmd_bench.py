@@ -46,6 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     anim.add_argument("--variant", action="append", default=[], metavar="KNOBS",
                       help="also measure hemiraster with these knobs and, with reuse=RAD, temporal reuse "
                            "(name=value,...; e.g. min_image=0,lut=96,reuse=2; repeatable)")
+    anim.add_argument("--side", choices=("front", "back"), default="front",
+                      help="a scene's front sides (default) or its back sides, judged at its two-sided members "
+                           "(cloth), as warpshade run's back pass")
     anim.add_argument("--json", default=None, metavar="PATH", help="write the animation result as JSON")
 
 
@@ -79,7 +82,7 @@ def run_animation(args) -> int:
     cache = args.cache_dir
     result = run_animation(args.animation, frames=args.frames, every=args.every, order=args.order,
                            rays=args.ground_truth_rays or 4096, configs=configs, device=args.device,
-                           chunk=args.reuse_chunk,
+                           chunk=args.reuse_chunk, side=args.side,
                            cache_dir=".warpshade-cache/reference" if cache is None else
                            (None if cache.lower() == "none" else cache))
     result["machine"] = f"{machine_note()}; wall and process CPU time of update() per frame, compile excluded"
