@@ -175,7 +175,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=None, metavar="PATH")
     ap.add_argument("--also", default=None, metavar="OPTIONS",
                     help="a third configuration in every round: --workers 2 with these run options as well "
-                         "(e.g. '--reuse 2'), interleaved with the other two")
+                         "(e.g. '--reuse off'), interleaved with the other two")
     ap.add_argument("--cold", type=int, default=0, metavar="ROUNDS",
                     help="instead: ROUNDS first runs with empty caches (two workers; wall and CPU time)")
     ap.add_argument("--against", default=None, metavar="CHECKOUT",

@@ -175,7 +175,10 @@ def test_run_default_scene_few_frames(tmp_path, capsys):
 
     # with worker processes the setup and shade figures are sums over them, which can exceed the total: said so
     assert ("(setup and shade are summed over the" in printed.err) == (default_workers() > 0)
+    # reference recomputes every receiver whenever one is due: no temporal reuse by default, and said so
+    assert "temporal reuse: off" in printed.err
     stage = Usd.Stage.Open(str(out))
+    assert stage.GetRootLayer().customLayerData["warpshade:reuse"].startswith("off")
     assert stage.GetEndTimeCode() == 2
     cloth = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth"))
     p0, p2 = (np.asarray(cloth.GetPointsAttr().Get(f)) for f in (0, 2))
@@ -236,6 +239,19 @@ def test_setup_ticker_says_it_compiles():
             assert ("of ~6 s estimated" in first.text()) == (estimate is not None)
         finally:
             quiet.stop(), first.stop()
+
+
+def test_reuse_option_takes_an_angle_off_or_auto():
+    import argparse
+
+    from warpshade.cli.cmd_run import parse_reuse
+    from warpshade.pipeline.config import REUSE_AUTO
+
+    assert parse_reuse("2") == 2.0 and parse_reuse("0") == 0.0
+    assert parse_reuse("off") is None and parse_reuse("OFF") is None and parse_reuse("auto") == REUSE_AUTO
+    for bad in ("-1", "nan", "sometimes"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            parse_reuse(bad)
 
 
 def test_groups_with_different_methods_shadow_each_other_through_spheres(tmp_path):

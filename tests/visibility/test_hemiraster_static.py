@@ -115,3 +115,20 @@ def test_compute_rows_stores_the_rows_it_computes():
         np.testing.assert_array_equal(full.transfer.numpy()[rows], kept.transfer.numpy()[rows])
         np.testing.assert_array_equal(full._mask.numpy()[rows], kept._mask.numpy()[rows])
     assert kept.stats()["static_receivers"] == int((rows < ng).sum())
+
+
+def test_compute_rows_stores_for_the_receivers_later_frames_compute():
+    # temporal reuse computes another set of rows every frame: with ``later`` (every receiver here) the part
+    # is stored once for every unmoved receiver, not only for the rows of the frame that stored it
+    mesh, ng = ground_and_sheet()
+    nv = mesh.num_vertices
+    full = get_method("hemiraster")(mesh, order=3, coarse=64, keep_static=False)
+    kept = get_method("hemiraster")(mesh, order=3, coarse=64)
+    for k, pts in enumerate(frames(mesh, ng, 5)):
+        rows = np.arange(k % 3, nv, 3)  # another third of the receivers each frame
+        for h in (full, kept):
+            h.set_points(pts)
+            h.compute_rows(rows, later=np.arange(nv))
+        np.testing.assert_array_equal(full.transfer.numpy()[rows], kept.transfer.numpy()[rows])
+        np.testing.assert_array_equal(full._mask.numpy()[rows], kept._mask.numpy()[rows])
+    assert kept.stats()["static_stores"] == 1 and kept.stats()["static_receivers"] == ng

@@ -121,7 +121,7 @@ def _small_scene():
 
 
 def test_pipeline_reuse_zero_shades_as_without():
-    pipe = make_pipeline(_small_scene(), frames=4)
+    pipe = make_pipeline(_small_scene(), frames=4, reuse=None)
     frames = list(pipe.simulate())
     plain = pipe.shader.build()
     reused = dataclasses.replace(pipe.shader, reuse=0.0).build()
@@ -132,6 +132,37 @@ def test_pipeline_reuse_zero_shades_as_without():
         for k in keys:
             for x, y in zip(a[k], b[k]):
                 assert (x is None and y is None) or np.array_equal(x, y), (f, k)
+
+
+def test_default_is_on_where_the_method_computes_rows_and_off_is_the_method_value_for_value():
+    from warpshade.pipeline.config import REUSE, REUSE_CHUNK, resolve_reuse
+
+    scene = _small_scene()
+    on = make_pipeline(scene, frames=6)
+    assert {g.method for g in on.groups} == {"hemiraster"}
+    assert (on.reuse, on.chunk, on.shader.reuse) == (REUSE, REUSE_CHUNK, REUSE)
+    off = make_pipeline(scene, frames=6, reuse=None)
+    assert (off.reuse, off.chunk, off.shader.reuse) == (None, None, None)
+    # off shades as reuse 0, the method itself value for value (test_pipeline_reuse_zero_shades_as_without);
+    # the default does not: it keeps transfer somewhere in these frames
+    plain, reused = off.shader.build(), on.shader.build()
+    differs = False
+    for f, geo in off.simulate():
+        a, b = plain(f, geo), reused(f, geo)
+        keys = [k for k in a if not (isinstance(k, str) and k.startswith("_"))]
+        differs |= any(not np.array_equal(x, y) for k in keys for x, y in zip(a[k], b[k]) if x is not None)
+    assert differs  # the default reuses somewhere in these frames: it is on
+    # where the method recomputes every receiver whenever one is due, the default is off
+    assert resolve_reuse("auto", ["hemiraster", None]) == REUSE
+    assert resolve_reuse("auto", ["reference"]) is None and resolve_reuse("auto", [None]) is None
+    assert resolve_reuse("auto", ["hemiraster", "reference"]) is None
+    assert resolve_reuse(None, ["hemiraster"]) is None and resolve_reuse(0.5, ["reference"]) == 0.5
+    assert make_pipeline(scene, frames=2, method="reference", knobs={"rays": 4}).reuse is None
+    for bad in ("sometimes", -1.0, float("nan")):
+        with pytest.raises(ValueError):
+            resolve_reuse(bad, ["hemiraster"])
+    with pytest.raises(ValueError, match="reuse_chunk"):
+        make_pipeline(scene, frames=2, reuse=None, reuse_chunk=4)
 
 
 def test_back_pass_computes_the_two_sided_rows_as_a_full_update():
@@ -180,3 +211,17 @@ def test_animation_bench_variant_knobs_are_parsed_checked_and_run():
     plain, variant = res["records"]
     assert label(variant) == "hemiraster mask=16"
     assert plain["errors"] != variant["errors"]  # a 16-pixel mask is another transfer, not the default's
+
+
+def test_animation_bench_back_side_is_the_flipped_group_judged_at_its_two_sided_members(tmp_path):
+    from warpshade.bench.animation import sequence
+
+    front = sequence("default", frames=2, cache_dir=str(tmp_path))
+    back = sequence("default", frames=2, cache_dir=str(tmp_path), side="back")
+    assert np.array_equal(back.frames, front.frames) and np.array_equal(back.rest.faces, front.rest.faces[:, ::-1])
+    assert front.judged(0) is None
+    mask = back.judged(0)
+    assert mask.dtype == bool and mask.sum() == 33 * 33  # the cloth (33 x 33 vertices) is the two-sided member
+    assert not mask[:mask.argmax()].any()  # ground and ball come first in the group, one-sided
+    with pytest.raises(ValueError, match="back side"):
+        sequence("walk", frames=2, side="back")

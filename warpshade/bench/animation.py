@@ -9,6 +9,8 @@ Sequences (:func:`sequence`):
 * ``walk``: the skinned :class:`warpshade.sim.figure.WalkingFigure` walking along +z at 60 frames/s;
   vertices buried inside another capsule in a judged frame are not judged (as the bench's
   ``character`` mesh).
+* a USD file's path: its first shading group with a moving member, simulated and merged alike, front
+  sides only.
 
 Each configuration (method, knobs, temporal reuse tolerance) runs the whole sequence on a fresh
 instance after a warm-up instance compiled its kernels, the configurations taking turns frame by
@@ -61,37 +63,55 @@ class Sequence:
     description: str = ""
 
 
-def _default_scene(frames: int, cache_dir: str | None) -> Sequence:
+def _scene(path: str, label: str, frames: int, cache_dir: str | None, side: str = "front") -> Sequence:
+    """The frames of a USD scene's first moving shading group, simulated as ``warpshade run`` simulates
+    them (cached under ``cache_dir`` by the scene file's content and ``frames``). ``side="back"``: the group
+    seen from its back (:func:`warpshade.pipeline.shading.flipped`, as the run's back pass), judged at its
+    two-sided members' vertices only (``two_sided="auto"``: cloth, ``warpshade:twoSided``)."""
+    import hashlib
+
     from ..pipeline import Pipeline
     from ..usd import read_scene
-    from ..usd.shipped import shipped_scene
 
-    scene = read_scene(shipped_scene("default.usda"))
-    pipe = Pipeline(scene, frames=frames, two_sided="off")
-    group = next(g for g in pipe.groups if g.method is not None)
+    scene = read_scene(path)
+    pipe = Pipeline(scene, frames=frames, two_sided="auto" if side == "back" else "off", reuse=None)
+    shaded = [g for g in pipe.groups if g.method is not None]
+    if not shaded:
+        raise ValueError(f"{path}: no shading group with a visibility method")
+    group = next((g for g in shaded if any(g.moving)), shaded[0])
     offsets = np.cumsum([0] + [m.num_vertices for m in group.meshes])
     faces = np.concatenate([m.faces + o for m, o in zip(group.meshes, offsets[:-1])]).astype(np.int32)
     rest = np.concatenate([m.points for m in group.meshes]).astype(np.float32)
-    path = os.path.join(cache_dir, f"animation_default_f{frames}.npz") if cache_dir else None
-    if path and os.path.isfile(path):
-        z = np.load(path)
+    with open(path, "rb") as fh:
+        digest = hashlib.sha256(fh.read()).hexdigest()[:12]
+    stem = os.path.splitext(os.path.basename(path))[0]
+    cached = os.path.join(cache_dir, f"animation_{stem}_{digest}_f{frames}.npz") if cache_dir else None
+    description = (f"{label}, {frames} simulated frames: {', '.join(group.names)} as one receiver "
+                   f"({len(rest)} vertices), front sides")
+    mesh = TriMesh(rest, faces, name=f"{stem} scene group")
+    judged = lambda frame: None  # noqa: E731 - every vertex
+    if side == "back":
+        from ..pipeline.shading import flipped
+
+        two = np.concatenate([np.full(m.num_vertices, bool(t)) for m, t in zip(group.meshes, group.two_sided)])
+        if not two.any():
+            raise ValueError(f"{path}: the group {', '.join(group.names)} has no two-sided member (no back side)")
+        mesh = flipped(mesh)
+        judged = lambda frame: two  # noqa: E731 - the two-sided members' back sides
+        description = description.replace("front sides", f"back sides, judged at the two-sided members' "
+                                                          f"{int(two.sum())} vertices")
+    if cached and os.path.isfile(cached):
+        z = np.load(cached)
         if z["frames"].shape == (frames, len(rest), 3) and np.array_equal(z["faces"], faces):
-            return Sequence("default", TriMesh(rest, faces, name="default scene group"), z["frames"],
-                            description=_describe_default(group, len(rest), frames))
+            return Sequence(stem, mesh, z["frames"], judged, description)
     out = np.empty((frames, len(rest), 3), dtype=np.float32)
     for f, geo in pipe.simulate():
         out[f] = np.concatenate([geo[n] if mv else group.meshes[k].points
                                  for k, (n, mv) in enumerate(zip(group.names, group.moving))])
-    if path:
+    if cached:
         os.makedirs(cache_dir, exist_ok=True)
-        replace_atomically(lambda tmp: np.savez(tmp, frames=out, faces=faces), path)
-    return Sequence("default", TriMesh(rest, faces, name="default scene group"), out,
-                    description=_describe_default(group, len(rest), frames))
-
-
-def _describe_default(group, vertices: int, frames: int) -> str:
-    return (f"usd_scenes/default.usda, {frames} simulated frames: {', '.join(group.names)} as one receiver "
-            f"({vertices} vertices), front sides")
+        replace_atomically(lambda tmp: np.savez(tmp, frames=out, faces=faces), cached)
+    return Sequence(stem, mesh, out, judged, description)
 
 
 def _walk(frames: int, fps: float = 60.0) -> Sequence:
@@ -107,13 +127,28 @@ def _walk(frames: int, fps: float = 60.0) -> Sequence:
                     f"({rest.num_vertices} vertices); buried vertices not judged")
 
 
-def sequence(name: str, frames: int = 120, cache_dir: str | None = SEQUENCE_CACHE) -> Sequence:
-    """The named animation (:data:`ANIMATIONS`) with ``frames`` frames."""
+def sequence(name: str, frames: int = 120, cache_dir: str | None = SEQUENCE_CACHE, side: str = "front") -> Sequence:
+    """The named animation (:data:`ANIMATIONS`), or the scene of a USD file path (:func:`is_scene_path`),
+    with ``frames`` frames; ``side="back"``: a scene's back sides (:func:`_scene`)."""
+    if side not in ("front", "back"):
+        raise ValueError(f"side must be front or back, got {side!r}")
     if name == "default":
-        return _default_scene(frames, cache_dir)
+        from ..usd.shipped import shipped_scene
+
+        return _scene(shipped_scene("default.usda"), "usd_scenes/default.usda", frames, cache_dir, side)
     if name == "walk":
+        if side == "back":
+            raise ValueError("the walk has no back side (a closed figure)")
         return _walk(frames)
-    raise ValueError(f"unknown animation {name!r} (known: {', '.join(ANIMATIONS)})")
+    if is_scene_path(name):
+        return _scene(name, name, frames, cache_dir, side)
+    raise ValueError(f"unknown animation {name!r} (known: {', '.join(ANIMATIONS)}, or a USD file)")
+
+
+def is_scene_path(name: str) -> bool:
+    """Whether an animation name is a USD file (``.usd``, ``.usda``, ``.usdc``): its first moving
+    shading group is the sequence."""
+    return os.path.splitext(name)[1].lower() in (".usd", ".usda", ".usdc")
 
 
 def parse_variant(text: str) -> dict:
@@ -159,16 +194,18 @@ def configurations(tolerances=DEFAULT_TOLERANCES, peer_rays: int = 256, variants
 
 def run_animation(name: str, frames: int = 120, every: int = 10, order: int = 4, rays: int = 4096,
                   tolerances=DEFAULT_TOLERANCES, cache_dir: str | None = DEFAULT_CACHE_DIR,
-                  configs: list[dict] | None = None, device: str = "cpu", log=None, chunk: int | None = None) -> dict:
+                  configs: list[dict] | None = None, device: str = "cpu", log=None, chunk: int | None = None,
+                  side: str = "front") -> dict:
     """Measure every configuration on the whole sequence; returns ``{"animation", "description",
     "frames", "every", "judged_frames", "order", "ground_truth", "chunk", "records"}`` with one record per
     configuration (its errors over time, ``errors``: per judged frame). ``chunk``: temporal reuse starts
-    afresh every ``chunk`` frames, as in a run's chunks (``warpshade run --reuse-chunk``); None: once."""
+    afresh every ``chunk`` frames, as in a run's chunks (``warpshade run --reuse-chunk``); None: once.
+    ``side``: ``"back"`` judges a scene's back sides (:func:`sequence`)."""
     from ..visibility import get_method
     from ..visibility.reuse import with_reuse
 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
-    seq = sequence(name, frames)
+    seq = sequence(name, frames, side=side)
     judged_frames = list(range(0, frames, every))
     log(f"{name}: {seq.description}; judged every {every} frames ({len(judged_frames)} frames)")
     truths = {}
@@ -220,7 +257,7 @@ def run_animation(name: str, frames: int = 120, every: int = 10, order: int = 4,
     return {"animation": name, "description": seq.description, "frames": frames, "every": every,
             "judged_frames": judged_frames, "order": order, "vertices": seq.rest.num_vertices,
             "ground_truth": {"method": "reference", "rays": rays, "seed": GROUND_TRUTH_SEED}, "chunk": chunk,
-            "records": records}
+            "side": side, "records": records}
 
 
 def label(rec: dict) -> str:
@@ -251,5 +288,5 @@ def format_animation(result: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["ANIMATIONS", "DEFAULT_TOLERANCES", "Sequence", "configurations", "format_animation", "label",
-           "parse_variant", "run_animation", "sequence"]
+__all__ = ["ANIMATIONS", "DEFAULT_TOLERANCES", "Sequence", "configurations", "format_animation", "is_scene_path",
+           "label", "parse_variant", "run_animation", "sequence"]

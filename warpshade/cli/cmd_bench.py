@@ -31,9 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from ..bench.animation import ANIMATIONS
 
     anim = parser.add_argument_group("whole animations (--animation)")
-    anim.add_argument("--animation", choices=ANIMATIONS, default=None,
+    anim.add_argument("--animation", type=_animation, default=None, metavar="|".join(ANIMATIONS) + "|SCENE.usda",
                       help="instead of the sweep: shade every frame of a sequence (default: the default scene's drape; "
-                           "walk: the skinned walking figure), judge every --every-th frame against its ray-traced "
+                           "walk: the skinned walking figure; a USD file: its first moving shading group), judge every --every-th frame against its ray-traced "
                            "truth, with temporal reuse at several tolerances beside recomputation")
     anim.add_argument("--frames", type=int, default=120, help="frames of the sequence (default 120)")
     anim.add_argument("--every", type=int, default=10, help="judge every k-th frame (default 10)")
@@ -46,7 +46,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     anim.add_argument("--variant", action="append", default=[], metavar="KNOBS",
                       help="also measure hemiraster with these knobs and, with reuse=RAD, temporal reuse "
                            "(name=value,...; e.g. min_image=0,lut=96,reuse=2; repeatable)")
+    anim.add_argument("--side", choices=("front", "back"), default="front",
+                      help="a scene's front sides (default) or its back sides, judged at its two-sided members "
+                           "(cloth), as warpshade run's back pass")
     anim.add_argument("--json", default=None, metavar="PATH", help="write the animation result as JSON")
+
+
+def _animation(text: str) -> str:
+    """An ``--animation`` value: a sequence name or a USD file that exists."""
+    import argparse
+    import os
+
+    from ..bench.animation import ANIMATIONS, is_scene_path
+
+    if text in ANIMATIONS or (is_scene_path(text) and os.path.isfile(text)):
+        return text
+    raise argparse.ArgumentTypeError(f"{text!r} is neither {' nor '.join(ANIMATIONS)} nor a USD file that exists")
 
 
 def _csv(text, conv=str):
@@ -67,7 +82,7 @@ def run_animation(args) -> int:
     cache = args.cache_dir
     result = run_animation(args.animation, frames=args.frames, every=args.every, order=args.order,
                            rays=args.ground_truth_rays or 4096, configs=configs, device=args.device,
-                           chunk=args.reuse_chunk,
+                           chunk=args.reuse_chunk, side=args.side,
                            cache_dir=".warpshade-cache/reference" if cache is None else
                            (None if cache.lower() == "none" else cache))
     result["machine"] = f"{machine_note()}; wall and process CPU time of update() per frame, compile excluded"

@@ -78,6 +78,12 @@ def run(args) -> int:
                      probe=args.probe)
     print(plan.describe())
     print(f"  without reuse (every object every frame): {naive_seconds(plan):.2f} s")
+    from ..pipeline.config import REUSE_AUTO, REUSE_CHUNK, resolve_reuse, reuse_text
+
+    reuse = resolve_reuse(REUSE_AUTO, [g.method for g in plan.groups])
+    print(f"  temporal reuse of warpshade run (--reuse; its default): {reuse_text(reuse, REUSE_CHUNK)}"
+          + ("; the estimates above recompute every receiver every frame, the run only those due" if reuse is not None
+             else ""))
     if args.json:
         from ..bench.report import write_json
 

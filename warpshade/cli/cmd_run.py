@@ -87,13 +87,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--area-k", type=positive_int, default=None,
                         help=f"GEARS light samples per side (default {DEFAULT_AREA_KNOBS['k']})")
     add_two_sided_argument(parser)
-    parser.add_argument("--reuse", type=float, default=None, metavar="RAD",
+    from ..pipeline.config import REUSE, REUSE_AUTO, REUSE_CHUNK
+
+    parser.add_argument("--reuse", type=parse_reuse, default=REUSE_AUTO, metavar="RAD|off",
                         help="temporal reuse: recompute a vertex cluster's transfer only when geometry it sees moved "
-                             "by more than this angle [rad] since its last computation (default: every frame)")
-    from ..pipeline.config import REUSE_CHUNK
+                             f"by more than this angle [rad] since its last computation; off: every frame (default "
+                             f"{REUSE:g} where the method computes only the clusters due, hemiraster; else off)")
 
     parser.add_argument("--reuse-chunk", type=positive_int, default=None, metavar="FRAMES",
-                        help="with --reuse: frames per chunk; a chunk is shaded in order by one worker and starts "
+                        help="with temporal reuse: frames per chunk; a chunk is shaded in order by one worker and starts "
                              "with every vertex computed, so the output depends on this and not on --workers "
                              f"(default {REUSE_CHUNK})")
     parser.add_argument("--resume", action="store_true",
@@ -134,6 +136,24 @@ def setup_estimate(scene, method: str | None, knobs: dict, order: int, args, wor
     return plan.run_seconds_setup + plan.run_seconds_per_frame + startup
 
 
+def parse_reuse(text: str):
+    """A ``--reuse`` value: a tolerance [rad] (>= 0), ``off`` (None: every frame) or ``auto`` (the default,
+    :func:`warpshade.pipeline.config.resolve_reuse`)."""
+    from ..pipeline.config import REUSE_AUTO
+
+    word = text.strip().lower()
+    if word in ("off", "none"):
+        return None
+    if word == REUSE_AUTO:
+        return REUSE_AUTO
+    from ..visibility.reuse import check_tolerance
+
+    try:
+        return check_tolerance(word)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an angle >= 0 [rad], off or {REUSE_AUTO}, got {text!r}") from None
+
+
 def parse_albedo(text: str | None):
     """``--albedo`` value: ``A`` or ``R,G,B`` in [0, 1] -> float or (3,) list; None stays None."""
     if text is None:
@@ -168,7 +188,7 @@ def run(args) -> int:
     elif args.tls_ca_file or args.tls_cert or args.tls_key:
         raise ValueError("--tls-ca-file/--tls-cert/--tls-key need --scheduler tls://HOST:PORT")
     if args.reuse_chunk is not None and args.reuse is None:
-        raise ValueError("--reuse-chunk needs --reuse")
+        raise ValueError("--reuse-chunk needs temporal reuse (not --reuse off)")
     workers = default_workers() if args.workers is None else args.workers
     pool = adopt(early, workers, method, args.scheduler)
     try:
@@ -181,6 +201,7 @@ def run(args) -> int:
 def _run(args, method, knobs, security, workers: int, pool) -> int:
     from ..parallel import FrameShadingError
     from ..pipeline import Pipeline, check_output
+    from ..pipeline.config import reuse_text
     from ..usd import AnimationWriter, read_scene
     from . import exit_code, interrupted_by
 
@@ -226,9 +247,7 @@ def _run(args, method, knobs, security, workers: int, pool) -> int:
                                        "groups": "; ".join(f"{g.method} {g.label}" for g in pipe.groups),
                                        "between": args.between, "area_lights": args.area_lights,
                                        "reflections": str(bool(pipe.reflections is not None)),
-                                       # only with reuse: outputs without it keep main's metadata
-                                       **({"reuse": f"{args.reuse} rad, chunks of {pipe.chunk} frames"}
-                                          if pipe.chunk is not None else {})})
+                                       "reuse": reuse_text(pipe.reuse, pipe.chunk)})
     estimate = setup_estimate(scene, method, knobs, pipe.order, args, workers)
     if pipe.compiles:
         import warp as wp
@@ -260,6 +279,7 @@ def _run(args, method, knobs, security, workers: int, pool) -> int:
         print(f"  shading group: {g}", file=sys.stderr)
     if report.area_lights:
         print(f"  rect lights: {report.area_lights}", file=sys.stderr)
+    print(f"  temporal reuse: {reuse_text(pipe.reuse, pipe.chunk)}", file=sys.stderr)
     per = 1e3 / max(report.frames, 1)
     print(f"  load {s['load']:.2f} s | setup {s['setup']:.2f} s | simulate {s['simulate']:.2f} s "
           f"({s['simulate'] * per:.1f} ms/frame) | shade {s['shade']:.2f} s ({s['shade'] * per:.1f} ms/frame) | "

@@ -32,7 +32,7 @@ from .cloth import ClothSimulation
 from .lights import default_lights, light_from_spec, sky_light_specs
 from .refine import refine_receivers as refine
 from ..visibility import METHOD_PREFERENCE, default_method
-from .config import DEFAULT_ORDER, REUSE_CHUNK, RUN_KNOBS, RunConfig, resolve_run
+from .config import DEFAULT_ORDER, REUSE_AUTO, REUSE_CHUNK, RUN_KNOBS, RunConfig, resolve_reuse, resolve_run
 from .shading import GroupSpec, SceneShader, back_key, unoccluded_transfer
 
 DEFAULT_KNOBS = RUN_KNOBS
@@ -162,7 +162,8 @@ class Pipeline:
             two-sided member runs its visibility method a second time, on the group seen from the back.
         reuse: Temporal reuse: recompute a receiver's transfer only when geometry it sees moved by more
             than this angle [rad] since it was last computed (:mod:`warpshade.visibility.reuse`); None
-            (default) recomputes every frame.
+            recomputes every frame; ``"auto"`` (default) is :data:`~.config.REUSE` where the groups'
+            methods compute only the receivers due, else None (:func:`~.config.resolve_reuse`).
         reuse_chunk: With ``reuse``: frames per chunk (default :data:`~.config.REUSE_CHUNK`). Frames
             ``k*reuse_chunk`` on are shaded in order by one worker, the first computed in full, so the
             output depends on ``reuse_chunk``, not on ``workers``; ``--resume`` starts shading at the
@@ -174,7 +175,7 @@ class Pipeline:
                  lights: list | None = None, workers: int = 0, scheduler: str | None = None, device: str = "cpu",
                  between: str | None = "spheres", reflections: bool | dict | None = None, albedo=None,
                  area_lights: str = "gears", area_knobs: dict | None = None, refine_receivers="auto",
-                 security=None, two_sided: str = "auto", reuse: float | None = None,
+                 security=None, two_sided: str = "auto", reuse: float | str | None = REUSE_AUTO,
                  reuse_chunk: int | None = None):
         from ..parallel.runtime import init_warp, kernel_cache_holds_warpshade
 
@@ -197,9 +198,13 @@ class Pipeline:
         self.security = security
         if not self.groups:
             raise SceneError(f"{scene.source}: no shaded object")
-        self.shader = SceneShader.from_config(self.config, scene, lights, device,
-                                              None if reuse is None else float(reuse))
-        self.chunk = None if reuse is None else int(REUSE_CHUNK if reuse_chunk is None else reuse_chunk)
+        self.reuse = resolve_reuse(reuse, [g.method for g in self.groups])
+        """Temporal reuse tolerance [rad] of every group's transfer, or None (recomputed every frame)."""
+        if reuse_chunk is not None and self.reuse is None:
+            raise ValueError("reuse_chunk needs temporal reuse (reuse was None, or 'auto' with a method that "
+                             "computes every receiver)")
+        self.shader = SceneShader.from_config(self.config, scene, lights, device, self.reuse)
+        self.chunk = None if self.reuse is None else int(REUSE_CHUNK if reuse_chunk is None else reuse_chunk)
         """Frames per chunk (:func:`warpshade.parallel.shade_frames`), or None without temporal reuse."""
         if self.chunk is not None and self.chunk < 1:
             raise ValueError(f"reuse chunk must be >= 1 frames, got {self.chunk}")

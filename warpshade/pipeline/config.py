@@ -23,6 +23,17 @@ measured in docs/methods/reference.md); other knobs take the method's own defaul
 ``warpshade run --method M`` passes all of M's knobs (its flags' defaults), so this applies to methods
 named by a scene or by the Python API without knobs."""
 
+REUSE = 2.0
+"""Temporal reuse tolerance [rad] of a run unless told otherwise (``warpshade run --reuse RAD|off``,
+``Pipeline(reuse=...)``; :func:`resolve_reuse`), for runs whose shaded groups' methods compute only the
+receivers due (``compute_rows``: hemiraster). On the frontier where measured (``warpshade bench
+--animation``, chunks of :data:`REUSE_CHUNK`, docs/benchmarks/index.md "Whole animations"): the error of
+recomputing every frame within the truth's noise, for less time, on the default scene's drape, the skinned
+walk, usd_scenes/cape_walker.usda and flag_wind.usda and a hand-made cloth over a pedestal."""
+
+REUSE_AUTO = "auto"
+"""``reuse`` value meaning :data:`REUSE` where it applies (:func:`resolve_reuse`); the default."""
+
 REUSE_CHUNK = 30
 """Frames per chunk of a run with temporal reuse (``--reuse-chunk``): each chunk is shaded in order by one
 worker and starts with every receiver computed (:func:`warpshade.parallel.shade_frames`), so the output
@@ -167,6 +178,35 @@ def knob_label(method: str | None, knobs: dict) -> dict:
     return get_method(method).knob_changes(knobs)
 
 
+def resolve_reuse(reuse, methods) -> float | None:
+    """The temporal reuse tolerance [rad] of a run whose shading groups use ``methods`` (method names, None for
+    unoccluded groups), or None for none: ``reuse`` itself when a number (>= 0) or None; for
+    :data:`REUSE_AUTO`, :data:`REUSE` when every group with a method has one that computes only the
+    receivers due (``compute_rows``), else None (others recompute every receiver whenever one is due:
+    not measured on the frontier).
+
+    Raises:
+        ValueError: a negative or non-finite tolerance, or another string than :data:`REUSE_AUTO`.
+    """
+    if reuse is None:
+        return None
+    if isinstance(reuse, str):
+        if reuse != REUSE_AUTO:
+            raise ValueError(f"reuse must be a tolerance [rad], None (off) or {REUSE_AUTO!r}, got {reuse!r}")
+        from ..visibility import get_method
+
+        named = [m for m in methods if m is not None]
+        return REUSE if named and all(hasattr(get_method(m), "compute_rows") for m in named) else None
+    from ..visibility.reuse import check_tolerance
+
+    return check_tolerance(reuse)
+
+
+def reuse_text(reuse: float | None, chunk: int | None) -> str:
+    """How a run's temporal reuse is shown (run summary, output metadata, ``warpshade plan``)."""
+    return "off (every receiver every frame)" if reuse is None else f"{reuse:g} rad, chunks of {chunk} frames"
+
+
 def resolve_area_knobs(area_knobs: dict | None) -> dict:
     """GEARS knobs of a run: :data:`DEFAULT_AREA_KNOBS` overridden by ``area_knobs``, validated against the
     GEARS schema (``k``, ``grid``) and :data:`WEIGHTINGS`.
@@ -272,5 +312,6 @@ def resolve_run(scene, method: str | None = None, knobs: dict | None = None, ord
                                          else scene.settings.get("writeTransfer", False)))
 
 
-__all__ = ["AREA_MODES", "BETWEEN_MODES", "DEFAULT_AREA_KNOBS", "DEFAULT_ORDER", "RUN_KNOBS", "TWO_SIDED_MODES",
-           "WEIGHTINGS", "GroupSpec", "RunConfig", "group_objects", "is_two_sided", "knob_label", "resolve_area_knobs", "resolve_knobs", "resolve_run"]
+__all__ = ["AREA_MODES", "BETWEEN_MODES", "DEFAULT_AREA_KNOBS", "DEFAULT_ORDER", "REUSE", "REUSE_AUTO", "REUSE_CHUNK",
+           "RUN_KNOBS", "TWO_SIDED_MODES", "WEIGHTINGS", "GroupSpec", "RunConfig", "group_objects", "is_two_sided",
+           "knob_label", "resolve_area_knobs", "resolve_knobs", "resolve_reuse", "resolve_run", "reuse_text"]

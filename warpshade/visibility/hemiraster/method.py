@@ -754,7 +754,8 @@ class HemirasterTransfer(TransferMethod):
             wp.launch(union_child_boxes, dim=self.num_blockers,
                       inputs=[self._group_start, self._group_tris, *self._mid_box], outputs=[*self._blocker_box], device=d)
 
-    def _launch(self, record: int, use_pvs: int, rows: wp.array | None = None, interp_rows=None) -> None:
+    def _launch(self, record: int, use_pvs: int, rows: wp.array | None = None, interp_rows=None,
+                static_rows: np.ndarray | None = None) -> None:
         if self.occluders:
             wp.copy(self._spoints, self.points, count=self.mesh.num_vertices)
         self._follow()
@@ -779,8 +780,8 @@ class HemirasterTransfer(TransferMethod):
                       outputs=[self._mids.plane, self._mids.sphere, self._mid_nlen], device=d)
         self._batch.record = record
         self._batch.hits = self._hits
-        if rows is not None:  # the receivers this frame computes (the part is stored for those only)
-            wanted = rows.numpy()
+        if rows is not None:  # the receivers this frame computes, or those later frames may (static_rows)
+            wanted = rows.numpy() if static_rows is None else static_rows
         elif interp_rows is not None:
             wanted = self._interp_rows(interp_rows)[0].numpy()
         else:
@@ -877,7 +878,7 @@ class HemirasterTransfer(TransferMethod):
         recv = same[:nv] & _same_rows(nrm, last[1])
         if recv.all() and same.all():
             return 0  # nothing moved: a pose repeated whole is the caller's to reuse (a timing loop, a still group)
-        if wanted is not None:
+        if wanted is not None and len(wanted) < nv:
             recv &= np.isin(np.arange(nv), wanted)
         if not recv.any():
             return 0
@@ -990,11 +991,14 @@ class HemirasterTransfer(TransferMethod):
             self.rebuild()
         self._launch(record=0, use_pvs=1 if self._pvs_frames else 0)
 
-    def compute_rows(self, rows) -> wp.array:
+    def compute_rows(self, rows, later=None) -> wp.array:
         """Recompute :attr:`transfer` at the receivers ``rows`` only, for the current :attr:`points` and
         :attr:`normals` (:meth:`set_points`); the other rows keep their values. A receiver's transfer is
         the same as :meth:`update` computes it (each receiver is rasterized on its own; with ``interpolate``
         the rows' computed neighbours are computed too). In glossy mode every receiver is computed.
+        ``later``: the receivers later calls may compute (None: ``rows``); with ``keep_static`` the stored
+        part is stored for the unmoved ones among them, so it serves later frames that compute others
+        (temporal reuse) and costs nothing for receivers never computed.
 
         Returns:
             :attr:`transfer` (a new array after a :meth:`rebuild`).
@@ -1009,7 +1013,8 @@ class HemirasterTransfer(TransferMethod):
             # with ``interpolate``: the rows' part of the split, so the rows get what update() gives them
             self._launch(record=0, use_pvs=1 if self._pvs_frames else 0,
                          rows=wp.array(rows, dtype=wp.int32, device=self.device) if self._interp is None else None,
-                         interp_rows=None if self._interp is None else rows)
+                         interp_rows=None if self._interp is None else rows,
+                         static_rows=None if later is None else np.asarray(later, dtype=np.int32))
         return self.transfer
 
     def _departure(self) -> float:
