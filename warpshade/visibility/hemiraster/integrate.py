@@ -92,17 +92,6 @@ def integrate_kernels(order: int) -> SimpleNamespace:
     tolerance) -> transfer, redo``: per target vertex, the unoccluded transfer of its normal minus the
     mean blocked part of its computed neighbours (CSR ``nbr_start`` (V+1,), ``nbrs``); ``redo[v]`` = 1
     where a neighbour's blocked part is farther than ``tolerance`` (L2) from that mean.
-
-    ``mask_moments(mask, normals, nibbles, nibbles_x, nibbles_y, rot_dirs, rot_pinv, basis, receivers) ->
-    moments``: per receiver its mask's blocked directions integrated against the three world axes,
-    ``H_k = ∫_blocked ω_k y(ω) dω`` (world SH, (V, 3) vec_sh), from the nibble tables of the tangent-frame
-    moments ``∫ ω_x y dω``, ``∫ ω_y y dω`` (:func:`.tables.build_block_tables`' ``moments``) and
-    ``∫ ω_z y dω`` (``nibbles``); ``n·H`` is the mask's blocked part re-weighted with the cosine of any
-    normal ``n`` (the linear cosine over the receiver's hemisphere: directions below ``n``'s horizon count
-    negatively and those above it but below the receiver's are missed, which cancel where the blocking
-    near the horizon is alike on both sides). ``interpolate_moments(targets, nbr_start, nbrs, normals,
-    unoccluded, rot_dirs, rot_pinv, basis, moments, tolerance) -> transfer, redo``: as ``interpolate``
-    with each neighbour's blocked part ``n_t·H`` re-weighted with the target's own normal ``n_t``.
     """
     zf = zh_vector_funcs(order)
     vec_sh, vec_zh, zh_rotate = zf.vec_sh, zf.vec_zh, zf.zh_rotate
@@ -197,69 +186,6 @@ def integrate_kernels(order: int) -> SimpleNamespace:
             transfer[v, i] = out[i]
         redo[v] = wp.where(spread > tolerance, 1, 0)
 
-    def mask_moments(mask: wp.array2d(dtype=wp.uint64), normals: wp.array(dtype=wp.vec3),
-                     nibbles: wp.array(dtype=vec_sh), nibbles_x: wp.array(dtype=vec_sh),
-                     nibbles_y: wp.array(dtype=vec_sh), rot_dirs: wp.array(dtype=wp.vec3),
-                     rot_pinv: wp.array(dtype=vec_sh), basis: vec_sh, receivers: wp.array(dtype=wp.int32),
-                     moments: wp.array2d(dtype=vec_sh)):
-        v = receivers[wp.tid()]
-        ax = vec_sh()
-        ay = vec_sh()
-        az = vec_sh()
-        for w in range(mask.shape[1]):
-            x = mask[v, w]
-            if x != wp.uint64(0):
-                base = w * 256
-                for j in range(16):
-                    row = base + j * 16 + int((x >> wp.uint64(4 * j)) & wp.uint64(15))
-                    ax = ax + nibbles_x[row]
-                    ay = ay + nibbles_y[row]
-                    az = az + nibbles[row]
-        frame = orthonormal_basis(normals[v])
-        gx = to_world(ax, frame, rot_dirs, rot_pinv, basis)
-        gy = to_world(ay, frame, rot_dirs, rot_pinv, basis)
-        gz = to_world(az, frame, rot_dirs, rot_pinv, basis)
-        # tangent-frame axis c is the world direction frame[:, c]: H_k = sum_c frame[k, c] g_c
-        for k in range(3):
-            moments[v, k] = frame[k, 0] * gx + frame[k, 1] * gy + frame[k, 2] * gz
-
-    def interpolate_moments(targets: wp.array(dtype=wp.int32), nbr_start: wp.array(dtype=wp.int32),
-                            nbrs: wp.array(dtype=wp.int32), normals: wp.array(dtype=wp.vec3), unoccluded: vec_sh,
-                            rot_dirs: wp.array(dtype=wp.vec3), rot_pinv: wp.array(dtype=vec_sh), basis: vec_sh,
-                            moments: wp.array2d(dtype=vec_sh), tolerance: float, transfer: wp.array2d(dtype=float),
-                            redo: wp.array(dtype=wp.int32)):
-        v = targets[wp.tid()]
-        n = normals[v]
-        mean = vec_sh()
-        count = float(0.0)
-        for r in range(nbr_start[v], nbr_start[v + 1]):
-            u = nbrs[r]
-            mean = mean + n[0] * moments[u, 0] + n[1] * moments[u, 1] + n[2] * moments[u, 2]
-            count += 1.0
-        mean = mean / wp.max(count, 1.0)
-        spread = float(0.0)
-        for r in range(nbr_start[v], nbr_start[v + 1]):
-            u = nbrs[r]
-            spread = wp.max(spread, wp.length(n[0] * moments[u, 0] + n[1] * moments[u, 1] + n[2] * moments[u, 2] - mean))
-        out = to_world(unoccluded, orthonormal_basis(n), rot_dirs, rot_pinv, basis) - mean
-        for i in range(bands * bands):
-            transfer[v, i] = out[i]
-        redo[v] = wp.where(spread > tolerance, 1, 0)
-
-    mask_moments.__annotations__ = {"mask": wp.array2d(dtype=wp.uint64), "normals": wp.array(dtype=wp.vec3),
-                                    "nibbles": wp.array(dtype=vec_sh), "nibbles_x": wp.array(dtype=vec_sh),
-                                    "nibbles_y": wp.array(dtype=vec_sh), "rot_dirs": wp.array(dtype=wp.vec3),
-                                    "rot_pinv": wp.array(dtype=vec_sh), "basis": vec_sh,
-                                    "receivers": wp.array(dtype=wp.int32), "moments": wp.array2d(dtype=vec_sh)}
-    mask_moments.__name__ = f"hemiraster_mask_moments_order{order}"
-    interpolate_moments.__annotations__ = {"targets": wp.array(dtype=wp.int32), "nbr_start": wp.array(dtype=wp.int32),
-                                           "nbrs": wp.array(dtype=wp.int32), "normals": wp.array(dtype=wp.vec3),
-                                           "unoccluded": vec_sh, "rot_dirs": wp.array(dtype=wp.vec3),
-                                           "rot_pinv": wp.array(dtype=vec_sh), "basis": vec_sh,
-                                           "moments": wp.array2d(dtype=vec_sh), "tolerance": float,
-                                           "transfer": wp.array2d(dtype=float), "redo": wp.array(dtype=wp.int32)}
-    interpolate_moments.__name__ = f"hemiraster_interpolate_moments_order{order}"
-
     blocked_part.__annotations__ = {"receivers": wp.array(dtype=wp.int32), "normals": wp.array(dtype=wp.vec3),
                                     "unoccluded": vec_sh, "rot_dirs": wp.array(dtype=wp.vec3),
                                     "rot_pinv": wp.array(dtype=vec_sh), "basis": vec_sh,
@@ -293,6 +219,4 @@ def integrate_kernels(order: int) -> SimpleNamespace:
     return SimpleNamespace(order=order, vec_sh=vec_sh, basis_constants=basis_constants,
                            diffuse=wp.kernel(diffuse, enable_backward=False), glossy=wp.kernel(glossy, enable_backward=False),
                            interpolate=wp.kernel(interpolate, enable_backward=False),
-                           blocked_part=wp.kernel(blocked_part, enable_backward=False),
-                           mask_moments=wp.kernel(mask_moments, enable_backward=False),
-                           interpolate_moments=wp.kernel(interpolate_moments, enable_backward=False))
+                           blocked_part=wp.kernel(blocked_part, enable_backward=False))

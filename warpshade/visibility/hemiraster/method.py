@@ -166,11 +166,6 @@ class HemirasterTransfer(TransferMethod):
             transfer of its own normal minus the mean blocked part of its computed neighbours, unless
             their blocked parts differ from that mean by more than ``interpolate`` times the
             unoccluded transfer's norm: then it is computed too (0: every receiver computed, exact).
-        reweight: With ``interpolate``: take from each computed neighbour its mask's blocked directions
-            re-weighted with the interpolated receiver's own cosine (``n·H``, the mask's moments against
-            the world axes, :func:`.integrate.integrate_kernels`' ``mask_moments``) instead of its blocked
-            part under its own cosine, so neighbours whose normals differ still agree where they see the
-            same blockers. Off by default (the transfer is then bit for bit the same as without it).
         keep_static: Store the part of each unmoved receiver's mask that unmoved blockers give and, while
             none of them moves, rasterize only the rest (:meth:`_static_mode`; the same masks). Receivers
             and blockers count as unmoved when their positions (and the receiver's normal) are bit for
@@ -205,7 +200,6 @@ class HemirasterTransfer(TransferMethod):
         Knob("interpolate", float, "compute a subset of receivers, interpolate the others where their neighbours "
                                    "agree within this fraction of the unoccluded transfer (0: compute all)",
              minimum=0.0),
-        Knob("reweight", bool, "with --interpolate: re-weight the neighbours' masks with the receiver's own cosine"),
         Knob("fine_image", float, "the same cull for the fine triangles of refined blockers near a receiver "
                                   "(0: exact near field)", minimum=0.0),
         Knob("mid", int, "mid-level triangles between the coarse and the fine mesh for the refined near field "
@@ -223,15 +217,14 @@ class HemirasterTransfer(TransferMethod):
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
                  refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
                  fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0, mid: int = 0,
-                 border: bool = False, keep_static: bool = True, reweight: bool = False):
+                 border: bool = False, keep_static: bool = True):
         super().__init__(mesh, order, device)
         # every knob but the PVS, to rebuild the far field from another pose (:meth:`rebuild`)
         self._init_knobs = dict(mask=mask, lut=lut, downsample=downsample, ring=ring, coarse=coarse, cull=cull,
                                 cluster=cluster, exclude=exclude, backface=backface, mode=mode, view=view, phong=phong,
                                 lut_dir=lut_dir, min_image=min_image, refine=refine, occluders=occluders, rim=rim,
                                 fine_image=fine_image, fan=fan, redecimate=redecimate,
-                                interpolate=interpolate, mid=mid, border=border, keep_static=keep_static,
-                                reweight=reweight)
+                                interpolate=interpolate, mid=mid, border=border, keep_static=keep_static)
         if not (float(redecimate) >= 0.0 and np.isfinite(float(redecimate))):
             raise ValueError(f"hemiraster: redecimate must be a finite number >= 0, got {redecimate}")
         if float(redecimate) > 0.0 and pvs_frames is not None:
@@ -242,9 +235,6 @@ class HemirasterTransfer(TransferMethod):
         if float(interpolate) > 0.0 and (mode != "diffuse" or pvs_frames is not None):
             raise ValueError("hemiraster: interpolate works in diffuse mode without a PVS only")
         self.interpolate = float(interpolate)
-        if reweight and self.interpolate == 0.0:
-            raise ValueError("hemiraster: reweight needs interpolate > 0 (it changes how receivers are interpolated)")
-        self.reweight = bool(reweight)
         tables.check_mask(int(mask), int(downsample))
         if ring not in (0, 1, 2, 3, 4):
             raise ValueError(f"hemiraster: ring must be 0, 1, 2, 3 or 4, got {ring}")
@@ -622,13 +612,6 @@ class HemirasterTransfer(TransferMethod):
             self._redo = wp.zeros(nv, dtype=wp.int32, device=d)
             self._interp_parts = {}
             self._blocked = wp.zeros(nv, dtype=vec_sh, device=d)
-            if self.reweight:  # the tangent-frame moments' nibble tables and the receivers' world moments
-                blocks = tables.block_tables(self.mask_res, self.downsample, self.order)
-                _, pvalid = tables.pixel_directions(self.mask_res)
-                self._nibbles_xy = [wp.array(integrate.nibble_table(integrate.pixel_weights(
-                    blocks["moments"][:, c], blocks["valid"], pvalid, self.downsample)).astype(np.float32),
-                    dtype=vec_sh, device=d) for c in range(2)]
-                self._moments = wp.zeros((nv, 3), dtype=vec_sh, device=d)
             # relative to the unoccluded transfer's norm (the same for every normal: rotations keep it)
             self._interp_tolerance = self.interpolate * float(np.linalg.norm(np.array(self._unoccluded, dtype=np.float64)))
         self._pvs = None
@@ -831,16 +814,7 @@ class HemirasterTransfer(TransferMethod):
         self._rasterize(sel, sel.shape[0], use_pvs)
         self._integrate_diffuse(sel, sel.shape[0])
         self._redone = 0
-        if targets.shape[0] and self.reweight:
-            wp.launch(self._integrate.mask_moments, dim=sel.shape[0],
-                      inputs=[self._mask, self.normals, self._nibbles, *self._nibbles_xy, self._rot_dirs,
-                              self._rot_pinv, self._basis, sel], outputs=[self._moments], device=d)
-            self._redo.zero_()
-            wp.launch(self._integrate.interpolate_moments, dim=targets.shape[0],
-                      inputs=[targets, start, nbrs, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv,
-                              self._basis, self._moments, self._interp_tolerance],
-                      outputs=[self.transfer, self._redo], device=d)
-        elif targets.shape[0]:
+        if targets.shape[0]:
             wp.launch(self._integrate.blocked_part, dim=sel.shape[0],
                       inputs=[sel, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv, self._basis,
                               self.transfer], outputs=[self._blocked], device=d)
@@ -849,7 +823,6 @@ class HemirasterTransfer(TransferMethod):
                       inputs=[targets, start, nbrs, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv,
                               self._basis, self._blocked, self._interp_tolerance],
                       outputs=[self.transfer, self._redo], device=d)
-        if targets.shape[0]:
             redo = np.flatnonzero(self._redo.numpy()).astype(np.int32)
             self._redone = len(redo)
             if len(redo):

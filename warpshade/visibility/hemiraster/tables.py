@@ -270,7 +270,7 @@ def block_tables(mask: int, downsample: int, order: int, supersample: int = 512)
     check_mask(mask, downsample)
     blocks, n = (mask // downsample) ** 2, order * order
     layout = {"valid": ((blocks,), np.int32), "weights": ((blocks, n), np.float64), "dirs": ((blocks, 3), np.float64),
-              "area": ((blocks,), np.float64), "moments": ((blocks, 2, n), np.float64)}
+              "area": ((blocks,), np.float64)}
     key = _cache.Key("block tables 1", _cache.source_digest(__file__), _cache.source_digest(_sh_basis.__file__),
                      platform.machine(), *_cache.versions("numpy"), int(mask), int(downsample), int(order),
                      int(supersample)).hexdigest()
@@ -298,11 +298,7 @@ def build_block_tables(mask: int, downsample: int, order: int, supersample: int 
     Returns:
         dict: ``valid`` (B,) int32 (valid pixels per block), ``weights`` (B, N*N) float64
         (``∫_{block∩disk} y_i dA``, tangent frame), ``dirs`` (B, 3) float64 (unit mean direction
-        of the block's part of the disk, zero for blocks outside it), ``area`` (B,) float64,
-        ``moments`` (B, 2, N*N) float64 (``∫ ω_x y_i dω`` and ``∫ ω_y y_i dω`` over the block's part of
-        the hemisphere, i.e. ``∫ (x/z) y_i dA``: with ``weights`` = ``∫ ω_z y_i dω`` they give a
-        block's integral against any cosine ``l·ω``; the ``1/z`` singularity at the rim is integrable
-        and sampled on the same grid).
+        of the block's part of the disk, zero for blocks outside it), ``area`` (B,) float64.
     """
     check_mask(mask, downsample)
     _, valid = pixel_directions(mask)
@@ -322,8 +318,6 @@ def build_block_tables(mask: int, downsample: int, order: int, supersample: int 
     bid = morton2(bi, bj)
     weights = np.zeros((nb * nb, order * order))
     np.add.at(weights, bid, ysh)
-    moments = np.zeros((nb * nb, 2, order * order))
-    np.add.at(moments, bid, (d[:, :2] / d[:, 2:3])[:, :, None] * ysh[:, None, :])
     dsum = np.zeros((nb * nb, 3))
     np.add.at(dsum, bid, d)
     area = np.bincount(bid, minlength=nb * nb) * (2.0 / s) ** 2
@@ -339,16 +333,14 @@ def build_block_tables(mask: int, downsample: int, order: int, supersample: int 
     for b in np.flatnonzero((counts == 0) & (area > 0)):
         to = live[np.argmin(np.linalg.norm(centre[live] - centre[b], axis=1))]
         weights[to] += weights[b]
-        moments[to] += moments[b]
         dsum[to] += dsum[b]
         area[to] += area[b]
         weights[b] = 0.0
-        moments[b] = 0.0
         dsum[b] = 0.0
         area[b] = 0.0
     ln = np.linalg.norm(dsum, axis=1, keepdims=True)
     dirs = np.where(ln > 0, dsum / np.where(ln > 0, ln, 1.0), 0.0)
-    return {"valid": counts.astype(np.int32), "weights": weights, "dirs": dirs, "area": area, "moments": moments}
+    return {"valid": counts.astype(np.int32), "weights": weights, "dirs": dirs, "area": area}
 
 
 @functools.lru_cache(maxsize=None)
