@@ -234,7 +234,8 @@ def main(argv=None) -> int:
                 json.dump(out, f, indent=2, default=float)
         return 0
     cls, ref = get_method("hemiraster"), get_method("reference")
-    out = {"order": ORDER, "truth_rays": 4096, "peer_rays": PEER_RAYS, "meshes": {}}
+    out = {"order": ORDER, "truth_rays": 4096, "peer_rays": PEER_RAYS, "load_average_start": os.getloadavg()[0],
+           "meshes": {}}
     for name in args.meshes.split(","):
         mesh, frames, truths = inputs(name)
         configs = TABLE1 if name == "table1" else (SWEEP if args.sweep else CRUMPLED)
@@ -267,6 +268,7 @@ def main(argv=None) -> int:
         for r in e["rows"]:
             cells = ["-" if r["error_by_class"][c] is None else f"{r['error_by_class'][c] * 100:.2f} %" for c in RECEIVER_CLASSES]
             print(f"| {name} ({sizes}) | {r['label']} | " + " | ".join(cells) + " |")
+    out["load_average_end"] = os.getloadavg()[0]
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=2, default=float)
