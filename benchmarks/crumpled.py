@@ -118,6 +118,17 @@ def classes_of(mesh, frames) -> list[dict]:
     return [receiver_classes(f, mesh.faces) for f in frames]
 
 
+def frame_cpu(m, f) -> float:
+    """Process CPU seconds of one frame's transfer on points ``f`` (normals and the compute, after
+    ``set_points``), around ``wp.synchronize()``."""
+    m.set_points(f)
+    wp.synchronize()
+    c0 = time.process_time()
+    m._compute()
+    wp.synchronize()
+    return time.process_time() - c0
+
+
 def run(methods: list, frames, truths, repeat: int, classes: list[dict]) -> list[dict]:
     """Round-robin CPU time per frame (median of rounds, median over frames), mean error over frames and the
     mean error within each receiver class (over the frames' receivers of that class; None for an empty class)."""
@@ -128,12 +139,7 @@ def run(methods: list, frames, truths, repeat: int, classes: list[dict]) -> list
     for rnd in range(max(1, repeat)):
         for i, m in enumerate(methods):
             for j, f in enumerate(frames):
-                m.set_points(f)
-                wp.synchronize()
-                c0 = time.process_time()
-                m._compute()
-                wp.synchronize()
-                cpu[i, j, rnd] = time.process_time() - c0
+                cpu[i, j, rnd] = frame_cpu(m, f)
     rows = []
     for i, m in enumerate(methods):
         errs, per_vertex = [], []
@@ -166,12 +172,7 @@ def one(name: str, label: str, repeat: int) -> dict:
     cpu = np.zeros((len(frames), max(1, repeat)))
     for rnd in range(max(1, repeat)):
         for j, f in enumerate(frames):
-            m.set_points(f)
-            wp.synchronize()
-            c0 = time.process_time()
-            m._compute()
-            wp.synchronize()
-            cpu[j, rnd] = time.process_time() - c0
+            cpu[j, rnd] = frame_cpu(m, f)
     digest, errs = hashlib.sha256(), []
     for f, t in zip(frames, truths):
         m.update(f)
