@@ -145,6 +145,38 @@ def test_fit_cost_recovers_known_coefficients():
     np.testing.assert_allclose(fit_cost(cost_features(v, f), t), coef, rtol=1e-6)
 
 
+def test_fit_cost_equals_scipy_nnls_on_noisy_and_constrained_data():
+    """The support enumeration against SciPy's NNLS: random timings with noise, some whose unconstrained fit
+    has negative coefficients (so the bound is active), and the shipped frontier's configurations."""
+    from scipy.optimize import nnls
+
+    from warpshade.planner import cost_features, fit_cost, load_frontier
+
+    def reference(features, seconds):  # the weighting and scaling fit_cost documents, solved by scipy
+        x, y = np.asarray(features, float), np.asarray(seconds, float)
+        w, scale = 1.0 / y, np.abs(x).max(axis=0)
+        return nnls(x * w[:, None] / scale, y * w)[0] / scale
+
+    rng = np.random.default_rng(7)
+    active = 0
+    for _ in range(200):
+        n = int(rng.integers(3, 9))
+        v, f = rng.integers(100, 20000, n), rng.integers(200, 40000, n)
+        coef = rng.uniform(-1, 1, 3) * np.array([1e-5, 1e-6, 1e-9])
+        t = np.abs(cost_features(v, f) @ coef) * rng.uniform(0.7, 1.3, n) + 1e-6
+        ours, theirs = fit_cost(cost_features(v, f), t), reference(cost_features(v, f), t)
+        active += int((theirs == 0).any())
+        np.testing.assert_allclose(ours, theirs, rtol=1e-7, atol=1e-12 * np.abs(theirs).max())
+    assert active > 20  # the bound was active in many draws: the enumeration was tested where it matters
+    for cfg in load_frontier()["configs"]:
+        rows = [t for t in cfg["timings"] if t.get("triangles")]
+        if len(rows) >= 3:
+            feats = cost_features([t["vertices"] for t in rows], [t["triangles"] for t in rows])
+            secs = [t["seconds"] for t in rows]
+            np.testing.assert_allclose(fit_cost(feats, secs), reference(feats, secs), rtol=1e-7,
+                                       atol=1e-12 * np.abs(reference(feats, secs)).max())
+
+
 def test_estimate_uses_triangles_when_three_meshes_are_measured():
     # exactly linear in V·F (brute force over blockers): doubling V and F quadruples the time;
     # the nearest-mesh rule (linear in V) would say 2x
