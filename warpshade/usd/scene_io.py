@@ -343,12 +343,10 @@ def _sphere_of(xf: np.ndarray, radius: float) -> dict | None:
 def _moved_sphere(prim, radius: float):
     """``sphere_at(time)``: an animated Sphere's :func:`_sphere_of` at that time code (None at a time
     its transform does not keep it a sphere)."""
-    stage = prim.GetStage()  # the closure keeps the stage alive
-
     def sphere_at(time: float) -> dict | None:
-        assert stage
         return _sphere_of(_world(prim, Usd.TimeCode(time)), radius)
 
+    sphere_at.stage = prim.GetStage()  # keeps the stage (and so prim) alive as long as the function
     return sphere_at
 
 
@@ -364,12 +362,10 @@ def _gprim_kind(prim, settings: dict, where: str) -> str:
 
 def _moved_points(prim, local: np.ndarray):
     """``points_at(time)``: a gprim's tessellation ``local`` under its transform at that time code."""
-    stage = prim.GetStage()  # the closure keeps the stage alive
-
     def points_at(time: float) -> np.ndarray:
-        assert stage
         return _apply(_world(prim, Usd.TimeCode(time)), local).astype(np.float32)
 
+    points_at.stage = prim.GetStage()  # keeps the stage (and so prim) alive as long as the function
     return points_at
 
 
@@ -476,17 +472,15 @@ def _regions(scene: Scene, gprims: list, lowest: float) -> list:
     return out
 
 
-def _gradings(scene: Scene, gprims: list) -> None:
+def _gradings(scene: Scene, shaded: list, points: np.ndarray) -> None:
     """Give each shaded Cube and Plane gprim to be graded (``warpshade:graded``, its own else the
     default prim's, true unless authored false) its :class:`~warpshade.geometry.shapes.Grading`: the
-    regions of the scene's other shaded objects (:func:`_regions`) in its frame. Collision-only
-    gprims stay uniform."""
+    regions of the scene's other shaded objects (:func:`_regions`) in its frame. ``shaded``: the shaded
+    gprims, ``points``: :func:`_shaded_points`. Collision-only gprims stay uniform."""
     default = scene.settings.get("graded", True)
-    shaded = [g for g in gprims if g.target is scene.objects]
     graded = [g for g in shaded if g.kind in GRADED_KINDS and (default if g.graded is None else g.graded)]
     if not graded:
         return
-    points = _shaded_points(scene, shaded)
     diag = float(np.linalg.norm(np.ptp(points, axis=0)))
     regions = _regions(scene, shaded, float(points[:, _AXES.get(scene.up_axis, 1)].min()))
     for g in graded:
@@ -515,16 +509,15 @@ def _shaded_points(scene: Scene, shaded: list) -> np.ndarray | None:
     return np.concatenate(points) if points else None
 
 
-def _gprim_edge(scene: Scene, gprims: list, root) -> float | None:
+def _gprim_edge(scene: Scene, shaded: list, points: np.ndarray | None, root) -> float | None:
     """The target edge of the scene's gprims [scene units]: the default prim's ``warpshade:edgeLength``
     if authored, else :func:`~warpshade.geometry.shapes.scene_edge` of the bounding box of the shaded
     objects and gprims and of the cloths' median edges; coarsened, with a :class:`SceneWarning`, until
-    the gprims without an edge of their own fit :data:`~warpshade.geometry.shapes.VERTEX_BUDGET`."""
+    the gprims without an edge of their own fit :data:`~warpshade.geometry.shapes.VERTEX_BUDGET`.
+    ``shaded``: the shaded gprims, ``points``: :func:`_shaded_points`."""
     chosen = scene.settings.get("edgeLength")
     if chosen is not None:
         return _edge_length(chosen, f"{scene.source}:{root.GetPath()}")
-    shaded = [g for g in gprims if g.target is scene.objects]
-    points = _shaded_points(scene, shaded)
     if points is None:
         return None
     diag = float(np.linalg.norm(np.ptp(points, axis=0)))
@@ -550,8 +543,11 @@ def _read_gprims(scene: Scene, gprims: list, root) -> None:
     place (collision-only ones only if they are static colliders, as meshes)."""
     if not gprims:
         return
-    _gradings(scene, gprims)
-    edge = _gprim_edge(scene, gprims, root)
+    shaded = [g for g in gprims if g.target is scene.objects]
+    points = _shaded_points(scene, shaded)  # the shaded objects and gprims: the scene's size, the grading's floor
+    if points is not None:
+        _gradings(scene, shaded, points)
+    edge = _gprim_edge(scene, shaded, points, root)
     for g in gprims:
         g.read(edge)
     scene.collision_only[:] = [o for o in scene.collision_only

@@ -196,13 +196,11 @@ class TemporalReuse:
         rel = _pair_distances(mean)
         rel += spread[:, None]
         rel += spread[None, :]
-        share = radius[None, :] + self._h
-        share = share / gap
-        share *= share
-        np.minimum(1.0, share, out=share)
-        share *= rel
-        share /= gap
-        seen = share
+        seen = (radius[None, :] + self._h) / gap  # the share of the view the other cluster can fill: its
+        seen *= seen                                # squared angular radius, at most 1; times the angle it moved
+        np.minimum(1.0, seen, out=seen)
+        seen *= rel
+        seen /= gap
         np.fill_diagonal(seen, 2.0 * spread / self._h)
         self._account += seen.sum(axis=1)
         due = self._account > self.tolerance
