@@ -152,7 +152,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             continue  # the back side of a two-sided warpshade output: the front carries warpshade:twoSided
         if prim.IsA(UsdGeom.Mesh):
             scene.objects.append(_read_mesh(prim, source, cache, default_method))
-            if not prim.HasAttribute("warpshade:kind"):
+            if "kind" not in _object_namespace(prim, source):
                 unmarked.append(scene.objects[-1])
         elif prim.IsA(UsdGeom.Sphere) or tname in _GPRIMS:
             gprims.append(_Gprim(prim, source, default_method, scene.objects, len(scene.objects)))
@@ -264,7 +264,7 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> Scene
     except MeshError as exc:
         raise SceneError(str(exc)) from None
     local = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
-    settings = _namespace(prim, source)
+    settings = _object_namespace(prim, source)
     skinning = UsdSkel.BindingAPI(prim) if prim.HasAPI(UsdSkel.BindingAPI) else None
     kind = settings.pop("kind", None)
     if kind is None:
@@ -303,7 +303,7 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> Scene
 
 def _read_sphere(prim, source: str, default_method, edge: float) -> SceneObject:
     where = f"{source}:{prim.GetPath()}"
-    settings = _namespace(prim, source)
+    settings = _object_namespace(prim, source)
     settings.pop("edgeLength", None)  # in ``edge`` already (_gprim_edge)
     settings.pop("graded", None)  # a Sphere is not graded (GRADED_KINDS)
     radius = float(UsdGeom.Sphere(prim).GetRadiusAttr().Get())
@@ -397,11 +397,10 @@ class _Gprim:
             raise SceneError(f"{where}: {tname} axis must be X, Y or Z, got {self.axis!r}")
         self.kind = tname.lower()
         self.scale = np.linalg.norm(_world(prim)[:3, :3] @ AXIS_FROM_Z[self.axis], axis=0)
-        attr = prim.GetAttribute("warpshade:edgeLength")
-        self.edge = _edge_length(attr.Get(), where) if attr and attr.HasAuthoredValue() else None
-        self.own = self.edge is not None or prim.HasAttribute("warpshade:subdivisions")  # not the scene's edge
-        attr = prim.GetAttribute("warpshade:graded")
-        self.graded = _graded_flag(attr.Get(), where) if attr and attr.HasAuthoredValue() else None
+        settings = _object_namespace(prim, source)
+        self.edge = _edge_length(settings["edgeLength"], where) if "edgeLength" in settings else None
+        self.own = self.edge is not None or "subdivisions" in settings  # not the scene's edge
+        self.graded = _graded_flag(settings["graded"], where) if "graded" in settings else None
         self.grading = None  # set by _read_gprims when graded
 
     def to_world(self, t=Usd.TimeCode.EarliestTime()) -> np.ndarray:
@@ -558,7 +557,7 @@ def _read_gprim(prim, source: str, default_method, mesh) -> SceneObject:
     """A Cube/Cylinder/Capsule/Cone/Plane gprim's object, ``mesh`` = its tessellation in its local
     frame ``(vertices (V, 3), triangles (F, 3))``."""
     where = f"{source}:{prim.GetPath()}"
-    settings = _namespace(prim, source)
+    settings = _object_namespace(prim, source)
     settings.pop("edgeLength", None)  # in ``mesh`` already
     settings.pop("graded", None)
     verts, faces = mesh
@@ -984,6 +983,38 @@ def _namespace(prim, source: str, skip=()) -> dict:
             if len(targets) != 1:
                 raise SceneError(f"{source}:{prim.GetPath()}: {name} must have exactly one target, has {len(targets)}")
             out[name[len("warpshade:"):]] = str(targets[0])
+    return out
+
+
+VERTEX_LISTS = ("pinned", "attached", "attachTarget")
+"""``warpshade:`` attributes that name one mesh's vertices: taken from a prim above the mesh only when the
+mesh is the one gprim under it."""
+
+
+def _object_namespace(prim, source: str) -> dict:
+    """The ``warpshade:`` attributes of a mesh or gprim: its own and those authored on the prims above it,
+    up to the default prim (whose attributes are the scene's settings) and not including it, the nearest
+    winning. DCCs that split an object into a transform and its shape write the object's custom
+    properties on the transform (Blender's USD export: ``Xform "Cloth"`` over ``Mesh "Grid"``, a custom
+    property of the object on the Xform, one of its mesh data on the Mesh), and a mark on a group (an
+    Xform holding a character's meshes marked ``warpshade:collider``) holds for every gprim under it.
+    A vertex list (:data:`VERTEX_LISTS`) on a prim above more than one gprim is an error naming both."""
+    above = []
+    stop = prim.GetStage().GetDefaultPrim()
+    parent = prim.GetParent()
+    while parent and not parent.IsPseudoRoot() and parent != stop:
+        above.append(parent)
+        parent = parent.GetParent()
+    out = {}
+    for holder in reversed(above):
+        found = _namespace(holder, source)
+        lists = [key for key in VERTEX_LISTS if key in found]
+        if lists and sum(1 for p in Usd.PrimRange(holder, _PRIMS) if p.IsA(UsdGeom.Gprim)) > 1:
+            raise SceneError(f"{source}:{holder.GetPath()}: warpshade:{lists[0]} names vertices of one mesh, but "
+                             f"{holder.GetPath()} holds more than one gprim ({prim.GetPath()} among them): author it "
+                             "on the mesh itself")
+        out.update(found)
+    out.update(_namespace(prim, source))
     return out
 
 

@@ -1,0 +1,112 @@
+"""``warpshade:`` marks authored on the prims above a mesh or gprim (a DCC's transform over its shape,
+a group holding several meshes), and a scene written by Blender's own USD exporter."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from pxr import Sdf, Usd, UsdGeom
+
+from helpers import REPO
+from warpshade.cli import main
+from warpshade.scene import SceneError
+from warpshade.usd import read_scene
+
+BLENDER = os.path.join(REPO, "tests", "data", "blender", "cloth_on_box.usda")
+
+
+def test_blender_export_reads_marks_of_its_objects_and_mesh_data():
+    """Blender 5.0.1 writes an object's custom properties on its Xform and its mesh data's on the Mesh
+    (tests/data/blender/make_cloth_on_box.py): the cloth, its pins and both colliders are read."""
+    s = read_scene(BLENDER)
+    cloth = s.object("/root/Cloth/Grid")
+    assert cloth.kind == "cloth"
+    assert cloth.params["pinned"].tolist() == [0, 6, 12]
+    assert s.object("/root/Box/Cube").params["collider"] == "box"
+    assert s.object("/root/Ground/Plane").params["collider"] == "ground"
+    # the pinned vertices are one edge of the grid, as make_cloth_on_box.py says
+    assert np.ptp(cloth.mesh.points[[0, 6, 12], 1]) == 0.0
+
+
+def test_blender_export_runs_the_cloth_onto_the_box(tmp_path):
+    """End to end: the cloth of Blender's file falls onto the box (a collider only through the mark on
+    its Xform), and the pinned edge stays where it was."""
+    out = tmp_path / "out.usda"
+    assert main(["run", BLENDER, "--out", str(out), "--method", "reference", "--rays", "4", "--order", "2",
+                 "--refine-receivers", "off", "--no-progress"]) == 0
+    stage = Usd.Stage.Open(str(out))
+    grid = UsdGeom.Mesh(stage.GetPrimAtPath("/root/Cloth/Grid"))
+    xf = np.array(UsdGeom.Xformable(grid.GetPrim()).ComputeLocalToWorldTransform(12)).T
+    first, last = (np.asarray(grid.GetPointsAttr().Get(t), dtype=np.float64) for t in (1, 12))
+    world = last @ xf[:3, :3].T + xf[:3, 3]
+    np.testing.assert_array_equal(last[[0, 6, 12]], first[[0, 6, 12]])
+    inside = (np.abs(world[:, 0]) < 0.45) & (np.abs(world[:, 1]) < 0.45)
+    # over the box's top (z = 1 m) the cloth rests on it: at least the top, at most the top plus
+    # a few thicknesses (the default contact thickness is 5 mm); without the collider it falls to the ground
+    assert inside.any()
+    assert world[inside, 2].min() > 0.99 and world[inside, 2].max() < 1.1
+
+
+def _stage(tmp_path, mark_on, values):
+    """A Y-up metre stage /World (default prim) > Group > Sheet (Xform) > Mesh with ``values``
+    authored on the prim ``mark_on`` ('World', 'Group', 'Sheet' or 'Mesh') and a static floor."""
+    stage = Usd.Stage.CreateNew(str(tmp_path / "marks.usda"))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/World").GetPrim())
+    UsdGeom.Xform.Define(stage, "/World/Group")
+    UsdGeom.Xform.Define(stage, "/World/Group/Sheet")
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Group/Sheet/Mesh")
+    mesh.CreatePointsAttr([(0, 1, 0), (1, 1, 0), (1, 1, 1), (0, 1, 1)])
+    mesh.CreateFaceVertexCountsAttr([4])
+    mesh.CreateFaceVertexIndicesAttr([0, 3, 2, 1])
+    floor = UsdGeom.Mesh.Define(stage, "/World/Floor")
+    floor.CreatePointsAttr([(-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2)])
+    floor.CreateFaceVertexCountsAttr([4])
+    floor.CreateFaceVertexIndicesAttr([0, 3, 2, 1])
+    paths = {"World": "/World", "Group": "/World/Group", "Sheet": "/World/Group/Sheet", "Mesh": "/World/Group/Sheet/Mesh"}
+    for name, (typ, value) in values.items():
+        stage.GetPrimAtPath(paths[mark_on]).CreateAttribute(name, typ, custom=True).Set(value)
+    stage.GetRootLayer().Save()
+    return str(tmp_path / "marks.usda")
+
+
+@pytest.mark.parametrize("mark_on", ["Group", "Sheet", "Mesh"])
+def test_marks_hold_from_the_prims_above_a_mesh(tmp_path, mark_on):
+    path = _stage(tmp_path, mark_on, {"warpshade:kind": (Sdf.ValueTypeNames.String, "cloth"),
+                                      "warpshade:cloth:density": (Sdf.ValueTypeNames.Float, 0.3)})
+    sheet = read_scene(path).object("/World/Group/Sheet/Mesh")
+    assert sheet.kind == "cloth" and sheet.params["cloth"]["density"] == pytest.approx(0.3)
+
+
+def test_the_nearest_mark_wins(tmp_path):
+    path = _stage(tmp_path, "Group", {"warpshade:kind": (Sdf.ValueTypeNames.Token, "cloth")})
+    stage = Usd.Stage.Open(path)
+    stage.GetPrimAtPath("/World/Group/Sheet").CreateAttribute(
+        "warpshade:kind", Sdf.ValueTypeNames.Token, custom=True).Set("static")
+    stage.Save()
+    assert read_scene(path).object("/World/Group/Sheet/Mesh").kind == "static"
+
+
+def test_the_default_prims_attributes_stay_scene_settings(tmp_path):
+    """``warpshade:kind`` on the default prim is not a mark of every mesh under it (the default prim's
+    attributes are the scene's settings)."""
+    path = _stage(tmp_path, "World", {"warpshade:kind": (Sdf.ValueTypeNames.Token, "cloth")})
+    assert read_scene(path).object("/World/Group/Sheet/Mesh").kind == "static"
+
+
+def test_a_vertex_list_above_several_gprims_is_an_error_naming_both(tmp_path):
+    path = _stage(tmp_path, "Group", {"warpshade:pinned": (Sdf.ValueTypeNames.IntArray, [0])})
+    stage = Usd.Stage.Open(path)
+    UsdGeom.Sphere.Define(stage, "/World/Group/Ball").CreateRadiusAttr(0.2)
+    stage.Save()
+    with pytest.raises(SceneError, match=r"/World/Group: warpshade:pinned names vertices of one mesh.*/World/Group/"):
+        read_scene(path)
+
+
+def test_a_vertex_list_above_one_mesh_is_its_own(tmp_path):
+    path = _stage(tmp_path, "Sheet", {"warpshade:kind": (Sdf.ValueTypeNames.Token, "cloth"),
+                                      "warpshade:pinned": (Sdf.ValueTypeNames.IntArray, [1, 2])})
+    assert read_scene(path).object("/World/Group/Sheet/Mesh").params["pinned"].tolist() == [1, 2]
