@@ -557,6 +557,82 @@ def solve_limits(
 
 
 @wp.kernel
+def support_order(
+    ring_offsets: wp.array[int],
+    ring: wp.array[int],
+    inv_mass: wp.array[float],
+    push: wp.array[wp.vec3],
+    up: wp.vec3,
+    cos_min: float,
+    depth: wp.array[int],
+    order: wp.array[int],
+    count: wp.array[int],
+):
+    """Breadth-first order of the cloth's edge graph from its supports, one thread: the kinematic
+    vertices and those the contacts last pushed within acos(``cos_min``) of ``up`` (they bear
+    weight) have depth 0, every vertex reached from them its edge distance (-1: none reached;
+    a falling piece). ``order[:count[0]]`` lists the reached vertices by depth."""
+    n = depth.shape[0]
+    tail = int(0)
+    for i in range(n):
+        depth[i] = -1
+        p = push[i]
+        length = wp.length(p)
+        if inv_mass[i] == 0.0 or (length > 0.0 and wp.dot(p, up) > cos_min * length):
+            depth[i] = 0
+            order[tail] = i
+            tail = tail + 1
+    head = int(0)
+    while head < tail:
+        i = order[head]
+        head = head + 1
+        for r in range(ring_offsets[i], ring_offsets[i + 1]):
+            j = ring[r]
+            if depth[j] < 0:
+                depth[j] = depth[i] + 1
+                order[tail] = j
+                tail = tail + 1
+    count[0] = tail
+
+
+@wp.kernel
+def limit_from_supports(
+    order: wp.array[int],
+    count: wp.array[int],
+    depth: wp.array[int],
+    ring_offsets: wp.array[int],
+    ring: wp.array[int],
+    ring_max: wp.array[float],
+    inv_mass: wp.array[float],
+    keep: float,
+    x: wp.array[wp.vec3],
+    x_prev: wp.array[wp.vec3],
+):
+    """Support-ordered strain limiting (shock propagation), one thread: the vertices are visited
+    in :func:`support_order`'s order and each free one is moved, its neighbours one edge nearer the
+    supports held, onto the nearest point within ``ring_max`` of each of them in turn, so a pass
+    carries the supports down any chain of edges. ``x_prev`` moves by ``keep`` of each move (1:
+    the pass changes no velocity; 0: the velocity follows it)."""
+    for k in range(count[0]):
+        i = order[k]
+        di = depth[i]
+        if di == 0 or inv_mass[i] == 0.0:
+            continue
+        x0 = x[i]
+        xi = x0
+        for r in range(ring_offsets[i], ring_offsets[i + 1]):
+            j = ring[r]
+            if depth[j] == di - 1:
+                xj = x[j]
+                d = xi - xj
+                length = wp.length(d)
+                if length > ring_max[r]:
+                    xi = xj + d * (ring_max[r] / length)
+        x[i] = xi
+        x_prev[i] = x_prev[i] + (xi - x0) * keep
+
+
+@wp.kernel
 def record_moved(before: wp.array[wp.vec3], x: wp.array[wp.vec3], moved: wp.array[wp.vec3]):
     """moved[i] = x[i] - before[i]: how the contact projections moved vertex i."""
     i = wp.tid()
