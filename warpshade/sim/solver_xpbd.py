@@ -106,8 +106,7 @@ class XPBDSolver:
                  contact_iterations: int = 2, stretch_sweeps: int = 1, edge_contact: bool = True,
                  guard: bool = True, self_friction: float = 0.3, stretch_limits: bool = True,
                  follow_edge_sides: bool | None = None, aero_interval: int | None = None,
-                 bend_interval: int | None = None, limit_sliding: bool | None = None,
-                 support_strain: float | None = None):
+                 bend_interval: int | None = None, limit_sliding: bool | None = None):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -167,31 +166,6 @@ class XPBDSolver:
         if self.limit_sliding:
             # how the contact projections moved each vertex in the last substep
             self._pushed = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
-        ss = self.SUPPORT_STRAIN if support_strain is None else support_strain
-        self.support_strain = check_param("support_strain", ss)
-        up = -g / np.linalg.norm(g) if np.linalg.norm(g) > 0 else None
-        self._support = self.support_strain > 0 and up is not None
-        if self._support:
-            self._up = up
-            ro = model.ring_offsets.numpy()
-            ring = model.ring.numpy()
-            owner = np.repeat(np.arange(model.particle_count), np.diff(ro))
-            rp = model.rest_points_np.astype(np.float64)
-            ring_rest = np.linalg.norm(rp[owner] - rp[ring], axis=1)
-            self._ring_max = wp.array((ring_rest * (1.0 + self.support_strain)).astype(np.float32),
-                                      dtype=wp.float32, device=model.device)
-            self._support_order = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
-            self._support_depth = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
-            self._support_count = wp.zeros(1, dtype=wp.int32, device=model.device)
-            self._support_push = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
-            if not self.stretch_limits:
-                self._x_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
-            if self.SUPPORT_SWEEP:
-                E2 = 2 * model.edge_count
-                self._ord_edges = wp.zeros(E2, dtype=wp.vec2i, device=model.device)
-                self._ord_rest = wp.zeros(E2, dtype=wp.float32, device=model.device)
-                self._ord_comp = wp.zeros(E2, dtype=wp.float32, device=model.device)
-                self._ord_lam = wp.zeros(E2, dtype=wp.float32, device=model.device)
         self.check_finite = bool(check_finite)
         self.relaxation = check_param("relaxation", relaxation, 0.0, False)
         if self.relaxation >= 2.0:
@@ -300,17 +274,6 @@ class XPBDSolver:
         if self.guard:
             wp.copy(self._x_start, x)
         h = dt / self.substeps
-        if self._support and self.SUPPORT_SWEEP:
-            dep = self._support_depth.numpy()
-            e = m.edges_np
-            de = np.where(dep < 0, 1 << 20, dep)
-            key = np.minimum(de[e[:, 0]], de[e[:, 1]]) * 2 + (de[e[:, 0]] != de[e[:, 1]])
-            o = np.argsort(key, kind="stable")
-            o = {"sym": np.concatenate([o, o[::-1]]), "fwd": np.concatenate([o, o]), "rev": np.concatenate([o[::-1], o[::-1]]),
-                 "fwd1": o, "rev1": o[::-1]}[self.SUPPORT_DIR]
-            self._ord_edges.assign(e[o].astype(np.int32))
-            self._ord_rest.assign(m.edge_rest_length.numpy()[o])
-            self._ord_comp.assign(m.edge_compliance.numpy()[o])
         wind = wp.vec3(*(control.wind if control is not None else (0.0, 0.0, 0.0)))
         self._wind = wind
         cmds = self._commands(h, wind)
@@ -349,8 +312,6 @@ class XPBDSolver:
                 self.colliders.pose_substep(s / self.substeps, (s + 1) / self.substeps)
             # XPBD multipliers restart every substep (Macklin et al. 2016, Alg. 1 line 4)
             self._edge_lambda.zero_()
-            if self._support and self.SUPPORT_SWEEP:
-                self._ord_lam.zero_()
             self._hinge_lambda.zero_()
             for _ in range(self.iterations):
                 for c in cmds["stretch"]:
@@ -362,12 +323,10 @@ class XPBDSolver:
                         c.launch()
                 for c in cmds["tethers"]:
                     c.launch()
-                if self._support and self.SUPPORT_PASS:
-                    cmds["support"].launch()
                 if self.colliders is not None and self.colliders.has_round_shapes:
                     # moves into a ball or capsule shortened: its projection is right for short moves only
                     self.colliders.limit_round_motion(self.ROUND_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
-                if self.stretch_limits or self._support:
+                if self.stretch_limits:
                     wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
                 # more than one Jacobi pass to stop a fast layer within one substep
@@ -391,9 +350,6 @@ class XPBDSolver:
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             if self.stretch_limits:
                 cmds["moved"].launch()
-            if self._support:
-                cmds["support_push"].launch()
-                cmds["support_order"].launch()
             cmds["velocities"].launch()
             if "bend_velocity" in cmds and (s + 1) % self.bend_interval == 0:
                 cmds["bend_velocity"].launch()
@@ -469,10 +425,6 @@ class XPBDSolver:
                                  inputs=[self._edge_ids, m.edge_rest_length, m.edge_compliance, m.inv_mass, off, h,
                                          self.relaxation], outputs=[self._edge_lambda, x], device=d, record_cmd=True)
                        for off, cnt in edge_batches]
-        if self._support and self.SUPPORT_SWEEP:
-            stretch = [wp.launch(k.solve_stretch, dim=(1 + (len(self.SUPPORT_DIR) == 3)) * m.edge_count,
-                                 inputs=[self._ord_edges, self._ord_rest, self._ord_comp, m.inv_mass, 0, h,
-                                         self.relaxation], outputs=[self._ord_lam, x], device=d, record_cmd=True)]
         # extra stretch sweeps: cheap (edges only) and the stretch residual is what shows as sag
         cons.extend(stretch * self.stretch_sweeps)
         cmds["stretch"] = cons
@@ -501,19 +453,6 @@ class XPBDSolver:
                                              inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
                                                      m.tether_anchor.shape[1], m.inv_mass],
                                              outputs=[x], device=d, record_cmd=True))
-        if self._support:
-            cmds["support"] = wp.launch(k.limit_from_supports, dim=1,
-                                        inputs=[self._support_order, self._support_count, self._support_depth,
-                                                m.ring_offsets, m.ring, self._ring_max, m.inv_mass,
-                                                self.SUPPORT_KEEP], outputs=[x, self._x_prev], device=d,
-                                        record_cmd=True)
-            cmds["support_push"] = wp.launch(k.record_moved, dim=n, inputs=[self._x_before, x],
-                                             outputs=[self._support_push], device=d, record_cmd=True)
-            cmds["support_order"] = wp.launch(k.support_order, dim=1,
-                                              inputs=[m.ring_offsets, m.ring, m.inv_mass, self._support_push,
-                                                      wp.vec3(*self._up), self.SUPPORT_COS],
-                                              outputs=[self._support_depth, self._support_order,
-                                                       self._support_count], device=d, record_cmd=True)
         if self.limit_sliding:
             cmds["moved"] = wp.launch(k.record_moved, dim=n, inputs=[self._x_before, x], outputs=[self._pushed],
                                       device=d, record_cmd=True)
@@ -772,13 +711,6 @@ class XPBDSolver:
     LIMIT_SLIDING = False
     """Default of ``limit_sliding`` (off; what it does to the scenes is measured in
     docs/benchmarks/index.md)."""
-    SUPPORT_COS = 0.9
-    SUPPORT_SWEEP = False
-    SUPPORT_DIR = "sym"
-    SUPPORT_PASS = True
-    SUPPORT_KEEP = 1.0
-    SUPPORT_STRAIN = 0.0
-    """Default of ``support_strain``."""
     SIDE_CROSSING_TOL = 1.0e-3
     """Edges that come within this fraction of the thickness of each other at a moment their four
     points are coplanar have passed through each other: an edge pair's stored side is kept across
