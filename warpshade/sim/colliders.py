@@ -425,9 +425,9 @@ class ColliderSet:
 
     def limit_mesh_motion(self, fraction: float, thickness: float, inv_mass, x_prev, x) -> None:
         """Shorten each free vertex's move x_prev -> x over the substep that enters a closed mesh
-        collider (posed by :meth:`pose_substep`) deeper than ``fraction`` of the chord its line
-        cuts through the solid (:func:`~warpshade.sim.collision_kernels.limit_mesh_motion`): the
-        mesh counterpart of :meth:`limit_round_motion`."""
+        collider (posed by :meth:`pose_substep`) to ``fraction`` of the chord its line cuts through
+        the solid (:func:`~warpshade.sim.collision_kernels.limit_mesh_motion`): the mesh
+        counterpart of :meth:`limit_round_motion`."""
         for m in self.meshes:
             if m.closed:
                 self._launch(ck.limit_mesh_motion, x.shape[0],

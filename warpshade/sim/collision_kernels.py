@@ -573,12 +573,14 @@ def limit_mesh_motion(
     x: wp.array[wp.vec3],
 ):
     """Shorten a free vertex's move over the substep (x_prev -> x) that enters a closed mesh
-    collider (posed as ``mesh``'s points) deeper than ``fraction`` of the chord its line cuts
-    through the solid: the move ends that far past the entry point. The vertex projection
+    collider (posed as ``mesh``'s points) to ``fraction`` of the chord its line cuts through the
+    solid (from where it enters to where it next meets the surface): the vertex projection
     (:func:`collide_mesh`) pushes a vertex out at the surface nearest to it, so one yanked past the
-    middle of the solid in one substep (or through it) would leave on the far side. Moves shorter
-    than ``thickness`` (they cannot enter the solid from outside the contact distance) and moves
-    that start inside the solid are left alone."""
+    middle of the solid in one substep (or through it) would leave on the far side, and one
+    driven in by more than a little of the solid's depth every substep would work its way round
+    it. Moves shorter than ``thickness`` (they cannot enter the solid from outside the contact
+    distance), moves that stay clear of the solid and moves that start inside it are left
+    alone."""
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
@@ -598,8 +600,8 @@ def limit_mesh_motion(
     if out.result:
         chord = out.t + MESH_RAY_SKIP
     cap = fraction * chord
-    if ld - hit.t > cap:
-        x[i] = p0 + dr * (hit.t + cap)
+    if ld > cap:
+        x[i] = p0 + dr * cap
 
 
 ROUND_CORE_ROUNDS = wp.constant(4)

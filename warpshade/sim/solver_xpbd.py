@@ -328,7 +328,7 @@ class XPBDSolver:
                     self.colliders.limit_round_motion(self.ROUND_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
                 if self.colliders is not None and self.colliders.has_closed_meshes:
                     # and moves deep into a closed mesh: its projection pushes out at the nearest surface
-                    self.colliders.limit_mesh_motion(self.MESH_DEPTH, m.thickness, m.inv_mass, self._x_prev, x)
+                    self.colliders.limit_mesh_motion(self.MESH_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
                 if self.stretch_limits:
                     wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
@@ -752,11 +752,14 @@ class XPBDSolver:
     vertex yanked past a ball's centre in one substep by a stretched edge would leave on the far
     side): :meth:`~warpshade.sim.colliders.ColliderSet.limit_round_motion`."""
 
-    MESH_DEPTH = 0.25
-    """Deepest a cloth vertex's move in one substep may enter a closed mesh collider, as a fraction
-    of the chord its line cuts through the solid (the mesh counterpart of :attr:`ROUND_MOVE`: the
-    mesh's projection pushes a vertex out at the surface nearest to it, so one yanked past the
-    middle of the solid would leave on the far side):
+    MESH_MOVE = 0.125
+    """Longest move of a cloth vertex in one substep that enters a closed mesh collider, as a
+    fraction of the chord its line cuts through the solid (the mesh counterpart of
+    :attr:`ROUND_MOVE`: 0.25 of the radius is 0.125 of a chord through a ball's centre; the mesh's
+    projection pushes a vertex out at the surface nearest to it, so one yanked past the middle of
+    the solid would leave on the far side). Capping only the depth a move reaches (0.25 of the
+    chord past the entry point) let issue 19's hammock at 17 x 17 vertices work its last vertex
+    round the ball, substep by substep, and the cloth slip under it:
     :meth:`~warpshade.sim.colliders.ColliderSet.limit_mesh_motion`."""
 
     YIELD_PASSES = 16
