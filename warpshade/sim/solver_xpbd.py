@@ -6,7 +6,8 @@ constraint sweeps each (small steps, Macklin et al. 2019: substeps buy more accu
 iterations). Per substep: aerodynamic forces, symplectic-Euler prediction, attachments driven to
 their interpolated targets, then per iteration: multi-scale stretch limits, coloured stretch and
 bending sweeps, long-range tethers, a cap on moves that pass near a sphere or capsule
-(:attr:`XPBDSolver.ROUND_MOVE`), self-contacts, colliders (last, so collider contacts hold at
+(:attr:`XPBDSolver.ROUND_MOVE`) or enter a closed mesh collider (:attr:`XPBDSolver.MESH_MOVE`),
+self-contacts, colliders (last, so collider contacts hold at
 the end of every substep);
 finally velocities from positions. Self-contact candidates are found every ``contact_interval``
 substeps with a swept-box BVH query; a detection is skipped when the one before it in the step
