@@ -624,6 +624,36 @@ def round_closest(kind: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, a: wp.vec3, 
     return wp.mat33(bary[0], bary[1], bary[2], q[0], q[1], q[2], c[0], c[1], c[2])
 
 
+@wp.func
+def push_triangle_point(
+    i0: int,
+    i1: int,
+    i2: int,
+    w0: float,
+    w1: float,
+    w2: float,
+    bary: wp.vec3,
+    n: wp.vec3,
+    t: float,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Add to the per-vertex correction sums the moves of a triangle's vertices i0, i1, i2
+    (inverse masses w0, w1, w2) that carry its point at barycentric coordinates ``bary`` by
+    ``n * t``, split by the barycentric weights and inverse masses (as :func:`solve_corner_contacts`
+    does); nothing when every weighted vertex is kinematic."""
+    denom = bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2
+    if denom == 0.0:
+        return
+    push = n * (t / denom)
+    wp.atomic_add(delta, i0, push * (bary[0] * w0))
+    wp.atomic_add(delta, i1, push * (bary[1] * w1))
+    wp.atomic_add(delta, i2, push * (bary[2] * w2))
+    wp.atomic_add(delta_count, i0, 1.0)
+    wp.atomic_add(delta_count, i1, 1.0)
+    wp.atomic_add(delta_count, i2, 1.0)
+
+
 @wp.kernel
 def collide_round_faces(
     kind: wp.array[int],
@@ -679,16 +709,7 @@ def collide_round_faces(
         dn = wp.dot(d, n)
         reach = rad + thickness
         t = -dn + wp.sqrt(wp.max(dn * dn - ld * ld + reach * reach, 0.0))
-        denom = bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2
-        if denom == 0.0:
-            continue
-        push = n * (t / denom)
-        wp.atomic_add(delta, i0, push * (bary[0] * w0))
-        wp.atomic_add(delta, i1, push * (bary[1] * w1))
-        wp.atomic_add(delta, i2, push * (bary[2] * w2))
-        wp.atomic_add(delta_count, i0, 1.0)
-        wp.atomic_add(delta_count, i1, 1.0)
-        wp.atomic_add(delta_count, i2, 1.0)
+        push_triangle_point(i0, i1, i2, w0, w1, w2, bary, n, t, delta, delta_count)
 
 
 @wp.kernel
@@ -717,17 +738,13 @@ def collide_mesh_faces(
     barycentric weights (as :func:`collide_round_faces` does). A triangle with no sample inside is
     left alone.""" 
     k = wp.tid()
-    i0 = tris[k, 0]
-    i1 = tris[k, 1]
-    i2 = tris[k, 2]
-    w0 = inv_mass[i0]
-    w1 = inv_mass[i1]
-    w2 = inv_mass[i2]
-    if w0 + w1 + w2 == 0.0:
+    ids = wp.vec3i(tris[k, 0], tris[k, 1], tris[k, 2])
+    w = wp.vec3(inv_mass[ids[0]], inv_mass[ids[1]], inv_mass[ids[2]])
+    if w[0] + w[1] + w[2] == 0.0:
         return
-    p0 = x[i0]
-    p1 = x[i1]
-    p2 = x[i2]
+    p0 = x[ids[0]]
+    p1 = x[ids[1]]
+    p2 = x[ids[2]]
     c = (p0 + p1 + p2) / 3.0
     r = wp.max(wp.max(wp.length(p0 - c), wp.length(p1 - c)), wp.length(p2 - c))
     if not wp.mesh_query_point_no_sign(mesh, c, r + thickness).result:
@@ -762,23 +779,14 @@ def collide_mesh_faces(
     # where that path first leaves it (a triangle dragged past the solid's middle goes back, not
     # through); the nearest surface when the path stays inside (the mesh moved onto the point)
     q = p0 * bary[0] + p1 * bary[1] + p2 * bary[2]
-    back = x_prev[i0] * bary[0] + x_prev[i1] * bary[1] + x_prev[i2] * bary[2] - q
+    back = x_prev[ids[0]] * bary[0] + x_prev[ids[1]] * bary[1] + x_prev[ids[2]] * bary[2] - q
     lb = wp.length(back)
     move = n * best
     if lb > 0.0:
         out = wp.mesh_query_ray(mesh, q, back / lb, lb)
         if out.result:
             move = back * (out.t / lb) + out.normal * thickness
-    denom = bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2
-    if denom == 0.0:
-        return
-    push = move / denom
-    wp.atomic_add(delta, i0, push * (bary[0] * w0))
-    wp.atomic_add(delta, i1, push * (bary[1] * w1))
-    wp.atomic_add(delta, i2, push * (bary[2] * w2))
-    wp.atomic_add(delta_count, i0, 1.0)
-    wp.atomic_add(delta_count, i1, 1.0)
-    wp.atomic_add(delta_count, i2, 1.0)
+    push_triangle_point(ids[0], ids[1], ids[2], w[0], w[1], w[2], bary, move, 1.0, delta, delta_count)
 
 
 CORNER_INSIDE_TOL = wp.constant(0.01)
