@@ -328,7 +328,7 @@ class XPBDSolver:
                     # moves into a ball or capsule shortened: its projection is right for short moves only
                     self.colliders.limit_round_motion(self.ROUND_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
                 if self.colliders is not None and self.colliders.has_closed_meshes:
-                    # and moves deep into a closed mesh: its projection pushes out at the nearest surface
+                    # and moves into a closed mesh: its projection pushes out at the nearest surface
                     self.colliders.limit_mesh_motion(self.MESH_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
                 if self.stretch_limits:
                     wp.copy(self._x_before, x)
@@ -764,10 +764,10 @@ class XPBDSolver:
     :meth:`~warpshade.sim.colliders.ColliderSet.limit_mesh_motion`."""
 
     YIELD_PASSES = 16
-    """Most passes of the colliders' own projections (cloth triangles off spheres and capsules,
-    sharp edges and corners, vertices) the guard runs on a step whose cloth-collider
-    intersections nothing else removed (the cloth stretches over the collider instead of crossing
-    it: :meth:`_yield_to_colliders`)."""
+    """Most passes of the colliders' own projections (cloth triangles off spheres, capsules and
+    closed meshes, sharp edges and corners, vertices) the guard runs in each of its two tries on a
+    step whose cloth-collider intersections nothing else removed (the cloth stretches over the
+    collider instead of crossing it: :meth:`_yield_to_colliders`)."""
 
     def _yield_to_colliders(self, x) -> bool:
         """Push the cloth out of the colliders with the colliders' projections alone (cloth
