@@ -42,8 +42,8 @@ class Recorder:
     """Collects a script's meshes and their per-frame points, then shades and writes them with
     :func:`warpshade.run` (the script's own simulation gives the points; a mesh given no frame is static)."""
 
-    def __init__(self, args):
-        self.path, self.shade = args.out, not args.no_shade
+    def __init__(self, args, fps: float = FPS):
+        self.path, self.shade, self.fps = args.out, not args.no_shade, float(fps)
         self.meshes: dict[str, tuple] = {}  # name -> (faces, rest points, two-sided)
         self.frames: list[dict] = []
         self.t0 = time.perf_counter()
@@ -65,7 +65,7 @@ class Recorder:
         for name, (faces, pts, two_sided) in self.meshes.items():
             objects.append(ws.mesh(name, pts, faces, moving=name in moving))
             objects[-1].two_sided = two_sided
-        scene = ws.make_scene(*objects, fps=FPS)
+        scene = ws.make_scene(*objects, fps=self.fps)
         report = ws.run(scene, self.path, frames=max(1, len(self.frames)), shade=self.shade, geometry=self.frames)
         what = "shaded" if self.shade else "geometry only"
         print(f"wrote {report.path} ({what}, {time.perf_counter() - self.t0:.1f} s)")

@@ -424,67 +424,35 @@ def test_cloth_rests_on_a_cone_apex(mesh_cone):
     assert q[d.argmin()][2] > apex[2], q[d.argmin()] - apex  # the cloth is over the apex, not under it
 
 
-def _write_hammock(path, n: int = 17, frames: int = 24) -> None:
-    """The hammock of issue 19 at small size (a user's scene, written with pxr): Y-up, centimetres,
-    a cloth n x n vertices, 100 cm square at y = 60, pinned along its edges x = +-50; a Plane
-    floor and a Sphere ball (radius 15), both with PhysicsCollisionAPI, the ball's translate
-    time-sampled from y = 20 up to y = 95 at frame 18 (4.2 cm a frame, as in the issue) and kept
-    there: a kinematic ball cannot pass cloth pinned on two sides without stretching it far."""
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics
-
-    stage = Usd.Stage.CreateNew(str(path))
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
-    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
-    stage.SetStartTimeCode(0)
-    stage.SetEndTimeCode(frames - 1)
-    stage.SetTimeCodesPerSecond(24)
-    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/Root").GetPrim())
-    floor = UsdGeom.Plane.Define(stage, "/Root/Floor")
-    floor.GetAxisAttr().Set("Y")
-    UsdPhysics.CollisionAPI.Apply(floor.GetPrim())
-    ball = UsdGeom.Sphere.Define(stage, "/Root/Ball")
-    ball.GetRadiusAttr().Set(15.0)
-    op = ball.AddTranslateOp()
-    for t, y in [(0, 20.0), (18, 95.0), (frames - 1, 95.0)]:
-        op.Set(Gf.Vec3d(0, y, 0), t)
-    UsdPhysics.CollisionAPI.Apply(ball.GetPrim())
-    m = n - 1
-    pts = [Gf.Vec3f(-50 + 100 * i / m, 60.0, -50 + 100 * j / m) for j in range(n) for i in range(n)]
-    pinned = [j * n + i for j in range(n) for i in (0, m)]
-    idx = []
-    for j in range(m):
-        for i in range(m):
-            a = j * n + i
-            idx += [a, a + n, a + n + 1, a + 1]
-    cloth = UsdGeom.Mesh.Define(stage, "/Root/Hammock")
-    cloth.GetPointsAttr().Set(pts)
-    cloth.GetFaceVertexCountsAttr().Set([4] * (m * m))
-    cloth.GetFaceVertexIndicesAttr().Set(idx)
-    cloth.GetPrim().CreateAttribute("warpshade:kind", Sdf.ValueTypeNames.Token).Set("cloth")
-    cloth.GetPrim().CreateAttribute("warpshade:pinned", Sdf.ValueTypeNames.IntArray).Set(pinned)
-    stage.GetRootLayer().Save()
-
-
-def test_ball_forced_through_pinned_cloth(tmp_path):
-    """Issue 19's hammock at 17 x 17 vertices: a kinematic ball pushed up through cloth pinned on
-    two sides. The colliders win over the cloth's constraints: 0 cloth-ball intersecting pairs at
-    the end of every frame (exact count), and the cloth is still over the ball at the end (its
-    highest vertex above the ball's top; on main the cloth snapped back through the ball, ending
-    under it). The cloth stretches instead, far past STRAIN_WARNING, and the run warns once,
-    naming the cloth and the pins as the likely cause."""
+@pytest.mark.parametrize("ball, n", [("sphere", 17), ("mesh", 21)])
+def test_ball_forced_through_pinned_cloth(tmp_path, ball, n):
+    """Issue 19's hammock at n x n vertices (sims/hammock.py's stage, the ball's translate
+    time-sampled from y = 20 cm up to y = 95 cm at frame 18, 4.2 cm a frame as in the issue, and
+    kept there): a kinematic ball pushed up through cloth pinned on two sides, as a Sphere (an
+    analytic moving sphere) and as a Mesh of the same tessellation (a moving mesh collider). The
+    colliders win over the cloth's constraints: 0 cloth-ball intersecting pairs at the end of
+    every frame (exact count), and the cloth is still over the ball at the end (its highest vertex
+    above the ball's top; before the move caps the cloth snapped back through the ball, ending
+    under it). The mesh ball at 21 x 21 needs all three of its pieces: without
+    ``limit_mesh_motion`` or with it capping only the depth a move reaches, the cloth ends under
+    the ball; without ``collide_mesh_faces`` or the guard's retry from the start of the step,
+    pairs are left at frame ends. The cloth stretches instead, far past STRAIN_WARNING, and the
+    run warns once, naming the cloth and the pins as the likely cause."""
     from warpshade.pipeline.cloth import STRAIN_WARNING, ClothSimulation
     from warpshade.scene import SceneWarning
     from warpshade.usd import read_scene
 
-    _write_hammock(tmp_path / "hammock.usda")
-    scene = read_scene(str(tmp_path / "hammock.usda"))
-    ball = next(o for o in scene.objects if o.name.endswith("Ball"))
+    path = str(tmp_path / "hammock.usda")
+    _sim_module("hammock").write_stage(path, n, ball, 24, ((0, 20.0), (18, 95.0), (23, 95.0)))
+    scene = read_scene(path)
+    ball_obj = next(o for o in scene.objects if o.name.endswith("Ball"))
     with pytest.warns(SceneWarning) as caught:
         sim = ClothSimulation(scene)
+        assert (ball_obj.name in dict(sim.moving_colliders)) == (ball == "mesh")  # the collider kind meant
         counter = IntersectionCounter(sim.model.faces)
         counts, strain = [], []
         for f in range(scene.frames):
-            geo = {ball.name: np.asarray(ball.params["points_at"](f), np.float32)}
+            geo = {ball_obj.name: np.asarray(ball_obj.params["points_at"](f), np.float32)}
             sim.advance(f, geo)
             counts.append(counter.collider_pairs(sim.state.points, sim.solver.colliders)[0])
             strain.append(float(sim.model.edge_strain(sim.state.points.numpy()).max()))

@@ -30,6 +30,7 @@ def _load(name):
     ("flag", 12, ("flag", "pole")),
     ("cape", 10, ("cape", "figure")),
     ("table_fold", 12, ("cloth", "table")),
+    ("hammock", 9, ("cloth", "ball")),
 ])
 def test_sim_script_runs_and_writes_usd(tmp_path, name, grid, meshes):
     from pxr import Usd, UsdGeom
@@ -57,7 +58,7 @@ def _luminance(rgb):
 
 @pytest.mark.parametrize("name, grid, cloth", [
     ("box_edge", 8, "cloth"), ("cape", 8, "cape"), ("drape_sphere", 8, "cloth"), ("flag", 8, "flag"),
-    ("pile", 6, "cloth"), ("table_fold", 8, "cloth"), ("twist", 8, "cloth"),
+    ("pile", 6, "cloth"), ("table_fold", 8, "cloth"), ("twist", 8, "cloth"), ("hammock", 9, "cloth"),
 ])
 def test_sim_output_is_what_blender_renders_lit(tmp_path, name, grid, cloth):
     """What Blender 5.0's USD import turns into a lit picture, checked on the USD (CI has no bpy;

@@ -559,6 +559,51 @@ def limit_round_motion(
     x[i] = p
 
 
+MESH_RAY_SKIP = wp.constant(1.0e-5)
+"""[m] How far past a ray's entry into a mesh collider the ray that finds where it leaves starts."""
+
+
+@wp.kernel
+def limit_mesh_motion(
+    mesh: wp.uint64,
+    fraction: float,
+    thickness: float,
+    inv_mass: wp.array[float],
+    x_prev: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+):
+    """Shorten a free vertex's move over the substep (x_prev -> x) that enters a closed mesh
+    collider (posed as ``mesh``'s points) to ``fraction`` of the chord its line cuts through the
+    solid (from where it enters to where it next meets the surface): the vertex projection
+    (:func:`collide_mesh`) pushes a vertex out at the surface nearest to it, so one yanked past the
+    middle of the solid in one substep (or through it) would leave on the far side, and one
+    driven in by more than a little of the solid's depth every substep would work its way round
+    it. Moves shorter than ``thickness`` (they cannot enter the solid from outside the contact
+    distance), moves that stay clear of the solid and moves that start inside it are left
+    alone."""
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    p0 = x_prev[i]
+    d = x[i] - p0
+    ld = wp.length(d)
+    if ld <= thickness:
+        return
+    dr = d / ld
+    hit = wp.mesh_query_ray(mesh, p0, dr, ld)
+    if not hit.result or wp.dot(hit.normal, dr) >= 0.0:
+        return  # clear of the solid, or leaving it (started inside)
+    # the chord: from the entry point to where the line next meets the surface (leaving the
+    # solid), looked for from just past the entry so as not to find the entry face again
+    out = wp.mesh_query_ray(mesh, p0 + dr * (hit.t + MESH_RAY_SKIP), dr, 1.0e6)
+    chord = float(1.0e6)
+    if out.result:
+        chord = out.t + MESH_RAY_SKIP
+    cap = fraction * chord
+    if ld > cap:
+        x[i] = p0 + dr * cap
+
+
 ROUND_CORE_ROUNDS = wp.constant(4)
 """Alternating projections (triangle <-> capsule axis) that find a triangle's point closest to a capsule's axis."""
 
@@ -577,6 +622,36 @@ def round_closest(kind: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, a: wp.vec3, 
             bary = closest_on_triangle(c, p0, p1, p2)
     q = p0 * bary[0] + p1 * bary[1] + p2 * bary[2]
     return wp.mat33(bary[0], bary[1], bary[2], q[0], q[1], q[2], c[0], c[1], c[2])
+
+
+@wp.func
+def push_triangle_point(
+    i0: int,
+    i1: int,
+    i2: int,
+    w0: float,
+    w1: float,
+    w2: float,
+    bary: wp.vec3,
+    n: wp.vec3,
+    t: float,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Add to the per-vertex correction sums the moves of a triangle's vertices i0, i1, i2
+    (inverse masses w0, w1, w2) that carry its point at barycentric coordinates ``bary`` by
+    ``n * t``, split by the barycentric weights and inverse masses (as :func:`solve_corner_contacts`
+    does); nothing when every weighted vertex is kinematic."""
+    denom = bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2
+    if denom == 0.0:
+        return
+    push = n * (t / denom)
+    wp.atomic_add(delta, i0, push * (bary[0] * w0))
+    wp.atomic_add(delta, i1, push * (bary[1] * w1))
+    wp.atomic_add(delta, i2, push * (bary[2] * w2))
+    wp.atomic_add(delta_count, i0, 1.0)
+    wp.atomic_add(delta_count, i1, 1.0)
+    wp.atomic_add(delta_count, i2, 1.0)
 
 
 @wp.kernel
@@ -634,16 +709,84 @@ def collide_round_faces(
         dn = wp.dot(d, n)
         reach = rad + thickness
         t = -dn + wp.sqrt(wp.max(dn * dn - ld * ld + reach * reach, 0.0))
-        denom = bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2
-        if denom == 0.0:
-            continue
-        push = n * (t / denom)
-        wp.atomic_add(delta, i0, push * (bary[0] * w0))
-        wp.atomic_add(delta, i1, push * (bary[1] * w1))
-        wp.atomic_add(delta, i2, push * (bary[2] * w2))
-        wp.atomic_add(delta_count, i0, 1.0)
-        wp.atomic_add(delta_count, i1, 1.0)
-        wp.atomic_add(delta_count, i2, 1.0)
+        push_triangle_point(i0, i1, i2, w0, w1, w2, bary, n, t, delta, delta_count)
+
+
+@wp.kernel
+def collide_mesh_faces(
+    mesh: wp.uint64,
+    x_prev: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    inv_mass: wp.array[float],
+    thickness: float,
+    max_distance: float,
+    samples: int,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Cloth triangles that cut into a closed mesh collider (posed as ``mesh``'s points) while their
+    vertices are held outside (a stretched triangle drawn over a round part, the mesh's dome poking
+    through its inside): the triangle is sampled on a barycentric grid of ``samples`` steps a side
+    (its vertices left out: the vertex projection holds them), each sample tested against the solid
+    (generalised winding number, as :func:`collide_mesh`), and the deepest sample inside (the
+    farthest from its nearest surface point) moved out of the solid back the way it came: to
+    ``thickness`` outside the point where the straight path from it to the same point of the
+    triangle at ``x_prev`` leaves the solid (a triangle dragged past the solid's middle goes back,
+    not through), or to ``thickness`` from its nearest surface point when that path stays inside
+    (the mesh moved onto the point). The push is split between the three vertices by their
+    barycentric weights (as :func:`collide_round_faces` does). A triangle with no sample inside is
+    left alone.""" 
+    k = wp.tid()
+    ids = wp.vec3i(tris[k, 0], tris[k, 1], tris[k, 2])
+    w = wp.vec3(inv_mass[ids[0]], inv_mass[ids[1]], inv_mass[ids[2]])
+    if w[0] + w[1] + w[2] == 0.0:
+        return
+    p0 = x[ids[0]]
+    p1 = x[ids[1]]
+    p2 = x[ids[2]]
+    c = (p0 + p1 + p2) / 3.0
+    r = wp.max(wp.max(wp.length(p0 - c), wp.length(p1 - c)), wp.length(p2 - c))
+    if not wp.mesh_query_point_no_sign(mesh, c, r + thickness).result:
+        return  # no part of the mesh near the triangle
+    best = float(0.0)
+    bary = wp.vec3(0.0)
+    n = wp.vec3(0.0)
+    inv = 1.0 / float(samples)
+    for a in range(samples + 1):
+        for b in range(samples + 1 - a):
+            if (a == samples) or (b == samples) or (a + b == 0):
+                continue  # a vertex
+            u = float(a) * inv
+            v = float(b) * inv
+            q = p0 * (1.0 - u - v) + p1 * u + p2 * v
+            h = wp.mesh_query_point_sign_winding_number(mesh, q, max_distance, 2.0, 0.5)
+            if not h.result or h.sign >= 0.0:
+                continue
+            cp = wp.mesh_eval_position(mesh, h.face, h.u, h.v)
+            dd = cp - q
+            ld = wp.length(dd)
+            if ld + thickness > best:
+                best = ld + thickness
+                bary = wp.vec3(1.0 - u - v, u, v)
+                if ld > 1.0e-9:
+                    n = dd / ld
+                else:
+                    n = wp.normalize(wp.mesh_eval_face_normal(mesh, h.face))
+    if best == 0.0:
+        return
+    # back the way the point came: from where it is to where it was (x_prev), out of the solid
+    # where that path first leaves it (a triangle dragged past the solid's middle goes back, not
+    # through); the nearest surface when the path stays inside (the mesh moved onto the point)
+    q = p0 * bary[0] + p1 * bary[1] + p2 * bary[2]
+    back = x_prev[ids[0]] * bary[0] + x_prev[ids[1]] * bary[1] + x_prev[ids[2]] * bary[2] - q
+    lb = wp.length(back)
+    move = n * best
+    if lb > 0.0:
+        out = wp.mesh_query_ray(mesh, q, back / lb, lb)
+        if out.result:
+            move = back * (out.t / lb) + out.normal * thickness
+    push_triangle_point(ids[0], ids[1], ids[2], w[0], w[1], w[2], bary, move, 1.0, delta, delta_count)
 
 
 CORNER_INSIDE_TOL = wp.constant(0.01)

@@ -6,7 +6,8 @@ constraint sweeps each (small steps, Macklin et al. 2019: substeps buy more accu
 iterations). Per substep: aerodynamic forces, symplectic-Euler prediction, attachments driven to
 their interpolated targets, then per iteration: multi-scale stretch limits, coloured stretch and
 bending sweeps, long-range tethers, a cap on moves that pass near a sphere or capsule
-(:attr:`XPBDSolver.ROUND_MOVE`), self-contacts, colliders (last, so collider contacts hold at
+(:attr:`XPBDSolver.ROUND_MOVE`) or enter a closed mesh collider (:attr:`XPBDSolver.MESH_MOVE`),
+self-contacts, colliders (last, so collider contacts hold at
 the end of every substep);
 finally velocities from positions. Self-contact candidates are found every ``contact_interval``
 substeps with a swept-box BVH query; a detection is skipped when the one before it in the step
@@ -326,6 +327,9 @@ class XPBDSolver:
                 if self.colliders is not None and self.colliders.has_round_shapes:
                     # moves into a ball or capsule shortened: its projection is right for short moves only
                     self.colliders.limit_round_motion(self.ROUND_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
+                if self.colliders is not None and self.colliders.has_closed_meshes:
+                    # and moves into a closed mesh: its projection pushes out at the nearest surface
+                    self.colliders.limit_mesh_motion(self.MESH_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
                 if self.stretch_limits:
                     wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
@@ -749,26 +753,55 @@ class XPBDSolver:
     vertex yanked past a ball's centre in one substep by a stretched edge would leave on the far
     side): :meth:`~warpshade.sim.colliders.ColliderSet.limit_round_motion`."""
 
+    MESH_MOVE = 0.125
+    """Longest move of a cloth vertex in one substep that enters a closed mesh collider, as a
+    fraction of the chord its line cuts through the solid (the mesh counterpart of
+    :attr:`ROUND_MOVE`: 0.25 of the radius is 0.125 of a chord through a ball's centre; the mesh's
+    projection pushes a vertex out at the surface nearest to it, so one yanked past the middle of
+    the solid would leave on the far side). Capping only the depth a move reaches (0.25 of the
+    chord past the entry point) let issue 19's hammock at 17 x 17 vertices work its last vertex
+    round the ball, substep by substep, and the cloth slip under it:
+    :meth:`~warpshade.sim.colliders.ColliderSet.limit_mesh_motion`."""
+
     YIELD_PASSES = 16
-    """Most passes of the colliders' own projections (cloth triangles off spheres and capsules,
-    sharp edges and corners, vertices) the guard runs on a step whose cloth-collider
-    intersections nothing else removed (the cloth stretches over the collider instead of crossing
-    it: :meth:`_yield_to_colliders`)."""
+    """Most passes of the colliders' own projections (cloth triangles off spheres, capsules and
+    closed meshes, sharp edges and corners, vertices) the guard runs in each of its two tries on a
+    step whose cloth-collider intersections nothing else removed (the cloth stretches over the
+    collider instead of crossing it: :meth:`_yield_to_colliders`)."""
 
     def _yield_to_colliders(self, x) -> bool:
         """Push the cloth out of the colliders with the colliders' projections alone (cloth
         triangles off spheres and capsules on the side they were on at the start of the step,
-        sharp edges and corners, vertices), up to :attr:`YIELD_PASSES` passes: the cloth's own
-        constraints do not take part, so a collider driven against pinned or attached cloth
-        stretches it instead of crossing it. True (counted in ``stats()["collider_yields"]``) as
-        soon as x has no new intersecting pair."""
+        off closed meshes back the way they came, sharp edges and corners, vertices), up to
+        :attr:`YIELD_PASSES` passes: the cloth's own constraints do not take part, so a collider
+        driven against pinned or attached cloth stretches it instead of crossing it. First from x
+        as the contacts left it; when that leaves pairs, from the start of the step with every free
+        vertex sent back (held, as the guard's reverts hold them: the colliders alone move the
+        cloth in that step). True (counted in ``stats()["collider_yields"]``) as soon as x has no
+        new intersecting pair."""
         m, col = self.model, self.colliders
         if col is None or not (col.has_sharp_edges or col.has_round_shapes):
             return False
+        if self._yield_passes(x, self._x_unguarded):
+            return True
+        wp.copy(x, self._x_unguarded)
+        self._mark.fill_(1)
+        wp.launch(ck.revert_marked, dim=m.particle_count, inputs=[self._mark, m.inv_mass, self._x_start],
+                  outputs=[x, self._reverted], device=self.device)
+        col.collide(m.thickness, m.inv_mass, self._x_start, x)
+        if self._yield_passes(x, self._x_start):
+            return True
+        self._reverted.zero_()
+        return False
+
+    def _yield_passes(self, x, x_prev) -> bool:
+        """The passes of :meth:`_yield_to_colliders` on x (x_prev: the vertices' friction reference)."""
+        m, col = self.model, self.colliders
         for _ in range(self.YIELD_PASSES):
             col.collide_round_faces(m.thickness, m.inv_mass, m.tris, x, self._x_start)
+            col.collide_mesh_faces(m.thickness, m.inv_mass, m.tris, x, self._x_start)
             col.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
-            col.collide(m.thickness, m.inv_mass, self._x_unguarded, x)
+            col.collide(m.thickness, m.inv_mass, x_prev, x)
             if self._new_pairs(x) == 0:
                 self.collider_yields += 1
                 return True
