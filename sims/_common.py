@@ -17,11 +17,12 @@ import warpshade as ws  # noqa: E402
 FPS = 60.0
 
 
-def parse(doc: str, argv, frames: int, extra=None):
-    """docs/conventions.md §5 arguments (--frames N --out PATH.usda) plus a script's own."""
+def parse(doc: str, argv, frames: int, extra=None, fps: float = FPS):
+    """docs/conventions.md §5 arguments (--frames N --out PATH.usda) plus a script's own; ``fps`` is the
+    script's frame rate, for the help text."""
     ap = argparse.ArgumentParser(description=doc.strip().split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=doc)
-    ap.add_argument("--frames", type=int, default=frames, help=f"frames at {FPS:g} fps (default {frames})")
+    ap.add_argument("--frames", type=int, default=frames, help=f"frames at {fps:g} fps (default {frames})")
     ap.add_argument("--out", required=True, help="output USD animation (.usda/.usdc/.usd)")
     ap.add_argument("--no-shade", action="store_true",
                     help="write geometry only (each mesh bound to its albedo), not the shaded colours")

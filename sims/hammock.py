@@ -134,7 +134,7 @@ def main(argv=None) -> dict:
         ap.add_argument("--ball", choices=("sphere", "mesh"), default="sphere",
                         help="the ball as a Sphere (analytic collider) or a Mesh (mesh collider)")
 
-    args = parse(__doc__, argv, len(range(BALL_PATH[-1][0] + 1)), extra)
+    args = parse(__doc__, argv, len(range(BALL_PATH[-1][0] + 1)), extra, fps=FPS)
     rec = Recorder(args, fps=FPS)
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "hammock.usda")
