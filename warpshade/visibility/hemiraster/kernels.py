@@ -46,8 +46,6 @@ class PlaneLut:
     """Cube-map resolution R."""
     words: int
     """Words per mask W."""
-    mask_res: int
-    """Mask resolution M (pixels across; :func:`batch_codes`' empty-image test)."""
     backface: float
     """Skip triangles with ``det * backface > 0`` (0: keep both sides)."""
     min_area: float
@@ -483,11 +481,8 @@ const float t10 = frame.data[0][1], t11 = frame.data[1][1], t12 = frame.data[2][
 const float t20 = frame.data[0][2], t21 = frame.data[1][2], t22 = frame.data[2][2];
 const float half = 0.5f * (float)res;
 const int top = res - 1;
-const float step = 2.0f / (float)res;  // cube-map cell width
-const float pitch = 2.0f / (float)(mask_res > 0 ? mask_res : 1);  // pixel centre spacing on the disk
-const float half_m = 0.5f * (float)mask_res;
 int done = 0;
-#define WS_CELL(X, Y, Z, CODE, EX, EY, EZ) { \
+#define WS_CELL(X, Y, Z, CODE) { \
     const float x_ = (X), y_ = (Y), z_ = (Z); \
     const float ax_ = fabsf(x_), ay_ = fabsf(y_), az_ = fabsf(z_); \
     const int axis_ = ax_ >= ay_ ? (ax_ >= az_ ? 0 : 2) : (ay_ >= az_ ? 1 : 2); \
@@ -497,65 +492,7 @@ int done = 0;
     const float inv_ = half / major_; \
     int iu_ = (int)(nu_ * inv_ + half); iu_ = iu_ < 0 ? 0 : iu_; iu_ = iu_ > top ? top : iu_; \
     int iv_ = (int)(nv_ * inv_ + half); iv_ = iv_ < 0 ? 0 : iv_; iv_ = iv_ > top ? top : iv_; \
-    CODE = 2 * ((axis_ * res + iu_) * res + iv_) + (major_ < 0.0f ? 1 : 0); \
-    /* the row's cell-centre normal (tables.cube_cell_normals), negated for a negative face: the plane whose \
-       positive side the image is on (a negative face's row is complemented, so there ``e·d >= 0``) */ \
-    const float s_ = major_ < 0.0f ? -1.0f : 1.0f; \
-    const float cu_ = s_ * (-1.0f + ((float)iu_ + 0.5f) * step), cv_ = s_ * (-1.0f + ((float)iv_ + 0.5f) * step); \
-    EX = axis_ == 0 ? s_ : (axis_ == 1 ? cv_ : cu_); \
-    EY = axis_ == 0 ? cu_ : (axis_ == 1 ? s_ : cv_); \
-    EZ = axis_ == 0 ? cv_ : (axis_ == 1 ? cu_ : s_); }
-// WS_EMPTY: ``empty`` = 1 when the image of the planes e0, e1, e2 provably holds no valid pixel centre (a
-// sub-pixel triangle between centres). {d : E d >= 0} is the cone spanned by the columns of
-// E^-1 = (e1 x e2, e2 x e0, e0 x e1) / det. Trusted only when well conditioned (no near-parallel planes,
-// det away from 0), above the horizon and narrower than 60 degrees between corners: then its disk image
-// lies in the box of its unit corners' (x, y) widened by 1/sqrt(min corner dot) - 1 (a point of the cone
-// is a convex combination c of the unit corners, |c|^2 >= that dot, scaled out to the sphere) and 1e-4
-// (float rounding of the table's bits and of these corners); the at most 2 x 2 pixel centres in that box
-// are each outside a plane by more than rounding (1e-5) or outside the disk.
-#define WS_EMPTY { \
-    float wax = e1y * e2z - e1z * e2y, way = e1z * e2x - e1x * e2z, waz = e1x * e2y - e1y * e2x; \
-    float wbx = e2y * e0z - e2z * e0y, wby = e2z * e0x - e2x * e0z, wbz = e2x * e0y - e2y * e0x; \
-    float wcx = e0y * e1z - e0z * e1y, wcy = e0z * e1x - e0x * e1z, wcz = e0x * e1y - e0y * e1x; \
-    const float edet = e0x * wax + e0y * way + e0z * waz; \
-    const float la2 = wax * wax + way * way + waz * waz; \
-    const float lb2 = wbx * wbx + wby * wby + wbz * wbz; \
-    const float lc2 = wcx * wcx + wcy * wcy + wcz * wcz; \
-    const float sg = edet < 0.0f ? -1.0f : 1.0f; \
-    const float ia = sg / sqrtf(la2 > 1e-30f ? la2 : 1e-30f); \
-    const float ib = sg / sqrtf(lb2 > 1e-30f ? lb2 : 1e-30f); \
-    const float ic = sg / sqrtf(lc2 > 1e-30f ? lc2 : 1e-30f); \
-    wax *= ia; way *= ia; waz *= ia; \
-    wbx *= ib; wby *= ib; wbz *= ib; \
-    wcx *= ic; wcy *= ic; wcz *= ic; \
-    const float dab = wax * wbx + way * wby + waz * wbz; \
-    const float dbc = wbx * wcx + wby * wcy + wbz * wcz; \
-    const float dca = wcx * wax + wcy * way + wcz * waz; \
-    const float d1 = dab < dbc ? dab : dbc; \
-    const float mind = d1 < dca ? d1 : dca; \
-    const int sure = (int)((la2 > 1e-4f) & (lb2 > 1e-4f) & (lc2 > 1e-4f) & (edet * edet > 1e-14f) \
-                           & (waz > 0.02f) & (wbz > 0.02f) & (wcz > 0.02f) & (mind > 0.5f)); \
-    const float pad = (mind > 0.5f ? 1.0f / sqrtf(mind) - 1.0f : 1.0f) + 1e-4f; \
-    const float xl = wax < wbx ? wax : wbx, xh = wax < wbx ? wbx : wax; \
-    const float yl = way < wby ? way : wby, yh = way < wby ? wby : way; \
-    const float x0 = (xl < wcx ? xl : wcx) - pad, x1 = (xh > wcx ? xh : wcx) + pad; \
-    const float y0 = (yl < wcy ? yl : wcy) - pad, y1 = (yh > wcy ? yh : wcy) + pad; \
-    /* pixel centres i with -1 + (i + 1/2) pitch in [x0, x1] */ \
-    const float i0 = ceilf((x0 + 1.0f) * half_m - 0.5f), i1 = floorf((x1 + 1.0f) * half_m - 0.5f); \
-    const float j0 = ceilf((y0 + 1.0f) * half_m - 0.5f), j1 = floorf((y1 + 1.0f) * half_m - 0.5f); \
-    int hit = 0; \
-    for (int q = 0; q < 4; ++q) { \
-        const float ii = i0 + (float)(q & 1), jj = j0 + (float)(q >> 1); \
-        const float xc = -1.0f + (ii + 0.5f) * pitch, yc = -1.0f + (jj + 0.5f) * pitch; \
-        const float r2 = xc * xc + yc * yc; \
-        const float zc = sqrtf(r2 < 1.0f ? 1.0f - r2 : 0.0f); \
-        hit |= (int)((ii <= i1) & (jj <= j1) & (r2 < 1.0f + 1e-6f) \
-                     & (e0x * xc + e0y * yc + e0z * zc >= -1e-5f) \
-                     & (e1x * xc + e1y * yc + e1z * zc >= -1e-5f) \
-                     & (e2x * xc + e2y * yc + e2z * zc >= -1e-5f)); \
-    } \
-    const int few = (int)((i1 - i0 <= 1.0f) & (j1 - j0 <= 1.0f)); \
-    empty = sure & few & (1 - hit); }
+    CODE = 2 * ((axis_ * res + iu_) * res + iv_) + (major_ < 0.0f ? 1 : 0); }
 const float* __restrict__ parea = (const float*)((const char*)area.data + sl * area.strides[0]);
 const int* __restrict__ pflag = (const int*)((const char*)fine_flag.data + sl * fine_flag.strides[0]);
 int* __restrict__ psrc = (int*)((char*)src.data + sl * src.strides[0]);
@@ -606,20 +543,14 @@ for (int k = 0; k < nb; ++k) {
     const bool culled = det == 0.0f || det * backface > 0.0f || tiny || !(hmax > 0.0f);
     const float o = det < 0.0f ? -1.0f : 1.0f;
     int c0, c1, c2;
-    float e0x, e0y, e0z, e1x, e1y, e1z, e2x, e2y, e2z;
-    WS_CELL(abx * o, aby * o, abz * o, c0, e0x, e0y, e0z)
-    WS_CELL(bcx * o, bcy * o, bcz * o, c1, e1x, e1y, e1z)
-    WS_CELL(cax * o, cay * o, caz * o, c2, e2x, e2y, e2z)
-    int empty = 0;
-    if (mask_res > 0) {
-        WS_EMPTY
-    }
-    out[3 * k] = (culled | (empty != 0)) ? -1 : c0;
-    out[3 * k + 1] = (culled | (empty != 0)) ? -1 : c1;
-    out[3 * k + 2] = (culled | (empty != 0)) ? -1 : c2;
+    WS_CELL(abx * o, aby * o, abz * o, c0)
+    WS_CELL(bcx * o, bcy * o, bcz * o, c1)
+    WS_CELL(cax * o, cay * o, caz * o, c2)
+    out[3 * k] = culled ? -1 : c0;
+    out[3 * k + 1] = culled ? -1 : c1;
+    out[3 * k + 2] = culled ? -1 : c2;
 }
 #undef WS_CELL
-#undef WS_EMPTY
 // the kept ones moved to the front (in order, with their PVS source): no test in the AND/OR loop
 for (int k = 0; k < nb; ++k) {
     const int c0 = out[3 * k], c1 = out[3 * k + 1], c2 = out[3 * k + 2], s = psrc[k];
@@ -638,8 +569,7 @@ return done;
 @wp.func_native(_BATCH_CODES)
 def batch_codes(a: wp.array2d[wp.vec3], b: wp.array2d[wp.vec3], c: wp.array2d[wp.vec3], area: wp.array2d[float],
                 fine_flag: wp.array2d[wp.int32], src: wp.array2d[wp.int32], codes: wp.array2d[wp.vec3i],
-                refined: wp.array[wp.int32], v: int, sl: int, nb: int, frame: wp.mat33, backface: float, res: int,
-                mask_res: int) -> int:
+                refined: wp.array[wp.int32], v: int, sl: int, nb: int, frame: wp.mat33, backface: float, res: int) -> int:
     """The exact culls and :func:`triangle_codes` of the ``nb`` queued triangles of slot ``sl``: the
     tiny-image cull (:func:`image_below` with each entry's ``area``), the horizon cull, then the
     codes (the same operations in the same order as the Warp functions, so the same bits). The
@@ -738,7 +668,7 @@ def flush_batch(nb: int, v: int, sl: int, frame: wp.mat33, lut: PlaneLut, mask: 
     if bt.halt[sl] > 0:
         return 0
     done = batch_codes(bt.a, bt.b, bt.c, bt.area, bt.fine_flag, bt.src, bt.codes, bt.refined, v, sl, nb, frame,
-                       lut.backface, lut.res, lut.mask_res)
+                       lut.backface, lut.res)
     counting = bt.halt[sl] == 0
     free = or_images(lut.rows, lut.valid, bt.codes, bt.src, mask, bt.hits, v, sl, done, lut.words, bt.record)
     bt.counts[v] = bt.counts[v] + done

@@ -288,7 +288,6 @@ class HemirasterTransfer(TransferMethod):
         self._lut.chunks = self._lut.rows.shape[1]
         self._lut.res = self.lut_res
         self._lut.words = self._words
-        self._lut.mask_res = self.mask_res
         pdirs, pvalid = tables.pixel_directions(self.mask_res)
         # strictly below the lowest pixel centre (1e-4 relative: float32 rounding of the test)
         self._lut.rim = float(pdirs[pvalid, 2].min()) * (1.0 - 1e-4) if self.rim else 0.0
