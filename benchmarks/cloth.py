@@ -104,7 +104,7 @@ def run_warpshade(n: int, frames: int, repeats: int, self_collision: bool, guard
 
 SHIPPED = ("default", "cloth_sphere", "cloth_table", "flag_wind", "cape_walker")
 """The shipped usd_scenes/ with cloth."""
-HARD = ("pile", "twist", "box_edge", "cape")
+HARD = ("pile", "twist", "box_edge", "box_drop", "cape")
 """The hard contact scenes of sims/ (issue 19, item 4)."""
 OTHER_SIMS = ("drape_sphere", "flag", "table_fold")
 """The other sims/ scripts."""
@@ -381,7 +381,7 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-baselines", action="store_true", help="only time warpshade")
     ap.add_argument("--json", help="write the numbers to this file")
     ap.add_argument("--scenes", action="store_true",
-                    help="also run every shipped scene (usd_scenes/) and sims/ scene (pile, twist, box_edge, cape, ...) "
+                    help="also run every shipped scene (usd_scenes/) and sims/ scene (pile, twist, box_edge, box_drop, cape, ...) "
                          "and print their intersections, strain and speed")
     ap.add_argument("--perturb", type=int, default=0, metavar="SEEDS",
                     help="also run every scene SEEDS times with its cloth coordinates jittered by an ulp "
