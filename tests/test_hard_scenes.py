@@ -264,13 +264,19 @@ def test_cloth_table_drape_without_intersections():
     assert np.percentile(sims.model.edge_strain(x), 99) < 0.20
 
 
-def test_cloth_table_rounded_differently_stays_free_of_intersections():
-    """The same scene with its cloth coordinates moved by an ulp (seed 2): the contacts then keep
-    making an edge-edge crossing in a fold near the floor from frame 87 on. The guard used to
-    release vertices it had held for 30 steps, and the crossing stayed for the remaining 92 of 179
-    frames (seeds 2 and 3 of 0..3); it now holds them until a step frees them (here for at most
-    136 consecutive steps, 15 vertices at the end of the full run)."""
+def test_cloth_table_rounded_differently_stays_free_of_intersections(monkeypatch):
+    """The same scene with its cloth coordinates moved by an ulp (seed 2), and the table's box
+    corners left out of the corner contacts (``CORNER_ANGLE_SUM`` 180, as before branch
+    ``boxdrop``; with them this run's longest hold is 3 steps and no crossing forms): the contacts
+    then keep making an edge-edge crossing in a fold near the floor from frame 87 on. The guard
+    used to release vertices it had held for 30 steps, and the crossing stayed for the remaining
+    92 of 179 frames (seeds 2 and 3 of 0..3); it now holds them until a step frees them (here for
+    at most 136 consecutive steps, 15 vertices at the end of the full run)."""
+    from warpshade.sim import colliders
+
+    monkeypatch.setattr(colliders.sharp_corners, "__defaults__", (180.0,))
     counts, sims = _shipped_cloth_counts("cloth_table", 100, jitter_seed=2)
+    assert not sims.solver.colliders.corner_count
     _assert_free(counts, sims.solver)
     assert sims.solver.stats()["guard_longest_hold"] > 30, sims.solver.stats()
 

@@ -31,6 +31,7 @@ def _load(name):
     ("cape", 10, ("cape", "figure")),
     ("table_fold", 12, ("cloth", "table")),
     ("hammock", 9, ("cloth", "ball")),
+    ("box_drop", 9, ("cloth", "box")),
 ])
 def test_sim_script_runs_and_writes_usd(tmp_path, name, grid, meshes):
     from pxr import Usd, UsdGeom

@@ -480,15 +480,17 @@ def test_grouped_vertex_triangle_queries_find_the_same_candidates():
 
 def test_sharp_corners_of_mesh_colliders():
     """Pointed convex vertices of closed meshes are corners: a 32-sided cone's apex (its faces'
-    angles there sum to 134 degrees), a 4-sided pyramid's; not a box's corners (270), a cylinder's
-    rims, any vertex of an icosphere, a UV sphere or a capsule; none of an open sheet."""
+    angles there sum to 134 degrees), a 4-sided pyramid's 5 (apex and base corners), a box's 8
+    corners (270); not a cylinder's rims, any vertex of an icosahedron (300), an icosphere, a UV
+    sphere or a capsule; none of an open sheet."""
     from warpshade.sim.colliders import MeshCollider, sharp_corners
 
     pyramid = trimesh.Trimesh([[0, 0, 0.3], [0.1, 0.1, 0], [-0.1, 0.1, 0], [-0.1, -0.1, 0], [0.1, -0.1, 0]],
                               [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1], [1, 3, 2], [1, 4, 3]])
     assert pyramid.is_watertight and pyramid.volume > 0
-    cases = [(trimesh.creation.cone(0.12, 0.3, sections=32), 1), (pyramid, 1), (trimesh.creation.box((1, 1, 1)), 0),
-             (trimesh.creation.cylinder(0.1, 0.5, sections=24), 0), (trimesh.creation.icosphere(2), 0),
+    cases = [(trimesh.creation.cone(0.12, 0.3, sections=32), 1), (pyramid, 5), (trimesh.creation.box((1, 1, 1)), 8),
+             (trimesh.creation.cylinder(0.1, 0.5, sections=24), 0), (trimesh.creation.icosphere(0), 0),
+             (trimesh.creation.icosphere(2), 0),
              (trimesh.creation.uv_sphere(0.5, count=[16, 16]), 0), (trimesh.creation.capsule(1.0, 0.2), 0)]
     for mesh, count in cases:
         assert len(sharp_corners(mesh.vertices, mesh.faces)[0]) == count

@@ -37,13 +37,14 @@ def _friction(value) -> float:
     return v
 
 
-CORNER_ANGLE_SUM = 180.0
+CORNER_ANGLE_SUM = 290.0
 """[degrees] A closed mesh collider's convex vertex is a corner (a point the corner contacts hold)
 when the angles of its faces there sum to less than this: a pointed tip such as a cone's apex (a
-32-sided cone of half angle 22 degrees: 134), not a box's corner (270) nor a vertex on a sharp edge
-or a cylinder's rim (345-360), which the vertex and edge passes hold. Counting a table's box
-corners too made ``usd_scenes/cloth_table`` worse (guard steps 14 -> 97, p99 strain 12.9 -> 17 %,
-+40 % time), the cloth draped in folds over them."""
+32-sided cone of half angle 22 degrees: 134) and a box's corner (270), not a vertex on a sharp
+edge or a cylinder's rim (345-360) nor an icosahedron's (300), which the vertex and edge passes
+hold. Without the box corners (the limit was 180), the corner of a mesh box poked through the
+interior of a cloth triangle draped over it, which no vertex or edge contact pushes off, and the
+intersection guard sent that triangle's vertices back every step for ever (docs/benchmarks/history.md)."""
 
 
 def sharp_corners(points: np.ndarray, faces: np.ndarray, max_angle_sum: float = CORNER_ANGLE_SUM) -> tuple:

@@ -584,14 +584,10 @@ def _physics_collider_shape(prim, tri, where) -> tuple[str, dict]:
     if prim.IsA(UsdGeom.Sphere):
         return "sphere", {}
     if prim.IsA(UsdGeom.Cube):
-        from scipy.spatial.transform import Rotation
-
-        xf = _world(prim)
-        lin = xf[:3, :3]
-        scale = np.linalg.norm(lin, axis=0)
-        half = 0.5 * float(UsdGeom.Cube(prim).GetSizeAttr().Get()) * scale
-        quat = Rotation.from_matrix(lin / scale).as_quat()  # (x, y, z, w)
-        return "box", {"box": {"center": xf[:3, 3].copy(), "half_extents": half, "rotation": quat}}
+        shape = _box_collider(prim, where)
+        if shape is not None:
+            return "box", shape
+        return "mesh", {}
     if prim.GetTypeName() in ("Capsule", "Cylinder", "Cone"):
         shape = _axial_collider(prim, where)
         if shape is not None:
@@ -602,6 +598,25 @@ def _physics_collider_shape(prim, tri, where) -> tuple[str, dict]:
     if size > 0 and float(np.ptp(pts[:, up])) <= 1e-6 * size:
         return "ground", {}
     return "mesh", {}
+
+
+def _box_collider(prim, where) -> dict | None:
+    """The exact oriented box of a Cube gprim in world space (``{"box": {"center", "half_extents",
+    "rotation" (x, y, z, w)}}``), or None (with a :class:`SceneWarning` naming the prim) when its
+    world transform shears or is singular, so that the tessellated mesh is used instead."""
+    from scipy.spatial.transform import Rotation
+
+    xf = _world(prim)
+    lin = xf[:3, :3]
+    scale = np.linalg.norm(lin, axis=0)
+    unit = lin / np.where(scale > 0, scale, 1.0)
+    if not (scale > 0).all() or np.abs(unit.T @ unit - np.eye(3)).max() > 1e-6:
+        warnings.warn(f"{where}: Cube collider is not exact because its world transform shears or is singular; "
+                      "colliding with its tessellated mesh instead", SceneWarning, stacklevel=5)
+        return None
+    half = 0.5 * float(UsdGeom.Cube(prim).GetSizeAttr().Get()) * scale
+    quat = Rotation.from_matrix(unit).as_quat()  # (x, y, z, w)
+    return {"box": {"center": xf[:3, 3].copy(), "half_extents": half, "rotation": quat}}
 
 
 _AXES = {"X": 0, "Y": 1, "Z": 2}
@@ -662,6 +677,11 @@ def _object(prim, where, tri, kind, settings, params, default_method, material) 
         shape = _axial_collider(prim, where)
         if shape is not None:
             params.update(shape[1])
+    elif kind == "static" and settings.get("collider") == "box" and prim.IsA(UsdGeom.Cube):
+        # a Cube marked "box": its exact oriented box, as under PhysicsCollisionAPI (else the mesh)
+        shape = _box_collider(prim, where)
+        if shape is not None:
+            params.update(shape)
     knobs = {k[len("knobs:"):]: v for k, v in settings.items() if k.startswith("knobs:")}
     for k in [k for k in knobs if k.endswith(("_dir", "_path", "_file"))]:
         # nothing read from a scene chooses where files are written
