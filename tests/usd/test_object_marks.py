@@ -11,7 +11,7 @@ from pxr import Sdf, Usd, UsdGeom
 
 from helpers import REPO
 from warpshade.cli import main
-from warpshade.scene import SceneError
+from warpshade.scene import SceneError, SceneWarning
 from warpshade.usd import read_scene
 
 BLENDER = os.path.join(REPO, "tests", "data", "blender", "cloth_on_box.usda")
@@ -110,3 +110,60 @@ def test_a_vertex_list_above_one_mesh_is_its_own(tmp_path):
     path = _stage(tmp_path, "Sheet", {"warpshade:kind": (Sdf.ValueTypeNames.Token, "cloth"),
                                       "warpshade:pinned": (Sdf.ValueTypeNames.IntArray, [1, 2])})
     assert read_scene(path).object("/World/Group/Sheet/Mesh").params["pinned"].tolist() == [1, 2]
+
+
+def test_blender_cube_marked_box_collides_as_its_exact_box():
+    """Blender's cube is an 8-vertex Mesh; marked ``box`` it collides as the box it is."""
+    box = read_scene(BLENDER).object("/root/Box/Cube").params["box"]
+    np.testing.assert_allclose(box["center"], [0, 0, 0.5], atol=1e-6)
+    np.testing.assert_allclose(box["half_extents"], [0.5, 0.5, 0.5], atol=1e-6)
+    np.testing.assert_allclose(np.abs(box["rotation"]), [0, 0, 0, 1], atol=1e-6)
+
+
+def _mesh_marked_box(tmp_path, mesh):
+    stage = Usd.Stage.CreateNew(str(tmp_path / "box.usda"))
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/World").GetPrim())
+    m = UsdGeom.Mesh.Define(stage, "/World/Box")
+    m.CreatePointsAttr(np.asarray(mesh.vertices, dtype=np.float32))
+    m.CreateFaceVertexCountsAttr([3] * len(mesh.faces))
+    m.CreateFaceVertexIndicesAttr(np.asarray(mesh.faces, dtype=np.int32).reshape(-1))
+    m.GetPrim().CreateAttribute("warpshade:collider", Sdf.ValueTypeNames.Token, custom=True).Set("box")
+    stage.GetRootLayer().Save()
+    return str(tmp_path / "box.usda")
+
+
+def test_a_mesh_marked_box_is_the_box_it_spans(tmp_path):
+    """A rotated, moved, subdivided box mesh: its exact box (centre, half extents, rotation), to float32's
+    rounding of the written points (1e-6 of a 2 m box)."""
+    import trimesh
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.from_euler("xyz", [20, -35, 70], degrees=True)
+    xf = np.eye(4)
+    xf[:3, :3], xf[:3, 3] = rot.as_matrix(), [0.3, -1.0, 2.0]
+    mesh = trimesh.creation.box(extents=[2.0, 0.5, 1.0], transform=xf).subdivide()
+    box = read_scene(_mesh_marked_box(tmp_path, mesh)).object("/World/Box").params["box"]
+    np.testing.assert_allclose(box["center"], [0.3, -1.0, 2.0], atol=2e-6)
+    got = Rotation.from_quat(box["rotation"]).as_matrix() * box["half_extents"]  # columns: half edges
+    want = rot.as_matrix() * [1.0, 0.25, 0.5]
+    # the same three half edges, each up to sign and order (a box's symmetries)
+    for col in want.T:
+        assert min(min(np.linalg.norm(g - col), np.linalg.norm(g + col)) for g in got.T) < 2e-6
+
+
+@pytest.mark.parametrize("shape", ["open crate", "two boxes in an L"])
+def test_a_mesh_marked_box_that_is_not_one_warns_and_stays_a_mesh(tmp_path, shape):
+    """Neither is a box, though every face is along the same three axes: the crate lacks its lid; the L
+    (a 2 x 1 x 1 block and a cube on one end, their meshes together) has faces inside its bounds and,
+    with the two faces where they meet, exactly its bounding box's surface area."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=[1.0, 1.0, 1.0])
+    if shape == "open crate":
+        mesh = trimesh.Trimesh(box.vertices, box.faces[box.face_normals[:, 2] < 0.5], process=False)
+    else:
+        mesh = trimesh.util.concatenate([trimesh.creation.box(extents=[2.0, 1.0, 1.0]),
+                                         box.copy().apply_translation([0.5, 0.0, 1.0])])
+    with pytest.warns(SceneWarning, match="/World/Box: warpshade:collider 'box' on a Mesh that is not a box"):
+        obj = read_scene(_mesh_marked_box(tmp_path, mesh)).object("/World/Box")
+    assert "box" not in obj.params and obj.params["collider"] == "box"

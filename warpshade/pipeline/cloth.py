@@ -34,7 +34,7 @@ class ClothSimulation:
 
     Colliders (``warpshade:collider``): ``ground`` -> a plane at the mesh's mean height facing up;
     ``sphere`` -> the analytic sphere of a Sphere prim (moved frame by frame when its transform is
-    time-sampled and keeps it a sphere of one radius; else its tessellated mesh); ``box`` -> the oriented box of a Cube prim
+    time-sampled and keeps it a sphere of one radius; else its tessellated mesh); ``box`` -> the oriented box of a Cube prim, or of a static Mesh that is a box
     (UsdPhysics PhysicsCollisionAPI on a Cube); ``capsule``, ``cylinder``, ``cone`` -> the exact
     analytic solid of a Capsule, Cylinder or Cone prim (the tessellated mesh when its transform
     does not keep the shape exact); ``mesh`` -> the triangle mesh, which may

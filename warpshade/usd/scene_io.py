@@ -619,6 +619,51 @@ def _box_collider(prim, where) -> dict | None:
     return {"box": {"center": xf[:3, 3].copy(), "half_extents": half, "rotation": quat}}
 
 
+MESH_BOX_TOL = 1.0e-5
+"""Relative tolerance (of the box's largest extent, or of its area) within which a Mesh marked ``box`` is taken
+as the box it looks like: float32 points written by a DCC are ~1e-7 off their box."""
+
+
+def _mesh_box(tri: TriMesh) -> dict | None:
+    """The oriented box a Mesh marked ``warpshade:collider = "box"`` is, in world space (as
+    :func:`_box_collider`), or None when it is not one: every face's normal along one of three
+    orthogonal axes, every face in a face of the box its points span along them, and the faces' area
+    that box's surface area (so a subdivided cube is a box, an open crate or two boxes in an L are
+    not)."""
+    from scipy.spatial.transform import Rotation
+
+    pts, faces = tri.points.astype(np.float64), tri.faces
+    cross = np.cross(pts[faces[:, 1]] - pts[faces[:, 0]], pts[faces[:, 2]] - pts[faces[:, 0]])
+    area2 = np.linalg.norm(cross, axis=1)
+    if len(faces) < 12 or not (area2 > 0).all():
+        return None
+    normals = cross / area2[:, None]
+    first = normals[0]
+    other = normals[np.abs(normals @ first) < 0.5]
+    if not len(other):
+        return None
+    second = other[0] - (other[0] @ first) * first
+    second /= np.linalg.norm(second)
+    first, second = (a if a[np.argmax(np.abs(a))] > 0 else -a for a in (first, second))  # nearest the world's axes
+    axes = np.stack([first, second, np.cross(first, second)], axis=1)  # columns: a rotation
+    if (1.0 - np.abs(normals @ axes).max(axis=1)).max() > MESH_BOX_TOL:
+        return None
+    local = pts @ axes
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    extent = hi - lo
+    tol = MESH_BOX_TOL * float(extent.max())
+    if not (extent > tol).all():
+        return None
+    on_face = (np.abs(local - lo) <= tol) | (np.abs(local - hi) <= tol)  # (V, 3): on the box's faces across axis k
+    across = np.argmax(np.abs(normals @ axes), axis=1)  # the axis each face is across
+    box_area = 2.0 * (extent[0] * extent[1] + extent[1] * extent[2] + extent[0] * extent[2])
+    if (not on_face[faces, across[:, None]].all()
+            or abs(0.5 * float(area2.sum()) - box_area) > MESH_BOX_TOL * box_area):
+        return None
+    return {"box": {"center": axes @ (0.5 * (lo + hi)), "half_extents": 0.5 * extent,
+                    "rotation": Rotation.from_matrix(axes).as_quat()}}
+
+
 _AXES = {"X": 0, "Y": 1, "Z": 2}
 
 
@@ -681,6 +726,14 @@ def _object(prim, where, tri, kind, settings, params, default_method, material) 
         # a Cube marked "box": its exact oriented box, as under PhysicsCollisionAPI (else the mesh)
         shape = _box_collider(prim, where)
         if shape is not None:
+            params.update(shape)
+    elif kind == "static" and settings.get("collider") == "box" and prim.IsA(UsdGeom.Mesh):
+        # a DCC's cube is a Mesh (Blender's 8 vertices): its exact box when it is one (else the mesh)
+        shape = _mesh_box(tri)
+        if shape is None:
+            warnings.warn(f"{where}: warpshade:collider 'box' on a Mesh that is not a box (its faces are not the six "
+                          "faces of one rectangular box); colliding with the mesh itself", SceneWarning, stacklevel=3)
+        else:
             params.update(shape)
     knobs = {k[len("knobs:"):]: v for k, v in settings.items() if k.startswith("knobs:")}
     for k in [k for k in knobs if k.endswith(("_dir", "_path", "_file"))]:
