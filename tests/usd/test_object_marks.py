@@ -1,5 +1,6 @@
 """``warpshade:`` marks authored on the prims above a mesh or gprim (a DCC's transform over its shape,
-a group holding several meshes), and a scene written by Blender's own USD exporter."""
+a group holding several meshes), a scene written by Blender's own USD exporter, and the colliders a
+Mesh marked ``box`` or with UsdPhysics' collision approximations becomes."""
 
 from __future__ import annotations
 
@@ -167,3 +168,71 @@ def test_a_mesh_marked_box_that_is_not_one_warns_and_stays_a_mesh(tmp_path, shap
     with pytest.warns(SceneWarning, match="/World/Box: warpshade:collider 'box' on a Mesh that is not a box"):
         obj = read_scene(_mesh_marked_box(tmp_path, mesh)).object("/World/Box")
     assert "box" not in obj.params and obj.params["collider"] == "box"
+
+
+def _physics_mesh(tmp_path, mesh, approximation=None, scale=(1.0, 1.0, 1.0)):
+    """A PhysicsCollisionAPI Mesh under an Xform rotated 30 degrees about Z, moved and scaled by ``scale``."""
+    from pxr import Gf, UsdPhysics
+
+    stage = Usd.Stage.CreateNew(str(tmp_path / "physics.usda"))
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/World").GetPrim())
+    holder = UsdGeom.Xform.Define(stage, "/World/Holder")
+    holder.AddTranslateOp().Set(Gf.Vec3d(1.0, 2.0, 3.0))
+    holder.AddRotateZOp().Set(30.0)
+    holder.AddScaleOp().Set(Gf.Vec3f(*scale))
+    m = UsdGeom.Mesh.Define(stage, "/World/Holder/Rock")
+    m.CreatePointsAttr(np.asarray(mesh.vertices, dtype=np.float32))
+    m.CreateFaceVertexCountsAttr([3] * len(mesh.faces))
+    m.CreateFaceVertexIndicesAttr(np.asarray(mesh.faces, dtype=np.int32).reshape(-1))
+    UsdPhysics.CollisionAPI.Apply(m.GetPrim())
+    if approximation is not None:
+        UsdPhysics.MeshCollisionAPI.Apply(m.GetPrim()).CreateApproximationAttr(approximation)
+    stage.GetRootLayer().Save()
+    return str(tmp_path / "physics.usda")
+
+
+def _rock():
+    """A convex, irregular rock: the hull of 40 seeded points in a 0.6 x 0.4 x 0.2 box about (0.1, 0, 0)."""
+    import trimesh
+
+    pts = np.random.default_rng(7).uniform(-1.0, 1.0, (40, 3)) * [0.3, 0.2, 0.1] + [0.1, 0.0, 0.0]
+    return trimesh.convex.convex_hull(pts)
+
+
+def test_physics_bounding_cube_is_the_box_of_its_local_bounds(tmp_path):
+    from scipy.spatial.transform import Rotation
+
+    rock = _rock()
+    obj = read_scene(_physics_mesh(tmp_path, rock, "boundingCube", (2.0, 1.0, 1.0))).object("/World/Holder/Rock")
+    assert obj.params["collider"] == "box"
+    lo, hi = rock.vertices.min(axis=0), rock.vertices.max(axis=0)
+    rot = Rotation.from_euler("z", 30, degrees=True)
+    box = obj.params["box"]
+    # float32 points: bounds to ~1e-7 of the rock's 0.6 m
+    np.testing.assert_allclose(box["half_extents"], 0.5 * (hi - lo) * [2.0, 1.0, 1.0], atol=1e-6)
+    np.testing.assert_allclose(box["center"], rot.apply(0.5 * (lo + hi) * [2.0, 1.0, 1.0]) + [1.0, 2.0, 3.0], atol=1e-6)
+    np.testing.assert_allclose(Rotation.from_quat(box["rotation"]).as_matrix(), rot.as_matrix(), atol=1e-6)
+
+
+def test_physics_bounding_sphere_holds_every_point(tmp_path):
+    rock = _rock()
+    obj = read_scene(_physics_mesh(tmp_path, rock, "boundingSphere", (1.5, 1.5, 1.5))).object("/World/Holder/Rock")
+    assert obj.params["collider"] == "sphere"
+    sphere = obj.params["sphere"]
+    dist = np.linalg.norm(obj.mesh.points - sphere["center"], axis=1)
+    assert dist.max() <= sphere["radius"] * (1 + 1e-6) and dist.max() >= sphere["radius"] * (1 - 1e-6)
+    with pytest.warns(SceneWarning, match="Rock: physics:approximation boundingSphere is not exact because"):
+        obj = read_scene(_physics_mesh(tmp_path, rock, "boundingSphere", (2.0, 1.0, 1.0))).object("/World/Holder/Rock")
+    assert obj.params["collider"] == "mesh" and "sphere" not in obj.params
+
+
+@pytest.mark.parametrize("approximation", [None, "convexHull"])
+def test_physics_mesh_collides_as_itself_or_as_the_box_it_is(tmp_path, approximation):
+    import trimesh
+
+    rock = read_scene(_physics_mesh(tmp_path, _rock(), approximation)).object("/World/Holder/Rock")
+    assert rock.params["collider"] == "mesh" and "box" not in rock.params
+    box = trimesh.creation.box(extents=[1.0, 0.5, 0.25])
+    obj = read_scene(_physics_mesh(tmp_path, box, approximation)).object("/World/Holder/Rock")
+    assert obj.params["collider"] == "box"
+    np.testing.assert_allclose(np.sort(obj.params["box"]["half_extents"]), [0.125, 0.25, 0.5], atol=1e-6)

@@ -579,8 +579,10 @@ def _physics_collider(prim) -> bool:
 def _physics_collider_shape(prim, tri, where) -> tuple[str, dict]:
     """The ``warpshade:collider`` kind (and its exact shape) for a PhysicsCollisionAPI prim: the
     analytic sphere of a Sphere, the oriented box of a Cube, the analytic capsule, cylinder or cone
-    of a Capsule, Cylinder or Cone (see :func:`_axial_collider`), a ground plane for a flat
-    horizontal mesh or Plane (its mean height), else the triangle mesh itself."""
+    of a Capsule, Cylinder or Cone (see :func:`_axial_collider`); for a Mesh, the box or sphere its
+    ``physics:approximation`` asks for (:func:`_approximated_collider`), or its exact box when it is
+    one (:func:`_mesh_box`); a ground plane for a flat horizontal mesh or Plane (its mean height),
+    else the triangle mesh itself."""
     if prim.IsA(UsdGeom.Sphere):
         return "sphere", {}
     if prim.IsA(UsdGeom.Cube):
@@ -592,6 +594,13 @@ def _physics_collider_shape(prim, tri, where) -> tuple[str, dict]:
         shape = _axial_collider(prim, where)
         if shape is not None:
             return shape
+    if prim.IsA(UsdGeom.Mesh):
+        shape = _approximated_collider(prim, tri, where)
+        if shape is not None:
+            return shape
+        box = _mesh_box(tri)
+        if box is not None:
+            return "box", box
     up = 1 if str(UsdGeom.GetStageUpAxis(prim.GetStage())) == "Y" else 2
     pts = tri.points
     size = float(np.ptp(pts, axis=0).max())
@@ -604,19 +613,58 @@ def _box_collider(prim, where) -> dict | None:
     """The exact oriented box of a Cube gprim in world space (``{"box": {"center", "half_extents",
     "rotation" (x, y, z, w)}}``), or None (with a :class:`SceneWarning` naming the prim) when its
     world transform shears or is singular, so that the tessellated mesh is used instead."""
+    half = 0.5 * float(UsdGeom.Cube(prim).GetSizeAttr().Get())
+    return _local_box(_world(prim), np.full(3, -half), np.full(3, half), f"{where}: Cube collider",
+                      "its tessellated mesh")
+
+
+def _local_box(xf: np.ndarray, lo: np.ndarray, hi: np.ndarray, what: str, instead: str) -> dict | None:
+    """The box ``lo``..``hi`` of a prim's local space under its world transform ``xf`` as an oriented box
+    (as :func:`_box_collider`), or None with a :class:`SceneWarning` (``what`` ... ``instead``) when the
+    transform shears or is singular."""
     from scipy.spatial.transform import Rotation
 
-    xf = _world(prim)
     lin = xf[:3, :3]
     scale = np.linalg.norm(lin, axis=0)
     unit = lin / np.where(scale > 0, scale, 1.0)
     if not (scale > 0).all() or np.abs(unit.T @ unit - np.eye(3)).max() > 1e-6:
-        warnings.warn(f"{where}: Cube collider is not exact because its world transform shears or is singular; "
-                      "colliding with its tessellated mesh instead", SceneWarning, stacklevel=5)
+        warnings.warn(f"{what} is not exact because its world transform shears or is singular; colliding with "
+                      f"{instead} instead", SceneWarning, stacklevel=6)
         return None
-    half = 0.5 * float(UsdGeom.Cube(prim).GetSizeAttr().Get()) * scale
     quat = Rotation.from_matrix(unit).as_quat()  # (x, y, z, w)
-    return {"box": {"center": xf[:3, 3].copy(), "half_extents": half, "rotation": quat}}
+    return {"box": {"center": _apply(xf, 0.5 * (lo + hi)[None])[0], "half_extents": 0.5 * (hi - lo) * scale,
+                    "rotation": quat}}
+
+
+def _approximated_collider(prim, tri, where) -> tuple[str, dict] | None:
+    """A PhysicsCollisionAPI Mesh's ``physics:approximation`` (UsdPhysics' MeshCollisionAPI) as an analytic
+    collider: ``boundingCube``, the box of its points' bounds in its local space under its world transform;
+    ``boundingSphere``, the sphere about their local bounds' centre through the farthest point (under a
+    uniform world scale). None for the other approximations (``none``, ``convexHull``,
+    ``convexDecomposition``, ``meshSimplification``: the mesh itself collides) or when the transform does
+    not keep the shape (a :class:`SceneWarning` says so)."""
+    if not prim.HasAPI(UsdPhysics.MeshCollisionAPI):
+        return None
+    approx = str(UsdPhysics.MeshCollisionAPI(prim).GetApproximationAttr().Get() or "none")
+    if approx not in ("boundingCube", "boundingSphere"):
+        return None
+    xf = _world(prim)
+    local = UsdGeom.Mesh(prim).GetPointsAttr().Get(Usd.TimeCode.EarliestTime())
+    local = np.asarray(local, dtype=np.float64).reshape(-1, 3)
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    what, instead = f"{where}: physics:approximation {approx}", "the mesh itself"
+    if approx == "boundingCube":
+        shape = _local_box(xf, lo, hi, what, instead)
+        return None if shape is None else ("box", shape)
+    scale = np.linalg.norm(xf[:3, :3], axis=0)
+    unit = xf[:3, :3] / np.where(scale > 0, scale, 1.0)
+    if not (scale > 0).all() or np.abs(unit.T @ unit - np.eye(3)).max() > 1e-6 or np.ptp(scale) > 1e-6 * scale.max():
+        warnings.warn(f"{what} is not exact because its world scale is not uniform; colliding with {instead} "
+                      "instead", SceneWarning, stacklevel=5)
+        return None
+    centre = 0.5 * (lo + hi)
+    radius = float(np.linalg.norm(local - centre, axis=1).max()) * float(scale[0])
+    return "sphere", {"sphere": {"center": _apply(xf, centre[None])[0], "radius": radius}}
 
 
 MESH_BOX_TOL = 1.0e-5
