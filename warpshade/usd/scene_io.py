@@ -595,7 +595,7 @@ def _physics_collider_shape(prim, tri, where) -> tuple[str, dict]:
         if shape is not None:
             return shape
     if prim.IsA(UsdGeom.Mesh):
-        shape = _approximated_collider(prim, tri, where)
+        shape = _approximated_collider(prim, where)
         if shape is not None:
             return shape
         box = _mesh_box(tri)
@@ -618,25 +618,35 @@ def _box_collider(prim, where) -> dict | None:
                       "its tessellated mesh")
 
 
+def _rotation_and_scale(xf: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """A world transform's linear part as a rotation (its columns' directions) and a scale along its local
+    axes, or None when it shears or is singular (its columns not orthogonal to 1e-6)."""
+    lin = xf[:3, :3]
+    scale = np.linalg.norm(lin, axis=0)
+    unit = lin / np.where(scale > 0, scale, 1.0)
+    if not (scale > 0).all() or np.abs(unit.T @ unit - np.eye(3)).max() > 1e-6:
+        return None
+    return unit, scale
+
+
 def _local_box(xf: np.ndarray, lo: np.ndarray, hi: np.ndarray, what: str, instead: str) -> dict | None:
     """The box ``lo``..``hi`` of a prim's local space under its world transform ``xf`` as an oriented box
     (as :func:`_box_collider`), or None with a :class:`SceneWarning` (``what`` ... ``instead``) when the
     transform shears or is singular."""
     from scipy.spatial.transform import Rotation
 
-    lin = xf[:3, :3]
-    scale = np.linalg.norm(lin, axis=0)
-    unit = lin / np.where(scale > 0, scale, 1.0)
-    if not (scale > 0).all() or np.abs(unit.T @ unit - np.eye(3)).max() > 1e-6:
+    split = _rotation_and_scale(xf)
+    if split is None:
         warnings.warn(f"{what} is not exact because its world transform shears or is singular; colliding with "
                       f"{instead} instead", SceneWarning, stacklevel=6)
         return None
+    unit, scale = split
     quat = Rotation.from_matrix(unit).as_quat()  # (x, y, z, w)
     return {"box": {"center": _apply(xf, 0.5 * (lo + hi)[None])[0], "half_extents": 0.5 * (hi - lo) * scale,
                     "rotation": quat}}
 
 
-def _approximated_collider(prim, tri, where) -> tuple[str, dict] | None:
+def _approximated_collider(prim, where) -> tuple[str, dict] | None:
     """A PhysicsCollisionAPI Mesh's ``physics:approximation`` (UsdPhysics' MeshCollisionAPI) as an analytic
     collider: ``boundingCube``, the box of its points' bounds in its local space under its world transform;
     ``boundingSphere``, the sphere about their local bounds' centre through the farthest point (under a
@@ -656,15 +666,13 @@ def _approximated_collider(prim, tri, where) -> tuple[str, dict] | None:
     if approx == "boundingCube":
         shape = _local_box(xf, lo, hi, what, instead)
         return None if shape is None else ("box", shape)
-    scale = np.linalg.norm(xf[:3, :3], axis=0)
-    unit = xf[:3, :3] / np.where(scale > 0, scale, 1.0)
-    if not (scale > 0).all() or np.abs(unit.T @ unit - np.eye(3)).max() > 1e-6 or np.ptp(scale) > 1e-6 * scale.max():
+    centre = 0.5 * (lo + hi)
+    sphere = _sphere_of(xf, float(np.linalg.norm(local - centre, axis=1).max()))
+    if sphere is None:
         warnings.warn(f"{what} is not exact because its world scale is not uniform; colliding with {instead} "
                       "instead", SceneWarning, stacklevel=5)
         return None
-    centre = 0.5 * (lo + hi)
-    radius = float(np.linalg.norm(local - centre, axis=1).max()) * float(scale[0])
-    return "sphere", {"sphere": {"center": _apply(xf, centre[None])[0], "radius": radius}}
+    return "sphere", {"sphere": {"center": _apply(xf, centre[None])[0], "radius": sphere["radius"]}}
 
 
 MESH_BOX_TOL = 1.0e-5
