@@ -151,8 +151,9 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         if prim.HasRelationship(BACK_SIDE_OF):
             continue  # the back side of a two-sided warpshade output: the front carries warpshade:twoSided
         if prim.IsA(UsdGeom.Mesh):
-            scene.objects.append(_read_mesh(prim, source, cache, default_method))
-            if "kind" not in _object_namespace(prim, source):
+            marks = _object_namespace(prim, source)
+            scene.objects.append(_read_mesh(prim, source, cache, default_method, marks))
+            if "kind" not in marks:
                 unmarked.append(scene.objects[-1])
         elif prim.IsA(UsdGeom.Sphere) or tname in _GPRIMS:
             gprims.append(_Gprim(prim, source, default_method, scene.objects, len(scene.objects)))
@@ -247,7 +248,8 @@ def _hierarchy(prim) -> tuple:
     return tuple(reversed(chain))
 
 
-def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> SceneObject:
+def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method, marks: dict | None = None) -> SceneObject:
+    """A Mesh prim's object; ``marks``: its :func:`_object_namespace` when the caller has it."""
     where = f"{source}:{prim.GetPath()}"
     mesh = UsdGeom.Mesh(prim)
     counts = mesh.GetFaceVertexCountsAttr().Get()
@@ -264,7 +266,7 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> Scene
     except MeshError as exc:
         raise SceneError(str(exc)) from None
     local = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
-    settings = _object_namespace(prim, source)
+    settings = dict(marks) if marks is not None else _object_namespace(prim, source)
     skinning = UsdSkel.BindingAPI(prim) if prim.HasAPI(UsdSkel.BindingAPI) else None
     kind = settings.pop("kind", None)
     if kind is None:
@@ -301,9 +303,10 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method) -> Scene
     return _object(prim, where, tri, kind, settings, params, default_method, _material(prim, where))
 
 
-def _read_sphere(prim, source: str, default_method, edge: float) -> SceneObject:
+def _read_sphere(prim, source: str, default_method, edge: float, marks: dict) -> SceneObject:
+    """A Sphere gprim's object, tessellated for ``edge``; ``marks``: its :func:`_object_namespace`."""
     where = f"{source}:{prim.GetPath()}"
-    settings = _object_namespace(prim, source)
+    settings = dict(marks)
     settings.pop("edgeLength", None)  # in ``edge`` already (_gprim_edge)
     settings.pop("graded", None)  # a Sphere is not graded (GRADED_KINDS)
     radius = float(UsdGeom.Sphere(prim).GetRadiusAttr().Get())
@@ -380,7 +383,8 @@ _DIMS = {"Sphere": ("radius",), "Cube": ("size",), "Cylinder": ("radius", "heigh
 class _Gprim:
     """A gprim met in the traversal, read once the stage's size is known: where its object goes
     (``target[index]``), its shape for the tessellation rule (``kind``, ``dims``, ``scale``: world length
-    of a unit along each local axis of the shape built along +Z) and its own ``warpshade:edgeLength``."""
+    of a unit along each local axis of the shape built along +Z), its own ``warpshade:edgeLength`` and its
+    ``warpshade:`` marks (``marks``, :func:`_object_namespace`)."""
 
     def __init__(self, prim, source: str, default_method, target: list, index: int):
         self.prim, self.source, self.default_method, self.target, self.index = prim, source, default_method, target, index
@@ -397,10 +401,10 @@ class _Gprim:
             raise SceneError(f"{where}: {tname} axis must be X, Y or Z, got {self.axis!r}")
         self.kind = tname.lower()
         self.scale = np.linalg.norm(_world(prim)[:3, :3] @ AXIS_FROM_Z[self.axis], axis=0)
-        settings = _object_namespace(prim, source)
-        self.edge = _edge_length(settings["edgeLength"], where) if "edgeLength" in settings else None
-        self.own = self.edge is not None or "subdivisions" in settings  # not the scene's edge
-        self.graded = _graded_flag(settings["graded"], where) if "graded" in settings else None
+        self.marks = marks = _object_namespace(prim, source)
+        self.edge = _edge_length(marks["edgeLength"], where) if "edgeLength" in marks else None
+        self.own = self.edge is not None or "subdivisions" in marks  # not the scene's edge
+        self.graded = _graded_flag(marks["graded"], where) if "graded" in marks else None
         self.grading = None  # set by _read_gprims when graded
 
     def to_world(self, t=Usd.TimeCode.EarliestTime()) -> np.ndarray:
@@ -420,9 +424,9 @@ class _Gprim:
         """Tessellate for ``edge`` (its own ``warpshade:edgeLength`` if authored) and put the object in place."""
         edge = self.edge or edge
         if self.kind == "sphere":
-            obj = _read_sphere(self.prim, self.source, self.default_method, edge)
+            obj = _read_sphere(self.prim, self.source, self.default_method, edge, self.marks)
         else:
-            obj = _read_gprim(self.prim, self.source, self.default_method, self._mesh(edge))
+            obj = _read_gprim(self.prim, self.source, self.default_method, self._mesh(edge), self.marks)
         self.target[self.index] = obj
 
     def _mesh(self, edge: float):
@@ -553,11 +557,11 @@ def _read_gprims(scene: Scene, gprims: list, root) -> None:
                                if o is not None and o.kind == "static" and o.params.get("collider")]
 
 
-def _read_gprim(prim, source: str, default_method, mesh) -> SceneObject:
+def _read_gprim(prim, source: str, default_method, mesh, marks: dict) -> SceneObject:
     """A Cube/Cylinder/Capsule/Cone/Plane gprim's object, ``mesh`` = its tessellation in its local
-    frame ``(vertices (V, 3), triangles (F, 3))``."""
+    frame ``(vertices (V, 3), triangles (F, 3))``, ``marks`` its :func:`_object_namespace`."""
     where = f"{source}:{prim.GetPath()}"
-    settings = _object_namespace(prim, source)
+    settings = dict(marks)
     settings.pop("edgeLength", None)  # in ``mesh`` already
     settings.pop("graded", None)
     verts, faces = mesh
