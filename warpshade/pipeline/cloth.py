@@ -29,6 +29,22 @@ three times its rest length, beyond anything a cloth takes (the worst edge of th
 warns once per cloth that passes it."""
 
 
+def _attach_target(scene: Scene, cloth: str, path: str):
+    """The object ``warpshade:attachTarget`` names: a relationship or a string (Blender writes strings), to the
+    mesh or to a prim above exactly one mesh of the scene (the transform a DCC writes over its mesh)."""
+    try:
+        return scene.object(path)
+    except KeyError:
+        pass
+    under = [o for o in scene.objects if o.name.startswith(path.rstrip("/") + "/")]
+    if len(under) == 1:
+        return under[0]
+    if under:
+        raise SceneError(f"{cloth}: warpshade:attachTarget '{path}' holds {len(under)} meshes "
+                         f"({', '.join(o.name for o in under[:3])}{', ...' if len(under) > 3 else ''}): name one of them")
+    raise SceneError(f"{cloth}: warpshade:attachTarget '{path}' is not a mesh of the scene nor a prim above one")
+
+
 class ClothSimulation:
     """Every cloth object of a scene in one :mod:`warpshade.sim` model, with the scene's colliders.
 
@@ -164,10 +180,7 @@ class ClothSimulation:
         target_name = obj.params.get("attachTarget")
         if target_name is None:
             raise SceneError(f"{obj.name}: warpshade:attached needs warpshade:attachTarget (a moving object)")
-        try:
-            target = scene.object(str(target_name))
-        except KeyError:
-            raise SceneError(f"{obj.name}: warpshade:attachTarget '{target_name}' is not a mesh of the scene") from None
+        target = _attach_target(scene, obj.name, str(target_name))
         verts = np.asarray(obj.params["attached"], dtype=np.int64).reshape(-1)
         if len(verts) and (verts.min() < 0 or verts.max() >= obj.mesh.num_vertices):
             raise SceneError(f"{obj.name}: warpshade:attached vertex out of range 0..{obj.mesh.num_vertices - 1}")

@@ -294,13 +294,62 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method, marks: d
     for k in [k for k in settings if k.startswith("cloth:")]:
         settings.pop(k)
     for key in ("pinned", "attached"):
-        if key in settings:
-            vs = np.asarray(settings.pop(key), dtype=np.int64).reshape(-1)
-            bad = vs[(vs < 0) | (vs >= tri.num_vertices)]
-            if len(bad):
-                raise SceneError(f"{where}: warpshade:{key} vertex {int(bad[0])} out of range 0..{tri.num_vertices - 1}")
-            params[key] = vs.astype(np.int32)
+        vs = _vertex_selection(prim, where, key, settings.pop(key, None), tri.num_vertices)
+        if vs is not None:
+            params[key] = vs
     return _object(prim, where, tri, kind, settings, params, default_method, _material(prim, where))
+
+
+VERTEX_SELECTION_PRIMVARS = ("warpshade:{}", "warpshade_{}")
+"""Names of the per-vertex primvars that select a mesh's ``pinned`` or ``attached`` vertices (``{}``): the
+namespaced one, and the one DCCs write when an attribute name may not hold a colon (Blender exports a vertex
+group or a point attribute named ``warpshade:pinned`` as ``primvars:warpshade_pinned``; Houdini's point
+attributes have no colons either)."""
+
+VERTEX_SELECTED = 0.5
+"""A per-vertex selection primvar selects the vertices whose value is at least this: 1 or true, a full vertex
+group weight; 0, false and weights below one half leave a vertex out."""
+
+
+def _vertex_selection(prim, where: str, key: str, listed, n: int) -> np.ndarray | None:
+    """The vertices ``warpshade:<key>`` selects (``pinned``, ``attached``), as int32 indices, or None.
+
+    Either an index list (``int[] warpshade:<key>``, on the mesh or a prim above it: ``listed``) or a per-vertex
+    primvar (:data:`VERTEX_SELECTION_PRIMVARS`, ``vertex`` or ``varying`` interpolation, one bool or number a
+    point, selecting those at least :data:`VERTEX_SELECTED`), not both."""
+    api = UsdGeom.PrimvarsAPI(prim)
+    found = [pv for pv in (api.GetPrimvar(name.format(key)) for name in VERTEX_SELECTION_PRIMVARS)
+             if pv and pv.HasAuthoredValue()]
+    if listed is not None and found:
+        raise SceneError(f"{where}: warpshade:{key} is authored twice, as a vertex list and as the primvar "
+                         f"{found[0].GetName()}: keep one")
+    if len(found) > 1:
+        raise SceneError(f"{where}: warpshade:{key} is authored twice, as the primvars {found[0].GetName()} and "
+                         f"{found[1].GetName()}: keep one")
+    if found:
+        pv = found[0]
+        name = pv.GetName()
+        if pv.GetInterpolation() not in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+            raise SceneError(f"{where}: {name} must have vertex interpolation (one value a point), has "
+                             f"'{pv.GetInterpolation()}'")
+        try:
+            values = np.asarray(pv.ComputeFlattened(), dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            raise SceneError(f"{where}: {name} must hold one bool or number a point, has type "
+                             f"{pv.GetTypeName()}") from None
+        if len(values) != n:
+            raise SceneError(f"{where}: {name} has {len(values)} values for the mesh's {n} points")
+        if not np.isfinite(values).all():
+            raise SceneError(f"{where}: {name} value of vertex {int(np.flatnonzero(~np.isfinite(values))[0])} is "
+                             "not finite")
+        return np.flatnonzero(values >= VERTEX_SELECTED).astype(np.int32)
+    if listed is None:
+        return None
+    vs = np.asarray(listed, dtype=np.int64).reshape(-1)
+    bad = vs[(vs < 0) | (vs >= n)]
+    if len(bad):
+        raise SceneError(f"{where}: warpshade:{key} vertex {int(bad[0])} out of range 0..{n - 1}")
+    return vs.astype(np.int32)
 
 
 def _read_sphere(prim, source: str, default_method, edge: float, marks: dict) -> SceneObject:
