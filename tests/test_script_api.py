@@ -129,6 +129,12 @@ def test_sims_script_writes_shaded_output_by_default(tmp_path):
     (lambda: ws.ground(albedo=2.0), "albedo"),
     (lambda: ws.distant(direction=(0, 0, 0)), "direction"),
     (lambda: ws.make_scene(ws.box(), ws.box()), "two objects are named 'Box'"),
+    (lambda: ws.cloth_grid(resolution=4, attached=[0]), "attached and attach_to go together"),
+    (lambda: ws.cloth_grid(resolution=4, attached=[16], attach_to="Bar"), "attached vertex 16 out of range"),
+    (lambda: ws.make_scene(ws.cloth_grid(resolution=4, attached=[0], attach_to="Bar")),
+     "cloth 'Cloth' is attached to 'Bar', which is not an object of the scene"),
+    (lambda: ws.make_scene(ws.box(name="Bar"), ws.cloth_grid(resolution=4, attached=[0], attach_to="Bar")),
+     "attached to 'Bar', which does not move"),
     (lambda: ws.run(ws.make_scene(ws.mesh("M", np.eye(3), [[0, 1, 2]], moving=True)), "x.usda", frames=1),
      "no geometry generator"),
     (lambda: ws.run(ws.make_scene(ws.sky(up="Z")), "x.usda", frames=1), "up axis"),
@@ -235,3 +241,23 @@ def test_cloth_drapes_on_a_script_cylinder_without_entering_it():
     # resting: edges are kept at the thickness, so a vertex rests up to the sagitta of a 0.055 m
     # edge on the 0.15 m radius (2.5 mm) above it; measured 2.2 mm
     assert (signed_distance(x) < th + 4e-3).sum() >= 3, "the cloth is not resting on the cylinder"
+
+
+def test_a_cloth_attached_to_a_moving_mesh_follows_it():
+    """``attached``/``attach_to``: the grid's back row keeps its rest offset from the nearest vertex of a bar
+    that rises and slides (``points_at``), every frame, while the rest of the cloth hangs from it."""
+    bar = np.array([[-0.6, 1.0, 0.55], [0.6, 1.0, 0.55], [0.0, 1.1, 0.55]])
+
+    def bar_at(code):
+        return bar + [0.1 * code / 6, 0.05 * code / 6, 0.0]
+
+    row = np.arange(8)  # vertex (i, 0): the grid's row at z = +size/2 (cloth_grid's layout, j * nx + i)
+    scene = ws.make_scene(ws.mesh("Bar", bar, [[0, 1, 2]], points_at=bar_at),
+                          ws.cloth_grid(size=1.0, resolution=8, height=1.0, attached=row, attach_to="Bar"))
+    rest = scene.object("Cloth").mesh.points[row]
+    nearest = np.argmin(((rest[:, None] - bar[None]) ** 2).sum(-1), axis=1)
+    assert np.allclose(rest[:, 2], 0.5)  # the row is the cloth's edge at z = +0.5
+    for frame, points in ws.script.pipeline(scene, frames=6).simulate():
+        # float32 positions of a metre-sized scene: a few ulps; 1e-5 m is ample
+        np.testing.assert_allclose(points["Cloth"][row], bar_at(frame)[nearest] + rest - bar[nearest], atol=1e-5)
+    assert points["Cloth"][-1, 1] < 1.0 - 0.01  # the free far edge has fallen (it hangs from the bar)

@@ -62,7 +62,7 @@ def _mesh(name: str, points, faces) -> TriMesh:
 
 
 def cloth_grid(name: str = "Cloth", size=1.0, resolution=32, height: float = 1.0, center=(0.0, 0.0),
-               pinned=None, albedo=None, **material) -> SceneObject:
+               pinned=None, albedo=None, attached=None, attach_to=None, **material) -> SceneObject:
     """A horizontal square (or rectangular) cloth facing up (+Y), to be simulated.
 
     Args:
@@ -73,6 +73,10 @@ def cloth_grid(name: str = "Cloth", size=1.0, resolution=32, height: float = 1.0
         center: X and Z of its centre [m].
         pinned: Indices of vertices held fixed (vertex ``(i, j)`` is ``j * nx + i``), or None.
         albedo: Diffuse reflectance, a number or RGB in [0, 1] (default 0.8 grey).
+        attached: Indices of vertices that follow ``attach_to``, each keeping its rest offset from the
+            target's nearest vertex (``warpshade:attached``), or None.
+        attach_to: The moving object (:func:`mesh` with ``moving`` or ``points_at``) or its name that the
+            ``attached`` vertices follow (``warpshade:attachTarget``).
         **material: Cloth material (``density`` [kg/m²], ``stretchStiffness``, ``bendStiffness``,
             ``damping``, ``thickness``, ``friction``, ``selfCollision``), as the ``warpshade:cloth:*``
             attributes of a USD cloth.
@@ -89,20 +93,31 @@ def cloth_grid(name: str = "Cloth", size=1.0, resolution=32, height: float = 1.0
     builder.add_grid(nx, nz, w, d, origin=(cx - w / 2, float(height), cz + d / 2), u_axis=(1, 0, 0),
                      v_axis=(0, 0, -1), name=name)
     piece = builder._pieces[-1]
-    return cloth(name, piece.points, piece.faces, pinned=pinned, albedo=albedo, **material)
+    return cloth(name, piece.points, piece.faces, pinned=pinned, albedo=albedo, attached=attached, attach_to=attach_to,
+                 **material)
 
 
-def cloth(name: str, points, faces, pinned=None, albedo=None, **material) -> SceneObject:
+def cloth(name: str, points, faces, pinned=None, albedo=None, attached=None, attach_to=None,
+          **material) -> SceneObject:
     """A cloth from a given mesh (points (V, 3) [m], triangles (F, 3)), to be simulated; the other
     arguments as :func:`cloth_grid`."""
     tri = _mesh(name, points, faces)
     params: dict = {"cloth": dict(material)}
-    if pinned is not None:
-        p = np.asarray(pinned, dtype=np.int64).reshape(-1)
-        bad = p[(p < 0) | (p >= tri.num_vertices)]
-        if len(bad):
-            raise ValueError(f"cloth '{name}': pinned vertex {int(bad[0])} out of range 0..{tri.num_vertices - 1}")
-        params["pinned"] = p.astype(np.int32)
+    for key, ids in (("pinned", pinned), ("attached", attached)):
+        if ids is not None:
+            v = np.asarray(ids, dtype=np.int64).reshape(-1)
+            bad = v[(v < 0) | (v >= tri.num_vertices)]
+            if len(bad):
+                raise ValueError(f"cloth '{name}': {key} vertex {int(bad[0])} out of range 0..{tri.num_vertices - 1}")
+            params[key] = v.astype(np.int32)
+    if (attached is None) != (attach_to is None):
+        raise ValueError(f"cloth '{name}': attached and attach_to go together (the vertices and the moving object "
+                         "they follow)")
+    if attach_to is not None:
+        target = attach_to.name if isinstance(attach_to, SceneObject) else attach_to
+        if not isinstance(target, str):
+            raise ValueError(f"cloth '{name}': attach_to must be a moving object or its name, got {attach_to!r}")
+        params["attachTarget"] = target
     return _object(name, tri, kind="cloth", material=_material(albedo, f"cloth '{name}'"), params=params)
 
 
@@ -322,6 +337,16 @@ def make_scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", **se
     dup = next((n for n in names if names.count(n) > 1), None)
     if dup is not None:
         raise ValueError(f"make_scene: two objects are named '{dup}'; give each a name")
+    for o in out.objects:
+        target = o.params.get("attachTarget")
+        if target is None:
+            continue
+        if target not in names:
+            raise ValueError(f"make_scene: cloth '{o.name}' is attached to '{target}', which is not an object of the "
+                             f"scene ({', '.join(names)})")
+        if out.object(target).kind != "animated":
+            raise ValueError(f"make_scene: cloth '{o.name}' is attached to '{target}', which does not move (give it "
+                             "moving=True or points_at)")
     return out
 
 
