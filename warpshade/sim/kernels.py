@@ -304,33 +304,6 @@ def solve_stretch(
     x[j] = x[j] - n * (wj * dlam)
 
 
-@wp.kernel
-def warm_start_stretch(
-    edges: wp.array[wp.vec2i],
-    inv_mass: wp.array[float],
-    offset: int,
-    beta: float,
-    lam: wp.array[float],
-    x: wp.array[wp.vec3],
-):
-    """Experiment: lam = beta * min(lam_prev, 0), x moved by the correction it makes."""
-    e = wp.tid() + offset
-    i = edges[e][0]
-    j = edges[e][1]
-    l = wp.min(lam[e] * beta, 0.0)
-    lam[e] = l
-    wi = inv_mass[i]
-    wj = inv_mass[j]
-    if wi + wj == 0.0 or l == 0.0:
-        return
-    axis = edge_axis(x[i], x[j])
-    if axis[3] < 1.0e-12:
-        return
-    n = wp.vec3(axis[0], axis[1], axis[2])
-    x[i] = x[i] + n * (wi * l)
-    x[j] = x[j] - n * (wj * l)
-
-
 @wp.func
 def dihedral_gradients(x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, x4: wp.vec3) -> wp.mat33:
     """Rows: d theta / d x1, x2, x3 of :func:`dihedral_angle` (d/dx4 is minus their sum).

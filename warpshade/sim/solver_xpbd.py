@@ -327,11 +327,7 @@ class XPBDSolver:
             if self.colliders is not None:
                 self.colliders.pose_substep(s / self.substeps, (s + 1) / self.substeps)
             # XPBD multipliers restart every substep (Macklin et al. 2016, Alg. 1 line 4)
-            if self.WARM > 0.0:
-                for c in cmds["warm"]:
-                    c.launch()
-            else:
-                self._edge_lambda.zero_()
+            self._edge_lambda.zero_()
             self._hinge_lambda.zero_()
             for _ in range(self.iterations):
                 for c in cmds["stretch"]:
@@ -428,8 +424,6 @@ class XPBDSolver:
                                     outputs=[self._x_prev, x, v], device=d, record_cmd=True)
         edge_batches, hinge_batches = self._batches(m.edge_colors), self._batches(m.hinge_colors)
         cons = []
-        cmds["warm"] = [wp.launch(k.warm_start_stretch, dim=cnt, inputs=[self._edge_ids, m.inv_mass, off, self.WARM],
-                                  outputs=[self._edge_lambda, x], device=d, record_cmd=True) for off, cnt in edge_batches]
         if self.limit_sliding:
             # (without self-collision no vertex has candidates: _touched stays 0 in this mode)
             cons.extend(wp.launch(k.solve_limits_sliding, dim=cnt,
@@ -759,7 +753,6 @@ class XPBDSolver:
     SUPPORT_NOSELF = True
     SUPPORT_CAP = True
     SUPPORT_NOHELD = True
-    WARM = 0.0
     SUPPORT_HOLD = 1
     """Support tethers: steps a vertex stays a support after the contacts last pushed it up."""
     SUPPORT_TETHER_COUNT = 2
