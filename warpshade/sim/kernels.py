@@ -516,32 +516,6 @@ def solve_tethers(
 
 
 @wp.kernel
-def solve_support_tethers(
-    anchor: wp.array[int],
-    max_length: wp.array[float],
-    per_vertex: int,
-    inv_mass: wp.array[float],
-    up: wp.vec3,
-    max_move: float,
-    contacts: wp.array[int],
-    held: wp.array[int],
-    x: wp.array[wp.vec3],
-):
-    """:func:`solve_tethers` to supports above the vertex only (along ``up``)."""
-    i = wp.tid()
-    if inv_mass[i] == 0.0 or contacts[i] > 0 or held[i] > 0:
-        return
-    for c in range(per_vertex):
-        a = anchor[i * per_vertex + c]
-        if a >= 0:
-            d = x[i] - x[a]
-            length = wp.length(d)
-            lmax = max_length[i * per_vertex + c]
-            if length > lmax and wp.dot(d, up) < 0.0:
-                x[i] = x[i] - d * (wp.min(length - lmax, max_move) / length)
-
-
-@wp.kernel
 def flag_moved(before: wp.array[wp.vec3], x: wp.array[wp.vec3], flag: wp.array[int]):
     """flag[i] = 1 where the contact projections moved vertex i (x differs from ``before``), else 0."""
     i = wp.tid()
@@ -587,18 +561,6 @@ def record_moved(before: wp.array[wp.vec3], x: wp.array[wp.vec3], moved: wp.arra
     """moved[i] = x[i] - before[i]: how the contact projections moved vertex i."""
     i = wp.tid()
     moved[i] = x[i] - before[i]
-
-
-@wp.kernel
-def flag_supported(before: wp.array[wp.vec3], x: wp.array[wp.vec3], up: wp.vec3, cos_max: float,
-                   hold: int, contacts: wp.array[int], flag: wp.array[int]):
-    """flag[i] = ``hold`` where the contact projections moved vertex i (x differs from ``before``) within
-    the angle of cosine ``cos_max`` of ``up`` (a surface holds it up); other flags are kept."""
-    i = wp.tid()
-    d = x[i] - before[i]
-    length = wp.length(d)
-    if length > 0.0 and wp.dot(d, up) >= cos_max * length and contacts[i] == 0:
-        flag[i] = hold
 
 
 @wp.func

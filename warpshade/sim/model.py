@@ -588,8 +588,6 @@ class ClothModel:
                           pc.density * 9.81 * float(np.linalg.norm(np.ptp(pc.points, axis=0))) / pc.stretch_stiffness
                           <= STIFF_STRAIN for pc in builder._pieces], dtype=bool)
         lpairs, llen, llevels = stretch_limits(points, edges, piece, convex_flat, limited=stiff)
-        # per vertex: its piece, and per piece: flat and convex, stiff (the solver's support tethers)
-        self.piece_np, self.convex_flat_np, self.stiff_np = piece, convex_flat, stiff
         # each level coloured on its own, so that a sweep still runs the levels coarsest first
         lorder, self.limit_colors = [], []
         for off, cnt in llevels:

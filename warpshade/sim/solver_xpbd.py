@@ -33,7 +33,7 @@ from . import lane_kernels as lk
 from .colliders import ColliderSet
 from .intersections import IntersectionCounter
 from .launches import RecordedLaunches, recorded
-from .model import ClothModel, SimulationError, check_param, tether_anchors
+from .model import ClothModel, SimulationError, check_param
 from .state import ClothControl, ClothState
 
 
@@ -107,8 +107,7 @@ class XPBDSolver:
                  contact_iterations: int = 2, stretch_sweeps: int = 1, edge_contact: bool = True,
                  guard: bool = True, self_friction: float = 0.3, stretch_limits: bool = True,
                  follow_edge_sides: bool | None = None, aero_interval: int | None = None,
-                 bend_interval: int | None = None, limit_sliding: bool | None = None,
-                 support_tethers: bool | None = None):
+                 bend_interval: int | None = None, limit_sliding: bool | None = None):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -168,18 +167,6 @@ class XPBDSolver:
         if self.limit_sliding:
             # how the contact projections moved each vertex in the last substep
             self._pushed = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
-        gn = float(np.linalg.norm(g))
-        self.support_tethers = self.stretch_limits and gn > 0 and bool(
-            self.SUPPORT_TETHERS if support_tethers is None else support_tethers)
-        if self.support_tethers:
-            n, t = model.particle_count, self.SUPPORT_TETHER_COUNT
-            self._up = wp.vec3(*(-g / gn))
-            self._supported = wp.zeros(n, dtype=wp.int32, device=model.device)
-            self._support_anchor = wp.full(n * t, -1, dtype=wp.int32, device=model.device)
-            self._support_length = wp.zeros(n * t, dtype=wp.float32, device=model.device)
-            self._support_set = np.zeros(n, dtype=bool)
-            # free vertices of stiff pieces (the others get no support tether)
-            self._support_free = model.stiff_np[model.piece_np] & (model.inv_mass.numpy() > 0)
         self.check_finite = bool(check_finite)
         self.relaxation = check_param("relaxation", relaxation, 0.0, False)
         if self.relaxation >= 2.0:
@@ -296,8 +283,6 @@ class XPBDSolver:
             if self.colliders.corner_count:
                 self.colliders.detect_corner_contacts(x, v, m.tris, dt, m.thickness)
         attach = m.attachment_count > 0 and control is not None
-        if self.support_tethers:
-            self._update_support_tethers()
         if attach:
             wp.launch(k.gather_points, dim=m.attachment_count, inputs=[m.attachment_indices, x],
                       outputs=[self._attach_start], device=d)
@@ -339,8 +324,6 @@ class XPBDSolver:
                         c.launch()
                 for c in cmds["tethers"]:
                     c.launch()
-                if self.support_tethers and self._support_set.any():
-                    cmds["support_tethers"].launch()
                 if self.colliders is not None and self.colliders.has_round_shapes:
                     # moves into a ball or capsule shortened: its projection is right for short moves only
                     self.colliders.limit_round_motion(self.ROUND_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
@@ -371,8 +354,6 @@ class XPBDSolver:
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             if self.stretch_limits:
                 cmds["moved"].launch()
-            if self.support_tethers:
-                cmds["supported"].launch()
             cmds["velocities"].launch()
             if "bend_velocity" in cmds and (s + 1) % self.bend_interval == 0:
                 cmds["bend_velocity"].launch()
@@ -476,16 +457,6 @@ class XPBDSolver:
                                              inputs=[m.tether_anchor.flatten(), m.tether_length.flatten(),
                                                      m.tether_anchor.shape[1], m.inv_mass],
                                              outputs=[x], device=d, record_cmd=True))
-        if self.support_tethers:
-            cmds["support_tethers"] = wp.launch(k.solve_support_tethers if self.SUPPORT_ABOVE else k.solve_tethers, dim=n,
-                                                inputs=[self._support_anchor, self._support_length,
-                                                        self.SUPPORT_TETHER_COUNT, m.inv_mass] + ([self._up, self._limit_move if self.SUPPORT_CAP else 1e9, self._contact_count if self.self_collision and self.SUPPORT_NOSELF else self._touched, self._streak if self.guard and self.SUPPORT_NOHELD else self._touched] if self.SUPPORT_ABOVE else []),
-                                                outputs=[x], device=d, record_cmd=True)
-            cmds["supported"] = wp.launch(k.flag_supported, dim=n,
-                                          inputs=[self._x_before, x, self._up,
-                                                  math.cos(math.radians(self.SUPPORT_ANGLE)), self.SUPPORT_HOLD,
-                                                  self._contact_count if self.self_collision and self.SUPPORT_NOSELF else self._touched],
-                                          outputs=[self._supported], device=d, record_cmd=True)
         if self.limit_sliding:
             cmds["moved"] = wp.launch(k.record_moved, dim=n, inputs=[self._x_before, x], outputs=[self._pushed],
                                       device=d, record_cmd=True)
@@ -744,43 +715,6 @@ class XPBDSolver:
     LIMIT_SLIDING = False
     """Default of ``limit_sliding`` (off; what it does to the scenes is measured in
     docs/benchmarks/index.md)."""
-    SUPPORT_TETHERS = False
-    """Default of ``support_tethers`` (off)."""
-    SUPPORT_ANGLE = 60.0
-    """Support tethers: a vertex the contact projections pushed within this angle [degrees] of up
-    is a support."""
-    SUPPORT_ABOVE = True
-    SUPPORT_NOSELF = True
-    SUPPORT_CAP = True
-    SUPPORT_NOHELD = True
-    SUPPORT_HOLD = 1
-    """Support tethers: steps a vertex stays a support after the contacts last pushed it up."""
-    SUPPORT_TETHER_COUNT = 2
-    """Support tethers: supports each free vertex is tethered to (on flat, convex pieces)."""
-
-    def _update_support_tethers(self) -> None:
-        """Tether each free vertex of a stiff piece to its nearest supports of the last step
-        (:func:`~warpshade.sim.model.tether_anchors` with the supports as anchors), when they changed."""
-        m = self.model
-        held = self._supported.numpy()
-        sup = held > 0
-        # a support stays one SUPPORT_HOLD steps after its last push
-        self._supported.assign(np.maximum(held - 1, 0))
-        if np.array_equal(sup, self._support_set):
-            return
-        self._support_set = sup
-        if not sup.any():
-            return
-        t = self.SUPPORT_TETHER_COUNT
-        anchor, length = tether_anchors(m.rest_points_np, m.edges_np, sup, m.piece_np, m.convex_flat_np, count=t)
-        anchor[~self._support_free] = -1
-        full_a = np.full((m.particle_count, t), -1, dtype=np.int32)
-        full_l = np.zeros((m.particle_count, t), dtype=np.float32)
-        full_a[:, :anchor.shape[1]] = anchor
-        full_l[:, :anchor.shape[1]] = length
-        self._support_anchor.assign(full_a.reshape(-1))
-        self._support_length.assign(full_l.reshape(-1))
-
     SIDE_CROSSING_TOL = 1.0e-3
     """Edges that come within this fraction of the thickness of each other at a moment their four
     points are coplanar have passed through each other: an edge pair's stored side is kept across
@@ -982,7 +916,6 @@ class XPBDSolver:
                 "max_contacts": self.max_contacts, "contact_iterations": self.contact_iterations,
                 "stretch_sweeps": self.stretch_sweeps,
                 "relaxation": self.relaxation, "tethers": self.tethers, "stretch_limits": self.stretch_limits,
-                "limit_sliding": self.limit_sliding, "support_tethers": self.support_tethers,
-                "check_finite": self.check_finite,
+                "limit_sliding": self.limit_sliding, "check_finite": self.check_finite,
                 "thickness": self.model.thickness, "damping": self.model.damping,
                 "bend_damping": self.model.bend_damping}
