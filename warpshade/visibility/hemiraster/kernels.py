@@ -54,12 +54,6 @@ class PlaneLut:
     """Tiny-image cull (as ``min_area``) for the fine triangles of refined blockers (0: keep all)."""
     rim: float
     """Sine of the elevation of the lowest valid pixel centre: images wholly below it hold no pixel."""
-    between: float
-    """Empty-image cull of the coarse far field (:func:`far_field_bits`; the method's ``empty_cull``):
-    how far (sine of an angle, disk units) a pixel centre must lie below an edge plane to count as
-    outside, and the widening of the box of the corners' disk images; < 0: off."""
-    half_mask: float
-    """Half the mask resolution, ``M/2`` (disk units to pixel units)."""
 
 
 @wp.struct
@@ -118,9 +112,6 @@ class Blockers:
     shape (slots, ceil(Fc/64))."""
     tiny: wp.array2d[wp.uint64]
     """Per slot, bits of the blockers :func:`bounds_below` deems tiny (``precull``), as ``cull``."""
-    corners: wp.array2d[float]
-    """The blockers' corners [m] (rows x, y, z of a, b, c: :func:`blocker_corners`, for
-    :func:`far_field_bits`' empty-image cull), shape (9, Fc); (9, 1) when that cull is off."""
     ring: wp.array2d[wp.uint64]
     """Per receiver, bits (reordered index) of the blockers standing for its k-ring (``near_mode`` 2,
     the exclusion bits of ``excl`` reordered), shape (V, ceil(Fc/64)); (1, 1) otherwise."""
@@ -423,18 +414,6 @@ def bounds_below(plane: wp.vec4, sphere: wp.vec4, nlen: float, p: wp.vec3, n: wp
     cmax = wp.min(1.0, (wp.dot(n, q) + sphere[3]) / dmin)
     small = twice_ah * cmax < min_area * 2.0 * dmin * dmin * dmin
     return wp.where(dmin > 0.0, wp.where(grazing, small, False), False)
-
-
-@wp.kernel
-def blocker_corners(points: wp.array[wp.vec3], faces: wp.array2d[wp.int32], corners: wp.array2d[float]):
-    """Per triangle its corners' coordinates, one row per coordinate (x, y, z of a, b, c: shape (9, F),
-    so a vectorized pass over the triangles reads contiguous rows)."""
-    t = wp.tid()
-    for k in range(3):
-        x = points[faces[t, k]]
-        corners[3 * k, t] = x[0]
-        corners[3 * k + 1, t] = x[1]
-        corners[3 * k + 2, t] = x[2]
 
 
 @wp.kernel
@@ -976,15 +955,6 @@ const float rim2 = rim * rim;
 const float area2 = min_area * 2.0f;
 const bool do_tiny = min_area > 0.0f;
 const bool do_refine = refine > 0.0f;
-const bool do_between = between >= 0.0f;
-#define WS_MIN(A, B) ((A) < (B) ? (A) : (B))
-#define WS_MAX(A, B) ((A) > (B) ? (A) : (B))
-const float* __restrict__ pco = (const float*)corners.data;
-const int cs = (int)(corners.strides[0] / sizeof(float));
-// the frame's tangent columns (pixel x and y)
-const float f00 = frame.data[0][0], f10 = frame.data[1][0], f20 = frame.data[2][0];
-const float f01 = frame.data[0][1], f11 = frame.data[1][1], f21 = frame.data[2][1];
-const float f02 = frame.data[0][2], f12 = frame.data[1][2], f22 = frame.data[2][2];
 // flags per blocker (bit 0 culled, 1 tiny, 2 refined) in a straight loop over the flat rows, then
 // packed 8 at a time into the bit rows (a byte b_i at byte i of x: ((x >> j) & 0x01..01) * 0x0102040810204080
 // >> 56 has bit j of b_i at bit i)
@@ -1023,74 +993,6 @@ for (int t = 0; t < nt; ++t) {
     const bool near_ = dx * dx + dy * dy + dz * dz < rad * rad;
     flags[t] = (unsigned char)((culled ? 1 : 0) | ((do_tiny && tiny_) ? 2 : 0) | ((do_refine && near_) ? 4 : 0));
 }
-if (do_between) {
-  for (int t = 0; t < nt; ++t) {
-    // between pixel centres: the box of the corners' disk images (widened by the arcs' bulge and
-    // ``between``) holds no pixel centre in x or in y, or its (at most 2 x 2) centres each lie outside
-    // an edge plane by more than ``between`` (unit normals); branch-free so the loop vectorizes
-    const float ax_ = pco[t] - px, ay_ = pco[cs + t] - py, az_ = pco[2 * cs + t] - pz;
-    const float bx_ = pco[3 * cs + t] - px, by_ = pco[4 * cs + t] - py, bz_ = pco[5 * cs + t] - pz;
-    const float cx_ = pco[6 * cs + t] - px, cy_ = pco[7 * cs + t] - py, cz_ = pco[8 * cs + t] - pz;
-    const float lax = f00 * ax_ + f10 * ay_ + f20 * az_, lay = f01 * ax_ + f11 * ay_ + f21 * az_;
-    const float laz = f02 * ax_ + f12 * ay_ + f22 * az_;
-    const float lbx = f00 * bx_ + f10 * by_ + f20 * bz_, lby = f01 * bx_ + f11 * by_ + f21 * bz_;
-    const float lbz = f02 * bx_ + f12 * by_ + f22 * bz_;
-    const float lcx = f00 * cx_ + f10 * cy_ + f20 * cz_, lcy = f01 * cx_ + f11 * cy_ + f21 * cz_;
-    const float lcz = f02 * cx_ + f12 * cy_ + f22 * cz_;
-    const float ia_ = 1.0f / sqrtf(lax * lax + lay * lay + laz * laz);
-    const float ib_ = 1.0f / sqrtf(lbx * lbx + lby * lby + lbz * lbz);
-    const float ic_ = 1.0f / sqrtf(lcx * lcx + lcy * lcy + lcz * lcz);
-    const float xa = lax * ia_, ya = lay * ia_, xb = lbx * ib_, yb = lby * ib_, xc = lcx * ic_, yc = lcy * ic_;
-    const float dab = (lax * lbx + lay * lby + laz * lbz) * ia_ * ib_;
-    const float dbc = (lbx * lcx + lby * lcy + lbz * lcz) * ib_ * ic_;
-    const float dca = (lcx * lax + lcy * lay + lcz * laz) * ic_ * ia_;
-    const float dmin_ = WS_MIN(dab, WS_MIN(dbc, dca));
-    const float pad = (1.0f - dmin_) + between;
-    // pixel-centre indices (floor and ceiling through an int conversion of the shifted, positive value)
-    const float u0 = (WS_MIN(xa, WS_MIN(xb, xc)) - pad + 1.0f) * half_mask + 127.5f;
-    const float u1 = (WS_MAX(xa, WS_MAX(xb, xc)) + pad + 1.0f) * half_mask + 127.5f;
-    const float v0 = (WS_MIN(ya, WS_MIN(yb, yc)) - pad + 1.0f) * half_mask + 127.5f;
-    const float v1 = (WS_MAX(ya, WS_MAX(yb, yc)) + pad + 1.0f) * half_mask + 127.5f;
-    const float fu0 = (float)(int)u0, fv0 = (float)(int)v0;
-    const float i0 = fu0 + (fu0 < u0 ? 1.0f : 0.0f) - 128.0f, i1 = (float)(int)u1 - 128.0f;
-    const float j0 = fv0 + (fv0 < v0 ? 1.0f : 0.0f) - 128.0f, j1 = (float)(int)v1 - 128.0f;
-    float e0x = lay * lbz - laz * lby, e0y = laz * lbx - lax * lbz, e0z = lax * lby - lay * lbx;
-    float e1x = lby * lcz - lbz * lcy, e1y = lbz * lcx - lbx * lcz, e1z = lbx * lcy - lby * lcx;
-    float e2x = lcy * laz - lcz * lay, e2y = lcz * lax - lcx * laz, e2z = lcx * lay - lcy * lax;
-    const float det = lax * e1x + lay * e1y + laz * e1z;
-    const float o = det < 0.0f ? -1.0f : 1.0f;
-    // below a plane by more than ``between`` (unit normal): e·g < 0 and (e·g)² > between² |e|²
-    const float b2 = between * between;
-    const float m0 = b2 * (e0x * e0x + e0y * e0y + e0z * e0z);
-    const float m1 = b2 * (e1x * e1x + e1y * e1y + e1z * e1z);
-    const float m2 = b2 * (e2x * e2x + e2y * e2y + e2z * e2z);
-    e0x *= o; e0y *= o; e0z *= o;
-    e1x *= o; e1y *= o; e1z *= o;
-    e2x *= o; e2y *= o; e2z *= o;
-    const float step = 1.0f / half_mask;
-    const float gx0 = -1.0f + (i0 + 0.5f) * step, gx1 = -1.0f + (i1 + 0.5f) * step;
-    const float gy0 = -1.0f + (j0 + 0.5f) * step, gy1 = -1.0f + (j1 + 0.5f) * step;
-#define WS_OUT(GX, GY, R) { \
-        const float r2_ = (GX) * (GX) + (GY) * (GY); \
-        const float gz_ = sqrtf(r2_ < 1.0f ? 1.0f - r2_ : 0.0f); \
-        const float d0_ = e0x * (GX) + e0y * (GY) + e0z * gz_; \
-        const float d1_ = e1x * (GX) + e1y * (GY) + e1z * gz_; \
-        const float d2_ = e2x * (GX) + e2y * (GY) + e2z * gz_; \
-        R = (r2_ >= 1.0f) | ((d0_ < 0.0f) & (d0_ * d0_ > m0)) | ((d1_ < 0.0f) & (d1_ * d1_ > m1)) \
-            | ((d2_ < 0.0f) & (d2_ * d2_ > m2)); }
-    bool o00, o01, o10, o11;
-    WS_OUT(gx0, gy0, o00)
-    WS_OUT(gx0, gy1, o01)
-    WS_OUT(gx1, gy0, o10)
-    WS_OUT(gx1, gy1, o11)
-#undef WS_OUT
-    const bool few = (i1 - i0 <= 1.0f) & (j1 - j0 <= 1.0f) & (det != 0.0f);
-    const bool empty_ = (dmin_ >= 0.5f) & ((i1 < i0) | (j1 < j0) | (few & o00 & o01 & o10 & o11));
-    flags[t] |= (unsigned char)(empty_ ? 2 : 0);
-  }
-}
-#undef WS_MIN
-#undef WS_MAX
 const int words = (nt + 63) / 64;
 for (int t = nt; t < words * 64; ++t)
     flags[t] = 0;
@@ -1118,21 +1020,13 @@ _FAR_FIELD_BITS = _FAR_FIELD_BITS.replace("PRECULL_BLOCKERS", str(PRECULL_BLOCKE
 def far_field_bits(plane: wp.array[wp.vec4], sphere: wp.array[wp.vec4], nlen: wp.array[float], lo: wp.array[wp.vec3],
                    hi: wp.array[wp.vec3], dev: wp.array[float], ring: wp.array2d[wp.uint64], use_ring: int, v: int, sl: int,
                    p: wp.vec3, n: wp.vec3, backface: float, rim: float, min_area: float, refine: float,
-                   cull: wp.array2d[wp.uint64], tiny: wp.array2d[wp.uint64], refined: wp.array2d[wp.uint64],
-                   corners: wp.array2d[float], frame: wp.mat33, between: float,
-                   half_mask: float):
+                   cull: wp.array2d[wp.uint64], tiny: wp.array2d[wp.uint64], refined: wp.array2d[wp.uint64]):
     """For receiver ``v`` (slot ``sl``) and every blocker, in one pass: the bits of :func:`skip_early`
     (``cull``), of :func:`bounds_below` (``tiny``; none when ``min_area`` is 0) and of the blockers
     refined here (``refined``: :func:`refine_here` with ``refine`` > 0, or the receiver's k-ring row of
     ``ring`` with ``use_ring``), the same operations in the same order as those Warp functions, so
     the same bits (:func:`mark_refined` tests only the clusters that come near; its bits equal the
-    per-blocker test). With ``between`` >= 0 a second pass adds to ``tiny`` the blockers whose image
-    holds no pixel centre of the ``2·half_mask``-pixel mask (:class:`PlaneLut`'s ``between``: the box
-    of the corners' disk images, widened by the edges' bulge and ``between``, holds no centre in x or
-    in y, or each of its at most 2 x 2 centres lies below an edge plane of the exact triangle by more
-    than ``between``; only corners within 60° of each other); ``frame`` is the receiver's tangent
-    frame, ``corners`` the blockers' corners (:func:`blocker_corners`). Native C++ over flat rows, which clang
-    vectorizes; the arrays must be contiguous."""
+    per-blocker test). Native C++ over flat rows, which clang vectorizes; the arrays must be contiguous."""
 
 
 @wp.func(inline=True)
@@ -1141,7 +1035,6 @@ def mark_refined(
     sl: int,
     p: wp.vec3,
     n: wp.vec3,
-    frame: wp.mat33,
     lut: PlaneLut,
     blockers: Blockers,
     groups: Refinement,
@@ -1164,8 +1057,7 @@ def mark_refined(
     if blockers.precull != 0:
         far_field_bits(blockers.plane, blockers.sphere, blockers.nlen, groups.lo, groups.hi, groups.dev, blockers.ring,
                        wp.where(near_mode == 2, 1, 0), v, sl, p, n, lut.backface, lut.rim, lut.min_area, groups.refine,
-                       blockers.cull, blockers.tiny, blockers.refined, blockers.corners, frame,
-                       lut.between, lut.half_mask)
+                       blockers.cull, blockers.tiny, blockers.refined)
         return
     for w in range(blockers.refined.shape[1]):
         blockers.refined[sl, w] = wp.uint64(0)
@@ -1907,7 +1799,7 @@ def rasterize_masks(
         bt.halt[sl] = -1
         if bt.stop_free >= 0 and bt.record == 0 and part != 1:
             bt.halt[sl] = 0
-        mark_refined(v, sl, p, n, frame, lut, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi,
+        mark_refined(v, sl, p, n, lut, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi,
                      cluster_reach)
         nb = int(0)
         if fine.fan != 0 and not stored:
