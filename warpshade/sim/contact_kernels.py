@@ -450,6 +450,13 @@ def revert_marked(
 
 
 @wp.kernel
+def held_inv_mass(reverted: wp.array[int], inv_mass: wp.array[float], out: wp.array[float]):
+    """inv_mass with the vertices the guard sent back made kinematic (0)."""
+    i = wp.tid()
+    out[i] = wp.where(reverted[i] != 0, 0.0, inv_mass[i])
+
+
+@wp.kernel
 def update_streaks(reverted: wp.array[int], streak: wp.array[int]):
     """Consecutive steps in which each vertex was sent back (0 after a step it was not)."""
     i = wp.tid()
