@@ -2,10 +2,11 @@
 
 What it shows: a 0.8 m x 1 m sheet (25 x 31 vertices, 3.3 cm edges), hanging flat and vertical
 with its lower edge 0.5 m above the floor, falls and lands on that edge at ~3 m/s, then crumples
-into a pile; 24 fps, 8 substeps, default settings otherwise. The landing compresses the sheet in
-its own plane faster than one stretch sweep per substep can stop it, so its lower rows fold over
-each other; the intersection guard sends the vertices of the triangles that intersect back to
-their start of step, 13 cm above where their neighbours land.
+into a pile; 24 fps, 8 substeps, ``guard_relax=8``, default settings otherwise. The landing
+compresses the sheet in its own plane faster than one stretch sweep per substep can stop it, so
+its lower rows fold over each other; the intersection guard sends the vertices of the triangles
+that intersect back to their start of step, 13 cm above where their neighbours land, and
+``guard_relax`` lets the free vertices around them follow.
 
 Success criteria (checked every frame, printed at the end): 0 intersecting triangle pairs
 (cloth-cloth and cloth-floor) at the end of every frame; no vertex below the floor; the largest
@@ -35,6 +36,9 @@ NX, NY = 25, 31
 WIDTH, HEIGHT, DROP = 0.8, 1.0, 0.5
 LANDING = 12
 """Frames counted as the landing (the lower edge touches the floor in frame 8)."""
+RELAX = 8
+"""The solver's ``guard_relax``: stretch sweeps around the guard's reverts (without them the
+landing frame's edges stretch to 366 %)."""
 
 
 def sheet() -> tuple[np.ndarray, np.ndarray]:
@@ -58,7 +62,7 @@ def main(argv=None) -> dict:
     model = b.finalize()
     col = ColliderSet()
     col.add_plane((0.0, 1.0, 0.0), 0.0, friction=0.6)
-    solver = XPBDSolver(model, col, substeps=8)
+    solver = XPBDSolver(model, col, substeps=8, guard_relax=RELAX)
     state = model.state()
     counter = IntersectionCounter(model.faces)
 
