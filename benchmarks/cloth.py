@@ -104,9 +104,9 @@ def run_warpshade(n: int, frames: int, repeats: int, self_collision: bool, guard
 
 SHIPPED = ("default", "cloth_sphere", "cloth_table", "flag_wind", "cape_walker")
 """The shipped usd_scenes/ with cloth."""
-HARD = ("pile", "twist", "box_edge", "box_drop", "cape", "hammock", "hammock_mesh")
+HARD = ("pile", "twist", "box_edge", "box_drop", "cape", "hammock", "hammock_mesh", "sheet_drop")
 """The hard contact scenes of sims/ (issue 19, item 4; the hammock: a ball driven through pinned cloth; the box drop:
-a cloth dropped onto a box's corners)."""
+a cloth dropped onto a box's corners; the sheet drop: a free vertical sheet landing edge-on at 3 m/s)."""
 SIM_ARGS = {"hammock_mesh": ("hammock", ["--ball", "mesh"])}
 """Scenes that are a sims/ script run with arguments: label -> (script, its extra arguments)."""
 OTHER_SIMS = ("drape_sphere", "flag", "table_fold")
@@ -390,7 +390,7 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-baselines", action="store_true", help="only time warpshade")
     ap.add_argument("--json", help="write the numbers to this file")
     ap.add_argument("--scenes", action="store_true",
-                    help="also run every shipped scene (usd_scenes/) and sims/ scene (pile, twist, box_edge, box_drop, cape, hammock, ...) "
+                    help="also run every shipped scene (usd_scenes/) and sims/ scene (pile, twist, box_edge, box_drop, cape, hammock, sheet_drop, ...) "
                          "and print their intersections, strain and speed")
     ap.add_argument("--perturb", type=int, default=0, metavar="SEEDS",
                     help="also run every scene SEEDS times with its cloth coordinates jittered by an ulp "

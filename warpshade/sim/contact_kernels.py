@@ -450,6 +450,28 @@ def revert_marked(
 
 
 @wp.kernel
+def held_inv_mass(reverted: wp.array[int], inv_mass: wp.array[float], out: wp.array[float]):
+    """inv_mass with the vertices the guard sent back made kinematic (0)."""
+    i = wp.tid()
+    out[i] = wp.where(reverted[i] != 0, 0.0, inv_mass[i])
+
+
+@wp.kernel
+def moved_velocities(
+    x_unguarded: wp.array[wp.vec3],
+    x_start: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+    dt: float,
+    v: wp.array[wp.vec3],
+):
+    """A vertex the guard moved leaves with its mean velocity over the step."""
+    i = wp.tid()
+    d = x[i] - x_unguarded[i]
+    if d[0] != 0.0 or d[1] != 0.0 or d[2] != 0.0:
+        v[i] = (x[i] - x_start[i]) / dt
+
+
+@wp.kernel
 def update_streaks(reverted: wp.array[int], streak: wp.array[int]):
     """Consecutive steps in which each vertex was sent back (0 after a step it was not)."""
     i = wp.tid()
