@@ -200,11 +200,14 @@ def test_cloth_solver_settings_come_from_the_first_cloth():
     sim = ClothSimulation(scene_from_stage(_cloth_stage(), source="t.usda"))
     assert sim.solver.max_contacts == 128 and sim.solver.guard and sim.solver.contact_interval == 3
     assert sim.solver.stretch_limits
+    assert sim.solver.knobs()["guard_relax"] == 0
     st = _cloth_stage(maxContacts=8, contactInterval=2, guard=False, selfFriction=0.1, stretchSweeps=2,
                       iterations=2, contactIterations=3, edgeContact=False, stretchLimits=False)
     k = ClothSimulation(scene_from_stage(st, source="t.usda")).solver.knobs()
     assert (k["max_contacts"], k["contact_interval"], k["guard"], k["stretch_sweeps"], k["iterations"],
             k["contact_iterations"], k["edge_contact"], k["stretch_limits"]) == (8, 2, False, 2, 2, 3, False, False)
+    st = _cloth_stage(guardRelax=8)  # sweeps around the guard's reverts: with the guard on (its default)
+    assert ClothSimulation(scene_from_stage(st, source="t.usda")).solver.knobs()["guard_relax"] == 8
     assert k["self_friction"] == pytest.approx(0.1)
 
 

@@ -17,7 +17,8 @@ CLOTH_SOLVER = {"selfCollision": ("self_collision", bool), "edgeContact": ("edge
                 "guard": ("guard", bool), "selfFriction": ("self_friction", float),
                 "iterations": ("iterations", int), "contactInterval": ("contact_interval", int),
                 "contactIterations": ("contact_iterations", int), "maxContacts": ("max_contacts", int),
-                "stretchSweeps": ("stretch_sweeps", int), "stretchLimits": ("stretch_limits", bool)}
+                "stretchSweeps": ("stretch_sweeps", int), "stretchLimits": ("stretch_limits", bool),
+                "guardRelax": ("guard_relax", int)}
 """``warpshade:cloth:*`` attributes passed to :class:`warpshade.sim.XPBDSolver` (taken from the
 first cloth object, as the solver is shared): attribute -> (keyword, type)."""
 
