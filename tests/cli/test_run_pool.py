@@ -71,33 +71,52 @@ def spawning(monkeypatch):
     monkeypatch.setattr(warpshade.parallel.frames, "can_fork", lambda: False)
 
 
-def test_where_workers_fork_the_run_forks_them_after_the_imports_before_the_scene(tmp_path, monkeypatch):
-    import warpshade.usd
+FORKING_RUN = """
+import json, multiprocessing, sys
+import warpshade.cli, warpshade.usd
+from warpshade.parallel import WorkerPool
 
-    seen, started = {}, count_pools(monkeypatch)
-    record_children(monkeypatch, "init_warp", seen)
-    record_children(monkeypatch, "build_parser", seen)
-    real_read = warpshade.usd.read_scene
-    methods = []
+seen, methods = {}, []
 
-    def read_scene(*a, **k):
-        seen["read_scene"] = children()
-        return real_read(*a, **k)
+def recording(name, real):
+    def f(*a, **k):
+        seen[name] = len(multiprocessing.active_children())
+        return real(*a, **k)
+    return f
 
-    real_new = WorkerPool._new_pool
+warpshade.cli.init_warp = recording("init_warp", warpshade.cli.init_warp)
+warpshade.cli.build_parser = recording("build_parser", warpshade.cli.build_parser)
+warpshade.usd.read_scene = recording("read_scene", warpshade.usd.read_scene)
+real_new = WorkerPool._new_pool
 
-    def new_pool(self):
-        pool = real_new(self)
-        methods.append(self.start_method)
-        return pool
+def new_pool(self):
+    pool = real_new(self)
+    methods.append((self.workers, self.start_method))
+    return pool
 
-    monkeypatch.setattr(warpshade.usd, "read_scene", read_scene)
-    monkeypatch.setattr(WorkerPool, "_new_pool", new_pool)
-    argv = ["run", SCENE, "--frames", "2", "--order", "2", "--workers", "2", "--no-progress"]
-    assert main(argv + ["--out", str(tmp_path / "a.usda")]) == 0
-    assert seen == {"init_warp": 0, "build_parser": 0, "read_scene": 2}
-    assert started == [2] and methods == ["fork"]
-    assert no_children_left()
+WorkerPool._new_pool = new_pool
+code = warpshade.cli.main(sys.argv[1:])
+print(json.dumps({"code": code, "seen": seen, "pools": methods, "left": len(multiprocessing.active_children())}))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="workers fork on Linux only")
+def test_where_workers_fork_the_run_forks_them_after_the_imports_before_the_scene(tmp_path):
+    # a fresh interpreter: one thread, as the command has (a pytest process may hold threads other tests left,
+    # and then its pools spawn)
+    import json
+
+    argv = ["run", SCENE, "--frames", "2", "--order", "2", "--workers", "2", "--no-progress",
+            "--out", str(tmp_path / "a.usda")]
+    env = dict(os.environ, PYTHONPATH=REPO + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    out = subprocess.run([sys.executable, "-c", FORKING_RUN, *argv], capture_output=True, text=True, env=env,
+                         timeout=300, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["code"] == 0
+    assert got["seen"] == {"init_warp": 0, "build_parser": 0, "read_scene": 2}
+    assert got["pools"] == [[2, "fork"]]  # one pool, forked, after the parent's imports and before the scene
+    assert got["left"] == 0
 
 
 def test_the_workers_start_before_warp_and_the_parser_and_the_run_keeps_them(tmp_path, monkeypatch, spawning):
