@@ -2,8 +2,8 @@
 
 Each run is ``python -m warpshade run --no-progress --workers 2 --frames F`` on the default scene in a fresh
 process, watched through ``/proc`` every 5 ms: when its first worker process appears (a child spawned by
-``multiprocessing`` or forked from the run, not the resource tracker), the run's own CPU time (utime + stime, 10 ms ticks) and the
-wall time since launch are read; at the end the wall time and the CPU time of the run and its children.
+``multiprocessing`` or forked from the run, not the resource tracker), the run's own CPU time (utime + stime,
+10 ms ticks) and the wall time since launch are read; at the end the wall time and the CPU time of the run and its children.
 Throughout, every process of the run (the parent and its workers) is sampled at the same 5 ms: when it was
 first and last seen, its CPU time, and how long it slept (state ``S``: a worker waiting for a task or a
 streamed frame, the parent waiting for results; a runnable process waiting for a core counts as awake), so

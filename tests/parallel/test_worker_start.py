@@ -1,6 +1,6 @@
-"""How a :class:`~warpshade.parallel.WorkerPool` starts its workers (:func:`~warpshade.parallel.frames.worker_start_method`):
-forked from a process with one Python thread and no CUDA, inheriting its imports and state but none of its signal
-handlers; spawned otherwise. Each case runs in a fresh interpreter, whose threads the test controls (a pytest
+"""How a :class:`~warpshade.parallel.WorkerPool` starts its workers
+(:func:`~warpshade.parallel.frames.worker_start_method`): forked from a process with one Python thread and no
+CUDA, inheriting its imports and state but none of its signal handlers; spawned otherwise. Each case runs in a fresh interpreter, whose threads the test controls (a pytest
 process may hold threads other tests left)."""
 
 from __future__ import annotations

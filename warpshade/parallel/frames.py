@@ -20,9 +20,9 @@ same order while worker processes shade ahead:
   which worker took which chunk, or on retries (a retried chunk is shaded again from its first frame).
 
 Backends: ``workers=0`` shades inline (no processes); ``workers>=1`` uses a pool of worker processes
-(:class:`WorkerPool`: forked where :func:`worker_start_method` allows, else spawned); ``scheduler="local"`` starts a local ``dask.distributed`` cluster with ``workers``
-single-threaded worker processes, and ``scheduler="tcp://HOST:PORT"`` (``tls://`` with a
-``security``) uses a running cluster.
+(:class:`WorkerPool`: forked where :func:`worker_start_method` allows, else spawned); ``scheduler="local"``
+starts a local ``dask.distributed`` cluster with ``workers`` single-threaded worker processes, and
+``scheduler="tcp://HOST:PORT"`` (``tls://`` with a ``security``) uses a running cluster.
 """
 
 from __future__ import annotations
@@ -57,7 +57,8 @@ class FrameShadingError(RuntimeError):
 WORKER_STARTUP_SECONDS = 1.5
 """Start-up of a worker pool before its first frame [s]: spawning, importing Warp and loading the
 kernels from a warm cache (``benchmarks/parallel.py`` prints it: 1.1-1.5 s for one worker, 1.4-1.5 s
-for two, 1.5 s for a loopback Dask cluster, on the 2-core machine)."""
+for two, 1.5 s for a loopback Dask cluster, on the 2-core machine). Measured with spawned workers; forked
+ones (:func:`worker_start_method`) skip the imports, not re-measured."""
 
 
 def default_workers() -> int:

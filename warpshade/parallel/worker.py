@@ -2,8 +2,8 @@
 
 A Dask worker (through :mod:`.dask_plugin`) calls :func:`init_worker` once with the run's token and
 spec. A process pool's worker starts before the spec exists (:func:`start_worker`: Warp and the modules
-the build will need, paid in the worker when it is spawned, inherited when it is forked) and builds the shader from the spec's file on its
-first task (:func:`build_from_file`). Every frame task is then :func:`shade_in_worker` (a chunk:
+the build will need, paid in the worker when it is spawned, inherited when it is forked) and builds the
+shader from the spec's file on its first task (:func:`build_from_file`). Every frame task is then :func:`shade_in_worker` (a chunk:
 :func:`shade_chunk_in_worker`). The state is per process, keyed by the run's token.
 """
 
@@ -69,7 +69,8 @@ def import_modules(names: tuple[str, ...]) -> None:
             pass
 
 
-FORK_BLOCKED_SIGNALS = frozenset(s for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None)
+FORK_BLOCKED_SIGNALS = frozenset(s for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None))
+                                 if s is not None)
 """Signals blocked while a pool forks its workers (:class:`~warpshade.parallel.WorkerPool`): a forked worker
 inherits the run's Python handlers (``warpshade run`` raises on SIGTERM and SIGHUP), which must not run in it;
 :func:`start_worker` resets them, then takes SIGTERM and SIGHUP again. SIGINT stays blocked in every worker."""
