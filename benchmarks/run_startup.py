@@ -2,8 +2,8 @@
 
 Each run is ``python -m warpshade run --no-progress --workers 2 --frames F`` on the default scene in a fresh
 process, watched through ``/proc`` every 5 ms: when its first worker process appears (a child spawned by
-``multiprocessing``, not the resource tracker), the run's own CPU time (utime + stime, 10 ms ticks) and the
-wall time since launch are read; at the end the wall time and the CPU time of the run and its children.
+``multiprocessing`` or forked from the run, not the resource tracker), the run's own CPU time (utime + stime,
+10 ms ticks) and the wall time since launch are read; at the end the wall time and the CPU time of the run and its children.
 Throughout, every process of the run (the parent and its workers) is sampled at the same 5 ms: when it was
 first and last seen, its CPU time, and how long it slept (state ``S``: a worker waiting for a task or a
 streamed frame, the parent waiting for results; a runnable process waiting for a core counts as awake), so
@@ -54,12 +54,18 @@ def cpu_and_state(pid: int) -> tuple[float, str] | None:
 
 
 def workers_of(pid: int) -> list[int]:
-    """Child processes of ``pid`` started by multiprocessing's spawn, less its resource tracker."""
+    """Worker processes of ``pid``: its children started by multiprocessing's spawn (their command line names
+    ``multiprocessing``), less its resource tracker, and those forked from it (the parent's command line)."""
     kids = []
     try:
         for task in os.listdir(f"/proc/{pid}/task"):
             with open(f"/proc/{pid}/task/{task}/children") as f:
                 kids += [int(k) for k in f.read().split()]
+    except OSError:
+        return []
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            own = f.read()
     except OSError:
         return []
     found = []
@@ -69,7 +75,7 @@ def workers_of(pid: int) -> list[int]:
                 cmd = f.read()
         except OSError:
             continue
-        if b"multiprocessing" in cmd and b"resource_tracker" not in cmd:
+        if (b"multiprocessing" in cmd or cmd == own) and b"resource_tracker" not in cmd:
             found.append(k)
     return found
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 
 import numpy as np
 import pytest
@@ -214,18 +215,35 @@ def test_dask_separate_process_cluster_on_loopback(spec, blob, inline):
     assert_same(out, inline)
 
 
-def test_a_script_without_a_main_guard_stops_with_an_error_that_says_why(tmp_path):
-    # each spawned worker imports the script, which starts a run of its own there and dies as it starts;
-    # the spec used to travel in the workers' start-up message, and with a worker dead before reading it the
-    # run blocked for ever writing that message
+UNGUARDED = ("import warpshade as ws\n"
+             # a spec over the 64 KiB a pipe holds (about 120 KiB: the meshes travel in it)
+             "scene = ws.make_scene(ws.ground(size=1.0, resolution=41), ws.cloth_grid(resolution=40, height=0.3))\n"
+             "ws.run(scene, {out!r}, frames=2, workers=2)\n")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="workers fork on Linux only")
+def test_a_script_without_a_main_guard_runs_where_workers_fork(tmp_path):
+    # a forked worker does not import the script (warpshade.parallel.frames.worker_start_method)
     import subprocess
-    import sys
 
     script = tmp_path / "unguarded.py"
-    script.write_text("import warpshade as ws\n"
-                      # a spec over the 64 KiB a pipe holds (about 120 KiB: the meshes travel in it)
-                      "scene = ws.make_scene(ws.ground(size=1.0, resolution=41), ws.cloth_grid(resolution=40, height=0.3))\n"
-                      f"ws.run(scene, {str(tmp_path / 'out.usda')!r}, frames=2, workers=2)\n")
+    script.write_text(UNGUARDED.format(out=str(tmp_path / "out.usda")))
+    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=240, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert (tmp_path / "out.usda").exists()
+
+
+def test_a_script_without_a_main_guard_stops_with_an_error_that_says_why(tmp_path):
+    # where workers spawn (here: the script runs a second thread, so they do not fork), each imports the
+    # script, which starts a run of its own there and dies as it starts; the spec used to travel in the
+    # workers' start-up message, and with a worker dead before reading it the run blocked for ever writing
+    # that message
+    import subprocess
+
+    script = tmp_path / "unguarded.py"
+    script.write_text("import threading\n"
+                      "threading.Thread(target=threading.Event().wait, daemon=True).start()\n"
+                      + UNGUARDED.format(out=str(tmp_path / "out.usda")))
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=240, cwd=tmp_path,

@@ -1,12 +1,15 @@
-"""``warpshade run``'s shading workers, started first: before the parent starts Warp and builds its parser.
+"""``warpshade run``'s shading workers: forked once the parent has started Warp and imported the run's modules,
+or, where they spawn, started first, before the parent starts Warp and builds its parser.
 
-A worker spends about 1 s starting (Warp, the pipeline's shading, the visibility method); the parent, before
-it can read ``run``'s flags, spends about as long starting Warp and importing every subcommand (``cmd_run``
-pulls in the pipeline, ``warpshade.sh`` and SciPy). :func:`early_pool` reads from the command line only what
-the pool depends on (``--workers``, ``--scheduler``, ``--method``), with the standard library and the
-visibility registry, and starts the pool then, so the two overlap. The parse that follows decides: the
-run :func:`adopt`\\ s the pool if it is the one that parse asks for, else closes it and starts its own.
-This module imports nothing heavy (no Warp, no NumPy beyond :mod:`warpshade.parallel`'s).
+A spawned worker spends about 1 s of CPU starting (Warp, the pipeline's shading, the visibility method); the
+parent, before it can read ``run``'s flags, spends about as long starting Warp and importing every subcommand
+(``cmd_run`` pulls in the pipeline, ``warpshade.sh`` and SciPy). Where workers fork
+(:func:`~warpshade.parallel.frames.can_fork`), the run starts its pool after those imports (:func:`adopt`, before
+the scene is read), and each worker inherits them instead of paying them again. Elsewhere :func:`early_pool`
+reads from the command line only what the pool depends on (``--workers``, ``--scheduler``, ``--method``), with
+the standard library and the visibility registry, and starts the pool then, so the two overlap. The parse that
+follows decides: the run :func:`adopt`\\ s the pool if it is the one that parse asks for, else closes it and
+starts its own. This module imports nothing heavy (no Warp, no NumPy beyond :mod:`warpshade.parallel`'s).
 """
 
 from __future__ import annotations
@@ -49,10 +52,14 @@ def _pool_flags() -> argparse.ArgumentParser:
 
 def early_pool(argv: list[str]):
     """For ``warpshade run`` (``argv`` without the program name), the worker pool it will most likely
-    use, started now; None for other commands, ``--help``, ``--workers 0``, ``--scheduler`` or flags
-    this light read cannot take (abbreviated, malformed: ``run``'s parser then reports them). The run
-    checks the guess (:func:`adopt`)."""
+    use, started now; None where workers fork (the run forks them later, :func:`adopt`), for other commands,
+    ``--help``, ``--workers 0``, ``--scheduler`` or flags this light read cannot take (abbreviated, malformed:
+    ``run``'s parser then reports them). The run checks the guess (:func:`adopt`)."""
     if not argv or argv[0] != "run" or any(a in ("-h", "--help", "--version") for a in argv):
+        return None
+    from ..parallel.frames import can_fork
+
+    if can_fork():
         return None
     try:
         flags, _ = _pool_flags().parse_known_args(argv[1:])

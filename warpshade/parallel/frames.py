@@ -19,10 +19,10 @@ same order while worker processes shade ahead:
   (temporal reuse) then gives results that depend on ``C`` alone: not on the number of workers, on
   which worker took which chunk, or on retries (a retried chunk is shaded again from its first frame).
 
-Backends: ``workers=0`` shades inline (no processes); ``workers>=1`` uses a pool of spawned worker
-processes; ``scheduler="local"`` starts a local ``dask.distributed`` cluster with ``workers``
-single-threaded worker processes, and ``scheduler="tcp://HOST:PORT"`` (``tls://`` with a
-``security``) uses a running cluster.
+Backends: ``workers=0`` shades inline (no processes); ``workers>=1`` uses a pool of worker processes
+(:class:`WorkerPool`: forked where :func:`worker_start_method` allows, else spawned); ``scheduler="local"``
+starts a local ``dask.distributed`` cluster with ``workers`` single-threaded worker processes, and
+``scheduler="tcp://HOST:PORT"`` (``tls://`` with a ``security``) uses a running cluster.
 """
 
 from __future__ import annotations
@@ -45,8 +45,9 @@ from typing import Any
 
 import numpy as np
 
-from .worker import (BuildFailed, FrameGeometry, FrameShaderSpec, ShadeFn, build_from_file, shade_chunk,
-                     shade_chunk_in_worker, shade_in_worker, start_worker)
+from .runtime import cuda_started
+from .worker import (FORK_BLOCKED_SIGNALS, BuildFailed, FrameGeometry, FrameShaderSpec, ShadeFn, build_from_file,
+                     import_modules, shade_chunk, shade_chunk_in_worker, shade_in_worker, start_worker)
 
 
 class FrameShadingError(RuntimeError):
@@ -56,7 +57,8 @@ class FrameShadingError(RuntimeError):
 WORKER_STARTUP_SECONDS = 1.5
 """Start-up of a worker pool before its first frame [s]: spawning, importing Warp and loading the
 kernels from a warm cache (``benchmarks/parallel.py`` prints it: 1.1-1.5 s for one worker, 1.4-1.5 s
-for two, 1.5 s for a loopback Dask cluster, on the 2-core machine)."""
+for two, 1.5 s for a loopback Dask cluster, on the 2-core machine). Measured with spawned workers; forked
+ones (:func:`worker_start_method`) skip the imports, not re-measured."""
 
 
 def default_workers() -> int:
@@ -69,19 +71,39 @@ def default_workers() -> int:
 
 # -- backends ----------------------------------------------------------------------------------
 @contextlib.contextmanager
-def _sigint_blocked():
-    """Block SIGINT in the calling thread for the duration.
+def _sigint_blocked(signals=frozenset({signal.SIGINT})):
+    """Block SIGINT (or ``signals``) in the calling thread for the duration.
 
-    A process spawned meanwhile inherits the blocked mask, so Ctrl-C (sent to the terminal's whole
-    process group) never reaches it: the run ends its workers itself, instead of each printing a
-    KeyboardInterrupt traceback. This process loses nothing: a SIGINT is taken by another thread or
+    A process spawned or forked meanwhile inherits the blocked mask, so Ctrl-C (sent to the terminal's
+    whole process group) never reaches it: the run ends its workers itself, instead of each printing a
+    KeyboardInterrupt traceback. This process loses nothing: a signal is taken by another thread or
     stays pending until the mask is restored.
     """
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, set(signals))
     try:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def can_fork() -> bool:
+    """Whether :class:`WorkerPool` forks its workers on this platform: on Linux (where ``fork`` is safe
+    for a process without other threads; macOS's system libraries are not, Windows has no fork)."""
+    return sys.platform.startswith("linux") and "fork" in mp.get_all_start_methods()
+
+
+def worker_start_method() -> str:
+    """How a :class:`WorkerPool` started now in this process starts its workers: ``"fork"`` where it can
+    (:func:`can_fork`) while this process runs no other Python thread (a lock another thread held would stay
+    held in the child for ever) and no CUDA device (a forked child cannot use the parent's CUDA context);
+    else ``"spawn"``. A forked worker inherits the imported modules and the started Warp instead of paying
+    them again (a spawned one imports them: about 1 s of CPU each on the 2-core machine). Native threads
+    that know about fork are allowed: OpenBLAS (NumPy's, SciPy's) stops its pool before a fork."""
+    import threading
+
+    if not can_fork() or threading.active_count() > 1 or cuda_started():
+        return "spawn"
+    return "fork"
 
 
 def _in_main_thread() -> bool:
@@ -150,16 +172,19 @@ def _started() -> None:
 
 class WorkerPool:
     """Worker processes for :func:`shade_frames` (``pool=``), started before the spec they will shade with
-    is known: spawned at once, they start Warp and import the modules ``preload`` names (those the spec's
-    ``build()`` imports) while this process goes on (the ``warpshade`` command reads its scene meanwhile).
-    :meth:`prepare` hands them the spec: each builds its shader as soon as it is free, before any frame is
-    simulated. A pool serves one :func:`shade_frames` call, which closes it; :meth:`close` a pool no call
-    took. Workers spawn with SIGINT blocked (Ctrl-C reaches the run only, which ends them) and end with
-    this process, whatever ends it.
+    is known, at once: forked from this process where :func:`worker_start_method` allows, after it imports
+    the modules ``preload`` names (those the spec's ``build()`` imports), so that the workers inherit them
+    and Warp already started; else spawned, each starting Warp and importing them while this process goes
+    on. :meth:`prepare` hands them the spec: each builds its shader as soon as it is free, before any frame
+    is simulated. A pool serves one :func:`shade_frames` call, which closes it; :meth:`close` a pool no call
+    took. Workers start with SIGINT blocked (Ctrl-C reaches the run only, which ends them), without the
+    run's signal handlers, and end with this process, whatever ends it.
 
     Args:
         workers: Worker processes (>= 1).
-        preload: Modules each worker imports while it waits for the spec.
+        preload: Modules the workers import before the spec comes (in this process first, if they fork).
+
+    ``start_method`` is how the current workers started (``"fork"`` or ``"spawn"``).
     """
 
     worker_errors = (BrokenProcessPool,)
@@ -198,12 +223,19 @@ class WorkerPool:
                 self.pool.submit(build_from_file, self.token, self.spec_file)
 
     def _new_pool(self):
-        """A pool whose workers are all starting: a pool spawns a process per task submitted while none
-        is idle."""
+        """A pool whose workers are all starting: a spawning pool starts a process per task submitted while
+        none is idle, a forking pool all of them at its first task. A forking pool (:func:`worker_start_method`)
+        imports ``preload`` here first, once, for every worker; a retry's pool spawns if this process has
+        threads by then (the run's first pool's)."""
         start_resource_tracker_quietly()
-        pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"), initializer=start_worker,
+        method = worker_start_method()
+        if method == "fork":
+            import_modules(self.preload)
+            method = worker_start_method()  # an import may have started a thread or CUDA
+        self.start_method = method
+        pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context(method), initializer=start_worker,
                                    initargs=(os.getpid(), self.preload))
-        with _sigint_blocked():
+        with _sigint_blocked(FORK_BLOCKED_SIGNALS if method == "fork" else {signal.SIGINT}):
             for _ in range(self.workers):
                 pool.submit(_started)
         return pool

@@ -90,6 +90,14 @@ def kernel_cache_holds_warpshade() -> bool:
     return any(COMPILED_MODULE.fullmatch(n) for n in names)
 
 
+def cuda_started() -> bool:
+    """Whether Warp runs in this process with a CUDA device (a process forked from it could not use CUDA);
+    False before :func:`init_warp`."""
+    context = sys.modules.get("warp._src.context")
+    runtime = getattr(context, "runtime", None)
+    return runtime is not None and bool(getattr(runtime, "cuda_devices", ()))
+
+
 def init_warp() -> None:
     """Initialise Warp once: warnings and errors only, no CUDA-driver notice on CPU-only machines, and
     modules missing from the kernel cache compiled by one process at a time (:func:`compile_one_at_a_time`)."""

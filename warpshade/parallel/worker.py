@@ -2,14 +2,15 @@
 
 A Dask worker (through :mod:`.dask_plugin`) calls :func:`init_worker` once with the run's token and
 spec. A process pool's worker starts before the spec exists (:func:`start_worker`: Warp and the modules
-the build will need, while the run reads its scene) and builds the shader from the spec's file on its
-first task (:func:`build_from_file`). Every frame task is then :func:`shade_in_worker` (a chunk:
+the build will need, paid in the worker when it is spawned, inherited when it is forked) and builds the
+shader from the spec's file on its first task (:func:`build_from_file`). Every frame task is then :func:`shade_in_worker` (a chunk:
 :func:`shade_chunk_in_worker`). The state is per process, keyed by the run's token.
 """
 
 from __future__ import annotations
 
 import os
+import signal
 from collections.abc import Callable
 from typing import Any, Protocol
 
@@ -56,22 +57,52 @@ def exit_with_parent(parent: int, interval: float = 0.5) -> None:
     threading.Thread(target=watch, name="warpshade-parent-watchdog", daemon=True).start()
 
 
+def import_modules(names: tuple[str, ...]) -> None:
+    """Import the modules ``names`` names; one that fails to import is left to fail where it is used (a spec's
+    ``build()`` imports it again and reports the error with the first frame)."""
+    import importlib
+
+    for name in names:
+        try:
+            importlib.import_module(name)
+        except Exception:  # noqa: BLE001 - the build imports it again and reports the error with the first frame
+            pass
+
+
+FORK_BLOCKED_SIGNALS = frozenset(s for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None))
+                                 if s is not None)
+"""Signals blocked while a pool forks its workers (:class:`~warpshade.parallel.WorkerPool`): a forked worker
+inherits the run's Python handlers (``warpshade run`` raises on SIGTERM and SIGHUP), which must not run in it;
+:func:`start_worker` resets them, then takes SIGTERM and SIGHUP again. SIGINT stays blocked in every worker."""
+
+
+def reset_signal_handlers() -> None:
+    """The signal handlers a fresh interpreter has, in a worker forked from a process that installed its own:
+    every handler installed from Python back to the default (SIGINT's to Python's, KeyboardInterrupt), then
+    SIGTERM and SIGHUP unblocked (:data:`FORK_BLOCKED_SIGNALS`). A spawned worker has nothing to reset."""
+    for sig in signal.valid_signals():
+        try:
+            handler = signal.getsignal(sig)
+        except (OSError, ValueError):
+            continue
+        if callable(handler) and handler is not signal.default_int_handler:
+            signal.signal(sig, signal.default_int_handler if sig == signal.SIGINT else signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, FORK_BLOCKED_SIGNALS - {signal.SIGINT})
+
+
 def start_worker(parent: int | None = None, preload: tuple[str, ...] = ()) -> None:
-    """A process pool's worker start-up, before any spec is known: with ``parent``, this process ends when
+    """A process pool's worker start-up, before any spec is known: the run's signal handlers reset
+    (:func:`reset_signal_handlers`; a forked worker inherits them); with ``parent``, this process ends when
     process ``parent`` does; Warp is started and the modules ``preload`` names are imported (those a spec's
-    ``build()`` will import; one that fails to import is left to fail there, where the error is reported)."""
+    ``build()`` will import, :func:`import_modules`). A worker forked from a process that had done both finds
+    them done."""
+    reset_signal_handlers()
     if parent is not None:
         exit_with_parent(parent)
     from .runtime import init_warp
 
     init_warp()
-    import importlib
-
-    for name in preload:
-        try:
-            importlib.import_module(name)
-        except Exception:  # noqa: BLE001 - the build imports it again and reports the error with the first frame
-            pass
+    import_modules(preload)
 
 
 def init_worker(token: str, spec: FrameShaderSpec, parent: int | None = None) -> None:
