@@ -408,6 +408,15 @@ class ColliderSet:
                          [m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x, edges,
                           inv_mass, thickness], [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, n, [], [self._edge_delta, self._edge_count, x])
+        if tris is not None and self.has_closed_meshes:
+            # closed meshes' sharp edges through the inside of cloth triangles, a pass of its own
+            # (as the corners': averaged with the edge corrections, the push would be diluted)
+            for m in self.meshes:
+                if m.closed:
+                    self._launch(ck.collide_mesh_edge_faces, tris.shape[0],
+                                 [m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x,
+                                  tris, inv_mass, thickness], [self._edge_delta, self._edge_count])
+            self._launch(apply_averaged_deltas, n, [], [self._edge_delta, self._edge_count, x])
         if tris is not None:
             # a pass of its own: averaged with the many small edge corrections a vertex near a
             # corner also gets, the corner's push would be diluted
