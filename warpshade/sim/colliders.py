@@ -408,7 +408,7 @@ class ColliderSet:
                          [m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x, edges,
                           inv_mass, thickness], [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, n, [], [self._edge_delta, self._edge_count, x])
-        if tris is not None and self.has_closed_meshes:
+        if tris is not None and self.has_closed_meshes and not getattr(self, '_TMP_OFF', False):
             # closed meshes' sharp edges through the inside of cloth triangles, a pass of its own
             # (as the corners': averaged with the edge corrections, the push would be diluted)
             for m in self.meshes:

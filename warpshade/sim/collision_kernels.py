@@ -552,8 +552,10 @@ def collide_mesh_edge_faces(
             if h1 > h0:
                 tp = t1
                 h = h1
-            if h <= -thickness or h > lmax:
+            if h <= 0.0 or h > lmax:
                 continue
+            if wp.dot(n, na) <= 0.0 or wp.dot(n, nb) <= 0.0:
+                continue  # the triangle's point behind the edge lies beyond a face: outside the solid
             bary = plane_barycentric(wp.lerp(m0, m1, tp), a, b, c, nt)
             bary = wp.vec3(wp.max(bary[0], 0.0), wp.max(bary[1], 0.0), wp.max(bary[2], 0.0))
             bary = bary / (bary[0] + bary[1] + bary[2])
