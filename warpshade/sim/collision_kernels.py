@@ -463,17 +463,22 @@ def collide_mesh_edge_faces(
     delta_count: wp.array[float],
 ):
     """Cloth triangles against a closed mesh collider's sharp convex edges (faces turned by more
-    than :data:`SHARP_EDGE_COS`): a collider edge that pokes through the inside of a cloth triangle
-    whose vertices and edges are all outside the solid (the triangle laid across a box's edge
-    nearly along it) touches no cloth vertex and cuts no cloth edge, so neither the vertex pass nor
-    :func:`collide_mesh_edges` sees it. The part of the collider edge under the triangle (the
-    segment clipped to the triangle's prism) is measured against the triangle's plane on the
-    solid's side (the triangle's normal turned towards the edge's outward direction, the sum of its
-    faces' normals); its highest point, when less than ``thickness`` below the plane (and not
-    deeper through it than the triangle's longest edge: a stale or far pair), is pushed down to
-    ``thickness`` below by moving the triangle along that normal, split between its three vertices
-    by the barycentric weights of the point's projection (:func:`push_triangle_point`).
-    Corrections accumulated for averaging."""
+    than :data:`SHARP_EDGE_COS`): a cloth triangle laid across a box's edge, its vertices held
+    outside by the vertex pass, has edges that cut through the solid as chords across the edge.
+    :func:`collide_mesh_edges` pushes such a cloth edge along the face it is least deep under,
+    which for a chord crossing the edge at about 45 degrees leaves it cutting the solid after
+    several passes; this pass lifts the whole triangle along its normal instead. The part of the
+    collider edge under the triangle (the segment clipped to the triangle's prism) is measured
+    against the triangle's plane, whose normal is turned towards the edge's outward direction (the
+    sum of its faces' normals); where its highest point is in front of the plane (through the
+    triangle, by less than the triangle's longest edge: deeper is a stale or far pair) and the
+    triangle's point behind it lies inside the edge's wedge (the normal on the outer side of both
+    faces; else that point is outside the solid, beyond a face, and nothing pokes through), the
+    triangle is moved along the normal until the edge is ``thickness`` behind it, the move split
+    between its three vertices by the barycentric weights of the point's projection
+    (:func:`push_triangle_point`). Edges within ``thickness`` behind the plane are left alone (the
+    vertex and edge passes keep the layer; pushed here too, cloth folded over a table's corner was
+    driven into its own layers). Corrections accumulated for averaging."""
     k = wp.tid()
     i0 = tris[k, 0]
     i1 = tris[k, 1]
