@@ -113,6 +113,9 @@ class MeshCollider:
         self.indices = wp.array(self.faces.reshape(-1), dtype=wp.int32, device=device)
         self.mesh = wp.Mesh(points=wp.array(pts, dtype=wp.vec3, device=device), indices=self.indices)
         self._pending = None
+        self._end_host = pts
+        self.moving = False
+        """Whether the mesh moves in the current step (its end pose differs from its start pose)."""
         # edge topology for edge-edge contact: each triangle's edges, their ends and faces (-1: border),
         # on the welded mesh (see weld_indices)
         f = weld_indices(pts)[self.faces.astype(np.int64)]
@@ -305,9 +308,10 @@ class ColliderSet:
         self._upload_shapes()
         self._dirty = False
         for m in self.meshes:
+            m.moving = m._pending is not None and not np.array_equal(m._pending, m._end_host)
             if m._pending is not None:
                 m.points_end.assign(m._pending)
-                m._pending = None
+                m._end_host, m._pending = m._pending, None
 
     def _upload_shapes(self) -> None:
         if self._kind:
@@ -413,7 +417,7 @@ class ColliderSet:
             # cloth triangles off the closed meshes' sharp edges, a pass of its own (as the
             # corners': averaged with the edge corrections, the push would be diluted)
             for m in self.meshes:
-                if m.closed:
+                if m.closed and not m.moving:
                     self._launch(ck.collide_mesh_edge_faces, tris.shape[0],
                                  [m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x,
                                   tris, inv_mass, thickness], [self._edge_delta, self._edge_count])

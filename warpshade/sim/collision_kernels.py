@@ -557,7 +557,7 @@ def collide_mesh_edge_faces(
             if h1 > h0:
                 tp = t1
                 h = h1
-            if h <= 0.0 or h > lmax:
+            if h <= 0.0 or h > wp.min(lmax, 4.0 * thickness):
                 continue
             if wp.dot(n, na) <= 0.0 or wp.dot(n, nb) <= 0.0:
                 continue  # the triangle's point behind the edge lies beyond a face: outside the solid
