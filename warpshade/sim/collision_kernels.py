@@ -471,7 +471,8 @@ def collide_mesh_edge_faces(
     collider edge under the triangle (the segment clipped to the triangle's prism) is measured
     against the triangle's plane, whose normal is turned towards the edge's outward direction (the
     sum of its faces' normals); where its highest point is in front of the plane (through the
-    triangle, by less than the triangle's longest edge: deeper is a stale or far pair) and the
+    triangle, by less than 4 thicknesses, the reach of :func:`collide_mesh_edges`, and than the
+    triangle's longest edge: deeper pushes sent ``usd_scenes/cloth_table`` on another course) and the
     triangle's point behind it lies inside the edge's wedge (the normal on the outer side of both
     faces; else that point is outside the solid, beyond a face, and nothing pokes through), the
     triangle is moved along the normal until the edge is ``thickness`` behind it, the move split
