@@ -113,6 +113,9 @@ class MeshCollider:
         self.indices = wp.array(self.faces.reshape(-1), dtype=wp.int32, device=device)
         self.mesh = wp.Mesh(points=wp.array(pts, dtype=wp.vec3, device=device), indices=self.indices)
         self._pending = None
+        self._end_host = pts
+        self.moving = False
+        """Whether the mesh moves in the current step (its end pose differs from its start pose)."""
         # edge topology for edge-edge contact: each triangle's edges, their ends and faces (-1: border),
         # on the welded mesh (see weld_indices)
         f = weld_indices(pts)[self.faces.astype(np.int64)]
@@ -305,9 +308,10 @@ class ColliderSet:
         self._upload_shapes()
         self._dirty = False
         for m in self.meshes:
+            m.moving = m._pending is not None and not np.array_equal(m._pending, m._end_host)
             if m._pending is not None:
                 m.points_end.assign(m._pending)
-                m._pending = None
+                m._end_host, m._pending = m._pending, None
 
     def _upload_shapes(self) -> None:
         if self._kind:
@@ -381,17 +385,18 @@ class ColliderSet:
 
     def collide_edges(self, thickness: float, inv_mass, edges, x, tris=None, x_prev=None) -> None:
         """Push cloth edges out of the mesh colliders' edges, the edges of boxes and the rims of
-        cylinders and cones (sharp edges cutting between two cloth vertices), and cloth triangles
-        off the colliders' corners (:meth:`collide_corners`: box corners, cone apexes, sharp mesh
-        vertices poking through a triangle's inside),
-        corrections averaged per vertex.
+        cylinders and cones (sharp edges cutting between two cloth vertices), cloth triangles off
+        the closed meshes' sharp edges (:func:`~warpshade.sim.collision_kernels.collide_mesh_edge_faces`:
+        a triangle laid across a box's edge), and cloth triangles off the colliders' corners
+        (:meth:`collide_corners`: box corners, cone apexes, sharp mesh vertices poking through a
+        triangle's inside), corrections averaged per vertex.
 
         Args:
             thickness: Distance to keep [m].
             inv_mass: Inverse masses, shape (V,), dtype float32.
             edges: Cloth edges, shape (E, 2), dtype int32.
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
-            tris: Cloth triangles, shape (F, 3), dtype int32; None skips the corners.
+            tris: Cloth triangles, shape (F, 3), dtype int32; None skips the triangle passes.
             x_prev: Positions at the start of the substep [m], for the corners' friction (None: none).
         """
         if not self.has_sharp_edges:
@@ -408,6 +413,15 @@ class ColliderSet:
                          [m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x, edges,
                           inv_mass, thickness], [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, n, [], [self._edge_delta, self._edge_count, x])
+        if tris is not None and self.has_closed_meshes:
+            # cloth triangles off the closed meshes' sharp edges, a pass of its own (as the
+            # corners': averaged with the edge corrections, the push would be diluted)
+            for m in self.meshes:
+                if m.closed and not m.moving:
+                    self._launch(ck.collide_mesh_edge_faces, tris.shape[0],
+                                 [m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x,
+                                  tris, inv_mass, thickness], [self._edge_delta, self._edge_count])
+            self._launch(apply_averaged_deltas, n, [], [self._edge_delta, self._edge_count, x])
         if tris is not None:
             # a pass of its own: averaged with the many small edge corrections a vertex near a
             # corner also gets, the corner's push would be diluted

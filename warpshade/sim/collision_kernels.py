@@ -440,6 +440,134 @@ def collide_mesh_edges(
             wp.atomic_add(delta_count, i1, 1.0)
 
 
+SHARP_EDGE_COS = wp.constant(0.766)
+"""Closed-mesh edges whose two faces' normals have a cosine below this (turned by more than 40
+degrees: a box's edges, 90) are pushed out of cloth triangles by :func:`collide_mesh_edge_faces`;
+the gentler edges of a tessellated ball (a 1280-triangle sphere's: about 10 degrees) are left to the
+vertex and edge passes."""
+
+
+@wp.kernel
+def collide_mesh_edge_faces(
+    mesh: wp.uint64,
+    mesh_points: wp.array[wp.vec3],
+    mesh_tris: wp.array[int],
+    tri_edges: wp.array2d[int],
+    edge_verts: wp.array2d[int],
+    edge_faces: wp.array2d[int],
+    x: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    inv_mass: wp.array[float],
+    thickness: float,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Cloth triangles against a closed mesh collider's sharp convex edges (faces turned by more
+    than :data:`SHARP_EDGE_COS`): a cloth triangle laid across a box's edge, its vertices held
+    outside by the vertex pass, has edges that cut through the solid as chords across the edge.
+    :func:`collide_mesh_edges` pushes such a cloth edge along the face it is least deep under,
+    which for a chord crossing the edge at about 45 degrees leaves it cutting the solid after
+    several passes; this pass lifts the whole triangle along its normal instead. The part of the
+    collider edge under the triangle (the segment clipped to the triangle's prism) is measured
+    against the triangle's plane, whose normal is turned towards the edge's outward direction (the
+    sum of its faces' normals); where its highest point is in front of the plane (through the
+    triangle, by less than 4 thicknesses, the reach of :func:`collide_mesh_edges`, and than the
+    triangle's longest edge: deeper pushes sent ``usd_scenes/cloth_table`` on another course) and the
+    triangle's point behind it lies inside the edge's wedge (the normal on the outer side of both
+    faces; else that point is outside the solid, beyond a face, and nothing pokes through), the
+    triangle is moved along the normal until the edge is ``thickness`` behind it, the move split
+    between its three vertices by the barycentric weights of the point's projection
+    (:func:`push_triangle_point`). Edges within ``thickness`` behind the plane are left alone (the
+    vertex and edge passes keep the layer; pushed here too, cloth folded over a table's corner was
+    driven into its own layers). Corrections accumulated for averaging."""
+    k = wp.tid()
+    i0 = tris[k, 0]
+    i1 = tris[k, 1]
+    i2 = tris[k, 2]
+    w0 = inv_mass[i0]
+    w1 = inv_mass[i1]
+    w2 = inv_mass[i2]
+    if w0 + w1 + w2 == 0.0:
+        return
+    a = x[i0]
+    b = x[i1]
+    c = x[i2]
+    nn = wp.cross(b - a, c - a)
+    ln = wp.length(nn)
+    if ln == 0.0:
+        return
+    nt = nn / ln
+    lmax = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
+    lo = wp.min(wp.min(a, b), c) - wp.vec3(thickness)
+    hi = wp.max(wp.max(a, b), c) + wp.vec3(thickness)
+    query = wp.mesh_query_aabb(mesh, lo, hi)
+    f = int(0)
+    while wp.mesh_query_aabb_next(query, f):
+        for ce in range(3):
+            e = tri_edges[f, ce]
+            fb = edge_faces[e, 1]
+            if edge_faces[e, 0] != f or fb < 0:
+                continue  # each collider edge once, from its first face; border edges have no solid
+            m0 = mesh_points[edge_verts[e, 0]]
+            m1 = mesh_points[edge_verts[e, 1]]
+            pa0 = mesh_points[mesh_tris[3 * f]]
+            na = wp.normalize(wp.cross(mesh_points[mesh_tris[3 * f + 1]] - pa0, mesh_points[mesh_tris[3 * f + 2]] - pa0))
+            pb0 = mesh_points[mesh_tris[3 * fb]]
+            pb1 = mesh_points[mesh_tris[3 * fb + 1]]
+            pb2 = mesh_points[mesh_tris[3 * fb + 2]]
+            nb = wp.normalize(wp.cross(pb1 - pb0, pb2 - pb0))
+            if wp.dot(na, nb) > SHARP_EDGE_COS:
+                continue  # flat or gently bent: the vertex and edge passes hold it
+            if wp.dot((pb0 + pb1 + pb2) / 3.0 - m0, na) >= 0.0:
+                continue  # concave: a fold inward pokes through nothing
+            out = na + nb
+            cs = wp.dot(nt, out)
+            if wp.abs(cs) < 1.0e-3 * wp.length(out):
+                continue  # the triangle's plane holds the edge's outward direction: no side
+            n = nt
+            if cs < 0.0:
+                n = -nt
+            # clip the edge to the triangle's prism: each side's inner half-plane, linear in t
+            t0 = float(0.0)
+            t1 = float(1.0)
+            for j in range(3):
+                p = a
+                q = b
+                if j == 1:
+                    p = b
+                    q = c
+                elif j == 2:
+                    p = c
+                    q = a
+                side = wp.cross(nt, q - p)  # points into the triangle
+                g0 = wp.dot(m0 - p, side)
+                g1 = wp.dot(m1 - p, side)
+                if g0 < 0.0 and g1 < 0.0:
+                    t0 = 2.0
+                elif g0 < 0.0:
+                    t0 = wp.max(t0, g0 / (g0 - g1))
+                elif g1 < 0.0:
+                    t1 = wp.min(t1, g0 / (g0 - g1))
+            if t0 > t1:
+                continue
+            # the highest point of the clipped part above the plane, on the solid's side (h > 0: through)
+            h0 = wp.dot(wp.lerp(m0, m1, t0) - a, n)
+            h1 = wp.dot(wp.lerp(m0, m1, t1) - a, n)
+            tp = t0
+            h = h0
+            if h1 > h0:
+                tp = t1
+                h = h1
+            if h <= 0.0 or h > wp.min(lmax, 4.0 * thickness):
+                continue
+            if wp.dot(n, na) <= 0.0 or wp.dot(n, nb) <= 0.0:
+                continue  # the triangle's point behind the edge lies beyond a face: outside the solid
+            bary = plane_barycentric(wp.lerp(m0, m1, tp), a, b, c, nt)
+            bary = wp.vec3(wp.max(bary[0], 0.0), wp.max(bary[1], 0.0), wp.max(bary[2], 0.0))
+            bary = bary / (bary[0] + bary[1] + bary[2])
+            push_triangle_point(i0, i1, i2, w0, w1, w2, bary, n, h + thickness, delta, delta_count)
+
+
 @wp.kernel
 def collide_shape_edges(
     kind: wp.array[int],
