@@ -160,7 +160,7 @@ class ClothSimulation:
             mine = np.flatnonzero((edges[:, 0] >= a) & (edges[:, 0] < b))
             self._stretch[name] = {"ends": (edges[mine, 0].copy(), edges[mine, 1].copy()), "inv_rest2": inv_rest2[mine],
                                    "held": bool((inv_mass[a:b] == 0).any()), "frames": [], "worst": (0.0, -1),
-                                   "warned": False}
+                                   "warned": False, "guarded": False}
 
     @staticmethod
     def _sphere_path(scene: Scene, obj) -> tuple[np.ndarray, float] | None:
@@ -207,18 +207,19 @@ class ClothSimulation:
             if self.attachments:
                 self.control.set_targets(np.concatenate(
                     [self._si(geometry[name][idx]) + off for name, idx, off in self.attachments]))
+            reverts = getattr(self.solver, "guard_steps", 0)
             self.solver.step(self.state, self.state, self.dt, self.control)
             self._frame += 1
             self._points = self.state.points.numpy()
-            self._watch_stretch()
+            self._watch_stretch(guarded=getattr(self.solver, "guard_steps", 0) > reverts)
         return {name: self._scene_units(self._points[a:b]) for name, (a, b) in self.ranges.items()}
 
-    def _watch_stretch(self) -> None:
+    def _watch_stretch(self, guarded: bool = False) -> None:
         """After a step: note each cloth's frames whose worst edge strain passes
         :data:`STRAIN_WARNING`, and warn once per cloth (a :class:`SceneWarning` naming it, the
         frames, the worst strain and the likely cause) when such a run of frames ends or at the
         scene's last frame. Costs one float32 pass over the edges in numpy (0.3 ms on a 64 x 64
-        cloth's 12033 edges at a load average of 20)."""
+        cloth's 12033 edges at a load average of 20). ``guarded``: the intersection guard acted in this step."""
         x = self._points
         last = self._frame >= self.frames - 1
         for name, w in self._stretch.items():
@@ -228,6 +229,7 @@ class ClothSimulation:
             worst = float(np.sqrt((np.einsum("ij,ij->i", d, d) * w["inv_rest2"]).max())) - 1.0
             if worst > STRAIN_WARNING:
                 w["frames"].append(self._frame)
+                w["guarded"] = w["guarded"] or guarded
                 if worst > w["worst"][0]:
                     w["worst"] = (worst, self._frame)
             if w["frames"] and (last or worst <= STRAIN_WARNING):
@@ -244,6 +246,10 @@ class ClothSimulation:
                      "cloth held on two sides without stretching it far)")
         elif w["held"]:
             cause = "its pinned or attached vertices pulling it apart"
+        elif w["guarded"] and not getattr(self.solver, "guard_relax", 0):
+            cause = ("the intersection guard undoing a fast impact: it puts back the vertices of a step that ended in "
+                     "intersections while the cloth around them moves on (warpshade:cloth:guardRelax = 8 pulls that "
+                     "cloth along)")
         else:
             cause = "a collider driving it faster than it can follow"
         unresolved = getattr(self.solver, "guard_unresolved", 0)
