@@ -283,6 +283,39 @@ def interpolate_points(
     out[i] = wp.lerp(start[i], end[i], alpha)
 
 
+@wp.func
+def open_mesh_side(
+    mesh: wp.uint64,
+    points_ref: wp.array[wp.vec3],
+    tris: wp.array[int],
+    moved: int,
+    p: wp.vec3,
+    max_distance: float,
+) -> float:
+    """The side (+1 along the face normals, -1 against) of an open mesh that point p was on when
+    the mesh was posed as ``points_ref``, found against the mesh's current pose (``mesh``): the
+    side of p's nearest face; when the mesh has moved since (``moved``), p is first carried along
+    by the surface's move at its nearest point, so a surface that moved past p since does not put
+    it on the far side. +1 when no face is within ``max_distance``."""
+    side = float(1.0)
+    q0 = wp.mesh_query_point_no_sign(mesh, p, max_distance)
+    if q0.result:
+        c0 = wp.mesh_eval_position(mesh, q0.face, q0.u, q0.v)
+        if moved != 0:
+            w0 = 1.0 - q0.u - q0.v
+            r0 = (points_ref[tris[3 * q0.face]] * q0.u + points_ref[tris[3 * q0.face + 1]] * q0.v
+                  + points_ref[tris[3 * q0.face + 2]] * w0)
+            pc = p + (c0 - r0)
+            q1 = wp.mesh_query_point_no_sign(mesh, pc, max_distance)
+            if q1.result:
+                c1 = wp.mesh_eval_position(mesh, q1.face, q1.u, q1.v)
+                if wp.dot(pc - c1, wp.mesh_eval_face_normal(mesh, q1.face)) < 0.0:
+                    side = -1.0
+        elif wp.dot(p - c0, wp.mesh_eval_face_normal(mesh, q0.face)) < 0.0:
+            side = -1.0
+    return side
+
+
 @wp.kernel
 def collide_mesh(
     mesh: wp.uint64,
@@ -294,6 +327,8 @@ def collide_mesh(
     friction: float,
     inv_mass: wp.array[float],
     x_prev: wp.array[wp.vec3],
+    points_ref: wp.array[wp.vec3],
+    moved: int,
     x: wp.array[wp.vec3],
 ):
     """Push each free vertex out of a triangle mesh.
@@ -306,6 +341,9 @@ def collide_mesh(
     was on at the start of the substep (x_prev). The winding number of an open sheet is only
     +-1/2 on its two sides, so the solid test would let a vertex through. `points_prev` is the
     mesh at the previous substep, to move the contact point with the surface for friction.
+    `points_ref` is the open mesh as posed when the vertices were at x_prev and `moved` says
+    whether it differs from the current pose (:func:`open_mesh_side`: a surface that moved past
+    x_prev since would otherwise put the vertex on its far side, and push it through).
     """
     i = wp.tid()
     if inv_mass[i] == 0.0:
@@ -340,12 +378,7 @@ def collide_mesh(
         u = q.u
         v = q.v
         # the side: where the vertex was at the start of the substep, against its closest face then
-        side = float(1.0)
-        q0 = wp.mesh_query_point_no_sign(mesh, x_prev[i], max_distance + wp.length(p - x_prev[i]))
-        if q0.result:
-            c0 = wp.mesh_eval_position(mesh, q0.face, q0.u, q0.v)
-            if wp.dot(x_prev[i] - c0, wp.mesh_eval_face_normal(mesh, q0.face)) < 0.0:
-                side = -1.0
+        side = open_mesh_side(mesh, points_ref, tris, moved, x_prev[i], max_distance + wp.length(p - x_prev[i]))
         n = wp.mesh_eval_face_normal(mesh, face) * side
         cp = wp.mesh_eval_position(mesh, face, u, v)
         sd = wp.length(p - cp)
@@ -915,6 +948,74 @@ def collide_mesh_faces(
         if out.result:
             move = back * (out.t / lb) + out.normal * thickness
     push_triangle_point(ids[0], ids[1], ids[2], w[0], w[1], w[2], bary, move, 1.0, delta, delta_count)
+
+
+@wp.kernel
+def collide_open_mesh_faces(
+    mesh: wp.uint64,
+    points_ref: wp.array[wp.vec3],
+    mesh_tris: wp.array[int],
+    moved: int,
+    x_prev: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    inv_mass: wp.array[float],
+    thickness: float,
+    max_distance: float,
+    samples: int,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Cloth triangles through an open mesh collider (posed as ``mesh``'s points) while their
+    vertices are held on their sides (the mesh's dome poking through a stretched triangle): the
+    open counterpart of :func:`collide_mesh_faces`. The triangle is sampled on the same grid, each
+    sample's side of its nearest face compared with the side the same point of the triangle at
+    ``x_prev`` was on with the mesh posed as ``points_ref`` (:func:`open_mesh_side`), and the sample
+    deepest on the other side moved back along its nearest face's normal to ``thickness`` on its
+    own side, the push split between the three vertices by their barycentric weights. A triangle
+    with no sample across is left alone."""
+    k = wp.tid()
+    ids = wp.vec3i(tris[k, 0], tris[k, 1], tris[k, 2])
+    w = wp.vec3(inv_mass[ids[0]], inv_mass[ids[1]], inv_mass[ids[2]])
+    if w[0] + w[1] + w[2] == 0.0:
+        return
+    p0 = x[ids[0]]
+    p1 = x[ids[1]]
+    p2 = x[ids[2]]
+    c = (p0 + p1 + p2) / 3.0
+    r = wp.max(wp.max(wp.length(p0 - c), wp.length(p1 - c)), wp.length(p2 - c))
+    if not wp.mesh_query_point_no_sign(mesh, c, r + thickness).result:
+        return  # no part of the mesh near the triangle
+    s0 = x_prev[ids[0]]
+    s1 = x_prev[ids[1]]
+    s2 = x_prev[ids[2]]
+    best = float(0.0)
+    bary = wp.vec3(0.0)
+    n = wp.vec3(0.0)
+    inv = 1.0 / float(samples)
+    for a in range(samples + 1):
+        for b in range(samples + 1 - a):
+            if (a == samples) or (b == samples) or (a + b == 0):
+                continue  # a vertex
+            u = float(a) * inv
+            v = float(b) * inv
+            q = p0 * (1.0 - u - v) + p1 * u + p2 * v
+            h = wp.mesh_query_point_no_sign(mesh, q, max_distance)
+            if not h.result:
+                continue
+            cp = wp.mesh_eval_position(mesh, h.face, h.u, h.v)
+            fn = wp.normalize(wp.mesh_eval_face_normal(mesh, h.face))
+            sd = wp.dot(q - cp, fn)
+            q0 = s0 * (1.0 - u - v) + s1 * u + s2 * v
+            side = open_mesh_side(mesh, points_ref, mesh_tris, moved, q0, max_distance + wp.length(q - q0))
+            depth = thickness - sd * side
+            if depth > thickness and depth > best:
+                best = depth
+                bary = wp.vec3(1.0 - u - v, u, v)
+                n = fn * side
+    if best == 0.0:
+        return
+    push_triangle_point(ids[0], ids[1], ids[2], w[0], w[1], w[2], bary, n * best, 1.0, delta, delta_count)
 
 
 CORNER_INSIDE_TOL = wp.constant(0.01)
