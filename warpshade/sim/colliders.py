@@ -479,7 +479,7 @@ class ColliderSet:
 
     FACE_SAMPLES = 24
     """Steps a side of the barycentric grid on which :meth:`collide_mesh_faces` tests a cloth
-    triangle against a closed mesh (322 points besides the vertices; 6 steps missed the hammock's
+    triangle against a mesh (322 points besides the vertices; 6 steps missed the hammock's
     ball between the points of its 38 cm triangles)."""
 
     def collide_mesh_faces(self, thickness: float, inv_mass, tris, x, x_start) -> None:
@@ -490,7 +490,7 @@ class ColliderSet:
         :attr:`FACE_SAMPLES` steps a side), corrections averaged per vertex: the mesh counterpart of
         :meth:`collide_round_faces`. Cloth triangles through an open mesh go back to the side they
         were on at ``x_start`` against the step's start pose
-        (:func:`~warpshade.sim.collision_kernels.collide_open_mesh_faces`).
+        (the same kernel).
 
         Args:
             thickness: Distance to keep [m].
@@ -503,15 +503,10 @@ class ColliderSet:
             return
         self._edge_accumulators(x.shape[0])
         for m in self.meshes:
-            if m.closed:
-                self._launch(ck.collide_mesh_faces, tris.shape[0],
-                             [m.mesh.id, x_start, x, tris, inv_mass, thickness, thickness + self.mesh_query_distance,
-                              self.FACE_SAMPLES], [self._edge_delta, self._edge_count])
-            else:
-                self._launch(ck.collide_open_mesh_faces, tris.shape[0],
-                             [m.mesh.id, m.points_start, m.indices, int(m.moving), x_start, x, tris, inv_mass,
-                              thickness, thickness + self.mesh_query_distance, self.FACE_SAMPLES],
-                             [self._edge_delta, self._edge_count])
+            self._launch(ck.collide_mesh_faces, tris.shape[0],
+                         [m.mesh.id, m.points_start, m.indices, int(m.closed), int(m.moving), x_start, x, tris, inv_mass,
+                          thickness, thickness + self.mesh_query_distance, self.FACE_SAMPLES],
+                         [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, x.shape[0], [], [self._edge_delta, self._edge_count, x])
 
     def _edge_accumulators(self, n: int) -> None:

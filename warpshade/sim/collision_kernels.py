@@ -876,6 +876,10 @@ def collide_round_faces(
 @wp.kernel
 def collide_mesh_faces(
     mesh: wp.uint64,
+    points_ref: wp.array[wp.vec3],
+    mesh_tris: wp.array[int],
+    closed: int,
+    moved: int,
     x_prev: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
@@ -897,7 +901,12 @@ def collide_mesh_faces(
     not through), or to ``thickness`` from its nearest surface point when that path stays inside
     (the mesh moved onto the point). The push is split between the three vertices by their
     barycentric weights (as :func:`collide_round_faces` does). A triangle with no sample inside is
-    left alone.""" 
+    left alone.
+
+    An open mesh (``closed`` 0) has no inside: a sample is across it when it is on the other side
+    of its nearest face from the side the same point of the triangle at ``x_prev`` was on with the
+    mesh posed as ``points_ref`` (:func:`open_mesh_side`, ``moved`` as there), and the deepest such
+    sample moves back along that face's normal to ``thickness`` on its own side.""" 
     k = wp.tid()
     ids = wp.vec3i(tris[k, 0], tris[k, 1], tris[k, 2])
     w = wp.vec3(inv_mass[ids[0]], inv_mass[ids[1]], inv_mass[ids[2]])
@@ -921,6 +930,20 @@ def collide_mesh_faces(
             u = float(a) * inv
             v = float(b) * inv
             q = p0 * (1.0 - u - v) + p1 * u + p2 * v
+            if closed == 0:
+                h0 = wp.mesh_query_point_no_sign(mesh, q, max_distance)
+                if not h0.result:
+                    continue
+                c0 = wp.mesh_eval_position(mesh, h0.face, h0.u, h0.v)
+                fn = wp.normalize(wp.mesh_eval_face_normal(mesh, h0.face))
+                qs = x_prev[ids[0]] * (1.0 - u - v) + x_prev[ids[1]] * u + x_prev[ids[2]] * v
+                side = open_mesh_side(mesh, points_ref, mesh_tris, moved, qs, max_distance + wp.length(q - qs))
+                depth = thickness - wp.dot(q - c0, fn) * side
+                if depth > thickness and depth > best:
+                    best = depth
+                    bary = wp.vec3(1.0 - u - v, u, v)
+                    n = fn * side
+                continue
             h = wp.mesh_query_point_sign_winding_number(mesh, q, max_distance, 2.0, 0.5)
             if not h.result or h.sign >= 0.0:
                 continue
@@ -936,6 +959,9 @@ def collide_mesh_faces(
                     n = wp.normalize(wp.mesh_eval_face_normal(mesh, h.face))
     if best == 0.0:
         return
+    if closed == 0:
+        push_triangle_point(ids[0], ids[1], ids[2], w[0], w[1], w[2], bary, n * best, 1.0, delta, delta_count)
+        return
     # back the way the point came: from where it is to where it was (x_prev), out of the solid
     # where that path first leaves it (a triangle dragged past the solid's middle goes back, not
     # through); the nearest surface when the path stays inside (the mesh moved onto the point)
@@ -948,74 +974,6 @@ def collide_mesh_faces(
         if out.result:
             move = back * (out.t / lb) + out.normal * thickness
     push_triangle_point(ids[0], ids[1], ids[2], w[0], w[1], w[2], bary, move, 1.0, delta, delta_count)
-
-
-@wp.kernel
-def collide_open_mesh_faces(
-    mesh: wp.uint64,
-    points_ref: wp.array[wp.vec3],
-    mesh_tris: wp.array[int],
-    moved: int,
-    x_prev: wp.array[wp.vec3],
-    x: wp.array[wp.vec3],
-    tris: wp.array2d[int],
-    inv_mass: wp.array[float],
-    thickness: float,
-    max_distance: float,
-    samples: int,
-    delta: wp.array[wp.vec3],
-    delta_count: wp.array[float],
-):
-    """Cloth triangles through an open mesh collider (posed as ``mesh``'s points) while their
-    vertices are held on their sides (the mesh's dome poking through a stretched triangle): the
-    open counterpart of :func:`collide_mesh_faces`. The triangle is sampled on the same grid, each
-    sample's side of its nearest face compared with the side the same point of the triangle at
-    ``x_prev`` was on with the mesh posed as ``points_ref`` (:func:`open_mesh_side`), and the sample
-    deepest on the other side moved back along its nearest face's normal to ``thickness`` on its
-    own side, the push split between the three vertices by their barycentric weights. A triangle
-    with no sample across is left alone."""
-    k = wp.tid()
-    ids = wp.vec3i(tris[k, 0], tris[k, 1], tris[k, 2])
-    w = wp.vec3(inv_mass[ids[0]], inv_mass[ids[1]], inv_mass[ids[2]])
-    if w[0] + w[1] + w[2] == 0.0:
-        return
-    p0 = x[ids[0]]
-    p1 = x[ids[1]]
-    p2 = x[ids[2]]
-    c = (p0 + p1 + p2) / 3.0
-    r = wp.max(wp.max(wp.length(p0 - c), wp.length(p1 - c)), wp.length(p2 - c))
-    if not wp.mesh_query_point_no_sign(mesh, c, r + thickness).result:
-        return  # no part of the mesh near the triangle
-    s0 = x_prev[ids[0]]
-    s1 = x_prev[ids[1]]
-    s2 = x_prev[ids[2]]
-    best = float(0.0)
-    bary = wp.vec3(0.0)
-    n = wp.vec3(0.0)
-    inv = 1.0 / float(samples)
-    for a in range(samples + 1):
-        for b in range(samples + 1 - a):
-            if (a == samples) or (b == samples) or (a + b == 0):
-                continue  # a vertex
-            u = float(a) * inv
-            v = float(b) * inv
-            q = p0 * (1.0 - u - v) + p1 * u + p2 * v
-            h = wp.mesh_query_point_no_sign(mesh, q, max_distance)
-            if not h.result:
-                continue
-            cp = wp.mesh_eval_position(mesh, h.face, h.u, h.v)
-            fn = wp.normalize(wp.mesh_eval_face_normal(mesh, h.face))
-            sd = wp.dot(q - cp, fn)
-            q0 = s0 * (1.0 - u - v) + s1 * u + s2 * v
-            side = open_mesh_side(mesh, points_ref, mesh_tris, moved, q0, max_distance + wp.length(q - q0))
-            depth = thickness - sd * side
-            if depth > thickness and depth > best:
-                best = depth
-                bary = wp.vec3(1.0 - u - v, u, v)
-                n = fn * side
-    if best == 0.0:
-        return
-    push_triangle_point(ids[0], ids[1], ids[2], w[0], w[1], w[2], bary, n * best, 1.0, delta, delta_count)
 
 
 CORNER_INSIDE_TOL = wp.constant(0.01)
