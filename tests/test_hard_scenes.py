@@ -473,30 +473,27 @@ def test_ball_forced_through_pinned_cloth(tmp_path, ball, n):
     assert "/Root/Hammock" in message and "pinned" in message, message
 
 
-def test_mesh_cube_forced_through_pinned_cloth(tmp_path):
-    """The hammock (sims/hammock.py's stage and path, 33 x 33) with its ball replaced by a 30 cm
-    ``Cube`` with the same time-sampled translate, which collides as a moving closed mesh: the
-    cloth stays over it with 0 intersecting pairs at every frame end. Cloth triangles are pushed
-    off a closed mesh's sharp edges only while the mesh stands still
-    (``MeshCollider.moving``): pushed off the moving cube's edges too, the guard could not free
-    the steps from frame 29 on (212-307 pairs at frames 30-36, the cloth's top 0.2 cm under the
-    cube's)."""
-    from pxr import Gf, Usd, UsdGeom, UsdPhysics
+def _hammock_with(tmp_path, define, n=33, frames=37, keys=None):
+    """Run sims/hammock.py's stage (n x n, ``frames`` frames, the ball's translate keys, by default
+    the script's) with its ball replaced by the prim ``define(stage, "/Root/Ball")`` returns (given
+    the same time-sampled translate and the collision API); the intersecting cloth-collider pairs
+    at each frame end, the cloth's highest point at the end [cm] and the simulation."""
+    from pxr import Gf, Usd, UsdPhysics
 
     from warpshade.pipeline.cloth import ClothSimulation
     from warpshade.usd import read_scene
 
     hammock = _sim_module("hammock")
-    path = str(tmp_path / "hammock_cube.usda")
-    hammock.write_stage(path)
+    keys = hammock.BALL_PATH if keys is None else keys
+    path = str(tmp_path / "hammock_with.usda")
+    hammock.write_stage(path, n, "sphere", frames, keys)
     stage = Usd.Stage.Open(path)
     stage.RemovePrim("/Root/Ball")
-    cube = UsdGeom.Cube.Define(stage, "/Root/Ball")
-    cube.GetSizeAttr().Set(2 * hammock.RADIUS)
-    op = cube.AddTranslateOp()
-    for t, y in hammock.BALL_PATH:
+    prim = define(stage, "/Root/Ball")
+    op = prim.AddTranslateOp()
+    for t, y in keys:
         op.Set(Gf.Vec3d(0, y, 0), t)
-    UsdPhysics.CollisionAPI.Apply(cube.GetPrim())
+    UsdPhysics.CollisionAPI.Apply(prim.GetPrim())
     stage.GetRootLayer().Save()
     scene = read_scene(path)
     obj = next(o for o in scene.objects if o.name.endswith("Ball"))
@@ -509,6 +506,58 @@ def test_mesh_cube_forced_through_pinned_cloth(tmp_path):
         for f in range(scene.frames):
             sim.advance(f, {obj.name: np.asarray(obj.params["points_at"](f), np.float32)})
             counts.append(counter.collider_pairs(sim.state.points, sim.solver.colliders)[0])
-    assert counts == [0] * scene.frames, counts
-    top = sim.state.points.numpy()[:, 1].max() / 0.01  # [cm]
-    assert top > 95.0 + hammock.RADIUS, top
+    return counts, sim.state.points.numpy()[:, 1].max() / 0.01, sim
+
+
+def test_mesh_cube_forced_through_pinned_cloth(tmp_path):
+    """The hammock (sims/hammock.py's stage and path, 33 x 33) with its ball replaced by a 30 cm
+    ``Cube`` with the same time-sampled translate, which collides as a moving closed mesh: the
+    cloth stays over it with 0 intersecting pairs at every frame end. Cloth triangles are pushed
+    off a closed mesh's sharp edges only while the mesh stands still
+    (``MeshCollider.moving``): pushed off the moving cube's edges too, the guard could not free
+    the steps from frame 29 on (212-307 pairs at frames 30-36, the cloth's top 0.2 cm under the
+    cube's)."""
+    from pxr import UsdGeom
+
+    radius = _sim_module("hammock").RADIUS
+
+    def cube(stage, name):
+        prim = UsdGeom.Cube.Define(stage, name)
+        prim.GetSizeAttr().Set(2 * radius)
+        return prim
+
+    counts, top, _ = _hammock_with(tmp_path, cube)
+    assert counts == [0] * len(counts), counts
+    assert top > 95.0 + radius, top
+
+
+def test_open_mesh_dome_forced_through_pinned_cloth(tmp_path):
+    """The hammock (sims/hammock.py's stage, 13 x 13, the ball's path of
+    :func:`test_ball_forced_through_pinned_cloth`) with its ball replaced by an *open* dome: the
+    ball's tessellation without its lower part (faces whose centre is above -0.2 of the radius),
+    a moving open mesh collider, which has no inside. The cloth stays over it: 0 intersecting pairs
+    at every frame end (exact count) and its highest vertex above the dome's top. On main before
+    the open-mesh fixes the cloth went through (up to 133 pairs from frame 6, its top at 90.6 cm
+    under the dome's 110): a vertex's side was taken against the surface's current pose, which had
+    moved past it (without that fix: the same 133 pairs), and the guard's last resort pushed cloth
+    triangles out of closed meshes only (without that: 165 pairs at frame 13)."""
+    from pxr import Gf, UsdGeom
+
+    from warpshade.geometry.shapes import sphere_shape
+
+    radius = _sim_module("hammock").RADIUS
+    verts, faces = sphere_shape(radius, 3)
+    verts, faces = np.asarray(verts), np.asarray(faces)
+    faces = faces[verts[faces].mean(1)[:, 1] > -0.2 * radius]
+
+    def dome(stage, name):
+        prim = UsdGeom.Mesh.Define(stage, name)
+        prim.GetPointsAttr().Set([Gf.Vec3f(*map(float, p)) for p in verts])
+        prim.GetFaceVertexCountsAttr().Set([3] * len(faces))
+        prim.GetFaceVertexIndicesAttr().Set([int(i) for i in faces.reshape(-1)])
+        return prim
+
+    counts, top, sim = _hammock_with(tmp_path, dome, 13, 24, ((0, 20.0), (18, 95.0), (23, 95.0)))
+    assert not sim.solver.colliders.meshes[0].closed  # the collider kind meant: an open mesh
+    assert counts == [0] * len(counts), counts
+    assert top > 95.0 + radius, top  # over the dome's top, not under it

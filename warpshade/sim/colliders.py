@@ -479,7 +479,7 @@ class ColliderSet:
 
     FACE_SAMPLES = 24
     """Steps a side of the barycentric grid on which :meth:`collide_mesh_faces` tests a cloth
-    triangle against a closed mesh (322 points besides the vertices; 6 steps missed the hammock's
+    triangle against a mesh (322 points besides the vertices; 6 steps missed the hammock's
     ball between the points of its 38 cm triangles)."""
 
     def collide_mesh_faces(self, thickness: float, inv_mass, tris, x, x_start) -> None:
@@ -488,7 +488,9 @@ class ColliderSet:
         back the way it came since ``x_start``
         (:func:`~warpshade.sim.collision_kernels.collide_mesh_faces`, sampled on a grid of
         :attr:`FACE_SAMPLES` steps a side), corrections averaged per vertex: the mesh counterpart of
-        :meth:`collide_round_faces`.
+        :meth:`collide_round_faces`. Cloth triangles through an open mesh go back to the side they
+        were on at ``x_start`` against the step's start pose
+        (the same kernel).
 
         Args:
             thickness: Distance to keep [m].
@@ -497,14 +499,14 @@ class ColliderSet:
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
             x_start: Positions at the start of the step [m]: where each triangle came from.
         """
-        if not self.has_closed_meshes:
+        if not self.meshes:
             return
         self._edge_accumulators(x.shape[0])
         for m in self.meshes:
-            if m.closed:
-                self._launch(ck.collide_mesh_faces, tris.shape[0],
-                             [m.mesh.id, x_start, x, tris, inv_mass, thickness, thickness + self.mesh_query_distance,
-                              self.FACE_SAMPLES], [self._edge_delta, self._edge_count])
+            self._launch(ck.collide_mesh_faces, tris.shape[0],
+                         [m.mesh.id, m.points_start, m.indices, int(m.closed), int(m.moving), x_start, x, tris, inv_mass,
+                          thickness, thickness + self.mesh_query_distance, self.FACE_SAMPLES],
+                         [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, x.shape[0], [], [self._edge_delta, self._edge_count, x])
 
     def _edge_accumulators(self, n: int) -> None:
@@ -659,7 +661,7 @@ class ColliderSet:
                       rows["sides"], rows["count"], float(thickness)], [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, n, [], [self._edge_delta, self._edge_count, x])
 
-    def collide(self, thickness: float, inv_mass, x_prev, x, passes: int = 1) -> None:
+    def collide(self, thickness: float, inv_mass, x_prev, x, passes: int = 1, since: str = "substep") -> None:
         """Project the vertices x out of every collider as posed by :meth:`pose_substep`,
         ``passes`` times (the same as as many calls).
 
@@ -669,6 +671,10 @@ class ColliderSet:
             x_prev: Positions at the start of the substep [m], shape (V,), dtype vec3 (for friction).
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
             passes: Projections (>= 1); without mesh colliders one launch runs them all.
+            since: When the vertices were at x_prev, for the side of a moving open mesh they were
+                on: ``"substep"`` (the start of the substep :meth:`pose_substep` posed), ``"start"``
+                (the start of the step) or ``"end"`` (the mesh's current pose: x_prev is a state
+                of this pose).
         """
         n = x.shape[0]
         shape_passes, rounds = (passes, 1) if not self.meshes else (1, passes)
@@ -679,9 +685,11 @@ class ColliderSet:
                                                     ar["r1"], ar["size"], ar["friction"], thickness, shape_passes,
                                                     inv_mass, x_prev], [x])
             for m in self.meshes:
+                ref = m.points_start if since == "start" else m.points_prev
+                moved = int(m.moving and not m.closed and since != "end")
                 self._launch(ck.collide_mesh, n, [m.mesh.id, m.points_prev, m.indices, int(m.closed),
                                                   thickness + self.mesh_query_distance, thickness, m.friction, inv_mass,
-                                                  x_prev], [x])
+                                                  x_prev, ref, moved], [x])
 
     mesh_query_distance = 0.25
     """How far [m] beyond the thickness a vertex is still looked up against a mesh collider; a

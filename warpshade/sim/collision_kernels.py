@@ -283,6 +283,39 @@ def interpolate_points(
     out[i] = wp.lerp(start[i], end[i], alpha)
 
 
+@wp.func
+def open_mesh_side(
+    mesh: wp.uint64,
+    points_ref: wp.array[wp.vec3],
+    tris: wp.array[int],
+    moved: int,
+    p: wp.vec3,
+    max_distance: float,
+) -> float:
+    """The side (+1 along the face normals, -1 against) of an open mesh that point p was on when
+    the mesh was posed as ``points_ref``, found against the mesh's current pose (``mesh``): the
+    side of p's nearest face; when the mesh has moved since (``moved``), p is first carried along
+    by the surface's move at its nearest point, so a surface that moved past p since does not put
+    it on the far side. +1 when no face is within ``max_distance``."""
+    side = float(1.0)
+    q0 = wp.mesh_query_point_no_sign(mesh, p, max_distance)
+    if q0.result:
+        c0 = wp.mesh_eval_position(mesh, q0.face, q0.u, q0.v)
+        if moved != 0:
+            w0 = 1.0 - q0.u - q0.v
+            r0 = (points_ref[tris[3 * q0.face]] * q0.u + points_ref[tris[3 * q0.face + 1]] * q0.v
+                  + points_ref[tris[3 * q0.face + 2]] * w0)
+            pc = p + (c0 - r0)
+            q1 = wp.mesh_query_point_no_sign(mesh, pc, max_distance)
+            if q1.result:
+                c1 = wp.mesh_eval_position(mesh, q1.face, q1.u, q1.v)
+                if wp.dot(pc - c1, wp.mesh_eval_face_normal(mesh, q1.face)) < 0.0:
+                    side = -1.0
+        elif wp.dot(p - c0, wp.mesh_eval_face_normal(mesh, q0.face)) < 0.0:
+            side = -1.0
+    return side
+
+
 @wp.kernel
 def collide_mesh(
     mesh: wp.uint64,
@@ -294,6 +327,8 @@ def collide_mesh(
     friction: float,
     inv_mass: wp.array[float],
     x_prev: wp.array[wp.vec3],
+    points_ref: wp.array[wp.vec3],
+    moved: int,
     x: wp.array[wp.vec3],
 ):
     """Push each free vertex out of a triangle mesh.
@@ -306,6 +341,9 @@ def collide_mesh(
     was on at the start of the substep (x_prev). The winding number of an open sheet is only
     +-1/2 on its two sides, so the solid test would let a vertex through. `points_prev` is the
     mesh at the previous substep, to move the contact point with the surface for friction.
+    `points_ref` is the open mesh as posed when the vertices were at x_prev and `moved` says
+    whether it differs from the current pose (:func:`open_mesh_side`: a surface that moved past
+    x_prev since would otherwise put the vertex on its far side, and push it through).
     """
     i = wp.tid()
     if inv_mass[i] == 0.0:
@@ -340,12 +378,7 @@ def collide_mesh(
         u = q.u
         v = q.v
         # the side: where the vertex was at the start of the substep, against its closest face then
-        side = float(1.0)
-        q0 = wp.mesh_query_point_no_sign(mesh, x_prev[i], max_distance + wp.length(p - x_prev[i]))
-        if q0.result:
-            c0 = wp.mesh_eval_position(mesh, q0.face, q0.u, q0.v)
-            if wp.dot(x_prev[i] - c0, wp.mesh_eval_face_normal(mesh, q0.face)) < 0.0:
-                side = -1.0
+        side = open_mesh_side(mesh, points_ref, tris, moved, x_prev[i], max_distance + wp.length(p - x_prev[i]))
         n = wp.mesh_eval_face_normal(mesh, face) * side
         cp = wp.mesh_eval_position(mesh, face, u, v)
         sd = wp.length(p - cp)
@@ -843,6 +876,10 @@ def collide_round_faces(
 @wp.kernel
 def collide_mesh_faces(
     mesh: wp.uint64,
+    points_ref: wp.array[wp.vec3],
+    mesh_tris: wp.array[int],
+    closed: int,
+    moved: int,
     x_prev: wp.array[wp.vec3],
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
@@ -864,7 +901,12 @@ def collide_mesh_faces(
     not through), or to ``thickness`` from its nearest surface point when that path stays inside
     (the mesh moved onto the point). The push is split between the three vertices by their
     barycentric weights (as :func:`collide_round_faces` does). A triangle with no sample inside is
-    left alone.""" 
+    left alone.
+
+    An open mesh (``closed`` 0) has no inside: a sample is across it when it is on the other side
+    of its nearest face from the side the same point of the triangle at ``x_prev`` was on with the
+    mesh posed as ``points_ref`` (:func:`open_mesh_side`, ``moved`` as there), and the deepest such
+    sample moves back along that face's normal to ``thickness`` on its own side.""" 
     k = wp.tid()
     ids = wp.vec3i(tris[k, 0], tris[k, 1], tris[k, 2])
     w = wp.vec3(inv_mass[ids[0]], inv_mass[ids[1]], inv_mass[ids[2]])
@@ -888,6 +930,20 @@ def collide_mesh_faces(
             u = float(a) * inv
             v = float(b) * inv
             q = p0 * (1.0 - u - v) + p1 * u + p2 * v
+            if closed == 0:
+                h0 = wp.mesh_query_point_no_sign(mesh, q, max_distance)
+                if not h0.result:
+                    continue
+                c0 = wp.mesh_eval_position(mesh, h0.face, h0.u, h0.v)
+                fn = wp.normalize(wp.mesh_eval_face_normal(mesh, h0.face))
+                qs = x_prev[ids[0]] * (1.0 - u - v) + x_prev[ids[1]] * u + x_prev[ids[2]] * v
+                side = open_mesh_side(mesh, points_ref, mesh_tris, moved, qs, max_distance + wp.length(q - qs))
+                depth = thickness - wp.dot(q - c0, fn) * side
+                if depth > thickness and depth > best:
+                    best = depth
+                    bary = wp.vec3(1.0 - u - v, u, v)
+                    n = fn * side
+                continue
             h = wp.mesh_query_point_sign_winding_number(mesh, q, max_distance, 2.0, 0.5)
             if not h.result or h.sign >= 0.0:
                 continue
@@ -902,6 +958,9 @@ def collide_mesh_faces(
                 else:
                     n = wp.normalize(wp.mesh_eval_face_normal(mesh, h.face))
     if best == 0.0:
+        return
+    if closed == 0:
+        push_triangle_point(ids[0], ids[1], ids[2], w[0], w[1], w[2], bary, n * best, 1.0, delta, delta_count)
         return
     # back the way the point came: from where it is to where it was (x_prev), out of the solid
     # where that path first leaves it (a triangle dragged past the solid's middle goes back, not

@@ -702,7 +702,7 @@ class XPBDSolver:
             wp.launch(ck.revert_marked, dim=n, inputs=[self._mark, m.inv_mass, self._x_start],
                       outputs=[x, self._reverted], device=d)
             if col is not None:
-                col.collide(m.thickness, m.inv_mass, self._x_start, x)
+                col.collide(m.thickness, m.inv_mass, self._x_start, x, since="start")
             if self.guard_relax:
                 self._relax_around_reverted(x, dt)
         if self.guard_vertices:
@@ -758,7 +758,7 @@ class XPBDSolver:
                           inputs=[self._edge_ids, m.edge_rest_length, m.edge_compliance, self._held_w, off,
                                   dt / self.substeps, 1.0], outputs=[self._edge_lambda, x], device=d)
         if self.colliders is not None:
-            self.colliders.collide(m.thickness, m.inv_mass, self._x_start, x)
+            self.colliders.collide(m.thickness, m.inv_mass, self._x_start, x, since="start")
 
     def _side_update(self, x_from, x_to, record_cmd: bool = False):
         """Launch (or record) :func:`contact_kernels.update_edge_sides` on the edge contact rows
@@ -782,7 +782,7 @@ class XPBDSolver:
             return False
         for _ in range(self.PUSH_OFF_PASSES):
             col.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
-            col.collide(m.thickness, m.inv_mass, self._x_unguarded, x)
+            col.collide(m.thickness, m.inv_mass, self._x_unguarded, x, since="end")
             if self._new_pairs(x) == 0:
                 return True
         return False
@@ -822,26 +822,27 @@ class XPBDSolver:
         m, col = self.model, self.colliders
         if col is None or not (col.has_sharp_edges or col.has_round_shapes):
             return False
-        if self._yield_passes(x, self._x_unguarded):
+        if self._yield_passes(x, self._x_unguarded, "end"):
             return True
         wp.copy(x, self._x_unguarded)
         self._mark.fill_(1)
         wp.launch(ck.revert_marked, dim=m.particle_count, inputs=[self._mark, m.inv_mass, self._x_start],
                   outputs=[x, self._reverted], device=self.device)
-        col.collide(m.thickness, m.inv_mass, self._x_start, x)
-        if self._yield_passes(x, self._x_start):
+        col.collide(m.thickness, m.inv_mass, self._x_start, x, since="start")
+        if self._yield_passes(x, self._x_start, "start"):
             return True
         self._reverted.zero_()
         return False
 
-    def _yield_passes(self, x, x_prev) -> bool:
-        """The passes of :meth:`_yield_to_colliders` on x (x_prev: the vertices' friction reference)."""
+    def _yield_passes(self, x, x_prev, since: str) -> bool:
+        """The passes of :meth:`_yield_to_colliders` on x (x_prev: the vertices' friction reference,
+        at ``since`` as :meth:`~warpshade.sim.colliders.ColliderSet.collide` takes it)."""
         m, col = self.model, self.colliders
         for _ in range(self.YIELD_PASSES):
             col.collide_round_faces(m.thickness, m.inv_mass, m.tris, x, self._x_start)
             col.collide_mesh_faces(m.thickness, m.inv_mass, m.tris, x, self._x_start)
             col.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
-            col.collide(m.thickness, m.inv_mass, x_prev, x)
+            col.collide(m.thickness, m.inv_mass, x_prev, x, since=since)
             if self._new_pairs(x) == 0:
                 self.collider_yields += 1
                 return True
@@ -875,7 +876,7 @@ class XPBDSolver:
                 for cmd in cmds["contacts"]:
                     cmd.launch()
                 if col is not None:
-                    col.collide(m.thickness, m.inv_mass, self._x_unguarded, x)
+                    col.collide(m.thickness, m.inv_mass, self._x_unguarded, x, since="end")
                 if self._new_pairs(x) == 0:
                     return True
             return False
