@@ -207,11 +207,11 @@ class ClothSimulation:
             if self.attachments:
                 self.control.set_targets(np.concatenate(
                     [self._si(geometry[name][idx]) + off for name, idx, off in self.attachments]))
-            reverts = getattr(self.solver, "guard_steps", 0)
+            reverts = self.solver.guard_steps
             self.solver.step(self.state, self.state, self.dt, self.control)
             self._frame += 1
             self._points = self.state.points.numpy()
-            self._watch_stretch(guarded=getattr(self.solver, "guard_steps", 0) > reverts)
+            self._watch_stretch(guarded=self.solver.guard_steps > reverts)
         return {name: self._scene_units(self._points[a:b]) for name, (a, b) in self.ranges.items()}
 
     def _watch_stretch(self, guarded: bool = False) -> None:
@@ -246,7 +246,7 @@ class ClothSimulation:
                      "cloth held on two sides without stretching it far)")
         elif w["held"]:
             cause = "its pinned or attached vertices pulling it apart"
-        elif w["guarded"] and not getattr(self.solver, "guard_relax", 0):
+        elif w["guarded"] and not self.solver.guard_relax:
             cause = ("the intersection guard undoing a fast impact: it puts back the vertices of a step that ended in "
                      "intersections while the cloth around them moves on (warpshade:cloth:guardRelax = 8 pulls that "
                      "cloth along)")

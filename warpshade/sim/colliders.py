@@ -483,14 +483,13 @@ class ColliderSet:
     ball between the points of its 38 cm triangles)."""
 
     def collide_mesh_faces(self, thickness: float, inv_mass, tris, x, x_start) -> None:
-        """Push cloth triangles that cut into a closed mesh collider (posed as at the end of the last
-        substep) while their vertices are held outside out to ``thickness``, their deepest point
-        back the way it came since ``x_start``
+        """Push cloth triangles that cut into a mesh collider (posed as at the end of the last substep)
+        while their vertices are held outside, corrections averaged per vertex
         (:func:`~warpshade.sim.collision_kernels.collide_mesh_faces`, sampled on a grid of
-        :attr:`FACE_SAMPLES` steps a side), corrections averaged per vertex: the mesh counterpart of
-        :meth:`collide_round_faces`. Cloth triangles through an open mesh go back to the side they
-        were on at ``x_start`` against the step's start pose
-        (the same kernel).
+        :attr:`FACE_SAMPLES` steps a side): the mesh counterpart of :meth:`collide_round_faces`. Out
+        of a closed mesh to ``thickness``, their deepest point back the way it came since
+        ``x_start``; through an open mesh, back to the side they were on at ``x_start`` against the
+        step's start pose.
 
         Args:
             thickness: Distance to keep [m].

@@ -906,7 +906,7 @@ def collide_mesh_faces(
     An open mesh (``closed`` 0) has no inside: a sample is across it when it is on the other side
     of its nearest face from the side the same point of the triangle at ``x_prev`` was on with the
     mesh posed as ``points_ref`` (:func:`open_mesh_side`, ``moved`` as there), and the deepest such
-    sample moves back along that face's normal to ``thickness`` on its own side.""" 
+    sample moves back along that face's normal to ``thickness`` on its own side."""
     k = wp.tid()
     ids = wp.vec3i(tris[k, 0], tris[k, 1], tris[k, 2])
     w = wp.vec3(inv_mass[ids[0]], inv_mass[ids[1]], inv_mass[ids[2]])
