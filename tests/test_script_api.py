@@ -261,3 +261,23 @@ def test_a_cloth_attached_to_a_moving_mesh_follows_it():
         # float32 positions of a metre-sized scene: a few ulps; 1e-5 m is ample
         np.testing.assert_allclose(points["Cloth"][row], bar_at(frame)[nearest] + rest - bar[nearest], atol=1e-5)
     assert points["Cloth"][-1, 1] < 1.0 - 0.01  # the free far edge has fallen (it hangs from the bar)
+
+
+@pytest.mark.parametrize("normalize", [True, False])
+def test_distant_light_intensity_is_irradiance_unless_unnormalized(tmp_path, normalize):
+    """``ws.distant(intensity=E)`` lights a floor facing it with irradiance E (normalized, the default,
+    as Blender writes a Sun), or with E pi sin^2(angle/2) when E is the disc's radiance (UsdLux's
+    unnormalized light). Expected exit radiance rho E / pi times the SH order-4 truncation's gain for a
+    (near-)delta light along the normal, sum_{l<4} A_l (2l+1) / (4 pi) with the clamped cosine's
+    A_l = pi, 2pi/3, pi/4, 0: (1 + 2 + 1.25 + 0) / 4 = 1.0625. Tolerance 1e-4 relative: float32
+    shading (measured 1.06249 / 1.0625)."""
+    rho, e, angle = 0.5, 3.0, 0.53
+    scene = ws.make_scene(ws.ground(size=2.0, resolution=9, albedo=(rho, rho, rho)),
+                          ws.distant(direction=(0, -1, 0), intensity=e, angle=angle, normalize=normalize), frames=1)
+    out = str(tmp_path / "sun.usda")
+    ws.run(scene, out, frames=1)
+    stage = Usd.Stage.Open(out)
+    _, col = _colors(stage, "Ground", 0)
+    irradiance = e if normalize else e * np.pi * np.sin(np.radians(angle) / 2) ** 2
+    np.testing.assert_allclose(col, rho * irradiance / np.pi * 1.0625, rtol=1e-4)
+    assert stage.GetPrimAtPath("/World/Lights/Sun").GetAttribute("inputs:normalize").Get() is normalize
