@@ -5,6 +5,7 @@ sims/ scripts shade by default; bad arguments are named."""
 from __future__ import annotations
 
 import os
+import warnings
 import subprocess
 import sys
 
@@ -13,6 +14,7 @@ import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 
 import warpshade as ws
+from warpshade.scene import SceneWarning
 
 from helpers import REPO
 
@@ -281,3 +283,19 @@ def test_distant_light_intensity_is_irradiance_unless_unnormalized(tmp_path, nor
     irradiance = e if normalize else e * np.pi * np.sin(np.radians(angle) / 2) ** 2
     np.testing.assert_allclose(col, rho * irradiance / np.pi * 1.0625, rtol=1e-4)
     assert stage.GetPrimAtPath("/World/Lights/Sun").GetAttribute("inputs:normalize").Get() is normalize
+
+
+def test_a_dim_unnormalized_sun_is_warned_of(tmp_path):
+    """An unnormalized DistantLight of intensity 3 (the disc's radiance) gives an irradiance of 2e-4:
+    the run warns, naming the light and the fix; a normalized one, or the UsdLux sun of 50000, does not."""
+    def run(**kw):
+        scene = ws.make_scene(ws.ground(size=2.0, resolution=5), ws.distant(**kw), frames=1)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            ws.run(scene, str(tmp_path / "sun.usda"), frames=1, shade=False)
+        return [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
+
+    dim = run(intensity=3.0, normalize=False)
+    assert len(dim) == 1 and "Sun" in dim[0] and "inputs:normalize" in dim[0] and "irradiance of only 0.0002 " in dim[0]
+    assert run(intensity=3.0) == []
+    assert run(intensity=50000.0, normalize=False) == []
