@@ -312,7 +312,8 @@ class Pipeline:
             for name, pts in geo.items():
                 v = first_nonfinite(pts)
                 if v is not None:
-                    raise SceneError(f"{name}: frame {f}: vertex {v} is not finite")
+                    raise SceneError(f"{name}: frame {f} (time code {code:g}): vertex {v} is not finite "
+                                     f"{pts[v].tolist()}")
             secs["simulate"] += time.perf_counter() - t
             yield f, geo
 

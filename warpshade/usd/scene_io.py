@@ -940,7 +940,12 @@ def _animated_points(prim, where):
         pts = attr.Get(t)
         if pts is None:
             raise SceneError(f"{where}: no points at time code {time}")
-        return _apply(_world(prim, t), np.asarray(pts, dtype=np.float64).reshape(-1, 3)).astype(np.float32)
+        local = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+        try:
+            check_finite(local, f"{where}: points at time code {time:g}")
+        except MeshError as exc:
+            raise SceneError(str(exc)) from None
+        return _apply(_world(prim, t), local).astype(np.float32)
 
     return points_at
 
