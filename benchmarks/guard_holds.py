@@ -40,9 +40,12 @@ SWITCHES = {
     "self_friction=0": {"self_friction": 0.0},
     "guard_relax=0": {"guard_relax": 0},
     "gravity=0": {"gravity": (0.0, 0.0, 0.0)},
+    "contacts only": {"gravity": (0.0, 0.0, 0.0), "stretch_limits": False, "edge_compliance": 1.0e3,
+                      "hinge_compliance": 1.0e6},
 }
 """Solver settings switched inside the hold (attributes of the running solver; the recorded launches are
-re-recorded)."""
+re-recorded). "contacts only": no gravity, and edges and hinges so compliant (1e3 m/N, 1e6 1/(N m)) that
+stretch and bending move nothing: only the contact, floor and guard passes act."""
 
 
 class CountingSolver(XPBDSolver):
@@ -116,7 +119,11 @@ def main(argv=None) -> int:
         run(model, col, solver, state, args.switch_frame)
         before = solver.rows[-1]["streak"] if solver.rows else 0
         for key, value in change.items():
-            setattr(solver, key, value)
+            if key.endswith("_compliance"):
+                array = getattr(model, key)
+                array.fill_(value)
+            else:
+                setattr(solver, key, value)
         solver._cmd_cache = None
         n0 = len(solver.rows)
         res = run(model, col, solver, state, 30)
