@@ -111,7 +111,7 @@ class XPBDSolver:
                  guard: bool = True, self_friction: float = 0.3, stretch_limits: bool = True,
                  follow_edge_sides: bool | None = None, aero_interval: int | None = None,
                  bend_interval: int | None = None, limit_sliding: bool | None = None,
-                 guard_relax: int | None = None, strain_projection: float | None = None):
+                 guard_relax: int | None = None):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -172,12 +172,6 @@ class XPBDSolver:
             # how the contact projections moved each vertex in the last substep
             self._pushed = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
         self.check_finite = bool(check_finite)
-        self.strain_projection = None if strain_projection is None else check_param("strain_projection",
-                                                                                      strain_projection)
-        if self.strain_projection is not None:
-            self._x_projected = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
-            if not self.stretch_limits:
-                self._x_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
         gr = self.GUARD_RELAX if guard_relax is None else guard_relax
         if int(gr) != gr or gr < 0:
             raise ValueError(f"guard_relax must be an integer >= 0, got {guard_relax}")
@@ -345,7 +339,7 @@ class XPBDSolver:
                 if self.colliders is not None and self.colliders.has_closed_meshes:
                     # and moves into a closed mesh: its projection pushes out at the nearest surface
                     self.colliders.limit_mesh_motion(self.MESH_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
-                if self.stretch_limits or self.strain_projection is not None:
+                if self.stretch_limits:
                     wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
                 # more than one Jacobi pass to stop a fast layer within one substep
@@ -377,8 +371,6 @@ class XPBDSolver:
             if self._contacts_found and "sides" in cmds:
                 cmds["sides"].launch()
 
-        if self.strain_projection is not None:
-            self._project_strain(x, v, dt)
         if self.guard:
             self._guard_intersections(x, v, dt)
         if self.colliders is not None:
@@ -422,17 +414,16 @@ class XPBDSolver:
                                     outputs=[self._x_prev, x, v], device=d, record_cmd=True)
         edge_batches, hinge_batches = self._batches(m.edge_colors), self._batches(m.hinge_colors)
         cons = []
-        lim_move = self._limit_move / self.stretch_sweeps if getattr(self, "LIMIT_SPLIT_MOVE", False) and getattr(self, "LIMIT_REPEAT", False) else getattr(self, "_limit_move", 0.0)
         if self.limit_sliding:
             # (without self-collision no vertex has candidates: _touched stays 0 in this mode)
             cons.extend(wp.launch(k.solve_limits_sliding, dim=cnt,
-                                  inputs=[self._limit_ids, m.limit_length, m.inv_mass, lim_move,
+                                  inputs=[self._limit_ids, m.limit_length, m.inv_mass, self._limit_move,
                                           self._contact_count if self.self_collision else self._touched,
                                           self._pushed, off], outputs=[x], device=d, record_cmd=True)
                         for off, cnt in self._batches(m.limit_colors))
         elif self.stretch_limits:
             cons.extend(wp.launch(k.solve_limits, dim=cnt, inputs=[self._limit_ids, m.limit_length, m.inv_mass,
-                                                                   lim_move,
+                                                                   self._limit_move,
                                                                    self._contact_count if self.self_collision
                                                                    else self._touched, self._touched, off],
                                   outputs=[x], device=d, record_cmd=True)
@@ -448,10 +439,7 @@ class XPBDSolver:
                                          self.relaxation], outputs=[self._edge_lambda, x], device=d, record_cmd=True)
                        for off, cnt in edge_batches]
         # extra stretch sweeps: cheap (edges only) and the stretch residual is what shows as sag
-        if getattr(self, "LIMIT_REPEAT", False):
-            cons = (cons + stretch) * self.stretch_sweeps
-        else:
-            cons.extend(stretch * self.stretch_sweeps)
+        cons.extend(stretch * self.stretch_sweeps)
         cmds["stretch"] = cons
         # a bending sweep every bend_interval substeps is an XPBD step of H = bend_interval * h: the
         # velocity update after it keeps 1/bend_interval of the sweep's correction over h
@@ -771,52 +759,6 @@ class XPBDSolver:
                                   dt / self.substeps, 1.0], outputs=[self._edge_lambda, x], device=d)
         if self.colliders is not None:
             self.colliders.collide(m.thickness, m.inv_mass, self._x_start, x, since="start")
-
-    PROJECTION_MODE = "tangent"
-    PROJECTION_VELOCITY = "step"
-    PROJECTION_NEWTON = 4
-    PROJECTION_TOL = 1e-3
-    PROJECTION_HOLD_SELF = True
-    PROJECTION_DAMPING = 1e-9
-    PROJECTION_MAX_MOVE = 1e9
-
-    def _project_strain(self, x, v, dt: float) -> None:
-        """Prototype: the global strain projection (:func:`~warpshade.sim.projection.project_strain`)
-        after the substeps."""
-        from .projection import project_strain
-        m = self.model
-        xn = x.numpy().astype(np.float64)
-        w = m.inv_mass.numpy().copy()
-        held = np.zeros(len(w), dtype=bool)
-        if self.self_collision and self.PROJECTION_HOLD_SELF:
-            held |= self._contact_count.numpy() > 0
-            if self.edge_contact:
-                ee = self._contact_ecount.numpy() > 0
-                held[m.edges_np[ee].reshape(-1)] = True
-        pushed = xn - self._x_before.numpy()
-        plen = np.linalg.norm(pushed, axis=1)
-        touched = (plen > 0) & ~held
-        normals = None
-        if self.PROJECTION_MODE == "tangent":
-            normals = np.zeros_like(xn)
-            normals[touched] = pushed[touched] / plen[touched, None]
-        elif self.PROJECTION_MODE == "fixed":
-            held |= touched
-        w[held] = 0.0
-        new, self.projection_steps = project_strain(xn, m.edges_np, m.edge_rest_length.numpy(), w, normals,
-                                                    self.strain_projection, self.PROJECTION_NEWTON,
-                                                    self.PROJECTION_TOL, self.PROJECTION_DAMPING,
-                                                    self.PROJECTION_MAX_MOVE)
-        before = x.numpy().copy()
-        x.assign(new.astype(np.float32))
-        if self.colliders is not None:
-            # the projected positions as the friction reference: the collider pass only pushes out
-            wp.copy(self._x_projected, x)
-            self.colliders.collide(m.thickness, m.inv_mass, self._x_projected, x, since="end")
-        if self.PROJECTION_VELOCITY != "none":
-            h = dt if self.PROJECTION_VELOCITY == "step" else dt / self.substeps
-            vn = v.numpy() + (x.numpy() - before) / h
-            v.assign(vn.astype(np.float32))
 
     def _side_update(self, x_from, x_to, record_cmd: bool = False):
         """Launch (or record) :func:`contact_kernels.update_edge_sides` on the edge contact rows
