@@ -86,8 +86,9 @@ class XPBDSolver:
             most 1/``stretch_sweeps`` of the limits' move (so an iteration's limits move a vertex as
             far as one sweep of them does). Gauss-Seidel leaves a residual stretch that grows with
             the weight a chain of edges carries; with the limits in every sweep, the long-range
-            pairs take it out as often as the edges (a free drape at 12 sweeps: at-rest p99 strain
-            under 2 %). None: :attr:`LIMIT_EVERY_SWEEP`.
+            pairs take it out as often as the edges (cloth draped free over a sphere, with
+            ``limit_sliding`` and 12 sweeps: at-rest p99 strain under 2 %). None:
+            :attr:`LIMIT_EVERY_SWEEP`.
         follow_edge_sides: An edge-edge contact's stored side follows an orientation flip that
             continuous collision detection shows was no crossing (edges turning past parallel, or
             passing beside an end clear of the cloth there); off, a pair keeps the side it was
@@ -743,7 +744,8 @@ class XPBDSolver:
     """Default of ``limit_sliding`` (off; what it does to the scenes is measured in
     docs/benchmarks/index.md)."""
     LIMIT_EVERY_SWEEP = False
-    """Default of ``limit_every_sweep`` (off: it helps only with ``stretch_sweeps`` > 1, which costs;
+    """Default of ``limit_every_sweep`` (off: it acts only with ``stretch_sweeps`` > 1, which costs,
+    and the stiffer solve left the guard holding cloth that falls and folds fast for long;
     measured in docs/benchmarks/history.md)."""
     SIDE_CROSSING_TOL = 1.0e-3
     """Edges that come within this fraction of the thickness of each other at a moment their four
