@@ -960,6 +960,12 @@ PRECULL_BLOCKERS = 4096
 vectorized pass (:func:`far_field_bits`, whose flags sit in a stack buffer of this size); larger ones
 (the full mesh as blockers) are culled per cluster that reaches above the tangent plane."""
 
+DIRECT_SPAN = 2
+"""Largest image, in pixel centres across and down, that :func:`far_field_bits` rasterizes itself (the
+method's ``direct_far``). 3 (441 instead of 653 triangles queued per receiver on the draped cloth, the
+same error) was slower than 2 (9 centre tests per blocker; docs/benchmarks/history.md)."""
+
+
 _FAR_FIELD_BITS = r"""
 // per blocker t (reordered index): :func:`skip_early`, :func:`bounds_below` and :func:`refine_here`
 // in the same operations and order as the Warp functions (Warp's dot, length, min, max, abs)
@@ -982,7 +988,7 @@ const bool do_tiny = min_area > 0.0f;
 const bool do_refine = refine > 0.0f;
 const bool do_direct = direct >= 0.0f;
 const float between = direct;
-unsigned char hits[PRECULL_BLOCKERS + 64];
+unsigned short hits[PRECULL_BLOCKERS + 64];
 float bi[PRECULL_BLOCKERS + 64], bj[PRECULL_BLOCKERS + 64];
 #define WS_MIN(A, B) ((A) < (B) ? (A) : (B))
 #define WS_MAX(A, B) ((A) > (B) ? (A) : (B))
@@ -1093,26 +1099,25 @@ if (do_direct) {
     WS_CELL(e1x, e1y, e1z, q1x, q1y, q1z)
     WS_CELL(e2x, e2y, e2z, q2x, q2y, q2z)
 #undef WS_CELL
+    const bool ok = (dmin_ >= 0.5f) & (i1 - i0 <= DIRECT_SPAN - 1.0f) & (j1 - j0 <= DIRECT_SPAN - 1.0f) & (det != 0.0f)
+                    & ((flags[t] & 5) == 0);
+    // the centres (i0 + di, j0 + dj) within the box (up to i1, j1) above the three quantised planes
+    // q: q·g > 0 for g = (x, y, sqrt(1 - x² - y²)), tested without the root (q_z g_z > -(q_x x + q_y y))
     const float step = 1.0f / half_mask;
-    const float gx0 = -1.0f + (i0 + 0.5f) * step, gx1 = -1.0f + (i0 + 1.5f) * step;
-    const float gy0 = -1.0f + (j0 + 0.5f) * step, gy1 = -1.0f + (j0 + 1.5f) * step;
-#define WS_IN(GX, GY, R) { \
-        const float r2_ = (GX) * (GX) + (GY) * (GY); \
-        const float gz_ = sqrtf(r2_ < 1.0f ? 1.0f - r2_ : 0.0f); \
-        R = (r2_ < 1.0f) & (q0x * (GX) + q0y * (GY) + q0z * gz_ > 0.0f) & (q1x * (GX) + q1y * (GY) + q1z * gz_ > 0.0f) \
-            & (q2x * (GX) + q2y * (GY) + q2z * gz_ > 0.0f); }
-    bool h00, h01, h10, h11;
-    WS_IN(gx0, gy0, h00)
-    WS_IN(gx0, gy1, h01)
-    WS_IN(gx1, gy0, h10)
-    WS_IN(gx1, gy1, h11)
-#undef WS_IN
-    const bool ok = (dmin_ >= 0.5f) & (i1 - i0 <= 1.0f) & (j1 - j0 <= 1.0f) & (det != 0.0f) & ((flags[t] & 5) == 0);
-    const bool any_ = ok & (i1 >= i0) & (j1 >= j0);
-    const bool wide = i1 > i0, tall = j1 > j0;
-    // the centres within the box (i0 <= i <= i1, j0 <= j <= j1) in all three quantised half-spaces
-    hits[t] = (unsigned char)(((any_ & h00) ? 1 : 0) | ((any_ & tall & h01) ? 2 : 0) | ((any_ & wide & h10) ? 4 : 0)
-                              | ((any_ & wide & tall & h11) ? 8 : 0));
+    unsigned int hb_ = 0;
+#define WS_CENTRE(DI, DJ) { \
+        const float gx = -1.0f + (i0 + (0.5f + DI)) * step, gy = -1.0f + (j0 + (0.5f + DJ)) * step; \
+        const float gz2 = 1.0f - gx * gx - gy * gy; \
+        const float s0_ = q0x * gx + q0y * gy, s1_ = q1x * gx + q1y * gy, s2_ = q2x * gx + q2y * gy; \
+        const float t0_ = q0z * q0z * gz2, t1_ = q1z * q1z * gz2, t2_ = q2z * q2z * gz2; \
+        const bool in0 = (q0z >= 0.0f) ? ((s0_ > 0.0f) | (t0_ > s0_ * s0_)) : ((s0_ > 0.0f) & (t0_ < s0_ * s0_)); \
+        const bool in1 = (q1z >= 0.0f) ? ((s1_ > 0.0f) | (t1_ > s1_ * s1_)) : ((s1_ > 0.0f) & (t1_ < s1_ * s1_)); \
+        const bool in2 = (q2z >= 0.0f) ? ((s2_ > 0.0f) | (t2_ > s2_ * s2_)) : ((s2_ > 0.0f) & (t2_ < s2_ * s2_)); \
+        const bool h = (gz2 > 0.0f) & in0 & in1 & in2 & (DI <= i1 - i0) & (DJ <= j1 - j0); \
+        hb_ |= h ? (1u << (DIRECT_SPAN * (int)DI + (int)DJ)) : 0u; }
+DIRECT_CENTRES
+#undef WS_CENTRE
+    hits[t] = (unsigned short)(ok ? hb_ : 0u);
     bi[t] = i0;
     bj[t] = j0;
     flags[t] |= (unsigned char)(ok ? 2 : 0);
@@ -1125,10 +1130,10 @@ if (do_direct) {
     // (a blocker standing for the receiver's k-ring is refined: its fine triangles stand in for it)
     if (use_ring && ((pring[t >> 6] >> (t & 63)) & 1))
       continue;
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < DIRECT_SPAN * DIRECT_SPAN; ++k) {
       if (hb & (1 << k)) {
         // centre (i, j) -> bit: i in the even bits, j in the odd ones (.tables.morton2)
-        const int i = (int)bi[t] + (k >> 1), j = (int)bj[t] + (k & 1);
+        const int i = (int)bi[t] + k / DIRECT_SPAN, j = (int)bj[t] + k % DIRECT_SPAN;
         int bit = 0;
         for (int q = 0; q < 6; ++q)
           bit |= (((i >> q) & 1) << (2 * q)) | (((j >> q) & 1) << (2 * q + 1));
@@ -1159,7 +1164,9 @@ for (int w = 0; w < words; ++w) {
 """
 
 
-_FAR_FIELD_BITS = _FAR_FIELD_BITS.replace("PRECULL_BLOCKERS", str(PRECULL_BLOCKERS))
+_FAR_FIELD_BITS = _FAR_FIELD_BITS.replace("PRECULL_BLOCKERS", str(PRECULL_BLOCKERS)).replace(
+    "DIRECT_CENTRES", "\n".join(f"    WS_CENTRE({di}.0f, {dj}.0f)" for di in range(DIRECT_SPAN) for dj in range(DIRECT_SPAN))).replace(
+    "DIRECT_SPAN", str(DIRECT_SPAN))
 
 
 @wp.func_native(_FAR_FIELD_BITS)
