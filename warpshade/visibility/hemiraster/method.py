@@ -137,14 +137,14 @@ class HemirasterTransfer(TransferMethod):
             (:func:`.kernels.far_field_bits`): the centres in the box of the corners' disk images
             (widened by the arcs' bulge and ``sqrt(2)/lut``, the bound on how far a LUT plane reaches
             past the exact one) that lie above the three edge planes quantised as the LUT does are
-            set in the mask, and the triangle is not queued. Such a triangle's LUT image is these
-            centres unless it reaches past that box (a sliver's tip), so the mask stays the LUT's
-            nearly everywhere: the exact images would not do (the LUT images of a surface's
-            triangles meet without gaps only among themselves; on the draped cloth dropping the
-            exactly empty ones costs 12 points of error). Off (the default) rasterizes them all
-            through the queue. Needs the hierarchy with at most ``PRECULL_BLOCKERS`` coarse
-            triangles; not with a PVS; receivers whose static part is stored (``keep_static``) get
-            none.
+            set in the mask, and the triangle is not queued. That is the triangle's LUT image unless
+            the image reaches past the box (a sliver's tip): the LUT images of a surface's triangles
+            meet without gaps among themselves, where exact images beside LUT ones would leave seams.
+            Off (the default) queues them all. Needs the refinement (``refine`` > 0) and the
+            hierarchy with at most ``PRECULL_BLOCKERS`` coarse triangles (else no effect); not with
+            a PVS; receivers whose static part is stored (``keep_static``) get none. Pays on a far
+            field of many sub-pixel triangles (a draped cloth at ``min_image 0``;
+            docs/benchmarks/history.md).
         fine_image: The same tiny-image cull for the fine triangles that replace refined coarse
             blockers near a receiver (0, the default, rasterizes them all: the exact near field).
             Most of them are grazing slivers along the receiver's horizon whose images hold no
@@ -287,6 +287,9 @@ class HemirasterTransfer(TransferMethod):
         self.fine_image = float(fine_image)
         if direct_far and pvs_frames is not None:
             raise ValueError("hemiraster: direct_far needs no PVS (a PVS lists the blockers that set a bit through the queue)")
+        if direct_far and not float(refine) > 0.0:
+            raise ValueError("hemiraster: direct_far needs refine > 0 (the paper scheme's near-field exclusion is applied "
+                             "after the per-blocker pass)")
         self.direct_far = bool(direct_far)
         self.rim = bool(rim)
         self.fan = bool(fan)
