@@ -80,10 +80,17 @@ CRUMPLED = {"defaults": {}, "redecimate": {"redecimate": 0.1},
                 {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1024, "lut": 96},
             "redecimate, min_image 0, border, coarse 1536, lut 96":
                 {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1536, "lut": 96},
+            "redecimate, min_image 0, border, coarse 1536, lut 96, direct_far":
+                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1536, "lut": 96, "direct_far": True},
+            "redecimate, min_image 0, border, coarse 1536, lut 128, direct_far":
+                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1536, "lut": 128, "direct_far": True},
             "redecimate, min_image 0, border, coarse 1280, refine 3, lut 128":
                 {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1280, "refine": 3.0, "lut": 128},
             "redecimate, min_image 0, border, coarse 768, lut 64, mask 64":
-                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 768, "lut": 64, "mask": 64}}
+                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 768, "lut": 64, "mask": 64},
+            "c6 fastest: redecimate, coarse 192, mid 1024, refine 1.1, lut 56, fine_image 1, min_image 2, direct_far":
+                {"redecimate": 0.1, "coarse": 192, "mid": 1024, "refine": 1.1, "lut": 56, "fine_image": 1.0, "min_image": 2.0,
+                 "direct_far": True}}
 FASTEST = {"redecimate": 0.1, "coarse": 192, "mid": 1024, "refine": 1.25, "lut": 64}
 SWEEP = {"fastest (c5)": FASTEST,
          **{f"fastest, {k} {v}": {**FASTEST, k: v} for k, vals in

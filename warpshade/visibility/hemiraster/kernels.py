@@ -54,6 +54,16 @@ class PlaneLut:
     """Tiny-image cull (as ``min_area``) for the fine triangles of refined blockers (0: keep all)."""
     rim: float
     """Sine of the elevation of the lowest valid pixel centre: images wholly below it hold no pixel."""
+    direct: float
+    """Direct rasterization of the coarse far field's small images (:func:`far_field_bits`; the method's
+    ``direct_far``): how far (disk units) the LUT's quantised planes may reach past the exact ones, the
+    widening of the box of a blocker's corners' disk images; < 0: off."""
+    lut_half: float
+    """Half the LUT's cube-map resolution, ``R/2``."""
+    lut_last: float
+    """The last cell index of the cube map, ``R - 1``."""
+    half_mask: float
+    """Half the mask resolution, ``M/2`` (disk units to pixel units)."""
 
 
 @wp.struct
@@ -112,6 +122,9 @@ class Blockers:
     shape (slots, ceil(Fc/64))."""
     tiny: wp.array2d[wp.uint64]
     """Per slot, bits of the blockers :func:`bounds_below` deems tiny (``precull``), as ``cull``."""
+    corners: wp.array2d[float]
+    """The blockers' corners [m] (rows x, y, z of a, b, c: :func:`blocker_corners`, for
+    :func:`far_field_bits`' empty-image cull), shape (9, Fc); (9, 1) when that cull is off."""
     ring: wp.array2d[wp.uint64]
     """Per receiver, bits (reordered index) of the blockers standing for its k-ring (``near_mode`` 2,
     the exclusion bits of ``excl`` reordered), shape (V, ceil(Fc/64)); (1, 1) otherwise."""
@@ -414,6 +427,18 @@ def bounds_below(plane: wp.vec4, sphere: wp.vec4, nlen: float, p: wp.vec3, n: wp
     cmax = wp.min(1.0, (wp.dot(n, q) + sphere[3]) / dmin)
     small = twice_ah * cmax < min_area * 2.0 * dmin * dmin * dmin
     return wp.where(dmin > 0.0, wp.where(grazing, small, False), False)
+
+
+@wp.kernel
+def blocker_corners(points: wp.array[wp.vec3], faces: wp.array2d[wp.int32], corners: wp.array2d[float]):
+    """Per triangle its corners' coordinates, one row per coordinate (x, y, z of a, b, c: shape (9, F),
+    so a vectorized pass over the triangles reads contiguous rows)."""
+    t = wp.tid()
+    for k in range(3):
+        x = points[faces[t, k]]
+        corners[3 * k, t] = x[0]
+        corners[3 * k + 1, t] = x[1]
+        corners[3 * k + 2, t] = x[2]
 
 
 @wp.kernel
@@ -935,6 +960,12 @@ PRECULL_BLOCKERS = 4096
 vectorized pass (:func:`far_field_bits`, whose flags sit in a stack buffer of this size); larger ones
 (the full mesh as blockers) are culled per cluster that reaches above the tangent plane."""
 
+DIRECT_SPAN = 2
+"""Largest image, in pixel centres across and down, that :func:`far_field_bits` rasterizes itself (the
+method's ``direct_far``). 3 (441 instead of 653 triangles queued per receiver on the draped cloth, the
+same error) was slower than 2 (9 centre tests per blocker; docs/benchmarks/history.md)."""
+
+
 _FAR_FIELD_BITS = r"""
 // per blocker t (reordered index): :func:`skip_early`, :func:`bounds_below` and :func:`refine_here`
 // in the same operations and order as the Warp functions (Warp's dot, length, min, max, abs)
@@ -955,6 +986,18 @@ const float rim2 = rim * rim;
 const float area2 = min_area * 2.0f;
 const bool do_tiny = min_area > 0.0f;
 const bool do_refine = refine > 0.0f;
+const bool do_direct = direct >= 0.0f;
+const float between = direct;
+unsigned short hits[PRECULL_BLOCKERS + 64];
+float bi[PRECULL_BLOCKERS + 64], bj[PRECULL_BLOCKERS + 64];
+#define WS_MIN(A, B) ((A) < (B) ? (A) : (B))
+#define WS_MAX(A, B) ((A) > (B) ? (A) : (B))
+const float* __restrict__ pco = (const float*)corners.data;
+const int cs = (int)(corners.strides[0] / sizeof(float));
+// the frame's tangent columns (pixel x and y)
+const float f00 = frame.data[0][0], f10 = frame.data[1][0], f20 = frame.data[2][0];
+const float f01 = frame.data[0][1], f11 = frame.data[1][1], f21 = frame.data[2][1];
+const float f02 = frame.data[0][2], f12 = frame.data[1][2], f22 = frame.data[2][2];
 // flags per blocker (bit 0 culled, 1 tiny, 2 refined) in a straight loop over the flat rows, then
 // packed 8 at a time into the bit rows (a byte b_i at byte i of x: ((x >> j) & 0x01..01) * 0x0102040810204080
 // >> 56 has bit j of b_i at bit i)
@@ -993,6 +1036,114 @@ for (int t = 0; t < nt; ++t) {
     const bool near_ = dx * dx + dy * dy + dz * dz < rad * rad;
     flags[t] = (unsigned char)((culled ? 1 : 0) | ((do_tiny && tiny_) ? 2 : 0) | ((do_refine && near_) ? 4 : 0));
 }
+if (do_direct) {
+  // coarse blockers whose image spans at most 2 x 2 pixel centres: their LUT images at those centres
+  // (the edge planes quantised to their LUT cells' centre normals, as :func:`.tables.cube_cell_normals`)
+  // go straight into the mask, and they are not queued. Branch-free so the loop vectorizes; the
+  // stores in a second loop
+  for (int t = 0; t < nt; ++t) {
+    const float ax_ = pco[t] - px, ay_ = pco[cs + t] - py, az_ = pco[2 * cs + t] - pz;
+    const float bx_ = pco[3 * cs + t] - px, by_ = pco[4 * cs + t] - py, bz_ = pco[5 * cs + t] - pz;
+    const float cx_ = pco[6 * cs + t] - px, cy_ = pco[7 * cs + t] - py, cz_ = pco[8 * cs + t] - pz;
+    const float lax = f00 * ax_ + f10 * ay_ + f20 * az_, lay = f01 * ax_ + f11 * ay_ + f21 * az_;
+    const float laz = f02 * ax_ + f12 * ay_ + f22 * az_;
+    const float lbx = f00 * bx_ + f10 * by_ + f20 * bz_, lby = f01 * bx_ + f11 * by_ + f21 * bz_;
+    const float lbz = f02 * bx_ + f12 * by_ + f22 * bz_;
+    const float lcx = f00 * cx_ + f10 * cy_ + f20 * cz_, lcy = f01 * cx_ + f11 * cy_ + f21 * cz_;
+    const float lcz = f02 * cx_ + f12 * cy_ + f22 * cz_;
+    const float ia_ = 1.0f / sqrtf(lax * lax + lay * lay + laz * laz);
+    const float ib_ = 1.0f / sqrtf(lbx * lbx + lby * lby + lbz * lbz);
+    const float ic_ = 1.0f / sqrtf(lcx * lcx + lcy * lcy + lcz * lcz);
+    const float xa = lax * ia_, ya = lay * ia_, xb = lbx * ib_, yb = lby * ib_, xc = lcx * ic_, yc = lcy * ic_;
+    const float dab = (lax * lbx + lay * lby + laz * lbz) * ia_ * ib_;
+    const float dbc = (lbx * lcx + lby * lcy + lbz * lcz) * ib_ * ic_;
+    const float dca = (lcx * lax + lcy * lay + lcz * laz) * ic_ * ia_;
+    const float dmin_ = WS_MIN(dab, WS_MIN(dbc, dca));
+    // the disk image lies in the corners' box widened by the arcs' bulge (1 - dmin) and the interior's
+    // (1/sqrt(dmin) - 1 < 1 - dmin for dmin >= 0.5), plus ``between``: how far the LUT's quantised
+    // planes may reach past the exact ones
+    const float pad = 2.0f * (1.0f - dmin_) + between;
+    // pixel-centre indices (floor and ceiling through an int conversion of the shifted, positive value)
+    const float u0 = (WS_MIN(xa, WS_MIN(xb, xc)) - pad + 1.0f) * half_mask + 127.5f;
+    const float u1 = (WS_MAX(xa, WS_MAX(xb, xc)) + pad + 1.0f) * half_mask + 127.5f;
+    const float v0 = (WS_MIN(ya, WS_MIN(yb, yc)) - pad + 1.0f) * half_mask + 127.5f;
+    const float v1 = (WS_MAX(ya, WS_MAX(yb, yc)) + pad + 1.0f) * half_mask + 127.5f;
+    const float fu0 = (float)(int)u0, fv0 = (float)(int)v0;
+    const float i0 = fu0 + (fu0 < u0 ? 1.0f : 0.0f) - 128.0f, i1 = (float)(int)u1 - 128.0f;
+    const float j0 = fv0 + (fv0 < v0 ? 1.0f : 0.0f) - 128.0f, j1 = (float)(int)v1 - 128.0f;
+    float e0x = lay * lbz - laz * lby, e0y = laz * lbx - lax * lbz, e0z = lax * lby - lay * lbx;
+    float e1x = lby * lcz - lbz * lcy, e1y = lbz * lcx - lbx * lcz, e1z = lbx * lcy - lby * lcx;
+    float e2x = lcy * laz - lcz * lay, e2y = lcz * lax - lcx * laz, e2z = lcx * lay - lcy * lax;
+    const float det = lax * e1x + lay * e1y + laz * e1z;
+    const float o = det < 0.0f ? -1.0f : 1.0f;
+    e0x *= o; e0y *= o; e0z *= o;
+    e1x *= o; e1y *= o; e1z *= o;
+    e2x *= o; e2y *= o; e2z *= o;
+    // each plane's LUT cell centre normal (module docstring of .tables: major axis, ties to the lower,
+    // the cell of (u, v) / |major| on the positive face, the negative face its mirror: q(-e) = -q(e))
+#define WS_CELL(EX, EY, EZ, QX, QY, QZ) { \
+        const float ax2 = fabsf(EX), ay2 = fabsf(EY), az2 = fabsf(EZ); \
+        const bool a0 = (ax2 >= ay2) & (ax2 >= az2); \
+        const bool a1 = (!a0) & (ay2 >= az2); \
+        const float mj = a0 ? (EX) : (a1 ? (EY) : (EZ)); \
+        const float s_ = mj < 0.0f ? -1.0f : 1.0f; \
+        const float uu = s_ * (a0 ? (EY) : (a1 ? (EZ) : (EX))); \
+        const float vv = s_ * (a0 ? (EZ) : (a1 ? (EX) : (EY))); \
+        const float inv = lut_half / fabsf(mj); \
+        const float fu = WS_MAX(0.0f, WS_MIN(lut_last, (float)(int)(uu * inv + lut_half))); \
+        const float fv = WS_MAX(0.0f, WS_MIN(lut_last, (float)(int)(vv * inv + lut_half))); \
+        const float cu = s_ * (-1.0f + (fu + 0.5f) / lut_half), cv = s_ * (-1.0f + (fv + 0.5f) / lut_half); \
+        QX = a0 ? s_ : (a1 ? cv : cu); QY = a0 ? cu : (a1 ? s_ : cv); QZ = a0 ? cv : (a1 ? cu : s_); }
+    float q0x, q0y, q0z, q1x, q1y, q1z, q2x, q2y, q2z;
+    WS_CELL(e0x, e0y, e0z, q0x, q0y, q0z)
+    WS_CELL(e1x, e1y, e1z, q1x, q1y, q1z)
+    WS_CELL(e2x, e2y, e2z, q2x, q2y, q2z)
+#undef WS_CELL
+    const bool ok = (dmin_ >= 0.5f) & (i1 - i0 <= DIRECT_SPAN - 1.0f) & (j1 - j0 <= DIRECT_SPAN - 1.0f) & (det != 0.0f)
+                    & ((flags[t] & 5) == 0);
+    // the centres (i0 + di, j0 + dj) within the box (up to i1, j1) above the three quantised planes
+    // q: q·g > 0 for g = (x, y, sqrt(1 - x² - y²)), tested without the root (q_z g_z > -(q_x x + q_y y))
+    const float step = 1.0f / half_mask;
+    unsigned int hb_ = 0;
+#define WS_CENTRE(DI, DJ) { \
+        const float gx = -1.0f + (i0 + (0.5f + DI)) * step, gy = -1.0f + (j0 + (0.5f + DJ)) * step; \
+        const float gz2 = 1.0f - gx * gx - gy * gy; \
+        const float s0_ = q0x * gx + q0y * gy, s1_ = q1x * gx + q1y * gy, s2_ = q2x * gx + q2y * gy; \
+        const float t0_ = q0z * q0z * gz2, t1_ = q1z * q1z * gz2, t2_ = q2z * q2z * gz2; \
+        const bool in0 = (q0z >= 0.0f) ? ((s0_ > 0.0f) | (t0_ > s0_ * s0_)) : ((s0_ > 0.0f) & (t0_ < s0_ * s0_)); \
+        const bool in1 = (q1z >= 0.0f) ? ((s1_ > 0.0f) | (t1_ > s1_ * s1_)) : ((s1_ > 0.0f) & (t1_ < s1_ * s1_)); \
+        const bool in2 = (q2z >= 0.0f) ? ((s2_ > 0.0f) | (t2_ > s2_ * s2_)) : ((s2_ > 0.0f) & (t2_ < s2_ * s2_)); \
+        const bool h = (gz2 > 0.0f) & in0 & in1 & in2 & (DI <= i1 - i0) & (DJ <= j1 - j0); \
+        hb_ |= h ? (1u << (DIRECT_SPAN * (int)DI + (int)DJ)) : 0u; }
+DIRECT_CENTRES
+#undef WS_CENTRE
+    hits[t] = (unsigned short)(ok ? hb_ : 0u);
+    bi[t] = i0;
+    bj[t] = j0;
+    flags[t] |= (unsigned char)(ok ? 2 : 0);
+  }
+  uint64_t* __restrict__ pm = (uint64_t*)((char*)mask.data + v * mask.strides[0]);
+  for (int t = 0; t < nt; ++t) {
+    const int hb = hits[t];
+    if (hb == 0)
+      continue;
+    // (a blocker standing for the receiver's k-ring is refined: its fine triangles stand in for it)
+    if (use_ring && ((pring[t >> 6] >> (t & 63)) & 1))
+      continue;
+    for (int k = 0; k < DIRECT_SPAN * DIRECT_SPAN; ++k) {
+      if (hb & (1 << k)) {
+        // centre (i, j) -> bit: i in the even bits, j in the odd ones (.tables.morton2)
+        const int i = (int)bi[t] + k / DIRECT_SPAN, j = (int)bj[t] + k % DIRECT_SPAN;
+        int bit = 0;
+        for (int q = 0; q < 6; ++q)
+          bit |= (((i >> q) & 1) << (2 * q)) | (((j >> q) & 1) << (2 * q + 1));
+        pm[bit >> 6] |= (uint64_t)1 << (bit & 63);
+      }
+    }
+  }
+}
+#undef WS_MIN
+#undef WS_MAX
 const int words = (nt + 63) / 64;
 for (int t = nt; t < words * 64; ++t)
     flags[t] = 0;
@@ -1013,20 +1164,33 @@ for (int w = 0; w < words; ++w) {
 """
 
 
-_FAR_FIELD_BITS = _FAR_FIELD_BITS.replace("PRECULL_BLOCKERS", str(PRECULL_BLOCKERS))
+_FAR_FIELD_BITS = _FAR_FIELD_BITS.replace("PRECULL_BLOCKERS", str(PRECULL_BLOCKERS)).replace(
+    "DIRECT_CENTRES", "\n".join(f"    WS_CENTRE({di}.0f, {dj}.0f)" for di in range(DIRECT_SPAN) for dj in range(DIRECT_SPAN))).replace(
+    "DIRECT_SPAN", str(DIRECT_SPAN))
 
 
 @wp.func_native(_FAR_FIELD_BITS)
 def far_field_bits(plane: wp.array[wp.vec4], sphere: wp.array[wp.vec4], nlen: wp.array[float], lo: wp.array[wp.vec3],
                    hi: wp.array[wp.vec3], dev: wp.array[float], ring: wp.array2d[wp.uint64], use_ring: int, v: int, sl: int,
                    p: wp.vec3, n: wp.vec3, backface: float, rim: float, min_area: float, refine: float,
-                   cull: wp.array2d[wp.uint64], tiny: wp.array2d[wp.uint64], refined: wp.array2d[wp.uint64]):
+                   cull: wp.array2d[wp.uint64], tiny: wp.array2d[wp.uint64], refined: wp.array2d[wp.uint64],
+                   corners: wp.array2d[float], frame: wp.mat33, direct: float, half_mask: float, lut_half: float,
+                   lut_last: float, mask: wp.array2d[wp.uint64]):
     """For receiver ``v`` (slot ``sl``) and every blocker, in one pass: the bits of :func:`skip_early`
     (``cull``), of :func:`bounds_below` (``tiny``; none when ``min_area`` is 0) and of the blockers
     refined here (``refined``: :func:`refine_here` with ``refine`` > 0, or the receiver's k-ring row of
     ``ring`` with ``use_ring``), the same operations in the same order as those Warp functions, so
     the same bits (:func:`mark_refined` tests only the clusters that come near; its bits equal the
-    per-blocker test). Native C++ over flat rows, which clang vectorizes; the arrays must be contiguous."""
+    per-blocker test). With ``direct`` >= 0 a second pass rasterizes the blockers that are neither culled
+    nor refined here and whose image spans at most 2 x 2 pixel centres of the ``2·half_mask``-pixel mask
+    (the box of the corners' disk images, widened by the arcs' bulge and ``direct``, holds at most 2 x 2
+    centres; corners within 60° of each other) straight into row ``v`` of ``mask``: each of those centres
+    lies in the image when it is above the three edge planes quantised as the plane LUT does (its cell's
+    centre normal, :func:`.tables.cube_cell_normals`, the cube map of resolution ``2·lut_half``), which
+    is the LUT's image at those centres; such blockers get the ``tiny`` bit (not queued). ``frame`` is the
+    receiver's tangent frame, ``corners`` the blockers' corners (:func:`blocker_corners`). Native C++ over
+    flat rows, which clang
+    vectorizes; the arrays must be contiguous."""
 
 
 @wp.func(inline=True)
@@ -1035,6 +1199,7 @@ def mark_refined(
     sl: int,
     p: wp.vec3,
     n: wp.vec3,
+    frame: wp.mat33,
     lut: PlaneLut,
     blockers: Blockers,
     groups: Refinement,
@@ -1044,6 +1209,8 @@ def mark_refined(
     cluster_lo: wp.array[wp.vec3],
     cluster_hi: wp.array[wp.vec3],
     cluster_reach: wp.array[float],
+    mask: wp.array2d[wp.uint64],
+    part: int,
 ):
     """Set the slot's bits of the blockers replaced by their fine (or mid) triangles for receiver ``v``:
     those standing for its k-ring (``near_mode`` 2: its exclusion bits) and those passing
@@ -1053,11 +1220,13 @@ def mark_refined(
     hold its blockers' boxes and deviations, so a cluster failing :func:`box_near` has no blocker
     passing :func:`refine_here` (the same float operations on smaller distances and a larger radius).
     With ``blockers.precull``, :func:`far_field_bits` sets these bits for every blocker instead (and
-    the per-frame culls' bits)."""
+    the per-frame culls' bits; with ``lut.direct`` >= 0 and ``part`` 0, also row ``v`` of ``mask``'s bits of
+    the small far-field images it rasterizes itself)."""
     if blockers.precull != 0:
         far_field_bits(blockers.plane, blockers.sphere, blockers.nlen, groups.lo, groups.hi, groups.dev, blockers.ring,
                        wp.where(near_mode == 2, 1, 0), v, sl, p, n, lut.backface, lut.rim, lut.min_area, groups.refine,
-                       blockers.cull, blockers.tiny, blockers.refined)
+                       blockers.cull, blockers.tiny, blockers.refined, blockers.corners, frame,
+                       wp.where(part == 0, lut.direct, -1.0), lut.half_mask, lut.lut_half, lut.lut_last, mask)
         return
     for w in range(blockers.refined.shape[1]):
         blockers.refined[sl, w] = wp.uint64(0)
@@ -1799,8 +1968,8 @@ def rasterize_masks(
         bt.halt[sl] = -1
         if bt.stop_free >= 0 and bt.record == 0 and part != 1:
             bt.halt[sl] = 0
-        mark_refined(v, sl, p, n, lut, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi,
-                     cluster_reach)
+        mark_refined(v, sl, p, n, frame, lut, blockers, groups, use_excl, excl, cluster_start, cluster_lo, cluster_hi,
+                     cluster_reach, mask, part)
         nb = int(0)
         if fine.fan != 0 and not stored:
             nb = rasterize_fan(v, sl, p, n, fine, frame, lut, mask, bt, nb)

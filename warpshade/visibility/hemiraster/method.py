@@ -14,6 +14,7 @@ precomputation depends on the pose: ``update(points)`` reuses all static tables.
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -23,7 +24,7 @@ from ...geometry.mesh import TriMesh, closed_orientation
 from ..base import TransferMethod
 from ..knobs import Knob
 from . import cache, hierarchy, integrate, tables
-from .kernels import (CANDIDATES, PRECULL_BLOCKERS, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement,
+from .kernels import (CANDIDATES, blocker_corners, PRECULL_BLOCKERS, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement,
                       StaticPart, follow_coarse_points, rasterize_masks, raise_deviation, refit_blocker_boxes, triangle_bounds,
                       union_boxes, union_child_boxes)
 
@@ -131,6 +132,19 @@ class HemirasterTransfer(TransferMethod):
             seen edge-on is a band of such triangles that each hold no pixel centre but together
             block it (a draped cloth's skirt seen from under its dome): 0 keeps it; a closed mesh's
             silhouette is also covered by the triangles behind it.
+        direct_far: Rasterize the coarse far-field triangles whose image spans at most 2 x 2 pixel
+            centres in the per-receiver pass over all coarse blockers, before any is queued
+            (:func:`.kernels.far_field_bits`): the centres in the box of the corners' disk images
+            (widened by the arcs' bulge and ``sqrt(2)/lut``, the bound on how far a LUT plane reaches
+            past the exact one) that lie above the three edge planes quantised as the LUT does are
+            set in the mask, and the triangle is not queued. That is the triangle's LUT image unless
+            the image reaches past the box (a sliver's tip): the LUT images of a surface's triangles
+            meet without gaps among themselves, where exact images beside LUT ones would leave seams.
+            Off (the default) queues them all. Needs the refinement (``refine`` > 0) and the
+            hierarchy with at most ``PRECULL_BLOCKERS`` coarse triangles (else no effect); not with
+            a PVS; receivers whose static part is stored (``keep_static``) get none. Pays on a far
+            field of many sub-pixel triangles (a draped cloth at ``min_image 0``;
+            docs/benchmarks/history.md).
         fine_image: The same tiny-image cull for the fine triangles that replace refined coarse
             blockers near a receiver (0, the default, rasterizes them all: the exact near field).
             Most of them are grazing slivers along the receiver's horizon whose images hold no
@@ -200,6 +214,8 @@ class HemirasterTransfer(TransferMethod):
         Knob("interpolate", float, "compute a subset of receivers, interpolate the others where their neighbours "
                                    "agree within this fraction of the unoccluded transfer (0: compute all)",
              minimum=0.0),
+        Knob("direct_far", bool, "rasterize far-field triangles whose image spans at most 2 x 2 pixel centres in the "
+                                 "per-blocker pass (their LUT images at those centres), not through the queue"),
         Knob("fine_image", float, "the same cull for the fine triangles of refined blockers near a receiver "
                                   "(0: exact near field)", minimum=0.0),
         Knob("mid", int, "mid-level triangles between the coarse and the fine mesh for the refined near field "
@@ -217,14 +233,15 @@ class HemirasterTransfer(TransferMethod):
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
                  refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
                  fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0, mid: int = 0,
-                 border: bool = False, keep_static: bool = True):
+                 border: bool = False, keep_static: bool = True, direct_far: bool = False):
         super().__init__(mesh, order, device)
         # every knob but the PVS, to rebuild the far field from another pose (:meth:`rebuild`)
         self._init_knobs = dict(mask=mask, lut=lut, downsample=downsample, ring=ring, coarse=coarse, cull=cull,
                                 cluster=cluster, exclude=exclude, backface=backface, mode=mode, view=view, phong=phong,
                                 lut_dir=lut_dir, min_image=min_image, refine=refine, occluders=occluders, rim=rim,
                                 fine_image=fine_image, fan=fan, redecimate=redecimate,
-                                interpolate=interpolate, mid=mid, border=border, keep_static=keep_static)
+                                interpolate=interpolate, mid=mid, border=border, keep_static=keep_static,
+                                direct_far=direct_far)
         if not (float(redecimate) >= 0.0 and np.isfinite(float(redecimate))):
             raise ValueError(f"hemiraster: redecimate must be a finite number >= 0, got {redecimate}")
         if float(redecimate) > 0.0 and pvs_frames is not None:
@@ -268,6 +285,12 @@ class HemirasterTransfer(TransferMethod):
         if not (float(fine_image) >= 0.0):
             raise ValueError(f"hemiraster: fine_image must be >= 0 pixels, got {fine_image}")
         self.fine_image = float(fine_image)
+        if direct_far and pvs_frames is not None:
+            raise ValueError("hemiraster: direct_far needs no PVS (a PVS lists the blockers that set a bit through the queue)")
+        if direct_far and not float(refine) > 0.0:
+            raise ValueError("hemiraster: direct_far needs refine > 0 (the paper scheme's near-field exclusion is applied "
+                             "after the per-blocker pass)")
+        self.direct_far = bool(direct_far)
         self.rim = bool(rim)
         self.fan = bool(fan)
         self.border = bool(border)
@@ -291,6 +314,7 @@ class HemirasterTransfer(TransferMethod):
         pdirs, pvalid = tables.pixel_directions(self.mask_res)
         # strictly below the lowest pixel centre (1e-4 relative: float32 rounding of the test)
         self._lut.rim = float(pdirs[pvalid, 2].min()) * (1.0 - 1e-4) if self.rim else 0.0
+        self._lut.half_mask = 0.5 * self.mask_res
         # integration (.integrate): per-pixel shares of the block integrals summed per nibble value
         # (diffuse), or the block integrals and directions (glossy); rotation to world by sampling
         self._integrate = integrate.integrate_kernels(self.order)
@@ -404,6 +428,11 @@ class HemirasterTransfer(TransferMethod):
         # but together the whole nearby surface (bear, full mesh: 1.4 -> 11 % error)
         self._lut.min_area = self.min_image * (2.0 / self.mask_res) ** 2 if self.hierarchy else 0.0
         self._lut.fine_area = self.fine_image * (2.0 / self.mask_res) ** 2 if self.hierarchy else 0.0
+        # sin of the largest angle between a plane normal and its LUT cell's centre normal is below
+        # sqrt(2)/R (half a cell's diagonal on the cube face, where a cell subtends the most)
+        self._lut.direct = math.sqrt(2.0) / self.lut_res if self.hierarchy and self.direct_far else -1.0
+        self._lut.lut_half = 0.5 * self.lut_res
+        self._lut.lut_last = float(self.lut_res - 1)
         perm, cstart, sstart = hierarchy.build_clusters(rest_blockers, block_faces, self.cluster, 16)
         if self._use_refine:
             group_start, group_mid, group_tris, group_owner, group_run_end = hierarchy.groups_in_order(far["owner"], far["extra"], perm)
@@ -574,6 +603,8 @@ class HemirasterTransfer(TransferMethod):
         self._blockers.precull = 1 if (self.hierarchy and self.num_blockers <= PRECULL_BLOCKERS) else 0
         shape = (self._slots, bwords) if self._blockers.precull else (1, 1)
         self._blockers.cull, self._blockers.tiny = (wp.zeros(shape, dtype=wp.uint64, device=d) for _ in range(2))
+        self._direct_on = bool(self._blockers.precull) and self._lut.direct >= 0.0
+        self._blockers.corners = wp.zeros((9, self.num_blockers if self._direct_on else 1), dtype=float, device=d)
         if self._blockers.precull and self._near_mode == 2:
             # the k-ring's exclusion bits by reordered blocker index, as uint64 rows
             src = ((excl[:, :, None] >> np.arange(32, dtype=np.uint32)) & 1).reshape(nv, -1)[:, :self.num_blockers]
@@ -772,6 +803,9 @@ class HemirasterTransfer(TransferMethod):
         # image sizes, before any vertex is gathered
         wp.launch(triangle_bounds, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
                   outputs=[self._bplane, self._bsphere, self._bnlen], device=d)
+        if self._direct_on:
+            wp.launch(blocker_corners, dim=self.num_blockers, inputs=[self._bpoints, self._bfaces],
+                      outputs=[self._blockers.corners], device=d)
         if self.hierarchy:
             wp.launch(triangle_bounds, dim=self._sfaces.shape[0], inputs=[self._spoints, self._sfaces],
                       outputs=[self._fine.plane, self._fine.sphere, self._fine.nlen], device=d)
@@ -1063,6 +1097,8 @@ class HemirasterTransfer(TransferMethod):
         nv = self.mesh.num_vertices
         if frames.ndim != 3 or frames.shape[1:] != (nv, 3) or len(frames) == 0:
             raise ValueError(f"{self.mesh.name}: pvs_frames must have shape (T, {nv}, 3), got {frames.shape}")
+        if self.direct_far:
+            raise ValueError("hemiraster: direct_far needs no PVS (a PVS lists the blockers that set a bit through the queue)")
         self._hits = wp.zeros((nv, (self.num_blockers + 31) // 32), dtype=wp.uint32, device=self.device)
         for f, pts in enumerate(frames):
             if not np.isfinite(pts).all():
