@@ -136,6 +136,12 @@ class MeshCollider:
                                    dtype=wp.int32, device=device)
         self.edge_faces = wp.array(edge_faces.astype(np.int32), dtype=wp.int32, device=device)
         self.closed = bool(len(edge_faces)) and bool((edge_faces[:, 1] >= 0).all())
+        self.tri_sharp = wp.full((len(f), 3), -1, dtype=wp.int32, device=device)
+        """Per triangle side, its edge's index when the edge is sharp and convex and met from this face,
+        else -1 (:func:`~warpshade.sim.collision_kernels.mesh_sharp_edges`, for the pose in ``mesh.points``)."""
+        self.edge_normals = wp.zeros((len(uniq), 2), dtype=wp.vec3, device=device)
+        """The sharp convex edges' two faces' unit normals (for the pose in ``mesh.points``)."""
+        self._sharp_posed = False  # whether tri_sharp and edge_normals are those of the pose in mesh.points
         corner, offsets, ring = sharp_corners(pts, self.faces) if self.closed else (np.zeros(0, np.int32),) * 3
         self.corner_vertices = wp.array(corner.astype(np.int32), dtype=wp.int32, device=device)
         """Pointed convex vertices (:func:`sharp_corners`: a cone's apex), whose poke through the cloth
@@ -365,6 +371,7 @@ class ColliderSet:
             self._launch(ck.interpolate_points, m.points_start.shape[0], [m.points_start, m.points_end, alpha1],
                          [m.mesh.points])
             m.mesh.refit()
+            m._sharp_posed = False
         if self.corner_count:
             self._corner_arrays()
             self._pose_corners("substep_start", self._corners_prev)
@@ -418,8 +425,13 @@ class ColliderSet:
             # corners': averaged with the edge corrections, the push would be diluted)
             for m in self.meshes:
                 if m.closed and not m.moving:
+                    if not m._sharp_posed:
+                        self._launch(ck.mesh_sharp_edges, m.tri_sharp.shape[0],
+                                     [m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces],
+                                     [m.edge_normals, m.tri_sharp])
+                        m._sharp_posed = True
                     self._launch(ck.collide_mesh_edge_faces, tris.shape[0],
-                                 [m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x,
+                                 [m.mesh.id, m.mesh.points, m.tri_sharp, m.edge_verts, m.edge_normals, x,
                                   tris, inv_mass, thickness], [self._edge_delta, self._edge_count])
             self._launch(apply_averaged_deltas, n, [], [self._edge_delta, self._edge_count, x])
         if tris is not None:

@@ -481,13 +481,51 @@ vertex and edge passes."""
 
 
 @wp.kernel
-def collide_mesh_edge_faces(
-    mesh: wp.uint64,
+def mesh_sharp_edges(
     mesh_points: wp.array[wp.vec3],
     mesh_tris: wp.array[int],
     tri_edges: wp.array2d[int],
     edge_verts: wp.array2d[int],
     edge_faces: wp.array2d[int],
+    edge_normals: wp.array2d[wp.vec3],
+    tri_sharp: wp.array2d[int],
+):
+    """The sharp convex edges of a closed mesh collider as posed (``mesh_points``), the table
+    :func:`collide_mesh_edge_faces` reads. One thread per collider triangle ``f``; for each of its
+    sides ``ce``, ``tri_sharp[f, ce]`` is the side's edge ``e`` when ``f`` is the edge's first face
+    and the edge is sharp (its faces turned by more than :data:`SHARP_EDGE_COS`) and convex, else -1
+    (so that each collider edge is met once, from its first face; a border edge has no solid). For
+    a sharp convex edge, ``edge_normals[e]`` holds its first and second faces' unit normals."""
+    f = wp.tid()
+    for ce in range(3):
+        tri_sharp[f, ce] = -1
+        e = tri_edges[f, ce]
+        fb = edge_faces[e, 1]
+        if edge_faces[e, 0] != f or fb < 0:
+            continue
+        m0 = mesh_points[edge_verts[e, 0]]
+        pa0 = mesh_points[mesh_tris[3 * f]]
+        na = wp.normalize(wp.cross(mesh_points[mesh_tris[3 * f + 1]] - pa0, mesh_points[mesh_tris[3 * f + 2]] - pa0))
+        pb0 = mesh_points[mesh_tris[3 * fb]]
+        pb1 = mesh_points[mesh_tris[3 * fb + 1]]
+        pb2 = mesh_points[mesh_tris[3 * fb + 2]]
+        nb = wp.normalize(wp.cross(pb1 - pb0, pb2 - pb0))
+        if wp.dot(na, nb) > SHARP_EDGE_COS:
+            continue  # flat or gently bent: the vertex and edge passes hold it
+        if wp.dot((pb0 + pb1 + pb2) / 3.0 - m0, na) >= 0.0:
+            continue  # concave: a fold inward pokes through nothing
+        tri_sharp[f, ce] = e
+        edge_normals[e, 0] = na
+        edge_normals[e, 1] = nb
+
+
+@wp.kernel
+def collide_mesh_edge_faces(
+    mesh: wp.uint64,
+    mesh_points: wp.array[wp.vec3],
+    tri_sharp: wp.array2d[int],
+    edge_verts: wp.array2d[int],
+    edge_normals: wp.array2d[wp.vec3],
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
     inv_mass: wp.array[float],
@@ -496,7 +534,8 @@ def collide_mesh_edge_faces(
     delta_count: wp.array[float],
 ):
     """Cloth triangles against a closed mesh collider's sharp convex edges (faces turned by more
-    than :data:`SHARP_EDGE_COS`): a cloth triangle laid across a box's edge, its vertices held
+    than :data:`SHARP_EDGE_COS`, listed with their faces' normals by :func:`mesh_sharp_edges` for
+    the collider as posed in ``mesh_points``): a cloth triangle laid across a box's edge, its vertices held
     outside by the vertex pass, has edges that cut through the solid as chords across the edge.
     :func:`collide_mesh_edges` pushes such a cloth edge along the face it is least deep under,
     which for a chord crossing the edge at about 45 degrees leaves it cutting the solid after
@@ -537,22 +576,13 @@ def collide_mesh_edge_faces(
     f = int(0)
     while wp.mesh_query_aabb_next(query, f):
         for ce in range(3):
-            e = tri_edges[f, ce]
-            fb = edge_faces[e, 1]
-            if edge_faces[e, 0] != f or fb < 0:
-                continue  # each collider edge once, from its first face; border edges have no solid
+            e = tri_sharp[f, ce]
+            if e < 0:
+                continue  # not a sharp convex edge, or met from its other face
             m0 = mesh_points[edge_verts[e, 0]]
             m1 = mesh_points[edge_verts[e, 1]]
-            pa0 = mesh_points[mesh_tris[3 * f]]
-            na = wp.normalize(wp.cross(mesh_points[mesh_tris[3 * f + 1]] - pa0, mesh_points[mesh_tris[3 * f + 2]] - pa0))
-            pb0 = mesh_points[mesh_tris[3 * fb]]
-            pb1 = mesh_points[mesh_tris[3 * fb + 1]]
-            pb2 = mesh_points[mesh_tris[3 * fb + 2]]
-            nb = wp.normalize(wp.cross(pb1 - pb0, pb2 - pb0))
-            if wp.dot(na, nb) > SHARP_EDGE_COS:
-                continue  # flat or gently bent: the vertex and edge passes hold it
-            if wp.dot((pb0 + pb1 + pb2) / 3.0 - m0, na) >= 0.0:
-                continue  # concave: a fold inward pokes through nothing
+            na = edge_normals[e, 0]
+            nb = edge_normals[e, 1]
             out = na + nb
             cs = wp.dot(nt, out)
             if wp.abs(cs) < 1.0e-3 * wp.length(out):
