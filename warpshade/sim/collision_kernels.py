@@ -631,6 +631,46 @@ def collide_mesh_edge_faces(
             push_triangle_point(i0, i1, i2, w0, w1, w2, bary, n, h + thickness, delta, delta_count)
 
 
+@wp.func
+def shape_bounds(kind: int, a: wp.vec3, b: wp.vec3, size: wp.vec3) -> wp.vec4:
+    """Bounding sphere of a box, cylinder or cone: vec4(centre, radius)."""
+    mid = (a + b) * 0.5
+    reach = wp.sqrt(0.25 * wp.length_sq(b - a) + size[0] * size[0])
+    if kind == SHAPE_BOX:
+        mid = a
+        reach = wp.length(size)
+    return wp.vec4(mid[0], mid[1], mid[2], reach)
+
+
+@wp.func
+def deepest_on_segment(kind: int, pa: wp.vec3, pb: wp.vec3, t0: float, t1: float, rounds: int, a: wp.vec3,
+                       b: wp.vec3, rot: wp.quat, size: wp.vec3) -> float:
+    """The parameter t in [t0, t1] of the point ``lerp(pa, pb, t)`` deepest in a shape (lowest
+    :func:`shape_distance`), by ``rounds`` rounds of golden-section search: the signed distance of a
+    convex solid is convex along a line, so the search finds the minimum."""
+    lo = t0
+    hi = t1
+    g = 0.6180339887
+    c = hi - g * (hi - lo)
+    d = lo + g * (hi - lo)
+    fc = shape_distance(kind, wp.lerp(pa, pb, c), a, b, rot, size)[3]
+    fd = shape_distance(kind, wp.lerp(pa, pb, d), a, b, rot, size)[3]
+    for it in range(rounds):
+        if fc < fd:
+            hi = d
+            d = c
+            fd = fc
+            c = hi - g * (hi - lo)
+            fc = shape_distance(kind, wp.lerp(pa, pb, c), a, b, rot, size)[3]
+        else:
+            lo = c
+            c = d
+            fc = fd
+            d = lo + g * (hi - lo)
+            fd = shape_distance(kind, wp.lerp(pa, pb, d), a, b, rot, size)[3]
+    return 0.5 * (lo + hi)
+
+
 @wp.kernel
 def collide_shape_edges(
     kind: wp.array[int],
@@ -665,35 +705,12 @@ def collide_shape_edges(
         if kd != SHAPE_CYLINDER and kd != SHAPE_CONE and kd != SHAPE_BOX:
             continue
         # bounding sphere of the solid against the edge
-        mid = (a1[s] + b1[s]) * 0.5
-        reach = wp.sqrt(0.25 * wp.length_sq(b1[s] - a1[s]) + size[s][0] * size[s][0]) + thickness
-        if kd == SHAPE_BOX:
-            mid = a1[s]
-            reach = wp.length(size[s]) + thickness
+        bs = shape_bounds(kd, a1[s], b1[s], size[s])
+        mid = wp.vec3(bs[0], bs[1], bs[2])
         t = segment_parameter(mid, pa, pb)
-        if wp.length(wp.lerp(pa, pb, t) - mid) > reach:
+        if wp.length(wp.lerp(pa, pb, t) - mid) > bs[3] + thickness:
             continue
-        lo = float(0.0)
-        hi = float(1.0)
-        g = 0.6180339887
-        c = hi - g * (hi - lo)
-        d = lo + g * (hi - lo)
-        fc = shape_distance(kd, wp.lerp(pa, pb, c), a1[s], b1[s], r1[s], size[s])[3]
-        fd = shape_distance(kd, wp.lerp(pa, pb, d), a1[s], b1[s], r1[s], size[s])[3]
-        for it in range(24):
-            if fc < fd:
-                hi = d
-                d = c
-                fd = fc
-                c = hi - g * (hi - lo)
-                fc = shape_distance(kd, wp.lerp(pa, pb, c), a1[s], b1[s], r1[s], size[s])[3]
-            else:
-                lo = c
-                c = d
-                fc = fd
-                d = lo + g * (hi - lo)
-                fd = shape_distance(kd, wp.lerp(pa, pb, d), a1[s], b1[s], r1[s], size[s])[3]
-        u = 0.5 * (lo + hi)
+        u = deepest_on_segment(kd, pa, pb, 0.0, 1.0, 24, a1[s], b1[s], r1[s], size[s])
         if u <= 1.0e-3 or u >= 1.0 - 1.0e-3:
             continue  # a cloth vertex is deepest: the vertex projection holds it
         sd = shape_distance(kd, wp.lerp(pa, pb, u), a1[s], b1[s], r1[s], size[s])
@@ -765,11 +782,9 @@ def shape_chord(kind: int, p0: wp.vec3, dr: wp.vec3, a: wp.vec3, b: wp.vec3, rot
     ray: its minimum, on the part of the ray inside the solid's bounding sphere, is found by
     golden-section search, the entry and exit by bisection on either side (to about 1e-6 of the
     sphere's diameter)."""
-    mid = (a + b) * 0.5
-    reach = wp.sqrt(0.25 * wp.length_sq(b - a) + size[0] * size[0])
-    if kind == SHAPE_BOX:
-        mid = a
-        reach = wp.length(size)
+    bs = shape_bounds(kind, a, b, size)
+    mid = wp.vec3(bs[0], bs[1], bs[2])
+    reach = bs[3]
     tc = wp.dot(mid - p0, dr)
     off2 = wp.length_sq(p0 + dr * tc - mid)
     if off2 >= reach * reach:
@@ -779,7 +794,8 @@ def shape_chord(kind: int, p0: wp.vec3, dr: wp.vec3, a: wp.vec3, b: wp.vec3, rot
     hi = tc + half
     if hi <= lo:
         return wp.vec2(-1.0, 0.0)
-    # the deepest point along the ray
+    # the deepest point along the ray, by golden-section search as in deepest_on_segment but on the
+    # points p0 + dr t (not lerp(p0, p0 + dr, t): the hammock tests' outcomes depend on the last bits)
     g = 0.6180339887
     l = lo
     h = hi
@@ -1186,12 +1202,8 @@ def collide_shape_faces(
         kd = kind[s]
         if kd != SHAPE_BOX and kd != SHAPE_CYLINDER and kd != SHAPE_CONE:
             continue
-        mid = (a1[s] + b1[s]) * 0.5
-        reach = wp.sqrt(0.25 * wp.length_sq(b1[s] - a1[s]) + size[s][0] * size[s][0])
-        if kd == SHAPE_BOX:
-            mid = a1[s]
-            reach = wp.length(size[s])
-        if wp.length(c - mid) > r + reach:
+        bs = shape_bounds(kd, a1[s], b1[s], size[s])
+        if wp.length(c - wp.vec3(bs[0], bs[1], bs[2])) > r + bs[3]:
             continue  # no part of the solid near the triangle
         # the lowest sample, then a pattern search from it (the signed distance is convex over the
         # triangle): a rim or edge poking through the triangle by less than the grid's spacing
