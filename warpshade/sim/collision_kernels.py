@@ -869,6 +869,10 @@ def limit_shape_motion(
         ld = wp.length(d)
         if ld <= thickness:
             continue
+        bs = shape_bounds(kd, a1[s], b1[s], size[s])
+        mid = wp.vec3(bs[0], bs[1], bs[2])
+        if wp.length(wp.lerp(p0, p, segment_parameter(mid, p0, p)) - mid) > bs[3]:
+            continue  # the move stays outside the solid's bounding sphere
         if shape_distance(kd, p0, a1[s], b1[s], r1[s], size[s])[3] <= 0.0:
             continue  # starts inside
         dr = d / ld
