@@ -121,6 +121,7 @@ def test_sims_script_writes_shaded_output_by_default(tmp_path):
     (lambda: ws.cloth_grid(resolution=1), "resolution"),
     (lambda: ws.cloth_grid(size=-1.0), "size"),
     (lambda: ws.cloth_grid(resolution=4, pinned=[99]), "pinned vertex 99"),
+    (lambda: ws.cloth_grid(resolution=4, pinned=[0.5]), "cloth 'Cloth': pinned: vertex indices must be integers"),
     (lambda: ws.box(size=0), "'Box': size"),
     (lambda: ws.box(center=(0, 1)), "'Box': center"),
     (lambda: ws.sphere(radius=-2), "radius"),

@@ -19,7 +19,7 @@ import dataclasses
 
 import numpy as np
 
-from .geometry.mesh import TriMesh
+from .geometry.mesh import TriMesh, vertex_indices
 from .lighting import Sky
 from .lighting.base import Light
 from .scene import LightSpec, Material, Scene, SceneObject
@@ -105,11 +105,7 @@ def cloth(name: str, points, faces, pinned=None, albedo=None, attached=None, att
     params: dict = {"cloth": dict(material)}
     for key, ids in (("pinned", pinned), ("attached", attached)):
         if ids is not None:
-            v = np.asarray(ids, dtype=np.int64).reshape(-1)
-            bad = v[(v < 0) | (v >= tri.num_vertices)]
-            if len(bad):
-                raise ValueError(f"cloth '{name}': {key} vertex {int(bad[0])} out of range 0..{tri.num_vertices - 1}")
-            params[key] = v.astype(np.int32)
+            params[key] = vertex_indices(ids, tri.num_vertices, f"cloth '{name}': {key}").astype(np.int32)
     if (attached is None) != (attach_to is None):
         raise ValueError(f"cloth '{name}': attached and attach_to go together (the vertices and the moving object "
                          "they follow)")

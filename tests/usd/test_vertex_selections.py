@@ -138,3 +138,20 @@ def test_an_attach_target_over_several_meshes_is_an_error_naming_them(tmp_path):
     scene = read_scene(_sheet_stage(tmp_path / "elsewhere", target="/World/Nowhere"))
     with pytest.raises(SceneError, match=r"'/World/Nowhere' is not a mesh of the scene nor a prim above one"):
         ClothSimulation(scene)
+
+
+@pytest.mark.parametrize("key", ["pinned", "attached"])
+def test_cloth_simulation_checks_a_scene_objects_vertex_selection(key):
+    """A Scene built without the reader or the script API (objects made directly) gets the same
+    vertex check in ClothSimulation (``geometry.mesh.vertex_indices``), as a SceneError naming the
+    object and the attribute; a pinned index out of range was an IndexError from numpy before."""
+    import dataclasses
+
+    import warpshade as ws
+
+    bar = ws.mesh("Bar", np.eye(3), [[0, 1, 2]], moving=True, points_at=lambda code: np.eye(3))
+    cloth = ws.cloth_grid(resolution=4, attached=[0], attach_to="Bar")
+    params = dict(cloth.params, **{key: np.array([0, 16], np.int32)})
+    scene = ws.make_scene(bar, dataclasses.replace(cloth, params=params))
+    with pytest.raises(SceneError, match=f"^Cloth: warpshade:{key} vertex 16 out of range 0..15$"):
+        ClothSimulation(scene)

@@ -95,6 +95,27 @@ def validate_mesh(points: np.ndarray, faces: np.ndarray, name: str = "<mesh>") -
                         f"{faces[f].tolist()}")
 
 
+def vertex_indices(indices, count: int, what: str, error: type[ValueError] = ValueError) -> np.ndarray:
+    """``indices`` (a sequence or array of integers, any shape) as a flat int64 array of indices into a mesh
+    of ``count`` vertices: the one check of every vertex selection (pinned, attached vertices) in the script
+    API, the USD reader, the cloth pipeline and :class:`~warpshade.sim.ClothBuilder`.
+
+    Raises:
+        error: (a ValueError subclass: the caller's, e.g. ``SceneError``) naming ``what`` (the caller's
+            prefix: the file, prim, attribute or method) for indices that are not integers (``"<what>:
+            vertex indices must be integers, got float64"``) and for the first index out of range
+            (``"<what> vertex 7 out of range 0..2"``).
+    """
+    idx = np.asarray(indices).reshape(-1)
+    if idx.size and not np.issubdtype(idx.dtype, np.integer):
+        raise error(f"{what}: vertex indices must be integers, got {idx.dtype}")
+    idx = idx.astype(np.int64)
+    bad = idx[(idx < 0) | (idx >= count)]
+    if len(bad):
+        raise error(f"{what} vertex {int(bad[0])} out of range 0..{count - 1}")
+    return idx
+
+
 def weld_indices(points: np.ndarray) -> np.ndarray:
     """For each vertex, the first vertex at exactly the same position, shape (V,).
 

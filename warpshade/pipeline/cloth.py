@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 
+from ..geometry.mesh import vertex_indices
 from ..scene import Scene, SceneError, SceneWarning
 
 
@@ -92,7 +93,7 @@ class ClothSimulation:
             ids = builder.add_mesh(self._si(o.mesh.points), o.mesh.faces, name=o.name,
                                    **{k2: float(p[k]) for k, k2 in CLOTH_PARAMS.items() if k in p})
             if "pinned" in o.params and len(o.params["pinned"]):
-                builder.pin(ids[o.params["pinned"]])
+                builder.pin(ids[vertex_indices(o.params["pinned"], len(ids), f"{o.name}: warpshade:pinned", SceneError)])
             if "attached" in o.params:
                 self._attach(builder, scene, o, ids)
             self.ranges[o.name] = (int(ids[0]), int(ids[-1]) + 1)
@@ -182,9 +183,8 @@ class ClothSimulation:
         if target_name is None:
             raise SceneError(f"{obj.name}: warpshade:attached needs warpshade:attachTarget (a moving object)")
         target = _attach_target(scene, obj.name, str(target_name))
-        verts = np.asarray(obj.params["attached"], dtype=np.int64).reshape(-1)
-        if len(verts) and (verts.min() < 0 or verts.max() >= obj.mesh.num_vertices):
-            raise SceneError(f"{obj.name}: warpshade:attached vertex out of range 0..{obj.mesh.num_vertices - 1}")
+        verts = vertex_indices(obj.params["attached"], obj.mesh.num_vertices, f"{obj.name}: warpshade:attached",
+                               SceneError)
         builder.attach(ids[verts])
         rest = obj.mesh.points[verts].astype(np.float64)
         tp = target.mesh.points.astype(np.float64)

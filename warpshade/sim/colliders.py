@@ -136,6 +136,12 @@ class MeshCollider:
                                    dtype=wp.int32, device=device)
         self.edge_faces = wp.array(edge_faces.astype(np.int32), dtype=wp.int32, device=device)
         self.closed = bool(len(edge_faces)) and bool((edge_faces[:, 1] >= 0).all())
+        self.tri_sharp = wp.full((len(f), 3), -1, dtype=wp.int32, device=device)
+        """Per triangle side, its edge's index when the edge is sharp and convex and met from this face,
+        else -1 (:func:`~warpshade.sim.collision_kernels.mesh_sharp_edges`, for the pose in ``mesh.points``)."""
+        self.edge_normals = wp.zeros((len(uniq), 2), dtype=wp.vec3, device=device)
+        """The sharp convex edges' two faces' unit normals (for the pose in ``mesh.points``)."""
+        self._sharp_posed = False  # whether tri_sharp and edge_normals are those of the pose in mesh.points
         corner, offsets, ring = sharp_corners(pts, self.faces) if self.closed else (np.zeros(0, np.int32),) * 3
         self.corner_vertices = wp.array(corner.astype(np.int32), dtype=wp.int32, device=device)
         """Pointed convex vertices (:func:`sharp_corners`: a cone's apex), whose poke through the cloth
@@ -365,6 +371,7 @@ class ColliderSet:
             self._launch(ck.interpolate_points, m.points_start.shape[0], [m.points_start, m.points_end, alpha1],
                          [m.mesh.points])
             m.mesh.refit()
+            m._sharp_posed = False
         if self.corner_count:
             self._corner_arrays()
             self._pose_corners("substep_start", self._corners_prev)
@@ -403,7 +410,7 @@ class ColliderSet:
             return
         n = x.shape[0]
         self._edge_accumulators(n)
-        if any(k in self._SHARP for k in self._kind):
+        if self.has_sharp_shapes:
             ar = self._arrays
             self._launch(ck.collide_shape_edges, edges.shape[0],
                          [ar["kind"], ar["a1"], ar["b1"], ar["r1"], ar["size"], x, edges, inv_mass, thickness],
@@ -418,8 +425,13 @@ class ColliderSet:
             # corners': averaged with the edge corrections, the push would be diluted)
             for m in self.meshes:
                 if m.closed and not m.moving:
+                    if not m._sharp_posed:
+                        self._launch(ck.mesh_sharp_edges, m.tri_sharp.shape[0],
+                                     [m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces],
+                                     [m.edge_normals, m.tri_sharp])
+                        m._sharp_posed = True
                     self._launch(ck.collide_mesh_edge_faces, tris.shape[0],
-                                 [m.mesh.id, m.mesh.points, m.indices, m.tri_edges, m.edge_verts, m.edge_faces, x,
+                                 [m.mesh.id, m.mesh.points, m.tri_sharp, m.edge_verts, m.edge_normals, x,
                                   tris, inv_mass, thickness], [self._edge_delta, self._edge_count])
             self._launch(apply_averaged_deltas, n, [], [self._edge_delta, self._edge_count, x])
         if tris is not None:
@@ -437,6 +449,23 @@ class ColliderSet:
         self._launch(ck.limit_round_motion, x.shape[0],
                      [ar["kind"], ar["a1"], ar["b1"], ar["size"], float(fraction), float(thickness), inv_mass, x_prev],
                      [x])
+
+    def limit_shape_motion(self, fraction: float, thickness: float, inv_mass, x_prev, x) -> None:
+        """Shorten each free vertex's move x_prev -> x over the substep that enters a box, cylinder or
+        cone (posed by :meth:`pose_substep`) to ``fraction`` of the chord its line cuts through the
+        solid (:func:`~warpshade.sim.collision_kernels.limit_shape_motion`): the analytic
+        counterpart of :meth:`limit_mesh_motion`."""
+        if not self.has_sharp_shapes:
+            return
+        ar = self._arrays
+        self._launch(ck.limit_shape_motion, x.shape[0],
+                     [ar["kind"], ar["a1"], ar["b1"], ar["r1"], ar["size"], float(fraction), float(thickness),
+                      inv_mass, x_prev], [x])
+
+    @property
+    def has_sharp_shapes(self) -> bool:
+        """Whether there are boxes, cylinders or cones (:meth:`limit_shape_motion` has work)."""
+        return any(k in self._SHARP for k in self._kind)
 
     def limit_mesh_motion(self, fraction: float, thickness: float, inv_mass, x_prev, x) -> None:
         """Shorten each free vertex's move x_prev -> x over the substep that enters a closed mesh
@@ -506,6 +535,22 @@ class ColliderSet:
                          [m.mesh.id, m.points_start, m.indices, int(m.closed), int(m.moving), x_start, x, tris, inv_mass,
                           thickness, thickness + self.mesh_query_distance, self.FACE_SAMPLES],
                          [self._edge_delta, self._edge_count])
+        self._launch(apply_averaged_deltas, x.shape[0], [], [self._edge_delta, self._edge_count, x])
+
+    def collide_shape_faces(self, thickness: float, inv_mass, tris, x, x_start) -> None:
+        """Push cloth triangles that cut into a box, cylinder or cone (posed as at the end of the last
+        substep) while their vertices are held outside, back the way they came since ``x_start`` (against
+        the step's start pose),
+        corrections averaged per vertex (:func:`~warpshade.sim.collision_kernels.collide_shape_faces`,
+        sampled on a grid of :attr:`FACE_SAMPLES` steps a side): the analytic counterpart of
+        :meth:`collide_mesh_faces` for closed meshes. Arguments as there."""
+        if not self.has_sharp_shapes:
+            return
+        self._edge_accumulators(x.shape[0])
+        ar = self._arrays
+        self._launch(ck.collide_shape_faces, tris.shape[0],
+                     [ar["kind"], ar["a_start"], ar["b_start"], ar["rot_start"], ar["a1"], ar["b1"], ar["r1"], ar["size"],
+                      x_start, x, tris, inv_mass, thickness, self.FACE_SAMPLES], [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, x.shape[0], [], [self._edge_delta, self._edge_count, x])
 
     def _edge_accumulators(self, n: int) -> None:

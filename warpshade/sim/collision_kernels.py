@@ -481,13 +481,51 @@ vertex and edge passes."""
 
 
 @wp.kernel
-def collide_mesh_edge_faces(
-    mesh: wp.uint64,
+def mesh_sharp_edges(
     mesh_points: wp.array[wp.vec3],
     mesh_tris: wp.array[int],
     tri_edges: wp.array2d[int],
     edge_verts: wp.array2d[int],
     edge_faces: wp.array2d[int],
+    edge_normals: wp.array2d[wp.vec3],
+    tri_sharp: wp.array2d[int],
+):
+    """The sharp convex edges of a closed mesh collider as posed (``mesh_points``), the table
+    :func:`collide_mesh_edge_faces` reads. One thread per collider triangle ``f``; for each of its
+    sides ``ce``, ``tri_sharp[f, ce]`` is the side's edge ``e`` when ``f`` is the edge's first face
+    and the edge is sharp (its faces turned by more than :data:`SHARP_EDGE_COS`) and convex, else -1
+    (so that each collider edge is met once, from its first face; a border edge has no solid). For
+    a sharp convex edge, ``edge_normals[e]`` holds its first and second faces' unit normals."""
+    f = wp.tid()
+    for ce in range(3):
+        tri_sharp[f, ce] = -1
+        e = tri_edges[f, ce]
+        fb = edge_faces[e, 1]
+        if edge_faces[e, 0] != f or fb < 0:
+            continue
+        m0 = mesh_points[edge_verts[e, 0]]
+        pa0 = mesh_points[mesh_tris[3 * f]]
+        na = wp.normalize(wp.cross(mesh_points[mesh_tris[3 * f + 1]] - pa0, mesh_points[mesh_tris[3 * f + 2]] - pa0))
+        pb0 = mesh_points[mesh_tris[3 * fb]]
+        pb1 = mesh_points[mesh_tris[3 * fb + 1]]
+        pb2 = mesh_points[mesh_tris[3 * fb + 2]]
+        nb = wp.normalize(wp.cross(pb1 - pb0, pb2 - pb0))
+        if wp.dot(na, nb) > SHARP_EDGE_COS:
+            continue  # flat or gently bent: the vertex and edge passes hold it
+        if wp.dot((pb0 + pb1 + pb2) / 3.0 - m0, na) >= 0.0:
+            continue  # concave: a fold inward pokes through nothing
+        tri_sharp[f, ce] = e
+        edge_normals[e, 0] = na
+        edge_normals[e, 1] = nb
+
+
+@wp.kernel
+def collide_mesh_edge_faces(
+    mesh: wp.uint64,
+    mesh_points: wp.array[wp.vec3],
+    tri_sharp: wp.array2d[int],
+    edge_verts: wp.array2d[int],
+    edge_normals: wp.array2d[wp.vec3],
     x: wp.array[wp.vec3],
     tris: wp.array2d[int],
     inv_mass: wp.array[float],
@@ -496,7 +534,8 @@ def collide_mesh_edge_faces(
     delta_count: wp.array[float],
 ):
     """Cloth triangles against a closed mesh collider's sharp convex edges (faces turned by more
-    than :data:`SHARP_EDGE_COS`): a cloth triangle laid across a box's edge, its vertices held
+    than :data:`SHARP_EDGE_COS`, listed with their faces' normals by :func:`mesh_sharp_edges` for
+    the collider as posed in ``mesh_points``): a cloth triangle laid across a box's edge, its vertices held
     outside by the vertex pass, has edges that cut through the solid as chords across the edge.
     :func:`collide_mesh_edges` pushes such a cloth edge along the face it is least deep under,
     which for a chord crossing the edge at about 45 degrees leaves it cutting the solid after
@@ -537,22 +576,13 @@ def collide_mesh_edge_faces(
     f = int(0)
     while wp.mesh_query_aabb_next(query, f):
         for ce in range(3):
-            e = tri_edges[f, ce]
-            fb = edge_faces[e, 1]
-            if edge_faces[e, 0] != f or fb < 0:
-                continue  # each collider edge once, from its first face; border edges have no solid
+            e = tri_sharp[f, ce]
+            if e < 0:
+                continue  # not a sharp convex edge, or met from its other face
             m0 = mesh_points[edge_verts[e, 0]]
             m1 = mesh_points[edge_verts[e, 1]]
-            pa0 = mesh_points[mesh_tris[3 * f]]
-            na = wp.normalize(wp.cross(mesh_points[mesh_tris[3 * f + 1]] - pa0, mesh_points[mesh_tris[3 * f + 2]] - pa0))
-            pb0 = mesh_points[mesh_tris[3 * fb]]
-            pb1 = mesh_points[mesh_tris[3 * fb + 1]]
-            pb2 = mesh_points[mesh_tris[3 * fb + 2]]
-            nb = wp.normalize(wp.cross(pb1 - pb0, pb2 - pb0))
-            if wp.dot(na, nb) > SHARP_EDGE_COS:
-                continue  # flat or gently bent: the vertex and edge passes hold it
-            if wp.dot((pb0 + pb1 + pb2) / 3.0 - m0, na) >= 0.0:
-                continue  # concave: a fold inward pokes through nothing
+            na = edge_normals[e, 0]
+            nb = edge_normals[e, 1]
             out = na + nb
             cs = wp.dot(nt, out)
             if wp.abs(cs) < 1.0e-3 * wp.length(out):
@@ -601,6 +631,46 @@ def collide_mesh_edge_faces(
             push_triangle_point(i0, i1, i2, w0, w1, w2, bary, n, h + thickness, delta, delta_count)
 
 
+@wp.func
+def shape_bounds(kind: int, a: wp.vec3, b: wp.vec3, size: wp.vec3) -> wp.vec4:
+    """Bounding sphere of a box, cylinder or cone: vec4(centre, radius)."""
+    mid = (a + b) * 0.5
+    reach = wp.sqrt(0.25 * wp.length_sq(b - a) + size[0] * size[0])
+    if kind == SHAPE_BOX:
+        mid = a
+        reach = wp.length(size)
+    return wp.vec4(mid[0], mid[1], mid[2], reach)
+
+
+@wp.func
+def deepest_on_segment(kind: int, pa: wp.vec3, pb: wp.vec3, t0: float, t1: float, rounds: int, a: wp.vec3,
+                       b: wp.vec3, rot: wp.quat, size: wp.vec3) -> float:
+    """The parameter t in [t0, t1] of the point ``lerp(pa, pb, t)`` deepest in a shape (lowest
+    :func:`shape_distance`), by ``rounds`` rounds of golden-section search: the signed distance of a
+    convex solid is convex along a line, so the search finds the minimum."""
+    lo = t0
+    hi = t1
+    g = 0.6180339887
+    c = hi - g * (hi - lo)
+    d = lo + g * (hi - lo)
+    fc = shape_distance(kind, wp.lerp(pa, pb, c), a, b, rot, size)[3]
+    fd = shape_distance(kind, wp.lerp(pa, pb, d), a, b, rot, size)[3]
+    for it in range(rounds):
+        if fc < fd:
+            hi = d
+            d = c
+            fd = fc
+            c = hi - g * (hi - lo)
+            fc = shape_distance(kind, wp.lerp(pa, pb, c), a, b, rot, size)[3]
+        else:
+            lo = c
+            c = d
+            fc = fd
+            d = lo + g * (hi - lo)
+            fd = shape_distance(kind, wp.lerp(pa, pb, d), a, b, rot, size)[3]
+    return 0.5 * (lo + hi)
+
+
 @wp.kernel
 def collide_shape_edges(
     kind: wp.array[int],
@@ -635,35 +705,12 @@ def collide_shape_edges(
         if kd != SHAPE_CYLINDER and kd != SHAPE_CONE and kd != SHAPE_BOX:
             continue
         # bounding sphere of the solid against the edge
-        mid = (a1[s] + b1[s]) * 0.5
-        reach = wp.sqrt(0.25 * wp.length_sq(b1[s] - a1[s]) + size[s][0] * size[s][0]) + thickness
-        if kd == SHAPE_BOX:
-            mid = a1[s]
-            reach = wp.length(size[s]) + thickness
+        bs = shape_bounds(kd, a1[s], b1[s], size[s])
+        mid = wp.vec3(bs[0], bs[1], bs[2])
         t = segment_parameter(mid, pa, pb)
-        if wp.length(wp.lerp(pa, pb, t) - mid) > reach:
+        if wp.length(wp.lerp(pa, pb, t) - mid) > bs[3] + thickness:
             continue
-        lo = float(0.0)
-        hi = float(1.0)
-        g = 0.6180339887
-        c = hi - g * (hi - lo)
-        d = lo + g * (hi - lo)
-        fc = shape_distance(kd, wp.lerp(pa, pb, c), a1[s], b1[s], r1[s], size[s])[3]
-        fd = shape_distance(kd, wp.lerp(pa, pb, d), a1[s], b1[s], r1[s], size[s])[3]
-        for it in range(24):
-            if fc < fd:
-                hi = d
-                d = c
-                fd = fc
-                c = hi - g * (hi - lo)
-                fc = shape_distance(kd, wp.lerp(pa, pb, c), a1[s], b1[s], r1[s], size[s])[3]
-            else:
-                lo = c
-                c = d
-                fc = fd
-                d = lo + g * (hi - lo)
-                fd = shape_distance(kd, wp.lerp(pa, pb, d), a1[s], b1[s], r1[s], size[s])[3]
-        u = 0.5 * (lo + hi)
+        u = deepest_on_segment(kd, pa, pb, 0.0, 1.0, 24, a1[s], b1[s], r1[s], size[s])
         if u <= 1.0e-3 or u >= 1.0 - 1.0e-3:
             continue  # a cloth vertex is deepest: the vertex projection holds it
         sd = shape_distance(kd, wp.lerp(pa, pb, u), a1[s], b1[s], r1[s], size[s])
@@ -717,6 +764,124 @@ def limit_round_motion(
         gap = wp.length(wp.lerp(p0, p, st[0]) - wp.lerp(a1[s], b, st[1])) - size[s][0]
         if gap < thickness:
             p = p0 + d * (cap / ld)
+    x[i] = p
+
+
+@wp.func
+def shape_line_value(kind: int, p0: wp.vec3, dr: wp.vec3, t: float, a: wp.vec3, b: wp.vec3, rot: wp.quat,
+                     size: wp.vec3) -> float:
+    """Signed distance of the point ``p0 + dr t`` to a shape (:func:`shape_distance`)."""
+    return shape_distance(kind, p0 + dr * t, a, b, rot, size)[3]
+
+
+@wp.func
+def shape_chord(kind: int, p0: wp.vec3, dr: wp.vec3, a: wp.vec3, b: wp.vec3, rot: wp.quat, size: wp.vec3) -> wp.vec2:
+    """Where the ray ``p0 + dr t`` (t >= 0, dr a unit vector, p0 outside) enters a box, cylinder
+    or cone and the length of the chord it cuts through it: vec2(t_in, chord), or vec2(-1, 0)
+    when it misses the solid. The solid is convex, so its signed distance is convex along the
+    ray: its minimum, on the part of the ray inside the solid's bounding sphere, is found by
+    golden-section search, the entry and exit by bisection on either side (to about 1e-6 of the
+    sphere's diameter)."""
+    bs = shape_bounds(kind, a, b, size)
+    mid = wp.vec3(bs[0], bs[1], bs[2])
+    reach = bs[3]
+    tc = wp.dot(mid - p0, dr)
+    off2 = wp.length_sq(p0 + dr * tc - mid)
+    if off2 >= reach * reach:
+        return wp.vec2(-1.0, 0.0)
+    half = wp.sqrt(reach * reach - off2)
+    lo = wp.max(tc - half, 0.0)
+    hi = tc + half
+    if hi <= lo:
+        return wp.vec2(-1.0, 0.0)
+    # the deepest point along the ray, by golden-section search as in deepest_on_segment but on the
+    # points p0 + dr t (not lerp(p0, p0 + dr, t): the hammock tests' outcomes depend on the last bits)
+    g = 0.6180339887
+    l = lo
+    h = hi
+    c = h - g * (h - l)
+    d = l + g * (h - l)
+    fc = shape_line_value(kind, p0, dr, c, a, b, rot, size)
+    fd = shape_line_value(kind, p0, dr, d, a, b, rot, size)
+    for it in range(32):
+        if fc < fd:
+            h = d
+            d = c
+            fd = fc
+            c = h - g * (h - l)
+            fc = shape_line_value(kind, p0, dr, c, a, b, rot, size)
+        else:
+            l = c
+            c = d
+            fc = fd
+            d = l + g * (h - l)
+            fd = shape_line_value(kind, p0, dr, d, a, b, rot, size)
+    tm = 0.5 * (l + h)
+    if shape_line_value(kind, p0, dr, tm, a, b, rot, size) >= 0.0:
+        return wp.vec2(-1.0, 0.0)  # clear of the solid
+    # entry in [lo, tm] (outside at lo), exit in [tm, hi] (outside at hi, on the bounding sphere)
+    el = lo
+    eh = tm
+    xl = tm
+    xh = hi
+    for it in range(24):
+        em = 0.5 * (el + eh)
+        if shape_line_value(kind, p0, dr, em, a, b, rot, size) < 0.0:
+            eh = em
+        else:
+            el = em
+        xm = 0.5 * (xl + xh)
+        if shape_line_value(kind, p0, dr, xm, a, b, rot, size) < 0.0:
+            xl = xm
+        else:
+            xh = xm
+    return wp.vec2(el, xh - el)
+
+
+@wp.kernel
+def limit_shape_motion(
+    kind: wp.array[int],
+    a1: wp.array[wp.vec3],
+    b1: wp.array[wp.vec3],
+    r1: wp.array[wp.quat],
+    size: wp.array[wp.vec3],
+    fraction: float,
+    thickness: float,
+    inv_mass: wp.array[float],
+    x_prev: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+):
+    """Shorten a free vertex's move over the substep (x_prev -> x) that enters a box, cylinder or
+    cone (posed a1, b1, r1) to ``fraction`` of the chord its line cuts through the solid
+    (:func:`shape_chord`): the analytic counterpart of :func:`limit_mesh_motion`, with its
+    exceptions (moves shorter than ``thickness``, moves that stay clear of the solid and moves
+    that start inside it are left alone)."""
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    p0 = x_prev[i]
+    p = x[i]
+    for s in range(kind.shape[0]):
+        kd = kind[s]
+        if kd != SHAPE_BOX and kd != SHAPE_CYLINDER and kd != SHAPE_CONE:
+            continue
+        d = p - p0
+        ld = wp.length(d)
+        if ld <= thickness:
+            continue
+        bs = shape_bounds(kd, a1[s], b1[s], size[s])
+        mid = wp.vec3(bs[0], bs[1], bs[2])
+        if wp.length(wp.lerp(p0, p, segment_parameter(mid, p0, p)) - mid) > bs[3]:
+            continue  # the move stays outside the solid's bounding sphere
+        if shape_distance(kd, p0, a1[s], b1[s], r1[s], size[s])[3] <= 0.0:
+            continue  # starts inside
+        dr = d / ld
+        ch = shape_chord(kd, p0, dr, a1[s], b1[s], r1[s], size[s])
+        if ch[0] < 0.0 or ch[0] > ld:
+            continue  # clear of the solid, or stopping short of it
+        cap = fraction * ch[1]
+        if ld > cap:
+            p = p0 + dr * cap
     x[i] = p
 
 
@@ -974,6 +1139,151 @@ def collide_mesh_faces(
         if out.result:
             move = back * (out.t / lb) + out.normal * thickness
     push_triangle_point(ids[0], ids[1], ids[2], w[0], w[1], w[2], bary, move, 1.0, delta, delta_count)
+
+
+FACE_REFINE_STEPS = wp.constant(24)
+"""Steps of the pattern search (six directions in barycentric coordinates, the step halved when none
+goes deeper) that refines :func:`collide_shape_faces`' lowest sample."""
+
+
+@wp.func
+def shape_carry(kind: int, p: wp.vec3, a0: wp.vec3, b0: wp.vec3, r0: wp.quat, a1: wp.vec3, b1: wp.vec3,
+                r1: wp.quat) -> wp.vec3:
+    """Point p, given against a shape posed a0, b0, r0, carried with the shape to its pose a1, b1,
+    r1: a box's rigid motion; for the axial shapes, the motion of p's point on the axis (the
+    inverse of :func:`shape_point_motion`)."""
+    if kind == SHAPE_BOX:
+        return a1 + wp.quat_rotate(r1, wp.quat_rotate_inv(r0, p - a0))
+    t = segment_parameter(p, a0, b0)
+    return p + wp.lerp(a1, b1, t) - wp.lerp(a0, b0, t)
+
+
+@wp.kernel
+def collide_shape_faces(
+    kind: wp.array[int],
+    a0: wp.array[wp.vec3],
+    b0: wp.array[wp.vec3],
+    r0: wp.array[wp.quat],
+    a1: wp.array[wp.vec3],
+    b1: wp.array[wp.vec3],
+    r1: wp.array[wp.quat],
+    size: wp.array[wp.vec3],
+    x_prev: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+    tris: wp.array2d[int],
+    inv_mass: wp.array[float],
+    thickness: float,
+    samples: int,
+    delta: wp.array[wp.vec3],
+    delta_count: wp.array[float],
+):
+    """Cloth triangles that cut into a box, cylinder or cone (pose a1, b1, r1) while their vertices
+    are held outside (a stretched triangle drawn over a rim, a cloth edge cut through as a chord):
+    the analytic counterpart of the closed-mesh branch of :func:`collide_mesh_faces`. The triangle
+    is sampled on a barycentric grid of ``samples`` steps a side (its vertices left out), the
+    deepest point in the solid (:func:`shape_distance`; the lowest sample refined by a pattern
+    search of :data:`FACE_REFINE_STEPS` steps, so that a rim or edge poking through the triangle
+    between the samples is found) is moved out back the way it came: to
+    ``thickness`` outside the point where the straight path from it to the same point of the
+    triangle at ``x_prev`` leaves the solid (found by bisection: the solid is convex, the path
+    leaves it once), or to ``thickness`` outside its nearest surface point when that path stays
+    inside. That point at ``x_prev`` is taken where it was against the solid posed a0, b0, r0 (the
+    step's start: :func:`shape_carry`), so a solid driven up into the triangle sends it back up,
+    the side it came from. The push is split between the three vertices by their barycentric
+    weights. A triangle with no sample inside is left alone."""
+    k = wp.tid()
+    ids = wp.vec3i(tris[k, 0], tris[k, 1], tris[k, 2])
+    w = wp.vec3(inv_mass[ids[0]], inv_mass[ids[1]], inv_mass[ids[2]])
+    if w[0] + w[1] + w[2] == 0.0:
+        return
+    p0 = x[ids[0]]
+    p1 = x[ids[1]]
+    p2 = x[ids[2]]
+    c = (p0 + p1 + p2) / 3.0
+    r = wp.max(wp.max(wp.length(p0 - c), wp.length(p1 - c)), wp.length(p2 - c))
+    inv = 1.0 / float(samples)
+    for s in range(kind.shape[0]):
+        kd = kind[s]
+        if kd != SHAPE_BOX and kd != SHAPE_CYLINDER and kd != SHAPE_CONE:
+            continue
+        bs = shape_bounds(kd, a1[s], b1[s], size[s])
+        if wp.length(c - wp.vec3(bs[0], bs[1], bs[2])) > r + bs[3]:
+            continue  # no part of the solid near the triangle
+        # the lowest sample, then a pattern search from it (the signed distance is convex over the
+        # triangle): a rim or edge poking through the triangle by less than the grid's spacing
+        bu = float(0.0)
+        bv = float(0.0)
+        low = float(1.0e30)
+        for ia in range(samples + 1):
+            for ib in range(samples + 1 - ia):
+                if (ia == samples) or (ib == samples) or (ia + ib == 0):
+                    continue  # a vertex
+                u = float(ia) * inv
+                v = float(ib) * inv
+                sdv = shape_distance(kd, p0 * (1.0 - u - v) + p1 * u + p2 * v, a1[s], b1[s], r1[s], size[s])[3]
+                if sdv < low:
+                    low = sdv
+                    bu = u
+                    bv = v
+        if low >= thickness:
+            continue  # clear of the solid
+        step = inv
+        for it in range(FACE_REFINE_STEPS):
+            moved = bool(False)
+            for dirn in range(6):
+                du = step
+                dv = float(0.0)
+                if dirn == 1:
+                    du = -step
+                elif dirn == 2:
+                    du = 0.0
+                    dv = step
+                elif dirn == 3:
+                    du = 0.0
+                    dv = -step
+                elif dirn == 4:
+                    dv = -step
+                elif dirn == 5:
+                    du = -step
+                    dv = step
+                u = bu + du
+                v = bv + dv
+                if u < 0.0 or v < 0.0 or u + v > 1.0:
+                    continue
+                sdv = shape_distance(kd, p0 * (1.0 - u - v) + p1 * u + p2 * v, a1[s], b1[s], r1[s], size[s])[3]
+                if sdv < low:
+                    low = sdv
+                    bu = u
+                    bv = v
+                    moved = True
+            if not moved:
+                step = step * 0.5
+        if low >= 0.0:
+            continue  # outside the solid
+        bary = wp.vec3(1.0 - bu - bv, bu, bv)
+        if wp.max(bary) >= 1.0 - 1.0e-3:
+            continue  # deepest at a vertex: the vertex projection holds it
+        sd = shape_distance(kd, p0 * bary[0] + p1 * bary[1] + p2 * bary[2], a1[s], b1[s], r1[s], size[s])
+        best = thickness - sd[3]
+        n = wp.vec3(sd[0], sd[1], sd[2])
+        q = p0 * bary[0] + p1 * bary[1] + p2 * bary[2]
+        qb = shape_carry(kd, x_prev[ids[0]] * bary[0] + x_prev[ids[1]] * bary[1] + x_prev[ids[2]] * bary[2],
+                         a0[s], b0[s], r0[s], a1[s], b1[s], r1[s])
+        move = n * best
+        sb = shape_distance(kd, qb, a1[s], b1[s], r1[s], size[s])
+        if sb[3] > 0.0:
+            lo = float(0.0)  # inside
+            hi = float(1.0)  # outside
+            for it in range(24):
+                m = 0.5 * (lo + hi)
+                if shape_distance(kd, wp.lerp(q, qb, m), a1[s], b1[s], r1[s], size[s])[3] < 0.0:
+                    lo = m
+                else:
+                    hi = m
+            e = wp.lerp(q, qb, hi)
+            se = shape_distance(kd, e, a1[s], b1[s], r1[s], size[s])
+            move = e - q + wp.vec3(se[0], se[1], se[2]) * thickness
+        push_triangle_point(ids[0], ids[1], ids[2], w[0], w[1], w[2], bary, move, 1.0, delta, delta_count)
 
 
 CORNER_INSIDE_TOL = wp.constant(0.01)

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import warp as wp
 
-from ..geometry.mesh import MeshError, TriMesh, validate_mesh
+from ..geometry.mesh import MeshError, TriMesh, validate_mesh, vertex_indices
 from .oracle import dihedral_angle_np
 
 if TYPE_CHECKING:  # (state.py imports this module)
@@ -451,14 +451,7 @@ class ClothBuilder:
         return slots
 
     def _check_indices(self, indices, what: str) -> np.ndarray:
-        idx = np.atleast_1d(np.asarray(indices)).ravel()
-        if idx.size and not np.issubdtype(idx.dtype, np.integer):
-            raise ValueError(f"{what}: vertex indices must be integers, got {idx.dtype}")
-        idx = idx.astype(np.int64)
-        bad = (idx < 0) | (idx >= self._count)
-        if bad.any():
-            raise ValueError(f"{what}: vertex {int(idx[bad][0])} out of range 0..{self._count - 1}")
-        return idx
+        return vertex_indices(indices, self._count, what)
 
     def finalize(self, device: str = "cpu") -> "ClothModel":
         """Build the immutable device model.

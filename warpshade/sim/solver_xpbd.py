@@ -349,6 +349,9 @@ class XPBDSolver:
                 if self.colliders is not None and self.colliders.has_closed_meshes:
                     # and moves into a closed mesh: its projection pushes out at the nearest surface
                     self.colliders.limit_mesh_motion(self.MESH_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
+                if self.colliders is not None and self.colliders.has_sharp_shapes:
+                    # and into a box, cylinder or cone, as into a closed mesh
+                    self.colliders.limit_shape_motion(self.MESH_MOVE, m.thickness, m.inv_mass, self._x_prev, x)
                 if self.stretch_limits:
                     wp.copy(self._x_before, x)
                 # contacts last and repeated: stacked contacts (cloth on cloth on the ground) need
@@ -858,6 +861,7 @@ class XPBDSolver:
         for _ in range(self.YIELD_PASSES):
             col.collide_round_faces(m.thickness, m.inv_mass, m.tris, x, self._x_start)
             col.collide_mesh_faces(m.thickness, m.inv_mass, m.tris, x, self._x_start)
+            col.collide_shape_faces(m.thickness, m.inv_mass, m.tris, x, self._x_start)
             col.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris)
             col.collide(m.thickness, m.inv_mass, x_prev, x, since=since)
             if self._new_pairs(x) == 0:

@@ -30,7 +30,7 @@ import warnings
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 
-from ..geometry.mesh import MeshError, TriMesh, check_finite
+from ..geometry.mesh import MeshError, TriMesh, check_finite, vertex_indices
 from ..geometry.shapes import (AXIS_FROM_Z, GRADED_KINDS, Grading, cloth_region, fit_budget, frame_boxes, gprim_shape,
                                scene_edge, sphere_shape)
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
@@ -349,11 +349,7 @@ def _vertex_selection(prim, where: str, key: str, listed, n: int) -> np.ndarray 
         return np.flatnonzero(values >= VERTEX_SELECTED).astype(np.int32)
     if listed is None:
         return None
-    vs = np.asarray(listed, dtype=np.int64).reshape(-1)
-    bad = vs[(vs < 0) | (vs >= n)]
-    if len(bad):
-        raise SceneError(f"{where}: warpshade:{key} vertex {int(bad[0])} out of range 0..{n - 1}")
-    return vs.astype(np.int32)
+    return vertex_indices(listed, n, f"{where}: warpshade:{key}", SceneError).astype(np.int32)
 
 
 def _read_sphere(prim, source: str, default_method, edge: float, marks: dict) -> SceneObject:
