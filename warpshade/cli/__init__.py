@@ -153,8 +153,8 @@ def main(argv: list[str] | None = None, *, whole_process: bool = False) -> int:
     what the process is for, and it ends when the call returns). In a whole process the objects alive once
     the command line is parsed, nearly all of them the imported modules' (Warp's kernels and their syntax
     trees, SciPy, ``pxr``), are taken out of the cyclic garbage collector's sight (:func:`gc.freeze`): they
-    live until the process ends, and every full collection of the run would scan them again (0.05-0.7 s
-    each at load 7 on the 2-core machine). ``warpshade run``'s forked workers inherit them frozen. A
+    live until the process ends, and every full collection of the run would scan them again.
+    ``warpshade run``'s forked workers inherit them frozen. A
     call from a longer-lived process (a script, the tests) freezes nothing."""
     argv = sys.argv[1:] if argv is None else list(argv)
     pool = None
@@ -212,9 +212,9 @@ def entry() -> None:
 
     Otherwise the interpreter shuts down as usual (``atexit`` handlers, buffered streams, threads), except
     for the full garbage collection it would start with: every object still alive is frozen first
-    (:func:`gc.freeze`), so it is not scanned. That collection kept ``warpshade run`` alive 0.6-1.9 s after its
-    last line on the shared 2-core machine (load 5-12; the heap then holds Warp's kernels, SciPy and ``pxr``);
-    what it could free is memory the process returns as it exits anyway.
+    (:func:`gc.freeze`), so it is not scanned: that collection, over a heap holding Warp's kernels, SciPy and
+    ``pxr``, came after the command's output was written (docs/benchmarks/history.md, branch ``runcpu``); what
+    it could free is memory the process returns as it exits anyway.
     """
     code = main(whole_process=True)
     if code >= 128:
