@@ -17,7 +17,11 @@ Status: the contact, landing and p99 criteria are met (0 pairs on every frame; l
 strain 16.1 %, worst p99 13.6 %; at the solver's default ``guard_relax=0``: 366 % and 226 %). The
 hold criterion is met only because the run is 48 frames long: from the settled pile on, the
 guard sends a few vertices of the bottom rows back in every step and its longest hold grows by
-one a step (27 at frame 48).
+one a step (27 at frame 48, 99 at frame 120; 84-103 with the sheet jittered by an ulp).
+Measured (benchmarks/guard_holds.py; docs/benchmarks/history.md, "Guard holds that never
+end"): the pairs are new every step (none at the step's start), the held state repeats
+exactly, and from it the contact and floor projections alone (no gravity, stretch or bending)
+still make new pairs; no fix yet.
 
 Run:  python sims/sheet_drop.py --frames 48 --out sheet_drop.usda
       (shaded under the default sky; --no-shade writes geometry only)

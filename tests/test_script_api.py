@@ -5,6 +5,7 @@ sims/ scripts shade by default; bad arguments are named."""
 from __future__ import annotations
 
 import os
+import warnings
 import subprocess
 import sys
 
@@ -13,6 +14,7 @@ import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 
 import warpshade as ws
+from warpshade.scene import SceneWarning
 
 from helpers import REPO
 
@@ -261,3 +263,39 @@ def test_a_cloth_attached_to_a_moving_mesh_follows_it():
         # float32 positions of a metre-sized scene: a few ulps; 1e-5 m is ample
         np.testing.assert_allclose(points["Cloth"][row], bar_at(frame)[nearest] + rest - bar[nearest], atol=1e-5)
     assert points["Cloth"][-1, 1] < 1.0 - 0.01  # the free far edge has fallen (it hangs from the bar)
+
+
+@pytest.mark.parametrize("normalize", [True, False])
+def test_distant_light_intensity_is_irradiance_unless_unnormalized(tmp_path, normalize):
+    """``ws.distant(intensity=E)`` lights a floor facing it with irradiance E (normalized, the default,
+    as Blender writes a Sun), or with E pi sin^2(angle/2) when E is the disc's radiance (UsdLux's
+    unnormalized light). Expected exit radiance rho E / pi times the SH order-4 truncation's gain for a
+    (near-)delta light along the normal, sum_{l<4} A_l (2l+1) / (4 pi) with the clamped cosine's
+    A_l = pi, 2pi/3, pi/4, 0: (1 + 2 + 1.25 + 0) / 4 = 1.0625. Tolerance 1e-4 relative: float32
+    shading (measured 1.06249 / 1.0625)."""
+    rho, e, angle = 0.5, 3.0, 0.53
+    scene = ws.make_scene(ws.ground(size=2.0, resolution=9, albedo=(rho, rho, rho)),
+                          ws.distant(direction=(0, -1, 0), intensity=e, angle=angle, normalize=normalize), frames=1)
+    out = str(tmp_path / "sun.usda")
+    ws.run(scene, out, frames=1)
+    stage = Usd.Stage.Open(out)
+    _, col = _colors(stage, "Ground", 0)
+    irradiance = e if normalize else e * np.pi * np.sin(np.radians(angle) / 2) ** 2
+    np.testing.assert_allclose(col, rho * irradiance / np.pi * 1.0625, rtol=1e-4)
+    assert stage.GetPrimAtPath("/World/Lights/Sun").GetAttribute("inputs:normalize").Get() is normalize
+
+
+def test_a_dim_unnormalized_sun_is_warned_of(tmp_path):
+    """An unnormalized DistantLight of intensity 3 (the disc's radiance) gives an irradiance of 2e-4:
+    the run warns, naming the light and the fix; a normalized one, or the UsdLux sun of 50000, does not."""
+    def run(**kw):
+        scene = ws.make_scene(ws.ground(size=2.0, resolution=5), ws.distant(**kw), frames=1)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            ws.run(scene, str(tmp_path / "sun.usda"), frames=1, shade=False)
+        return [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
+
+    dim = run(intensity=3.0, normalize=False)
+    assert len(dim) == 1 and "Sun" in dim[0] and "inputs:normalize" in dim[0] and "irradiance of only 0.0002 " in dim[0]
+    assert run(intensity=3.0) == []
+    assert run(intensity=50000.0, normalize=False) == []

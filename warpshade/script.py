@@ -298,11 +298,18 @@ def _frame_along(direction, what: str) -> np.ndarray:
 
 
 def distant(direction=(-0.3, -1.0, -0.2), intensity: float = 1.0, color=(1.0, 1.0, 1.0), angle: float = 0.53,
-            name: str = "Sun") -> LightSpec:
-    """A UsdLux DistantLight shining along ``direction`` (radiance ``color * intensity``, angular
-    diameter ``angle`` [degrees])."""
+            name: str = "Sun", normalize: bool = True) -> LightSpec:
+    """A UsdLux DistantLight shining along ``direction`` with angular diameter ``angle`` [degrees].
+
+    With ``normalize`` (the default, and what Blender writes for a Sun) ``color * intensity`` is the
+    irradiance on a surface facing the light: ``intensity=3`` lights a white floor under it to an exit
+    radiance of ``3 / pi``. With ``normalize=False`` it is the radiance of the sun's disc (UsdLux's
+    unnormalized light, whose default intensity of 50000 makes a sun of irradiance ~3.4 at 0.53
+    degrees; an intensity of a few is then all but black).
+    """
     return LightSpec("distant", name, color=_vec3(color, f"distant '{name}': color"), intensity=float(intensity),
-                     angle=float(angle), transform=_frame_along(direction, f"distant '{name}': direction"))
+                     angle=float(angle), normalize=bool(normalize),
+                     transform=_frame_along(direction, f"distant '{name}': direction"))
 
 
 def dome(color=(1.0, 1.0, 1.0), intensity: float = 1.0, texture: str | None = None, name: str = "Dome") -> LightSpec:

@@ -105,6 +105,21 @@ TRI = ('def Mesh "Tri" {\n int[] faceVertexCounts = [3]\n int[] faceVertexIndice
        ' point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n %s}\n')
 
 
+def test_animated_points_not_finite_name_file_prim_time_code_and_vertex(tmp_path):
+    """A NaN in an animated mesh's points at one time code (a DCC's broken cache) is named with its file,
+    prim, time code (1005: not the run's frame 4) and vertex, as authored."""
+    anim = ('def Mesh "Tri" {\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2]\n'
+            ' point3f[] points.timeSamples = {1001: [(0, 0, 0), (1, 0, 0), (0, 1, 0)],'
+            ' 1005: [(0, 0, 0), (1, 0, 0), (0, nan, 0)]}\n}\n')
+    scene = read_scene(_write(tmp_path, anim))
+    (tri,) = scene.objects
+    assert tri.kind == "animated"
+    tri.params["points_at"](1001)
+    with pytest.raises(SceneError, match=r"scene.usda:/Tri: points at time code 1005: vertex 2 has a non-finite "
+                                         r"position \[0.0, nan, 0.0\]"):
+        tri.params["points_at"](1005)
+
+
 def test_missing_texture_names_file_and_prim(tmp_path):
     path = _write(tmp_path, TRI % "" + 'def DomeLight "Sky" {\n asset inputs:texture:file = @./nope.exr@\n}\n')
     with pytest.raises(SceneError, match=r"scene.usda:/Sky: inputs:texture:file './nope.exr' not found"):
@@ -141,7 +156,8 @@ def test_bad_warpshade_attributes(tmp_path, attrs, match):
 
 def test_bad_values_and_empty_scene(tmp_path):
     bad_pts = TRI.replace("(1, 0, 0)", "(nan, 0, 0)") % ""
-    with pytest.raises(SceneError, match=r"/Tri: vertex 1 has a non-finite position"):
+    # the authored value, not the transformed one (a matrix product spreads the NaN over x, y and z)
+    with pytest.raises(SceneError, match=r"/Tri: points: vertex 1 has a non-finite position \[nan, 0.0, 0.0\]"):
         read_scene(_write(tmp_path, bad_pts))
     with pytest.raises(SceneError, match="no Mesh or gprim"):
         read_scene(_write(tmp_path, 'def Xform "World" {\n}\n', "empty.usda"))

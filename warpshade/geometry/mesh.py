@@ -63,6 +63,15 @@ def first_nonfinite(rows: np.ndarray) -> int | None:
     return int(np.flatnonzero(~finite.all(axis=1))[0])
 
 
+def check_finite(points: np.ndarray, name: str = "<mesh>") -> None:
+    """Raise :class:`MeshError` naming ``name``, the first vertex with a non-finite position, its position
+    and how many such vertices there are."""
+    v = first_nonfinite(points)
+    if v is not None:
+        bad = int((~np.isfinite(points).all(axis=1)).sum())
+        raise MeshError(f"{name}: vertex {v} has a non-finite position {points[v].tolist()} ({bad} such vertices)")
+
+
 def validate_mesh(points: np.ndarray, faces: np.ndarray, name: str = "<mesh>") -> None:
     """Check shapes, finiteness and index ranges.
 
@@ -78,10 +87,7 @@ def validate_mesh(points: np.ndarray, faces: np.ndarray, name: str = "<mesh>") -
         raise MeshError(f"{name}: faces must have shape (F, 3), got {faces.shape}")
     if len(points) == 0 or len(faces) == 0:
         raise MeshError(f"{name}: empty mesh ({len(points)} vertices, {len(faces)} triangles)")
-    v = first_nonfinite(points)
-    if v is not None:
-        bad = int((~np.isfinite(points).all(axis=1)).sum())
-        raise MeshError(f"{name}: vertex {v} has a non-finite position {points[v].tolist()} ({bad} such vertices)")
+    check_finite(points, name)
     out = (faces < 0) | (faces >= len(points))
     if out.any():
         f = int(np.flatnonzero(out.any(axis=1))[0])

@@ -36,6 +36,9 @@ from .config import DEFAULT_ORDER, REUSE_AUTO, REUSE_CHUNK, RUN_KNOBS, RunConfig
 from .shading import GroupSpec, SceneShader, back_key, unoccluded_transfer
 
 DEFAULT_KNOBS = RUN_KNOBS
+DIM_SUN = 0.01
+"""An unnormalized DistantLight giving less irradiance than this is warned of: a white floor facing it
+would shade to 0.003, black on screen; its author most likely meant the intensity as irradiance."""
 """Alias of :data:`.config.RUN_KNOBS` (knobs a run gives a method named with none)."""
 
 
@@ -232,6 +235,15 @@ class Pipeline:
                 warnings.warn(
                     f"{spec.name}: this light gives no light (color x intensity x 2^exposure = 0): set "
                     "inputs:intensity and inputs:color above zero, or remove it", SceneWarning, stacklevel=3)
+            elif spec.kind == "distant" and not spec.normalize and spec.angle > 0:
+                e = float(np.max(light_from_spec(spec, self.scene.up_axis, self.scene.fps).irradiance))
+                if e < DIM_SUN:
+                    warnings.warn(
+                        f"{spec.name}: an unnormalized DistantLight's intensity is the radiance of its "
+                        f"{spec.angle:g}-degree disc, so intensity {spec.intensity:g} gives an irradiance of only "
+                        f"{e:.2g} (a white floor facing it shades to {e / np.pi:.2g}): set inputs:normalize = 1 "
+                        "to make the intensity the irradiance (as Blender writes a Sun), or raise it (50000 is a "
+                        "sun)", SceneWarning, stacklevel=3)
         has_colliders = bool(self.scene.collision_only) or any(o.params.get("collider") for o in objects
                                                                if o.kind != "cloth")
         for o in objects:
@@ -300,7 +312,8 @@ class Pipeline:
             for name, pts in geo.items():
                 v = first_nonfinite(pts)
                 if v is not None:
-                    raise SceneError(f"{name}: frame {f}: vertex {v} is not finite")
+                    raise SceneError(f"{name}: frame {f} (time code {code:g}): vertex {v} is not finite "
+                                     f"{pts[v].tolist()}")
             secs["simulate"] += time.perf_counter() - t
             yield f, geo
 

@@ -30,7 +30,7 @@ import warnings
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 
-from ..geometry.mesh import MeshError, TriMesh
+from ..geometry.mesh import MeshError, TriMesh, check_finite
 from ..geometry.shapes import (AXIS_FROM_Z, GRADED_KINDS, Grading, cloth_region, fit_budget, frame_boxes, gprim_shape,
                                scene_edge, sphere_shape)
 from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
@@ -266,6 +266,10 @@ def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method, marks: d
     except MeshError as exc:
         raise SceneError(str(exc)) from None
     local = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+    try:  # the authored value, before a transform spreads a NaN over the other coordinates
+        check_finite(local, f"{where}: points{'' if t0.IsDefault() else f' at time {t0.GetValue():g}'}")
+    except MeshError as exc:
+        raise SceneError(str(exc)) from None
     settings = dict(marks) if marks is not None else _object_namespace(prim, source)
     skinning = UsdSkel.BindingAPI(prim) if prim.HasAPI(UsdSkel.BindingAPI) else None
     kind = settings.pop("kind", None)
@@ -936,7 +940,12 @@ def _animated_points(prim, where):
         pts = attr.Get(t)
         if pts is None:
             raise SceneError(f"{where}: no points at time code {time}")
-        return _apply(_world(prim, t), np.asarray(pts, dtype=np.float64).reshape(-1, 3)).astype(np.float32)
+        local = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+        try:
+            check_finite(local, f"{where}: points at time code {time:g}")
+        except MeshError as exc:
+            raise SceneError(str(exc)) from None
+        return _apply(_world(prim, t), local).astype(np.float32)
 
     return points_at
 
