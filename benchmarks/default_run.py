@@ -6,8 +6,9 @@ What it shows (issue 18, target 5: 120 frames <= 5 s warm wall, two workers >= 1
 * ``runs``: the command as a user types it (fresh process, the default scene, its 120 frames), a
   first untimed run to warm the Warp kernel cache, then ``--repeat`` rounds of ``--workers 1`` and
   ``--workers 2`` alternately (interleaved: load drift hits both), each with the wall time of the
-  whole process and the stage times the run prints (load, setup, simulate, shade summed over
-  workers, write, total).
+  whole process, the part of it after the run printed its last line (the output's path: the
+  interpreter's shutdown, ``exit_seconds``) and the stage times the run prints (load, setup,
+  simulate, shade summed over workers, write, total).
 * ``profile``: one inline run (``--workers 0``) in this process under ``cProfile``: the functions with
   the most cumulative time, and the split of shading into the group's front and back passes and the
   rest (lights, exit radiance, between-group shadows), from timers around ``_Group.update`` and
@@ -64,15 +65,19 @@ def one_run(workers: int, frames: int | None, extra: list[str], repo: str = REPO
             env.update(WARP_CACHE_PATH=os.path.join(d, "warp"), WARPSHADE_CACHE=os.path.join(d, "warpshade"))
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        p = subprocess.run(cmd, cwd=d, env=env, capture_output=True, text=True)
+        p = subprocess.Popen(cmd, cwd=d, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        p.stdout.readline()  # the output's path, the run's last line (its stderr is a few lines: no deadlock)
+        printed = time.perf_counter() - t0
+        _, stderr = p.communicate()
         wall = time.perf_counter() - t0
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode:
-        raise RuntimeError(f"warpshade run failed ({p.returncode}): {p.stderr[-2000:]}")
-    m = STAGES.search(p.stderr)
+        raise RuntimeError(f"warpshade run failed ({p.returncode}): {stderr[-2000:]}")
+    m = STAGES.search(stderr)
     stages = dict(zip(("load", "setup", "simulate", "shade", "write", "total"), map(float, m.groups()))) if m else {}
     cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
-    return {"workers": workers, "wall_seconds": wall, "cpu_seconds": cpu, "stages": stages}
+    return {"workers": workers, "wall_seconds": wall, "cpu_seconds": cpu, "stages": stages,
+            "exit_seconds": wall - printed}
 
 
 def cold_rounds(rounds: int, against: str | None, frames: int | None, extra: list[str]) -> dict:
@@ -109,12 +114,14 @@ def warm_rounds(rounds: int, against: str, frames: int | None, extra: list[str])
                 load = os.getloadavg()[0]
                 runs.append({"repo": repo, "load_average": load, **one_run(w, frames, extra, repo=repo)})
                 print(f"round {r} {repo} workers {w}: {runs[-1]['wall_seconds']:.2f} s wall, "
-                      f"{runs[-1]['cpu_seconds']:.2f} s CPU (load {load:.2f})", flush=True)
+                      f"{runs[-1]['cpu_seconds']:.2f} s CPU, {runs[-1]['exit_seconds']:.2f} s after the last line "
+                      f"(load {load:.2f})", flush=True)
     med = {}
     for repo in trees:
         for w in (1, 2):
             mine = [x for x in runs if x["repo"] == repo and x["workers"] == w]
-            med[f"{repo} workers {w}"] = {k: statistics.median(x[k] for x in mine) for k in ("wall_seconds", "cpu_seconds")}
+            med[f"{repo} workers {w}"] = {k: statistics.median(x[k] for x in mine)
+                                          for k in ("wall_seconds", "cpu_seconds", "exit_seconds")}
         m1, m2 = med[f"{repo} workers 1"], med[f"{repo} workers 2"]
         print(f"median {repo}: 1 worker {m1['wall_seconds']:.2f} s wall {m1['cpu_seconds']:.2f} s CPU, 2 workers "
               f"{m2['wall_seconds']:.2f} s wall {m2['cpu_seconds']:.2f} s CPU, "

@@ -106,6 +106,45 @@ def test_fill_from_neighbours_by_hand():
     np.testing.assert_array_equal(out[:, 0], [2.0, 3.0, 3.0, 4.0])
 
 
+def _fill_by_loop(values, edges, holes):
+    """fill_from_neighbours' rounds written out edge by edge: each round's sums in float64, added in the
+    order of ``edges`` (first ends, then second ends), from the values at the start of the round."""
+    out = np.array(values, copy=True)
+    flat = out.reshape(len(out), -1)
+    filled = ~holes
+    if filled.all() or not filled.any():
+        return out
+    pairs = [(int(i), int(j)) for i, j in edges] + [(int(j), int(i)) for i, j in edges]  # j's value flows to i
+    while True:
+        total, count = {}, {}
+        for i, j in pairs:
+            if filled[j] and not filled[i]:
+                total[i] = total.get(i, np.zeros(flat.shape[1])) + flat[j].astype(np.float64)
+                count[i] = count.get(i, 0) + 1
+        if not total:
+            return out
+        for i in total:
+            flat[i] = (total[i] / count[i]).astype(flat.dtype)
+            filled[i] = True
+
+
+@pytest.mark.parametrize("columns", [0, 1, 16])
+def test_fill_from_neighbours_adds_like_a_loop_over_the_edges(columns):
+    # bit for bit against the loop (float64 sums in edge order, then float32), values spread over 30 decades;
+    # the pipeline's output hashes rely on this function not changing a bit
+    pts, faces = box_shape((1.0, 0.6, 0.4), (7, 5, 4))
+    edges = mesh_edges(faces)
+    rng = np.random.default_rng(columns)
+    edges = edges[rng.permutation(len(edges))]
+    shape = (len(pts),) if columns == 0 else (len(pts), columns)
+    values = (rng.standard_normal(shape) * 10.0 ** rng.uniform(-15, 15, shape)).astype(np.float32)
+    for share in (0.1, 0.5, 0.9):
+        holes = rng.random(len(pts)) < share
+        out = fill_from_neighbours(values, edges, holes)
+        assert out.dtype == values.dtype and out.shape == values.shape
+        assert out.tobytes() == _fill_by_loop(values, edges, holes).tobytes()
+
+
 def test_back_of_a_sheet_lying_on_the_floor_is_filled_from_its_rim(monkeypatch):
     """A two-sided 1.2 m sheet (9 × 9 vertices, x in [1.0, 2.2]) 2 cm above the ground (x up to 1.5): its back
     faces the floor. Its far end (x = 1.0) sees sky only within atan(0.02 / 0.5) of the horizon towards the

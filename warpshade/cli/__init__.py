@@ -6,6 +6,7 @@ so adding a subcommand touches no other file.
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import os
 import pkgutil
@@ -147,8 +148,14 @@ def _parse(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespa
     return args
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``warpshade`` console script."""
+def main(argv: list[str] | None = None, *, whole_process: bool = False) -> int:
+    """Entry point of the ``warpshade`` console script (:func:`entry`, ``whole_process=True``: this call is
+    what the process is for, and it ends when the call returns). In a whole process the objects alive once
+    the command line is parsed, nearly all of them the imported modules' (Warp's kernels and their syntax
+    trees, SciPy, ``pxr``), are taken out of the cyclic garbage collector's sight (:func:`gc.freeze`): they
+    live until the process ends, and every full collection of the run would scan them again.
+    ``warpshade run``'s forked workers inherit them frozen. A
+    call from a longer-lived process (a script, the tests) freezes nothing."""
     argv = sys.argv[1:] if argv is None else list(argv)
     pool = None
     try:
@@ -158,6 +165,8 @@ def main(argv: list[str] | None = None) -> int:
             init_warp()
             parser = build_parser()
             args = _parse(parser, argv)
+            if whole_process:
+                gc.freeze()
         except KeyboardInterrupt as exc:  # Ctrl-C while the kernels load or the flags are read
             print("warpshade: interrupted", file=sys.stderr)
             return exit_code(exc)
@@ -200,12 +209,19 @@ def entry() -> None:
     said so; it then exits at once, skipping the interpreter's shutdown: ``concurrent.futures`` joins
     its pool's manager thread at exit, and that thread can block forever reading a result a killed
     worker had half written.
+
+    Otherwise the interpreter shuts down as usual (``atexit`` handlers, buffered streams, threads), except
+    for the full garbage collection it would start with: every object still alive is frozen first
+    (:func:`gc.freeze`), so it is not scanned: that collection, over a heap holding Warp's kernels, SciPy and
+    ``pxr``, came after the command's output was written (docs/benchmarks/history.md, branch ``runcpu``); what
+    it could free is memory the process returns as it exits anyway.
     """
-    code = main()
+    code = main(whole_process=True)
     if code >= 128:
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)
+    gc.freeze()
     sys.exit(code)
 
 
