@@ -270,7 +270,7 @@ def test_a_long_setup_is_announced_with_the_planners_estimate(tmp_path, capsys, 
 
 def test_the_progress_bar_says_setting_up_until_the_first_frame(tmp_path, capsys):
     assert main(["run", SCENE, "--frames", "2", "--order", "2", "--workers", "0", "--method", "reference",
-                 "--rays", "4", "--out", str(tmp_path / "o.usda")]) == 0
+                 "--rays", "4", "--out", str(tmp_path / "o.usda"), "--progress"]) == 0  # capsys: not a terminal
     err = capsys.readouterr().err
     # tqdm redraws with carriage returns: the setup state comes first, then frames counted
     setup, frames = err.find("warpshade run: setting up:   0%"), err.find("warpshade run: 100%")
@@ -363,7 +363,7 @@ def test_a_slow_setup_shows_its_seconds_against_the_estimate(tmp_path, capsys, m
     monkeypatch.setattr(SceneShader, "build", slow)
     monkeypatch.setattr(cmd_run, "setup_estimate", lambda *a, **k: 42.0)
     assert main(["run", SCENE, "--frames", "2", "--order", "2", "--workers", "0", "--method", "reference",
-                 "--rays", "4", "--out", str(tmp_path / "o.usda")]) == 0
+                 "--rays", "4", "--out", str(tmp_path / "o.usda"), "--progress"]) == 0  # capsys: not a terminal
     err = capsys.readouterr().err
     for s in (1, 2):
         assert f"warpshade run: setting up, {s} s of ~42 s estimated" in err, err

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import os
 import shlex
+import sys
 
 import numpy as np
 import pytest
@@ -188,6 +189,33 @@ def test_run_default_scene_few_frames(tmp_path, capsys):
     assert validation_errors(out) == []
 
 
+
+
+@pytest.mark.parametrize("flags,bar", [([], False), (["--progress"], True), (["--no-progress"], False)])
+def test_progress_bar_only_on_a_terminal_unless_asked(tmp_path, capsys, flags, bar):
+    """Redirected to a log (capsys: not a terminal) the run draws no progress bar, whose redraws would pile
+    up in the file, unless ``--progress`` asks for it."""
+    out = tmp_path / "o.usda"
+    assert main(["run", "--frames", "1", "--out", str(out), "--method", "reference", "--rays", "8", *flags]) == 0
+    err = capsys.readouterr().err
+    assert ("warpshade run: setting up" in err) == bar
+    assert "simulate" in err  # the summary is printed either way
+
+
+def test_progress_follows_the_terminal_by_default(monkeypatch):
+    import argparse
+
+    from warpshade.cli.cmd_run import add_arguments, show_progress
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    for tty in (True, False):
+        monkeypatch.setattr(sys.stderr, "isatty", lambda tty=tty: tty)
+        assert show_progress(parser.parse_args([])) is tty
+        assert show_progress(parser.parse_args(["--progress"])) is True
+        assert show_progress(parser.parse_args(["--no-progress"])) is False
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--progress", "--no-progress"])
 
 
 @pytest.mark.parametrize("cached", [False, True])

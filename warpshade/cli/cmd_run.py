@@ -100,7 +100,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"(default {REUSE_CHUNK})")
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the frames OUT already holds, produce the rest")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    bar = parser.add_mutually_exclusive_group()
+    bar.add_argument("--no-progress", action="store_true", help="no progress bar")
+    bar.add_argument("--progress", action="store_true",
+                     help="a progress bar even when stderr is not a terminal (by default only on a terminal: "
+                          "in a log file its redraws would pile up)")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
 
 
@@ -134,6 +138,14 @@ def setup_estimate(scene, method: str | None, knobs: dict, order: int, args, wor
 
     startup = WORKER_STARTUP_SECONDS if workers or args.scheduler else 0.0
     return plan.run_seconds_setup + plan.run_seconds_per_frame + startup
+
+
+def show_progress(args) -> bool:
+    """Whether ``warpshade run`` draws its progress bar: ``--progress`` or ``--no-progress`` if given, else
+    only when stderr is a terminal."""
+    if args.progress or args.no_progress:
+        return bool(args.progress)
+    return sys.stderr.isatty()
 
 
 def parse_reuse(text: str):
@@ -260,7 +272,7 @@ def _run(args, method, knobs, security, workers: int, pool) -> int:
     if writer.resume_frame:
         print(f"warpshade run: resuming {writer.path} at frame {writer.resume_frame}", file=sys.stderr)
     try:
-        report = pipe.run(writer, progress=not args.no_progress, setup_estimate=estimate, pool=pool)
+        report = pipe.run(writer, progress=show_progress(args), setup_estimate=estimate, pool=pool)
     except (KeyboardInterrupt, OSError, FrameShadingError) as exc:
         kept = writer.frames_committed
         where = (f"{kept} complete frames kept in {writer.path} (--resume continues it)" if kept
