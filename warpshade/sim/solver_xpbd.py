@@ -23,7 +23,6 @@ pushing into an intersection is held where it was until a step frees it (see
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 import warp as wp
@@ -838,8 +837,10 @@ class XPBDSolver:
         driven against pinned or attached cloth stretches it instead of crossing it. First from x
         as the contacts left it; when that leaves pairs, from the start of the step with every free
         vertex sent back (held, as the guard's reverts hold them: the colliders alone move the
-        cloth in that step). True (counted in ``stats()["collider_yields"]``) as soon as x has no
-        new intersecting pair."""
+        cloth in that step). After either try that leaves x clear of the colliders but with new
+        cloth-cloth pairs (the pushes drove cloth into its own layers), the self-contact push-off
+        on it (:meth:`_yield_self_pairs`). True (counted in ``stats()["collider_yields"]``) as soon
+        as x has no new intersecting pair."""
         m, col = self.model, self.colliders
         if col is None or not (col.has_sharp_edges or col.has_round_shapes):
             return False
@@ -860,8 +861,6 @@ class XPBDSolver:
         with new cloth-cloth pairs (the pushes drove cloth into its own layers), the self-contact and
         collider passes of :meth:`_push_off_contacts` on it; True (counted in
         ``stats()["collider_yields"]``) when they free it."""
-        if os.environ.get("SG_SELF", "1") != "1":
-            return False
         if self.colliders is None or self._counter.collider_pairs(x, self.colliders)[0]:
             return False
         if self._push_off_contacts(x, v, dt):
