@@ -596,6 +596,24 @@ _FORCED = {
     "capsule": (lambda c, y: c.add_capsule((0, y - _R, 0), (0, y + _R, 0), _R),
                 lambda c, i, y: c.set_capsule(i, (0, y - _R, 0), (0, y + _R, 0)), 2 * _R),
 }
+_TILT = _quat((1, 0.3, 0.5), 20)
+_TILT_HALF = (_R, 0.5 * _R, 1.5 * _R)
+
+
+def _tilted_box_top() -> float:
+    """The highest point of the tilted box over its centre: its corners rotated by _TILT."""
+    x, y, z, w = _TILT
+    # the rotation matrix's middle row (a vector's y after the rotation)
+    row = np.array([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)])
+    return float(np.abs(row) @ np.asarray(_TILT_HALF))
+
+
+_FORCED_33 = {  # the cases that the guard's self-contact push-off after its collider passes fixed at 33 x 33
+    "box_edge_up": _FORCED["box_edge_up"],
+    "box_edge_up_z": _FORCED["box_edge_up_z"],
+    "box_tilted": (lambda c, y: c.add_box((0, y, 0), _TILT_HALF, _TILT), lambda c, i, y: c.set_box(i, (0, y, 0)),
+                   _tilted_box_top()),
+}
 
 
 @pytest.mark.parametrize("shape", [pytest.param(k, marks=pytest.mark.xfail(
@@ -615,7 +633,24 @@ def test_analytic_collider_forced_through_pinned_cloth(shape):
     first left 12-25 pairs (frames 8-14 on), the cone tip first and the boxes edge first went
     through (the cloth's top at 60-80 cm). At 17 x 17 and more some still fail (history.md,
     "Analytic colliders forced through pinned cloth")."""
-    n, frames = 13, 24
+    _forced_through(_FORCED[shape], 13)
+
+
+@pytest.mark.parametrize("shape", sorted(_FORCED_33))
+def test_analytic_collider_forced_through_pinned_cloth_33(shape):
+    """:func:`test_analytic_collider_forced_through_pinned_cloth` at 33 x 33 vertices (the hammock's
+    grid) for the cases that failed there until the guard ran its self-contact push-off on the state
+    its collider passes left (issue 19, branch shapegrid): on main before it, 43-55 cloth-box pairs at
+    frame ends from frames 12-15 (the edge-up box about x went through, its top at 60 cm). At each
+    one's first unresolved step the collider passes had left 0 cloth-box pairs and 1-4 new
+    cloth-cloth pairs, and the guard kept the step as the contacts left it (39-60 cloth-box pairs)."""
+    _forced_through(_FORCED_33[shape], 33)
+
+
+def _forced_through(case, n: int) -> None:
+    """Run the forced hammock with ``case`` = (add, put, top offset) at n x n vertices, 24 frames, and
+    check it: 0 cloth-collider pairs at every frame end, the cloth's top over the solid's."""
+    frames = 24
     keys = ([0, 18], [0.20, 0.95])
     b = ClothBuilder()
     b.add_grid(n, n, 1.0, 1.0, origin=(-0.5, 0.6, -0.5))
@@ -624,7 +659,7 @@ def test_analytic_collider_forced_through_pinned_cloth(shape):
     model = b.finalize()
     col = ColliderSet()
     col.add_plane((0, 1, 0), 0.0)
-    add, put, top_offset = _FORCED[shape]
+    add, put, top_offset = case
     i = add(col, keys[1][0])
     solver = XPBDSolver(model, col, substeps=8)
     state = model.state()

@@ -705,7 +705,7 @@ class XPBDSolver:
                     wp.copy(x, self._x_unguarded)
                     if not self._push_off_contacts(x, v, dt):
                         wp.copy(x, self._x_unguarded)
-                        if not self._yield_to_colliders(x):
+                        if not self._yield_to_colliders(x, v, dt):
                             self.guard_unresolved += 1
                             wp.copy(x, self._x_unguarded)
                 break
@@ -829,7 +829,7 @@ class XPBDSolver:
     step whose cloth-collider intersections nothing else removed (the cloth stretches over the
     collider instead of crossing it: :meth:`_yield_to_colliders`)."""
 
-    def _yield_to_colliders(self, x) -> bool:
+    def _yield_to_colliders(self, x, v, dt: float) -> bool:
         """Push the cloth out of the colliders with the colliders' projections alone (cloth
         triangles off spheres and capsules on the side they were on at the start of the step,
         off closed meshes back the way they came, sharp edges and corners, vertices), up to
@@ -837,21 +837,35 @@ class XPBDSolver:
         driven against pinned or attached cloth stretches it instead of crossing it. First from x
         as the contacts left it; when that leaves pairs, from the start of the step with every free
         vertex sent back (held, as the guard's reverts hold them: the colliders alone move the
-        cloth in that step). True (counted in ``stats()["collider_yields"]``) as soon as x has no
-        new intersecting pair."""
+        cloth in that step). After either try that leaves x clear of the colliders but with new
+        cloth-cloth pairs (the pushes drove cloth into its own layers), the self-contact push-off
+        on it (:meth:`_yield_self_pairs`). True (counted in ``stats()["collider_yields"]``) as soon
+        as x has no new intersecting pair."""
         m, col = self.model, self.colliders
         if col is None or not (col.has_sharp_edges or col.has_round_shapes):
             return False
-        if self._yield_passes(x, self._x_unguarded, "end"):
+        if self._yield_passes(x, self._x_unguarded, "end") or self._yield_self_pairs(x, v, dt):
             return True
         wp.copy(x, self._x_unguarded)
         self._mark.fill_(1)
         wp.launch(ck.revert_marked, dim=m.particle_count, inputs=[self._mark, m.inv_mass, self._x_start],
                   outputs=[x, self._reverted], device=self.device)
         col.collide(m.thickness, m.inv_mass, self._x_start, x, since="start")
-        if self._yield_passes(x, self._x_start, "start"):
+        if self._yield_passes(x, self._x_start, "start") or self._yield_self_pairs(x, v, dt):
             return True
         self._reverted.zero_()
+        return False
+
+    def _yield_self_pairs(self, x, v, dt: float) -> bool:
+        """When the collider passes of :meth:`_yield_to_colliders` left x clear of the colliders but
+        with new cloth-cloth pairs (the pushes drove cloth into its own layers), the self-contact and
+        collider passes of :meth:`_push_off_contacts` on it; True (counted in
+        ``stats()["collider_yields"]``) when they free it."""
+        if self.colliders is None or self._counter.collider_pairs(x, self.colliders)[0]:
+            return False
+        if self._push_off_contacts(x, v, dt):
+            self.collider_yields += 1
+            return True
         return False
 
     def _yield_passes(self, x, x_prev, since: str) -> bool:
