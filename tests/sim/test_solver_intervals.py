@@ -1,5 +1,6 @@
-"""XPBDSolver's aero_interval, bend_interval and held_contact_interval (its default and checks): the aerodynamic forces of one evaluation reused
-over the interval, and a bending sweep every k substeps acting as an XPBD step of k substeps."""
+"""XPBDSolver's aero_interval, bend_interval and held_contact_interval: the aerodynamic forces of
+one evaluation reused over the interval, a bending sweep every k substeps acting as an XPBD step of
+k substeps, and the intervals' defaults and checks."""
 
 from __future__ import annotations
 
