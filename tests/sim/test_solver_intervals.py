@@ -1,5 +1,6 @@
-"""XPBDSolver's aero_interval and bend_interval: the aerodynamic forces of one evaluation reused
-over the interval, and a bending sweep every k substeps acting as an XPBD step of k substeps."""
+"""XPBDSolver's aero_interval, bend_interval and held_contact_interval: the aerodynamic forces of
+one evaluation reused over the interval, a bending sweep every k substeps acting as an XPBD step of
+k substeps, and the intervals' defaults and checks."""
 
 from __future__ import annotations
 
@@ -94,7 +95,7 @@ def test_bend_interval_sweep_is_an_xpbd_step_of_the_interval(iterations):
     assert np.abs(x3 - x1).max() > 100 * 1e-7
 
 
-@pytest.mark.parametrize("name", ["aero_interval", "bend_interval"])
+@pytest.mark.parametrize("name", ["aero_interval", "bend_interval", "held_contact_interval"])
 @pytest.mark.parametrize("bad", [0, -1, 1.5])
 def test_intervals_reject_bad_values(name, bad):
     with pytest.raises(ValueError, match=name):
@@ -104,3 +105,11 @@ def test_intervals_reject_bad_values(name, bad):
 def test_default_intervals_are_one():
     s = XPBDSolver(_square(), None)
     assert (s.aero_interval, s.bend_interval) == (1, 1)
+
+
+def test_held_contact_interval_defaults_to_the_contact_interval():
+    """Unset, a step after a guard step detects contacts as every other step does (the default path)."""
+    assert XPBDSolver(_square(), None).held_contact_interval == 3
+    assert XPBDSolver(_square(), None, contact_interval=2).held_contact_interval == 2
+    s = XPBDSolver(_square(), None, held_contact_interval=1)
+    assert (s.contact_interval, s.held_contact_interval, s.knobs()["held_contact_interval"]) == (3, 1, 1)

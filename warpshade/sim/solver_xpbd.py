@@ -89,6 +89,11 @@ class XPBDSolver:
             pairs take it out as often as the edges (cloth draped free over a sphere, with
             ``limit_sliding`` and 12 sweeps: at-rest p99 strain under 2 %). None:
             :attr:`LIMIT_EVERY_SWEEP`.
+        held_contact_interval: ``contact_interval`` in a step that follows one where the guard sent
+            vertices back (>= 1). The held vertices start it with their edges to the free cloth
+            stretched, and the stretch sweeps pull them back within a substep, further than the
+            velocities the detection sweeps the boxes by: at 1, the contacts are looked for in
+            every substep of such a step. None: :attr:`HELD_CONTACT_INTERVAL`.
         follow_edge_sides: An edge-edge contact's stored side follows an orientation flip that
             continuous collision detection shows was no crossing (edges turning past parallel, or
             passing beside an end clear of the cloth there); off, a pair keeps the side it was
@@ -119,7 +124,8 @@ class XPBDSolver:
                  guard: bool = True, self_friction: float = 0.3, stretch_limits: bool = True,
                  follow_edge_sides: bool | None = None, aero_interval: int | None = None,
                  bend_interval: int | None = None, limit_sliding: bool | None = None,
-                 guard_relax: int | None = None, limit_every_sweep: bool | None = None):
+                 guard_relax: int | None = None, limit_every_sweep: bool | None = None,
+                 held_contact_interval: int | None = None):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -147,6 +153,11 @@ class XPBDSolver:
         if int(ci) != ci or ci < 1:
             raise ValueError(f"contact_interval must be an integer >= 1, got {contact_interval}")
         self.contact_interval = int(ci)
+        hci = self.HELD_CONTACT_INTERVAL if held_contact_interval is None else held_contact_interval
+        hci = self.contact_interval if hci is None else hci
+        if int(hci) != hci or hci < 1:
+            raise ValueError(f"held_contact_interval must be an integer >= 1, got {held_contact_interval}")
+        self.held_contact_interval = int(hci)
         ai = self.AERO_INTERVAL if aero_interval is None else aero_interval
         if int(ai) != ai or ai < 1:
             raise ValueError(f"aero_interval must be an integer >= 1, got {aero_interval}")
@@ -306,16 +317,19 @@ class XPBDSolver:
             wp.launch(k.gather_points, dim=m.attachment_count, inputs=[m.attachment_indices, x],
                       outputs=[self._attach_start], device=d)
 
+        ci = self.contact_interval
+        if self.guard and not self._streak_clear:
+            ci = self.held_contact_interval  # the guard sent vertices back in the last step
         for s in range(self.substeps):
-            if self.self_collision and s % self.contact_interval == 0:
+            if self.self_collision and s % ci == 0:
                 if s > 0 and self._clear_ahead:
                     # the last detection found no candidate and, moving the cloth on with its
                     # velocities, foresaw none for this one: skipped (the one after it runs)
                     self._clear_ahead = False
                 else:
-                    nxt = s + self.contact_interval  # the next detection's substep
+                    nxt = s + ci  # the next detection's substep
                     horizon = h * (min(nxt, self.substeps) - s)
-                    ahead = horizon + (h * (min(nxt + self.contact_interval, self.substeps) - nxt)
+                    ahead = horizon + (h * (min(nxt + ci, self.substeps) - nxt)
                                        if nxt < self.substeps else 0.0)
                     if self._detect_self_contacts(x, v, horizon, ahead):
                         cmds = self._commands(h, wind)  # the contact rows grew: the recorded launches are stale
@@ -755,6 +769,11 @@ class XPBDSolver:
     points are coplanar have passed through each other: an edge pair's stored side is kept across
     such a motion and follows a sign flip without one (:func:`contact_kernels.update_edge_sides`)."""
 
+    HELD_CONTACT_INTERVAL = None
+    """Default of ``held_contact_interval`` (None: ``contact_interval``; 1 ends most of the guard's
+    holds with stiff solves but not sims/sheet_drop.py's, whose strain it raises: measured in
+    docs/benchmarks/history.md)."""
+
     GUARD_RELAX = 0
     """Default of ``guard_relax`` (off: on by default (8 sweeps) it let 10 intersecting pairs through
     from frame 36 on in tests/test_hard_scenes.py's twist, which a guard step the attached
@@ -985,7 +1004,8 @@ class XPBDSolver:
         return {"substeps": self.substeps, "iterations": self.iterations, "gravity": list(self.gravity),
                 "drag": self.drag, "air_density": self.air_density, "drag_coefficient": self.drag_coefficient,
                 "lift_coefficient": self.lift_coefficient, "self_collision": self.self_collision,
-                "contact_interval": self.contact_interval, "edge_contact": self.edge_contact,
+                "contact_interval": self.contact_interval, "held_contact_interval": self.held_contact_interval,
+                "edge_contact": self.edge_contact,
                 "follow_edge_sides": self.follow_edge_sides, "aero_interval": self.aero_interval,
                 "bend_interval": self.bend_interval,
                 "guard": self.guard, "guard_relax": self.guard_relax, "self_friction": self.self_friction,
