@@ -224,12 +224,19 @@ def test_cloth_solver_settings_come_from_the_first_cloth():
             k["contact_iterations"], k["edge_contact"], k["stretch_limits"]) == (8, 2, False, 2, 2, 3, False, False)
     st = _cloth_stage(guardRelax=8)  # sweeps around the guard's reverts: with the guard on (its default)
     assert ClothSimulation(scene_from_stage(st, source="t.usda")).solver.knobs()["guard_relax"] == 8
+    # the opt-in strain and hold settings (the free drape under 2 % strain: limitSliding, stretchSweeps 12,
+    # limitEverySweep; heldContactInterval after a guard step), from a scene file as from Python
+    st = _cloth_stage(limitSliding=True, limitEverySweep=True, stretchSweeps=12, heldContactInterval=1)
+    k2 = ClothSimulation(scene_from_stage(st, source="t.usda")).solver.knobs()
+    assert (k2["limit_sliding"], k2["limit_every_sweep"], k2["stretch_sweeps"], k2["held_contact_interval"]) == (
+        True, True, 12, 1)
     assert k["self_friction"] == pytest.approx(0.1)
 
 
 @pytest.mark.parametrize("attrs, named", [({"maxContacts": 0}, "warpshade:cloth:maxContacts"),
                                           ({"selfFriction": -1.0}, "warpshade:cloth:selfFriction"),
-                                          ({"contactInterval": 1.5}, "warpshade:cloth:contactInterval")])
+                                          ({"contactInterval": 1.5}, "warpshade:cloth:contactInterval"),
+                                          ({"heldContactInterval": 0}, "warpshade:cloth:heldContactInterval")])
 def test_bad_cloth_solver_setting_names_the_attribute(attrs, named):
     from warpshade.pipeline.cloth import ClothSimulation
     from warpshade.scene import SceneError
