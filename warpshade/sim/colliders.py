@@ -390,13 +390,17 @@ class ColliderSet:
         """Whether there are spheres or capsules (:meth:`collide_round_faces` has work)."""
         return any(k in (int(ck.SHAPE_SPHERE), int(ck.SHAPE_CAPSULE)) for k in self._kind)
 
-    def collide_edges(self, thickness: float, inv_mass, edges, x, tris=None, x_prev=None) -> None:
+    def collide_edges(self, thickness: float, inv_mass, edges, x, tris=None, x_prev=None, x_start=None) -> None:
         """Push cloth edges out of the mesh colliders' edges, the edges of boxes and the rims of
         cylinders and cones (sharp edges cutting between two cloth vertices), cloth triangles off
         the closed meshes' sharp edges (:func:`~warpshade.sim.collision_kernels.collide_mesh_edge_faces`:
         a triangle laid across a box's edge), and cloth triangles off the colliders' corners
         (:meth:`collide_corners`: box corners, cone apexes, sharp mesh vertices poking through a
-        triangle's inside), corrections averaged per vertex.
+        triangle's inside), corrections averaged per vertex. Given ``x_start`` (and tris), cloth triangles
+        that cut into a cone are pushed back the way they came since then (:meth:`collide_shape_faces`,
+        cones only) before and after those passes: cloth held over a cone's flat base by its stretched
+        edges otherwise slides round the rim within a step while the rim cuts its triangles, every
+        vertex path outside the solid, and ends the step under it with no pair left for the guard.
 
         Args:
             thickness: Distance to keep [m].
@@ -405,9 +409,14 @@ class ColliderSet:
             x: Positions [m], shape (V,), dtype vec3, corrected in place.
             tris: Cloth triangles, shape (F, 3), dtype int32; None skips the triangle passes.
             x_prev: Positions at the start of the substep [m], for the corners' friction (None: none).
+            x_start: Positions at the start of the step [m] (the solver's substeps) or None (no
+                cone face pass).
         """
         if not self.has_sharp_edges:
             return
+        cones = x_start is not None and tris is not None and int(ck.SHAPE_CONE) in self._kind
+        if cones:
+            self.collide_shape_faces(thickness, inv_mass, tris, x, x_start, int(ck.SHAPE_CONE))
         n = x.shape[0]
         self._edge_accumulators(n)
         if self.has_sharp_shapes:
@@ -438,6 +447,8 @@ class ColliderSet:
             # a pass of its own: averaged with the many small edge corrections a vertex near a
             # corner also gets, the corner's push would be diluted
             self.collide_corners(thickness, inv_mass, tris, x, x_prev)
+        if cones:
+            self.collide_shape_faces(thickness, inv_mass, tris, x, x_start, int(ck.SHAPE_CONE))
 
     def limit_round_motion(self, fraction: float, thickness: float, inv_mass, x_prev, x) -> None:
         """Shorten each free vertex's move x_prev -> x over the substep to ``fraction`` of the radius
@@ -537,20 +548,21 @@ class ColliderSet:
                          [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, x.shape[0], [], [self._edge_delta, self._edge_count, x])
 
-    def collide_shape_faces(self, thickness: float, inv_mass, tris, x, x_start) -> None:
+    def collide_shape_faces(self, thickness: float, inv_mass, tris, x, x_start, kind: int = -1) -> None:
         """Push cloth triangles that cut into a box, cylinder or cone (posed as at the end of the last
         substep) while their vertices are held outside, back the way they came since ``x_start`` (against
         the step's start pose),
         corrections averaged per vertex (:func:`~warpshade.sim.collision_kernels.collide_shape_faces`,
         sampled on a grid of :attr:`FACE_SAMPLES` steps a side): the analytic counterpart of
-        :meth:`collide_mesh_faces` for closed meshes. Arguments as there."""
+        :meth:`collide_mesh_faces` for closed meshes. Arguments as there; ``kind``: only the shapes of that kind
+        (``SHAPE_CONE`` and the like in :mod:`~warpshade.sim.collision_kernels`), -1 all."""
         if not self.has_sharp_shapes:
             return
         self._edge_accumulators(x.shape[0])
         ar = self._arrays
         self._launch(ck.collide_shape_faces, tris.shape[0],
                      [ar["kind"], ar["a_start"], ar["b_start"], ar["rot_start"], ar["a1"], ar["b1"], ar["r1"], ar["size"],
-                      x_start, x, tris, inv_mass, thickness, self.FACE_SAMPLES], [self._edge_delta, self._edge_count])
+                      x_start, x, tris, inv_mass, thickness, self.FACE_SAMPLES, int(kind)], [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, x.shape[0], [], [self._edge_delta, self._edge_count, x])
 
     def _edge_accumulators(self, n: int) -> None:

@@ -1174,10 +1174,12 @@ def collide_shape_faces(
     inv_mass: wp.array[float],
     thickness: float,
     samples: int,
+    only_kind: int,
     delta: wp.array[wp.vec3],
     delta_count: wp.array[float],
 ):
-    """Cloth triangles that cut into a box, cylinder or cone (pose a1, b1, r1) while their vertices
+    """Cloth triangles that cut into a box, cylinder or cone (pose a1, b1, r1; only the shapes of kind
+    ``only_kind`` when it is not -1) while their vertices
     are held outside (a stretched triangle drawn over a rim, a cloth edge cut through as a chord):
     the analytic counterpart of the closed-mesh branch of :func:`collide_mesh_faces`. The triangle
     is sampled on a barycentric grid of ``samples`` steps a side (its vertices left out), the
@@ -1205,6 +1207,8 @@ def collide_shape_faces(
     for s in range(kind.shape[0]):
         kd = kind[s]
         if kd != SHAPE_BOX and kd != SHAPE_CYLINDER and kd != SHAPE_CONE:
+            continue
+        if only_kind >= 0 and kd != only_kind:
             continue
         bs = shape_bounds(kd, a1[s], b1[s], size[s])
         if wp.length(c - wp.vec3(bs[0], bs[1], bs[2])) > r + bs[3]:

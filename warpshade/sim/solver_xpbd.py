@@ -386,7 +386,8 @@ class XPBDSolver:
                 # sharp collider edges and corners against cloth edges and triangles, then the
                 # vertices again
                 for _c in range(self.SHARP_PASSES):
-                    self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris, self._x_prev)
+                    self.colliders.collide_edges(m.thickness, m.inv_mass, m.edges, x, m.tris, self._x_prev,
+                                                 self._x_start if self.guard else None)
                     self.colliders.collide(m.thickness, m.inv_mass, self._x_prev, x)
             if self.stretch_limits:
                 cmds["moved"].launch()
