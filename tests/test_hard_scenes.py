@@ -683,7 +683,7 @@ def test_analytic_cone_forced_through_pinned_cloth_rim(shape, n, pairs):
     60-61 cm at the end): the cloth, held over the base by stretched edges with the rim cutting its
     triangles (4-10 pairs at substep ends, no vertex inside), slid off round the rim within one step,
     every vertex path outside the solid, and the step ended with 0 pairs. With the pass the cloth stays
-    over the solid everywhere (top 144-163 cm); the base-first cone at 17 and 33 still ends some frames
+    over the solid in all four (top 124-163 cm); the base-first cone at 17 and 33 still ends some frames
     with 10-17 pairs from guard steps left unresolved (the boxes' mechanism, history.md), so there
     only the top is checked (``pairs`` False)."""
     _forced_through(_FORCED[shape], n, pairs)
