@@ -550,12 +550,12 @@ class ColliderSet:
 
     def collide_shape_faces(self, thickness: float, inv_mass, tris, x, x_start, kind: int = -1) -> None:
         """Push cloth triangles that cut into a box, cylinder or cone (posed as at the end of the last
-        substep) while their vertices are held outside, back the way they came since ``x_start`` (against
-        the step's start pose),
-        corrections averaged per vertex (:func:`~warpshade.sim.collision_kernels.collide_shape_faces`,
-        sampled on a grid of :attr:`FACE_SAMPLES` steps a side): the analytic counterpart of
-        :meth:`collide_mesh_faces` for closed meshes. Arguments as there; ``kind``: only the shapes of that kind
-        (``SHAPE_CONE`` and the like in :mod:`~warpshade.sim.collision_kernels`), -1 all."""
+        substep) while their vertices are held outside back the way they came since ``x_start``
+        (judged against the step's start pose), corrections averaged per vertex
+        (:func:`~warpshade.sim.collision_kernels.collide_shape_faces`, sampled on a grid of
+        :attr:`FACE_SAMPLES` steps a side): the analytic counterpart of :meth:`collide_mesh_faces` for
+        closed meshes. Arguments as there; ``kind``: only the shapes of that kind (``SHAPE_CONE`` and
+        the like in :mod:`~warpshade.sim.collision_kernels`), -1 all."""
         if not self.has_sharp_shapes:
             return
         self._edge_accumulators(x.shape[0])

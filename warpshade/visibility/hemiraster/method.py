@@ -24,9 +24,9 @@ from ...geometry.mesh import TriMesh, closed_orientation
 from ..base import TransferMethod
 from ..knobs import Knob
 from . import cache, hierarchy, integrate, tables
-from .kernels import (CANDIDATES, blocker_corners, PRECULL_BLOCKERS, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement,
-                      StaticPart, follow_coarse_points, rasterize_masks, raise_deviation, refit_blocker_boxes, triangle_bounds,
-                      union_boxes, union_child_boxes)
+from .kernels import (CANDIDATES, PRECULL_BLOCKERS, Batch, Blockers, FineMesh, MaskChunk, MidLevel, PlaneLut, Refinement,
+                      StaticPart, blocker_corners, follow_coarse_points, rasterize_masks, raise_deviation,
+                      refit_blocker_boxes, triangle_bounds, union_boxes, union_child_boxes)
 
 
 SEEN_BYTES = 64 * 1024 * 1024
