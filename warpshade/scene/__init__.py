@@ -205,6 +205,8 @@ class Scene:
         default_prim: The input's default prim path (the output's default prim), or None (``/World``).
         collision_only: Static colliders that are neither shaded nor written (UsdPhysics colliders
             with ``purpose`` guide or proxy, such as a character's collision twins).
+        gravity: The cloth's gravity, a world vector [m/s²] (a UsdPhysics ``PhysicsScene``'s), or None
+            for 9.81 m/s² down the up axis.
     """
 
     objects: list[SceneObject] = field(default_factory=list)
@@ -218,6 +220,7 @@ class Scene:
     source: str = "<scene>"
     default_prim: str | None = None
     collision_only: list[SceneObject] = field(default_factory=list)
+    gravity: np.ndarray | None = None
 
     def object(self, name: str) -> SceneObject:
         for o in self.objects:

@@ -109,6 +109,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         scene.fps = scene.settings["fps"]
     if scene.frames < 1:
         raise SceneError(f"{source}:{root.GetPath()}: warpshade:frames must be >= 1, got {scene.frames}")
+    scene.gravity = physics_gravity(stage, source)
 
     cache = UsdSkel.Cache()
     for skel_root in Usd.PrimRange(stage.GetPseudoRoot(), _PRIMS):
@@ -177,6 +178,52 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
     if not units_authored and any(o.kind == "cloth" for o in scene.objects):
         warnings.warn(_unauthored_units_message(scene), SceneWarning, stacklevel=2)
     return scene
+
+
+EARTH_GRAVITY = 9.81
+"""[m/s²]: the cloth's gravity without a ``PhysicsScene``, and a ``PhysicsScene``'s whose
+``physics:gravityMagnitude`` is unauthored or negative (UsdPhysics: Earth gravity in the stage's units)."""
+
+
+def physics_gravity(stage: Usd.Stage, source: str = "<stage>") -> np.ndarray | None:
+    """The gravity of the stage's UsdPhysics ``PhysicsScene`` as a world vector [m/s²], or None when it
+    has none (the cloth then falls at :data:`EARTH_GRAVITY` down the up axis).
+
+    As the UsdPhysics schema reads it: ``physics:gravityDirection`` normalized, a zero vector (its
+    fallback) meaning down the stage's up axis; ``physics:gravityMagnitude`` in stage units per s²
+    (converted with ``metersPerUnit``), a negative value (its fallback, -inf) meaning Earth gravity
+    whatever the units. Several active PhysicsScenes must agree (UsdPhysics lets each body choose its
+    scene, cloth has none to choose): different gravities are a SceneError naming them."""
+    found = []
+    for prim in stage.Traverse():
+        if not prim.IsA(UsdPhysics.Scene):
+            continue
+        where = f"{source}:{prim.GetPath()}"
+        physics = UsdPhysics.Scene(prim)
+        direction = physics.GetGravityDirectionAttr().Get()
+        direction = np.zeros(3) if direction is None else np.asarray(direction, dtype=np.float64)
+        magnitude = physics.GetGravityMagnitudeAttr().Get()
+        magnitude = -np.inf if magnitude is None else float(magnitude)
+        if not np.isfinite(direction).all():
+            raise SceneError(f"{where}: physics:gravityDirection {direction.tolist()} is not finite")
+        if np.isnan(magnitude) or magnitude == np.inf:
+            raise SceneError(f"{where}: physics:gravityMagnitude {magnitude} is not a number >= 0 "
+                             "(or negative for Earth gravity)")
+        norm = float(np.linalg.norm(direction))
+        if norm == 0.0:
+            up = str(UsdGeom.GetStageUpAxis(stage))
+            direction, norm = -np.eye(3)[_AXES.get(up, 1)], 1.0
+        si = EARTH_GRAVITY if magnitude < 0 else magnitude * float(UsdGeom.GetStageMetersPerUnit(stage))
+        found.append((str(prim.GetPath()), direction / norm * si))
+    if not found:
+        return None
+    first = found[0][1]
+    for path, g in found[1:]:
+        if not np.allclose(g, first, rtol=1e-6, atol=1e-9):
+            raise SceneError(f"{source}: PhysicsScenes {found[0][0]} and {path} give different gravities "
+                             f"({np.round(first, 4).tolist()} and {np.round(g, 4).tolist()} m/s²); the cloth "
+                             "has one: deactivate or delete all but one")
+    return first
 
 
 def _unauthored_units_message(scene: Scene) -> str:
