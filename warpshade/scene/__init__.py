@@ -165,7 +165,9 @@ class SceneObject:
             ``(path, type name, local, resets, instance)`` (``local``: local-to-parent matrix acting on
             column vectors, shape (4, 4), float64, or None for a prim without a transform such as a Scope;
             ``resets``: the prim resets the transform stack; ``instance``: the prim is an instance, the
-            object a mesh inside it). The output rebuilds this hierarchy.
+            object a mesh inside it). The output rebuilds this hierarchy. An entry of type
+            ``PointInstancer`` that is not an ancestor names the instancer the object is an instance
+            of: the output deactivates it.
     """
 
     name: str

@@ -10,6 +10,8 @@ What is read (docs/guide/quickstart.md, "Your own scene", documents every attrib
   ``Cylinder``, ``Capsule``, ``Cone``, ``Plane`` tessellated for shading. Every gprim is
   tessellated for one target edge length (:func:`_gprim_edge`, the rule in
   :mod:`warpshade.geometry.shapes`), once the whole stage is read.
+* ``UsdGeom.PointInstancer`` prims: each instance of a Mesh prototype becomes an object of its own
+  (:func:`_read_instancer`), at ``<instancer>_instances/instance_<id>/...``.
 * UsdLux ``DomeLight`` (``inputs:texture:file`` -> environment map), ``DistantLight``,
   ``SphereLight``, ``RectLight`` -> :class:`warpshade.scene.LightSpec`.
 * ``UsdPreviewSurface`` ``diffuseColor`` / ``roughness`` of the bound material -> ``Material``
@@ -161,10 +163,13 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             scene.objects.append(None)  # tessellated below, once the scene's size is known
         elif tname in _LIGHTS:
             scene.lights.append(_read_light(prim, _LIGHTS[tname], source, scene))
+        elif prim.IsA(UsdGeom.PointInstancer):
+            scene.objects.extend(_read_instancer(prim, source, cache, default_method, scene))
+            it.PruneChildren()  # its prototypes are drawn only as its instances
         elif tname not in _CONTAINERS and prim.IsA(UsdGeom.Imageable) and not prim.IsA(UsdPhysics.Joint):
             # non-imageable prims (UsdPhysics scene, collision groups...) and joints draw nothing: not worth a word
             warnings.warn(f"{source}: skipping {prim.GetPath()} ({tname}): warpshade reads Mesh, Sphere, Cube, Cylinder, Capsule, Cone, Plane, "
-                          "UsdLux Dome/Distant/Sphere/Rect lights and UsdSkel", SceneWarning, stacklevel=2)
+                          "PointInstancer, UsdLux Dome/Distant/Sphere/Rect lights and UsdSkel", SceneWarning, stacklevel=2)
             it.PruneChildren()
     _read_gprims(scene, gprims, root)
     if not scene.objects:
@@ -1128,6 +1133,208 @@ def _check_material(m: Material, where, shader_path) -> None:
         raise SceneError(f"{where}: {shader_path}: diffuseColor {m.albedo.tolist()} must be RGB in [0, 1]")
     if not 0 <= m.roughness <= 1:
         raise SceneError(f"{where}: {shader_path}: roughness {m.roughness} must be in [0, 1]")
+
+
+# -- point instancers -------------------------------------------------------------------------
+INSTANCES_SUFFIX = "_instances"
+"""The output holds the instances of the PointInstancer at ``/P/Rocks`` at ``/P/Rocks_instances``, one
+``instance_<id>`` Xform each (``<id>`` its ``ids`` entry, else its index), the prototype's meshes under it."""
+
+_INSTANCE_ARRAYS = ("positions", "orientations", "orientationsf", "scales", "velocities", "accelerations",
+                    "angularVelocities", "ids")
+"""PointInstancer arrays that, when authored (not empty), hold one value per ``protoIndices`` entry."""
+
+_PROTO_SHAPES = ("box", "sphere", "sphere_at", "capsule", "cylinder", "cone")
+"""Exact collider shapes of a prototype's object, in the prototype's place: an instance collides as its mesh."""
+
+
+def _instancer_arrays(pi, where: str, t: Usd.TimeCode, protos: int):
+    """``protoIndices`` and ``ids`` (or the indices) of a PointInstancer at time code ``t``, after checking
+    every per-instance array's length and every prototype index (a SceneError naming the prim, the
+    attribute and the index)."""
+    at = "" if t.IsDefault() else f" at time code {t.GetValue():g}"
+    indices = pi.GetProtoIndicesAttr().Get(t)
+    indices = np.zeros(0, dtype=np.int64) if indices is None else np.asarray(indices, dtype=np.int64)
+    n = len(indices)
+    for name in _INSTANCE_ARRAYS:
+        attr = pi.GetPrim().GetAttribute(name)
+        value = attr.Get(t) if attr and attr.HasAuthoredValue() else None
+        if value is not None and len(value) and len(value) != n:
+            raise SceneError(f"{where}: {name} has {len(value)} values{at} for the {n} instances of protoIndices")
+    positions = pi.GetPositionsAttr().Get(t)
+    if n and (positions is None or len(positions) != n):
+        raise SceneError(f"{where}: positions{at} must hold one point per protoIndices entry ({n}), has "
+                         f"{0 if positions is None else len(positions)}")
+    bad = np.flatnonzero((indices < 0) | (indices >= protos))
+    if len(bad):
+        raise SceneError(f"{where}: protoIndices[{int(bad[0])}] = {int(indices[bad[0]])}{at} is out of range: "
+                         f"prototypes has {protos} target{'s' if protos != 1 else ''}")
+    ids = pi.GetIdsAttr().Get(t)
+    ids = np.arange(n, dtype=np.int64) if ids is None or not len(ids) else np.asarray(ids, dtype=np.int64)
+    if len(np.unique(ids)) != n:
+        raise SceneError(f"{where}: ids{at} holds the same id twice")
+    return indices, ids
+
+
+def _instance_xforms(pi, where: str, t: Usd.TimeCode, n: int) -> np.ndarray:
+    """The instances' transforms in the instancer's space at time code ``t`` (UsdGeom's
+    ``ComputeInstanceTransformsAtTime``, each prototype root's own transform included, the mask
+    ignored), acting on column vectors, shape (n, 4, 4), float64."""
+    xforms = pi.ComputeInstanceTransformsAtTime(t, t, UsdGeom.PointInstancer.IncludeProtoXform,
+                                                UsdGeom.PointInstancer.IgnoreMask)
+    out = np.asarray(xforms, dtype=np.float64).reshape(-1, 4, 4).transpose(0, 2, 1)
+    if len(out) != n:
+        raise SceneError(f"{where}: UsdGeom computes {len(out)} instance transforms at time code "
+                         f"{'default' if t.IsDefault() else f'{t.GetValue():g}'} for {n} protoIndices (are its "
+                         "per-instance arrays time-sampled at different times?)")
+    if not np.isfinite(out).all():
+        raise SceneError(f"{where}: the transform of instance {int(np.flatnonzero(~np.isfinite(out).all(axis=(1, 2)))[0])} "
+                         "is not finite (positions, orientations or scales hold NaN or inf)")
+    return out
+
+
+def _instancer_varies(pi) -> bool:
+    """Whether a PointInstancer's instances move: a per-instance array or its transform time-sampled."""
+    prim = pi.GetPrim()
+    attrs = [prim.GetAttribute(name) for name in _INSTANCE_ARRAYS + ("protoIndices",)]
+    return any(a and a.GetNumTimeSamples() > 1 for a in attrs) or _xform_varies(prim)
+
+
+def _read_instancer(prim, source: str, cache: UsdSkel.Cache, default_method, scene: Scene) -> list:
+    """The objects of a PointInstancer: for every instance its mask keeps (``invisibleIds``,
+    ``inactiveIds``), every visible Mesh of its prototype, in world space under the instance's
+    transform (UsdGeom's ``ComputeInstanceTransformsAtTime``), at the output path of
+    :data:`INSTANCES_SUFFIX`; ``animated`` when the instances move (time-sampled positions...), else
+    ``static``. An instance keeps its prototype mesh's material and ``warpshade:`` marks, and those
+    of the instancer; it is a collider (as its triangle mesh) when marked ``warpshade:collider`` or
+    when its mesh, a prim above it in the prototype or the instancer has PhysicsCollisionAPI. The
+    output deactivates the instancer (``over`` with ``active = false``, for when it is layered over the
+    input). Gprim prototypes and nested instancers are skipped with a SceneWarning."""
+    where = f"{source}:{prim.GetPath()}"
+    pi = UsdGeom.PointInstancer(prim)
+    stage = prim.GetStage()
+    targets = pi.GetPrototypesRel().GetTargets()
+    t0 = Usd.TimeCode(scene.start_time)  # a DCC's time samples hold from the first on
+    indices, ids = _instancer_arrays(pi, where, t0, len(targets))
+    if not len(indices):
+        warnings.warn(f"{where}: PointInstancer without instances (protoIndices is empty)", SceneWarning, stacklevel=3)
+        return []
+    mask = pi.ComputeMaskAtTime(t0)
+    keep = np.ones(len(indices), dtype=bool) if not len(mask) else np.asarray(mask, dtype=bool)
+    xforms = _instance_xforms(pi, where, t0, len(indices))
+    world = _world(prim, t0)
+    group = f"{prim.GetPath()}{INSTANCES_SUFFIX}"
+    hierarchy = list(_hierarchy(prim))
+    own = hierarchy.pop()
+    hierarchy += [(group, "Xform", own[2], own[3], False), (str(prim.GetPath()), "PointInstancer", None, False, False)]
+    outer = _object_namespace(prim, source)
+    outer.update(_namespace(prim, source))
+    outer_collider = _physics_collider(prim)
+    moves = _instancer_varies(pi)
+    protos = []  # per prototype: [(object in the prototype's place, path under the instance, world of its root)]
+    for k, target in enumerate(targets):
+        root = stage.GetPrimAtPath(target)
+        if not root or not root.IsActive():
+            raise SceneError(f"{where}: prototypes[{k}] targets {target}, which is not an active prim of the stage")
+        protos.append(_prototype_objects(prim, root, source, cache, default_method, outer, outer_collider))
+    shared = {}  # time code -> that time's instance transforms, shared by the instances' points_at
+
+    def instance_world(i: int, time: float) -> np.ndarray:
+        """Instance ``i``'s world transform at time code ``time``."""
+        assert stage  # the closure keeps the stage alive
+        if time not in shared:
+            shared.clear()
+            t = Usd.TimeCode(time)
+            indices_t, _ = _instancer_arrays(pi, where, t, len(targets))
+            if not np.array_equal(indices_t, indices):
+                raise SceneError(f"{where}: protoIndices at time code {time:g} differ from those at "
+                                 f"{t0.GetValue():g}: warpshade shades a fixed set of instances")
+            shared[time] = _world(prim, t)[None] @ _instance_xforms(pi, where, t, len(indices))
+        return shared[time][i]
+
+    objects = []
+    for i in np.flatnonzero(keep):
+        name = f"instance_{ids[i]}".replace("-", "m")
+        to_world = world @ xforms[i]
+        for obj, sub, proto_world in protos[indices[i]]:
+            move = to_world @ np.linalg.inv(proto_world)  # the prototype's place -> this instance's
+            path = f"{group}/{name}/{sub}"
+            faces = obj.mesh.faces if np.linalg.det(move[:3, :3]) >= 0 else obj.mesh.faces[:, [0, 2, 1]]
+            try:
+                tri = TriMesh(_apply(move, obj.mesh.points.astype(np.float64)), faces, name=f"{source}:{path}")
+            except MeshError as exc:
+                raise SceneError(f"{where}: instance {ids[i]}: {exc}") from None
+            params = {k: v for k, v in obj.params.items() if k not in _PROTO_SHAPES}
+            kind = obj.kind
+            if moves:
+                kind = "animated"
+                params["points_at"] = _instance_points(instance_world, int(i), np.linalg.inv(proto_world),
+                                                       obj.mesh.points.astype(np.float64))
+            objects.append(SceneObject(name=path, mesh=tri, kind=kind, material=obj.material, method=obj.method,
+                                       knobs=dict(obj.knobs), casts_shadows=obj.casts_shadows, shaded=obj.shaded,
+                                       two_sided=obj.two_sided, params=params, prim_path=path,
+                                       prim_xforms=tuple(hierarchy)))
+    return objects
+
+
+def _instance_points(instance_world, i: int, from_proto: np.ndarray, points: np.ndarray):
+    """``points_at(time)`` of a moving instance's mesh: ``points`` (in its prototype's place) under
+    ``instance_world(i, time) @ from_proto``."""
+    def points_at(time: float) -> np.ndarray:
+        return _apply(instance_world(i, float(time)) @ from_proto, points).astype(np.float32)
+
+    return points_at
+
+
+def _prototype_objects(instancer, root, source: str, cache, default_method, outer: dict, outer_collider: bool) -> list:
+    """The visible Meshes of a PointInstancer's prototype ``root`` as objects in the prototype's own place,
+    each as ``(object, its path below the instance, world transform of root)``; ``outer``: the instancer's
+    ``warpshade:`` marks (its and those above it), the mesh's own winning; ``outer_collider``: the instancer
+    has PhysicsCollisionAPI."""
+    where = f"{source}:{instancer.GetPath()}"
+    out = []
+    it = iter(Usd.PrimRange(root, _PRIMS))
+    for sub in it:
+        if not sub.IsActive() or (sub.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(sub).ComputeVisibility()
+                                  == UsdGeom.Tokens.invisible):
+            it.PruneChildren()
+            continue
+        if sub.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(sub).ComputePurpose() in _UNRENDERED_PURPOSES:
+            it.PruneChildren()
+            continue
+        if sub.IsA(UsdGeom.PointInstancer) or (sub.IsA(UsdGeom.Gprim) and not sub.IsA(UsdGeom.Mesh)):
+            warnings.warn(f"{where}: prototype {root.GetPath()}: skipping {sub.GetPath()} ({sub.GetTypeName()}): "
+                          "warpshade instances a prototype's Mesh prims only", SceneWarning, stacklevel=4)
+            it.PruneChildren()
+            continue
+        if not sub.IsA(UsdGeom.Mesh):
+            continue
+        marks = dict(outer)
+        marks.update(_object_namespace(sub, source))
+        chain = []
+        p = sub
+        while p and p != root.GetParent():
+            chain.append(p)
+            p = p.GetParent()
+        if "collider" not in marks and not _physics_collider(sub) and (
+                outer_collider or any(_physics_collider(p) for p in chain[1:])):
+            marks["collider"] = "mesh"
+        obj = _read_mesh(sub, source, cache, default_method, marks)
+        if obj.kind not in ("static", "animated"):
+            raise SceneError(f"{source}:{sub.GetPath()}: a {obj.kind} mesh in the prototype of the PointInstancer "
+                             f"{instancer.GetPath()}: instances are static or move with the instancer")
+        if obj.kind == "animated":
+            warnings.warn(f"{source}:{sub.GetPath()}: its own animation is not instanced: the instances of "
+                          f"{instancer.GetPath()} take its points at the first time sample", SceneWarning,
+                          stacklevel=4)
+            obj.kind = "static"
+            obj.params.pop("points_at", None)
+        sub_path = "/".join(q.GetName() for q in reversed(chain))
+        out.append((obj, sub_path, _world(root, Usd.TimeCode.EarliestTime())))
+    if not out:
+        warnings.warn(f"{where}: prototype {root.GetPath()} holds no Mesh: its instances are not shaded",
+                      SceneWarning, stacklevel=4)
+    return out
 
 
 # -- lights -------------------------------------------------------------------------------------
