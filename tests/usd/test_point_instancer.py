@@ -1,0 +1,152 @@
+"""UsdGeom PointInstancer, as Houdini's Solaris writes a scatter (tests/usd/instancer_stages.py says what is
+imitated): every instance of a prototype Mesh is shaded, casts shadows and collides as an object of its own,
+written at ``<instancer>_instances/instance_<id>/...`` with the instancer deactivated in the output."""
+
+import warnings
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom
+
+from instancer_stages import ANGLES, IDS, POSITIONS, PROTO_INDICES, ROCK, SCALES, TREE, scatter_stage
+from warpshade.cli import main
+from warpshade.pipeline.cloth import ClothSimulation
+from warpshade.scene import SceneError
+from warpshade.usd.scene_io import scene_from_stage
+
+GROUP = "/World/scatter/instancer1_instances"
+SHIFT = np.array([10.0, 0.0, 0.0])  # /World/scatter's translate
+ROCK_LIFT = np.array([0.0, 0.0, 5.0])  # the rock prototype root's own translate
+
+
+def _expected(i):
+    """Instance ``i``'s world points, by the PointInstancer schema's rule written out independently of UsdGeom:
+    scatter translate, then position, orientation, scale, then the prototype root's own transform."""
+    local = ROCK + ROCK_LIFT if PROTO_INDICES[i] == 0 else TREE
+    half = np.radians(ANGLES[i]) / 2
+    c, s = float(np.float16(np.cos(half))), float(np.float16(np.sin(half)))  # as the quath holds them
+    # the unit-quaternion rotation formula on the stored half floats, not renormalized (as GfMatrix4d.SetRotate
+    # does): up to 5e-4 off a rotation, 1e-3 cm at these sizes
+    rot = np.array([[1 - 2 * s * s, -2 * c * s, 0], [2 * c * s, 1 - 2 * s * s, 0], [0, 0, 1]])
+    return (local * SCALES[i]) @ rot.T + POSITIONS[i] + SHIFT
+
+
+def _path(i):
+    return f"{GROUP}/instance_{IDS[i]}/" + ("rock/mesh_0" if PROTO_INDICES[i] == 0 else "tree")
+
+
+def test_instances_are_objects_at_their_places():
+    scene = scene_from_stage(scatter_stage(), source="scatter.usda")
+    names = [o.name for o in scene.objects]
+    kept = [i for i in range(len(IDS)) if IDS[i] != 13]  # 13 is in invisibleIds
+    assert names == ["/World/ground"] + [_path(i) for i in kept]
+    for i in kept:
+        obj = scene.object(_path(i))
+        assert obj.kind == "static" and obj.prim_path == _path(i)
+        # float32 points of up to ~100 cm: 1e-4 cm is a few units in the last place
+        np.testing.assert_allclose(obj.mesh.points, _expected(i), atol=1e-4)
+        assert obj.material.albedo_authored
+        np.testing.assert_allclose(obj.material.albedo, (0.6, 0.5, 0.4) if PROTO_INDICES[i] == 0 else (0.2, 0.6, 0.2),
+                                   rtol=1e-6)
+        # the instancer is handed to the writer to be deactivated
+        assert ("/World/scatter/instancer1", "PointInstancer", None, False, False) in obj.prim_xforms
+
+
+def test_time_sampled_positions_move_the_instances():
+    scene = scene_from_stage(scatter_stage(time_sampled=True), source="scatter.usda")
+    obj = scene.object(_path(0))
+    assert obj.kind == "animated"
+    for code, rise in ((1, 0.0), (6, 5.0), (11, 10.0)):  # positions keyed at 1 and 11, 10 cm apart: linear between
+        np.testing.assert_allclose(obj.params["points_at"](code), _expected(0) + (0, 0, rise), atol=1e-4)
+
+
+def _broken(attr, value):
+    st = scatter_stage()
+    st.GetPrimAtPath("/World/scatter/instancer1").GetAttribute(attr).Set(value, Usd.TimeCode(1))
+    return st
+
+
+@pytest.mark.parametrize("attr,value,message", [
+    ("protoIndices", [0, 1, 5, 1, 0], r"instancer1: protoIndices\[2\] = 5 at time code 1 is out of range: "
+                                      "prototypes has 2 targets"),
+    ("protoIndices", [0, 1, -1, 1, 0], r"protoIndices\[2\] = -1"),
+    ("scales", [Gf.Vec3f(1, 1, 1)] * 4, "instancer1: scales has 4 values at time code 1 for the 5 instances"),
+    ("positions", [Gf.Vec3f(0, 0, 0)] * 3, "instancer1: positions has 3 values"),
+    ("ids", [1, 2, 3, 3, 4], "instancer1: ids at time code 1 holds the same id twice"),
+])
+def test_bad_instancer_data_is_named(attr, value, message):
+    with pytest.raises(SceneError, match=message):
+        scene_from_stage(_broken(attr, value), source="scatter.usda")
+
+
+def test_missing_prototype_is_named():
+    st = scatter_stage()
+    UsdGeom.PointInstancer(st.GetPrimAtPath("/World/scatter/instancer1")).GetPrototypesRel().AddTarget("/World/nothing")
+    st.GetPrimAtPath("/World/scatter/instancer1").GetAttribute("protoIndices").Set([0, 1, 2, 1, 0], Usd.TimeCode(1))
+    with pytest.raises(SceneError, match=r"instancer1: prototypes\[2\] targets /World/nothing, which is not an active"):
+        scene_from_stage(st, source="scatter.usda")
+
+
+def test_gprim_prototype_is_skipped_with_a_warning():
+    st = scatter_stage()
+    UsdGeom.Sphere.Define(st, "/World/scatter/instancer1/Prototypes/tree/ball")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        scene = scene_from_stage(st, source="scatter.usda")
+    assert any("skipping /World/scatter/instancer1/Prototypes/tree/ball (Sphere)" in str(w.message) for w in caught)
+    assert _path(1) in [o.name for o in scene.objects]
+
+
+def test_instances_of_a_collider_prototype_collide():
+    """PhysicsCollisionAPI on the rock prototype's root: a cloth dropped on instance 10 (its top at 25 cm) rests
+    on it (without the collision it falls to the ground, 25 cm lower)."""
+    st = scatter_stage(collider=True)
+    UsdGeom.SetStageUpAxis(st, UsdGeom.Tokens.z)
+    n, size = 10, 16.0
+    cloth = UsdGeom.Mesh.Define(st, "/World/cloth")
+    cloth.CreatePointsAttr([Gf.Vec3f(10 + i * size / n - size / 2, j * size / n - size / 2, 30.0)
+                            for j in range(n + 1) for i in range(n + 1)])
+    cloth.CreateFaceVertexCountsAttr([4] * (n * n))
+    cloth.CreateFaceVertexIndicesAttr([v for j in range(n) for i in range(n) for v in
+                                       (j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1,
+                                        (j + 1) * (n + 1) + i)])
+    cloth.GetPrim().CreateAttribute("warpshade:kind", Sdf.ValueTypeNames.String, custom=True).Set("cloth")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scene = scene_from_stage(st, source="scatter.usda")
+    assert scene.object(_path(0)).params["collider"] == "mesh"
+    sim = ClothSimulation(scene)
+    for f in range(1, 25):  # 1 s at 24 fps: 0.5 g t² is 4.9 m, the cloth has long landed
+        x = sim.advance(f, {})["/World/cloth"]
+    centre = x[(n // 2) * (n + 1) + n // 2]
+    # on the rock's top (25 cm) within the cloth's thickness (0.5 cm) and the contact's slack
+    assert 24.0 < centre[2] < 26.5, centre
+
+
+def test_run_writes_each_instance_shaded(tmp_path):
+    """``warpshade run`` end to end: each instance is a mesh of its own with its own colours, and the output
+    layered over the input shows the shaded instances, not the instancer's."""
+    src = tmp_path / "scatter.usda"
+    scatter_stage().Export(str(src))
+    out = tmp_path / "out.usda"
+    assert main(["run", str(src), "--out", str(out), "--workers", "0", "--method", "reference", "--rays", "16",
+                 "--order", "2", "--frames", "1", "--refine-receivers", "off", "--no-progress"]) == 0
+    stage = Usd.Stage.Open(str(out))
+    meshes = [str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+    kept = [i for i in range(len(IDS)) if IDS[i] != 13]
+    assert sorted(meshes) == sorted(["/World/ground"] + [_path(i) for i in kept])
+    colours = {}
+    for i in kept:
+        mesh = UsdGeom.Mesh(stage.GetPrimAtPath(_path(i)))
+        world = np.asarray(mesh.ComputeLocalToWorldTransform(1), dtype=np.float64).T
+        pts = np.asarray(mesh.GetPointsAttr().Get(1), dtype=np.float64)
+        np.testing.assert_allclose(pts @ world[:3, :3].T + world[:3, 3], _expected(i), atol=1e-3)
+        colours[i] = np.asarray(UsdGeom.PrimvarsAPI(mesh).GetPrimvar("displayColor").Get(1))
+        assert colours[i].shape == (len(pts), 3) and colours[i].max() > 0
+    # the two rocks turned 0 and 90 degrees (and scaled differently) are not lit alike
+    assert not np.allclose(colours[0], colours[2])
+    # layered over its input (as docs/guide/dcc.md suggests), the instancer is off and the instances show
+    layered = Usd.Stage.CreateInMemory()
+    layered.GetRootLayer().subLayerPaths = [str(out), str(src)]
+    assert not layered.GetPrimAtPath("/World/scatter/instancer1").IsActive()
+    assert layered.GetPrimAtPath(_path(0)).IsA(UsdGeom.Mesh)
