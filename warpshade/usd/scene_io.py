@@ -45,7 +45,9 @@ _UNRENDERED_PURPOSES = (UsdGeom.Tokens.guide, UsdGeom.Tokens.proxy)
 """Purposes whose prims are not shaded (a renderer shows only default and render purpose)."""
 
 _CONTAINERS = {"", "Xform", "Scope", "SkelRoot", "Skeleton", "SkelAnimation", "Material", "Shader",
-               "NodeGraph", "GeomSubset", "BlendShape"}
+               "NodeGraph", "GeomSubset", "BlendShape", "Camera"}
+"""Prim types read through or skipped without a word (a Camera draws nothing: Blender, Maya and Omniverse
+write one into nearly every scene)."""
 _LIGHTS = {"DomeLight": "dome", "DistantLight": "distant", "SphereLight": "sphere", "RectLight": "rect"}
 #: Scene-wide ``warpshade:`` settings on the default prim and their Python types.
 SCENE_SETTINGS = {"frames": int, "fps": float, "order": int, "method": str, "writeTransfer": bool,
@@ -180,9 +182,54 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
                           'vertices, above the lowest object, not a collider) but has no warpshade:kind, so it stays '
                           'static: add custom token warpshade:kind = "cloth" to simulate it, or "static" to keep it '
                           "still", SceneWarning, stacklevel=2)
+    _warn_rigid_bodies(stage, scene)
     if not units_authored and any(o.kind == "cloth" for o in scene.objects):
         warnings.warn(_unauthored_units_message(scene), SceneWarning, stacklevel=2)
     return scene
+
+
+def _dynamic_body(prim):
+    """The prim at or above ``prim`` with an enabled, non-kinematic UsdPhysics ``RigidBodyAPI`` (a body a
+    physics engine drops and pushes), or None; None too under an ``ArticulationRootAPI`` (a robot's or
+    character's links, taken as posed by the stage)."""
+    body = None
+    while prim and not prim.IsPseudoRoot():
+        if prim.HasAPI(UsdPhysics.ArticulationRootAPI):
+            return None
+        if body is None and prim.HasAPI(UsdPhysics.RigidBodyAPI):
+            api = UsdPhysics.RigidBodyAPI(prim)
+            if api.GetRigidBodyEnabledAttr().Get() is False or api.GetKinematicEnabledAttr().Get():
+                return None
+            body = prim
+        prim = prim.GetParent()
+    return body
+
+
+def _warn_rigid_bodies(stage: Usd.Stage, scene: Scene) -> None:
+    """One SceneWarning naming the still objects that are free UsdPhysics dynamic rigid bodies
+    (:func:`_dynamic_body`, linked by no joint; Omniverse and Isaac Sim mark the crates PhysX drops and pushes
+    so): warpshade does not simulate them."""
+    jointed = set()  # bodies a joint links (an articulation's links): posed by the stage, not free
+    for prim in stage.Traverse():
+        if prim.IsA(UsdPhysics.Joint):
+            joint = UsdPhysics.Joint(prim)
+            jointed.update(str(t) for rel in (joint.GetBody0Rel(), joint.GetBody1Rel()) for t in rel.GetTargets())
+    bodies = []
+    for obj in list(scene.objects) + list(scene.collision_only):
+        if obj.kind != "static" or obj.prim_path is None:
+            continue
+        body = _dynamic_body(stage.GetPrimAtPath(obj.prim_path))
+        if body is not None and str(body.GetPath()) not in bodies and str(body.GetPath()) not in jointed:
+            bodies.append(str(body.GetPath()))
+    if bodies:
+        one = len(bodies) == 1
+        it = "it" if one else "them"
+        warnings.warn(f"{scene.source}: {', '.join(bodies[:3])}{', ...' if len(bodies) > 3 else ''}: "
+                      f"{'a dynamic rigid body' if one else f'{len(bodies)} dynamic rigid bodies'} (UsdPhysics "
+                      f"RigidBodyAPI), which warpshade does not simulate: {'it stays' if one else 'they stay'} where "
+                      f"the stage puts {it} for the whole run; bake the motion into time-sampled transforms to move "
+                      f"{it} (a moving collider follows its keys), or set physics:kinematicEnabled = true on {it} to "
+                      "say the stage's pose is meant", SceneWarning, stacklevel=3)
 
 
 EARTH_GRAVITY = 9.81
@@ -1073,6 +1120,9 @@ def _material(prim, where) -> Material:
             _check_material(out, where, shader.GetPath())
             return out
         if out is None:
+            omni = _omnipbr(mat, where)
+            if omni is not None:
+                return omni
             warnings.warn(f"{where}: bound material {mat.GetPath()} has no UsdPreviewSurface; default material used",
                           SceneWarning, stacklevel=4)
             return Material()
@@ -1098,6 +1148,46 @@ def _material(prim, where) -> Material:
                           "or bind a material to set it", SceneWarning, stacklevel=4)
             return out
     return Material()
+
+
+OMNIPBR_ALBEDO = (0.2, 0.2, 0.2)
+"""OmniPBR's ``diffuse_color_constant`` when it is not authored (its MDL default, as Omniverse's OmniPBR
+page lists it)."""
+
+
+def _omnipbr(mat, where) -> Material | None:
+    """The material of an Omniverse ``OmniPBR`` MDL shader (``outputs:mdl:surface``, no UsdPreviewSurface, as
+    Omniverse and Isaac Sim write every material they make): albedo ``diffuse_color_constant`` (else
+    :data:`OMNIPBR_ALBEDO`) times ``diffuse_tint`` if authored; roughness ``reflection_roughness_constant``
+    if authored. A ``diffuse_texture`` is not read (a SceneWarning says so). None for another MDL."""
+    shader = mat.ComputeSurfaceSource("mdl")[0]
+    if not shader:
+        return None
+    asset = shader.GetSourceAsset("mdl")
+    sub = shader.GetSourceAssetSubIdentifier("mdl")
+    name = sub or (os.path.splitext(os.path.basename(asset.path))[0] if asset else "")
+    if name != "OmniPBR":
+        return None
+
+    def value(input_name):
+        inp = shader.GetInput(input_name)
+        return inp.Get() if inp and inp.GetAttr().HasAuthoredValue() else None
+
+    colour = value("diffuse_color_constant")
+    albedo = np.asarray(OMNIPBR_ALBEDO if colour is None else colour, dtype=np.float64)
+    tint = value("diffuse_tint")
+    if tint is not None:
+        albedo = albedo * np.asarray(tint, dtype=np.float64)
+    texture = value("diffuse_texture")
+    if texture is not None and getattr(texture, "path", ""):
+        warnings.warn(f"{where}: {shader.GetPath()} (OmniPBR) has a diffuse_texture, which warpshade does not read; "
+                      f"using its diffuse_color_constant {np.round(albedo, 3).tolist()}", SceneWarning, stacklevel=5)
+    out = Material(albedo=albedo)
+    roughness = value("reflection_roughness_constant")
+    if roughness is not None:
+        out.roughness = float(roughness)
+    _check_material(out, where, shader.GetPath())
+    return out
 
 
 def _subset_albedo(prim, where) -> Material | None:
