@@ -108,7 +108,7 @@ def test_another_mdl_still_warns():
     st = isaac_stage()
     UsdShade.Shader(st.GetPrimAtPath("/World/Looks/OmniPBR/Shader")).SetSourceAssetSubIdentifier("OmniGlass", "mdl")
     st.GetPrimAtPath("/World/Looks/OmniPBR/Shader").GetAttribute("info:mdl:sourceAsset").Set(Sdf.AssetPath("OmniGlass.mdl"))
-    scene, msgs = _messages(st)
+    _, msgs = _messages(st)
     assert any("has no UsdPreviewSurface; default material used" in m for m in msgs), msgs
 
 
