@@ -222,3 +222,42 @@ def test_run_writes_each_instance_shaded(tmp_path):
     layered.GetRootLayer().subLayerPaths = [str(out), str(src)]
     assert not layered.GetPrimAtPath("/World/scatter/instancer1").IsActive()
     assert layered.GetPrimAtPath(_path(0)).IsA(UsdGeom.Mesh)
+
+
+def test_prototypes_under_an_over_are_instanced_and_not_drawn():
+    """The USD way to keep prototypes out of the scene (OpenUSD's point-instancing guide): under an ``over``
+    (or a ``class``), which the stage's traversal skips and the instancer still instances."""
+    st = scatter_stage()
+    pi = UsdGeom.PointInstancer(st.GetPrimAtPath("/World/scatter/instancer1"))
+    layer = st.GetRootLayer()
+    Sdf.CreatePrimInLayer(layer, "/Protos/rock/mesh_0")  # overs, then the prototype defined under them
+    for path, tname in (("/Protos/rock", "Xform"), ("/Protos/rock/mesh_0", "Mesh")):
+        spec = layer.GetPrimAtPath(path)
+        spec.specifier, spec.typeName = Sdf.SpecifierDef, tname
+    mesh = UsdGeom.Mesh(st.GetPrimAtPath("/Protos/rock/mesh_0"))
+    mesh.CreatePointsAttr([Gf.Vec3f(*p) for p in ROCK])
+    mesh.CreateFaceVertexCountsAttr([len(f) for f in ROCK_FACES])
+    mesh.CreateFaceVertexIndicesAttr([i for f in ROCK_FACES for i in f])
+    assert not st.GetPrimAtPath("/Protos/rock").IsDefined()
+    pi.GetPrototypesRel().SetTargets(["/Protos/rock", "/World/scatter/instancer1/Prototypes/tree"])
+    scene = scene_from_stage(st, source="scatter.usda")
+    names = [o.name for o in scene.objects]
+    assert f"{GROUP}/instance_12/rock/mesh_0" in names and not any(n.startswith("/Protos") for n in names)
+    np.testing.assert_allclose(scene.object(f"{GROUP}/instance_12/rock/mesh_0").mesh.points.min(axis=0)[2], 0.0,
+                               atol=1e-4)  # this rock prototype has no 5 cm lift of its own
+
+
+def test_per_instance_display_color():
+    """Houdini writes a scatter's point colour ``Cd`` as the instancer's ``primvars:displayColor``, one an
+    instance: it is the albedo of each instance whose mesh binds no material."""
+    st = scatter_stage()
+    pv = UsdGeom.PrimvarsAPI(st.GetPrimAtPath("/World/scatter/instancer1")).CreatePrimvar(
+        "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
+    colours = [(0.1, 0.2, 0.3), (0.4, 0.5, 0.6), (0.7, 0.8, 0.9), (0.2, 0.2, 0.2), (0.9, 0.1, 0.1)]
+    pv.Set([Gf.Vec3f(*c) for c in colours])
+    scene = scene_from_stage(st, source="scatter.usda")
+    for i in (0, 1, 2, 4):
+        np.testing.assert_allclose(scene.object(_path(i)).material.albedo, colours[i], rtol=1e-6)
+    pv.Set([Gf.Vec3f(*c) for c in colours[:3]])
+    with pytest.raises(SceneError, match="instancer1: primvars:displayColor has 3 values for the 5 instances"):
+        scene_from_stage(st, source="scatter.usda")

@@ -1295,7 +1295,8 @@ def _read_instancer(prim, source: str, cache: UsdSkel.Cache, default_method, sce
     ``inactiveIds``), every visible Mesh of its prototype, in world space under the instance's
     transform (UsdGeom's ``ComputeInstanceTransformsAtTime``), at the output path of
     :data:`INSTANCES_SUFFIX`; ``animated`` when the instances move (time-sampled positions...), else
-    ``static``. An instance keeps its prototype mesh's material and ``warpshade:`` marks, and those
+    ``static``. An instance keeps its prototype mesh's material (its albedo the instancer's per-instance
+    ``primvars:displayColor`` when the mesh binds no material) and ``warpshade:`` marks, and those
     of the instancer; it is a collider (as its triangle mesh) when marked ``warpshade:collider`` or
     when its mesh, a prim above it in the prototype or the instancer has PhysicsCollisionAPI. The
     output deactivates the instancer (``over`` with ``active = false``, for when it is layered over the
@@ -1312,6 +1313,7 @@ def _read_instancer(prim, source: str, cache: UsdSkel.Cache, default_method, sce
     mask = pi.ComputeMaskAtTime(t0)
     keep = np.ones(len(indices), dtype=bool) if not len(mask) else np.asarray(mask, dtype=bool)
     xforms = _instance_xforms(pi, where, t0, len(indices))
+    colours = _instance_colours(pi, where, t0, len(indices))
     world = _world(prim, t0)
     group = f"{prim.GetPath()}{INSTANCES_SUFFIX}"
     hierarchy = list(_hierarchy(prim))
@@ -1354,13 +1356,16 @@ def _read_instancer(prim, source: str, cache: UsdSkel.Cache, default_method, sce
                 tri = TriMesh(_apply(move, obj.mesh.points.astype(np.float64)), faces, name=f"{source}:{path}")
             except MeshError as exc:
                 raise SceneError(f"{where}: instance {ids[i]}: {exc}") from None
-            params = {k: v for k, v in obj.params.items() if k not in _PROTO_SHAPES}
+            params = {k: v for k, v in obj.params.items() if k not in _PROTO_SHAPES and k != "bound_material"}
+            material = obj.material
+            if colours is not None and not obj.params["bound_material"]:
+                material = Material(albedo=colours[i].copy(), roughness=obj.material.roughness)
             kind = obj.kind
             if moves:
                 kind = "animated"
                 params["points_at"] = _instance_points(instance_world, int(i), np.linalg.inv(proto_world),
                                                        obj.mesh.points.astype(np.float64))
-            objects.append(SceneObject(name=path, mesh=tri, kind=kind, material=obj.material, method=obj.method,
+            objects.append(SceneObject(name=path, mesh=tri, kind=kind, material=material, method=obj.method,
                                        knobs=dict(obj.knobs), casts_shadows=obj.casts_shadows, shaded=obj.shaded,
                                        two_sided=obj.two_sided, params=params, prim_path=path,
                                        prim_xforms=tuple(hierarchy)))
@@ -1376,6 +1381,27 @@ def _instance_points(instance_world, i: int, from_proto: np.ndarray, points: np.
     return points_at
 
 
+_PROTOTYPE_PRIMS = Usd.TraverseInstanceProxies(Usd.PrimIsActive & Usd.PrimIsLoaded)
+"""The prims a PointInstancer's prototype is read from: active ones, also under an ``over`` or a ``class``
+(the USD way to keep prototypes out of the stage's ordinary traversal, :data:`_PRIMS`)."""
+
+
+def _instance_colours(pi, where: str, t: Usd.TimeCode, n: int) -> np.ndarray | None:
+    """The per-instance ``primvars:displayColor`` of a PointInstancer (a Houdini scatter's ``Cd``), one RGB an
+    instance, shape (n, 3), or None when it has none (a constant one is not per instance)."""
+    pv = UsdGeom.PrimvarsAPI(pi.GetPrim()).GetPrimvar("displayColor")
+    if not pv or not pv.HasAuthoredValue() or pv.GetInterpolation() == UsdGeom.Tokens.constant:
+        return None
+    values = pv.ComputeFlattened(t)
+    values = None if values is None else np.asarray(values, dtype=np.float64).reshape(-1, 3)
+    if values is None or len(values) != n:
+        raise SceneError(f"{where}: primvars:displayColor has {0 if values is None else len(values)} values for the "
+                         f"{n} instances ({pv.GetInterpolation()} interpolation: one an instance)")
+    if not (np.isfinite(values).all() and (values >= 0).all() and (values <= 1).all()):
+        raise SceneError(f"{where}: primvars:displayColor must be RGB in [0, 1] for every instance")
+    return values
+
+
 def _prototype_objects(instancer, root, source: str, cache, default_method, outer: dict, outer_collider: bool) -> list:
     """The visible Meshes of a PointInstancer's prototype ``root`` as objects in the prototype's own place,
     each as ``(object, its path below the instance, world transform of root)``; ``outer``: the instancer's
@@ -1383,7 +1409,7 @@ def _prototype_objects(instancer, root, source: str, cache, default_method, oute
     has PhysicsCollisionAPI."""
     where = f"{source}:{instancer.GetPath()}"
     out = []
-    it = iter(Usd.PrimRange(root, _PRIMS))
+    it = iter(Usd.PrimRange(root, _PROTOTYPE_PRIMS))
     for sub in it:
         if not sub.IsActive() or (sub.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(sub).ComputeVisibility()
                                   == UsdGeom.Tokens.invisible):
@@ -1420,6 +1446,8 @@ def _prototype_objects(instancer, root, source: str, cache, default_method, oute
             obj.kind = "static"
             obj.params.pop("points_at", None)
         sub_path = "/".join(q.GetName() for q in reversed(chain))
+        # a material bound to the mesh decides its albedo; else the instancer's per-instance colour does
+        obj.params["bound_material"] = bool(UsdShade.MaterialBindingAPI(sub).ComputeBoundMaterial()[0])
         out.append((obj, sub_path, _world(root, Usd.TimeCode.EarliestTime())))
     if not out:
         warnings.warn(f"{where}: prototype {root.GetPath()} holds no Mesh: its instances are not shaded",
