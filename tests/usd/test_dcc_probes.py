@@ -136,3 +136,21 @@ def test_houdini_instanced_packed_rocks(tmp_path):
     names = [o.name for o in scene.objects]
     assert names == [f"/scatter/instancer1_instances/instance_{i}/rock/mesh_0" for i in (0, 1)]
     np.testing.assert_allclose(scene.objects[1].mesh.points.mean(axis=0), (1, 0.2, 0), atol=1e-6)
+
+
+def test_maya_catmull_clark_meshes_warn():
+    """mayaUSD exports a mesh with ``subdivisionScheme = "catmullClark"`` unless told otherwise (Y up, cm):
+    warpshade shades the control cage, and says so once for all such meshes; an authored ``none`` and an
+    unauthored scheme (a hand-written stage) do not warn."""
+    st = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(st, "Y")
+    UsdGeom.SetStageMetersPerUnit(st, 0.01)
+    st.SetDefaultPrim(UsdGeom.Xform.Define(st, "/group1").GetPrim())
+    for name, scheme in (("pCube1", "catmullClark"), ("pCube2", "catmullClark"), ("pCube3", "none"), ("pCube4", None)):
+        m = _cube_mesh(st, f"/group1/{name}/{name}Shape", 25.0, 0.0)
+        if scheme is not None:
+            m.CreateSubdivisionSchemeAttr(scheme)
+    _, msgs = _messages(st)
+    assert len(msgs) == 1, msgs
+    assert msgs[0].startswith("probe.usda: /group1/pCube1/pCube1Shape, /group1/pCube2/pCube2Shape (2 meshes): "
+                              "subdivisionScheme catmullClark, but warpshade shades and writes the control mesh")

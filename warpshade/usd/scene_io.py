@@ -183,6 +183,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
                           'static: add custom token warpshade:kind = "cloth" to simulate it, or "static" to keep it '
                           "still", SceneWarning, stacklevel=2)
     _warn_rigid_bodies(stage, scene)
+    _warn_subdivision(stage, scene)
     if not units_authored and any(o.kind == "cloth" for o in scene.objects):
         warnings.warn(_unauthored_units_message(scene), SceneWarning, stacklevel=2)
     return scene
@@ -230,6 +231,29 @@ def _warn_rigid_bodies(stage: Usd.Stage, scene: Scene) -> None:
                       f"the stage puts {it} for the whole run; bake the motion into time-sampled transforms to move "
                       f"{it} (a moving collider follows its keys), or set physics:kinematicEnabled = true on {it} to "
                       "say the stage's pose is meant", SceneWarning, stacklevel=3)
+
+
+def _warn_subdivision(stage: Usd.Stage, scene: Scene) -> None:
+    """One SceneWarning naming the meshes that author a ``subdivisionScheme`` other than ``none`` (mayaUSD
+    writes ``catmullClark`` by default): warpshade shades and writes their control mesh, which a renderer
+    would have smoothed. (The schema's fallback is ``catmullClark`` too, but a mesh that does not author it
+    was not asked to be smoothed by a DCC: it is not named.)"""
+    smoothed = {}
+    for obj in scene.objects:
+        prim = stage.GetPrimAtPath(obj.prim_path) if obj.prim_path else None
+        if not prim or not prim.IsA(UsdGeom.Mesh):  # (an instance of a PointInstancer has no prim)
+            continue
+        attr = UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr()
+        scheme = attr.Get() if attr.HasAuthoredValue() else UsdGeom.Tokens.none
+        if scheme != UsdGeom.Tokens.none:
+            smoothed.setdefault(str(scheme), []).append(obj.prim_path)
+    for scheme, paths in smoothed.items():
+        warnings.warn(f"{scene.source}: {', '.join(paths[:3])}{', ...' if len(paths) > 3 else ''}"
+                      f"{f' ({len(paths)} meshes)' if len(paths) > 1 else ''}: subdivisionScheme {scheme}, but "
+                      "warpshade shades and writes the control mesh (subdivisionScheme none), so the output shows "
+                      "the cage a renderer would have smoothed: subdivide before exporting (mayaUSD: Subdivision "
+                      "Method None after Smooth Mesh), or author subdivisionScheme = none to keep the cage",
+                      SceneWarning, stacklevel=3)
 
 
 EARTH_GRAVITY = 9.81
