@@ -159,14 +159,31 @@ def test_missing_prototype_is_named():
         scene_from_stage(st, source="scatter.usda")
 
 
-def test_gprim_prototype_is_skipped_with_a_warning():
+def test_gprim_prototypes_are_instanced():
+    """Omniverse's point-instancing samples instance Cube and Sphere prototypes: each instance is the gprim
+    tessellated with the scene's gprims, placed by its instance's transform; a nested instancer is skipped with
+    a warning."""
     st = scatter_stage()
-    UsdGeom.Sphere.Define(st, "/World/scatter/instancer1/Prototypes/tree/ball")
+    ball = UsdGeom.Sphere.Define(st, "/World/scatter/instancer1/Prototypes/tree/ball")
+    ball.CreateRadiusAttr(5.0)
+    UsdGeom.XformCommonAPI(ball).SetTranslate((0, 0, 70))  # on the tree's top
+    UsdGeom.PointInstancer.Define(st, "/World/scatter/instancer1/Prototypes/tree/nested")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         scene = scene_from_stage(st, source="scatter.usda")
-    assert any("skipping /World/scatter/instancer1/Prototypes/tree/ball (Sphere)" in str(w.message) for w in caught)
-    assert _path(1) in [o.name for o in scene.objects]
+    assert any("skipping /World/scatter/instancer1/Prototypes/tree/nested (PointInstancer)" in str(w.message)
+               for w in caught)
+    balls = [o for o in scene.objects if o.name.endswith("/tree/ball")]
+    assert [o.name for o in balls] == [f"{GROUP}/instance_11/tree/ball"]  # 13, the other tree, is hidden
+    # instance 11: scale 1.5, turned 30 degrees about Z, at (60, 0, 0) + the scatter's shift; the ball's centre
+    # (0, 0, 70) of the prototype goes to (70, 0, 105) and its radius to 7.5
+    pts = balls[0].mesh.points.astype(np.float64)
+    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    np.testing.assert_allclose(centre, (70.0, 0.0, 105.0), atol=1e-3)
+    radii = np.linalg.norm(pts - centre, axis=1)
+    # the tessellation's vertices lie on the sphere (float32 points and the quath's 5e-4 off a rotation)
+    np.testing.assert_allclose(radii, 7.5, rtol=2e-3)
+    assert len(pts) > 12
 
 
 def test_instances_of_a_collider_prototype_collide():
@@ -261,3 +278,35 @@ def test_per_instance_display_color():
     pv.Set([Gf.Vec3f(*c) for c in colours[:3]])
     with pytest.raises(SceneError, match="instancer1: primvars:displayColor has 3 values for the 5 instances"):
         scene_from_stage(st, source="scatter.usda")
+
+
+def test_gprim_instances_count_in_the_vertex_budget():
+    """50 Cube instances (20 cm) beside a fine cloth (1 cm edges, which sets the gprims' target edge): the gprims'
+    vertex budget counts every instance, so their tessellation is coarsened, with the warning, to fit it (counted
+    once, each cube would get the cloth's edge: 2646 vertices, 132 300 in all)."""
+    from warpshade.geometry.shapes import VERTEX_BUDGET
+
+    st = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(st, "Y")
+    UsdGeom.SetStageMetersPerUnit(st, 1.0)
+    st.SetDefaultPrim(UsdGeom.Xform.Define(st, "/World").GetPrim())
+    n = 40
+    cloth = UsdGeom.Mesh.Define(st, "/World/Cloth")
+    cloth.CreatePointsAttr([Gf.Vec3f(i * 0.01, 1.0, j * 0.01) for j in range(n + 1) for i in range(n + 1)])
+    cloth.CreateFaceVertexCountsAttr([4] * (n * n))
+    cloth.CreateFaceVertexIndicesAttr([v for j in range(n) for i in range(n) for v in
+                                       (j * (n + 1) + i, (j + 1) * (n + 1) + i, (j + 1) * (n + 1) + i + 1,
+                                        j * (n + 1) + i + 1)])
+    cloth.GetPrim().CreateAttribute("warpshade:kind", Sdf.ValueTypeNames.String, custom=True).Set("cloth")
+    pi = UsdGeom.PointInstancer.Define(st, "/World/Crates")
+    UsdGeom.Cube.Define(st, "/World/Crates/Prototypes/crate").CreateSizeAttr(0.2)
+    pi.CreatePrototypesRel().SetTargets(["/World/Crates/Prototypes/crate"])
+    pi.CreatePositionsAttr([Gf.Vec3f(0.3 * (k % 10), 0.1, -0.5 - 0.3 * (k // 10)) for k in range(50)])
+    pi.CreateProtoIndicesAttr([0] * 50)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        scene = scene_from_stage(st, source="crates.usda")
+    crates = [o for o in scene.objects if o.name.startswith("/World/Crates_instances/")]
+    assert len(crates) == 50
+    assert sum(o.mesh.num_vertices for o in crates) <= VERTEX_BUDGET
+    assert any("to stay within" in str(w.message) for w in caught)

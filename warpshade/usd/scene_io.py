@@ -10,7 +10,7 @@ What is read (docs/guide/quickstart.md, "Your own scene", documents every attrib
   ``Cylinder``, ``Capsule``, ``Cone``, ``Plane`` tessellated for shading. Every gprim is
   tessellated for one target edge length (:func:`_gprim_edge`, the rule in
   :mod:`warpshade.geometry.shapes`), once the whole stage is read.
-* ``UsdGeom.PointInstancer`` prims: each instance of a Mesh prototype becomes an object of its own
+* ``UsdGeom.PointInstancer`` prims: each instance of a prototype's Mesh or gprim becomes an object of its own
   (:func:`_read_instancer`), at ``<instancer>_instances/instance_<id>/...``.
 * UsdLux ``DomeLight`` (``inputs:texture:file`` -> environment map), ``DistantLight``,
   ``SphereLight``, ``RectLight`` -> :class:`warpshade.scene.LightSpec`.
@@ -126,6 +126,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         default_method = fastest()
     unmarked = []  # meshes whose kind was not authored
     gprims = []  # gprims in traversal order, read once the stage's size is known
+    deferred = []  # (index in scene.objects, make): instances of gprim prototypes, made once those are read
     it = iter(Usd.PrimRange(stage.GetPseudoRoot(), _PRIMS))
     for prim in it:
         if prim.IsPseudoRoot():
@@ -166,7 +167,9 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         elif tname in _LIGHTS:
             scene.lights.append(_read_light(prim, _LIGHTS[tname], source, scene))
         elif prim.IsA(UsdGeom.PointInstancer):
-            scene.objects.extend(_read_instancer(prim, source, cache, default_method, scene))
+            objects, later = _read_instancer(prim, source, cache, default_method, scene, gprims)
+            deferred += [(len(scene.objects) + k, make) for k, make in later]
+            scene.objects.extend(objects)  # None where an instance of a gprim prototype goes, made below
             it.PruneChildren()  # its prototypes are drawn only as its instances
         elif tname not in _CONTAINERS and prim.IsA(UsdGeom.Imageable) and not prim.IsA(UsdPhysics.Joint):
             # non-imageable prims (UsdPhysics scene, collision groups...) and joints draw nothing: not worth a word
@@ -174,6 +177,8 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
                           "PointInstancer, UsdLux Dome/Distant/Sphere/Rect lights and UsdSkel", SceneWarning, stacklevel=2)
             it.PruneChildren()
     _read_gprims(scene, gprims, root)
+    for index, make in deferred:
+        scene.objects[index] = make()
     if not scene.objects:
         raise SceneError(f"{source}: no Mesh or gprim (Sphere, Cube, Cylinder, Capsule, Cone, Plane) to shade")
     for obj in unmarked:
@@ -556,7 +561,8 @@ class _Gprim:
     """A gprim met in the traversal, read once the stage's size is known: where its object goes
     (``target[index]``), its shape for the tessellation rule (``kind``, ``dims``, ``scale``: world length
     of a unit along each local axis of the shape built along +Z), its own ``warpshade:edgeLength`` and its
-    ``warpshade:`` marks (``marks``, :func:`_object_namespace`)."""
+    ``warpshade:`` marks (``marks``, :func:`_object_namespace`); for the gprim of a PointInstancer's prototype,
+    how many instances are made of it (``copies``) and their bounds' corners (``placed``)."""
 
     def __init__(self, prim, source: str, default_method, target: list, index: int):
         self.prim, self.source, self.default_method, self.target, self.index = prim, source, default_method, target, index
@@ -578,6 +584,8 @@ class _Gprim:
         self.own = self.edge is not None or "subdivisions" in marks  # not the scene's edge
         self.graded = _graded_flag(marks["graded"], where) if "graded" in marks else None
         self.grading = None  # set by _read_gprims when graded
+        self.copies = 1  # objects made of it: a PointInstancer prototype's, its instances
+        self.placed = None  # a prototype's: the world corners of its instances' bounds, (copies, 8, 3)
 
     def to_world(self, t=Usd.TimeCode.EarliestTime()) -> np.ndarray:
         """The world transform of its shape as built (along +Z) at time code ``t``."""
@@ -647,17 +655,19 @@ def _regions(scene: Scene, gprims: list, lowest: float) -> list:
     return out
 
 
-def _gradings(scene: Scene, shaded: list, points: np.ndarray) -> None:
+def _gradings(scene: Scene, shaded: list, points: np.ndarray, instanced: list = ()) -> None:
     """Give each shaded Cube and Plane gprim to be graded (``warpshade:graded``, its own else the
     default prim's, true unless authored false) its :class:`~warpshade.geometry.shapes.Grading`: the
     regions of the scene's other shaded objects (:func:`_regions`) in its frame. ``shaded``: the shaded
-    gprims, ``points``: :func:`_shaded_points`. Collision-only gprims stay uniform."""
+    gprims, ``points``: :func:`_shaded_points`, ``instanced``: PointInstancer prototypes' gprims, whose
+    instances' bounds are regions too. Collision-only gprims stay uniform."""
     default = scene.settings.get("graded", True)
     graded = [g for g in shaded if g.kind in GRADED_KINDS and (default if g.graded is None else g.graded)]
     if not graded:
         return
     diag = float(np.linalg.norm(np.ptp(points, axis=0)))
     regions = _regions(scene, shaded, float(points[:, _AXES.get(scene.up_axis, 1)].min()))
+    regions += [(g, np.stack([c.min(axis=0), c.max(axis=0)])) for g in instanced for c in g.placed]
     for g in graded:
         boxes = [box for owner, box in regions if owner is not g]
         to_world = g.to_world()
@@ -689,7 +699,8 @@ def _gprim_edge(scene: Scene, shaded: list, points: np.ndarray | None, root) -> 
     if authored, else :func:`~warpshade.geometry.shapes.scene_edge` of the bounding box of the shaded
     objects and gprims and of the cloths' median edges; coarsened, with a :class:`SceneWarning`, until
     the gprims without an edge of their own fit :data:`~warpshade.geometry.shapes.VERTEX_BUDGET`.
-    ``shaded``: the shaded gprims, ``points``: :func:`_shaded_points`."""
+    ``shaded``: the shaded gprims (a PointInstancer prototype's counted once an instance), ``points``:
+    :func:`_shaded_points`."""
     chosen = scene.settings.get("edgeLength")
     if chosen is not None:
         return _edge_length(chosen, f"{scene.source}:{root.GetPath()}")
@@ -703,7 +714,8 @@ def _gprim_edge(scene: Scene, shaded: list, points: np.ndarray | None, root) -> 
             cloth.append(float(np.median(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2))))
     edge = scene_edge(diag, cloth)
     auto = [g for g in shaded if not g.own]
-    fitted = fit_budget([(g.kind, g.dims, g.scale, g.grading) for g in auto], edge) if edge else edge
+    fitted = fit_budget([(g.kind, g.dims, g.scale, g.grading) for g in auto for _ in range(g.copies)],
+                        edge) if edge else edge
     if fitted != edge:
         from ..geometry.shapes import VERTEX_BUDGET
 
@@ -719,10 +731,14 @@ def _read_gprims(scene: Scene, gprims: list, root) -> None:
     if not gprims:
         return
     shaded = [g for g in gprims if g.target is scene.objects]
+    instanced = [g for g in gprims if g.placed is not None and g.copies]  # PointInstancer prototypes' gprims
     points = _shaded_points(scene, shaded)  # the shaded objects and gprims: the scene's size, the grading's floor
+    if instanced:
+        placed = np.concatenate([g.placed.reshape(-1, 3) for g in instanced])
+        points = placed if points is None else np.concatenate([points, placed])
     if points is not None:
-        _gradings(scene, shaded, points)
-    edge = _gprim_edge(scene, shaded, points, root)
+        _gradings(scene, shaded, points, instanced)
+    edge = _gprim_edge(scene, shaded + instanced, points, root)
     for g in gprims:
         g.read(edge)
     scene.collision_only[:] = [o for o in scene.collision_only
@@ -1314,7 +1330,8 @@ def _instancer_varies(pi) -> bool:
     return any(a and a.GetNumTimeSamples() > 1 for a in attrs) or _xform_varies(prim)
 
 
-def _read_instancer(prim, source: str, cache: UsdSkel.Cache, default_method, scene: Scene) -> list:
+def _read_instancer(prim, source: str, cache: UsdSkel.Cache, default_method, scene: Scene,
+                    gprims: list) -> tuple[list, list]:
     """The objects of a PointInstancer: for every instance its mask keeps (``invisibleIds``,
     ``inactiveIds``), every visible Mesh of its prototype, in world space under the instance's
     transform (UsdGeom's ``ComputeInstanceTransformsAtTime``), at the output path of
@@ -1324,7 +1341,12 @@ def _read_instancer(prim, source: str, cache: UsdSkel.Cache, default_method, sce
     of the instancer; it is a collider (as its triangle mesh) when marked ``warpshade:collider`` or
     when its mesh, a prim above it in the prototype or the instancer has PhysicsCollisionAPI. The
     output deactivates the instancer (``over`` with ``active = false``, for when it is layered over the
-    input). Gprim prototypes and nested instancers are skipped with a SceneWarning."""
+    input). A gprim of a prototype (``Cube``, ``Sphere``...) joins ``gprims``, to be tessellated with the
+    scene's gprims (uniformly, not graded); nested instancers are skipped with a SceneWarning.
+
+    Returns:
+        The objects, None where an instance of a gprim goes, and ``[(index in the objects, make)]``:
+        ``make()`` returns that instance once the gprims are read."""
     where = f"{source}:{prim.GetPath()}"
     pi = UsdGeom.PointInstancer(prim)
     stage = prim.GetStage()
@@ -1333,7 +1355,7 @@ def _read_instancer(prim, source: str, cache: UsdSkel.Cache, default_method, sce
     indices, ids = _instancer_arrays(pi, where, t0, len(targets))
     if not len(indices):
         warnings.warn(f"{where}: PointInstancer without instances (protoIndices is empty)", SceneWarning, stacklevel=3)
-        return []
+        return [], []
     mask = pi.ComputeMaskAtTime(t0)
     keep = np.ones(len(indices), dtype=bool) if not len(mask) else np.asarray(mask, dtype=bool)
     xforms = _instance_xforms(pi, where, t0, len(indices))
@@ -1352,7 +1374,7 @@ def _read_instancer(prim, source: str, cache: UsdSkel.Cache, default_method, sce
         root = stage.GetPrimAtPath(target)
         if not root or not root.IsActive():
             raise SceneError(f"{where}: prototypes[{k}] targets {target}, which is not an active prim of the stage")
-        protos.append(_prototype_objects(prim, root, source, cache, default_method, outer, outer_collider))
+        protos.append(_prototype_objects(prim, root, source, cache, default_method, outer, outer_collider, gprims))
     shared = {}  # time code -> that time's instance transforms, shared by the instances' points_at
 
     def instance_world(i: int, time: float) -> np.ndarray:
@@ -1368,32 +1390,61 @@ def _read_instancer(prim, source: str, cache: UsdSkel.Cache, default_method, sce
             shared[time] = _world(prim, t)[None] @ _instance_xforms(pi, where, t, len(indices))
         return shared[time][i]
 
-    objects = []
+    def instance(i: int, obj: SceneObject, sub: str, proto_world: np.ndarray, bound: bool) -> SceneObject:
+        """Instance ``i`` of the prototype object ``obj`` (in the prototype's place)."""
+        move = world @ xforms[i] @ np.linalg.inv(proto_world)  # the prototype's place -> this instance's
+        path = f"{group}/instance_{ids[i]}/{sub}".replace("instance_-", "instance_m")
+        faces = obj.mesh.faces if np.linalg.det(move[:3, :3]) >= 0 else obj.mesh.faces[:, [0, 2, 1]]
+        try:
+            tri = TriMesh(_apply(move, obj.mesh.points.astype(np.float64)), faces, name=f"{source}:{path}")
+        except MeshError as exc:
+            raise SceneError(f"{where}: instance {ids[i]}: {exc}") from None
+        params = {k: v for k, v in obj.params.items() if k not in _PROTO_SHAPES}
+        material = obj.material
+        if colours is not None and not bound:
+            material = Material(albedo=colours[i].copy(), roughness=obj.material.roughness)
+        kind = obj.kind
+        if moves:
+            kind = "animated"
+            params["points_at"] = _instance_points(instance_world, i, np.linalg.inv(proto_world),
+                                                   obj.mesh.points.astype(np.float64))
+        return SceneObject(name=path, mesh=tri, kind=kind, material=material, method=obj.method,
+                           knobs=dict(obj.knobs), casts_shadows=obj.casts_shadows, shaded=obj.shaded,
+                           two_sided=obj.two_sided, params=params, prim_path=path, prim_xforms=tuple(hierarchy))
+
+    def later(i: int, g: _Gprim, sub: str, proto_world: np.ndarray, bound: bool):
+        def make() -> SceneObject:
+            return instance(i, _still_prototype(g.target[g.index], prim), sub, proto_world, bound)
+        return make
+
+    objects, deferred = [], []
     for i in np.flatnonzero(keep):
-        name = f"instance_{ids[i]}".replace("-", "m")
-        to_world = world @ xforms[i]
-        for obj, sub, proto_world in protos[indices[i]]:
-            move = to_world @ np.linalg.inv(proto_world)  # the prototype's place -> this instance's
-            path = f"{group}/{name}/{sub}"
-            faces = obj.mesh.faces if np.linalg.det(move[:3, :3]) >= 0 else obj.mesh.faces[:, [0, 2, 1]]
-            try:
-                tri = TriMesh(_apply(move, obj.mesh.points.astype(np.float64)), faces, name=f"{source}:{path}")
-            except MeshError as exc:
-                raise SceneError(f"{where}: instance {ids[i]}: {exc}") from None
-            params = {k: v for k, v in obj.params.items() if k not in _PROTO_SHAPES and k != "bound_material"}
-            material = obj.material
-            if colours is not None and not obj.params["bound_material"]:
-                material = Material(albedo=colours[i].copy(), roughness=obj.material.roughness)
-            kind = obj.kind
-            if moves:
-                kind = "animated"
-                params["points_at"] = _instance_points(instance_world, int(i), np.linalg.inv(proto_world),
-                                                       obj.mesh.points.astype(np.float64))
-            objects.append(SceneObject(name=path, mesh=tri, kind=kind, material=material, method=obj.method,
-                                       knobs=dict(obj.knobs), casts_shadows=obj.casts_shadows, shaded=obj.shaded,
-                                       two_sided=obj.two_sided, params=params, prim_path=path,
-                                       prim_xforms=tuple(hierarchy)))
-    return objects
+        for obj, sub, proto_world, bound in protos[indices[i]]:
+            if isinstance(obj, _Gprim):  # its object is made when the scene's gprims are read
+                obj.copies += 1
+                obj.placed.append(_apply(world @ xforms[i] @ np.linalg.inv(proto_world), obj.corners()))
+                deferred.append((len(objects), later(int(i), obj, sub, proto_world, bound)))
+                objects.append(None)
+            else:
+                objects.append(instance(int(i), obj, sub, proto_world, bound))
+    for g in {id(e[0]): e[0] for entries in protos for e in entries if isinstance(e[0], _Gprim)}.values():
+        g.placed = np.stack(g.placed) if g.placed else None
+    return objects, deferred
+
+
+def _still_prototype(obj: SceneObject, instancer) -> SceneObject:
+    """A prototype's object as its instances take it: static (its own animation is not instanced: its first
+    pose, with a SceneWarning); a cloth or skinned prototype is a SceneError."""
+    if obj.kind not in ("static", "animated"):
+        raise SceneError(f"{obj.name}: a {obj.kind} mesh in the prototype of the PointInstancer "
+                         f"{instancer.GetPath()}: instances are static or move with the instancer")
+    if obj.kind == "animated":
+        warnings.warn(f"{obj.name}: its own animation is not instanced: the instances of {instancer.GetPath()} take "
+                      "its first pose", SceneWarning, stacklevel=4)
+        obj.kind = "static"
+        for key in ("points_at", "sphere_at"):
+            obj.params.pop(key, None)
+    return obj
 
 
 def _instance_points(instance_world, i: int, from_proto: np.ndarray, points: np.ndarray):
@@ -1426,11 +1477,13 @@ def _instance_colours(pi, where: str, t: Usd.TimeCode, n: int) -> np.ndarray | N
     return values
 
 
-def _prototype_objects(instancer, root, source: str, cache, default_method, outer: dict, outer_collider: bool) -> list:
-    """The visible Meshes of a PointInstancer's prototype ``root`` as objects in the prototype's own place,
-    each as ``(object, its path below the instance, world transform of root)``; ``outer``: the instancer's
-    ``warpshade:`` marks (its and those above it), the mesh's own winning; ``outer_collider``: the instancer
-    has PhysicsCollisionAPI."""
+def _prototype_objects(instancer, root, source: str, cache, default_method, outer: dict, outer_collider: bool,
+                       gprims: list) -> list:
+    """The visible Meshes and gprims of a PointInstancer's prototype ``root`` in the prototype's own place,
+    each as ``(object, its path below the instance, world transform of root, binds a material)``, for a gprim
+    its :class:`_Gprim` (joining ``gprims``, its object made when they are read) instead of the object;
+    ``outer``: the instancer's ``warpshade:`` marks (its and those above it), the prim's own winning;
+    ``outer_collider``: the instancer has PhysicsCollisionAPI."""
     where = f"{source}:{instancer.GetPath()}"
     out = []
     it = iter(Usd.PrimRange(root, _PROTOTYPE_PRIMS))
@@ -1442,39 +1495,39 @@ def _prototype_objects(instancer, root, source: str, cache, default_method, oute
         if sub.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(sub).ComputePurpose() in _UNRENDERED_PURPOSES:
             it.PruneChildren()
             continue
-        if sub.IsA(UsdGeom.PointInstancer) or (sub.IsA(UsdGeom.Gprim) and not sub.IsA(UsdGeom.Mesh)):
+        gprim = sub.IsA(UsdGeom.Sphere) or sub.GetTypeName() in _GPRIMS
+        if sub.IsA(UsdGeom.PointInstancer) or (sub.IsA(UsdGeom.Gprim) and not sub.IsA(UsdGeom.Mesh) and not gprim):
             warnings.warn(f"{where}: prototype {root.GetPath()}: skipping {sub.GetPath()} ({sub.GetTypeName()}): "
-                          "warpshade instances a prototype's Mesh prims only", SceneWarning, stacklevel=4)
+                          "warpshade instances a prototype's Mesh and gprim (Sphere, Cube, ...) prims only",
+                          SceneWarning, stacklevel=4)
             it.PruneChildren()
             continue
-        if not sub.IsA(UsdGeom.Mesh):
+        if not sub.IsA(UsdGeom.Mesh) and not gprim:
             continue
-        marks = dict(outer)
-        marks.update(_object_namespace(sub, source))
         chain = []
         p = sub
         while p and p != root.GetParent():
             chain.append(p)
             p = p.GetParent()
+        marks = dict(outer)
+        marks.update(_object_namespace(sub, source))
         if "collider" not in marks and not _physics_collider(sub) and (
                 outer_collider or any(_physics_collider(p) for p in chain[1:])):
             marks["collider"] = "mesh"
-        obj = _read_mesh(sub, source, cache, default_method, marks)
-        if obj.kind not in ("static", "animated"):
-            raise SceneError(f"{source}:{sub.GetPath()}: a {obj.kind} mesh in the prototype of the PointInstancer "
-                             f"{instancer.GetPath()}: instances are static or move with the instancer")
-        if obj.kind == "animated":
-            warnings.warn(f"{source}:{sub.GetPath()}: its own animation is not instanced: the instances of "
-                          f"{instancer.GetPath()} take its points at the first time sample", SceneWarning,
-                          stacklevel=4)
-            obj.kind = "static"
-            obj.params.pop("points_at", None)
         sub_path = "/".join(q.GetName() for q in reversed(chain))
-        # a material bound to the mesh decides its albedo; else the instancer's per-instance colour does
-        obj.params["bound_material"] = bool(UsdShade.MaterialBindingAPI(sub).ComputeBoundMaterial()[0])
-        out.append((obj, sub_path, _world(root, Usd.TimeCode.EarliestTime())))
+        # a material bound to the prim decides its albedo; else the instancer's per-instance colour does
+        bound = bool(UsdShade.MaterialBindingAPI(sub).ComputeBoundMaterial()[0])
+        if gprim:
+            g = _Gprim(sub, source, default_method, [None], 0)
+            g.marks, g.graded = marks, False  # a prototype has no place of its own to be graded near
+            g.copies, g.placed = 0, []  # counted by _read_instancer
+            gprims.append(g)
+            out.append((g, sub_path, _world(root, Usd.TimeCode.EarliestTime()), bound))
+            continue
+        obj = _still_prototype(_read_mesh(sub, source, cache, default_method, marks), instancer)
+        out.append((obj, sub_path, _world(root, Usd.TimeCode.EarliestTime()), bound))
     if not out:
-        warnings.warn(f"{where}: prototype {root.GetPath()} holds no Mesh: its instances are not shaded",
+        warnings.warn(f"{where}: prototype {root.GetPath()} holds no Mesh or gprim: its instances are not shaded",
                       SceneWarning, stacklevel=4)
     return out
 
