@@ -130,7 +130,8 @@ class ClothSimulation:
                     self.moving_colliders.append((o.name, mc))
             else:
                 raise SceneError(f"{o.name}: warpshade:collider '{kind}' is not one of ground, sphere, box, capsule, cylinder, cone, mesh")
-        gravity = tuple(-9.81 * up)  # [m/s²]: the solver works in metres
+        # [m/s²]: the solver works in metres; a PhysicsScene's gravity, else Earth's down the up axis
+        gravity = tuple(-9.81 * up if scene.gravity is None else np.asarray(scene.gravity, dtype=np.float64))
         knobs = {}
         for k, (kw, typ) in CLOTH_SOLVER.items():
             if k in first:

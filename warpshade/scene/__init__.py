@@ -165,7 +165,9 @@ class SceneObject:
             ``(path, type name, local, resets, instance)`` (``local``: local-to-parent matrix acting on
             column vectors, shape (4, 4), float64, or None for a prim without a transform such as a Scope;
             ``resets``: the prim resets the transform stack; ``instance``: the prim is an instance, the
-            object a mesh inside it). The output rebuilds this hierarchy.
+            object a mesh inside it). The output rebuilds this hierarchy. An entry of type
+            ``PointInstancer`` that is not an ancestor names the instancer the object is an instance
+            of: the output deactivates it.
     """
 
     name: str
@@ -205,6 +207,8 @@ class Scene:
         default_prim: The input's default prim path (the output's default prim), or None (``/World``).
         collision_only: Static colliders that are neither shaded nor written (UsdPhysics colliders
             with ``purpose`` guide or proxy, such as a character's collision twins).
+        gravity: The cloth's gravity, a world vector [m/s²] (a UsdPhysics ``PhysicsScene``'s), or None
+            for 9.81 m/s² down the up axis.
     """
 
     objects: list[SceneObject] = field(default_factory=list)
@@ -218,6 +222,7 @@ class Scene:
     source: str = "<scene>"
     default_prim: str | None = None
     collision_only: list[SceneObject] = field(default_factory=list)
+    gravity: np.ndarray | None = None
 
     def object(self, name: str) -> SceneObject:
         for o in self.objects:

@@ -10,6 +10,8 @@ What is read (docs/guide/quickstart.md, "Your own scene", documents every attrib
   ``Cylinder``, ``Capsule``, ``Cone``, ``Plane`` tessellated for shading. Every gprim is
   tessellated for one target edge length (:func:`_gprim_edge`, the rule in
   :mod:`warpshade.geometry.shapes`), once the whole stage is read.
+* ``UsdGeom.PointInstancer`` prims: each instance of a prototype's Mesh or gprim becomes an object of its own
+  (:func:`_read_instancer`), at ``<instancer>_instances/instance_<id>/...``.
 * UsdLux ``DomeLight`` (``inputs:texture:file`` -> environment map), ``DistantLight``,
   ``SphereLight``, ``RectLight`` -> :class:`warpshade.scene.LightSpec`.
 * ``UsdPreviewSurface`` ``diffuseColor`` / ``roughness`` of the bound material -> ``Material``
@@ -43,7 +45,9 @@ _UNRENDERED_PURPOSES = (UsdGeom.Tokens.guide, UsdGeom.Tokens.proxy)
 """Purposes whose prims are not shaded (a renderer shows only default and render purpose)."""
 
 _CONTAINERS = {"", "Xform", "Scope", "SkelRoot", "Skeleton", "SkelAnimation", "Material", "Shader",
-               "NodeGraph", "GeomSubset", "BlendShape"}
+               "NodeGraph", "GeomSubset", "BlendShape", "Camera"}
+"""Prim types read through or skipped without a word (a Camera draws nothing: Blender, Maya and Omniverse
+write one into nearly every scene)."""
 _LIGHTS = {"DomeLight": "dome", "DistantLight": "distant", "SphereLight": "sphere", "RectLight": "rect"}
 #: Scene-wide ``warpshade:`` settings on the default prim and their Python types.
 SCENE_SETTINGS = {"frames": int, "fps": float, "order": int, "method": str, "writeTransfer": bool,
@@ -109,6 +113,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         scene.fps = scene.settings["fps"]
     if scene.frames < 1:
         raise SceneError(f"{source}:{root.GetPath()}: warpshade:frames must be >= 1, got {scene.frames}")
+    scene.gravity = physics_gravity(stage, source)
 
     cache = UsdSkel.Cache()
     for skel_root in Usd.PrimRange(stage.GetPseudoRoot(), _PRIMS):
@@ -121,6 +126,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         default_method = fastest()
     unmarked = []  # meshes whose kind was not authored
     gprims = []  # gprims in traversal order, read once the stage's size is known
+    deferred = []  # (index in scene.objects, make): instances of gprim prototypes, made once those are read
     it = iter(Usd.PrimRange(stage.GetPseudoRoot(), _PRIMS))
     for prim in it:
         if prim.IsPseudoRoot():
@@ -160,12 +166,19 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
             scene.objects.append(None)  # tessellated below, once the scene's size is known
         elif tname in _LIGHTS:
             scene.lights.append(_read_light(prim, _LIGHTS[tname], source, scene))
+        elif prim.IsA(UsdGeom.PointInstancer):
+            objects, later = _read_instancer(prim, source, cache, default_method, scene, gprims)
+            deferred += [(len(scene.objects) + k, make) for k, make in later]
+            scene.objects.extend(objects)  # None where an instance of a gprim prototype goes, made below
+            it.PruneChildren()  # its prototypes are drawn only as its instances
         elif tname not in _CONTAINERS and prim.IsA(UsdGeom.Imageable) and not prim.IsA(UsdPhysics.Joint):
             # non-imageable prims (UsdPhysics scene, collision groups...) and joints draw nothing: not worth a word
             warnings.warn(f"{source}: skipping {prim.GetPath()} ({tname}): warpshade reads Mesh, Sphere, Cube, Cylinder, Capsule, Cone, Plane, "
-                          "UsdLux Dome/Distant/Sphere/Rect lights and UsdSkel", SceneWarning, stacklevel=2)
+                          "PointInstancer, UsdLux Dome/Distant/Sphere/Rect lights and UsdSkel", SceneWarning, stacklevel=2)
             it.PruneChildren()
     _read_gprims(scene, gprims, root)
+    for index, make in deferred:
+        scene.objects[index] = make()
     if not scene.objects:
         raise SceneError(f"{source}: no Mesh or gprim (Sphere, Cube, Cylinder, Capsule, Cone, Plane) to shade")
     for obj in unmarked:
@@ -174,9 +187,124 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
                           'vertices, above the lowest object, not a collider) but has no warpshade:kind, so it stays '
                           'static: add custom token warpshade:kind = "cloth" to simulate it, or "static" to keep it '
                           "still", SceneWarning, stacklevel=2)
+    _warn_rigid_bodies(stage, scene)
+    _warn_subdivision(stage, scene)
     if not units_authored and any(o.kind == "cloth" for o in scene.objects):
         warnings.warn(_unauthored_units_message(scene), SceneWarning, stacklevel=2)
     return scene
+
+
+def _dynamic_body(prim):
+    """The prim at or above ``prim`` with an enabled, non-kinematic UsdPhysics ``RigidBodyAPI`` (a body a
+    physics engine drops and pushes), or None; None too under an ``ArticulationRootAPI`` (a robot's or
+    character's links, taken as posed by the stage)."""
+    body = None
+    while prim and not prim.IsPseudoRoot():
+        if prim.HasAPI(UsdPhysics.ArticulationRootAPI):
+            return None
+        if body is None and prim.HasAPI(UsdPhysics.RigidBodyAPI):
+            api = UsdPhysics.RigidBodyAPI(prim)
+            if api.GetRigidBodyEnabledAttr().Get() is False or api.GetKinematicEnabledAttr().Get():
+                return None
+            body = prim
+        prim = prim.GetParent()
+    return body
+
+
+def _warn_rigid_bodies(stage: Usd.Stage, scene: Scene) -> None:
+    """One SceneWarning naming the still objects that are free UsdPhysics dynamic rigid bodies
+    (:func:`_dynamic_body`, linked by no joint; Omniverse and Isaac Sim mark the crates PhysX drops and pushes
+    so): warpshade does not simulate them."""
+    jointed = set()  # bodies a joint links (an articulation's links): posed by the stage, not free
+    for prim in stage.Traverse():
+        if prim.IsA(UsdPhysics.Joint):
+            joint = UsdPhysics.Joint(prim)
+            jointed.update(str(t) for rel in (joint.GetBody0Rel(), joint.GetBody1Rel()) for t in rel.GetTargets())
+    bodies = []
+    for obj in list(scene.objects) + list(scene.collision_only):
+        if obj.kind != "static" or obj.prim_path is None:
+            continue
+        body = _dynamic_body(stage.GetPrimAtPath(obj.prim_path))
+        if body is not None and str(body.GetPath()) not in bodies and str(body.GetPath()) not in jointed:
+            bodies.append(str(body.GetPath()))
+    if bodies:
+        one = len(bodies) == 1
+        it = "it" if one else "them"
+        warnings.warn(f"{scene.source}: {', '.join(bodies[:3])}{', ...' if len(bodies) > 3 else ''}: "
+                      f"{'a dynamic rigid body' if one else f'{len(bodies)} dynamic rigid bodies'} (UsdPhysics "
+                      f"RigidBodyAPI), which warpshade does not simulate: {'it stays' if one else 'they stay'} where "
+                      f"the stage puts {it} for the whole run; bake the motion into time-sampled transforms to move "
+                      f"{it} (a moving collider follows its keys), or set physics:kinematicEnabled = true on {it} to "
+                      "say the stage's pose is meant", SceneWarning, stacklevel=3)
+
+
+def _warn_subdivision(stage: Usd.Stage, scene: Scene) -> None:
+    """One SceneWarning naming the meshes that author a ``subdivisionScheme`` other than ``none`` (mayaUSD
+    writes ``catmullClark`` by default): warpshade shades and writes their control mesh, which a renderer
+    would have smoothed. (The schema's fallback is ``catmullClark`` too, but a mesh that does not author it
+    was not asked to be smoothed by a DCC: it is not named.)"""
+    smoothed = {}
+    for obj in scene.objects:
+        prim = stage.GetPrimAtPath(obj.prim_path) if obj.prim_path else None
+        if not prim or not prim.IsA(UsdGeom.Mesh):  # (an instance of a PointInstancer has no prim)
+            continue
+        attr = UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr()
+        scheme = attr.Get() if attr.HasAuthoredValue() else UsdGeom.Tokens.none
+        if scheme != UsdGeom.Tokens.none:
+            smoothed.setdefault(str(scheme), []).append(obj.prim_path)
+    for scheme, paths in smoothed.items():
+        warnings.warn(f"{scene.source}: {', '.join(paths[:3])}{', ...' if len(paths) > 3 else ''}"
+                      f"{f' ({len(paths)} meshes)' if len(paths) > 1 else ''}: subdivisionScheme {scheme}, but "
+                      "warpshade shades and writes the control mesh (subdivisionScheme none), so the output shows "
+                      "the cage a renderer would have smoothed: subdivide before exporting (mayaUSD: Subdivision "
+                      "Method None after Smooth Mesh), or author subdivisionScheme = none to keep the cage",
+                      SceneWarning, stacklevel=3)
+
+
+EARTH_GRAVITY = 9.81
+"""[m/s²]: the cloth's gravity without a ``PhysicsScene``, and a ``PhysicsScene``'s whose
+``physics:gravityMagnitude`` is unauthored or negative (UsdPhysics: Earth gravity in the stage's units)."""
+
+
+def physics_gravity(stage: Usd.Stage, source: str = "<stage>") -> np.ndarray | None:
+    """The gravity of the stage's UsdPhysics ``PhysicsScene`` as a world vector [m/s²], or None when it
+    has none (the cloth then falls at :data:`EARTH_GRAVITY` down the up axis).
+
+    As the UsdPhysics schema reads it: ``physics:gravityDirection`` normalized, a zero vector (its
+    fallback) meaning down the stage's up axis; ``physics:gravityMagnitude`` in stage units per s²
+    (converted with ``metersPerUnit``), a negative value (its fallback, -inf) meaning Earth gravity
+    whatever the units. Several active PhysicsScenes must agree (UsdPhysics lets each body choose its
+    scene, cloth has none to choose): different gravities are a SceneError naming them."""
+    found = []
+    for prim in stage.Traverse():
+        if not prim.IsA(UsdPhysics.Scene):
+            continue
+        where = f"{source}:{prim.GetPath()}"
+        physics = UsdPhysics.Scene(prim)
+        direction = physics.GetGravityDirectionAttr().Get()
+        direction = np.zeros(3) if direction is None else np.asarray(direction, dtype=np.float64)
+        magnitude = physics.GetGravityMagnitudeAttr().Get()
+        magnitude = -np.inf if magnitude is None else float(magnitude)
+        if not np.isfinite(direction).all():
+            raise SceneError(f"{where}: physics:gravityDirection {direction.tolist()} is not finite")
+        if np.isnan(magnitude) or magnitude == np.inf:
+            raise SceneError(f"{where}: physics:gravityMagnitude {magnitude} is not a number >= 0 "
+                             "(or negative for Earth gravity)")
+        norm = float(np.linalg.norm(direction))
+        if norm == 0.0:
+            up = str(UsdGeom.GetStageUpAxis(stage))
+            direction, norm = -np.eye(3)[_AXES.get(up, 1)], 1.0
+        si = EARTH_GRAVITY if magnitude < 0 else magnitude * float(UsdGeom.GetStageMetersPerUnit(stage))
+        found.append((str(prim.GetPath()), direction / norm * si))
+    if not found:
+        return None
+    first = found[0][1]
+    for path, g in found[1:]:
+        if not np.allclose(g, first, rtol=1e-6, atol=1e-9):
+            raise SceneError(f"{source}: PhysicsScenes {found[0][0]} and {path} give different gravities "
+                             f"({np.round(first, 4).tolist()} and {np.round(g, 4).tolist()} m/s²); the cloth "
+                             "has one: deactivate or delete all but one")
+    return first
 
 
 def _unauthored_units_message(scene: Scene) -> str:
@@ -433,7 +561,8 @@ class _Gprim:
     """A gprim met in the traversal, read once the stage's size is known: where its object goes
     (``target[index]``), its shape for the tessellation rule (``kind``, ``dims``, ``scale``: world length
     of a unit along each local axis of the shape built along +Z), its own ``warpshade:edgeLength`` and its
-    ``warpshade:`` marks (``marks``, :func:`_object_namespace`)."""
+    ``warpshade:`` marks (``marks``, :func:`_object_namespace`); for the gprim of a PointInstancer's prototype,
+    how many instances are made of it (``copies``) and their bounds' corners (``placed``)."""
 
     def __init__(self, prim, source: str, default_method, target: list, index: int):
         self.prim, self.source, self.default_method, self.target, self.index = prim, source, default_method, target, index
@@ -455,6 +584,8 @@ class _Gprim:
         self.own = self.edge is not None or "subdivisions" in marks  # not the scene's edge
         self.graded = _graded_flag(marks["graded"], where) if "graded" in marks else None
         self.grading = None  # set by _read_gprims when graded
+        self.copies = 1  # objects made of it: a PointInstancer prototype's, its instances
+        self.placed = None  # a prototype's: the world corners of its instances' bounds, (copies, 8, 3)
 
     def to_world(self, t=Usd.TimeCode.EarliestTime()) -> np.ndarray:
         """The world transform of its shape as built (along +Z) at time code ``t``."""
@@ -524,17 +655,19 @@ def _regions(scene: Scene, gprims: list, lowest: float) -> list:
     return out
 
 
-def _gradings(scene: Scene, shaded: list, points: np.ndarray) -> None:
+def _gradings(scene: Scene, shaded: list, points: np.ndarray, instanced: list = ()) -> None:
     """Give each shaded Cube and Plane gprim to be graded (``warpshade:graded``, its own else the
     default prim's, true unless authored false) its :class:`~warpshade.geometry.shapes.Grading`: the
     regions of the scene's other shaded objects (:func:`_regions`) in its frame. ``shaded``: the shaded
-    gprims, ``points``: :func:`_shaded_points`. Collision-only gprims stay uniform."""
+    gprims, ``points``: :func:`_shaded_points`, ``instanced``: PointInstancer prototypes' gprims, whose
+    instances' bounds are regions too. Collision-only gprims stay uniform."""
     default = scene.settings.get("graded", True)
     graded = [g for g in shaded if g.kind in GRADED_KINDS and (default if g.graded is None else g.graded)]
     if not graded:
         return
     diag = float(np.linalg.norm(np.ptp(points, axis=0)))
     regions = _regions(scene, shaded, float(points[:, _AXES.get(scene.up_axis, 1)].min()))
+    regions += [(g, np.stack([c.min(axis=0), c.max(axis=0)])) for g in instanced for c in g.placed]
     for g in graded:
         boxes = [box for owner, box in regions if owner is not g]
         to_world = g.to_world()
@@ -566,7 +699,8 @@ def _gprim_edge(scene: Scene, shaded: list, points: np.ndarray | None, root) -> 
     if authored, else :func:`~warpshade.geometry.shapes.scene_edge` of the bounding box of the shaded
     objects and gprims and of the cloths' median edges; coarsened, with a :class:`SceneWarning`, until
     the gprims without an edge of their own fit :data:`~warpshade.geometry.shapes.VERTEX_BUDGET`.
-    ``shaded``: the shaded gprims, ``points``: :func:`_shaded_points`."""
+    ``shaded``: the shaded gprims (a PointInstancer prototype's counted once an instance), ``points``:
+    :func:`_shaded_points`."""
     chosen = scene.settings.get("edgeLength")
     if chosen is not None:
         return _edge_length(chosen, f"{scene.source}:{root.GetPath()}")
@@ -580,7 +714,8 @@ def _gprim_edge(scene: Scene, shaded: list, points: np.ndarray | None, root) -> 
             cloth.append(float(np.median(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2))))
     edge = scene_edge(diag, cloth)
     auto = [g for g in shaded if not g.own]
-    fitted = fit_budget([(g.kind, g.dims, g.scale, g.grading) for g in auto], edge) if edge else edge
+    fitted = fit_budget([(g.kind, g.dims, g.scale, g.grading) for g in auto for _ in range(g.copies)],
+                        edge) if edge else edge
     if fitted != edge:
         from ..geometry.shapes import VERTEX_BUDGET
 
@@ -596,10 +731,14 @@ def _read_gprims(scene: Scene, gprims: list, root) -> None:
     if not gprims:
         return
     shaded = [g for g in gprims if g.target is scene.objects]
+    instanced = [g for g in gprims if g.placed is not None and g.copies]  # PointInstancer prototypes' gprims
     points = _shaded_points(scene, shaded)  # the shaded objects and gprims: the scene's size, the grading's floor
+    if instanced:
+        placed = np.concatenate([g.placed.reshape(-1, 3) for g in instanced])
+        points = placed if points is None else np.concatenate([points, placed])
     if points is not None:
-        _gradings(scene, shaded, points)
-    edge = _gprim_edge(scene, shaded, points, root)
+        _gradings(scene, shaded, points, instanced)
+    edge = _gprim_edge(scene, shaded + instanced, points, root)
     for g in gprims:
         g.read(edge)
     scene.collision_only[:] = [o for o in scene.collision_only
@@ -1021,6 +1160,9 @@ def _material(prim, where) -> Material:
             _check_material(out, where, shader.GetPath())
             return out
         if out is None:
+            omni = _omnipbr(mat, where)
+            if omni is not None:
+                return omni
             warnings.warn(f"{where}: bound material {mat.GetPath()} has no UsdPreviewSurface; default material used",
                           SceneWarning, stacklevel=4)
             return Material()
@@ -1046,6 +1188,46 @@ def _material(prim, where) -> Material:
                           "or bind a material to set it", SceneWarning, stacklevel=4)
             return out
     return Material()
+
+
+OMNIPBR_ALBEDO = (0.2, 0.2, 0.2)
+"""OmniPBR's ``diffuse_color_constant`` when it is not authored (its MDL default, as Omniverse's OmniPBR
+page lists it)."""
+
+
+def _omnipbr(mat, where) -> Material | None:
+    """The material of an Omniverse ``OmniPBR`` MDL shader (``outputs:mdl:surface``, no UsdPreviewSurface, as
+    Omniverse and Isaac Sim write every material they make): albedo ``diffuse_color_constant`` (else
+    :data:`OMNIPBR_ALBEDO`) times ``diffuse_tint`` if authored; roughness ``reflection_roughness_constant``
+    if authored. A ``diffuse_texture`` is not read (a SceneWarning says so). None for another MDL."""
+    shader = mat.ComputeSurfaceSource("mdl")[0]
+    if not shader:
+        return None
+    asset = shader.GetSourceAsset("mdl")
+    sub = shader.GetSourceAssetSubIdentifier("mdl")
+    name = sub or (os.path.splitext(os.path.basename(asset.path))[0] if asset else "")
+    if name != "OmniPBR":
+        return None
+
+    def value(input_name):
+        inp = shader.GetInput(input_name)
+        return inp.Get() if inp and inp.GetAttr().HasAuthoredValue() else None
+
+    colour = value("diffuse_color_constant")
+    albedo = np.asarray(OMNIPBR_ALBEDO if colour is None else colour, dtype=np.float64)
+    tint = value("diffuse_tint")
+    if tint is not None:
+        albedo = albedo * np.asarray(tint, dtype=np.float64)
+    texture = value("diffuse_texture")
+    if texture is not None and getattr(texture, "path", ""):
+        warnings.warn(f"{where}: {shader.GetPath()} (OmniPBR) has a diffuse_texture, which warpshade does not read; "
+                      f"using its diffuse_color_constant {np.round(albedo, 3).tolist()}", SceneWarning, stacklevel=5)
+    out = Material(albedo=albedo)
+    roughness = value("reflection_roughness_constant")
+    if roughness is not None:
+        out.roughness = float(roughness)
+    _check_material(out, where, shader.GetPath())
+    return out
 
 
 def _subset_albedo(prim, where) -> Material | None:
@@ -1081,6 +1263,273 @@ def _check_material(m: Material, where, shader_path) -> None:
         raise SceneError(f"{where}: {shader_path}: diffuseColor {m.albedo.tolist()} must be RGB in [0, 1]")
     if not 0 <= m.roughness <= 1:
         raise SceneError(f"{where}: {shader_path}: roughness {m.roughness} must be in [0, 1]")
+
+
+# -- point instancers -------------------------------------------------------------------------
+INSTANCES_SUFFIX = "_instances"
+"""The output holds the instances of the PointInstancer at ``/P/Rocks`` at ``/P/Rocks_instances``, one
+``instance_<id>`` Xform each (``<id>`` its ``ids`` entry, else its index), the prototype's meshes under it."""
+
+_INSTANCE_ARRAYS = ("positions", "orientations", "orientationsf", "scales", "velocities", "accelerations",
+                    "angularVelocities", "ids")
+"""PointInstancer arrays that, when authored (not empty), hold one value per ``protoIndices`` entry."""
+
+_PROTO_SHAPES = ("box", "sphere", "sphere_at", "capsule", "cylinder", "cone")
+"""Exact collider shapes of a prototype's object, in the prototype's place: an instance collides as its mesh."""
+
+
+def _instancer_arrays(pi, where: str, t: Usd.TimeCode, protos: int):
+    """``protoIndices`` and ``ids`` (or the indices) of a PointInstancer at time code ``t``, after checking
+    every per-instance array's length and every prototype index (a SceneError naming the prim, the
+    attribute and the index)."""
+    at = "" if t.IsDefault() else f" at time code {t.GetValue():g}"
+    indices = pi.GetProtoIndicesAttr().Get(t)
+    indices = np.zeros(0, dtype=np.int64) if indices is None else np.asarray(indices, dtype=np.int64)
+    n = len(indices)
+    for name in _INSTANCE_ARRAYS:
+        attr = pi.GetPrim().GetAttribute(name)
+        value = attr.Get(t) if attr and attr.HasAuthoredValue() else None
+        if value is not None and len(value) and len(value) != n:
+            raise SceneError(f"{where}: {name} has {len(value)} values{at} for the {n} instances of protoIndices")
+    positions = pi.GetPositionsAttr().Get(t)
+    if n and (positions is None or len(positions) != n):
+        raise SceneError(f"{where}: positions{at} must hold one point per protoIndices entry ({n}), has "
+                         f"{0 if positions is None else len(positions)}")
+    bad = np.flatnonzero((indices < 0) | (indices >= protos))
+    if len(bad):
+        raise SceneError(f"{where}: protoIndices[{int(bad[0])}] = {int(indices[bad[0]])}{at} is out of range: "
+                         f"prototypes has {protos} target{'s' if protos != 1 else ''}")
+    ids = pi.GetIdsAttr().Get(t)
+    ids = np.arange(n, dtype=np.int64) if ids is None or not len(ids) else np.asarray(ids, dtype=np.int64)
+    if len(np.unique(ids)) != n:
+        raise SceneError(f"{where}: ids{at} holds the same id twice")
+    return indices, ids
+
+
+def _instance_xforms(pi, where: str, t: Usd.TimeCode, n: int) -> np.ndarray:
+    """The instances' transforms in the instancer's space at time code ``t`` (UsdGeom's
+    ``ComputeInstanceTransformsAtTime``, each prototype root's own transform included, the mask
+    ignored), acting on column vectors, shape (n, 4, 4), float64."""
+    xforms = pi.ComputeInstanceTransformsAtTime(t, t, UsdGeom.PointInstancer.IncludeProtoXform,
+                                                UsdGeom.PointInstancer.IgnoreMask)
+    out = np.asarray(xforms, dtype=np.float64).reshape(-1, 4, 4).transpose(0, 2, 1)
+    if len(out) != n:
+        raise SceneError(f"{where}: UsdGeom computes {len(out)} instance transforms at time code "
+                         f"{'default' if t.IsDefault() else f'{t.GetValue():g}'} for {n} protoIndices (are its "
+                         "per-instance arrays time-sampled at different times?)")
+    if not np.isfinite(out).all():
+        raise SceneError(f"{where}: the transform of instance {int(np.flatnonzero(~np.isfinite(out).all(axis=(1, 2)))[0])} "
+                         "is not finite (positions, orientations or scales hold NaN or inf)")
+    return out
+
+
+def _instancer_varies(pi) -> bool:
+    """Whether a PointInstancer's instances move: a per-instance array or its transform time-sampled."""
+    prim = pi.GetPrim()
+    attrs = [prim.GetAttribute(name) for name in _INSTANCE_ARRAYS + ("protoIndices",)]
+    return any(a and a.GetNumTimeSamples() > 1 for a in attrs) or _xform_varies(prim)
+
+
+def _read_instancer(prim, source: str, cache: UsdSkel.Cache, default_method, scene: Scene,
+                    gprims: list) -> tuple[list, list]:
+    """The objects of a PointInstancer: for every instance its mask keeps (``invisibleIds``,
+    ``inactiveIds``), every visible Mesh of its prototype, in world space under the instance's
+    transform (UsdGeom's ``ComputeInstanceTransformsAtTime``), at the output path of
+    :data:`INSTANCES_SUFFIX`; ``animated`` when the instances move (time-sampled positions...), else
+    ``static``. An instance keeps its prototype mesh's material (its albedo the instancer's per-instance
+    ``primvars:displayColor`` when the mesh binds no material) and ``warpshade:`` marks, and those
+    of the instancer; it is a collider (as its triangle mesh) when marked ``warpshade:collider`` or
+    when its mesh, a prim above it in the prototype or the instancer has PhysicsCollisionAPI. The
+    output deactivates the instancer (``over`` with ``active = false``, for when it is layered over the
+    input). A gprim of a prototype (``Cube``, ``Sphere``...) joins ``gprims``, to be tessellated with the
+    scene's gprims (uniformly, not graded); nested instancers are skipped with a SceneWarning.
+
+    Returns:
+        The objects, None where an instance of a gprim goes, and ``[(index in the objects, make)]``:
+        ``make()`` returns that instance once the gprims are read."""
+    where = f"{source}:{prim.GetPath()}"
+    pi = UsdGeom.PointInstancer(prim)
+    stage = prim.GetStage()
+    targets = pi.GetPrototypesRel().GetTargets()
+    t0 = Usd.TimeCode(scene.start_time)  # a DCC's time samples hold from the first on
+    indices, ids = _instancer_arrays(pi, where, t0, len(targets))
+    if not len(indices):
+        warnings.warn(f"{where}: PointInstancer without instances (protoIndices is empty)", SceneWarning, stacklevel=3)
+        return [], []
+    mask = pi.ComputeMaskAtTime(t0)
+    keep = np.ones(len(indices), dtype=bool) if not len(mask) else np.asarray(mask, dtype=bool)
+    xforms = _instance_xforms(pi, where, t0, len(indices))
+    colours = _instance_colours(pi, where, t0, len(indices))
+    world = _world(prim, t0)
+    group = f"{prim.GetPath()}{INSTANCES_SUFFIX}"
+    hierarchy = list(_hierarchy(prim))
+    own = hierarchy.pop()
+    hierarchy += [(group, "Xform", own[2], own[3], False), (str(prim.GetPath()), "PointInstancer", None, False, False)]
+    outer = _object_namespace(prim, source)
+    outer.update(_namespace(prim, source))
+    outer_collider = _physics_collider(prim)
+    moves = _instancer_varies(pi)
+    protos = []  # per prototype: [(object in the prototype's place, path under the instance, world of its root)]
+    for k, target in enumerate(targets):
+        root = stage.GetPrimAtPath(target)
+        if not root or not root.IsActive():
+            raise SceneError(f"{where}: prototypes[{k}] targets {target}, which is not an active prim of the stage")
+        protos.append(_prototype_objects(prim, root, source, cache, default_method, outer, outer_collider, gprims))
+    shared = {}  # time code -> that time's instance transforms, shared by the instances' points_at
+
+    def instance_world(i: int, time: float) -> np.ndarray:
+        """Instance ``i``'s world transform at time code ``time``."""
+        assert stage  # the closure keeps the stage alive
+        if time not in shared:
+            shared.clear()
+            t = Usd.TimeCode(time)
+            indices_t, _ = _instancer_arrays(pi, where, t, len(targets))
+            if not np.array_equal(indices_t, indices):
+                raise SceneError(f"{where}: protoIndices at time code {time:g} differ from those at "
+                                 f"{t0.GetValue():g}: warpshade shades a fixed set of instances")
+            shared[time] = _world(prim, t)[None] @ _instance_xforms(pi, where, t, len(indices))
+        return shared[time][i]
+
+    def instance(i: int, obj: SceneObject, sub: str, proto_world: np.ndarray, bound: bool) -> SceneObject:
+        """Instance ``i`` of the prototype object ``obj`` (in the prototype's place)."""
+        move = world @ xforms[i] @ np.linalg.inv(proto_world)  # the prototype's place -> this instance's
+        path = f"{group}/instance_{ids[i]}/{sub}".replace("instance_-", "instance_m")
+        faces = obj.mesh.faces if np.linalg.det(move[:3, :3]) >= 0 else obj.mesh.faces[:, [0, 2, 1]]
+        try:
+            tri = TriMesh(_apply(move, obj.mesh.points.astype(np.float64)), faces, name=f"{source}:{path}")
+        except MeshError as exc:
+            raise SceneError(f"{where}: instance {ids[i]}: {exc}") from None
+        params = {k: v for k, v in obj.params.items() if k not in _PROTO_SHAPES}
+        material = obj.material
+        if colours is not None and not bound:
+            material = Material(albedo=colours[i].copy(), roughness=obj.material.roughness)
+        kind = obj.kind
+        if moves:
+            kind = "animated"
+            params["points_at"] = _instance_points(instance_world, i, np.linalg.inv(proto_world),
+                                                   obj.mesh.points.astype(np.float64))
+        return SceneObject(name=path, mesh=tri, kind=kind, material=material, method=obj.method,
+                           knobs=dict(obj.knobs), casts_shadows=obj.casts_shadows, shaded=obj.shaded,
+                           two_sided=obj.two_sided, params=params, prim_path=path, prim_xforms=tuple(hierarchy))
+
+    def later(i: int, g: _Gprim, sub: str, proto_world: np.ndarray, bound: bool):
+        def make() -> SceneObject:
+            return instance(i, _still_prototype(g.target[g.index], prim), sub, proto_world, bound)
+        return make
+
+    objects, deferred = [], []
+    for i in np.flatnonzero(keep):
+        for obj, sub, proto_world, bound in protos[indices[i]]:
+            if isinstance(obj, _Gprim):  # its object is made when the scene's gprims are read
+                obj.copies += 1
+                obj.placed.append(_apply(world @ xforms[i] @ np.linalg.inv(proto_world), obj.corners()))
+                deferred.append((len(objects), later(int(i), obj, sub, proto_world, bound)))
+                objects.append(None)
+            else:
+                objects.append(instance(int(i), obj, sub, proto_world, bound))
+    for g in {id(e[0]): e[0] for entries in protos for e in entries if isinstance(e[0], _Gprim)}.values():
+        g.placed = np.stack(g.placed) if g.placed else None
+    return objects, deferred
+
+
+def _still_prototype(obj: SceneObject, instancer) -> SceneObject:
+    """A prototype's object as its instances take it: static (its own animation is not instanced: its first
+    pose, with a SceneWarning); a cloth or skinned prototype is a SceneError."""
+    if obj.kind not in ("static", "animated"):
+        raise SceneError(f"{obj.name}: a {obj.kind} mesh in the prototype of the PointInstancer "
+                         f"{instancer.GetPath()}: instances are static or move with the instancer")
+    if obj.kind == "animated":
+        warnings.warn(f"{obj.name}: its own animation is not instanced: the instances of {instancer.GetPath()} take "
+                      "its first pose", SceneWarning, stacklevel=4)
+        obj.kind = "static"
+        for key in ("points_at", "sphere_at"):
+            obj.params.pop(key, None)
+    return obj
+
+
+def _instance_points(instance_world, i: int, from_proto: np.ndarray, points: np.ndarray):
+    """``points_at(time)`` of a moving instance's mesh: ``points`` (in its prototype's place) under
+    ``instance_world(i, time) @ from_proto``."""
+    def points_at(time: float) -> np.ndarray:
+        return _apply(instance_world(i, float(time)) @ from_proto, points).astype(np.float32)
+
+    return points_at
+
+
+_PROTOTYPE_PRIMS = Usd.TraverseInstanceProxies(Usd.PrimIsActive & Usd.PrimIsLoaded)
+"""The prims a PointInstancer's prototype is read from: active ones, also under an ``over`` or a ``class``
+(the USD way to keep prototypes out of the stage's ordinary traversal, :data:`_PRIMS`)."""
+
+
+def _instance_colours(pi, where: str, t: Usd.TimeCode, n: int) -> np.ndarray | None:
+    """The per-instance ``primvars:displayColor`` of a PointInstancer (a Houdini scatter's ``Cd``), one RGB an
+    instance, shape (n, 3), or None when it has none (a constant one is not per instance)."""
+    pv = UsdGeom.PrimvarsAPI(pi.GetPrim()).GetPrimvar("displayColor")
+    if not pv or not pv.HasAuthoredValue() or pv.GetInterpolation() == UsdGeom.Tokens.constant:
+        return None
+    values = pv.ComputeFlattened(t)
+    values = None if values is None else np.asarray(values, dtype=np.float64).reshape(-1, 3)
+    if values is None or len(values) != n:
+        raise SceneError(f"{where}: primvars:displayColor has {0 if values is None else len(values)} values for the "
+                         f"{n} instances ({pv.GetInterpolation()} interpolation: one an instance)")
+    if not (np.isfinite(values).all() and (values >= 0).all() and (values <= 1).all()):
+        raise SceneError(f"{where}: primvars:displayColor must be RGB in [0, 1] for every instance")
+    return values
+
+
+def _prototype_objects(instancer, root, source: str, cache, default_method, outer: dict, outer_collider: bool,
+                       gprims: list) -> list:
+    """The visible Meshes and gprims of a PointInstancer's prototype ``root`` in the prototype's own place,
+    each as ``(object, its path below the instance, world transform of root, binds a material)``, for a gprim
+    its :class:`_Gprim` (joining ``gprims``, its object made when they are read) instead of the object;
+    ``outer``: the instancer's ``warpshade:`` marks (its and those above it), the prim's own winning;
+    ``outer_collider``: the instancer has PhysicsCollisionAPI."""
+    where = f"{source}:{instancer.GetPath()}"
+    out = []
+    it = iter(Usd.PrimRange(root, _PROTOTYPE_PRIMS))
+    for sub in it:
+        if not sub.IsActive() or (sub.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(sub).ComputeVisibility()
+                                  == UsdGeom.Tokens.invisible):
+            it.PruneChildren()
+            continue
+        if sub.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(sub).ComputePurpose() in _UNRENDERED_PURPOSES:
+            it.PruneChildren()
+            continue
+        gprim = sub.IsA(UsdGeom.Sphere) or sub.GetTypeName() in _GPRIMS
+        if sub.IsA(UsdGeom.PointInstancer) or (sub.IsA(UsdGeom.Gprim) and not sub.IsA(UsdGeom.Mesh) and not gprim):
+            warnings.warn(f"{where}: prototype {root.GetPath()}: skipping {sub.GetPath()} ({sub.GetTypeName()}): "
+                          "warpshade instances a prototype's Mesh and gprim (Sphere, Cube, ...) prims only",
+                          SceneWarning, stacklevel=4)
+            it.PruneChildren()
+            continue
+        if not sub.IsA(UsdGeom.Mesh) and not gprim:
+            continue
+        chain = []
+        p = sub
+        while p and p != root.GetParent():
+            chain.append(p)
+            p = p.GetParent()
+        marks = dict(outer)
+        marks.update(_object_namespace(sub, source))
+        if "collider" not in marks and not _physics_collider(sub) and (
+                outer_collider or any(_physics_collider(p) for p in chain[1:])):
+            marks["collider"] = "mesh"
+        sub_path = "/".join(q.GetName() for q in reversed(chain))
+        # a material bound to the prim decides its albedo; else the instancer's per-instance colour does
+        bound = bool(UsdShade.MaterialBindingAPI(sub).ComputeBoundMaterial()[0])
+        if gprim:
+            g = _Gprim(sub, source, default_method, [None], 0)
+            g.marks, g.graded = marks, False  # a prototype has no place of its own to be graded near
+            g.copies, g.placed = 0, []  # counted by _read_instancer
+            gprims.append(g)
+            out.append((g, sub_path, _world(root, Usd.TimeCode.EarliestTime()), bound))
+            continue
+        obj = _still_prototype(_read_mesh(sub, source, cache, default_method, marks), instancer)
+        out.append((obj, sub_path, _world(root, Usd.TimeCode.EarliestTime()), bound))
+    if not out:
+        warnings.warn(f"{where}: prototype {root.GetPath()} holds no Mesh or gprim: its instances are not shaded",
+                      SceneWarning, stacklevel=4)
+    return out
 
 
 # -- lights -------------------------------------------------------------------------------------

@@ -428,6 +428,12 @@ class AnimationWriter:
         :attr:`warpshade.scene.SceneObject.prim_xforms`; missing ones as plain Xforms) and return
         the parent's local-to-world matrix in the output (column vectors, shape (4, 4))."""
         world = np.eye(4)
+        for p, tname, *_ in prim_xforms:
+            if tname == "PointInstancer" and p not in self._parents:
+                # the instancer a mesh was expanded from: deactivated, so that the output layered over the
+                # input shows its shaded instances and not the instancer's own (scene_io.INSTANCES_SUFFIX)
+                self._parents.add(p)
+                self.stage.OverridePrim(p).SetActive(False)
         given = {p: (t, local, resets) for p, t, local, resets, *_ in prim_xforms}
         instances = {p for p, _t, _local, _resets, *instance in prim_xforms if instance and instance[0]}
         for prefix in Sdf.Path(path).GetPrefixes()[:-1]:
