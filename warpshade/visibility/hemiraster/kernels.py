@@ -1120,26 +1120,8 @@ DIRECT_CENTRES
     hits[t] = (unsigned short)(ok ? hb_ : 0u);
     bi[t] = i0;
     bj[t] = j0;
-    flags[t] |= (unsigned char)(ok ? 2 : 0);
-  }
-  uint64_t* __restrict__ pm = (uint64_t*)((char*)mask.data + v * mask.strides[0]);
-  for (int t = 0; t < nt; ++t) {
-    const int hb = hits[t];
-    if (hb == 0)
-      continue;
-    // (a blocker standing for the receiver's k-ring is refined: its fine triangles stand in for it)
-    if (use_ring && ((pring[t >> 6] >> (t & 63)) & 1))
-      continue;
-    for (int k = 0; k < DIRECT_SPAN * DIRECT_SPAN; ++k) {
-      if (hb & (1 << k)) {
-        // centre (i, j) -> bit: i in the even bits, j in the odd ones (.tables.morton2)
-        const int i = (int)bi[t] + k / DIRECT_SPAN, j = (int)bj[t] + k % DIRECT_SPAN;
-        int bit = 0;
-        for (int q = 0; q < 6; ++q)
-          bit |= (((i >> q) & 1) << (2 * q)) | (((j >> q) & 1) << (2 * q + 1));
-        pm[bit >> 6] |= (uint64_t)1 << (bit & 63);
-      }
-    }
+    // bit 1: not queued; bit 3: centres to set (only those blockers are visited below, through the bit rows)
+    flags[t] |= (unsigned char)((ok ? 2 : 0) | ((ok & (hb_ != 0u)) ? 8 : 0));
   }
 }
 #undef WS_MIN
@@ -1148,14 +1130,35 @@ const int words = (nt + 63) / 64;
 for (int t = nt; t < words * 64; ++t)
     flags[t] = 0;
 const uint64_t ones = 0x0101010101010101ull, magic = 0x0102040810204080ull;
+uint64_t* __restrict__ pm = (uint64_t*)((char*)mask.data + v * mask.strides[0]);
 for (int w = 0; w < words; ++w) {
-    uint64_t mc = 0, mt = 0, mr = 0;
+    uint64_t mc = 0, mt = 0, mr = 0, mh = 0;
     for (int b = 0; b < 8; ++b) {
         uint64_t x;
         memcpy(&x, flags + w * 64 + 8 * b, 8);
         mc |= (((x & ones) * magic) >> 56) << (8 * b);
         mt |= ((((x >> 1) & ones) * magic) >> 56) << (8 * b);
         mr |= ((((x >> 2) & ones) * magic) >> 56) << (8 * b);
+        mh |= ((((x >> 3) & ones) * magic) >> 56) << (8 * b);
+    }
+    // the direct path's centres (:func:`far_field_bits`' second pass), blocker by blocker of the set bits
+    // only; a blocker standing for the receiver's k-ring is refined: its fine triangles stand in for it
+    if (use_ring)
+        mh &= ~pring[w];
+    while (mh != 0) {
+        const int t = w * 64 + __builtin_ctzll(mh);
+        mh &= mh - 1;
+        const int hb = hits[t];
+        for (int k = 0; k < DIRECT_SPAN * DIRECT_SPAN; ++k) {
+            if (hb & (1 << k)) {
+                // centre (i, j) -> bit: i in the even bits, j in the odd ones (.tables.morton2)
+                const int i = (int)bi[t] + k / DIRECT_SPAN, j = (int)bj[t] + k % DIRECT_SPAN;
+                int bit = 0;
+                for (int q = 0; q < 6; ++q)
+                    bit |= (((i >> q) & 1) << (2 * q)) | (((j >> q) & 1) << (2 * q + 1));
+                pm[bit >> 6] |= (uint64_t)1 << (bit & 63);
+            }
+        }
     }
     pc[w] = mc;
     pt[w] = mt;
