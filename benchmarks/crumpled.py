@@ -84,6 +84,12 @@ CRUMPLED = {"defaults": {}, "redecimate": {"redecimate": 0.1},
                 {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1536, "lut": 96, "direct_far": True},
             "redecimate, min_image 0, border, coarse 1536, lut 128, direct_far":
                 {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1536, "lut": 128, "direct_far": True},
+            "redecimate, min_image 0, border, coarse 1536, refine 1.5, lut 128, direct_far":
+                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1536, "refine": 1.5, "lut": 128,
+                 "direct_far": True},
+            "redecimate, min_image 0, border, coarse 1280, refine 3, lut 128, direct_far":
+                {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1280, "refine": 3.0, "lut": 128,
+                 "direct_far": True},
             "redecimate, min_image 0, border, coarse 1280, refine 3, lut 128":
                 {"redecimate": 0.1, "min_image": 0.0, "border": True, "coarse": 1280, "refine": 3.0, "lut": 128},
             "redecimate, min_image 0, border, coarse 768, lut 64, mask 64":

@@ -77,9 +77,28 @@ def test_direct_far_masks_are_the_lut_images_but_for_sliver_tips(oracle_masks):
 
 
 def test_direct_far_needs_the_refinement_and_no_pvs():
-    recv, canopy = floor_under_canopy()
+    recv, _ = floor_under_canopy()
     with pytest.raises(ValueError, match="direct_far needs refine"):
         get_method("hemiraster")(recv, order=3, refine=0.0, coarse=recv.num_faces - 2, direct_far=True)
     with pytest.raises(ValueError, match="direct_far needs no PVS"):
         get_method("hemiraster")(recv, order=3, coarse=recv.num_faces - 2, direct_far=True,
                                  pvs_frames=recv.points[None].astype(np.float32))
+
+
+def test_direct_far_on_a_self_shadowing_sheet_sets_only_queue_bits():
+    """The receiver mesh as its own far field (a wavy 24 x 24 sheet, 300 coarse triangles, the default
+    refinement and k-ring): the blockers the direct path takes (listed from the bit rows, their planes
+    quantised in the second pass) set no bit the queue would not, and lose few (sliver tips)."""
+    p, f = grid(24, 1.0, 0.0)
+    p[:, 2] = 0.12 * np.sin(9 * p[:, 0]) * np.cos(7 * p[:, 1]) + 0.05 * np.sin(23 * p[:, 1])
+    sheet = TriMesh(p, f)
+    got = {}
+    for direct_far in (False, True):
+        h = get_method("hemiraster")(sheet, order=3, mask=MASK, lut=LUT, coarse=300, min_image=0.0, direct_far=direct_far)
+        h.update()
+        got[direct_far] = (h.stats()["triangles_per_vertex"], tables.unpack_bits(h._mask.numpy(), MASK * MASK))
+    (off_tris, off), (on_tris, on) = got[False], got[True]
+    assert off.sum() > 50000  # the sheet shades itself (84 952 bits measured)
+    assert not (on & ~off).any()
+    assert (off & ~on).sum() <= 0.001 * off.sum()  # 30 lost measured (0.035 %)
+    assert on_tris < 0.95 * off_tris  # 206 -> 187 triangles queued per receiver measured

@@ -988,8 +988,10 @@ const bool do_tiny = min_area > 0.0f;
 const bool do_refine = refine > 0.0f;
 const bool do_direct = direct >= 0.0f;
 const float between = direct;
-unsigned short hits[PRECULL_BLOCKERS + 64];
-float bi[PRECULL_BLOCKERS + 64], bj[PRECULL_BLOCKERS + 64];
+unsigned short hits[PRECULL_BLOCKERS + 64], listed[PRECULL_BLOCKERS + 64], sethit[PRECULL_BLOCKERS + 64];
+float bi[PRECULL_BLOCKERS + 64], bj[PRECULL_BLOCKERS + 64], bk[PRECULL_BLOCKERS + 64], bl[PRECULL_BLOCKERS + 64];
+const int words = (nt + 63) / 64;
+const uint64_t ones = 0x0101010101010101ull, magic = 0x0102040810204080ull;
 #define WS_MIN(A, B) ((A) < (B) ? (A) : (B))
 #define WS_MAX(A, B) ((A) > (B) ? (A) : (B))
 const float* __restrict__ pco = (const float*)corners.data;
@@ -1039,18 +1041,22 @@ for (int t = 0; t < nt; ++t) {
 if (do_direct) {
   // coarse blockers whose image spans at most 2 x 2 pixel centres: their LUT images at those centres
   // (the edge planes quantised to their LUT cells' centre normals, as :func:`.tables.cube_cell_normals`)
-  // go straight into the mask, and they are not queued. Branch-free so the loop vectorizes; the
-  // stores in a second loop
-  for (int t = 0; t < nt; ++t) {
-    const float ax_ = pco[t] - px, ay_ = pco[cs + t] - py, az_ = pco[2 * cs + t] - pz;
-    const float bx_ = pco[3 * cs + t] - px, by_ = pco[4 * cs + t] - py, bz_ = pco[5 * cs + t] - pz;
-    const float cx_ = pco[6 * cs + t] - px, cy_ = pco[7 * cs + t] - py, cz_ = pco[8 * cs + t] - pz;
-    const float lax = f00 * ax_ + f10 * ay_ + f20 * az_, lay = f01 * ax_ + f11 * ay_ + f21 * az_;
-    const float laz = f02 * ax_ + f12 * ay_ + f22 * az_;
-    const float lbx = f00 * bx_ + f10 * by_ + f20 * bz_, lby = f01 * bx_ + f11 * by_ + f21 * bz_;
-    const float lbz = f02 * bx_ + f12 * by_ + f22 * bz_;
-    const float lcx = f00 * cx_ + f10 * cy_ + f20 * cz_, lcy = f01 * cx_ + f11 * cy_ + f21 * cz_;
+  // go straight into the mask, and they are not queued. In two branch-free passes that vectorize: the
+  // first over all blockers finds those (``ok``: the box of their disk image) and those of them whose box
+  // holds a pixel centre, the second quantises the planes and tests the centres of the latter only
+  // (listed: the others have no centre to set); the stores in a third loop
+#define WS_LOCAL(T) \
+    const float ax_ = pco[T] - px, ay_ = pco[cs + T] - py, az_ = pco[2 * cs + T] - pz; \
+    const float bx_ = pco[3 * cs + T] - px, by_ = pco[4 * cs + T] - py, bz_ = pco[5 * cs + T] - pz; \
+    const float cx_ = pco[6 * cs + T] - px, cy_ = pco[7 * cs + T] - py, cz_ = pco[8 * cs + T] - pz; \
+    const float lax = f00 * ax_ + f10 * ay_ + f20 * az_, lay = f01 * ax_ + f11 * ay_ + f21 * az_; \
+    const float laz = f02 * ax_ + f12 * ay_ + f22 * az_; \
+    const float lbx = f00 * bx_ + f10 * by_ + f20 * bz_, lby = f01 * bx_ + f11 * by_ + f21 * bz_; \
+    const float lbz = f02 * bx_ + f12 * by_ + f22 * bz_; \
+    const float lcx = f00 * cx_ + f10 * cy_ + f20 * cz_, lcy = f01 * cx_ + f11 * cy_ + f21 * cz_; \
     const float lcz = f02 * cx_ + f12 * cy_ + f22 * cz_;
+  for (int t = 0; t < nt; ++t) {
+    WS_LOCAL(t)
     const float ia_ = 1.0f / sqrtf(lax * lax + lay * lay + laz * laz);
     const float ib_ = 1.0f / sqrtf(lbx * lbx + lby * lby + lbz * lbz);
     const float ic_ = 1.0f / sqrtf(lcx * lcx + lcy * lcy + lcz * lcz);
@@ -1071,6 +1077,39 @@ if (do_direct) {
     const float fu0 = (float)(int)u0, fv0 = (float)(int)v0;
     const float i0 = fu0 + (fu0 < u0 ? 1.0f : 0.0f) - 128.0f, i1 = (float)(int)u1 - 128.0f;
     const float j0 = fv0 + (fv0 < v0 ? 1.0f : 0.0f) - 128.0f, j1 = (float)(int)v1 - 128.0f;
+    const float e1x = lby * lcz - lbz * lcy, e1y = lbz * lcx - lbx * lcz, e1z = lbx * lcy - lby * lcx;
+    const float det = lax * e1x + lay * e1y + laz * e1z;
+    const bool ok = (dmin_ >= 0.5f) & (i1 - i0 <= DIRECT_SPAN - 1.0f) & (j1 - j0 <= DIRECT_SPAN - 1.0f) & (det != 0.0f)
+                    & ((flags[t] & 5) == 0);
+    bi[t] = i0;
+    bj[t] = j0;
+    bk[t] = i1;
+    bl[t] = j1;
+    // bit 1: not queued; bit 3: its box holds a pixel centre
+    flags[t] |= (unsigned char)((ok ? 2 : 0) | ((ok & (i1 >= i0) & (j1 >= j0)) ? 8 : 0));
+  }
+  for (int t = nt; t < words * 64; ++t)
+    flags[t] = 0;
+  int m = 0;
+  for (int w = 0; w < words; ++w) {
+    uint64_t mh = 0;
+    for (int b = 0; b < 8; ++b) {
+      uint64_t x;
+      memcpy(&x, flags + w * 64 + 8 * b, 8);
+      mh |= ((((x >> 3) & ones) * magic) >> 56) << (8 * b);
+    }
+    // (a blocker standing for the receiver's k-ring is refined: its fine triangles stand in for it)
+    if (use_ring)
+      mh &= ~pring[w];
+    while (mh != 0) {
+      listed[m++] = (unsigned short)(w * 64 + __builtin_ctzll(mh));
+      mh &= mh - 1;
+    }
+  }
+  for (int k = 0; k < m; ++k) {
+    const int t = listed[k];
+    WS_LOCAL(t)
+    const float i0 = bi[t], j0 = bj[t], i1 = bk[t], j1 = bl[t];
     float e0x = lay * lbz - laz * lby, e0y = laz * lbx - lax * lbz, e0z = lax * lby - lay * lbx;
     float e1x = lby * lcz - lbz * lcy, e1y = lbz * lcx - lbx * lcz, e1z = lbx * lcy - lby * lcx;
     float e2x = lcy * laz - lcz * lay, e2y = lcz * lax - lcx * laz, e2z = lcx * lay - lcy * lax;
@@ -1099,8 +1138,6 @@ if (do_direct) {
     WS_CELL(e1x, e1y, e1z, q1x, q1y, q1z)
     WS_CELL(e2x, e2y, e2z, q2x, q2y, q2z)
 #undef WS_CELL
-    const bool ok = (dmin_ >= 0.5f) & (i1 - i0 <= DIRECT_SPAN - 1.0f) & (j1 - j0 <= DIRECT_SPAN - 1.0f) & (det != 0.0f)
-                    & ((flags[t] & 5) == 0);
     // the centres (i0 + di, j0 + dj) within the box (up to i1, j1) above the three quantised planes
     // q: q·g > 0 for g = (x, y, sqrt(1 - x² - y²)), tested without the root (q_z g_z > -(q_x x + q_y y))
     const float step = 1.0f / half_mask;
@@ -1117,37 +1154,39 @@ if (do_direct) {
         hb_ |= h ? (1u << (DIRECT_SPAN * (int)DI + (int)DJ)) : 0u; }
 DIRECT_CENTRES
 #undef WS_CENTRE
-    hits[t] = (unsigned short)(ok ? hb_ : 0u);
-    bi[t] = i0;
-    bj[t] = j0;
-    flags[t] |= (unsigned char)(ok ? 2 : 0);
+    hits[k] = (unsigned short)hb_;
+  }
+#undef WS_LOCAL
+  // the listed blockers with a centre to set, then their centres
+  int nh = 0;
+  for (int k = 0; k < m; ++k) {
+    sethit[nh] = (unsigned short)k;
+    nh += hits[k] != 0 ? 1 : 0;
   }
   uint64_t* __restrict__ pm = (uint64_t*)((char*)mask.data + v * mask.strides[0]);
-  for (int t = 0; t < nt; ++t) {
-    const int hb = hits[t];
-    if (hb == 0)
-      continue;
-    // (a blocker standing for the receiver's k-ring is refined: its fine triangles stand in for it)
-    if (use_ring && ((pring[t >> 6] >> (t & 63)) & 1))
-      continue;
-    for (int k = 0; k < DIRECT_SPAN * DIRECT_SPAN; ++k) {
-      if (hb & (1 << k)) {
-        // centre (i, j) -> bit: i in the even bits, j in the odd ones (.tables.morton2)
-        const int i = (int)bi[t] + k / DIRECT_SPAN, j = (int)bj[t] + k % DIRECT_SPAN;
-        int bit = 0;
-        for (int q = 0; q < 6; ++q)
-          bit |= (((i >> q) & 1) << (2 * q)) | (((j >> q) & 1) << (2 * q + 1));
-        pm[bit >> 6] |= (uint64_t)1 << (bit & 63);
-      }
+  // centre (i, j) -> bit: i in the even bits, j in the odd ones (.tables.morton2; 6 bits each, spread by
+  // shifts and masks)
+  auto spread = [](unsigned int x) -> unsigned int {
+    x = (x | (x << 4)) & 0x30fu;
+    x = (x | (x << 2)) & 0x333u;
+    return (x | (x << 1)) & 0x555u;
+  };
+  for (int h = 0; h < nh; ++h) {
+    const int k = sethit[h], t = listed[k];
+    unsigned int hb = hits[k];
+    while (hb != 0) {
+      const int d = __builtin_ctz(hb);
+      hb &= hb - 1;
+      const unsigned int i = (unsigned int)((int)bi[t] + d / DIRECT_SPAN), j = (unsigned int)((int)bj[t] + d % DIRECT_SPAN);
+      const unsigned int bit = spread(i) | (spread(j) << 1);
+      pm[bit >> 6] |= (uint64_t)1 << (bit & 63);
     }
   }
 }
 #undef WS_MIN
 #undef WS_MAX
-const int words = (nt + 63) / 64;
 for (int t = nt; t < words * 64; ++t)
     flags[t] = 0;
-const uint64_t ones = 0x0101010101010101ull, magic = 0x0102040810204080ull;
 for (int w = 0; w < words; ++w) {
     uint64_t mc = 0, mt = 0, mr = 0;
     for (int b = 0; b < 8; ++b) {
