@@ -12,7 +12,7 @@ from __future__ import annotations
 import warp as wp
 
 from ..rays import orthonormal_basis
-from .tables import CHUNK_WORDS
+from .tables import CHUNK_WORDS, COPLANAR, COPLANAR_FACING
 
 # forward only (nothing here is differentiated): half the generated code and compile time. No fused
 # multiply-adds: then ``b × a`` is exactly ``-(a × b)`` (both products of each component are computed
@@ -462,6 +462,38 @@ def triangle_bounds(
     sphere[t] = wp.vec4(cen[0], cen[1], cen[2], r)
 
 
+COPLANAR_K = wp.constant(COPLANAR)
+""":data:`.tables.COPLANAR` in kernels."""
+COPLANAR_FACING_K = wp.constant(COPLANAR_FACING)
+""":data:`.tables.COPLANAR_FACING` in kernels."""
+
+
+@wp.func(inline=True)
+def coplanar_lift(a: wp.vec3, b: wp.vec3, c: wp.vec3, n: wp.vec3) -> wp.vec3:
+    """Where the receiver lies in triangle (a, b, c) (corners relative to it; its foot within the triangle and
+    its distance to the plane at most :data:`.tables.COPLANAR` × L), the triangle as seen from that distance on its
+    front side: returns the offset to subtract from the corners (zero for every other triangle).
+
+    A post standing on a floor puts its base vertices in the floor's plane. Seen from a point of the plane, the
+    floor triangle under it has no solid angle, and the sign of its rounded determinant decides whether its
+    image is the half-sphere below the floor or the one above (the receiver blacked out): neighbouring base
+    vertices flip between the two. Seen from just above (the floor's front, where the post stands), the floor
+    triangles around the foot cover the lower half, as a renderer's ray from the post's base sees them. Only
+    receivers whose normal does not face the triangle's back (``n·N/|N| >=`` :data:`.tables.COPLANAR_FACING`): a
+    receiver on the back of a thin surface (a cloth's underside, where seams repeat a vertex) keeps its view.
+    """
+    g = wp.cross(b - a, c - a)
+    gg = wp.dot(g, g)
+    gl = wp.sqrt(gg)
+    size = wp.sqrt(gl)  # L = sqrt(|N|)
+    near = wp.abs(wp.dot(g, a)) <= COPLANAR_K * gl * size  # |N·a| = |N| × distance to the plane
+    # the foot's barycentric coordinates (N·(a×b) = 2 area(p, a, b) |N|, ...) each >= -COPLANAR
+    inside = wp.min(wp.min(wp.dot(g, wp.cross(a, b)), wp.dot(g, wp.cross(b, c))), wp.dot(g, wp.cross(c, a))) >= -COPLANAR_K * gg
+    facing = wp.dot(n, g) >= COPLANAR_FACING_K * gl
+    lift = g * (COPLANAR_K * size / gl)
+    return wp.where(near and inside and facing and gg > 0.0, lift, wp.vec3(0.0))
+
+
 @wp.func(inline=True)
 def triangle_codes(a: wp.vec3, b: wp.vec3, c: wp.vec3, ft: wp.mat33, backface: float,
                    res: int) -> wp.vec3i:
@@ -494,7 +526,7 @@ def triangle_codes(a: wp.vec3, b: wp.vec3, c: wp.vec3, ft: wp.mat33, backface: f
                     cube_cell_xyz(pca[0], pca[1], pca[2], res))
 
 
-_BATCH_CODES = r"""
+_BATCH_CODES = f"#define WS_COPLANAR {COPLANAR!r}f\n#define WS_COPLANAR_FACING {COPLANAR_FACING!r}f\n" + r"""
 // corners of slot ``sl``'s queue: rows of contiguous vec3 (wp.zeros), codes rows of contiguous vec3i
 const float* __restrict__ pa = (const float*)((const char*)a.data + sl * a.strides[0]);
 const float* __restrict__ pb = (const float*)((const char*)b.data + sl * b.strides[0]);
@@ -523,7 +555,14 @@ const int* __restrict__ pflag = (const int*)((const char*)fine_flag.data + sl * 
 int* __restrict__ psrc = (int*)((char*)src.data + sl * src.strides[0]);
 // the receiver's normal: the frame's third column (:func:`push_triangle`'s ``nz``)
 const float nx = frame.data[0][2], ny = frame.data[1][2], nz = frame.data[2][2];
+// a receiver in a blocker's plane (:func:`coplanar_lift`) is rare: the loop screens for it on the way
+// (|det| <= 2 COPLANAR |N|^1.5: wider than the exact test, so it misses none), and a queue where some triangle
+// passes the screen gets the exact test (the Warp function's operations and order), its lifted corners written
+// back in place, and the loop once more
 int nref = 0;
+for (int attempt = 0; attempt < 2; ++attempt) {
+nref = 0;
+int any_near = 0;
 for (int k = 0; k < nb; ++k) {
     const float ax = pa[3 * k], ay = pa[3 * k + 1], az = pa[3 * k + 2];
     const float bx = pb[3 * k], by = pb[3 * k + 1], bz = pb[3 * k + 2];
@@ -537,7 +576,10 @@ for (int k = 0; k < nb; ++k) {
     const float fx = cx - ax, fy = cy - ay, fz = cz - az;
     const float gx = ey * fz - ez * fy, gy = ez * fx - ex * fz, gz = ex * fy - ey * fx;
     const float adet = fabsf(wdet);
-    const bool grazing = adet < 0.5f * sqrtf(gx * gx + gy * gy + gz * gz) * ra;
+    const float gg = gx * gx + gy * gy + gz * gz;
+    const float glen = sqrtf(gg);
+    const bool grazing = adet < 0.5f * glen * ra;
+    any_near |= (wdet * wdet <= 4.0f * WS_COPLANAR * WS_COPLANAR * gg * glen) ? 1 : 0;
     const float d = ra * rb * rc + (ax * bx + ay * by + az * bz) * rc + (ax * cx + ay * cy + az * cz) * rb
                     + (bx * cx + by * cy + bz * cz) * ra;
     const float ha = nx * ax + ny * ay + nz * az;
@@ -575,6 +617,40 @@ for (int k = 0; k < nb; ++k) {
     out[3 * k + 1] = culled ? -1 : c1;
     out[3 * k + 2] = culled ? -1 : c2;
 }
+if (attempt > 0 || !any_near) break;
+{
+    float* qa = (float*)pa;
+    float* qb = (float*)pb;
+    float* qc = (float*)pc;
+    for (int k = 0; k < nb; ++k) {
+        float ax = qa[3 * k], ay = qa[3 * k + 1], az = qa[3 * k + 2];
+        float bx = qb[3 * k], by = qb[3 * k + 1], bz = qb[3 * k + 2];
+        float cx = qc[3 * k], cy = qc[3 * k + 1], cz = qc[3 * k + 2];
+        const float ux = bx - ax, uy = by - ay, uz = bz - az, wx = cx - ax, wy = cy - ay, wz = cz - az;
+        const float qx = uy * wz - uz * wy, qy = uz * wx - ux * wz, qz = ux * wy - uy * wx;
+        const float qq = qx * qx + qy * qy + qz * qz;
+        const float ql = sqrtf(qq);
+        const float size = sqrtf(ql);
+        const bool near_ = fabsf(qx * ax + qy * ay + qz * az) <= WS_COPLANAR * ql * size;
+        const float s0 = qx * (ay * bz - az * by) + qy * (az * bx - ax * bz) + qz * (ax * by - ay * bx);
+        const float s1 = qx * (by * cz - bz * cy) + qy * (bz * cx - bx * cz) + qz * (bx * cy - by * cx);
+        const float s2 = qx * (cy * az - cz * ay) + qy * (cz * ax - cx * az) + qz * (cx * ay - cy * ax);
+        const float m01 = s0 < s1 ? s0 : s1;
+        const float smin = m01 < s2 ? m01 : s2;
+        const bool inside_ = smin >= -WS_COPLANAR * qq;
+        const bool facing_ = nx * qx + ny * qy + nz * qz >= WS_COPLANAR_FACING * ql;
+        const bool lift_ = near_ && inside_ && facing_ && qq > 0.0f;
+        const float sc = WS_COPLANAR * size / ql;
+        const float lx = qx * sc, ly = qy * sc, lz = qz * sc;
+        ax = lift_ ? ax - lx : ax; ay = lift_ ? ay - ly : ay; az = lift_ ? az - lz : az;
+        bx = lift_ ? bx - lx : bx; by = lift_ ? by - ly : by; bz = lift_ ? bz - lz : bz;
+        cx = lift_ ? cx - lx : cx; cy = lift_ ? cy - ly : cy; cz = lift_ ? cz - lz : cz;
+        qa[3 * k] = ax; qa[3 * k + 1] = ay; qa[3 * k + 2] = az;
+        qb[3 * k] = bx; qb[3 * k + 1] = by; qb[3 * k + 2] = bz;
+        qc[3 * k] = cx; qc[3 * k + 1] = cy; qc[3 * k + 2] = cz;
+    }
+}
+}
 #undef WS_CELL
 // the kept ones moved to the front (in order, with their PVS source): no test in the AND/OR loop
 for (int k = 0; k < nb; ++k) {
@@ -588,6 +664,8 @@ for (int k = 0; k < nb; ++k) {
 int* prefined = (int*)((char*)refined.data + v * refined.strides[0]);
 *prefined += nref;
 return done;
+#undef WS_COPLANAR
+#undef WS_COPLANAR_FACING
 """
 
 
@@ -595,13 +673,15 @@ return done;
 def batch_codes(a: wp.array2d[wp.vec3], b: wp.array2d[wp.vec3], c: wp.array2d[wp.vec3], area: wp.array2d[float],
                 fine_flag: wp.array2d[wp.int32], src: wp.array2d[wp.int32], codes: wp.array2d[wp.vec3i],
                 refined: wp.array[wp.int32], v: int, sl: int, nb: int, frame: wp.mat33, backface: float, res: int) -> int:
-    """The exact culls and :func:`triangle_codes` of the ``nb`` queued triangles of slot ``sl``: the
+    """The exact culls and :func:`triangle_codes` of the ``nb`` queued triangles of slot ``sl``, on their
+    corners moved by :func:`coplanar_lift` (written back into the queue): the
     tiny-image cull (:func:`image_below` with each entry's ``area``), the horizon cull, then the
     codes (the same operations in the same order as the Warp functions, so the same bits). The
     kept triangles' codes and PVS sources are moved to the front of ``codes`` and ``src``; returns
     how many; adds the kept-by-the-image-test fine triangles (``fine_flag``) to ``refined[v]``.
     Native C++ in one loop without calls or branches, which clang vectorizes (8 triangles per AVX2
-    instruction), then a compaction loop; the rows must be contiguous."""
+    instruction), run a second time after the lift in a queue that has a triangle to lift (rare), then a
+    compaction loop; the rows must be contiguous."""
 
 
 _OR_IMAGES = r"""

@@ -17,6 +17,19 @@ from ..disks.oracle import frame_np as tangent_frame_np  # the kernels' frame (D
 from . import tables
 
 
+def coplanar_lift_np(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """:func:`.kernels.coplanar_lift` for corners in the receiver's tangent frame (normal +z), in float64."""
+    g = np.cross(b - a, c - a)
+    gl = float(np.linalg.norm(g))
+    if gl == 0.0:
+        return np.zeros(3)
+    size = np.sqrt(gl)
+    near = abs(g @ a) <= tables.COPLANAR * gl * size
+    inside = min(g @ np.cross(a, b), g @ np.cross(b, c), g @ np.cross(c, a)) >= -tables.COPLANAR * gl * gl
+    facing = g[2] >= tables.COPLANAR_FACING * gl
+    return g * (tables.COPLANAR * size / gl) if near and inside and facing else np.zeros(3)
+
+
 def rasterize_np(local_tris: np.ndarray, mask: int, lut: np.ndarray | None = None, lut_res: int = 0) -> np.ndarray:
     """Blocked-pixel mask of triangles given in the receiver's tangent frame.
 
@@ -33,6 +46,7 @@ def rasterize_np(local_tris: np.ndarray, mask: int, lut: np.ndarray | None = Non
     blocked = np.zeros(mask * mask, dtype=bool)
     nw = tables.words_per_mask(mask)
     for a, b, c in np.asarray(local_tris, dtype=np.float64):
+        a, b, c = (a, b, c) - coplanar_lift_np(a, b, c)
         if a[2] <= 0 and b[2] <= 0 and c[2] <= 0:
             continue  # wholly at or below the horizon
         planes = np.array([np.cross(a, b), np.cross(b, c), np.cross(c, a)])

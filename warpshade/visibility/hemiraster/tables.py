@@ -389,6 +389,13 @@ def positive_half(table: np.ndarray, mask: int, lut: int) -> dict:
     return {"rows": rows, "valid": pack_bits(pixel_directions(mask)[1])}
 
 
+COPLANAR = 1.0e-3
+"""Contact tolerance of the coplanar rule (:func:`.kernels.coplanar_lift`), relative to a triangle's size
+L = sqrt(|N|), N = (b-a)×(c-a): a receiver within COPLANAR × L of a triangle's plane, its foot in the triangle
+(barycentric coordinates >= -COPLANAR), sees the triangle from COPLANAR × L on its front side."""
+COPLANAR_FACING = -0.5
+"""Least ``n·N/|N|`` (the receiver's normal against the triangle's unit normal) for the coplanar rule to act."""
+
 CHUNK_WORDS = 16
 """Words per chunk of the rasterizer's LUT rows (the kernels' ``MaskChunk``)."""
 
