@@ -879,7 +879,7 @@ def limit_shape_motion(
         ch = shape_chord(kd, p0, dr, a1[s], b1[s], r1[s], size[s])
         if ch[0] < 0.0 or ch[0] > ld:
             continue  # clear of the solid, or stopping short of it
-        cap = wp.max(fraction * ch[1], ch[0])
+        cap = fraction * ch[1]
         if ld > cap:
             p = p0 + dr * cap
     x[i] = p
