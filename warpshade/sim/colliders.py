@@ -397,10 +397,13 @@ class ColliderSet:
         a triangle laid across a box's edge), and cloth triangles off the colliders' corners
         (:meth:`collide_corners`: box corners, cone apexes, sharp mesh vertices poking through a
         triangle's inside), corrections averaged per vertex. Given ``x_start`` (and tris), cloth triangles
-        that cut into a cone are pushed back the way they came since then (:meth:`collide_shape_faces`,
-        cones only) before and after those passes: cloth held over a cone's flat base by its stretched
-        edges otherwise slides round the rim within a step while the rim cuts its triangles, every
-        vertex path outside the solid, and ends the step under it with no pair left for the guard.
+        that cut into a cylinder or cone are pushed back the way they came since then
+        (:meth:`collide_shape_faces`, those kinds only) before and after those passes: cloth held over a
+        cone's flat base by its stretched edges otherwise slides round the rim within a step while the rim
+        cuts its triangles, every vertex path outside the solid, and ends the step under it with no pair
+        left for the guard; cloth draped over a cylinder's rim otherwise ends its steps with the rim
+        through its triangles (the edge pass alone leaves it poking through a triangle's inside), and the
+        guard holds it at the step's start while the cloth round it falls on.
 
         Args:
             thickness: Distance to keep [m].
@@ -452,7 +455,8 @@ class ColliderSet:
 
     _FACE_PASS = (int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE))
     """Kinds whose rims :meth:`collide_edges` also keeps out of the cloth triangles with
-    :meth:`collide_shape_faces` (given ``x_start``)."""
+    :meth:`collide_shape_faces` (given ``x_start``; boxes not: on the forced hammock the pass on every
+    sharp shape flipped outcomes case by case, docs/benchmarks/history.md)."""
 
     def limit_round_motion(self, fraction: float, thickness: float, inv_mass, x_prev, x) -> None:
         """Shorten each free vertex's move x_prev -> x over the substep to ``fraction`` of the radius
