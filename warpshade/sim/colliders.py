@@ -397,10 +397,13 @@ class ColliderSet:
         a triangle laid across a box's edge), and cloth triangles off the colliders' corners
         (:meth:`collide_corners`: box corners, cone apexes, sharp mesh vertices poking through a
         triangle's inside), corrections averaged per vertex. Given ``x_start`` (and tris), cloth triangles
-        that cut into a cone are pushed back the way they came since then (:meth:`collide_shape_faces`,
-        cones only) before and after those passes: cloth held over a cone's flat base by its stretched
-        edges otherwise slides round the rim within a step while the rim cuts its triangles, every
-        vertex path outside the solid, and ends the step under it with no pair left for the guard.
+        that cut into a cylinder or cone are pushed back the way they came since then
+        (:meth:`collide_shape_faces`, those kinds only) before and after those passes: cloth held over a
+        cone's flat base by its stretched edges otherwise slides round the rim within a step while the rim
+        cuts its triangles, every vertex path outside the solid, and ends the step under it with no pair
+        left for the guard; cloth draped over a cylinder's rim otherwise ends its steps with the rim
+        through its triangles (the edge pass alone leaves it poking through a triangle's inside), and the
+        guard holds it at the step's start while the cloth round it falls on.
 
         Args:
             thickness: Distance to keep [m].
@@ -414,9 +417,9 @@ class ColliderSet:
         """
         if not self.has_sharp_edges:
             return
-        cones = x_start is not None and tris is not None and int(ck.SHAPE_CONE) in self._kind
-        if cones:
-            self.collide_shape_faces(thickness, inv_mass, tris, x, x_start, int(ck.SHAPE_CONE))
+        faces = x_start is not None and tris is not None and any(k in self._FACE_PASS for k in self._kind)
+        if faces:
+            self.collide_shape_faces(thickness, inv_mass, tris, x, x_start, self._FACE_PASS)
         n = x.shape[0]
         self._edge_accumulators(n)
         if self.has_sharp_shapes:
@@ -447,8 +450,13 @@ class ColliderSet:
             # a pass of its own: averaged with the many small edge corrections a vertex near a
             # corner also gets, the corner's push would be diluted
             self.collide_corners(thickness, inv_mass, tris, x, x_prev)
-        if cones:
-            self.collide_shape_faces(thickness, inv_mass, tris, x, x_start, int(ck.SHAPE_CONE))
+        if faces:
+            self.collide_shape_faces(thickness, inv_mass, tris, x, x_start, self._FACE_PASS)
+
+    _FACE_PASS = (int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE))
+    """Kinds whose rims :meth:`collide_edges` also keeps out of the cloth triangles with
+    :meth:`collide_shape_faces` (given ``x_start``; boxes not: on the forced hammock the pass on every
+    sharp shape flipped outcomes case by case, docs/benchmarks/history.md)."""
 
     def limit_round_motion(self, fraction: float, thickness: float, inv_mass, x_prev, x) -> None:
         """Shorten each free vertex's move x_prev -> x over the substep to ``fraction`` of the radius
@@ -548,21 +556,22 @@ class ColliderSet:
                          [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, x.shape[0], [], [self._edge_delta, self._edge_count, x])
 
-    def collide_shape_faces(self, thickness: float, inv_mass, tris, x, x_start, kind: int = -1) -> None:
+    def collide_shape_faces(self, thickness: float, inv_mass, tris, x, x_start, kinds=None) -> None:
         """Push cloth triangles that cut into a box, cylinder or cone (posed as at the end of the last
         substep) while their vertices are held outside back the way they came since ``x_start``
         (judged against the step's start pose), corrections averaged per vertex
         (:func:`~warpshade.sim.collision_kernels.collide_shape_faces`, sampled on a grid of
         :attr:`FACE_SAMPLES` steps a side): the analytic counterpart of :meth:`collide_mesh_faces` for
-        closed meshes. Arguments as there; ``kind``: only the shapes of that kind (``SHAPE_CONE`` and
-        the like in :mod:`~warpshade.sim.collision_kernels`), -1 all."""
+        closed meshes. Arguments as there; ``kinds``: only the shapes of these kinds (``SHAPE_CONE`` and
+        the like in :mod:`~warpshade.sim.collision_kernels`), None all."""
         if not self.has_sharp_shapes:
             return
+        mask = sum(1 << int(k) for k in (self._SHARP if kinds is None else kinds))
         self._edge_accumulators(x.shape[0])
         ar = self._arrays
         self._launch(ck.collide_shape_faces, tris.shape[0],
                      [ar["kind"], ar["a_start"], ar["b_start"], ar["rot_start"], ar["a1"], ar["b1"], ar["r1"], ar["size"],
-                      x_start, x, tris, inv_mass, thickness, self.FACE_SAMPLES, int(kind)], [self._edge_delta, self._edge_count])
+                      x_start, x, tris, inv_mass, thickness, self.FACE_SAMPLES, mask], [self._edge_delta, self._edge_count])
         self._launch(apply_averaged_deltas, x.shape[0], [], [self._edge_delta, self._edge_count, x])
 
     def _edge_accumulators(self, n: int) -> None:

@@ -1141,6 +1141,11 @@ def collide_mesh_faces(
     push_triangle_point(ids[0], ids[1], ids[2], w[0], w[1], w[2], bary, move, 1.0, delta, delta_count)
 
 
+CLEAR_MARGIN = wp.constant(0.25)
+"""Fraction of the thickness by which a cloth triangle must lie beyond a solid's tangent plane for
+:func:`collide_shape_faces` to skip it unsampled (far above rounding, so what is skipped is what the
+samples would have found clear)."""
+
 FACE_REFINE_STEPS = wp.constant(24)
 """Steps of the pattern search (six directions in barycentric coordinates, the step halved when none
 goes deeper) that refines :func:`collide_shape_faces`' lowest sample."""
@@ -1174,12 +1179,12 @@ def collide_shape_faces(
     inv_mass: wp.array[float],
     thickness: float,
     samples: int,
-    only_kind: int,
+    kinds: int,
     delta: wp.array[wp.vec3],
     delta_count: wp.array[float],
 ):
-    """Cloth triangles that cut into a box, cylinder or cone (pose a1, b1, r1; only the shapes of kind
-    ``only_kind`` when it is not -1) while their vertices
+    """Cloth triangles that cut into a box, cylinder or cone (pose a1, b1, r1; only the shapes whose
+    kind k has bit ``1 << k`` set in ``kinds``) while their vertices
     are held outside (a stretched triangle drawn over a rim, a cloth edge cut through as a chord):
     the analytic counterpart of the closed-mesh branch of :func:`collide_mesh_faces`. The triangle
     is sampled on a barycentric grid of ``samples`` steps a side (its vertices left out), the
@@ -1192,7 +1197,10 @@ def collide_shape_faces(
     inside. That point at ``x_prev`` is taken where it was against the solid posed a0, b0, r0 (the
     step's start: :func:`shape_carry`), so a solid driven up into the triangle sends it back up,
     the side it came from. The push is split between the three vertices by their barycentric
-    weights. A triangle with no sample inside is left alone."""
+    weights. A triangle with no sample inside is left alone, and one that lies wholly beyond the
+    tangent plane at the surface point nearest its centroid, by :data:`CLEAR_MARGIN` of the
+    thickness, is not sampled (the solid is convex: every point of such a triangle is at least that
+    far out, so no sample would be inside)."""
     k = wp.tid()
     ids = wp.vec3i(tris[k, 0], tris[k, 1], tris[k, 2])
     w = wp.vec3(inv_mass[ids[0]], inv_mass[ids[1]], inv_mass[ids[2]])
@@ -1208,11 +1216,17 @@ def collide_shape_faces(
         kd = kind[s]
         if kd != SHAPE_BOX and kd != SHAPE_CYLINDER and kd != SHAPE_CONE:
             continue
-        if only_kind >= 0 and kd != only_kind:
+        if (kinds >> kd) & 1 == 0:
             continue
         bs = shape_bounds(kd, a1[s], b1[s], size[s])
         if wp.length(c - wp.vec3(bs[0], bs[1], bs[2])) > r + bs[3]:
             continue  # no part of the solid near the triangle
+        # the plane through the surface point nearest the centroid, across the normal there, bounds
+        # the (convex) solid: a triangle wholly beyond it is clear
+        sc = shape_distance(kd, c, a1[s], b1[s], r1[s], size[s])
+        nc = wp.vec3(sc[0], sc[1], sc[2])
+        if wp.min(wp.min(wp.dot(p0 - c, nc), wp.dot(p1 - c, nc)), wp.dot(p2 - c, nc)) + sc[3] >= CLEAR_MARGIN * thickness:
+            continue
         # the lowest sample, then a pattern search from it (the signed distance is convex over the
         # triangle): a rim or edge poking through the triangle by less than the grid's spacing
         bu = float(0.0)
