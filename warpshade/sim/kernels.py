@@ -268,11 +268,24 @@ def update_velocities(
 # ---------------------------------------------------------------------------------------------
 
 
-@wp.func
-def project_stretch(e: int, edges: wp.array[wp.vec2i], rest_length: wp.array[float], compliance: wp.array[float],
-                    inv_mass: wp.array[float], dt: float, relaxation: float, lam: wp.array[float],
-                    x: wp.array[wp.vec3]):
-    """Edge e's distance constraint C = |xi - xj| - L (XPBD eq. 18), over-relaxed by `relaxation`."""
+@wp.kernel
+def solve_stretch(
+    edges: wp.array[wp.vec2i],
+    rest_length: wp.array[float],
+    compliance: wp.array[float],
+    inv_mass: wp.array[float],
+    offset: int,
+    dt: float,
+    relaxation: float,
+    lam: wp.array[float],
+    x: wp.array[wp.vec3],
+):
+    """Distance constraints C = |xi - xj| - L (XPBD eq. 18), over-relaxed by `relaxation`.
+
+    Damping is not folded in here (XPBD eq. 26): with one sweep per substep its (1 + gamma)
+    factor only slows convergence; :func:`damp_stretch` damps velocities instead.
+    """
+    e = wp.tid() + offset
     ij = edges[e]
     i = ij[0]
     j = ij[1]
@@ -289,44 +302,6 @@ def project_stretch(e: int, edges: wp.array[wp.vec2i], rest_length: wp.array[flo
     lam[e] = lam[e] + dlam
     x[i] = x[i] + n * (wi * dlam)
     x[j] = x[j] - n * (wj * dlam)
-
-
-@wp.kernel
-def solve_stretch(
-    edges: wp.array[wp.vec2i],
-    rest_length: wp.array[float],
-    compliance: wp.array[float],
-    inv_mass: wp.array[float],
-    offset: int,
-    dt: float,
-    relaxation: float,
-    lam: wp.array[float],
-    x: wp.array[wp.vec3],
-):
-    """Distance constraints (:func:`project_stretch`) of edges offset, offset + 1, ...
-
-    Damping is not folded in here (XPBD eq. 26): with one sweep per substep its (1 + gamma)
-    factor only slows convergence; :func:`damp_stretch` damps velocities instead.
-    """
-    project_stretch(wp.tid() + offset, edges, rest_length, compliance, inv_mass, dt, relaxation, lam, x)
-
-
-@wp.kernel
-def solve_stretch_masked(
-    edges: wp.array[wp.vec2i],
-    rest_length: wp.array[float],
-    compliance: wp.array[float],
-    inv_mass: wp.array[float],
-    active: wp.array[int],
-    offset: int,
-    dt: float,
-    lam: wp.array[float],
-    x: wp.array[wp.vec3],
-):
-    """:func:`solve_stretch` (no over-relaxation) of the edges with ``active`` non-zero."""
-    e = wp.tid() + offset
-    if active[e] != 0:
-        project_stretch(e, edges, rest_length, compliance, inv_mass, dt, 1.0, lam, x)
 
 
 @wp.func
@@ -579,35 +554,6 @@ def solve_limits(
     corr = d * (step / length)
     x[i] = x[i] - corr * wi
     x[j] = x[j] + corr * wj
-
-
-@wp.kernel
-def flag_settled(v: wp.array[wp.vec3], contacts: wp.array[int], speed: float, flag: wp.array[int],
-                 unsettled: wp.array[int]):
-    """flag[i] = 1 where vertex i moves slower than ``speed`` and has no self-contact candidate
-    (``contacts`` 0), else 0; unsettled[i] = 1 - flag[i]."""
-    i = wp.tid()
-    f = wp.where(wp.length(v[i]) < speed and contacts[i] == 0, 1, 0)
-    flag[i] = f
-    unsettled[i] = 1 - f
-
-
-@wp.kernel
-def mark_supported_strain(edges: wp.array[wp.vec2i], rest_length: wp.array[float], x: wp.array[wp.vec3],
-                          flag: wp.array[int], strain: float, active: wp.array[int], count: wp.array[int]):
-    """active[e] = 1 for an edge between two flagged vertices stretched by more than ``strain``
-    (counted in ``count``), else 0."""
-    e = wp.tid()
-    ij = edges[e]
-    i = ij[0]
-    j = ij[1]
-    active[e] = 0
-    if flag[i] == 0 or flag[j] == 0:
-        return
-    if wp.length(x[i] - x[j]) <= (1.0 + strain) * rest_length[e]:
-        return
-    active[e] = 1
-    wp.atomic_add(count, 0, 1)
 
 
 @wp.kernel

@@ -125,7 +125,7 @@ class XPBDSolver:
                  follow_edge_sides: bool | None = None, aero_interval: int | None = None,
                  bend_interval: int | None = None, limit_sliding: bool | None = None,
                  guard_relax: int | None = None, limit_every_sweep: bool | None = None,
-                 held_contact_interval: int | None = None, support_sweeps: int | None = None):
+                 held_contact_interval: int | None = None):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -185,18 +185,6 @@ class XPBDSolver:
             # vertices the contact projections moved in the last substep (limits skip them)
             self._touched = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
             self._x_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
-        ss = self.SUPPORT_SWEEPS if support_sweeps is None else support_sweeps
-        if int(ss) != ss or ss < 0:
-            raise ValueError(f"support_sweeps must be an integer >= 0, got {support_sweeps}")
-        self.support_sweeps = int(ss)
-        if self.support_sweeps:
-            # the edges of the supported sweeps (1: in), their count, the supported vertices (1)
-            self._support_edges = wp.zeros(model.edge_count, dtype=wp.int32, device=model.device)
-            self._support_count = wp.zeros(1, dtype=wp.int32, device=model.device)
-            self._support_flag = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
-            self._unsupported = wp.ones(model.particle_count, dtype=wp.int32, device=model.device)
-            if not self.self_collision:  # (no self-contact candidates)
-                self._support_count_zero = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
         self.limit_sliding = self.stretch_limits and bool(
             self.LIMIT_SLIDING if limit_sliding is None else limit_sliding)
         self.limit_every_sweep = self.stretch_limits and bool(
@@ -362,10 +350,6 @@ class XPBDSolver:
             for _ in range(self.iterations):
                 for c in cmds["stretch"]:
                     c.launch()
-                if self.support_sweeps and self._support_active():
-                    for _ in range(self.support_sweeps):
-                        for c in cmds["support_stretch"]:
-                            c.launch()
                 if (s + 1) % self.bend_interval == 0:
                     if self.bend_interval > 1:
                         wp.copy(self._bend_before, x)
@@ -408,8 +392,6 @@ class XPBDSolver:
             if self.stretch_limits:
                 cmds["moved"].launch()
             cmds["velocities"].launch()
-            if self.support_sweeps:
-                cmds["supported"].launch()
             if "bend_velocity" in cmds and (s + 1) % self.bend_interval == 0:
                 cmds["bend_velocity"].launch()
             for c in cmds["damping"]:
@@ -521,32 +503,6 @@ class XPBDSolver:
         elif self.stretch_limits:
             cmds["moved"] = wp.launch(k.flag_moved, dim=n, inputs=[self._x_before, x], outputs=[self._touched], device=d,
                                       record_cmd=True)
-        if self.support_sweeps:
-            cmds["supported"] = wp.launch(k.flag_settled, dim=n,
-                                          inputs=[v, self._contact_count if self.self_collision
-                                                  else self._support_count_zero, self.SUPPORT_SPEED],
-                                          outputs=[self._support_flag, self._unsupported],
-                                          device=d, record_cmd=True)
-            cmds["support_mark"] = wp.launch(k.mark_supported_strain, dim=m.edge_count,
-                                             inputs=[self._edge_ids, m.edge_rest_length, x, self._support_flag,
-                                                     self.SUPPORT_STRAIN],
-                                             outputs=[self._support_edges, self._support_count], device=d,
-                                             record_cmd=True)
-            cmds["support_stretch"] = []
-            if self.limit_sliding and self.SUPPORT_LIMITS:
-                # the limits between supported vertices, sliding, each sweep moving a vertex by at most
-                # 1/support_sweeps of the limits' move
-                cmds["support_stretch"] = [wp.launch(k.solve_limits_sliding, dim=cnt,
-                                                     inputs=[self._limit_ids, m.limit_length, m.inv_mass,
-                                                             self._limit_move / self.support_sweeps,
-                                                             self._unsupported, self._pushed, off],
-                                                     outputs=[x], device=d, record_cmd=True)
-                                           for off, cnt in self._batches(m.limit_colors)]
-            cmds["support_stretch"] += [wp.launch(k.solve_stretch_masked, dim=cnt,
-                                                 inputs=[self._edge_ids, m.edge_rest_length, m.edge_compliance,
-                                                         m.inv_mass, self._support_edges, off, h],
-                                                 outputs=[self._edge_lambda, x], device=d, record_cmd=True)
-                                       for off, cnt in edge_batches]
         contacts = []
         if self.self_collision:
             contacts.append(wp.launch(k.solve_self_contacts, dim=n,
@@ -586,12 +542,6 @@ class XPBDSolver:
         cmds["damping"] = damping
         return {name: [recorded(c) for c in cmd] if isinstance(cmd, list) else recorded(cmd)
                 for name, cmd in cmds.items()}
-
-    def _support_active(self) -> bool:
-        """Mark the edges of the supported sweeps (``_support_edges``); True when there is one."""
-        self._support_count.zero_()
-        self._cmd_cache[1]["support_mark"].launch()
-        return int(self._support_count.numpy()[0]) > 0
 
     def _batches(self, colors: list) -> list:
         """Launch ranges (offset, count) of the coloured constraints: one range per colour on a GPU; on
@@ -811,13 +761,6 @@ class XPBDSolver:
     LIMIT_SLIDING = False
     """Default of ``limit_sliding`` (off; what it does to the scenes is measured in
     docs/benchmarks/index.md)."""
-    SUPPORT_SWEEPS = 0
-    """Default of ``support_sweeps`` (0: off)."""
-    SUPPORT_LIMITS = True
-    SUPPORT_SPEED = 0.1
-    SUPPORT_STRAIN = 0.005
-    """Strain above which an edge between two supported vertices puts them in the supported sweeps."""
-
     LIMIT_EVERY_SWEEP = False
     """Default of ``limit_every_sweep`` (off: it acts only with ``stretch_sweeps`` > 1, which costs,
     and the stiffer solve left the guard holding cloth that falls and folds fast for long;
