@@ -557,6 +557,42 @@ def solve_limits(
 
 
 @wp.kernel
+def accumulate_stretch(edges: wp.array[wp.vec2i], rest_length: wp.array[float], inv_mass: wp.array[float],
+                       x: wp.array[wp.vec3], scale: float, delta: wp.array[wp.vec3], count: wp.array[float]):
+    """Jacobi stretch pass: every edge's projection (from the same x), times ``scale``, added to
+    its ends' ``delta`` and counted in ``count`` (applied by :func:`apply_averaged_deltas`)."""
+    e = wp.tid()
+    ij = edges[e]
+    i = ij[0]
+    j = ij[1]
+    wi = inv_mass[i]
+    wj = inv_mass[j]
+    wsum = wi + wj
+    axis = edge_axis(x[i], x[j])
+    if wsum == 0.0 or axis[3] < 1.0e-12:
+        return
+    n = wp.vec3(axis[0], axis[1], axis[2])
+    corr = n * (scale * (axis[3] - rest_length[e]) / wsum)
+    wp.atomic_add(delta, i, -corr * wi)
+    wp.atomic_add(delta, j, corr * wj)
+    wp.atomic_add(count, i, 1.0)
+    wp.atomic_add(count, j, 1.0)
+
+
+@wp.kernel
+def chebyshev_step(x: wp.array[wp.vec3], x_last: wp.array[wp.vec3], x_before: wp.array[wp.vec3], omega: float,
+                   gamma: float):
+    """Chebyshev semi-iterative acceleration (Wang 2015): x_new = omega (gamma (x - x_last) + x_last -
+    x_before) + x_before, where x is the sweep's result from x_last and x_before the iterate before x_last;
+    then x_before <- x_last, x_last <- x_new."""
+    i = wp.tid()
+    xn = omega * (gamma * (x[i] - x_last[i]) + x_last[i] - x_before[i]) + x_before[i]
+    x_before[i] = x_last[i]
+    x_last[i] = xn
+    x[i] = xn
+
+
+@wp.kernel
 def record_moved(before: wp.array[wp.vec3], x: wp.array[wp.vec3], moved: wp.array[wp.vec3]):
     """moved[i] = x[i] - before[i]: how the contact projections moved vertex i."""
     i = wp.tid()

@@ -348,8 +348,11 @@ class XPBDSolver:
             self._edge_lambda.zero_()
             self._hinge_lambda.zero_()
             for _ in range(self.iterations):
-                for c in cmds["stretch"]:
-                    c.launch()
+                if self.CHEB_RHO > 0.0:
+                    self._chebyshev_sweeps(cmds, x)
+                else:
+                    for c in cmds["stretch"]:
+                        c.launch()
                 if (s + 1) % self.bend_interval == 0:
                     if self.bend_interval > 1:
                         wp.copy(self._bend_before, x)
@@ -470,8 +473,18 @@ class XPBDSolver:
                        for off, cnt in edge_batches]
         # extra stretch sweeps: cheap (edges only, or edges and limits) and the stretch residual is
         # what shows as sag
-        cmds["stretch"] = (cons + stretch) * self.stretch_sweeps if self.limit_every_sweep \
-            else cons + stretch * self.stretch_sweeps
+        if self.JACOBI_PASSES:
+            stretch = stretch + [wp.launch(k.accumulate_stretch, dim=m.edge_count,
+                                           inputs=[self._edge_ids, m.edge_rest_length, m.inv_mass, x, self.JACOBI_SCALE],
+                                           outputs=[self._delta, self._delta_count], device=d, record_cmd=True),
+                                 wp.launch(k.apply_averaged_deltas, dim=n, inputs=[],
+                                           outputs=[self._delta, self._delta_count, x], device=d, record_cmd=True)
+                                 ] * self.JACOBI_PASSES
+        if self.LIMITS_LAST:
+            cmds["stretch"] = stretch * self.stretch_sweeps + cons
+        else:
+            cmds["stretch"] = (cons + stretch) * self.stretch_sweeps if self.limit_every_sweep \
+                else cons + stretch * self.stretch_sweeps
         # a bending sweep every bend_interval substeps is an XPBD step of H = bend_interval * h: the
         # velocity update after it keeps 1/bend_interval of the sweep's correction over h
         bi = self.bend_interval
@@ -542,6 +555,25 @@ class XPBDSolver:
         cmds["damping"] = damping
         return {name: [recorded(c) for c in cmd] if isinstance(cmd, list) else recorded(cmd)
                 for name, cmd in cmds.items()}
+
+    def _chebyshev_sweeps(self, cmds, x):
+        if not hasattr(self, "_cheb_a"):
+            self._cheb_a = wp.zeros_like(x)
+            self._cheb_b = wp.zeros_like(x)
+        a, b = self._cheb_a, self._cheb_b
+        sweep = cmds["stretch"][:len(cmds["stretch"]) // self.stretch_sweeps]
+        rho2 = self.CHEB_RHO ** 2
+        omega = 1.0
+        wp.copy(a, x)
+        for it in range(self.stretch_sweeps):
+            for c in sweep:
+                c.launch()
+            if it < self.CHEB_DELAY:
+                wp.copy(b, a)
+                wp.copy(a, x)
+                continue
+            omega = 2.0 / (2.0 - rho2) if it == self.CHEB_DELAY else 4.0 / (4.0 - rho2 * omega)
+            wp.launch(k.chebyshev_step, dim=x.shape[0], inputs=[x, a, b, omega, self.CHEB_GAMMA], device=self.device)
 
     def _batches(self, colors: list) -> list:
         """Launch ranges (offset, count) of the coloured constraints: one range per colour on a GPU; on
@@ -761,6 +793,12 @@ class XPBDSolver:
     LIMIT_SLIDING = False
     """Default of ``limit_sliding`` (off; what it does to the scenes is measured in
     docs/benchmarks/index.md)."""
+    LIMITS_LAST = False
+    CHEB_RHO = 0.0
+    CHEB_DELAY = 1
+    CHEB_GAMMA = 1.0
+    JACOBI_PASSES = 0
+    JACOBI_SCALE = 1.0
     LIMIT_EVERY_SWEEP = False
     """Default of ``limit_every_sweep`` (off: it acts only with ``stretch_sweeps`` > 1, which costs,
     and the stiffer solve left the guard holding cloth that falls and folds fast for long;
