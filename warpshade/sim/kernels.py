@@ -557,36 +557,12 @@ def solve_limits(
 
 
 @wp.kernel
-def accumulate_stretch(edges: wp.array[wp.vec2i], rest_length: wp.array[float], inv_mass: wp.array[float],
-                       x: wp.array[wp.vec3], scale: float, delta: wp.array[wp.vec3], count: wp.array[float]):
-    """Jacobi stretch pass: every edge's projection (from the same x), times ``scale``, added to
-    its ends' ``delta`` and counted in ``count`` (applied by :func:`apply_averaged_deltas`)."""
-    e = wp.tid()
-    ij = edges[e]
-    i = ij[0]
-    j = ij[1]
-    wi = inv_mass[i]
-    wj = inv_mass[j]
-    wsum = wi + wj
-    axis = edge_axis(x[i], x[j])
-    if wsum == 0.0 or axis[3] < 1.0e-12:
-        return
-    n = wp.vec3(axis[0], axis[1], axis[2])
-    corr = n * (scale * (axis[3] - rest_length[e]) / wsum)
-    wp.atomic_add(delta, i, -corr * wi)
-    wp.atomic_add(delta, j, corr * wj)
-    wp.atomic_add(count, i, 1.0)
-    wp.atomic_add(count, j, 1.0)
-
-
-@wp.kernel
-def chebyshev_step(x: wp.array[wp.vec3], x_last: wp.array[wp.vec3], x_before: wp.array[wp.vec3], omega: float,
-                   gamma: float):
-    """Chebyshev semi-iterative acceleration (Wang 2015): x_new = omega (gamma (x - x_last) + x_last -
-    x_before) + x_before, where x is the sweep's result from x_last and x_before the iterate before x_last;
-    then x_before <- x_last, x_last <- x_new."""
+def chebyshev_step(omega: float, x: wp.array[wp.vec3], x_last: wp.array[wp.vec3], x_before: wp.array[wp.vec3]):
+    """Chebyshev semi-iterative acceleration of a sweep (Wang 2015, eq. 12 with gamma = 1): x, the
+    sweep's result from the iterate ``x_last``, becomes omega (x - x_before) + x_before, where
+    ``x_before`` is the iterate before ``x_last``; then x_before <- x_last and x_last <- x."""
     i = wp.tid()
-    xn = omega * (gamma * (x[i] - x_last[i]) + x_last[i] - x_before[i]) + x_before[i]
+    xn = omega * (x[i] - x_before[i]) + x_before[i]
     x_before[i] = x_last[i]
     x_last[i] = xn
     x[i] = xn
