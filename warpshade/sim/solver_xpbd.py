@@ -94,9 +94,10 @@ class XPBDSolver:
             iterates before it with the weights of an iteration whose spectral radius is this
             (0 <= stretch_chebyshev < 1; 0: off). It converges a long chain of edges carrying weight
             in fewer sweeps (cloth draped free over a sphere, with ``limit_sliding``,
-            ``limit_every_sweep`` and 4 sweeps: at-rest p99 strain 1.5-3.4 % on 40-56 grids against
-            4.5 % without on 48); the extrapolated moves exceed the limits' move cap by up to the
-            weight (1.39 at 0.9), and 0.95 diverged on that drape. None: :attr:`STRETCH_CHEBYSHEV`.
+            ``limit_every_sweep``, 4 sweeps and 0.8: at-rest p99 strain 1.5-3.0 % on 40-56 grids
+            against 4.5 % without on 48); the extrapolated moves exceed the limits' move cap by up
+            to the weight (omega_2 = 1.47 at 0.8), and 0.95 diverged on that drape. None:
+            :attr:`STRETCH_CHEBYSHEV`.
         held_contact_interval: ``contact_interval`` in a step that follows one where the guard sent
             vertices back (>= 1). The held vertices start it with their edges to the free cloth
             stretched, and the stretch sweeps pull them back within a substep, further than the
