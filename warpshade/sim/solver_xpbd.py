@@ -494,8 +494,6 @@ class XPBDSolver:
         # what shows as sag
         cmds["stretch"] = (cons + stretch) * self.stretch_sweeps if self.limit_every_sweep \
             else cons + stretch * self.stretch_sweeps
-        # the launches of each sweep after the first (the first also has the limits)
-        per_sweep = len(cons) + len(stretch) if self.limit_every_sweep else len(stretch)
         # a bending sweep every bend_interval substeps is an XPBD step of H = bend_interval * h: the
         # velocity update after it keeps 1/bend_interval of the sweep's correction over h
         bi = self.bend_interval
@@ -567,8 +565,10 @@ class XPBDSolver:
         out = {name: [recorded(c) for c in cmd] if isinstance(cmd, list) else recorded(cmd)
                for name, cmd in cmds.items()}
         if self.stretch_chebyshev:
-            # the stretch launches sweep by sweep
+            # the stretch launches sweep by sweep (the limits in every sweep with limit_every_sweep,
+            # else in the first only)
             first = len(cons) + len(stretch)
+            per_sweep = first if self.limit_every_sweep else len(stretch)
             out["sweeps"] = [out["stretch"][:first]] + [out["stretch"][i:i + per_sweep]
                                                         for i in range(first, len(out["stretch"]), per_sweep)]
         return out
@@ -812,7 +812,6 @@ class XPBDSolver:
     STRETCH_CHEBYSHEV = 0.0
     """Default of ``stretch_chebyshev`` (0: off; what it does to the scenes is measured in
     docs/benchmarks/history.md)."""
-
     LIMIT_EVERY_SWEEP = False
     """Default of ``limit_every_sweep`` (off: it acts only with ``stretch_sweeps`` > 1, which costs,
     and the stiffer solve left the guard holding cloth that falls and folds fast for long;
