@@ -4,6 +4,7 @@ valid bounds (no unstretched pose violates one), the projection's rules, and the
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import warp as wp
 
 from warpshade.sim import ClothBuilder, ColliderSet, XPBDSolver
@@ -256,3 +257,26 @@ def test_limits_in_every_sweep_change_nothing_with_one_sweep():
         np.testing.assert_array_equal(xa, xb)
         np.testing.assert_array_equal(va, vb)
     assert not XPBDSolver(m, col, stretch_limits=False, limit_every_sweep=True).limit_every_sweep
+
+
+def test_chebyshev_acceleration_takes_a_free_drape_under_two_percent_in_four_sweeps():
+    """stretch_chebyshev: the stretch sweeps after the first extrapolated (Wang 2015), with limit_sliding,
+    limit_every_sweep and 4 sweeps. Measured (32 x 32, 120 frames): worst p99 3.9 % and 1.4 % at the end
+    with rho 0.8, 6.8 % and 1.8 % without; the worst's threshold half-way, the end's issue 19's 2 %. No
+    vertex inside the sphere (float tolerance 1e-4 m)."""
+    kw = {"stretch_sweeps": 4, "limit_every_sweep": True}
+    worst, end, gap, thickness = _drape(True, stretch_chebyshev=0.8, **kw)
+    assert worst < 0.053 and end < 0.02, (worst, end)
+    assert gap >= thickness - 1e-4, gap
+    worst, _, _, _ = _drape(True, stretch_chebyshev=0.0, **kw)
+    assert worst > 0.053, worst
+
+
+def test_chebyshev_acceleration_needs_two_sweeps_and_a_radius_below_one():
+    b = _grid(4, 0.1)
+    m = b.finalize()
+    assert XPBDSolver(m, stretch_chebyshev=0.8).knobs()["stretch_chebyshev"] == 0.0  # one sweep: off
+    assert XPBDSolver(m, stretch_sweeps=2, stretch_chebyshev=0.8).knobs()["stretch_chebyshev"] == 0.8
+    for bad in (1.0, -0.1, float("nan")):
+        with pytest.raises(ValueError, match="stretch_chebyshev"):
+            XPBDSolver(m, stretch_sweeps=2, stretch_chebyshev=bad)

@@ -557,6 +557,18 @@ def solve_limits(
 
 
 @wp.kernel
+def chebyshev_step(omega: float, x: wp.array[wp.vec3], x_last: wp.array[wp.vec3], x_before: wp.array[wp.vec3]):
+    """Chebyshev semi-iterative acceleration of a sweep (Wang 2015, eq. 12 with gamma = 1): x, the
+    sweep's result from the iterate ``x_last``, becomes omega (x - x_before) + x_before, where
+    ``x_before`` is the iterate before ``x_last``; then x_before <- x_last and x_last <- x."""
+    i = wp.tid()
+    xn = omega * (x[i] - x_before[i]) + x_before[i]
+    x_before[i] = x_last[i]
+    x_last[i] = xn
+    x[i] = xn
+
+
+@wp.kernel
 def record_moved(before: wp.array[wp.vec3], x: wp.array[wp.vec3], moved: wp.array[wp.vec3]):
     """moved[i] = x[i] - before[i]: how the contact projections moved vertex i."""
     i = wp.tid()
