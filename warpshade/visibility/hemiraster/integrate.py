@@ -90,8 +90,9 @@ def integrate_kernels(order: int) -> SimpleNamespace:
     per receiver, the unoccluded transfer of its normal minus its transfer, (V,) vec_sh.
     ``interpolate(targets, nbr_start, nbrs, normals, unoccluded, rot_dirs, rot_pinv, basis, blocked,
     tolerance) -> transfer, redo``: per target vertex, the unoccluded transfer of its normal minus the
-    mean blocked part of its computed neighbours (CSR ``nbr_start`` (V+1,), ``nbrs``); ``redo[v]`` = 1
-    where a neighbour's blocked part is farther than ``tolerance`` (L2) from that mean.
+    mean blocked part of its neighbours (CSR ``nbr_start`` (V+1,), ``nbrs``), which it also writes as
+    its own ``blocked`` part; ``redo[v]`` = 1 where a neighbour's blocked part is farther than
+    ``tolerance`` (L2) from that mean.
     """
     zf = zh_vector_funcs(order)
     vec_sh, vec_zh, zh_rotate = zf.vec_sh, zf.vec_zh, zf.zh_rotate
@@ -184,6 +185,7 @@ def integrate_kernels(order: int) -> SimpleNamespace:
         out = to_world(unoccluded, orthonormal_basis(normals[v]), rot_dirs, rot_pinv, basis) - mean
         for i in range(bands * bands):
             transfer[v, i] = out[i]
+        blocked[v] = mean  # what a finer level's targets read (no neighbour of this level is a target)
         redo[v] = wp.where(spread > tolerance, 1, 0)
 
     blocked_part.__annotations__ = {"receivers": wp.array(dtype=wp.int32), "normals": wp.array(dtype=wp.vec3),
