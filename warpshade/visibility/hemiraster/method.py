@@ -185,8 +185,9 @@ class HemirasterTransfer(TransferMethod):
             (:func:`.hierarchy.interpolation_subset`): about a quarter of a smooth closed mesh's
             receivers are computed with 2, an eighth with 3; the coarsest level's targets are
             interpolated from the computed receivers, each finer level's from the level above's
-            (computed or interpolated), each with the same test (neighbours that disagree by more
-            than ``interpolate``: computed).
+            (computed or interpolated), each with the same test, where an interpolated neighbour
+            adds the disagreement it was interpolated with: a receiver whose spread summed along
+            its chain of interpolations exceeds ``interpolate`` is computed.
         keep_static: Store the part of each unmoved receiver's mask that unmoved blockers give and, while
             none of them moves, rasterize only the rest (:meth:`_static_mode`; the same masks). Receivers
             and blockers count as unmoved when their positions (and the receiver's normal) are bit for
@@ -659,6 +660,7 @@ class HemirasterTransfer(TransferMethod):
             self._redo = wp.zeros(nv, dtype=wp.int32, device=d)
             self._interp_parts = {}
             self._blocked = wp.zeros(nv, dtype=vec_sh, device=d)
+            self._doubt = wp.zeros(nv, dtype=float, device=d)
             # relative to the unoccluded transfer's norm (the same for every normal: rotations keep it)
             self._interp_tolerance = self.interpolate * float(np.linalg.norm(np.array(self._unoccluded, dtype=np.float64)))
         self._pvs = None
@@ -857,7 +859,7 @@ class HemirasterTransfer(TransferMethod):
         """The blocked parts (:attr:`_blocked`) of the computed receivers ``rows``, for the targets that read them."""
         wp.launch(self._integrate.blocked_part, dim=rows.shape[0],
                   inputs=[rows, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv, self._basis,
-                          self.transfer], outputs=[self._blocked], device=self.device)
+                          self.transfer], outputs=[self._blocked, self._doubt], device=self.device)
 
     def _interpolated(self, sel: wp.array, targets: list[wp.array], use_pvs: int) -> None:
         """Compute the receivers ``sel`` and, level by level (coarsest first), interpolate each level's
@@ -878,7 +880,7 @@ class HemirasterTransfer(TransferMethod):
             self._redo.zero_()
             wp.launch(self._integrate.interpolate, dim=targets[k].shape[0],
                       inputs=[targets[k], start, nbrs, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv,
-                              self._basis, self._blocked, self._interp_tolerance],
+                              self._basis, self._blocked, self._interp_tolerance, self._doubt],
                       outputs=[self.transfer, self._redo], device=d)
             redo = np.flatnonzero(self._redo.numpy()).astype(np.int32)
             self._redone += len(redo)
