@@ -620,16 +620,16 @@ def torus(major=48, minor=24):
 @pytest.mark.parametrize("levels", [1, 2, 3])
 @pytest.mark.parametrize("shape", ["grid", "torus"])
 def test_interpolation_subset_covers_every_receiver_once_reading_known_neighbours(levels, shape):
-    from warpshade.visibility.hemiraster.hierarchy import interpolation_subset, vertex_faces
+    from warpshade.visibility.hemiraster import hierarchy
 
     mesh = bumpy_grid(n=9) if shape == "grid" else torus()
-    sel, split = interpolation_subset(mesh.faces, mesh.num_vertices, levels)
+    sel, split = hierarchy.interpolation_subset(mesh.faces, mesh.num_vertices, levels)
     assert len(split) == levels
     every = np.concatenate([sel, *(t for t, _, _ in split)])
     assert np.array_equal(np.sort(every), np.arange(mesh.num_vertices))  # each receiver exactly once
     known = np.zeros(mesh.num_vertices, dtype=bool)
     known[sel] = True
-    vf = vertex_faces(mesh.faces, mesh.num_vertices)
+    vf = hierarchy.vertex_faces(mesh.faces, mesh.num_vertices)
     for k, (targets, start, nbrs) in enumerate(split):  # coarsest first: each level reads what is known
         assert np.all(np.diff(start)[np.setdiff1d(np.arange(mesh.num_vertices), targets)] == 0)
         for v in targets:
@@ -647,7 +647,7 @@ def test_interpolation_subset_one_level_is_the_split_of_one_independent_set():
     from warpshade.visibility.hemiraster.hierarchy import interpolation_subset
 
     mesh = bumpy_grid(n=9)
-    sel, ((targets, start, nbrs),) = interpolation_subset(mesh.faces, mesh.num_vertices)
+    sel, ((targets, _, _),) = interpolation_subset(mesh.faces, mesh.num_vertices)
     # a greedy independent set in index order: no two computed receivers share an edge, unless one was
     # kept for having fewer than two computed neighbours
     edges = np.concatenate([mesh.faces[:, [0, 1]], mesh.faces[:, [1, 2]], mesh.faces[:, [2, 0]]])
@@ -709,8 +709,8 @@ def test_interp_levels_at_tolerance_zero_give_the_computed_transfer(levels):
 
 
 def test_interp_levels_on_a_smooth_mesh_within_measured_error():
-    from warpshade.bench.reference_cache import ground_truth
     from warpshade.bench.metrics import transfer_errors
+    from warpshade.bench.reference_cache import ground_truth
 
     mesh = torus()
     truth = ground_truth(mesh, 3, rays=1024, cache_dir=None)
