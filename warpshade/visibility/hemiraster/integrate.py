@@ -93,7 +93,8 @@ def integrate_kernels(order: int) -> SimpleNamespace:
     the mean blocked part of its neighbours (CSR ``nbr_start`` (V+1,), ``nbrs``), which it also writes as
     its own ``blocked`` part; its ``doubt`` is the largest distance (L2) of a neighbour's blocked part from
     that mean plus the largest doubt of a neighbour (interpolated neighbours, on a coarser level), and
-    ``redo[v]`` = 1 where it exceeds ``tolerance``.
+    ``redo[v]`` = 1 where it exceeds ``tolerance`` or, with ``rise`` < 1, where a vertex of its 1-ring
+    (CSR ``ring_start``, ``ring``; ``points``) lies more than ``asin(rise)`` above its tangent plane.
     """
     zf = zh_vector_funcs(order)
     vec_sh, vec_zh, zh_rotate = zf.vec_sh, zf.vec_zh, zf.zh_rotate
@@ -174,6 +175,8 @@ def integrate_kernels(order: int) -> SimpleNamespace:
                     nbrs: wp.array(dtype=wp.int32), normals: wp.array(dtype=wp.vec3), unoccluded: vec_sh,
                     rot_dirs: wp.array(dtype=wp.vec3), rot_pinv: wp.array(dtype=vec_sh), basis: vec_sh,
                     blocked: wp.array(dtype=vec_sh), tolerance: float, doubt: wp.array(dtype=float),
+                    points: wp.array(dtype=wp.vec3), ring_start: wp.array(dtype=wp.int32),
+                    ring: wp.array(dtype=wp.int32), rise: float,
                     transfer: wp.array2d(dtype=float), redo: wp.array(dtype=wp.int32)):
         v = targets[wp.tid()]
         mean = vec_sh()
@@ -193,7 +196,13 @@ def integrate_kernels(order: int) -> SimpleNamespace:
             transfer[v, i] = out[i]
         blocked[v] = mean  # what a finer level's targets read (no neighbour of this level is a target)
         doubt[v] = spread
-        redo[v] = wp.where(spread > tolerance, 1, 0)
+        steep = int(0)
+        if rise < 1.0:  # a 1-ring vertex steeper than asin(rise) above the tangent plane: a crease or pit
+            for r in range(ring_start[v], ring_start[v + 1]):
+                d = points[ring[r]] - points[v]
+                if wp.dot(d, normals[v]) > rise * wp.length(d):
+                    steep = 1
+        redo[v] = wp.where(spread > tolerance or steep == 1, 1, 0)
 
     blocked_part.__annotations__ = {"receivers": wp.array(dtype=wp.int32), "normals": wp.array(dtype=wp.vec3),
                                     "unoccluded": vec_sh, "rot_dirs": wp.array(dtype=wp.vec3),
@@ -206,6 +215,8 @@ def integrate_kernels(order: int) -> SimpleNamespace:
                                    "unoccluded": vec_sh, "rot_dirs": wp.array(dtype=wp.vec3),
                                    "rot_pinv": wp.array(dtype=vec_sh), "basis": vec_sh,
                                    "blocked": wp.array(dtype=vec_sh), "tolerance": float, "doubt": wp.array(dtype=float),
+                                   "points": wp.array(dtype=wp.vec3), "ring_start": wp.array(dtype=wp.int32),
+                                   "ring": wp.array(dtype=wp.int32), "rise": float,
                                    "transfer": wp.array2d(dtype=float), "redo": wp.array(dtype=wp.int32)}
     interpolate.__name__ = f"hemiraster_interpolate_order{order}"
 

@@ -188,6 +188,10 @@ class HemirasterTransfer(TransferMethod):
             (computed or interpolated), each with the same test, where an interpolated neighbour
             adds the disagreement it was interpolated with: a receiver whose spread summed along
             its chain of interpolations exceeds ``interpolate`` is computed.
+        interp_rise: With ``interpolate``: also compute a target a vertex of whose 1-ring lies more
+            than this many degrees above its tangent plane (90, the default: off). Its neighbours
+            may agree while it sits in a crease or pit they do not (the bear's concave voxel
+            corners: neighbours unoccluded, the target 40-67 % of the mean transfer darker).
         keep_static: Store the part of each unmoved receiver's mask that unmoved blockers give and, while
             none of them moves, rasterize only the rest (:meth:`_static_mode`; the same masks). Receivers
             and blockers count as unmoved when their positions (and the receiver's normal) are bit for
@@ -224,6 +228,8 @@ class HemirasterTransfer(TransferMethod):
              minimum=0.0),
         Knob("interp_levels", int, "levels of the interpolation split: about 1/2, 1/4, 1/8 of a smooth mesh's "
                                    "receivers computed with 1, 2, 3 (with --interpolate)", minimum=1),
+        Knob("interp_rise", float, "with --interpolate: also compute a receiver whose 1-ring rises more than this many "
+                                   "degrees above its tangent plane (a crease or pit; 90: off)", minimum=0.0, maximum=90.0),
         Knob("direct_far", bool, "rasterize far-field triangles whose image spans at most 2 x 2 pixel centres in the "
                                  "per-blocker pass (their LUT images at those centres), not through the queue"),
         Knob("fine_image", float, "the same cull for the fine triangles of refined blockers near a receiver "
@@ -243,7 +249,8 @@ class HemirasterTransfer(TransferMethod):
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
                  refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
                  fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0, mid: int = 0,
-                 border: bool = False, keep_static: bool = True, direct_far: bool = False, interp_levels: int = 1):
+                 border: bool = False, keep_static: bool = True, direct_far: bool = False, interp_levels: int = 1,
+                 interp_rise: float = 90.0):
         super().__init__(mesh, order, device)
         # every knob but the PVS, to rebuild the far field from another pose (:meth:`rebuild`)
         self._init_knobs = dict(mask=mask, lut=lut, downsample=downsample, ring=ring, coarse=coarse, cull=cull,
@@ -251,7 +258,7 @@ class HemirasterTransfer(TransferMethod):
                                 lut_dir=lut_dir, min_image=min_image, refine=refine, occluders=occluders, rim=rim,
                                 fine_image=fine_image, fan=fan, redecimate=redecimate,
                                 interpolate=interpolate, mid=mid, border=border, keep_static=keep_static,
-                                direct_far=direct_far, interp_levels=interp_levels)
+                                direct_far=direct_far, interp_levels=interp_levels, interp_rise=interp_rise)
         if not (float(redecimate) >= 0.0 and np.isfinite(float(redecimate))):
             raise ValueError(f"hemiraster: redecimate must be a finite number >= 0, got {redecimate}")
         if float(redecimate) > 0.0 and pvs_frames is not None:
@@ -267,6 +274,9 @@ class HemirasterTransfer(TransferMethod):
         if int(interp_levels) > 1 and self.interpolate == 0.0:
             raise ValueError("hemiraster: interp_levels > 1 needs interpolate > 0")
         self.interp_levels = int(interp_levels)
+        if not 0.0 <= float(interp_rise) <= 90.0:
+            raise ValueError(f"hemiraster: interp_rise must be in [0, 90] degrees, got {interp_rise}")
+        self.interp_rise = float(interp_rise)
         tables.check_mask(int(mask), int(downsample))
         if ring not in (0, 1, 2, 3, 4):
             raise ValueError(f"hemiraster: ring must be 0, 1, 2, 3 or 4, got {ring}")
@@ -661,6 +671,9 @@ class HemirasterTransfer(TransferMethod):
             self._interp_parts = {}
             self._blocked = wp.zeros(nv, dtype=vec_sh, device=d)
             self._doubt = wp.zeros(nv, dtype=float, device=d)
+            self._ring_csr = tuple(wp.array(x, dtype=wp.int32, device=d) for x in hierarchy.vertex_neighbours(faces, nv))
+            # the sine of the rise, 2 when off (no dot product exceeds it: the ring is not read)
+            self._interp_rise = math.sin(math.radians(self.interp_rise)) if self.interp_rise < 90.0 else 2.0
             # relative to the unoccluded transfer's norm (the same for every normal: rotations keep it)
             self._interp_tolerance = self.interpolate * float(np.linalg.norm(np.array(self._unoccluded, dtype=np.float64)))
         self._pvs = None
@@ -880,7 +893,8 @@ class HemirasterTransfer(TransferMethod):
             self._redo.zero_()
             wp.launch(self._integrate.interpolate, dim=targets[k].shape[0],
                       inputs=[targets[k], start, nbrs, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv,
-                              self._basis, self._blocked, self._interp_tolerance, self._doubt],
+                              self._basis, self._blocked, self._interp_tolerance, self._doubt, self.points,
+                              *self._ring_csr, self._interp_rise],
                       outputs=[self.transfer, self._redo], device=d)
             redo = np.flatnonzero(self._redo.numpy()).astype(np.int32)
             self._redone += len(redo)
