@@ -28,13 +28,16 @@ during the casts (≈ 2 when both threads really ran; less when other processes 
   rays, unless ``--no-truth-check``); embree's rays at each error interpolated on its curve
   (:func:`rays_at_error`), its time there by wall (from an anchor cast alternately with each
   configuration) and by CPU (two threads counted as perfectly parallel); the table against the error
-  level (:func:`ratio_table`). ``--tables PATH`` recomputes a saved sweep's figures.
+  level (:func:`ratio_table`). ``--tables PATH`` recomputes a saved sweep's figures. ``--knob-sets``
+  (:func:`parse_knob_sets`) sweeps other sets than :data:`SWEEP_KNOBS`.
 
 How to run::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --parts transfer --json benchmarks/results/embree_peer_2threads.json
     OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --parts gears --json benchmarks/results/embree_peer_gears_2threads.json
     OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --sweep --meshes bear --strata 16,24,32,48,64 --parts transfer --json out.json
+    OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --sweep --meshes bear --strata 16,24,32,48,64 --parts transfer \
+        --knob-sets "defaults;interpolate=0.05;interpolate=0.05,interp_levels=2" --json out.json
 
 Numbers come from a shared 2-core machine: A and B are timed alternately (hemiraster, embree on one
 thread, embree on two, hemiraster...), so drift hits all; compare within one run.
