@@ -28,13 +28,16 @@ during the casts (≈ 2 when both threads really ran; less when other processes 
   rays, unless ``--no-truth-check``); embree's rays at each error interpolated on its curve
   (:func:`rays_at_error`), its time there by wall (from an anchor cast alternately with each
   configuration) and by CPU (two threads counted as perfectly parallel); the table against the error
-  level (:func:`ratio_table`). ``--tables PATH`` recomputes a saved sweep's figures.
+  level (:func:`ratio_table`). ``--tables PATH`` recomputes a saved sweep's figures. ``--knob-sets``
+  (:func:`parse_knob_sets`) sweeps other sets than :data:`SWEEP_KNOBS`.
 
 How to run::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --parts transfer --json benchmarks/results/embree_peer_2threads.json
     OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --parts gears --json benchmarks/results/embree_peer_gears_2threads.json
     OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --sweep --meshes bear --strata 16,24,32,48,64 --parts transfer --json out.json
+    OPENBLAS_NUM_THREADS=1 python benchmarks/embree_peer.py --sweep --meshes bear --strata 16,24,32,48,64 --parts transfer \
+        --knob-sets "defaults;interpolate=0.05;interpolate=0.05,interp_levels=2" --json out.json
 
 Numbers come from a shared 2-core machine: A and B are timed alternately (hemiraster, embree on one
 thread, embree on two, hemiraster...), so drift hits all; compare within one run.
@@ -254,9 +257,28 @@ SWEEP_KNOBS = (
     {}, {"min_image": 0.0}, {"lut": 96}, {"min_image": 0.0, "lut": 96}, {"refine": 1.0}, {"ring": 4, "refine": 0.0},
     {"ring": 0, "refine": 1.0}, {"coarse": 256}, {"coarse": 1024}, {"mask": 16}, {"mask": 64}, {"mask": 64, "lut": 96},
     {"mask": 64, "min_image": 0.0, "lut": 96}, {"mask": 64, "min_image": 0.0, "lut": 128, "refine": 4.0},
+    *({"interpolate": x} for x in (0.03, 0.05, 0.08)),
+    *({"interpolate": x, "interp_levels": n} for n in (2, 3) for x in (0.03, 0.05, 0.08)),
+    *({"min_image": 0.0, "lut": 96, "interpolate": x, "interp_levels": n} for n in (1, 2) for x in (0.03, 0.05)),
+    *({"mask": 64, "min_image": 0.0, "lut": 96, "interpolate": x, "interp_levels": n} for n in (1, 2)
+      for x in (0.03, 0.05)),
 )
 """hemiraster's knob sets swept (changes from the defaults): the error floor (mask, LUT, min_image), the far
-field (coarse), the near field (refine, ring) and the receivers computed (interpolate)."""
+field (coarse), the near field (refine, ring) and the receivers computed (``interpolate`` with one to three
+``interp_levels``, on the defaults and on the two most accurate sets). ``--knob-sets`` runs others instead."""
+
+
+def parse_knob_sets(text: str) -> tuple[dict, ...]:
+    """``--knob-sets``: sets separated by ``;``, each ``name=value`` pairs separated by ``,`` (``defaults``: no
+    change), values as ints where they read as ints, else floats: ``defaults;interpolate=0.05,interp_levels=2``."""
+    out = []
+    for part in (p.strip() for p in text.split(";")):
+        knobs = {}
+        for pair in (q for q in part.split(",") if q and part != "defaults"):
+            name, value = pair.split("=")
+            knobs[name.strip()] = int(value) if value.strip().lstrip("-").isdigit() else float(value)
+        out.append(knobs)
+    return tuple(out)
 
 
 PATTERN_DIRS = 1 << 21
@@ -400,8 +422,9 @@ def ratio_table(hemi: list[dict], curve: list[dict], levels=SWEEP_LEVELS) -> lis
     return rows
 
 
-def sweep_peer(name: str, repeat: int, log, strata=SWEEP_STRATA, truth_check: bool = True) -> dict:
-    """hemiraster's configurations (:data:`SWEEP_KNOBS`) and embree's curve (``strata``) against the
+def sweep_peer(name: str, repeat: int, log, strata=SWEEP_STRATA, truth_check: bool = True,
+               knob_sets=SWEEP_KNOBS) -> dict:
+    """hemiraster's configurations (``knob_sets``) and embree's curve (``strata``) against the
     :data:`SWEEP_TRUTH_RAYS` truth; the truths' own errors (``truth_check``: with the independent embree truth,
     else the reference's two ray counts only); the ratio table (:func:`ratio_table`)."""
     import warp as wp
@@ -466,7 +489,7 @@ def sweep_peer(name: str, repeat: int, log, strata=SWEEP_STRATA, truth_check: bo
     anchor = next(r for r in curve if r["rays"] == ANCHOR_STRATA ** 2)
 
     hemi = []
-    for knobs in SWEEP_KNOBS:
+    for knobs in knob_sets:
         h = get_method("hemiraster")(mesh, order=ORDER, **knobs)
 
         # alternately: hemiraster's update, the anchor's casting on one thread, on two (the first round warms up)
@@ -484,7 +507,7 @@ def sweep_peer(name: str, repeat: int, log, strata=SWEEP_STRATA, truth_check: bo
         tr = h.transfer.numpy()
         st = h.stats()
         row = {"knobs": knobs, "seconds": hw, "cpu_seconds": hc, "error_mean": err(tr, truth_hi),
-               "error_mean_reference_truth": err(tr, truth),
+               "error_mean_reference_truth": err(tr, truth), "computed_fraction": st["computed_fraction"],
                "triangles_per_vertex": st["triangles_per_vertex"], "refined_per_vertex": st["refined_per_vertex"],
                "ring_triangles_per_vertex": st["ring_triangles_per_vertex"], "blocker_triangles": st["blocker_triangles"],
                "anchor_seconds_1thread": a1, "anchor_seconds_2threads": a2,
@@ -595,6 +618,9 @@ def main(argv=None) -> int:
                          "against error level (instead of the defaults at equal error)")
     ap.add_argument("--strata", default=",".join(map(str, SWEEP_STRATA)),
                     help="--sweep: embree's s×s rays per vertex, s comma-separated (must include the anchor's)")
+    ap.add_argument("--knob-sets", default=None, metavar="SETS",
+                    help="--sweep: hemiraster's knob sets instead of SWEEP_KNOBS, ';'-separated, each ','-separated "
+                         "name=value pairs or 'defaults' (e.g. 'defaults;interpolate=0.05,interp_levels=2')")
     ap.add_argument("--no-truth-check", dest="truth_check", action="store_false",
                     help="--sweep: skip the independent embree truth and the estimator check (minutes on the bunny)")
     ap.add_argument("--tables", default=None, metavar="PATH",
@@ -630,7 +656,8 @@ def main(argv=None) -> int:
     if "transfer" not in parts:
         transfer = []
     elif args.sweep:
-        transfer = [sweep_peer(m, args.repeat, log, strata, args.truth_check) for m in meshes]
+        knob_sets = SWEEP_KNOBS if args.knob_sets is None else parse_knob_sets(args.knob_sets)
+        transfer = [sweep_peer(m, args.repeat, log, strata, args.truth_check, knob_sets) for m in meshes]
     else:
         transfer = [transfer_peer(m, args.repeat, log) for m in meshes]
     gears = [gears_peer(m, args.k, args.repeat, log) for m in meshes] if "gears" in parts else []

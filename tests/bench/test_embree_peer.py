@@ -141,3 +141,15 @@ def test_embree_transfer_of_an_open_tilted_plane_is_the_clamped_cosine(peer):
     # 4096 stratified rays per vertex: the estimator's deviations measured up to 2.4e-3 (seed 3; the
     # benchmark's own per-vertex estimator deviates as much); a rotation mistake moves coefficients by ~0.3
     np.testing.assert_allclose(got, unoccluded_transfer(normals, 5), atol=1e-2)
+
+
+def test_sweep_knob_sets_name_hemiraster_knobs_and_parse(peer):
+    from warpshade.visibility import get_method
+
+    names = {k.name for k in get_method("hemiraster").KNOBS}
+    assert all(set(knobs) <= names for knobs in peer.SWEEP_KNOBS)
+    assert any("interpolate" in knobs for knobs in peer.SWEEP_KNOBS)  # the docstring's "receivers computed"
+    assert any(knobs.get("interp_levels", 1) > 1 for knobs in peer.SWEEP_KNOBS)
+    got = peer.parse_knob_sets("defaults; interpolate=0.05,interp_levels=2;min_image=0.0,lut=96")
+    assert got == ({}, {"interpolate": 0.05, "interp_levels": 2}, {"min_image": 0.0, "lut": 96})
+    assert isinstance(got[1]["interp_levels"], int) and isinstance(got[2]["min_image"], float)

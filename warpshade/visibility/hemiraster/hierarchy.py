@@ -38,39 +38,65 @@ def vertex_faces(faces: np.ndarray, num_vertices: int) -> list[np.ndarray]:
     return [tri[starts[v]:starts[v + 1]] for v in range(num_vertices)]
 
 
-def interpolation_subset(faces: np.ndarray, num_vertices: int):
-    """Receivers to compute and receivers to interpolate from their computed neighbours.
-
-    A greedy maximal independent set of the vertex graph (in index order) is computed; every other
-    vertex is interpolated from its computed 1-ring neighbours, or computed itself when fewer than
-    two of them are (boundaries, irregular spots).
-
-    Returns:
-        ``(selected, targets, start, nbrs)`` int32: computed receivers, interpolated ones, and per
-        vertex (CSR, ``start`` shape (V+1,)) the computed neighbours of each target (empty rows for the others).
-    """
+def vertex_neighbours(faces: np.ndarray, num_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices one edge away from each vertex, as CSR ``(start (V+1,), adj)`` int64, each row sorted."""
     f = np.asarray(faces, dtype=np.int64)
     e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     e = np.unique(np.sort(np.concatenate([e, e[:, ::-1]]), axis=1), axis=0)
     both = np.concatenate([e, e[:, ::-1]])
     both = both[np.lexsort((both[:, 1], both[:, 0]))]
-    start = np.searchsorted(both[:, 0], np.arange(num_vertices + 1))
-    adj = both[:, 1]
-    chosen = np.zeros(num_vertices, dtype=bool)
-    blocked = np.zeros(num_vertices, dtype=bool)
-    for v in range(num_vertices):
-        if not blocked[v]:
-            chosen[v] = True
-            blocked[adj[start[v]:start[v + 1]]] = True
-    lists = [adj[start[v]:start[v + 1]][chosen[adj[start[v]:start[v + 1]]]] if not chosen[v] else np.zeros(0, np.int64)
-             for v in range(num_vertices)]
-    few = np.array([not chosen[v] and len(lists[v]) < 2 for v in range(num_vertices)], dtype=bool)
-    chosen |= few
-    lists = [np.zeros(0, np.int64) if chosen[v] else x for v, x in enumerate(lists)]
-    nstart = np.concatenate([[0], np.cumsum([len(x) for x in lists])])
-    nbrs = np.concatenate(lists) if nstart[-1] else np.zeros(1, np.int64)
-    return (np.flatnonzero(chosen).astype(np.int32), np.flatnonzero(~chosen).astype(np.int32), nstart.astype(np.int32),
-            nbrs.astype(np.int32))
+    return np.searchsorted(both[:, 0], np.arange(num_vertices + 1)), both[:, 1]
+
+
+def interpolation_subset(faces: np.ndarray, num_vertices: int, levels: int = 1):
+    """Receivers to compute and, level by level, receivers to interpolate from their neighbours.
+
+    Level 0 is the vertex graph: a greedy maximal independent set of it (in index order) is kept,
+    every other vertex is interpolated from its kept 1-ring neighbours, or kept itself when fewer
+    than two of them are (boundaries, irregular spots). Each further level does the same on the
+    kept vertices, two of them adjacent when they were adjacent or shared a neighbour on the level
+    below (so a level's neighbours lie about twice as far apart as the level below's): about half
+    the receivers are computed with one level, a quarter with two, an eighth with three on a smooth
+    closed mesh. The receivers computed are the last level's kept vertices; a level's targets read
+    the transfers of the level above (computed, or interpolated there), coarsest level first.
+
+    Returns:
+        ``(selected, split)``: ``selected`` int32, the receivers computed; ``split`` one
+        ``(targets, start, nbrs)`` per level, coarsest first, int32: the level's interpolated
+        receivers and per vertex (CSR, ``start`` shape (V+1,)) the neighbours each of them reads
+        (empty rows for the others).
+    """
+    from scipy import sparse
+
+    start, adj = vertex_neighbours(faces, num_vertices)
+    active = np.ones(num_vertices, dtype=bool)
+    split = []
+    for _ in range(int(levels)):
+        chosen = np.zeros(num_vertices, dtype=bool)
+        blocked = ~active
+        for v in np.flatnonzero(active):
+            if not blocked[v]:
+                chosen[v] = True
+                blocked[adj[start[v]:start[v + 1]]] = True
+        lists = [adj[start[v]:start[v + 1]][chosen[adj[start[v]:start[v + 1]]]] if active[v] and not chosen[v]
+                 else np.zeros(0, np.int64) for v in range(num_vertices)]
+        few = np.array([active[v] and not chosen[v] and len(lists[v]) < 2 for v in range(num_vertices)], dtype=bool)
+        chosen |= few
+        lists = [np.zeros(0, np.int64) if chosen[v] else x for v, x in enumerate(lists)]
+        nstart = np.concatenate([[0], np.cumsum([len(x) for x in lists])])
+        nbrs = np.concatenate(lists) if nstart[-1] else np.zeros(1, np.int64)
+        split.append((np.flatnonzero(active & ~chosen).astype(np.int32), nstart.astype(np.int32), nbrs.astype(np.int32)))
+        # the next level's graph: kept vertices adjacent or sharing a neighbour on this one
+        g = sparse.csr_matrix((np.ones(len(adj), np.int8), adj, start), shape=(num_vertices, num_vertices))
+        g = (g + sparse.identity(num_vertices, dtype=np.int8, format="csr")).astype(np.int32)
+        keep = sparse.diags(chosen.astype(np.int32), dtype=np.int32)
+        g2 = (keep @ (g @ g) @ keep).tocsr()
+        g2.setdiag(0)
+        g2.eliminate_zeros()
+        g2.sort_indices()
+        start, adj = g2.indptr.astype(np.int64), g2.indices.astype(np.int64)
+        active = chosen
+    return np.flatnonzero(active).astype(np.int32), split[::-1]
 
 
 def ring_triangles(faces: np.ndarray, num_vertices: int, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

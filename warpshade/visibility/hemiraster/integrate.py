@@ -86,12 +86,15 @@ def integrate_kernels(order: int) -> SimpleNamespace:
     ``block_dirs`` (B,) vec3 (tangent frame), ``block_bits`` = D², ``view`` world vec3 towards the
     viewer, ``phong`` exponent.
 
-    ``blocked_part(receivers, normals, unoccluded, rot_dirs, rot_pinv, basis, transfer) -> blocked``:
-    per receiver, the unoccluded transfer of its normal minus its transfer, (V,) vec_sh.
+    ``blocked_part(receivers, normals, unoccluded, rot_dirs, rot_pinv, basis, transfer) -> blocked, doubt``:
+    per receiver, the unoccluded transfer of its normal minus its transfer, (V,) vec_sh, and a doubt of 0.
     ``interpolate(targets, nbr_start, nbrs, normals, unoccluded, rot_dirs, rot_pinv, basis, blocked,
-    tolerance) -> transfer, redo``: per target vertex, the unoccluded transfer of its normal minus the
-    mean blocked part of its computed neighbours (CSR ``nbr_start`` (V+1,), ``nbrs``); ``redo[v]`` = 1
-    where a neighbour's blocked part is farther than ``tolerance`` (L2) from that mean.
+    tolerance, doubt) -> transfer, redo``: per target vertex, the unoccluded transfer of its normal minus
+    the mean blocked part of its neighbours (CSR ``nbr_start`` (V+1,), ``nbrs``), which it also writes as
+    its own ``blocked`` part; its ``doubt`` is the largest distance (L2) of a neighbour's blocked part from
+    that mean plus the largest doubt of a neighbour (interpolated neighbours, on a coarser level), and
+    ``redo[v]`` = 1 where it exceeds ``tolerance`` or, with ``rise`` < 1, where a vertex of its 1-ring
+    (CSR ``ring_start``, ``ring``; ``points``) lies more than ``asin(rise)`` above its tangent plane.
     """
     zf = zh_vector_funcs(order)
     vec_sh, vec_zh, zh_rotate = zf.vec_sh, zf.vec_zh, zf.zh_rotate
@@ -157,7 +160,8 @@ def integrate_kernels(order: int) -> SimpleNamespace:
 
     def blocked_part(receivers: wp.array(dtype=wp.int32), normals: wp.array(dtype=wp.vec3), unoccluded: vec_sh,
                      rot_dirs: wp.array(dtype=wp.vec3), rot_pinv: wp.array(dtype=vec_sh), basis: vec_sh,
-                     transfer: wp.array2d(dtype=float), blocked: wp.array(dtype=vec_sh)):
+                     transfer: wp.array2d(dtype=float), blocked: wp.array(dtype=vec_sh),
+                     doubt: wp.array(dtype=float)):
         # the unoccluded transfer of the receiver's normal minus its transfer: what varies slowly
         # along a surface (the unoccluded part is exact at every normal)
         v = receivers[wp.tid()]
@@ -165,12 +169,15 @@ def integrate_kernels(order: int) -> SimpleNamespace:
         for i in range(bands * bands):
             b[i] = b[i] - transfer[v, i]
         blocked[v] = b
+        doubt[v] = 0.0
 
     def interpolate(targets: wp.array(dtype=wp.int32), nbr_start: wp.array(dtype=wp.int32),
                     nbrs: wp.array(dtype=wp.int32), normals: wp.array(dtype=wp.vec3), unoccluded: vec_sh,
                     rot_dirs: wp.array(dtype=wp.vec3), rot_pinv: wp.array(dtype=vec_sh), basis: vec_sh,
-                    blocked: wp.array(dtype=vec_sh), tolerance: float, transfer: wp.array2d(dtype=float),
-                    redo: wp.array(dtype=wp.int32)):
+                    blocked: wp.array(dtype=vec_sh), tolerance: float, doubt: wp.array(dtype=float),
+                    points: wp.array(dtype=wp.vec3), ring_start: wp.array(dtype=wp.int32),
+                    ring: wp.array(dtype=wp.int32), rise: float,
+                    transfer: wp.array2d(dtype=float), redo: wp.array(dtype=wp.int32)):
         v = targets[wp.tid()]
         mean = vec_sh()
         count = float(0.0)
@@ -179,23 +186,37 @@ def integrate_kernels(order: int) -> SimpleNamespace:
             count += 1.0
         mean = mean / wp.max(count, 1.0)
         spread = float(0.0)
+        inherited = float(0.0)
         for r in range(nbr_start[v], nbr_start[v + 1]):
             spread = wp.max(spread, wp.length(blocked[nbrs[r]] - mean))
+            inherited = wp.max(inherited, doubt[nbrs[r]])
+        spread = spread + inherited  # interpolated neighbours bring their own (0 for computed ones)
         out = to_world(unoccluded, orthonormal_basis(normals[v]), rot_dirs, rot_pinv, basis) - mean
         for i in range(bands * bands):
             transfer[v, i] = out[i]
-        redo[v] = wp.where(spread > tolerance, 1, 0)
+        blocked[v] = mean  # what a finer level's targets read (no neighbour of this level is a target)
+        doubt[v] = spread
+        steep = int(0)
+        if rise < 1.0:  # a 1-ring vertex steeper than asin(rise) above the tangent plane: a crease or pit
+            for r in range(ring_start[v], ring_start[v + 1]):
+                d = points[ring[r]] - points[v]
+                if wp.dot(d, normals[v]) > rise * wp.length(d):
+                    steep = 1
+        redo[v] = wp.where(spread > tolerance or steep == 1, 1, 0)
 
     blocked_part.__annotations__ = {"receivers": wp.array(dtype=wp.int32), "normals": wp.array(dtype=wp.vec3),
                                     "unoccluded": vec_sh, "rot_dirs": wp.array(dtype=wp.vec3),
                                     "rot_pinv": wp.array(dtype=vec_sh), "basis": vec_sh,
-                                    "transfer": wp.array2d(dtype=float), "blocked": wp.array(dtype=vec_sh)}
+                                    "transfer": wp.array2d(dtype=float), "blocked": wp.array(dtype=vec_sh),
+                                    "doubt": wp.array(dtype=float)}
     blocked_part.__name__ = f"hemiraster_blocked_part_order{order}"
     interpolate.__annotations__ = {"targets": wp.array(dtype=wp.int32), "nbr_start": wp.array(dtype=wp.int32),
                                    "nbrs": wp.array(dtype=wp.int32), "normals": wp.array(dtype=wp.vec3),
                                    "unoccluded": vec_sh, "rot_dirs": wp.array(dtype=wp.vec3),
                                    "rot_pinv": wp.array(dtype=vec_sh), "basis": vec_sh,
-                                   "blocked": wp.array(dtype=vec_sh), "tolerance": float,
+                                   "blocked": wp.array(dtype=vec_sh), "tolerance": float, "doubt": wp.array(dtype=float),
+                                   "points": wp.array(dtype=wp.vec3), "ring_start": wp.array(dtype=wp.int32),
+                                   "ring": wp.array(dtype=wp.int32), "rise": float,
                                    "transfer": wp.array2d(dtype=float), "redo": wp.array(dtype=wp.int32)}
     interpolate.__name__ = f"hemiraster_interpolate_order{order}"
 

@@ -180,6 +180,18 @@ class HemirasterTransfer(TransferMethod):
             transfer of its own normal minus the mean blocked part of its computed neighbours, unless
             their blocked parts differ from that mean by more than ``interpolate`` times the
             unoccluded transfer's norm: then it is computed too (0: every receiver computed, exact).
+        interp_levels: Levels of the interpolation split (with ``interpolate`` > 0; 1, the default: the
+            split above). With ``n`` levels the split is repeated on the computed receivers
+            (:func:`.hierarchy.interpolation_subset`): about a quarter of a smooth closed mesh's
+            receivers are computed with 2, an eighth with 3; the coarsest level's targets are
+            interpolated from the computed receivers, each finer level's from the level above's
+            (computed or interpolated), each with the same test, where an interpolated neighbour
+            adds the disagreement it was interpolated with: a receiver whose spread summed along
+            its chain of interpolations exceeds ``interpolate`` is computed.
+        interp_rise: With ``interpolate``: also compute a target a vertex of whose 1-ring lies more
+            than this many degrees above its tangent plane (90, the default: off). Its neighbours
+            may agree while it sits in a crease or pit they do not (the bear's concave voxel
+            corners: neighbours unoccluded, the target 40-67 % of the mean transfer darker).
         keep_static: Store the part of each unmoved receiver's mask that unmoved blockers give and, while
             none of them moves, rasterize only the rest (:meth:`_static_mode`; the same masks). Receivers
             and blockers count as unmoved when their positions (and the receiver's normal) are bit for
@@ -214,6 +226,10 @@ class HemirasterTransfer(TransferMethod):
         Knob("interpolate", float, "compute a subset of receivers, interpolate the others where their neighbours "
                                    "agree within this fraction of the unoccluded transfer (0: compute all)",
              minimum=0.0),
+        Knob("interp_levels", int, "levels of the interpolation split: about 1/2, 1/4, 1/8 of a smooth mesh's "
+                                   "receivers computed with 1, 2, 3 (with --interpolate)", minimum=1),
+        Knob("interp_rise", float, "with --interpolate: also compute a receiver whose 1-ring rises more than this many "
+                                   "degrees above its tangent plane (a crease or pit; 90: off)", minimum=0.0, maximum=90.0),
         Knob("direct_far", bool, "rasterize far-field triangles whose image spans at most 2 x 2 pixel centres in the "
                                  "per-blocker pass (their LUT images at those centres), not through the queue"),
         Knob("fine_image", float, "the same cull for the fine triangles of refined blockers near a receiver "
@@ -233,7 +249,8 @@ class HemirasterTransfer(TransferMethod):
                  phong: float = 8.0, lut_dir: str | None = None, pvs_frames=None, min_image: float = 0.5,
                  refine: float = 2.0, occluders: list[TriMesh] | None = None, rim: bool = True, fine_image: float = 0.0,
                  fan: bool = True, redecimate: float = 0.0, interpolate: float = 0.0, mid: int = 0,
-                 border: bool = False, keep_static: bool = True, direct_far: bool = False):
+                 border: bool = False, keep_static: bool = True, direct_far: bool = False, interp_levels: int = 1,
+                 interp_rise: float = 90.0):
         super().__init__(mesh, order, device)
         # every knob but the PVS, to rebuild the far field from another pose (:meth:`rebuild`)
         self._init_knobs = dict(mask=mask, lut=lut, downsample=downsample, ring=ring, coarse=coarse, cull=cull,
@@ -241,7 +258,7 @@ class HemirasterTransfer(TransferMethod):
                                 lut_dir=lut_dir, min_image=min_image, refine=refine, occluders=occluders, rim=rim,
                                 fine_image=fine_image, fan=fan, redecimate=redecimate,
                                 interpolate=interpolate, mid=mid, border=border, keep_static=keep_static,
-                                direct_far=direct_far)
+                                direct_far=direct_far, interp_levels=interp_levels, interp_rise=interp_rise)
         if not (float(redecimate) >= 0.0 and np.isfinite(float(redecimate))):
             raise ValueError(f"hemiraster: redecimate must be a finite number >= 0, got {redecimate}")
         if float(redecimate) > 0.0 and pvs_frames is not None:
@@ -252,6 +269,14 @@ class HemirasterTransfer(TransferMethod):
         if float(interpolate) > 0.0 and (mode != "diffuse" or pvs_frames is not None):
             raise ValueError("hemiraster: interpolate works in diffuse mode without a PVS only")
         self.interpolate = float(interpolate)
+        if int(interp_levels) != interp_levels or int(interp_levels) < 1:
+            raise ValueError(f"hemiraster: interp_levels must be an integer >= 1, got {interp_levels}")
+        if int(interp_levels) > 1 and self.interpolate == 0.0:
+            raise ValueError("hemiraster: interp_levels > 1 needs interpolate > 0")
+        self.interp_levels = int(interp_levels)
+        if not 0.0 <= float(interp_rise) <= 90.0:
+            raise ValueError(f"hemiraster: interp_rise must be in [0, 90] degrees, got {interp_rise}")
+        self.interp_rise = float(interp_rise)
         tables.check_mask(int(mask), int(downsample))
         if ring not in (0, 1, 2, 3, 4):
             raise ValueError(f"hemiraster: ring must be 0, 1, 2, 3 or 4, got {ring}")
@@ -638,11 +663,17 @@ class HemirasterTransfer(TransferMethod):
         self._all = wp.array(np.arange(nv, dtype=np.int32), dtype=wp.int32, device=d)
         self._interp, self._redone = None, 0
         if self.interpolate > 0.0:
-            sel, targets, start, nbrs = hierarchy.interpolation_subset(faces, nv)
-            self._interp = tuple(wp.array(x, dtype=wp.int32, device=d) for x in (sel, targets, start, nbrs))
+            sel, split = hierarchy.interpolation_subset(faces, nv, self.interp_levels)
+            # (computed receivers, [(targets, nbr_start, nbrs) per level, coarsest first])
+            self._interp = (wp.array(sel, dtype=wp.int32, device=d),
+                            [tuple(wp.array(x, dtype=wp.int32, device=d) for x in level) for level in split])
             self._redo = wp.zeros(nv, dtype=wp.int32, device=d)
             self._interp_parts = {}
             self._blocked = wp.zeros(nv, dtype=vec_sh, device=d)
+            self._doubt = wp.zeros(nv, dtype=float, device=d)
+            self._ring_csr = tuple(wp.array(x, dtype=wp.int32, device=d) for x in hierarchy.vertex_neighbours(faces, nv))
+            # the sine of the rise, 2 when off (no dot product exceeds it: the ring is not read)
+            self._interp_rise = math.sin(math.radians(self.interp_rise)) if self.interp_rise < 90.0 else 2.0
             # relative to the unoccluded transfer's norm (the same for every normal: rotations keep it)
             self._interp_tolerance = self.interpolate * float(np.linalg.norm(np.array(self._unoccluded, dtype=np.float64)))
         self._pvs = None
@@ -686,7 +717,7 @@ class HemirasterTransfer(TransferMethod):
         out += [{"lut": r} for r in (32, 64, 128)]
         out += [{"downsample": s} for s in (2, 4)]
         out += [{"refine": x} for x in (1.0, 4.0)]
-        out += [{"redecimate": 0.1}, {"interpolate": 0.02}, {"interpolate": 0.05}]
+        out += [{"redecimate": 0.1}, {"interpolate": 0.02}, {"interpolate": 0.05}, {"interpolate": 0.05, "interp_levels": 2}]
         out += [{"mid": 2048}, {"coarse": 256, "mid": 2048}]
         out += [{"ring": 0}, {"ring": 2}, {"coarse": 256}, {"coarse": 1024}, {"coarse": 0}, {"cull": False}]
         return out
@@ -835,51 +866,61 @@ class HemirasterTransfer(TransferMethod):
             else:
                 self._integrate_glossy()
             return
-        self._interpolated(*self._interp[:2], use_pvs)
+        self._interpolated(self._interp[0], [level[0] for level in self._interp[1]], use_pvs)
 
-    def _interpolated(self, sel: wp.array, targets: wp.array, use_pvs: int) -> None:
-        """Compute the receivers ``sel`` and interpolate ``targets`` from their computed neighbours where
-        these agree within ``interpolate``, computing the others themselves (``_interp`` holds the whole
-        mesh's split; :meth:`compute_rows` passes a part of it)."""
+    def _blocked_parts(self, rows: wp.array) -> None:
+        """The blocked parts (:attr:`_blocked`) of the computed receivers ``rows``, for the targets that read them."""
+        wp.launch(self._integrate.blocked_part, dim=rows.shape[0],
+                  inputs=[rows, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv, self._basis,
+                          self.transfer], outputs=[self._blocked, self._doubt], device=self.device)
+
+    def _interpolated(self, sel: wp.array, targets: list[wp.array], use_pvs: int) -> None:
+        """Compute the receivers ``sel`` and, level by level (coarsest first), interpolate each level's
+        ``targets`` from their neighbours where these agree within ``interpolate``, computing the others
+        themselves (``_interp`` holds the whole mesh's split; :meth:`compute_rows` passes a part of it)."""
         d = self.device
-        start, nbrs = self._interp[2], self._interp[3]
         self._counts.zero_()
         self._refined.zero_()
         self._mids.counts.zero_()
         self._rasterize(sel, sel.shape[0], use_pvs)
         self._integrate_diffuse(sel, sel.shape[0])
         self._redone = 0
-        if targets.shape[0]:
-            wp.launch(self._integrate.blocked_part, dim=sel.shape[0],
-                      inputs=[sel, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv, self._basis,
-                              self.transfer], outputs=[self._blocked], device=d)
+        busy = [k for k, t in enumerate(targets) if t.shape[0]]
+        if busy:
+            self._blocked_parts(sel)
+        for k in busy:
+            start, nbrs = self._interp[1][k][1:]
             self._redo.zero_()
-            wp.launch(self._integrate.interpolate, dim=targets.shape[0],
-                      inputs=[targets, start, nbrs, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv,
-                              self._basis, self._blocked, self._interp_tolerance],
+            wp.launch(self._integrate.interpolate, dim=targets[k].shape[0],
+                      inputs=[targets[k], start, nbrs, self.normals, self._unoccluded, self._rot_dirs, self._rot_pinv,
+                              self._basis, self._blocked, self._interp_tolerance, self._doubt, self.points,
+                              *self._ring_csr, self._interp_rise],
                       outputs=[self.transfer, self._redo], device=d)
             redo = np.flatnonzero(self._redo.numpy()).astype(np.int32)
-            self._redone = len(redo)
+            self._redone += len(redo)
             if len(redo):
                 redo = wp.array(redo, dtype=wp.int32, device=d)
                 self._rasterize(redo, redo.shape[0], use_pvs)
                 self._integrate_diffuse(redo, redo.shape[0])
+                if k != busy[-1]:  # a finer level reads them
+                    self._blocked_parts(redo)
 
-    def _interp_rows(self, rows: np.ndarray) -> tuple[wp.array, wp.array]:
+    def _interp_rows(self, rows: np.ndarray) -> tuple[wp.array, list[wp.array]]:
         """The part of the interpolation split that gives the transfer at ``rows``: the computed receivers
-        among them and those their interpolated rows read, and the interpolated rows (cached per rows)."""
+        among them and those their interpolated rows read (through every level), and each level's
+        interpolated rows, coarsest first (cached per rows)."""
         key = rows.tobytes()
         if key not in self._interp_parts:
-            sel, targets, start, nbrs = (a.numpy() for a in self._interp)
-            wanted = np.zeros(self.mesh.num_vertices, dtype=bool)
-            wanted[rows] = True
-            t = targets[wanted[targets]]
-            need = wanted.copy()
-            for v in t:  # the computed neighbours each interpolated row reads
-                need[nbrs[start[v]:start[v + 1]]] = True
-            s = sel[need[sel]]
-            self._interp_parts[key] = (wp.array(s, dtype=wp.int32, device=self.device),
-                                       wp.array(t, dtype=wp.int32, device=self.device))
+            need = np.zeros(self.mesh.num_vertices, dtype=bool)
+            need[rows] = True
+            parts = []
+            for targets, start, nbrs in (tuple(a.numpy() for a in level) for level in self._interp[1][::-1]):
+                t = targets[need[targets]]
+                for v in t:  # the neighbours each interpolated row reads
+                    need[nbrs[start[v]:start[v + 1]]] = True
+                parts.append(wp.array(t, dtype=wp.int32, device=self.device))
+            sel = self._interp[0].numpy()
+            self._interp_parts[key] = (wp.array(sel[need[sel]], dtype=wp.int32, device=self.device), parts[::-1])
         return self._interp_parts[key]
 
     def _static_mode(self, record: int, use_pvs: int, wanted: np.ndarray | None) -> int:
