@@ -314,7 +314,7 @@ def dome(color=(1.0, 1.0, 1.0), intensity: float = 1.0, texture: str | None = No
                      texture=texture)
 
 
-def make_scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", **settings) -> Scene:
+def make_scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", gravity=None, **settings) -> Scene:
     """A :class:`~warpshade.scene.Scene` of objects and lights (in any order).
 
     Args:
@@ -324,10 +324,13 @@ def make_scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", **se
         fps: Frames per second (one simulation step of ``1/fps`` per frame).
         frames: Default number of frames of :func:`run`.
         up: Up axis, ``"Y"`` or ``"Z"``.
+        gravity: The cloth's gravity, a world vector [m/s²] (as a UsdPhysics ``PhysicsScene`` gives it in a
+            USD scene); None: 9.81 m/s² down the up axis. ``(0, 0, 0)``: the cloth floats.
         **settings: Scene-wide settings, as the ``warpshade:`` attributes of a USD scene's default
             prim (``order``, ``substeps``, ``wind``, ``reflections``...).
     """
-    out = Scene(frames=int(frames), fps=float(fps), up_axis=str(up).upper(), settings=dict(settings), source="<script>")
+    out = Scene(frames=int(frames), fps=float(fps), up_axis=str(up).upper(), settings=dict(settings), source="<script>",
+                gravity=None if gravity is None else _vec3(gravity, "make_scene: gravity"))
     for i, item in enumerate(items):
         if isinstance(item, SceneObject):
             out.objects.append(item)
