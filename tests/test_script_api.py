@@ -150,6 +150,8 @@ def test_sims_script_writes_shaded_output_by_default(tmp_path):
     (lambda: ws.distant(direction=(0, 0, 0)), "direction"),
     (lambda: ws.make_scene(ws.box(), ws.box()), "two objects are named 'Box'"),
     (lambda: ws.make_scene(ws.box(), gravity=(0, float("nan"), 0)), "make_scene: gravity must be 3 finite numbers"),
+    (lambda: ws.make_scene(ws.box(), substep=4), "make_scene: 'substep' is not a scene setting \\(did you mean "
+     "'substeps'\\?\\)"),
     (lambda: ws.cloth_grid(resolution=4, attached=[0]), "attached and attach_to go together"),
     (lambda: ws.cloth_grid(resolution=4, attached=[16], attach_to="Bar"), "attached vertex 16 out of range"),
     (lambda: ws.make_scene(ws.cloth_grid(resolution=4, attached=[0], attach_to="Bar")),
