@@ -164,3 +164,22 @@ def swaying_frames(mesh, first, count, up=2, across=1):
         s[:, up] += 0.02 * np.sin(0.7 * f) * np.cos(3 * s[:, across])
         out.append(p.astype(np.float32))
     return out
+
+
+def post_on_floor(dz: float = 0.0, shift: float = 0.0, seg: int = 24, rings: int = 9):
+    """A floor (9 x 9 grid on [-2, 2]², z = 0, facing +z) and an open tube standing on it (radius 0.4, rings
+    z = 0..2 of ``seg`` vertices, the lowest moved by ``dz``), the whole moved by ``shift``: one mesh, and the
+    tube's base ring. Some base vertices lie on floor edges (x = 0), none on a floor vertex."""
+    xs = np.linspace(-2.0, 2.0, 9)
+    fx, fy = np.meshgrid(xs, xs)
+    fp = np.stack([fx.ravel(), fy.ravel(), np.zeros(fx.size)], 1)
+    ff = [(a, a + 1, a + 10) for j in range(8) for a in [j * 9 + i for i in range(8)]]
+    ff += [(a, a + 10, a + 9) for j in range(8) for a in [j * 9 + i for i in range(8)]]
+    t = np.linspace(0.0, 2.0 * np.pi, seg, endpoint=False)
+    tp = np.array([(0.4 * np.cos(u), 0.25 + 0.4 * np.sin(u), z) for z in np.linspace(0.0, 2.0, rings) for u in t])
+    tp[:seg, 2] += dz
+    tf = [(k * seg + i, k * seg + (i + 1) % seg, (k + 1) * seg + (i + 1) % seg) for k in range(rings - 1) for i in range(seg)]
+    tf += [(k * seg + i, (k + 1) * seg + (i + 1) % seg, (k + 1) * seg + i) for k in range(rings - 1) for i in range(seg)]
+    pts = (np.concatenate([fp, tp]) + shift).astype(np.float32)
+    faces = np.concatenate([np.array(ff), np.array(tf) + len(fp)]).astype(np.int32)
+    return TriMesh(pts, faces), np.arange(len(fp), len(fp) + seg)

@@ -7,8 +7,9 @@ import json
 import numpy as np
 import pytest
 import trimesh
-
 from conftest import warp_asset
+from helpers import post_on_floor
+
 from warpshade.cli import main as cli_main
 from warpshade.geometry import TriMesh
 from warpshade.usd import load_mesh
@@ -169,11 +170,14 @@ def test_bitmask_agrees_with_ray_tracing_on_bunny():
     r = Rays(m, light, k=16, jitter=False)
     r.update()
     bits_g, bits_r = masks_to_bool(g.masks.numpy(), 16), masks_to_bool(r.masks.numpy(), 16)
-    # Same samples, different algorithms: they may only differ for rays grazing a triangle edge
-    # (float32). Measured: 2 of 1.56 M samples differ.
-    assert (bits_g != bits_r).mean() < 1e-4
-    np.testing.assert_allclose(g.visibility.numpy(), r.visibility.numpy(), atol=2 / 256)
-    np.testing.assert_allclose(g.form_factor.numpy(), r.form_factor.numpy(), atol=1e-3)
+    # Same samples, different algorithms: they differ for rays grazing a triangle edge (float32) and for rays
+    # the rays' own-surface rule (rays.trace_surface_ray: no origin offset) blocks at the vertex while GEARS's
+    # receiver, offset along its normal, passes them. Measured: 356 of 1.56 M samples (2.3e-4) at 327
+    # vertices, 352 blocked by the rays only (cos to the normal: median -0.06, 274 below 0.05); visibility
+    # max 0.0117, form factor max 1.33e-3 (with the offset origin the rays used before: 2 samples).
+    assert (bits_g != bits_r).mean() < 4e-4
+    np.testing.assert_allclose(g.visibility.numpy(), r.visibility.numpy(), atol=5 / 256)
+    np.testing.assert_allclose(g.form_factor.numpy(), r.form_factor.numpy(), atol=2e-3)
     # Jittered (stratified) rays estimate the same fractions; the mean difference is a quantization
     # effect of order 1/k per penumbra vertex, averaged (measured 0.0023).
     rj = Rays(m, light, k=16, jitter=True)
@@ -284,3 +288,20 @@ def test_cli_bad_light_is_an_error(tmp_path, capsys):
     rc = cli_main(["visibility", warp_asset("bear.usd"), "--rect-light", "0,7,0,1,0,0", "--method", "gears",
                    "--save", str(tmp_path / "v.npz")])
     assert rc == 1 and "--rect-light" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("shift", [0.0, 1e4])
+def test_rays_from_a_post_standing_on_a_floor_see_the_light(shift):
+    """A post standing on a floor (:func:`helpers.post_on_floor`, base ring in the floor's plane) under a light
+    beside it, everything moved by ``shift``: the ray-traced base ring sees the light as GEARS does at the
+    origin, vertex by vertex. Measured: max 0.012 (3 of 256 cells) at 0 and at 1e4. Before (origin pushed
+    along the horizontal normal, still on the floor; world coordinates) every base vertex was blocked (0 vs
+    0.45) and at 1e4 every vertex, the floor's too."""
+    mesh, base = post_on_floor()
+    far, _ = post_on_floor(shift=shift)
+    light = LightRect((1.5, 0.25, 3.0), (0.5, 0, 0), (0, 0.5, 0))
+    light_far = LightRect(np.array(light.center) + shift, light.u, light.v)
+    want = Gears(mesh, light, k=16).update().numpy()
+    got = Rays(far, light_far, k=16).update().numpy()
+    np.testing.assert_allclose(got[base], want[base], atol=0.025)
+    np.testing.assert_allclose(got[base + len(base)], want[base + len(base)], atol=0.025)

@@ -11,7 +11,7 @@ import trimesh
 import warp as wp
 
 from conftest import warp_asset
-from helpers import bumpy_grid, rel_err, unoccluded_transfer
+from helpers import bumpy_grid, post_on_floor, rel_err, unoccluded_transfer
 from warpshade.cli import main as cli_main
 from warpshade.geometry import TriMesh
 from warpshade.usd import load_mesh
@@ -400,25 +400,6 @@ def test_agrees_with_ray_traced_reference_on_bear(bear_reference):
     assert rel_err(hier, ref) < 0.02
 
 
-def _post_on_floor(dz: float = 0.0, shift: float = 0.0, seg: int = 24, rings: int = 9):
-    """A floor (9 x 9 grid on [-2, 2]², z = 0, facing +z) and an open tube standing on it (radius 0.4, rings
-    z = 0..2 of ``seg`` vertices, the lowest moved by ``dz``), the whole moved by ``shift``: one mesh, and the
-    tube's base ring. Some base vertices lie on floor edges (x = 0), none on a floor vertex."""
-    xs = np.linspace(-2.0, 2.0, 9)
-    fx, fy = np.meshgrid(xs, xs)
-    fp = np.stack([fx.ravel(), fy.ravel(), np.zeros(fx.size)], 1)
-    ff = [(a, a + 1, a + 10) for j in range(8) for a in [j * 9 + i for i in range(8)]]
-    ff += [(a, a + 10, a + 9) for j in range(8) for a in [j * 9 + i for i in range(8)]]
-    t = np.linspace(0.0, 2.0 * np.pi, seg, endpoint=False)
-    tp = np.array([(0.4 * np.cos(u), 0.25 + 0.4 * np.sin(u), z) for z in np.linspace(0.0, 2.0, rings) for u in t])
-    tp[:seg, 2] += dz
-    tf = [(k * seg + i, k * seg + (i + 1) % seg, (k + 1) * seg + (i + 1) % seg) for k in range(rings - 1) for i in range(seg)]
-    tf += [(k * seg + i, (k + 1) * seg + (i + 1) % seg, (k + 1) * seg + i) for k in range(rings - 1) for i in range(seg)]
-    pts = (np.concatenate([fp, tp]) + shift).astype(np.float32)
-    faces = np.concatenate([np.array(ff), np.array(tf) + len(fp)]).astype(np.int32)
-    return TriMesh(pts, faces), np.arange(len(fp), len(fp) + seg)
-
-
 @pytest.mark.parametrize("dz", [0.0, -1e-6, 1e-6])
 def test_post_standing_on_a_floor_sees_the_floor_below_it(dz):
     """A post's base vertices lie in the floor's plane (or an ulp-sized step under or over it): each sees the
@@ -428,7 +409,7 @@ def test_post_standing_on_a_floor_sees_the_floor_below_it(dz):
     scene; here up to 120 % error, the floor missing; a step over the floor was right) while the ring above
     was right. Bound: measured max
     3.2-3.6 % at the base (the ring above: 1.9 %; the reference's own noise at 4096 rays about 1 %)."""
-    mesh, base = _post_on_floor(dz)
+    mesh, base = post_on_floor(dz)
     ref = get_method("reference")(mesh, order=3, rays=4096).update().numpy()[base]
     got = hemiraster(mesh, order=3).update().numpy()[base]
     err = np.linalg.norm(got - ref, axis=1) / np.linalg.norm(ref, axis=1)
@@ -439,10 +420,9 @@ def test_post_standing_on_a_floor_far_from_the_origin():
     """The same post and floor 100 units from the origin (float32 rounding of the corners relative to a base
     vertex ~1e-5 of the floor's size, under the rule's 1e-3): the base ring's transfer is the one at the
     origin. Measured: max 5.4 %, mean 1.7-1.8 % per base vertex at 10 and 100 units (edge planes rounded into
-    other LUT cells; the ring above: max 0.33 %); before the rule max 122 %, mean 57-75 %. (The reference ray
-    tracer itself loses the floor there: its base DC falls from 0.44 to 0.42 at 100 and 0.26 at 1000.)"""
-    mesh, base = _post_on_floor()
-    far, _ = _post_on_floor(shift=100.0)
+    other LUT cells; the ring above: max 0.33 %); before the rule max 122 %, mean 57-75 %."""
+    mesh, base = post_on_floor()
+    far, _ = post_on_floor(shift=100.0)
     a = hemiraster(mesh, order=3).update().numpy()[base]
     b = hemiraster(far, order=3).update().numpy()[base]
     err = np.linalg.norm(a - b, axis=1) / np.linalg.norm(a, axis=1)

@@ -3,9 +3,10 @@ from a mesh vertex past its own surface (the reference transfer, hemiraster, dis
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
 import warp as wp
-
-
 
 FRAME_AXIS = wp.constant(wp.vec3(0.4472136, 0.5477226, 0.7071068))
 """``(√2, √3, √5) / √10``: the direction the tangent frames of :func:`orthonormal_basis` turn about, at least
@@ -299,3 +300,32 @@ def trace_surface_ray(mesh: wp.uint64, vertex: int, p: wp.vec3, n: wp.vec3, d: w
             return hit
         start = start + q.t + eps
     return hit
+
+
+EPS_REL = 128.0 * 2.0 ** -24
+"""The near-field distance of :func:`trace_surface_ray` is at least this fraction of the receiver point's largest
+coordinate (:func:`ray_eps`): 64-128 float32 spacings of it."""
+
+
+def local_origin(points: np.ndarray) -> np.ndarray:
+    """Where to put the origin of the coordinates rays are traced in: the centre of ``points``' bounding box,
+    rounded per axis to a multiple of the power of two at or above the box's diagonal (float64, shape (3,)).
+
+    Float32 coordinates resolve a scene to a fraction of their magnitude (an ulp, 6e-5 at 1000 units), not of
+    the scene's size: relative to this origin, a scene far from the world origin keeps the resolution it has
+    at the origin (the shift is exact or adds rounding far below the scene's own). A box within half a
+    diagonal of the world origin gets 0 on that axis and is traced in the coordinates it was given."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if not len(pts):
+        return np.zeros(3)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    step = 2.0 ** math.ceil(math.log2(float(np.linalg.norm(hi - lo)) or 1.0))
+    return np.round(0.5 * (lo + hi) / step) * step
+
+
+@wp.func
+def ray_eps(eps: float, p: wp.vec3) -> float:
+    """The near-field distance of rays from point ``p`` (in the coordinates rays are traced in): ``eps``, but at
+    least :data:`EPS_REL` of ``p``'s largest coordinate, above the float32 rounding of the surfaces there (below
+    it a ray from ``p + eps d`` starts at ``p`` or behind it, on the surface it leaves, which blocks it)."""
+    return wp.max(eps, float(EPS_REL) * wp.max(wp.abs(p[0]), wp.max(wp.abs(p[1]), wp.abs(p[2]))))

@@ -12,6 +12,7 @@ from __future__ import annotations
 import warp as wp
 
 from ...geometry.kernels import clip_polygon, mat63
+from ..rays import near_faces, ray_eps, trace_surface_ray
 
 wp.set_module_options({"enable_backward": False})
 
@@ -734,14 +735,17 @@ def trace_light_masks(
     visibility: wp.array[float],
     form_factor: wp.array[float],
 ):
-    """k×k stratified shadow rays from each receiver to the light (``wp.mesh_query_ray``).
+    """k×k stratified shadow rays from each receiver to the light (:func:`~warpshade.visibility.rays.trace_surface_ray`,
+    near-field distance ``offset``: no origin pushed through a surface the receiver rests on).
 
     One ray per light cell, at the cell centre (``jitter = 0``, the same samples as the GEARS mask)
     or at a uniformly jittered point in the cell. Bits mark blocked rays like GEARS masks.
     """
     r = wp.tid()
     n = normals[r]
-    p = points[r] + n * offset
+    p = points[r]
+    eps = ray_eps(offset, p)
+    near = near_faces(mesh, r, p, n, eps)
     rng = wp.rand_init(seed, r)
     dA = 4.0 * wp.length(wp.cross(u, v)) / float(k * k)
     blocked = int(0)
@@ -762,7 +766,7 @@ def trace_light_masks(
             hit = bool(False)
             if dist > 0.0:
                 # stop just short of the light so geometry lying in the light's plane does not count
-                hit = wp.mesh_query_ray(mesh, p, d / dist, dist * (1.0 - 1.0e-6)).result
+                hit = trace_surface_ray(mesh, r, p, n, d / dist, eps, dist * (1.0 - 1.0e-6), near).face >= 0
             if hit:
                 row = row | (wp.uint32(1) << wp.uint32(i))
                 blocked += 1

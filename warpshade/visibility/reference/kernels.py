@@ -5,7 +5,13 @@ from __future__ import annotations
 import warp as wp
 
 from ...sh.kernels import sh_accumulate
-from ..rays import orthonormal_basis, cosine_direction, near_faces, trace_surface_ray
+from ..rays import (
+    cosine_direction,
+    near_faces,
+    orthonormal_basis,
+    ray_eps,
+    trace_surface_ray,
+)
 
 
 @wp.kernel
@@ -32,7 +38,8 @@ def trace_transfer(
     frame = orthonormal_basis(n)
     rng = wp.rand_init(seed, v)
     weight = wp.pi / float(strata * strata)
-    near = near_faces(mesh, v, points[v], n, offset)
+    eps = ray_eps(offset, points[v])
+    near = near_faces(mesh, v, points[v], n, eps)
     for i in range(order * order):
         transfer[v, i] = 0.0
     for sx in range(strata):
@@ -40,5 +47,5 @@ def trace_transfer(
             u = (float(sx) + wp.randf(rng)) / float(strata)
             w = (float(sy) + wp.randf(rng)) / float(strata)
             d = cosine_direction(frame, u, w)
-            if trace_surface_ray(mesh, v, points[v], n, d, offset, max_t, near).face < 0:
+            if trace_surface_ray(mesh, v, points[v], n, d, eps, max_t, near).face < 0:
                 sh_accumulate(d, weight, order, k, transfer, v)

@@ -27,6 +27,7 @@ from ...geometry.mesh import TriMesh
 from ...sh.kernels import normalization_array
 from ..base import TransferMethod
 from ..knobs import Knob
+from ..rays import local_origin
 from .kernels import trace_transfer
 
 RAYS_PER_LAUNCH = 1 << 19
@@ -76,6 +77,7 @@ class ReferenceTransfer(TransferMethod):
             faces.append(o.faces + base)
             base += o.num_vertices
         all_pts = np.concatenate(pts).astype(np.float32)
+        self._occluder_points = all_pts[mesh.num_vertices:]
         self._scene_points = wp.array(all_pts, dtype=wp.vec3, device=device)
         self._scene_faces = wp.array(np.concatenate(faces).reshape(-1).astype(np.int32), dtype=wp.int32, device=device)
         self._bvh = wp.Mesh(points=self._scene_points, indices=self._scene_faces)
@@ -91,9 +93,11 @@ class ReferenceTransfer(TransferMethod):
 
     def _compute(self) -> None:
         n = self.mesh.num_vertices
-        wp.copy(self._scene_points, self.points, count=n)
+        # rays are traced in coordinates about the scene's own origin (float32 resolves it as at the world origin)
+        world = np.concatenate([self.points.numpy(), self._occluder_points])
+        pts = (world.astype(np.float64) - local_origin(world)).astype(np.float32)
+        self._scene_points.assign(pts)
         self._bvh.refit()
-        pts = self._scene_points.numpy()
         recv = pts[:n]
         # offset scales with the receiver (scale invariance); rays reach past the whole scene
         diag = float(np.linalg.norm(recv.max(axis=0) - recv.min(axis=0))) or 1.0
@@ -104,7 +108,7 @@ class ReferenceTransfer(TransferMethod):
             wp.launch(
                 trace_transfer,
                 dim=min(block, n - first),
-                inputs=[self._bvh.id, self.points, self.normals, self.strata, self.offset_rel * diag, 4.0 * scene_diag,
+                inputs=[self._bvh.id, self._scene_points, self.normals, self.strata, self.offset_rel * diag, 4.0 * scene_diag,
                         self.seed, self.order, self._k, first],
                 outputs=[self.transfer],
                 device=self.device,
