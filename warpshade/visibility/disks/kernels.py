@@ -272,10 +272,12 @@ def contact_foot(d: wp.vec3, ne: wp.vec3, n: wp.vec3, area: float) -> float:
     plane, its normal ``n`` with ``n·ne >=`` :data:`CONTACT_FACING`); :data:`CONTACT_REACH` (no contact) otherwise.
     Disks of the receiver's edge neighbours (its own sheet) are left out by the caller.
     """
-    rho = wp.sqrt(area / wp.pi)
     h = wp.dot(ne, d)
+    if area <= 0.0 or wp.pi * h * h > CONTACT * CONTACT * area:  # the usual case, without a square root
+        return float(CONTACT_REACH)
+    rho = wp.sqrt(area / wp.pi)
     s = wp.length(d - ne * h)
-    if area > 0.0 and wp.abs(h) <= CONTACT * rho and wp.dot(n, ne) >= CONTACT_FACING and s < CONTACT_REACH * rho:
+    if wp.dot(n, ne) >= CONTACT_FACING and s < CONTACT_REACH * rho:
         return s / rho
     return float(CONTACT_REACH)
 
