@@ -21,6 +21,16 @@ STACK = 64  # traversal stack; median splits keep the depth near log2(V), far be
 stack_t = wp.types.vector(length=STACK, dtype=int)
 weights_t = wp.types.vector(length=STACK, dtype=float)
 LOD_BAND = 1.5  # nodes between lod and LOD_BAND*lod radii blend parent and children (no popping)
+CONTACT = 1.0e-3
+"""Contact rule (:func:`contact_half_space`): a receiver within CONTACT × ρ of a leaf disk's plane (ρ the disk's
+radius) is in contact with the surface the disk samples."""
+CONTACT_REACH = 1.5
+"""... when its foot lies within CONTACT_REACH × ρ of the disk's centre: vertex disks of a mesh do not tile its
+surface (on a square grid a point of the plane can lie 1.25 ρ from the nearest vertex)."""
+CONTACT_FACING = -0.5
+"""Least ``n·N`` (receiver normal against the disk's) for the contact rule to act (a receiver on the back of a
+thin surface keeps its view), as hemiraster's coplanar rule."""
+CONTACT_SAMPLES = 4  # per bin side: the contact half-space's coverage of a bin is a 4×4 midpoint rule
 
 
 @wp.func
@@ -246,6 +256,67 @@ def splat_bins(x: wp.vec3, frame: wp.mat33, c: wp.vec3, ff: float, area: float, 
                     centroid_v[row, b] = centroid_v[row, b] + o * cv
 
 
+@wp.func
+def edge_neighbour(i: int, j: int, ring_start: wp.array[int], ring: wp.array[int]) -> bool:
+    """Whether vertex j is one edge away from vertex i (CSR adjacency)."""
+    for k in range(ring_start[i], ring_start[i + 1]):
+        if ring[k] == j:
+            return True
+    return False
+
+
+@wp.func
+def contact_foot(d: wp.vec3, ne: wp.vec3, n: wp.vec3, area: float) -> float:
+    """Distance, in disk radii ρ = sqrt(A/π), from a leaf disk's centre (``d`` = centre - receiver, ``ne`` its
+    normal) to the receiver's foot in its plane when the receiver touches it (within :data:`CONTACT` ρ of the
+    plane, its normal ``n`` with ``n·ne >=`` :data:`CONTACT_FACING`); :data:`CONTACT_REACH` (no contact) otherwise.
+    Disks of the receiver's edge neighbours (its own sheet) are left out by the caller.
+    """
+    h = wp.dot(ne, d)
+    if area <= 0.0 or wp.pi * h * h > CONTACT * CONTACT * area:  # the usual case, without a square root
+        return float(CONTACT_REACH)
+    rho = wp.sqrt(area / wp.pi)
+    s = wp.length(d - ne * h)
+    if wp.dot(n, ne) >= CONTACT_FACING and s < CONTACT_REACH * rho:
+        return s / rho
+    return float(CONTACT_REACH)
+
+
+@wp.func
+def contact_half_space(frame: wp.mat33, ne: wp.vec3, row: int, occlusion: wp.array2d[float],
+                       centroid_u: wp.array2d[float], centroid_v: wp.array2d[float]):
+    """Occlusion by the surface a receiver stands on: every direction behind its plane (``w·ne < 0``).
+
+    A post standing on a floor puts its base vertices in the floor's plane, where each floor disk is edge-on
+    and covers nothing (:func:`disk_form_factor`); seen from just above (the floor's front, where the post
+    stands) the floor covers the whole half-space below, as a renderer's ray from the base sees it. Each bin
+    gets the covered fraction of its cosine measure (a :data:`CONTACT_SAMPLES`² midpoint rule in the
+    concentric square) and that part's centroid, like :func:`splat_bins`.
+    """
+    cell = 1.0 / float(GRID)
+    for b in range(BINS):
+        bi = b / GRID
+        bj = b % GRID
+        hit = float(0.0)
+        su = float(0.0)
+        sv = float(0.0)
+        for si in range(CONTACT_SAMPLES):
+            for sj in range(CONTACT_SAMPLES):
+                u = (float(bi) + (float(si) + 0.5) / float(CONTACT_SAMPLES)) * cell
+                w = (float(bj) + (float(sj) + 0.5) / float(CONTACT_SAMPLES)) * cell
+                d2 = concentric_disk(u, w)
+                z = wp.sqrt(wp.max(0.0, 1.0 - wp.dot(d2, d2)))
+                if wp.dot(frame * wp.vec3(d2[0], d2[1], z), ne) < 0.0:
+                    hit += 1.0
+                    su += u
+                    sv += w
+        if hit > 0.0:
+            o = hit / float(CONTACT_SAMPLES * CONTACT_SAMPLES)
+            occlusion[row, b] = occlusion[row, b] + o
+            centroid_u[row, b] = centroid_u[row, b] + o * su / hit
+            centroid_v[row, b] = centroid_v[row, b] + o * sv / hit
+
+
 @wp.kernel
 def accumulate_occlusion(
     points: wp.array[wp.vec3],
@@ -253,6 +324,8 @@ def accumulate_occlusion(
     left: wp.array[int],
     right: wp.array[int],
     node_vertex: wp.array[int],
+    ring_start: wp.array[int],
+    ring: wp.array[int],
     node_pos: wp.array[wp.vec3],
     node_nrm: wp.array[wp.vec3],
     node_area: wp.array[float],
@@ -276,7 +349,9 @@ def accumulate_occlusion(
     below the receiver's horizon are skipped (exact), and with one-sided disks so are subtrees whose
     normal cone faces away from the receiver (their only loss is the A/4 term of incoherent
     clusters, which back-facing clusters should not have). Leaves are
-    vertex disks; the receiver's own is skipped. With ``use_access`` (second pass, Bunnell) each
+    vertex disks; the receiver's own is skipped. A receiver touching a leaf disk of another sheet (not an
+    edge neighbour, ``ring_start``/``ring`` its CSR adjacency) gets the contact half-space
+    (:func:`contact_foot`, :func:`contact_half_space`) once, from the disk nearest its foot. With ``use_access`` (second pass, Bunnell) each
     disk's coverage is scaled by its accessibility from the first pass, which discounts occluders
     that are themselves hidden.
     """
@@ -294,6 +369,8 @@ def accumulate_occlusion(
     weight[0] = 1.0
     top = int(1)
     count = int(0)
+    contact = float(CONTACT_REACH)  # best foot distance (in disk radii) of a contact disk so far
+    contact_nrm = wp.vec3(0.0)
     while top > 0:
         top -= 1
         node = stack[top]
@@ -305,6 +382,11 @@ def accumulate_occlusion(
         d = c - x
         dist = wp.length(d)
         radius = node_radius[node]
+        if leaf:
+            foot = contact_foot(d, node_nrm[node], n, node_area[node])
+            if foot < contact and not edge_neighbour(v, node_vertex[node], ring_start, ring):
+                contact = foot
+                contact_nrm = node_nrm[node]
         # Subtree entirely below the receiver's horizon (its own disk included): nothing to add.
         if wp.dot(n, d) <= -wp.max(radius, wp.sqrt(node_area[node] / wp.pi)):
             continue
@@ -332,6 +414,8 @@ def accumulate_occlusion(
             weight[top] = wn * (1.0 - use)
             weight[top + 1] = wn * (1.0 - use)
             top += 2
+    if contact < CONTACT_REACH:
+        contact_half_space(frame, contact_nrm, v, occlusion, centroid_u, centroid_v)
     visited[v] = count
 
 

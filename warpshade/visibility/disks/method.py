@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ...geometry.mesh import TriMesh
+from ...geometry.mesh import TriMesh, mesh_edges
 from ...sh.kernels import normalization_array, zh_normalization_array
 from ...sh.zonal import clamped_cosine_zh
 from ..base import TransferMethod
@@ -144,6 +144,13 @@ class DiskTransfer(TransferMethod):
         self._right = wp.array(tree["right"], dtype=int, device=dev)
         self._node_vertex = wp.array(tree["node_vertex"], dtype=int, device=dev)
         self._leaf_of_vertex = wp.array(tree["leaf_of_vertex"], dtype=int, device=dev)
+        # CSR edge adjacency: the contact rule leaves out disks of the receiver's own sheet
+        e = mesh_edges(mesh.faces)
+        both = np.concatenate([e, e[:, ::-1]])
+        ring = both[np.argsort(both[:, 0], kind="stable"), 1]
+        ring_start = np.searchsorted(np.sort(both[:, 0]), np.arange(mesh.num_vertices + 1))
+        self._ring_start = wp.array(ring_start, dtype=int, device=dev)
+        self._ring = wp.array(ring, dtype=int, device=dev)
         self._levels = [wp.array(lv, dtype=int, device=dev) for lv in tree["levels"]]
         self.depth = len(self._levels)
         self.node_pos = wp.zeros(n_nodes, dtype=wp.vec3, device=dev)
@@ -203,7 +210,8 @@ class DiskTransfer(TransferMethod):
 
     def _occlusion_pass(self, use_access: bool, out: list) -> None:
         wp.launch(accumulate_occlusion, dim=self.mesh.num_vertices,
-                  inputs=[self.points, self.normals, self._left, self._right, self._node_vertex, self.node_pos,
+                  inputs=[self.points, self.normals, self._left, self._right, self._node_vertex, self._ring_start,
+                          self._ring, self.node_pos,
                           self.node_nrm, self.node_area, self._node_radius, self._node_coherence, self._node_cone,
                           self._node_access,
                           int(use_access), self.lod, self.back_weight],
