@@ -17,6 +17,7 @@ from ...geometry.mesh import TriMesh
 from ...lighting import RectLight
 from ..base import VisibilityMethod
 from ..knobs import Knob
+from ..rays import local_origin
 
 
 @dataclass
@@ -98,6 +99,8 @@ class AreaVisibilityMethod(VisibilityMethod):
         A Lambertian vertex of albedo ρ under a light of radiance L_e has exit radiance ``ρ L_e F``.
         """
         self._clear = None  # all-clear masks for weighted_visibility, allocated on first use
+        self._local_points = wp.empty_like(self.points)
+        self._origin = np.zeros(3)
         self.set_light(light)
 
     def set_light(self, light) -> None:
@@ -129,6 +132,7 @@ class AreaVisibilityMethod(VisibilityMethod):
         """
         if points is not None:
             self.set_points(points, normals)
+        self._localize()
         self._compute()
         return self.visibility
 
@@ -173,7 +177,7 @@ class AreaVisibilityMethod(VisibilityMethod):
         if out is None:
             out = wp.empty(n, dtype=float, device=self.device)
         c, u, v, nl = self.light_args()
-        wp.launch(weight_visibility, dim=n, inputs=[self.points, self.normals, c, u, v, nl, self.k, self._clear,
+        wp.launch(weight_visibility, dim=n, inputs=[self._local_points, self.normals, c, u, v, nl, self.k, self._clear,
                                                     self.visibility, self.form_factor],
                   outputs=[out], device=self.device)
         return out
@@ -182,8 +186,20 @@ class AreaVisibilityMethod(VisibilityMethod):
     def _offset_abs(self) -> float:
         return self.offset_rel * (self.mesh.bbox_diagonal() or 1.0)
 
+    def _localize(self) -> None:
+        """Set :attr:`_local_points` (positions relative to :attr:`_origin`, ``rays.local_origin`` of them), the
+        coordinates every kernel works in: float32 resolves a scene far from the world origin there as at the
+        origin (0 for a scene about the world origin, where they are the positions themselves)."""
+        world = self.points.numpy()
+        self._origin = local_origin(world)
+        self._local_points.assign((world.astype(np.float64) - self._origin).astype(np.float32))
+
+    def light_center(self) -> np.ndarray:
+        """The light's centre relative to :attr:`_origin`, float64 shape (3,)."""
+        return np.asarray(self.light.center, np.float64) - self._origin
+
     def light_args(self) -> list:
-        """(c, u, v, unit normal) as Warp vectors for kernel launches."""
+        """(c, u, v, unit normal) as Warp vectors for kernel launches, ``c`` relative to :attr:`_origin`."""
         lt = self.light
-        return [wp.vec3(*lt.center), wp.vec3(*lt.u), wp.vec3(*lt.v), wp.vec3(*lt.normal)]
+        return [wp.vec3(*self.light_center()), wp.vec3(*lt.u), wp.vec3(*lt.v), wp.vec3(*lt.normal)]
 

@@ -86,10 +86,10 @@ class GearsVisibility(AreaVisibilityMethod):
     def _build_grid(self, offset: float) -> None:
         """Bin receivers and triangles into the grid (paper A.1–A.3), one grid per side of the light."""
         lt = self.light
-        c, nl = np.asarray(lt.center), lt.normal
+        c, nl = self.light_center(), lt.normal
         e1 = np.asarray(lt.u) / np.linalg.norm(lt.u)
         e2 = np.cross(nl, e1)
-        pts = self.points.numpy().astype(np.float64) + offset * self.normals.numpy()
+        pts = self._local_points.numpy().astype(np.float64) + offset * self.normals.numpy()
         rel = pts - c
         h = rel @ nl
         x, y = rel @ e1, rel @ e2
@@ -114,10 +114,10 @@ class GearsVisibility(AreaVisibilityMethod):
         cw, nlw = wp.vec3(*c), wp.vec3(*nl)
         e1w, e2w = wp.vec3(*e1), wp.vec3(*e2)
         wp.launch(locate_receivers, dim=self.mesh.num_vertices,
-                  inputs=[self.points, self.normals, offset, cw, nlw, e1w, e2w, grid_lo, grid_cell, g],
+                  inputs=[self._local_points, self.normals, offset, cw, nlw, e1w, e2w, grid_lo, grid_cell, g],
                   outputs=[self._cell_of], device=dev)
         wp.launch(bound_shadow_volumes, dim=(self.mesh.num_faces, 2),
-                  inputs=[self.points, self.faces, cw, wp.vec3(*lt.u), wp.vec3(*lt.v), nlw, e1w, e2w, side_height,
+                  inputs=[self._local_points, self.faces, cw, wp.vec3(*lt.u), wp.vec3(*lt.v), nlw, e1w, e2w, side_height,
                           grid_lo, grid_cell, g],
                   outputs=[self._boxes, self._near], device=dev)
         self._cell_count.zero_()
@@ -158,10 +158,10 @@ class GearsVisibility(AreaVisibilityMethod):
         lt = self.light
         du = np.asarray(lt.u) / np.dot(lt.u, lt.u)
         dv = np.asarray(lt.v) / np.dot(lt.v, lt.v)
-        wp.launch(triangle_corners, dim=(self.mesh.num_faces, 3), inputs=[self.points, self.faces],
+        wp.launch(triangle_corners, dim=(self.mesh.num_faces, 3), inputs=[self._local_points, self.faces],
                   outputs=[self._corners], device=self.device)
         wp.launch(rasterize_light_masks, dim=self.mesh.num_vertices,
-                  inputs=[self.points, self.normals, self._corners, offset, c, u, v, wp.vec3(*du), wp.vec3(*dv), nl,
+                  inputs=[self._local_points, self.normals, self._corners, offset, c, u, v, wp.vec3(*du), wp.vec3(*dv), nl,
                           self.k, self._cell_of, self._cell_start, self._cell_count, self._cell_tris, self._cell_keys,
                           self._cull, self._keep],
                   outputs=[self.masks, self.visibility, self.form_factor, self._tri_count], device=self.device)

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import numpy as np
 import warp as wp
 
 from ...geometry.mesh import TriMesh
 from ..knobs import Knob
-from ..rays import local_origin
 from .base import AreaVisibilityMethod, LightRect
 from .kernels import trace_light_masks
 
@@ -33,21 +31,16 @@ class RayVisibility(AreaVisibilityMethod):
         super().__init__(mesh, light, k, device, offset)
         self.jitter = bool(jitter)
         self.seed = int(seed)
-        self._trace_points = wp.empty_like(self.points)
-        self._bvh = wp.Mesh(points=self._trace_points, indices=self.faces.flatten())
+        self._bvh = wp.Mesh(points=self._local_points, indices=self.faces.flatten())
 
     def stats(self) -> dict:
         return {"rays_per_vertex": self.k * self.k}
 
     def _compute(self) -> None:
         # rays are traced in coordinates about the scene's own origin (float32 resolves it as at the world origin)
-        world = self.points.numpy()
-        origin = local_origin(world)
-        self._trace_points.assign((world.astype(np.float64) - origin).astype(np.float32))
         self._bvh.refit()
         c, u, v, nl = self.light_args()
-        c = wp.vec3(*(np.asarray(self.light.center, np.float64) - origin))
         wp.launch(trace_light_masks, dim=self.mesh.num_vertices,
-                  inputs=[self._bvh.id, self._trace_points, self.normals, self._offset_abs(), c, u, v, nl, self.k,
+                  inputs=[self._bvh.id, self._local_points, self.normals, self._offset_abs(), c, u, v, nl, self.k,
                           int(self.jitter), self.seed],
                   outputs=[self.masks, self.visibility, self.form_factor], device=self.device)

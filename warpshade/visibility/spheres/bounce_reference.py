@@ -16,6 +16,7 @@ import numpy as np
 import warp as wp
 
 from ...geometry.mesh import TriMesh
+from ..rays import local_origin
 from .reflection_kernels import trace_bounce
 
 
@@ -48,9 +49,6 @@ def reflected_irradiance_reference(points, normals, meshes: list[TriMesh], exit_
         rad.append(r)
         base += m.num_vertices
     allp = np.concatenate(pts).astype(np.float32)
-    bvh = wp.Mesh(points=wp.array(allp, dtype=wp.vec3, device=device),
-                  indices=wp.array(np.concatenate(faces).reshape(-1).astype(np.int32), dtype=wp.int32, device=device),
-                  velocities=wp.array(np.concatenate(rad), dtype=wp.vec3, device=device))
     recv = np.asarray(points, dtype=np.float32)
     # a receiver at a mesh vertex is that vertex: its own triangles meet its rays only at their origin
     first = {}
@@ -58,6 +56,13 @@ def reflected_irradiance_reference(points, normals, meshes: list[TriMesh], exit_
         first.setdefault(row, i)
     ids = np.array([first.get(bytes(row), -1) for row in recv], dtype=np.int32)
     diag = float(np.linalg.norm(np.ptp(np.concatenate([allp, recv]), axis=0))) or 1.0
+    # rays are traced about the scene's own origin (float32 resolves it there as at the world origin)
+    origin = local_origin(np.concatenate([allp, recv]))
+    allp = (allp.astype(np.float64) - origin).astype(np.float32)
+    recv = (recv.astype(np.float64) - origin).astype(np.float32)
+    bvh = wp.Mesh(points=wp.array(allp, dtype=wp.vec3, device=device),
+                  indices=wp.array(np.concatenate(faces).reshape(-1).astype(np.int32), dtype=wp.int32, device=device),
+                  velocities=wp.array(np.concatenate(rad), dtype=wp.vec3, device=device))
     strata = max(1, int(round(math.sqrt(rays))))
     out = wp.zeros(len(recv), dtype=wp.vec3, device=device)
     wp.launch(trace_bounce, dim=len(recv),
