@@ -136,6 +136,14 @@ def mesh_edges(faces: np.ndarray) -> np.ndarray:
     return np.unique(e, axis=0) if len(e) else e
 
 
+def vertex_neighbours(faces: np.ndarray, num_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices one edge away from each vertex, as CSR ``(start (V+1,), adj)`` int64, each row sorted."""
+    e = mesh_edges(faces)
+    both = np.concatenate([e, e[:, ::-1]])
+    both = both[np.lexsort((both[:, 1], both[:, 0]))]
+    return np.searchsorted(both[:, 0], np.arange(num_vertices + 1)), both[:, 1]
+
+
 def fill_from_neighbours(values: np.ndarray, edges: np.ndarray, holes: np.ndarray) -> np.ndarray:
     """``values`` (V, ...) with the rows ``holes`` (V,) bool filled inward from the others over ``edges``
     (E, 2): in rounds, each hole row next to filled rows takes the mean of those (as they were at the

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ...geometry.mesh import TriMesh, mesh_edges
+from ...geometry.mesh import TriMesh, vertex_neighbours
 from ...sh.kernels import normalization_array, zh_normalization_array
 from ...sh.zonal import clamped_cosine_zh
 from ..base import TransferMethod
@@ -145,10 +145,7 @@ class DiskTransfer(TransferMethod):
         self._node_vertex = wp.array(tree["node_vertex"], dtype=int, device=dev)
         self._leaf_of_vertex = wp.array(tree["leaf_of_vertex"], dtype=int, device=dev)
         # CSR edge adjacency: the contact rule leaves out disks of the receiver's own sheet
-        e = mesh_edges(mesh.faces)
-        both = np.concatenate([e, e[:, ::-1]])
-        ring = both[np.argsort(both[:, 0], kind="stable"), 1]
-        ring_start = np.searchsorted(np.sort(both[:, 0]), np.arange(mesh.num_vertices + 1))
+        ring_start, ring = vertex_neighbours(mesh.faces, mesh.num_vertices)
         self._ring_start = wp.array(ring_start, dtype=int, device=dev)
         self._ring = wp.array(ring, dtype=int, device=dev)
         self._levels = [wp.array(lv, dtype=int, device=dev) for lv in tree["levels"]]

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...geometry.mesh import stitched_faces
+from ...geometry.mesh import stitched_faces, vertex_neighbours
 
 
 def vertex_faces(faces: np.ndarray, num_vertices: int) -> list[np.ndarray]:
@@ -36,16 +36,6 @@ def vertex_faces(faces: np.ndarray, num_vertices: int) -> list[np.ndarray]:
     starts = np.searchsorted(owner, np.arange(num_vertices + 1))
     tri = order // 3
     return [tri[starts[v]:starts[v + 1]] for v in range(num_vertices)]
-
-
-def vertex_neighbours(faces: np.ndarray, num_vertices: int) -> tuple[np.ndarray, np.ndarray]:
-    """The vertices one edge away from each vertex, as CSR ``(start (V+1,), adj)`` int64, each row sorted."""
-    f = np.asarray(faces, dtype=np.int64)
-    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    e = np.unique(np.sort(np.concatenate([e, e[:, ::-1]]), axis=1), axis=0)
-    both = np.concatenate([e, e[:, ::-1]])
-    both = both[np.lexsort((both[:, 1], both[:, 0]))]
-    return np.searchsorted(both[:, 0], np.arange(num_vertices + 1)), both[:, 1]
 
 
 def interpolation_subset(faces: np.ndarray, num_vertices: int, levels: int = 1):

@@ -20,7 +20,7 @@ import time
 import numpy as np
 import warp as wp
 
-from ...geometry.mesh import TriMesh, closed_orientation
+from ...geometry.mesh import TriMesh, closed_orientation, vertex_neighbours
 from ..base import TransferMethod
 from ..knobs import Knob
 from . import cache, hierarchy, integrate, tables
@@ -671,7 +671,7 @@ class HemirasterTransfer(TransferMethod):
             self._interp_parts = {}
             self._blocked = wp.zeros(nv, dtype=vec_sh, device=d)
             self._doubt = wp.zeros(nv, dtype=float, device=d)
-            self._ring_csr = tuple(wp.array(x, dtype=wp.int32, device=d) for x in hierarchy.vertex_neighbours(faces, nv))
+            self._ring_csr = tuple(wp.array(x, dtype=wp.int32, device=d) for x in vertex_neighbours(faces, nv))
             # the sine of the rise, 2 when off (no dot product exceeds it: the ring is not read)
             self._interp_rise = math.sin(math.radians(self.interp_rise)) if self.interp_rise < 90.0 else 2.0
             # relative to the unoccluded transfer's norm (the same for every normal: rotations keep it)
