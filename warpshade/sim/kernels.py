@@ -589,6 +589,19 @@ def slide(dx: wp.vec3, pushed: wp.vec3) -> wp.vec3:
 
 
 @wp.kernel
+def mark_parents(offsets: wp.array[int], parents: wp.array[int], contacts: wp.array[int], marked: wp.array[int]):
+    """marked[j] = 1 for a coarse level's vertex j that has self-contact candidates (``contacts``) or is
+    a parent of a vertex that has (rows ``offsets[i]:offsets[i + 1]`` of ``parents``, as
+    :func:`prolong_moves` reads them; ``marked`` zeroed before): a coarse constraint there would move
+    cloth that lies against another layer. Threads write only ones."""
+    i = wp.tid()
+    if contacts[i] > 0:
+        marked[i] = 1
+        for k in range(offsets[i], offsets[i + 1]):
+            marked[parents[k]] = 1
+
+
+@wp.kernel
 def prolong_moves(
     offsets: wp.array[int],
     parents: wp.array[int],

@@ -226,6 +226,8 @@ class XPBDSolver:
         self.coarse_levels = min(int(cl), len(model.hierarchy)) if self.stretch_limits else 0
         if self.coarse_levels:
             self._coarse_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
+            # a level's vertices in or beside self-contact (kernels.mark_parents)
+            self._coarse_contacts = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
             if not self.limit_sliding:  # (read by the kernels only when sliding)
                 self._pushed = wp.zeros(1, dtype=wp.vec3, device=model.device)
         self.check_finite = bool(check_finite)
@@ -384,10 +386,7 @@ class XPBDSolver:
             self._edge_lambda.zero_()
             self._hinge_lambda.zero_()
             for _ in range(self.iterations):
-                for level in cmds["coarse"]:
-                    wp.copy(self._coarse_before, x)
-                    for c in level:
-                        c.launch()
+                self._coarse_pass(cmds["coarse"], x)
                 if self.stretch_chebyshev:
                     self._chebyshev_sweeps(cmds["sweeps"], x)
                 else:
@@ -586,7 +585,7 @@ class XPBDSolver:
         out = {name: [recorded(c) for c in cmd] if isinstance(cmd, list) else recorded(cmd)
                for name, cmd in cmds.items()}
         # the coarse levels, coarsest first, one list of launches each
-        out["coarse"] = [[recorded(c) for c in self._coarse_launches(lv, limit_move)]
+        out["coarse"] = [[c if c is None else recorded(c) for c in self._coarse_launches(lv, limit_move)]
                          for lv in m.hierarchy[:self.coarse_levels][::-1]]
         if self.stretch_chebyshev:
             # the stretch launches sweep by sweep (the limits in every sweep with limit_every_sweep,
@@ -597,25 +596,38 @@ class XPBDSolver:
                                                         for i in range(first, len(out["stretch"]), per_sweep)]
         return out
 
+    def _coarse_pass(self, levels: list, x) -> None:
+        """The coarse levels' launches (:meth:`_coarse_launches`, coarsest level first; none with
+        ``coarse_levels`` 0)."""
+        for level in levels:
+            wp.copy(self._coarse_before, x)
+            mark, sweep = level[0], level[1:]
+            if mark is not None:
+                self._coarse_contacts.zero_()
+                if self._contacts_found:  # (else no vertex has candidates)
+                    mark.launch()
+            for c in sweep:
+                c.launch()
+
     def _coarse_launches(self, level: dict, limit_move: float) -> list:
-        """Recorded launches of one coarse level (see ``coarse_levels``): its constraints' coloured
-        sweep with the limits' kernel and rules, then the prolongation of its vertices' moves from
-        ``_coarse_before``."""
+        """Recorded launches of one coarse level (see ``coarse_levels``): the marking of its vertices
+        in or beside self-contact (None without self-collision), its constraints' coloured sweep
+        with the limits' kernel and rules (skipped at marked vertices), then the prolongation of
+        its vertices' moves from ``_coarse_before``."""
         m, d, x = self.model, self.device, self._x
         contacts = self._contact_count if self.self_collision else self._touched
-        if self.limit_sliding:
-            out = [wp.launch(k.solve_limits_sliding, dim=cnt,
-                             inputs=[level["pairs"], level["length"], level["inv_mass"], limit_move, contacts,
-                                     self._pushed, off], outputs=[x], device=d, record_cmd=True)
-                   for off, cnt in self._batches(level["colors"])]
-        else:
-            out = [wp.launch(k.solve_limits, dim=cnt,
-                             inputs=[level["pairs"], level["length"], level["inv_mass"], limit_move, contacts,
-                                     self._touched, off], outputs=[x], device=d, record_cmd=True)
-                   for off, cnt in self._batches(level["colors"])]
+        marked = self._coarse_contacts if self.self_collision else contacts
+        out = [wp.launch(k.mark_parents, dim=m.particle_count,
+                         inputs=[level["offsets"], level["parents"], self._contact_count],
+                         outputs=[self._coarse_contacts], device=d, record_cmd=True) if self.self_collision else None]
+        sliding = self.limit_sliding
+        kernel, rule = (k.solve_limits_sliding, self._pushed) if sliding else (k.solve_limits, self._touched)
+        out += [wp.launch(kernel, dim=cnt, inputs=[level["pairs"], level["length"], level["inv_mass"], limit_move,
+                                                   marked, rule, off], outputs=[x], device=d, record_cmd=True)
+                for off, cnt in self._batches(level["colors"])]
         out.append(wp.launch(k.prolong_moves, dim=m.particle_count,
                              inputs=[level["offsets"], level["parents"], level["weights"], m.inv_mass, contacts,
-                                     self._touched, self._pushed, int(self.limit_sliding), self._coarse_before],
+                                     self._touched, self._pushed, int(sliding), self._coarse_before],
                              outputs=[x], device=d, record_cmd=True))
         return out
 
