@@ -7,11 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import warp as wp
+from test_stretch_limits import _drape, _roll
 
 from warpshade.sim import ClothBuilder, XPBDSolver
 from warpshade.sim import kernels as k
-
-from test_stretch_limits import _drape, _roll
 
 
 def _model(n=9, size=0.8, pin=()):
