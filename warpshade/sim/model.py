@@ -628,8 +628,8 @@ class ClothModel:
             each level sorted by colour, shape (L, 2), dtype int32.
         limit_length: Their upper bounds of the rest geodesic distance [m], shape (L,), dtype float32.
         limit_colors: (offset, count) of each level's colours, in sweep order.
-        hierarchy: Coarse levels of hierarchical stretch constraints (:func:`stretch_hierarchy`), finest
-            first, on the pieces with limits: per level ``pairs`` (C,) vec2i sorted by colour,
+        hierarchy: Coarse levels of hierarchical stretch constraints (:func:`stretch_hierarchy`, built on
+            first use), finest first, on the pieces with limits: per level ``pairs`` (C,) vec2i sorted by colour,
             ``length`` (C,), ``colors``, the prolongation rows ``offsets`` (V + 1,), ``parents``,
             ``weights`` and the coarse ``inv_mass`` (V,) on the device; ``hierarchy_np`` the same on
             the host.
@@ -701,19 +701,11 @@ class ClothModel:
             lorder.append(off + o)
         lorder = np.concatenate(lorder) if lorder else np.zeros(0, np.int64)
         self.limit_pairs_np, limit_length = lpairs[lorder], llen[lorder]
-        # the coarse levels of hierarchical stretch constraints, on the pieces with limits
-        self.hierarchy_np = stretch_hierarchy(points, edges, mass, kinematic, stiff[piece], self.HIERARCHY_LEVELS)
-        for lv in self.hierarchy_np:
-            o, lv["colors"] = color_constraints(lv["pairs"], v)
-            lv["pairs"], lv["length"] = lv["pairs"][o], lv["length"][o]
+        # the coarse levels of hierarchical stretch constraints, on the pieces with limits: built on
+        # first use (`hierarchy`), as only XPBDSolver(coarse_levels > 0) reads them
+        self._hierarchy_args = (points, edges, mass, kinematic, stiff[piece])
+        self._hierarchy = None
         d = self.device
-        self.hierarchy = [{"pairs": wp.array(lv["pairs"], dtype=wp.int32, device=d).view(wp.vec2i),
-                           "length": wp.array(lv["length"], dtype=wp.float32, device=d), "colors": lv["colors"],
-                           "offsets": wp.array(lv["offsets"], dtype=wp.int32, device=d),
-                           "parents": wp.array(lv["parents"], dtype=wp.int32, device=d),
-                           "weights": wp.array(lv["weights"], dtype=wp.float32, device=d),
-                           "inv_mass": wp.array(lv["inv_mass"], dtype=wp.float32, device=d)}
-                          for lv in self.hierarchy_np]
         self.rest_points = wp.array(self.rest_points_np, dtype=wp.vec3, device=d)
         self.tris = wp.array(self.faces, dtype=wp.int32, device=d)
         self.inv_mass = wp.array(inv, dtype=wp.float32, device=d)
@@ -740,6 +732,34 @@ class ClothModel:
     HIERARCHY_LEVELS = 2
     """Coarse levels built for hierarchical stretch constraints (:func:`stretch_hierarchy`; the
     solver's ``coarse_levels`` uses up to this many)."""
+
+    def _build_hierarchy(self) -> None:
+        levels = stretch_hierarchy(*self._hierarchy_args, self.HIERARCHY_LEVELS)
+        for lv in levels:
+            o, lv["colors"] = color_constraints(lv["pairs"], self.particle_count)
+            lv["pairs"], lv["length"] = lv["pairs"][o], lv["length"][o]
+        d = self.device
+        self._hierarchy = (levels, [{"pairs": wp.array(lv["pairs"], dtype=wp.int32, device=d).view(wp.vec2i),
+                                     "length": wp.array(lv["length"], dtype=wp.float32, device=d),
+                                     "colors": lv["colors"], "offsets": wp.array(lv["offsets"], dtype=wp.int32, device=d),
+                                     "parents": wp.array(lv["parents"], dtype=wp.int32, device=d),
+                                     "weights": wp.array(lv["weights"], dtype=wp.float32, device=d),
+                                     "inv_mass": wp.array(lv["inv_mass"], dtype=wp.float32, device=d)}
+                                    for lv in levels])
+
+    @property
+    def hierarchy_np(self) -> list[dict]:
+        """The coarse levels on the host (see the class's attributes)."""
+        if self._hierarchy is None:
+            self._build_hierarchy()
+        return self._hierarchy[0]
+
+    @property
+    def hierarchy(self) -> list[dict]:
+        """The coarse levels on the device (see the class's attributes)."""
+        if self._hierarchy is None:
+            self._build_hierarchy()
+        return self._hierarchy[1]
 
     @property
     def edge_count(self) -> int:

@@ -223,7 +223,7 @@ class XPBDSolver:
         cl = self.COARSE_LEVELS if coarse_levels is None else coarse_levels
         if int(cl) != cl or cl < 0:
             raise ValueError(f"coarse_levels must be an integer >= 0, got {coarse_levels}")
-        self.coarse_levels = min(int(cl), len(model.hierarchy)) if self.stretch_limits else 0
+        self.coarse_levels = min(int(cl), len(model.hierarchy)) if self.stretch_limits and cl else 0
         if self.coarse_levels:
             self._coarse_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
             # a level's vertices in or beside self-contact (kernels.mark_parents)
@@ -586,7 +586,7 @@ class XPBDSolver:
                for name, cmd in cmds.items()}
         # the coarse levels, coarsest first, one list of launches each
         out["coarse"] = [[c if c is None else recorded(c) for c in self._coarse_launches(lv, limit_move)]
-                         for lv in m.hierarchy[:self.coarse_levels][::-1]]
+                         for lv in (m.hierarchy[:self.coarse_levels][::-1] if self.coarse_levels else [])]
         if self.stretch_chebyshev:
             # the stretch launches sweep by sweep (the limits in every sweep with limit_every_sweep,
             # else in the first only)
