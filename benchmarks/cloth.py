@@ -405,9 +405,13 @@ def main(argv=None) -> int:
                     help="every solver with this bend_interval (XPBDSolver.BEND_INTERVAL)")
     ap.add_argument("--limit-sliding", action="store_true",
                     help="every solver with limit_sliding (XPBDSolver.LIMIT_SLIDING = True)")
+    ap.add_argument("--coarse-levels", type=int, default=None,
+                    help="every solver with this coarse_levels (XPBDSolver.COARSE_LEVELS)")
     args = ap.parse_args(argv)
     if args.limit_sliding:
         XPBDSolver.LIMIT_SLIDING = True
+    if args.coarse_levels is not None:
+        XPBDSolver.COARSE_LEVELS = args.coarse_levels
     if args.follow_edge_sides:
         XPBDSolver.FOLLOW_EDGE_SIDES = True
     if args.aero_interval is not None:
@@ -422,6 +426,7 @@ def main(argv=None) -> int:
     res.update({"grid": args.grid, "frames": args.frames, "repeats": args.repeats, "frame_dt": 1.0 / FPS,
                 "device": "cpu", "warp": wp.__version__, "follow_edge_sides": XPBDSolver.FOLLOW_EDGE_SIDES, "aero_interval": XPBDSolver.AERO_INTERVAL,
                 "bend_interval": XPBDSolver.BEND_INTERVAL, "limit_sliding": XPBDSolver.LIMIT_SLIDING,
+                "coarse_levels": XPBDSolver.COARSE_LEVELS,
                 "note": "median of repeats after a warm-up step (kernel compilation excluded); shared, loaded machine"})
     if not args.skip_baselines:
         res["warp_example_cloth"] = run_warp_example(args.grid, args.frames, args.repeats)

@@ -589,6 +589,55 @@ def slide(dx: wp.vec3, pushed: wp.vec3) -> wp.vec3:
 
 
 @wp.kernel
+def mark_parents(offsets: wp.array[int], parents: wp.array[int], contacts: wp.array[int], marked: wp.array[int]):
+    """marked[j] = 1 for a coarse level's vertex j that has self-contact candidates (``contacts``) or is
+    a parent of a vertex that has (rows ``offsets[i]:offsets[i + 1]`` of ``parents``, as
+    :func:`prolong_moves` reads them; ``marked`` zeroed before): a coarse constraint there would move
+    cloth that lies against another layer. Threads write only ones."""
+    i = wp.tid()
+    if contacts[i] > 0:
+        marked[i] = 1
+        for k in range(offsets[i], offsets[i + 1]):
+            marked[parents[k]] = 1
+
+
+@wp.kernel
+def prolong_moves(
+    offsets: wp.array[int],
+    parents: wp.array[int],
+    weights: wp.array[float],
+    inv_mass: wp.array[float],
+    contacts: wp.array[int],
+    touched: wp.array[int],
+    pushed: wp.array[wp.vec3],
+    sliding: int,
+    x_before: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+):
+    """Carry a coarse level's moves (x - x_before at its vertices) to the vertices it drops: vertex i
+    moves by the weighted sum of its parents' moves (Müller 2008's prolongation; rows
+    ``offsets[i]:offsets[i + 1]`` of ``parents`` and ``weights``, empty for the level's own vertices,
+    which are never a row's vertex, so no thread reads a position another writes). Skipped, as the
+    limits are (:func:`solve_limits`, :func:`solve_limits_sliding`), at kinematic vertices and while
+    ``contacts`` is non-zero, and while ``touched`` is unless ``sliding`` (then the move slides along
+    ``pushed``, :func:`slide`)."""
+    i = wp.tid()
+    a = offsets[i]
+    b = offsets[i + 1]
+    if a == b or inv_mass[i] == 0.0 or contacts[i] > 0:
+        return
+    if sliding == 0 and touched[i] > 0:
+        return
+    dx = wp.vec3(0.0, 0.0, 0.0)
+    for k in range(a, b):
+        p = parents[k]
+        dx = dx + weights[k] * (x[p] - x_before[p])
+    if sliding != 0:
+        dx = slide(dx, pushed[i])
+    x[i] = x[i] + dx
+
+
+@wp.kernel
 def solve_limits_sliding(
     pairs: wp.array[wp.vec2i],
     max_length: wp.array[float],

@@ -299,6 +299,113 @@ def stretch_limits(points: np.ndarray, edges: np.ndarray, piece: np.ndarray, con
     return pairs, length, [(int(o), int(len(p))) for o, (p, _) in zip(offsets, levels)]
 
 
+def stretch_hierarchy(points: np.ndarray, edges: np.ndarray, mass: np.ndarray, kinematic: np.ndarray,
+                      member: np.ndarray, levels: int = 2) -> list[dict]:
+    """Coarse levels of the cloth for hierarchical stretch constraints (Müller 2008, hierarchical
+    position based dynamics), finest coarse level first.
+
+    Level l + 1 keeps a maximal independent set of level l's graph (kinematic vertices first, then
+    in index order; level 0 is the mesh's edges between ``member`` vertices); every level-l vertex
+    it drops has as parents its level-l neighbours that it keeps, weighted by the inverse rest path
+    length to them and summing to 1, and the kept vertices pair up when they were within two edges
+    of level l, with the shortest such path's rest length as bound (never shorter than the
+    geodesic distance, so a bound holds in every unstretched pose). The weights compose down to
+    the mesh: a level's ``weights`` carry a move of its vertices to every member vertex it drops.
+    A coarse vertex weighs what its weights gather, sum_i w_ij m_i.
+
+    Args:
+        points: Rest positions, shape (V, 3).
+        edges: Mesh edges, shape (E, 2).
+        mass: Vertex masses, shape (V,).
+        kinematic: Pinned or attached vertices, shape (V,), bool (their coarse inverse mass is 0).
+        member: Vertices that take part, shape (V,), bool.
+        levels: Coarse levels wanted (fewer when a level has no pair left).
+
+    Returns:
+        Per level a dict: ``pairs`` (C, 2) int32 vertex indices, ``length`` (C,) float32 [m],
+        ``offsets`` (V + 1,) int32 and ``parents`` / ``weights`` (CSR rows of the mesh's vertices that
+        the level drops: the level's vertices and their weights), ``inv_mass`` (V,) float32 (the
+        level's vertices' inverse masses, 0 elsewhere).
+    """
+    from scipy.sparse import coo_matrix, csr_matrix
+
+    v = len(points)
+    e = edges[member[edges[:, 0]] & member[edges[:, 1]]]
+    rest = np.linalg.norm(points[e[:, 0]] - points[e[:, 1]], axis=1)
+    nodes = np.flatnonzero(member)  # level l's vertices (mesh indices)
+    g_a, g_b, g_len = e[:, 0], e[:, 1], rest  # level l's graph (each pair once)
+    prolong = csr_matrix((np.ones(len(nodes)), (nodes, np.arange(len(nodes)))), shape=(v, len(nodes)))
+    out = []
+    for _ in range(levels):
+        if len(g_a) == 0:
+            break
+        local = np.full(v, -1, dtype=np.int64)
+        local[nodes] = np.arange(len(nodes))
+        a, b = local[np.concatenate([g_a, g_b])], local[np.concatenate([g_b, g_a])]
+        ln = np.concatenate([g_len, g_len])
+        adj = csr_matrix((ln, (a, b)), shape=(len(nodes), len(nodes)))
+        # a maximal independent set: kinematic vertices first, then in index order
+        order = np.concatenate([np.flatnonzero(kinematic[nodes]), np.flatnonzero(~kinematic[nodes])])
+        keep = np.zeros(len(nodes), dtype=bool)
+        blocked = np.zeros(len(nodes), dtype=bool)
+        for i in order.tolist():
+            if not blocked[i]:
+                keep[i] = True
+                blocked[adj.indices[adj.indptr[i]:adj.indptr[i + 1]]] = True
+        coarse = np.flatnonzero(keep)
+        cidx = np.full(len(nodes), -1, dtype=np.int64)
+        cidx[coarse] = np.arange(len(coarse))
+        # parents: a dropped vertex's kept neighbours, weights 1 / rest length, normalised
+        to_kept = keep[b] & ~keep[a]
+        pw = 1.0 / ln[to_kept]
+        p = coo_matrix((pw, (a[to_kept], cidx[b[to_kept]])), shape=(len(nodes), len(coarse))).tocsr()
+        p = csr_matrix(p.multiply(1.0 / np.asarray(p.sum(axis=1)).clip(1e-300)))
+        p = p + csr_matrix((np.ones(len(coarse)), (coarse, np.arange(len(coarse)))), shape=p.shape)
+        prolong = csr_matrix(prolong @ p)
+        # coarse pairs within two edges: paths kept - m - kept, the shortest per pair
+        via = keep[b]
+        m_of, k_of, l_of = a[via], cidx[b[via]], ln[via]
+        srt = np.argsort(m_of, kind="stable")
+        m_of, k_of, l_of = m_of[srt], k_of[srt], l_of[srt]
+        starts = np.searchsorted(m_of, np.arange(len(nodes)))
+        cnt = np.diff(np.append(starts, len(m_of)))
+        pi, pj, pl = [], [], []
+        for c in np.unique(cnt[cnt > 1]).tolist():
+            s = starts[cnt == c]
+            for x in range(c):
+                for y in range(x + 1, c):
+                    pi.append(k_of[s + x])
+                    pj.append(k_of[s + y])
+                    pl.append(l_of[s + x] + l_of[s + y])
+        if not pi:
+            break
+        pi, pj, pl = np.concatenate(pi), np.concatenate(pj), np.concatenate(pl)
+        lo, hi = np.minimum(pi, pj), np.maximum(pi, pj)
+        key = lo * len(coarse) + hi
+        srt = np.lexsort((pl, key))
+        first = np.ones(len(srt), dtype=bool)
+        first[1:] = key[srt][1:] != key[srt][:-1]
+        sel = srt[first]
+        lo, hi, pl = lo[sel], hi[sel], pl[sel]
+        nodes = nodes[coarse]
+        pairs = np.stack([nodes[lo], nodes[hi]], axis=1)
+        # the rows of the vertices the level drops (mesh indices), their parents as mesh indices
+        rows = prolong
+        dropped = np.ones(v, dtype=bool)
+        dropped[nodes] = False
+        counts = np.where(dropped, np.diff(rows.indptr), 0)
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+        take = np.repeat(dropped, np.diff(rows.indptr))
+        cmass = np.asarray(prolong.T @ mass).reshape(-1)
+        inv = np.zeros(v, dtype=np.float32)
+        inv[nodes] = np.where(kinematic[nodes], 0.0, 1.0 / cmass.clip(1e-300))
+        out.append({"pairs": pairs.astype(np.int32), "length": pl.astype(np.float32), "offsets": offsets,
+                    "parents": nodes[rows.indices[take]].astype(np.int32),
+                    "weights": rows.data[take].astype(np.float32), "inv_mass": inv})
+        g_a, g_b, g_len = nodes[lo], nodes[hi], pl
+    return out
+
+
 def convex_and_flat(points: np.ndarray, faces: np.ndarray) -> bool:
     """Whether a piece is planar (thinnest principal extent < 1e-6 of the widest) and convex
     (its area equals the area of its 2-D convex hull to 1e-6)."""
@@ -521,6 +628,11 @@ class ClothModel:
             each level sorted by colour, shape (L, 2), dtype int32.
         limit_length: Their upper bounds of the rest geodesic distance [m], shape (L,), dtype float32.
         limit_colors: (offset, count) of each level's colours, in sweep order.
+        hierarchy: Coarse levels of hierarchical stretch constraints (:func:`stretch_hierarchy`, built on
+            first use), finest first, on the pieces with limits: per level ``pairs`` (C,) vec2i sorted by colour,
+            ``length`` (C,), ``colors``, the prolongation rows ``offsets`` (V + 1,), ``parents``,
+            ``weights`` and the coarse ``inv_mass`` (V,) on the device; ``hierarchy_np`` the same on
+            the host.
         hinge_edge: Index into ``edges`` of every hinge's shared edge, shape (H,), dtype int32.
         edge_border: 1 for edges on the cloth's border (one triangle), shape (E,), dtype int32.
         ring_offsets, ring: One-ring adjacency (CSR): the edge neighbours of vertex i are
@@ -589,6 +701,10 @@ class ClothModel:
             lorder.append(off + o)
         lorder = np.concatenate(lorder) if lorder else np.zeros(0, np.int64)
         self.limit_pairs_np, limit_length = lpairs[lorder], llen[lorder]
+        # the coarse levels of hierarchical stretch constraints, on the pieces with limits: built on
+        # first use (`hierarchy`), as only XPBDSolver(coarse_levels > 0) reads them
+        self._hierarchy_args = (points, edges, mass, kinematic, stiff[piece])
+        self._hierarchy = None
         d = self.device
         self.rest_points = wp.array(self.rest_points_np, dtype=wp.vec3, device=d)
         self.tris = wp.array(self.faces, dtype=wp.int32, device=d)
@@ -612,6 +728,38 @@ class ClothModel:
         self.attachment_count = len(attached)
         self.hinge_edge = wp.array(hinge_edge.astype(np.int32), dtype=wp.int32, device=d)
         self.edge_border = wp.array(border.astype(np.int32), dtype=wp.int32, device=d)
+
+    HIERARCHY_LEVELS = 2
+    """Coarse levels built for hierarchical stretch constraints (:func:`stretch_hierarchy`; the
+    solver's ``coarse_levels`` uses up to this many)."""
+
+    def _build_hierarchy(self) -> None:
+        levels = stretch_hierarchy(*self._hierarchy_args, self.HIERARCHY_LEVELS)
+        for lv in levels:
+            o, lv["colors"] = color_constraints(lv["pairs"], self.particle_count)
+            lv["pairs"], lv["length"] = lv["pairs"][o], lv["length"][o]
+        d = self.device
+        self._hierarchy = (levels, [{"pairs": wp.array(lv["pairs"], dtype=wp.int32, device=d).view(wp.vec2i),
+                                     "length": wp.array(lv["length"], dtype=wp.float32, device=d),
+                                     "colors": lv["colors"], "offsets": wp.array(lv["offsets"], dtype=wp.int32, device=d),
+                                     "parents": wp.array(lv["parents"], dtype=wp.int32, device=d),
+                                     "weights": wp.array(lv["weights"], dtype=wp.float32, device=d),
+                                     "inv_mass": wp.array(lv["inv_mass"], dtype=wp.float32, device=d)}
+                                    for lv in levels])
+
+    @property
+    def hierarchy_np(self) -> list[dict]:
+        """The coarse levels on the host (see the class's attributes)."""
+        if self._hierarchy is None:
+            self._build_hierarchy()
+        return self._hierarchy[0]
+
+    @property
+    def hierarchy(self) -> list[dict]:
+        """The coarse levels on the device (see the class's attributes)."""
+        if self._hierarchy is None:
+            self._build_hierarchy()
+        return self._hierarchy[1]
 
     @property
     def edge_count(self) -> int:

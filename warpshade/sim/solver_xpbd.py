@@ -98,6 +98,14 @@ class XPBDSolver:
             against 4.5 % without on 48); the extrapolated moves exceed the limits' move cap by up
             to the weight (omega_2 = 1.47 at 0.8), and 0.95 diverged on that drape. None:
             :attr:`STRETCH_CHEBYSHEV`.
+        coarse_levels: Hierarchical stretch constraints (Müller 2008): with stretch limits, the
+            model's first this many coarse levels (``model.hierarchy``; 0: off) are swept
+            coarsest first at the start of every iteration, each level's unilateral distance
+            constraints between its vertices (with its inverse masses; the limits' move cap and
+            contact rules, ``limit_sliding`` included) and its vertices' moves then carried to the
+            vertices it drops by their parents' weights
+            (:func:`~warpshade.sim.kernels.prolong_moves`), so a correction moves a patch of cloth
+            rather than two vertices. None: :attr:`COARSE_LEVELS`.
         held_contact_interval: ``contact_interval`` in a step that follows one where the guard sent
             vertices back (>= 1). The held vertices start it with their edges to the free cloth
             stretched, and the stretch sweeps pull them back within a substep, further than the
@@ -134,7 +142,8 @@ class XPBDSolver:
                  follow_edge_sides: bool | None = None, aero_interval: int | None = None,
                  bend_interval: int | None = None, limit_sliding: bool | None = None,
                  guard_relax: int | None = None, limit_every_sweep: bool | None = None,
-                 held_contact_interval: int | None = None, stretch_chebyshev: float | None = None):
+                 held_contact_interval: int | None = None, stretch_chebyshev: float | None = None,
+                 coarse_levels: int | None = None):
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps}")
         if int(iterations) != iterations or iterations < 1:
@@ -211,6 +220,16 @@ class XPBDSolver:
             # the last two iterates of the stretch sweeps
             self._cheb_last = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
             self._cheb_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
+        cl = self.COARSE_LEVELS if coarse_levels is None else coarse_levels
+        if int(cl) != cl or cl < 0:
+            raise ValueError(f"coarse_levels must be an integer >= 0, got {coarse_levels}")
+        self.coarse_levels = min(int(cl), len(model.hierarchy)) if self.stretch_limits and cl else 0
+        if self.coarse_levels:
+            self._coarse_before = wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device)
+            # a level's vertices in or beside self-contact (kernels.mark_parents)
+            self._coarse_contacts = wp.zeros(model.particle_count, dtype=wp.int32, device=model.device)
+            if not self.limit_sliding:  # (read by the kernels only when sliding)
+                self._pushed = wp.zeros(1, dtype=wp.vec3, device=model.device)
         self.check_finite = bool(check_finite)
         gr = self.GUARD_RELAX if guard_relax is None else guard_relax
         if int(gr) != gr or gr < 0:
@@ -367,6 +386,7 @@ class XPBDSolver:
             self._edge_lambda.zero_()
             self._hinge_lambda.zero_()
             for _ in range(self.iterations):
+                self._coarse_pass(cmds["coarse"], x)
                 if self.stretch_chebyshev:
                     self._chebyshev_sweeps(cmds["sweeps"], x)
                 else:
@@ -564,6 +584,9 @@ class XPBDSolver:
         cmds["damping"] = damping
         out = {name: [recorded(c) for c in cmd] if isinstance(cmd, list) else recorded(cmd)
                for name, cmd in cmds.items()}
+        # the coarse levels, coarsest first, one list of launches each
+        out["coarse"] = [[c if c is None else recorded(c) for c in self._coarse_launches(lv, limit_move)]
+                         for lv in (m.hierarchy[:self.coarse_levels][::-1] if self.coarse_levels else [])]
         if self.stretch_chebyshev:
             # the stretch launches sweep by sweep (the limits in every sweep with limit_every_sweep,
             # else in the first only)
@@ -571,6 +594,41 @@ class XPBDSolver:
             per_sweep = first if self.limit_every_sweep else len(stretch)
             out["sweeps"] = [out["stretch"][:first]] + [out["stretch"][i:i + per_sweep]
                                                         for i in range(first, len(out["stretch"]), per_sweep)]
+        return out
+
+    def _coarse_pass(self, levels: list, x) -> None:
+        """The coarse levels' launches (:meth:`_coarse_launches`, coarsest level first; none with
+        ``coarse_levels`` 0)."""
+        for level in levels:
+            wp.copy(self._coarse_before, x)
+            mark, sweep = level[0], level[1:]
+            if mark is not None:
+                self._coarse_contacts.zero_()
+                if self._contacts_found:  # (else no vertex has candidates)
+                    mark.launch()
+            for c in sweep:
+                c.launch()
+
+    def _coarse_launches(self, level: dict, limit_move: float) -> list:
+        """Recorded launches of one coarse level (see ``coarse_levels``): the marking of its vertices
+        in or beside self-contact (None without self-collision), its constraints' coloured sweep
+        with the limits' kernel and rules (skipped at marked vertices), then the prolongation of
+        its vertices' moves from ``_coarse_before``."""
+        m, d, x = self.model, self.device, self._x
+        contacts = self._contact_count if self.self_collision else self._touched
+        marked = self._coarse_contacts if self.self_collision else contacts
+        out = [wp.launch(k.mark_parents, dim=m.particle_count,
+                         inputs=[level["offsets"], level["parents"], self._contact_count],
+                         outputs=[self._coarse_contacts], device=d, record_cmd=True) if self.self_collision else None]
+        sliding = self.limit_sliding
+        kernel, rule = (k.solve_limits_sliding, self._pushed) if sliding else (k.solve_limits, self._touched)
+        out += [wp.launch(kernel, dim=cnt, inputs=[level["pairs"], level["length"], level["inv_mass"], limit_move,
+                                                   marked, rule, off], outputs=[x], device=d, record_cmd=True)
+                for off, cnt in self._batches(level["colors"])]
+        out.append(wp.launch(k.prolong_moves, dim=m.particle_count,
+                             inputs=[level["offsets"], level["parents"], level["weights"], m.inv_mass, contacts,
+                                     self._touched, self._pushed, int(sliding), self._coarse_before],
+                             outputs=[x], device=d, record_cmd=True))
         return out
 
     def _chebyshev_sweeps(self, sweeps: list, x) -> None:
@@ -812,6 +870,8 @@ class XPBDSolver:
     STRETCH_CHEBYSHEV = 0.0
     """Default of ``stretch_chebyshev`` (0: off; what it does to the scenes is measured in
     docs/benchmarks/history.md)."""
+    COARSE_LEVELS = 0
+    """Default of ``coarse_levels`` (0: off; measured in docs/benchmarks/history.md)."""
     LIMIT_EVERY_SWEEP = False
     """Default of ``limit_every_sweep`` (off: it acts only with ``stretch_sweeps`` > 1, which costs,
     and the stiffer solve left the guard holding cloth that falls and folds fast for long;
@@ -1065,7 +1125,7 @@ class XPBDSolver:
                 "stretch_sweeps": self.stretch_sweeps,
                 "relaxation": self.relaxation, "tethers": self.tethers, "stretch_limits": self.stretch_limits,
                 "limit_sliding": self.limit_sliding, "limit_every_sweep": self.limit_every_sweep,
-                "stretch_chebyshev": self.stretch_chebyshev,
+                "stretch_chebyshev": self.stretch_chebyshev, "coarse_levels": self.coarse_levels,
                 "check_finite": self.check_finite,
                 "thickness": self.model.thickness, "damping": self.model.damping,
                 "bend_damping": self.model.bend_damping}
