@@ -231,13 +231,18 @@ def test_cloth_solver_settings_come_from_the_first_cloth():
     k2 = ClothSimulation(scene_from_stage(st, source="t.usda")).solver.knobs()
     assert (k2["limit_sliding"], k2["limit_every_sweep"], k2["stretch_sweeps"], k2["held_contact_interval"]) == (
         True, True, 12, 1)
+    st = _cloth_stage(limitSliding=True, coarseLevels=1, stretchChebyshev=0.8, stretchSweeps=4)
+    k3 = ClothSimulation(scene_from_stage(st, source="t.usda")).solver.knobs()
+    assert (k3["coarse_levels"], k3["stretch_chebyshev"], k3["stretch_sweeps"]) == (1, pytest.approx(0.8), 4)
     assert k["self_friction"] == pytest.approx(0.1)
 
 
 @pytest.mark.parametrize("attrs, named", [({"maxContacts": 0}, "warpshade:cloth:maxContacts"),
                                           ({"selfFriction": -1.0}, "warpshade:cloth:selfFriction"),
                                           ({"contactInterval": 1.5}, "warpshade:cloth:contactInterval"),
-                                          ({"heldContactInterval": 0}, "warpshade:cloth:heldContactInterval")])
+                                          ({"heldContactInterval": 0}, "warpshade:cloth:heldContactInterval"),
+                                          ({"coarseLevels": -1}, "warpshade:cloth:coarseLevels"),
+                                          ({"stretchChebyshev": 1.5}, "warpshade:cloth:stretchChebyshev")])
 def test_bad_cloth_solver_setting_names_the_attribute(attrs, named):
     from warpshade.pipeline.cloth import ClothSimulation
     from warpshade.scene import SceneError

@@ -20,7 +20,8 @@ CLOTH_SOLVER = {"selfCollision": ("self_collision", bool), "edgeContact": ("edge
                 "contactIterations": ("contact_iterations", int), "maxContacts": ("max_contacts", int),
                 "stretchSweeps": ("stretch_sweeps", int), "stretchLimits": ("stretch_limits", bool),
                 "guardRelax": ("guard_relax", int), "limitSliding": ("limit_sliding", bool),
-                "limitEverySweep": ("limit_every_sweep", bool), "heldContactInterval": ("held_contact_interval", int)}
+                "limitEverySweep": ("limit_every_sweep", bool), "heldContactInterval": ("held_contact_interval", int),
+                "stretchChebyshev": ("stretch_chebyshev", float), "coarseLevels": ("coarse_levels", int)}
 """``warpshade:cloth:*`` attributes passed to :class:`warpshade.sim.XPBDSolver` (taken from the
 first cloth object, as the solver is shared): attribute -> (keyword, type)."""
 
