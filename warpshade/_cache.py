@@ -14,6 +14,9 @@ code that computes them, library versions), so an entry is either valid for a re
   costs the write, with one warning line per process and root.
 * **Size**: after each write the root's least recently used entries (modification time, refreshed on
   each hit) are removed beyond :data:`MAX_BYTES`.
+* **Callers with files of their own** (the benchmark's ray-traced ground truth, its simulated sequences) keep
+  them in a subdirectory of the same root by default (:func:`directory`, :data:`USER`), never relative to the
+  working directory; an explicit directory replaces it. Only ``.npz`` entries are pruned.
 """
 
 from __future__ import annotations
@@ -66,6 +69,28 @@ def root() -> str | None:
     if value.lower() in OFF:
         return None
     return os.path.abspath(os.path.expanduser(value)) if value else default_root()
+
+
+class _UserDirectory:
+    def __repr__(self) -> str:
+        return "<the user cache directory>"
+
+
+USER = _UserDirectory()
+"""A ``cache_dir`` default that stands for ``directory(kind)``, resolved when used (:func:`resolve`), so
+:data:`ENV` and ``XDG_CACHE_HOME`` count as they are then, not at import."""
+
+
+def directory(kind: str) -> str | None:
+    """``<root>/<kind>``: where a caller with files of its own keeps them in the cache; None when the cache is off."""
+    base = root()
+    return None if base is None else os.path.join(base, kind)
+
+
+def resolve(cache_dir, kind: str) -> str | None:
+    """A ``cache_dir`` argument as a directory: :data:`USER` is :func:`directory` of ``kind``; a path is that
+    path; None (no cache) is None."""
+    return directory(kind) if cache_dir is USER else cache_dir
 
 
 class Key:
@@ -209,4 +234,5 @@ def _warn_once(what, message: str) -> None:
         warnings.warn(message, RuntimeWarning, stacklevel=3)
 
 
-__all__ = ["ENV", "Key", "MAX_BYTES", "OFF", "default_root", "has_layout", "load", "prune", "root", "save", "source_digest", "stats", "versions"]
+__all__ = ["ENV", "Key", "MAX_BYTES", "OFF", "USER", "default_root", "directory", "has_layout", "load", "prune", "resolve",
+           "root", "save", "source_digest", "stats", "versions"]

@@ -23,9 +23,9 @@ from .geometry.mesh import TriMesh, vertex_indices
 from .lighting import Sky
 from .lighting.base import Light
 from .scene import LightSpec, Material, Scene, SceneObject
-from .usd.scene_io import SCENE_SETTINGS
+from .usd.scene_io import SCENE_KEYS, did_you_mean
 
-SETTINGS = (*SCENE_SETTINGS, "graded", "wind", "max_error")
+SETTINGS = SCENE_KEYS
 """Scene-wide settings :func:`make_scene` takes: the default prim's ``warpshade:`` attributes of a USD scene
 (docs/guide/quickstart.md) and the planner's error budget ``max_error``."""
 
@@ -336,12 +336,8 @@ def make_scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", grav
     """
     unknown = [k for k in settings if k not in SETTINGS]
     if unknown:
-        import difflib
-
-        close = difflib.get_close_matches(unknown[0], SETTINGS, n=1)
-        raise ValueError(f"make_scene: '{unknown[0]}' is not a scene setting"
-                         + (f" (did you mean '{close[0]}'?)" if close else "")
-                         + f"; the settings are {', '.join(SETTINGS)}")
+        raise ValueError(f"make_scene: '{unknown[0]}' is not a scene setting{did_you_mean(unknown[0], SETTINGS)}"
+                         f"; the settings are {', '.join(SETTINGS)}")
     out = Scene(frames=int(frames), fps=float(fps), up_axis=str(up).upper(), settings=dict(settings), source="<script>",
                 gravity=None if gravity is None else _vec3(gravity, "make_scene: gravity"))
     for i, item in enumerate(items):

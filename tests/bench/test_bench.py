@@ -189,3 +189,46 @@ def test_draped_pose_is_simulated_deterministically_and_cached(tmp_path):
 def test_animation_counts_below_one_are_refused_by_name(capsys, flag):
     assert cli_main(["bench", "--animation", "walk", flag, "0"]) != 0
     assert f"{flag} must be >= 1, got 0" in capsys.readouterr().err
+
+
+def test_ground_truth_cache_defaults_to_the_user_cache_not_the_working_directory(tmp_path, monkeypatch):
+    # the default was ".warpshade-cache/reference" under whatever directory the process ran from
+    from warpshade.bench.meshes import draped_cloth
+    from warpshade.bench.reference_cache import ground_truth
+    from warpshade.geometry import TriMesh
+
+    quad = TriMesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float), np.array([[0, 1, 2], [0, 2, 3]]))
+    work, root = tmp_path / "work", tmp_path / "root"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    monkeypatch.setenv("WARPSHADE_CACHE", str(root))
+    t = ground_truth(quad, 2, rays=16)
+    assert [p.name for p in (root / "reference").iterdir()] and not list(work.iterdir())
+    assert np.array_equal(ground_truth(quad, 2, rays=16), t)  # read back from there
+    draped_cloth(n=6, frames=2)
+    assert len(list((root / "bench").iterdir())) == 1 and not list(work.iterdir())
+    monkeypatch.setenv("WARPSHADE_CACHE", "none")  # the cache off: nothing written anywhere
+    ground_truth(quad, 2, rays=32)
+    assert len(list((root / "reference").iterdir())) == 1 and not list(work.iterdir())
+
+
+@pytest.mark.parametrize("flag, expect", [(None, "user"), ("none", None), ("DIR", "DIR")])
+def test_cli_cache_dir_reaches_the_sweep(tmp_path, monkeypatch, flag, expect):
+    # ``--cache-dir none`` was dropped by BenchSettings.for_mode (a None override means "default") and the
+    # sweep cached anyway
+    from warpshade import _cache, bench
+
+    seen = {}
+
+    def fake_run_bench(settings):
+        seen["cache_dir"] = settings.cache_dir
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(bench, "run_bench", fake_run_bench)
+    args = ["bench", "--quick", "--out", str(tmp_path / "b")]
+    if flag:
+        args += ["--cache-dir", str(tmp_path / flag) if flag == "DIR" else flag]
+    with pytest.raises(RuntimeError, match="stop here"):
+        cli_main(args)
+    want = {"user": _cache.USER, None: None, "DIR": str(tmp_path / "DIR")}[expect]
+    assert seen["cache_dir"] is want if want is _cache.USER or want is None else seen["cache_dir"] == want

@@ -228,3 +228,32 @@ def test_static_scene_computes_the_pass_once_unless_the_light_moves():
     a, b = spun.irradiance(0.0, *args)[0], spun.irradiance(0.5, *args)[0]
     # the light turns 45° about the vertical through the centre: off-centre vertices see it change
     assert not np.allclose(a, b)
+
+
+@pytest.mark.parametrize("blockers", [True, False])
+@pytest.mark.parametrize("far", [1e3, 1e4])
+def test_far_from_the_origin_the_irradiance_is_the_origins(blockers, far):
+    """A 2 cm plane under a 1 cm light 2 cm up, moved ``far`` units: vertex by vertex the irradiance at the origin
+    for the same float32 positions (so that only the shading's own rounding can differ). The unshadowed term was
+    computed in world coordinates with the light's centre rounded to float32 there: max 0.06 % (1e3) and 1.9 %
+    (1e4) of the largest irradiance apart, with or without blockers; now in the coordinates GEARS traces in
+    (``rays.local_origin``)."""
+    scale, shift = 0.01, np.array([far, far, -far])
+    plane, lid = _plane_and_blocker()
+    world = [(m.points * scale + shift).astype(np.float32) for m in (plane, lid)]
+    local = [w.astype(np.float64) - shift for w in world]  # the same positions about the origin (exact)
+    normals = [TriMesh(p, m.faces).normals for p, m in zip(local, (plane, lid))]
+    count = 2 if blockers else 1
+
+    def irradiance(points, offset):
+        lt = light()
+        lt = RectLight(center=lt.center * scale + offset, u=lt.u * scale, v=lt.v * scale, radiance=lt.radiance)
+        meshes = [TriMesh(p, m.faces) for p, m in zip(points, (plane, lid))][:count]
+        area = AreaLightShading(meshes, [lt], blocker_faces=None if blockers else [np.zeros((0, 3), int)])
+        return area.irradiance(0.0, [m.points for m in meshes], normals[:count])[0]
+
+    e0, e = irradiance(local, 0.0), irradiance(world, shift)
+    assert e0[:, 0].max() > 0.1  # lit (Φ = 0.23 sr unshadowed at the plane's centre)
+    # measured identical at 1e3 and 1e4; float32 rounding of the light's centre relative to the scene's local
+    # origin (~6e-8 of the scene's size) would move it by ~1e-5 relative
+    assert np.abs(e - e0).max() <= 1e-4 * np.abs(e0).max()

@@ -1,5 +1,7 @@
 """Scenes as users write them: warnings that name the prim and the fix; guide/proxy purpose not shaded."""
 
+import glob
+import os
 import warnings
 
 import numpy as np
@@ -141,3 +143,52 @@ def test_invalid_scene_knob_names_the_prim_and_attribute(tmp_path, name, value, 
     with pytest.raises(SceneError) as err:
         _scene(tmp_path, build)
     assert f"scene.usda:/World/Cloth: {message}" in str(err.value)
+
+
+def _with_world(attrs, world_type="Xform"):
+    def build(stage):
+        world = stage.DefinePrim("/World", world_type)
+        stage.SetDefaultPrim(world)
+        for name, (type_name, value) in attrs.items():
+            world.CreateAttribute(f"warpshade:{name}", type_name, custom=True).Set(value)
+        _grid(stage, "/World/Floor")
+    return build
+
+
+def test_unknown_scene_setting_on_the_default_prim_warns_with_the_closest(tmp_path):
+    # a typo on the default prim was ignored without a word (the run took 120 frames, not 10)
+    build = _with_world({"frams": (Sdf.ValueTypeNames.Int, 10), "order": (Sdf.ValueTypeNames.Int, 3)})
+    msgs = _read_warnings(tmp_path, build)
+    hits = [m for m in msgs if "warpshade:frams" in m]
+    assert len(hits) == 1, msgs
+    assert "scene.usda:/World" in hits[0] and "did you mean 'frames'" in hits[0] and "ignored" in hits[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scene = _scene(tmp_path, build)
+    assert scene.settings["order"] == 3 and "frams" not in scene.settings and scene.frames == 120
+    # an object mark on the default prim is no scene setting either (object marks stop below the default prim)
+    msgs = _read_warnings(tmp_path, _with_world({"kind": (Sdf.ValueTypeNames.String, "cloth")}))
+    assert any("warpshade:kind" in m and "not a scene setting" in m for m in msgs), msgs
+
+
+def test_known_scene_settings_and_shipped_scenes_do_not_warn(tmp_path):
+    from helpers import REPO
+
+    from warpshade.usd.scene_io import SCENE_KEYS
+
+    values = {"frames": 3, "fps": 24.0, "order": 3, "method": "disks", "writeTransfer": False, "substeps": 4,
+              "reflections": False, "refineEdge": 0.1, "edgeLength": 0.2, "graded": True, "wind": Gf.Vec3f(1, 0, 0),
+              "max_error": 0.05}
+    assert set(values) == set(SCENE_KEYS)
+    types = {bool: Sdf.ValueTypeNames.Bool, int: Sdf.ValueTypeNames.Int, float: Sdf.ValueTypeNames.Float,
+             str: Sdf.ValueTypeNames.String}
+    attrs = {k: (types.get(type(v), Sdf.ValueTypeNames.Float3), v) for k, v in values.items()}
+    msgs = _read_warnings(tmp_path, _with_world(attrs))
+    assert not [m for m in msgs if "scene setting" in m], msgs
+    shipped = sorted(glob.glob(os.path.join(REPO, "usd_scenes", "*.usda")))
+    assert len(shipped) >= 8
+    for path in shipped:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            read_scene(path)
+        assert not [w for w in caught if "scene setting" in str(w.message)], path

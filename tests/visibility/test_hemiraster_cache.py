@@ -126,6 +126,17 @@ def test_changed_points_or_knobs_miss(cache_root):
     assert counts()["hit"] == 1
 
 
+def test_key_covers_each_parts_border_flag(cache_root):
+    # hemiraster keeps the occluders' outline whatever ``border`` says for the receiver: one flag per part
+    parts = parts_of(wavy_sheet()) * 2
+    keys = {flags: hr_cache.far_field_key(parts, [64, 64], None, flags)
+            for flags in [(False, False), (False, True), (True, False), (True, True)]}
+    assert len(set(keys.values())) == 4
+    assert hr_cache.far_field_key(parts, [64, 64], None, True) == keys[(True, True)]  # one bool: every part
+    with pytest.raises(ValueError, match="2 far-field parts"):
+        hr_cache.far_field_key(parts, [64, 64], None, [True])
+
+
 def test_key_covers_the_code_and_the_libraries(cache_root, monkeypatch):
     parts = parts_of(wavy_sheet())
     key = hr_cache.far_field_key(parts, [64])

@@ -68,8 +68,12 @@ def test_direct_far_masks_are_the_lut_images_but_for_sliver_tips(oracle_masks):
     off_h, off = masks(False)
     on_h, on = masks(True)
     assert want.sum() > 4000  # the canopy covers a good part of every mask (5235 bits measured)
-    np.testing.assert_array_equal(off, want)  # the queue's masks are the oracle's (the harness is right)
-    assert not (on & ~want).any()  # no bit outside a LUT image
+    # the queue's masks are the oracle's (the harness is right) but for pixel centres on a blocker's edge, where the
+    # kernel (float32) and the oracle (float64) round apart: 1 of 36864 bits measured since the occluders keep their
+    # outline (the canopy's decimation changed; 0 before), a pixel 1.7e-4 rad from the edge two canopy triangles share
+    ties = off != want
+    assert ties.sum() <= 4
+    assert not (on & ~want & ~ties).any()  # no bit outside a LUT image
     # bits of LUT images reaching past a sliver's box are lost: measured 17 of 5235 here (0.3 %)
     assert (want & ~on).sum() <= 0.01 * want.sum()
     # nearly every canopy triangle is small enough: 1015 queued per receiver without, 9.7 with (measured)

@@ -29,8 +29,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from .. import _cache
 from .._atomic import replace_atomically
 from ..geometry.mesh import TriMesh
+from .meshes import BENCH_KIND
 from .metrics import error_summary
 from .reference_cache import DEFAULT_CACHE_DIR, GROUND_TRUTH_SEED, ground_truth
 
@@ -40,8 +42,8 @@ ANIMATIONS = ("default", "walk")
 DEFAULT_TOLERANCES = (0.0, 0.05, 0.1, 0.2, 0.5, 1.0)
 """Temporal reuse tolerances [rad] measured beside plain recomputation."""
 
-SEQUENCE_CACHE = ".warpshade-cache/bench"
-"""Where simulated sequences are cached (relative to the working directory)."""
+SEQUENCE_CACHE = _cache.USER
+"""Where simulated sequences are cached by default: ``<user cache root>/bench`` (:func:`warpshade._cache.directory`)."""
 
 
 @dataclass
@@ -85,6 +87,7 @@ def _scene(path: str, label: str, frames: int, cache_dir: str | None, side: str 
     with open(path, "rb") as fh:
         digest = hashlib.sha256(fh.read()).hexdigest()[:12]
     stem = os.path.splitext(os.path.basename(path))[0]
+    cache_dir = _cache.resolve(cache_dir, BENCH_KIND)
     cached = os.path.join(cache_dir, f"animation_{stem}_{digest}_f{frames}.npz") if cache_dir else None
     description = (f"{label}, {frames} simulated frames: {', '.join(group.names)} as one receiver "
                    f"({len(rest)} vertices), front sides")

@@ -14,8 +14,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _cache
 from .._atomic import replace_atomically
 from ..geometry.mesh import TriMesh
+
+BENCH_KIND = "bench"
+"""Subdirectory of the per-user cache root (:func:`warpshade._cache.directory`) holding simulated benchmark meshes
+and sequences by default."""
 
 
 @dataclass
@@ -87,13 +92,15 @@ def wrinkled_cloth(n: int = 64, seed: int = 7, compress: float = 0.85, name: str
                      f"{compress:g} compression (rest: flat)")
 
 
-def draped_cloth(n: int = 64, frames: int = 60, cache_dir: str | None = ".warpshade-cache/bench") -> BenchMesh:
+def draped_cloth(n: int = 64, frames: int = 60, cache_dir: str | None = _cache.USER) -> BenchMesh:
     """A 1 m square of cloth (rest: flat, 0.6 m up) dropped onto a 0.25 m ball on the floor and
     simulated for ``frames`` frames (:class:`~warpshade.sim.XPBDSolver`, 16 substeps at 60 frames/s):
     a dome over the ball with a skirt hanging in folds onto the floor. Deterministic (one CPU
-    thread); the frame is cached in ``cache_dir`` (None: not cached). Y up; the ball and the floor
-    are colliders only (not in the mesh).
+    thread); the frame is cached in ``cache_dir`` (default ``<user cache root>/bench``,
+    :func:`warpshade._cache.directory`; None: not cached). Y up; the ball and the floor are colliders only
+    (not in the mesh).
     """
+    cache_dir = _cache.resolve(cache_dir, BENCH_KIND)
     path = os.path.join(cache_dir, f"draped_cloth_n{n}_f{frames}.npz") if cache_dir else None
     if path and os.path.isfile(path):
         z = np.load(path)

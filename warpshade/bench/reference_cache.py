@@ -18,6 +18,7 @@ import re
 
 import numpy as np
 
+from .. import _cache
 from .._atomic import replace_atomically
 from ..geometry.mesh import TriMesh
 
@@ -31,8 +32,12 @@ normal, wrong for vertices resting on another surface; t4: the vertex's own tria
 and ``-n``, seen from the vertex lifted along its normal, where t3 tested each from its own side), so stale files are
 not reused."""
 
-DEFAULT_CACHE_DIR = ".warpshade-cache/reference"
-"""Relative to the working directory; git-ignored in the repository."""
+CACHE_KIND = "reference"
+"""Subdirectory of the per-user cache root (:func:`warpshade._cache.directory`) holding the ground truth by default."""
+
+DEFAULT_CACHE_DIR = _cache.USER
+"""``cache_dir`` default: ``<user cache root>/reference`` (``$WARPSHADE_CACHE``, else the platform's user cache
+directory; none when ``WARPSHADE_CACHE=none``), wherever the process runs from."""
 
 
 def mesh_hash(mesh: TriMesh) -> str:
@@ -52,7 +57,7 @@ def ground_truth(mesh: TriMesh, order: int, rays: int = 4096, cache_dir: str | N
         occluders: Other meshes that cast shadows on ``mesh`` (their hashes join the cache key).
         order: SH order needed.
         rays: Rays per vertex (rounded to a square by :class:`ReferenceTransfer`).
-        cache_dir: Directory of cached results; None disables caching.
+        cache_dir: Directory of cached results (default: :data:`DEFAULT_CACHE_DIR`); None disables caching.
         device: Warp device.
         log: Optional ``print``-like callable told about cache misses and their cost.
     """
@@ -60,6 +65,7 @@ def ground_truth(mesh: TriMesh, order: int, rays: int = 4096, cache_dir: str | N
 
     from ..visibility.reference import ReferenceTransfer
 
+    cache_dir = _cache.resolve(cache_dir, CACHE_KIND)
     key = "+".join(mesh_hash(m) for m in (mesh, *occluders)) + f"-{TRUTH_VERSION}"
     if cache_dir:
         for path in glob.glob(os.path.join(cache_dir, f"{key}-o*-r{rays}-s{GROUND_TRUTH_SEED}.npy")):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
@@ -24,7 +25,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ground-truth-rays", type=int, default=None,
                         help="rays per vertex of the ground truth (default 16384; quick 4096)")
     parser.add_argument("--cache-dir", default=None,
-                        help="ground-truth cache (default .warpshade-cache/reference; 'none' disables)")
+                        help="ground-truth cache directory (default: 'reference' in the user cache, see "
+                             "'warpshade info'; 'none' disables)")
     parser.add_argument("--frontier", default=None, metavar="FRONTIER.json",
                         help="also write the planner's frontier file (e.g. warpshade/data/frontier.json)")
     parser.add_argument("--device", default="cpu", help="Warp device (default cpu)")
@@ -64,6 +66,15 @@ def _animation(text: str) -> str:
     raise argparse.ArgumentTypeError(f"{text!r} is neither {' nor '.join(ANIMATIONS)} nor a USD file that exists")
 
 
+def _cache_dir(text):
+    """``--cache-dir``: absent, the ground truth's default (``reference`` in the user cache); ``none``: no cache."""
+    from ..bench.reference_cache import DEFAULT_CACHE_DIR
+
+    if text is None:
+        return DEFAULT_CACHE_DIR
+    return None if text.lower() == "none" else text
+
+
 def _csv(text, conv=str):
     return None if text is None else [conv(x) for x in text.split(",") if x.strip()]
 
@@ -79,12 +90,10 @@ def run_animation(args) -> int:
             raise ValueError(f"{flag} must be >= 1, got {value}")
     tolerances = _csv(args.reuse_tolerances, float) or list(DEFAULT_TOLERANCES)
     configs = configurations(tolerances, variants=[parse_variant(v) for v in args.variant])
-    cache = args.cache_dir
     result = run_animation(args.animation, frames=args.frames, every=args.every, order=args.order,
                            rays=args.ground_truth_rays or 4096, configs=configs, device=args.device,
                            chunk=args.reuse_chunk, side=args.side,
-                           cache_dir=".warpshade-cache/reference" if cache is None else
-                           (None if cache.lower() == "none" else cache))
+                           cache_dir=_cache_dir(args.cache_dir))
     result["machine"] = f"{machine_note()}; wall and process CPU time of update() per frame, compile excluded"
     print(format_animation(result))
     print(result["machine"])
@@ -104,11 +113,11 @@ def run(args) -> int:
     from ..bench.runner import machine_note
 
     orders = _csv(args.orders, int)
-    cache = args.cache_dir
     settings = BenchSettings.for_mode(
         args.quick, methods=_csv(args.methods), meshes=_csv(args.meshes), orders=tuple(orders) if orders else None,
-        repeat=args.repeat, ground_truth_rays=args.ground_truth_rays, device=args.device,
-        cache_dir=None if cache is None else (None if cache.lower() == "none" else cache))
+        repeat=args.repeat, ground_truth_rays=args.ground_truth_rays, device=args.device)
+    # set apart: for_mode drops None overrides, and None (``--cache-dir none``) means no cache
+    settings = dataclasses.replace(settings, cache_dir=_cache_dir(args.cache_dir))
     os.makedirs(args.out, exist_ok=True)
     t0 = time.perf_counter()
     records = run_bench(settings)

@@ -325,7 +325,7 @@ class RectLight(Light):
             out[i] = ((w * cos_e / r2) @ sh_eval(d, order))[:, None] * self.radiance
         return out
 
-    def projected_solid_angle(self, points, normals, out=None):
+    def projected_solid_angle(self, points, normals, out=None, origin=None):
         """Exact unshadowed ``Φ(p) = ∫_light max(0, n_p·ω) dω`` per receiver (Lambert's polygon formula,
         Warp kernel :func:`~warpshade.lighting.kernels.integrate_rect_irradiance`); irradiance is
         ``Φ · radiance``. Zero behind a one-sided light's emitting side.
@@ -334,6 +334,9 @@ class RectLight(Light):
             points: Receiver positions [m], shape (P, 3) or a ``wp.array`` of vec3.
             normals: Unit receiver normals, shape (P, 3) or a ``wp.array`` of vec3.
             out: Optional output ``wp.array`` of float, shape (P,), reused between frames.
+            origin: Where ``points`` are relative to (world, shape (3,)): the light's centre is taken relative
+                to it in float64 before the float32 kernel (a scene far from the world origin, traced about its
+                own, :func:`warpshade.visibility.rays.local_origin`); None: ``points`` are world positions.
 
         Returns:
             ``wp.array`` of float [sr], shape (P,).
@@ -349,8 +352,9 @@ class RectLight(Light):
             raise ValueError(f"{self.name}: normals shape {nrm.shape} does not match points shape {pts.shape}")
         if out is None:
             out = wp.empty(pts.shape[0], dtype=float, device=dev)
+        center = self.center if origin is None else self.center - np.asarray(origin, np.float64).reshape(3)
         wp.launch(integrate_rect_irradiance, dim=pts.shape[0],
-                  inputs=[pts, nrm, wp.vec3(*self.center), wp.vec3(*self.u), wp.vec3(*self.v),
+                  inputs=[pts, nrm, wp.vec3(*center), wp.vec3(*self.u), wp.vec3(*self.v),
                           wp.vec3(*self.emit_normal), int(self.two_sided)], outputs=[out], device=dev)
         return out
 

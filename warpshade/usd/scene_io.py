@@ -52,6 +52,24 @@ _LIGHTS = {"DomeLight": "dome", "DistantLight": "distant", "SphereLight": "spher
 #: Scene-wide ``warpshade:`` settings on the default prim and their Python types.
 SCENE_SETTINGS = {"frames": int, "fps": float, "order": int, "method": str, "writeTransfer": bool,
                   "substeps": int, "reflections": bool, "refineEdge": float, "edgeLength": float}
+SCENE_KEYS = (*SCENE_SETTINGS, "graded", "wind", "max_error")
+"""Every ``warpshade:`` attribute the default prim may carry (the scene's settings; ``graded``, ``wind`` and
+``max_error`` checked where they are used); another is reported (:func:`unknown_setting`)."""
+
+
+def did_you_mean(name: str, known) -> str:
+    """`` (did you mean 'x'?)`` with the closest of ``known`` to ``name``, or an empty string when none is close."""
+    import difflib
+
+    close = difflib.get_close_matches(name, list(known), n=1)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def unknown_setting(where: str, name: str) -> str:
+    """The message for a ``warpshade:`` attribute of the default prim at ``where`` that is no scene setting."""
+    return (f"{where}: warpshade:{name} is not a scene setting{did_you_mean(name, SCENE_KEYS)}; ignored (the scene "
+            f"settings are {', '.join(SCENE_KEYS)}; an object's warpshade: attributes go on it or on a prim between "
+            "it and the default prim)")
 
 
 def read_scene(path: str) -> Scene:
@@ -102,6 +120,10 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
     if not root.IsPseudoRoot() and not root.IsA(UsdGeom.Gprim):
         scene.default_prim = str(root.GetPath())
     scene.settings = _namespace(root, source, skip=())
+    if not root.IsA(UsdGeom.Gprim):  # a gprim's own attributes are also its object marks
+        for key in [k for k in scene.settings if k not in SCENE_KEYS]:
+            warnings.warn(unknown_setting(f"{source}:{root.GetPath()}", key), SceneWarning, stacklevel=2)
+            del scene.settings[key]
     for key, value in list(scene.settings.items()):
         if key in SCENE_SETTINGS:
             scene.settings[key] = _cast(value, SCENE_SETTINGS[key], source, root, key)

@@ -1,14 +1,17 @@
 """NumPy oracle of the disk kernels (tests compare :mod:`.kernels` against it).
 
 Brute force over every vertex disk (no hierarchy), single pass: the value the Warp tree walk must
-reproduce when ``lod`` is so large that no node stands for its subtree.
+reproduce when ``lod`` is so large that no node stands for its subtree, contact rule included
+(:func:`contact_normal_np`, :func:`contact_half_space_np`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ...geometry.mesh import vertex_neighbours
 from ..rays import FRAME_AXIS
+from .kernels import CONTACT, CONTACT_FACING, CONTACT_REACH, CONTACT_SAMPLES
 
 GRID = 4
 _FRAME_AXIS = np.array(FRAME_AXIS, np.float64)
@@ -59,14 +62,68 @@ def concentric_inverse_np(x: float, y: float) -> tuple[float, float]:
     return 0.5 * (a + 1), 0.5 * (b + 1)
 
 
+def concentric_disk_np(u: float, v: float) -> tuple[float, float]:
+    """[0,1]² -> unit disk (Shirley–Chiu), as the kernels' :func:`~warpshade.visibility.rays.concentric_disk`."""
+    a, b = 2.0 * u - 1.0, 2.0 * v - 1.0
+    if a == 0.0 and b == 0.0:
+        return 0.0, 0.0
+    if a * a > b * b:
+        r, phi = a, (np.pi / 4.0) * (b / a)
+    else:
+        r, phi = b, (np.pi / 2.0) - (np.pi / 4.0) * (a / b)
+    return r * np.cos(phi), r * np.sin(phi)
+
+
+def contact_normal_np(v: int, p: np.ndarray, nrm: np.ndarray, area: np.ndarray, neighbours: set) -> np.ndarray | None:
+    """The normal of the disk vertex ``v`` stands on (the kernels' ``contact_foot``): among the disks of vertices
+    other than ``v`` and its edge ``neighbours``, within :data:`~.kernels.CONTACT` ρ of whose plane ``v`` lies
+    with its foot within :data:`~.kernels.CONTACT_REACH` ρ of the centre and ``n·N >=``
+    :data:`~.kernels.CONTACT_FACING`, the one with the nearest foot (in radii); None when there is none."""
+    best, normal = CONTACT_REACH, None
+    for e in range(len(p)):
+        if e == v or e in neighbours or area[e] <= 0:
+            continue
+        d = p[e] - p[v]
+        h = nrm[e] @ d
+        rho = np.sqrt(area[e] / np.pi)
+        if abs(h) > CONTACT * rho or nrm[v] @ nrm[e] < CONTACT_FACING:
+            continue
+        s = np.linalg.norm(d - nrm[e] * h) / rho
+        if s < best:
+            best, normal = s, nrm[e]
+    return normal
+
+
+def contact_half_space_np(frame: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Per bin, the share of its cosine measure behind the plane of ``normal`` (``w·N < 0``), by the kernels'
+    :data:`~.kernels.CONTACT_SAMPLES`² midpoint rule in the concentric square, shape (16,)."""
+    out = np.zeros(GRID * GRID)
+    k = CONTACT_SAMPLES
+    for i in range(GRID):
+        for j in range(GRID):
+            hit = 0
+            for si in range(k):
+                for sj in range(k):
+                    x, y = concentric_disk_np((i + (si + 0.5) / k) / GRID, (j + (sj + 0.5) / k) / GRID)
+                    w = frame @ np.array([x, y, np.sqrt(max(0.0, 1.0 - x * x - y * y))])
+                    hit += w @ normal < 0.0
+            out[i * GRID + j] = hit / (k * k)
+    return out
+
+
 def bin_occlusion_np(points, normals, faces, back_weight: float) -> np.ndarray:
-    """Single-pass, unclamped bin occlusion of every vertex by every other vertex disk, shape (V, 16)."""
+    """Single-pass, unclamped bin occlusion of every vertex by every other vertex disk, and by the half-space
+    behind a disk it stands on (:func:`contact_normal_np`), shape (V, 16)."""
     p = np.asarray(points, np.float64)
     nrm = np.asarray(normals, np.float64)
     area = disk_areas_np(p, faces)
+    ring_start, ring = vertex_neighbours(np.asarray(faces), len(p))
     out = np.zeros((len(p), GRID * GRID))
     for v in range(len(p)):
         fr = frame_np(nrm[v])
+        contact = contact_normal_np(v, p, nrm, area, set(ring[ring_start[v]:ring_start[v + 1]].tolist()))
+        if contact is not None:
+            out[v] += contact_half_space_np(fr, contact)
         for e in range(len(p)):
             if e == v or area[e] <= 0:
                 continue

@@ -194,6 +194,16 @@ class AreaVisibilityMethod(VisibilityMethod):
         self._origin = local_origin(world)
         self._local_points.assign((world.astype(np.float64) - self._origin).astype(np.float32))
 
+    @property
+    def origin(self) -> np.ndarray:
+        """World position (float64, shape (3,)) the kernels' coordinates are relative to, as of the last :meth:`update`."""
+        return self._origin
+
+    @property
+    def local_points(self) -> wp.array:
+        """Vertex positions relative to :attr:`origin` as of the last :meth:`update`, shape (V,), vec3."""
+        return self._local_points
+
     def light_center(self) -> np.ndarray:
         """The light's centre relative to :attr:`_origin`, float64 shape (3,)."""
         return np.asarray(self.light.center, np.float64) - self._origin

@@ -5,7 +5,7 @@ The entry's key is a sha256 over everything the far field depends on: :data:`FOR
 ``hierarchy.py`` (the decimation, binding and assignment) and of ``geometry/mesh.py`` (the stitching of
 the decimated surface); the versions of numpy, scipy (KD-trees) and ``fast_simplification`` (the
 decimation) and the machine architecture; and each part's point and face arrays (dtype, shape, bytes),
-the coarse and mid targets and ``border``. A loaded entry is the built one bit for bit; one that cannot
+the coarse and mid targets and the per-part ``border`` flags. A loaded entry is the built one bit for bit; one that cannot
 be read or does not fit the request's shapes is rebuilt.
 """
 
@@ -36,13 +36,14 @@ def _environment() -> tuple:
             platform.machine(), *_cache.versions("numpy", "scipy", "fast-simplification"))
 
 
-def far_field_key(parts, targets, mid_targets=None, border: bool = False) -> str:
+def far_field_key(parts, targets, mid_targets=None, border=False) -> str:
     """The cache key of ``hierarchy.far_field(parts, targets, mid_targets, border)`` (module docstring)."""
     key = _cache.Key(*_environment(), len(parts))
     for pts, faces in parts:
         key.add(np.asarray(pts), np.asarray(faces))
     key.add(tuple(int(t) for t in targets).__repr__(),
-            None if mid_targets is None else tuple(int(t) for t in mid_targets).__repr__(), bool(border))
+            None if mid_targets is None else tuple(int(t) for t in mid_targets).__repr__(),
+            hierarchy.part_borders(border, len(parts)).__repr__())
     return key.hexdigest()
 
 
@@ -72,7 +73,7 @@ def _fits(arrays: dict, num_faces: int, mid: bool) -> bool:
     return True
 
 
-def far_field(parts, targets, mid_targets=None, border: bool = False) -> dict:
+def far_field(parts, targets, mid_targets=None, border=False) -> dict:
     """:func:`.hierarchy.far_field` (same arguments, same result bit for bit), read from the disk cache when an
     entry for these inputs exists, else built and stored there."""
     key = far_field_key(parts, targets, mid_targets, border)

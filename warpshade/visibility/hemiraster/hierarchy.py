@@ -24,6 +24,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ...geometry.mesh import stitched_faces, vertex_neighbours
@@ -229,8 +231,18 @@ def bind_to_surface(query: np.ndarray, points: np.ndarray, faces: np.ndarray, ne
     return face, bary.astype(np.float32), off.astype(np.float32)
 
 
+def part_borders(border, num_parts: int) -> tuple[bool, ...]:
+    """``border`` of :func:`far_field` as one flag per part: a single bool stands for every part."""
+    if isinstance(border, (bool, np.bool_)):
+        return (bool(border),) * num_parts
+    flags = tuple(bool(b) for b in border)
+    if len(flags) != num_parts:
+        raise ValueError(f"hemiraster: {len(flags)} border flags for {num_parts} far-field parts")
+    return flags
+
+
 def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mid_targets: list[int] | None = None,
-              border: bool = False):
+              border: bool | Sequence[bool] = False):
     """Coarse blocker mesh of several parts (receiver mesh, static occluders), each decimated alone.
 
     Each part is decimated to its target (kept whole when the target reaches its triangle count),
@@ -241,7 +253,8 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mi
         parts: ``(points (Vp, 3), faces (Fp, 3))`` per part, in scene order (the scene's fine
             vertices and faces are the parts' concatenated in this order).
         targets: Coarse triangle target per part.
-        border: Keep each part's open boundary vertices in both decimations (:func:`decimate`).
+        border: Keep the open boundary vertices in both decimations (:func:`decimate`): one flag for every
+            part, or one per part (:func:`part_borders`).
 
     Returns:
         dict with ``points`` (Vc, 3) float64, ``faces`` (Fc, 3) int64, ``bind_face`` (Vc,) int32 (scene
@@ -255,8 +268,10 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mi
         triangles assigned over the mid mesh as over a fine one; ``outline`` (Fm,) float32, the
         least deviation of each mid triangle (:func:`outline_deviation`).
     """
-    def level(pts, faces, surface, target, fbase, fans=True):
-        cp, cf = decimate(pts, surface, target, border)
+    borders = part_borders(border, len(parts))
+
+    def level(pts, faces, surface, target, fbase, keep, fans=True):
+        cp, cf = decimate(pts, surface, target, keep)
         f, b, o = bind_to_surface(cp, pts, faces)
         prim, extra = assign_to_coarse(pts, faces, cp, cf, fans=fans)
         return cp, cf, f + fbase, b, o, prim, extra
@@ -270,13 +285,13 @@ def far_field(parts: list[tuple[np.ndarray, np.ndarray]], targets: list[int], mi
         # the surface is decimated (:func:`stitched_faces`): faces with vertices of their own along
         # sharp edges (a box's rims) decimated apart let light through their seams
         surface = stitched_faces(pts, faces)
-        cp, cf, bf, bb, bo, prim, extra = level(pts, faces, surface, target, fbase)
+        cp, cf, bf, bb, bo, prim, extra = level(pts, faces, surface, target, fbase, borders[k])
         for key, val in zip(out, (cp, cf + cbase, bf, bb, bo, prim + cfbase, extra + np.array([fbase, cfbase]))):
             out[key].append(val)
         if mid is not None:
             # seam cover without the fan rule at both mid seams (coarse/mid, mid/fine): at a few fine
             # triangles per mid triangle it tripled their extras (docs/benchmarks/history.md)
-            mp, mf, mbf, mbb, mbo, mprim, mextra = level(pts, faces, surface, mid_targets[k], fbase, fans=False)
+            mp, mf, mbf, mbb, mbo, mprim, mextra = level(pts, faces, surface, mid_targets[k], fbase, borders[k], fans=False)
             # the mid mesh is to the coarse one what the fine mesh is to it
             cprim, cextra = assign_to_coarse(mp, mf, cp, cf, fans=False)
             outline = outline_deviation(pts, faces, mp, mf, mprim)

@@ -108,7 +108,8 @@ class HemirasterTransfer(TransferMethod):
             near field is then only the topological k-ring).
         occluders: Extra static meshes that cast shadows on ``mesh`` (they receive nothing), as in
             :class:`~warpshade.visibility.reference.ReferenceTransfer`; decimated to the receiver's
-            coarse density and refined near receivers like the mesh itself.
+            coarse density (keeping their open boundary, whatever ``border``) and refined near
+            receivers like the mesh itself.
         cull: Hierarchical culling of triangle clusters against the tangent plane (else a linear
             per-triangle horizon test).
         cluster: Triangles per cluster (16 clusters form a super-cluster).
@@ -390,7 +391,10 @@ class HemirasterTransfer(TransferMethod):
         far = None
         self._mid_bind = None
         if self.hierarchy:
-            far = cache.far_field([(q.astype(np.float64), f) for q, f in parts], targets, mid_targets, self.border)
+            # occluders keep their open outline (the edge of the shadow they cast): decimated to the receiver's
+            # density without it, a 2-triangle quad became one triangle and let half its shadow through
+            borders = [self.border] + [True] * len(occluders)
+            far = cache.far_field([(q.astype(np.float64), f) for q, f in parts], targets, mid_targets, borders)
             cpts, block_faces = far["points"], far["faces"]
             self._near_mode = 0  # 0: none, 1: exclusion bits (paper scheme), 2: forced refinement bits
             if self.ring:
