@@ -12,7 +12,7 @@ from __future__ import annotations
 import warp as wp
 
 from ..rays import orthonormal_basis
-from .tables import CHUNK_WORDS, COPLANAR, COPLANAR_FACING
+from .tables import CHUNK_WORDS, COPLANAR, COPLANAR_FACING, COPLANAR_NEAR
 
 # forward only (nothing here is differentiated): half the generated code and compile time. No fused
 # multiply-adds: then ``b × a`` is exactly ``-(a × b)`` (both products of each component are computed
@@ -464,6 +464,8 @@ def triangle_bounds(
 
 COPLANAR_K = wp.constant(COPLANAR)
 """:data:`.tables.COPLANAR` in kernels."""
+COPLANAR_NEAR_K = wp.constant(COPLANAR_NEAR)
+""":data:`.tables.COPLANAR_NEAR` in kernels."""
 COPLANAR_FACING_K = wp.constant(COPLANAR_FACING)
 """:data:`.tables.COPLANAR_FACING` in kernels."""
 
@@ -471,8 +473,8 @@ COPLANAR_FACING_K = wp.constant(COPLANAR_FACING)
 @wp.func(inline=True)
 def coplanar_lift(a: wp.vec3, b: wp.vec3, c: wp.vec3, n: wp.vec3) -> wp.vec3:
     """Where the receiver lies in triangle (a, b, c) (corners relative to it; its foot within the triangle and
-    its distance to the plane at most :data:`.tables.COPLANAR` × L), the triangle as seen from that distance on its
-    front side: returns the offset to subtract from the corners (zero for every other triangle).
+    its distance to the plane at most :data:`.tables.COPLANAR_NEAR` × L), the triangle as seen from
+    :data:`.tables.COPLANAR` × L on its front side: returns the offset to subtract from the corners (zero for every other triangle).
 
     A post standing on a floor puts its base vertices in the floor's plane. Seen from a point of the plane, the
     floor triangle under it has no solid angle, and the sign of its rounded determinant decides whether its
@@ -486,7 +488,7 @@ def coplanar_lift(a: wp.vec3, b: wp.vec3, c: wp.vec3, n: wp.vec3) -> wp.vec3:
     gg = wp.dot(g, g)
     gl = wp.sqrt(gg)
     size = wp.sqrt(gl)  # L = sqrt(|N|)
-    near = wp.abs(wp.dot(g, a)) <= COPLANAR_K * gl * size  # |N·a| = |N| × distance to the plane
+    near = wp.abs(wp.dot(g, a)) <= COPLANAR_NEAR_K * gl * size  # |N·a| = |N| × distance to the plane
     # the foot's barycentric coordinates (N·(a×b) = 2 area(p, a, b) |N|, ...) each >= -COPLANAR
     inside = wp.min(wp.min(wp.dot(g, wp.cross(a, b)), wp.dot(g, wp.cross(b, c))), wp.dot(g, wp.cross(c, a))) >= -COPLANAR_K * gg
     facing = wp.dot(n, g) >= COPLANAR_FACING_K * gl
@@ -526,7 +528,8 @@ def triangle_codes(a: wp.vec3, b: wp.vec3, c: wp.vec3, ft: wp.mat33, backface: f
                     cube_cell_xyz(pca[0], pca[1], pca[2], res))
 
 
-_BATCH_CODES = f"#define WS_COPLANAR {COPLANAR!r}f\n#define WS_COPLANAR_FACING {COPLANAR_FACING!r}f\n" + r"""
+_BATCH_CODES = (f"#define WS_COPLANAR {COPLANAR!r}f\n#define WS_COPLANAR_NEAR {COPLANAR_NEAR!r}f\n"
+                f"#define WS_COPLANAR_FACING {COPLANAR_FACING!r}f\n") + r"""
 // corners of slot ``sl``'s queue: rows of contiguous vec3 (wp.zeros), codes rows of contiguous vec3i
 const float* __restrict__ pa = (const float*)((const char*)a.data + sl * a.strides[0]);
 const float* __restrict__ pb = (const float*)((const char*)b.data + sl * b.strides[0]);
@@ -556,7 +559,7 @@ int* __restrict__ psrc = (int*)((char*)src.data + sl * src.strides[0]);
 // the receiver's normal: the frame's third column (:func:`push_triangle`'s ``nz``)
 const float nx = frame.data[0][2], ny = frame.data[1][2], nz = frame.data[2][2];
 // a receiver in a blocker's plane (:func:`coplanar_lift`) is rare: the loop screens for it on the way
-// (|det| <= 2 COPLANAR |N|^1.5: wider than the exact test, so it misses none), and a queue where some triangle
+// (|det| <= 2 COPLANAR_NEAR |N|^1.5: wider than the exact test, so it misses none), and a queue where some triangle
 // passes the screen gets the exact test (the Warp function's operations and order), its lifted corners written
 // back in place, and the loop once more
 int nref = 0;
@@ -579,7 +582,7 @@ for (int k = 0; k < nb; ++k) {
     const float gg = gx * gx + gy * gy + gz * gz;
     const float glen = sqrtf(gg);
     const bool grazing = adet < 0.5f * glen * ra;
-    any_near |= (wdet * wdet <= 4.0f * WS_COPLANAR * WS_COPLANAR * gg * glen) ? 1 : 0;
+    any_near |= (wdet * wdet <= 4.0f * WS_COPLANAR_NEAR * WS_COPLANAR_NEAR * gg * glen) ? 1 : 0;
     const float d = ra * rb * rc + (ax * bx + ay * by + az * bz) * rc + (ax * cx + ay * cy + az * cz) * rb
                     + (bx * cx + by * cy + bz * cz) * ra;
     const float ha = nx * ax + ny * ay + nz * az;
@@ -631,7 +634,7 @@ if (attempt > 0 || !any_near) break;
         const float qq = qx * qx + qy * qy + qz * qz;
         const float ql = sqrtf(qq);
         const float size = sqrtf(ql);
-        const bool near_ = fabsf(qx * ax + qy * ay + qz * az) <= WS_COPLANAR * ql * size;
+        const bool near_ = fabsf(qx * ax + qy * ay + qz * az) <= WS_COPLANAR_NEAR * ql * size;
         const float s0 = qx * (ay * bz - az * by) + qy * (az * bx - ax * bz) + qz * (ax * by - ay * bx);
         const float s1 = qx * (by * cz - bz * cy) + qy * (bz * cx - bx * cz) + qz * (bx * cy - by * cx);
         const float s2 = qx * (cy * az - cz * ay) + qy * (cz * ax - cx * az) + qz * (cx * ay - cy * ax);
@@ -665,6 +668,7 @@ int* prefined = (int*)((char*)refined.data + v * refined.strides[0]);
 *prefined += nref;
 return done;
 #undef WS_COPLANAR
+#undef WS_COPLANAR_NEAR
 #undef WS_COPLANAR_FACING
 """
 

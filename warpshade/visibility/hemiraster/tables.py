@@ -390,9 +390,15 @@ def positive_half(table: np.ndarray, mask: int, lut: int) -> dict:
 
 
 COPLANAR = 1.0e-3
-"""Contact tolerance of the coplanar rule (:func:`.kernels.coplanar_lift`), relative to a triangle's size
-L = sqrt(|N|), N = (b-a)×(c-a): a receiver within COPLANAR × L of a triangle's plane, its foot in the triangle
-(barycentric coordinates >= -COPLANAR), sees the triangle from COPLANAR × L on its front side."""
+"""Lift of the coplanar rule (:func:`.kernels.coplanar_lift`), relative to a triangle's size L = sqrt(|N|),
+N = (b-a)×(c-a): a receiver that lies in a triangle's plane (within :data:`COPLANAR_NEAR` × L, its foot in the
+triangle: barycentric coordinates >= -COPLANAR) sees the triangle from COPLANAR × L on its front side."""
+COPLANAR_NEAR = 1.0e-4
+"""Distance to a triangle's plane, relative to L, within which the coplanar rule takes a receiver to lie in it:
+float32 rounding of a vertex that lies in the plane (a post's base on a floor 100 units from the origin: about
+6e-5 L). Far less than :data:`COPLANAR`: a receiver truly off the plane keeps its view (4 cm behind or 14 cm in front
+of a 200-unit wall, 2e-4 and 7e-4 of its size: lifting it moved the wall to its other side, or opened a gap
+between the lifted triangle and the rest of the wall)."""
 COPLANAR_FACING = -0.5
 """Least ``n·N/|N|`` (the receiver's normal against the triangle's unit normal) for the coplanar rule to act."""
 
