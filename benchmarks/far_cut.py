@@ -8,10 +8,12 @@ receiver: a coarse level ``C`` (e.g. 256 or 384 triangles) wherever it is far, a
 triangle is replaced by what it stands for when the method's own refinement test replaces it (its box,
 with its fine triangles, within ``refine`` times its deviation of the receiver, or it stands for the
 receiver's 1-ring), or when the cut rule says so: ``dist``, the receiver closer to it than ``K`` times
-its size (largest corner distance from its centroid); or ``omega``, its area over the squared distance
-above ``K`` mask pixels of projected solid angle. With the 1536 level in between, a near-level triangle
-is in turn replaced by its fine triangles by the refinement test at its own level (its deviation, the
-outline's, or its 1-ring), as the method's mid level does. Every triangle is rasterized through the
+its size (largest corner distance from its centroid); ``omega``, its area over the squared distance
+above ``K`` mask pixels of projected solid angle; or ``dev``, the method's own test with ``K`` for
+``refine`` (its box within ``K`` times its deviation: the angle its deviation subtends above ~1/K).
+With the 1536 level in between, a near-level triangle is in turn replaced by its fine triangles by the
+refinement test at its own level (its deviation, the outline's, or its 1-ring), as the method's mid
+level does. Every triangle is rasterized through the
 plane LUT (``lut``, as the method does) and, separately, with exact edge planes, so the decimation error
 and the seams between levels (a coarse triangle next to finer ones does not share their edges) can be
 told apart. The receiver's own triangles are rasterized as its fan (nadir, b, c), as the method does.
@@ -24,12 +26,16 @@ and seam-cover extras), and rasterizes with the NumPy oracle's conventions
 bounding sphere). No timing: the triangle counts stand for the cost (per receiver the method's work
 is about a third per coarse blocker tested, a third per queued triangle and a third the visit;
 docs/benchmarks/history.md, branch ``drapefine``). First it checks itself against the method's own
-masks and transfers at ``coarse 1536`` on the same receivers.
+masks and transfers at ``coarse 1536`` on the same receivers (the method built twice per mesh, with and
+without ``direct_far``: ~2 minutes each; then 10-150 s per row).
 
 How to run::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/far_cut.py [--meshes draped,cloth] [--receivers 150]
-        [--json benchmarks/results/far_cut.json]
+        [--rows A:B] [--json benchmarks/results/far_cut.json]
+
+``--rows`` takes a slice of :data:`CONFIGS` (one process per slice runs them side by side; the JSON is
+rewritten after every row).
 """
 
 from __future__ import annotations
@@ -123,10 +129,21 @@ def _level_fit(lpts, lfaces, points, faces, start, items, nprim, bind_offset, ki
             "area": 0.5 * ln}
 
 
-def build_levels(points, faces, coarse: int, mid: int | None):
+def build_levels(points, faces, coarse: int, mid: int | None, border: bool = True):
     """Coarse level ``coarse`` (and the near level ``mid``, None: the fine mesh) at this pose, with their
-    assignments, boxes and deviations, as the method builds them (:func:`.cache.far_field`)."""
+    assignments, boxes and deviations, as the method builds them (:func:`.cache.far_field`, its open
+    boundary kept). ``border`` False: the coarse level decimated without keeping the boundary (a 64²
+    cloth's 252 boundary vertices are nearly all of a 256-triangle mesh's), the near level as before and
+    assigned to it as :func:`.hierarchy.far_field` assigns a mid level."""
     far = cache.far_field([(points.astype(np.float64), faces)], [coarse], [mid] if mid else None, True)
+    if not border:
+        loose = dict(cache.far_field([(points.astype(np.float64), faces)], [coarse], None, False))
+        if mid:
+            m = dict(far["mid"])
+            m["coarse_owner"], m["coarse_extra"] = hierarchy.assign_to_coarse(m["points"], m["faces"], loose["points"],
+                                                                             loose["faces"], fans=False)
+            loose["mid"] = m
+        far = loose
     pts = points.astype(np.float64)
     nf = len(faces)
     cf = far["faces"]
@@ -193,6 +210,8 @@ def cut_sets(lev, v, p, n, rim, rule: str | None, k: float):
         d = _tri_dist(p, cfit)
         if rule == "dist":
             ref |= d < k * cfit["size"]
+        elif rule == "dev":
+            ref |= _box_dist(p, cfit["lo"], cfit["hi"]) < k * cfit["dev"]
         elif rule == "omega":
             ref |= cfit["area"] > k * (2.0 / MASK) ** 2 * np.maximum(d, 1e-12) ** 2
         else:
@@ -390,7 +409,7 @@ def method_runs(mesh, frame) -> dict:
     return out
 
 
-def run_mesh(name: str, nrec: int, configs, log=print) -> dict:
+def run_mesh(name: str, nrec: int, configs, log=print, partial=None) -> dict:
     bm = {"draped": lambda: draped_cloth(64), "cloth": lambda: wrinkled_cloth(64)}[name]()
     mesh, frame = bm.rest, bm.frame
     faces = mesh.faces.astype(np.int64)
@@ -441,12 +460,13 @@ def run_mesh(name: str, nrec: int, configs, log=print) -> dict:
                     "seconds": time.time() - t0}
     log(f"{name}: check {out['check']}")
 
-    for coarse, mid, rule, k in configs:
+    for coarse, mid, rule, k, border in configs:
         t0 = time.time()
-        lev = build_levels(pts, faces, coarse, mid) if coarse else None
+        lev = build_levels(pts, faces, coarse, mid, border) if coarse else None
         em = emulate(lev, pts, faces, nrm, recv, ras, rule, k)
         r = len(rand)
-        row = {"coarse": coarse or "none (the fine mesh)", "near": mid or "fine", "rule": rule or "method", "k": k,
+        row = {"coarse": coarse or "none (the fine mesh)", "coarse_border": border, "near": mid or "fine",
+               "rule": rule or "method", "k": k,
                "lut": summarize(em["lut"], truth, scale, r, classes_sub),
                "exact": summarize(em["exact"], truth, scale, r, classes_sub),
                "coarse_tested": len(lev["coarse_faces"]) if lev else 0,
@@ -457,34 +477,53 @@ def run_mesh(name: str, nrec: int, configs, log=print) -> dict:
                "seconds": time.time() - t0}
         row["considered"] = row["coarse_tested"] + row["mid_considered"] + row["fine"]
         out["rows"].append(row)
-        log(f"{name}: C {coarse} near {mid or 'fine'} {rule} {k}: LUT {row['lut']['all'] * 100:.2f} % exact "
+        if partial is not None:
+            partial(out)
+        log(f"{name}: C {coarse}{'' if border else ' (no border)'} near {mid or 'fine'} {rule} {k}: LUT {row['lut']['all'] * 100:.2f} % exact "
             f"{row['exact']['all'] * 100:.2f} % considered {row['considered']:.0f} rasterized {row['rasterized']:.0f} "
             f"({row['seconds']:.0f} s)")
     return out
 
 
-CONFIGS = ([(0, None, None, 0.0)] + [(c, None, None, 0.0) for c in (1536, 1024, 512, 384, 256)]
+CONFIGS = [(c, m, r, k, True) for c, m, r, k in
+           [(0, None, None, 0.0)] + [(c, None, None, 0.0) for c in (1536, 1024, 512, 384, 256)]
            + [(c, None, "dist", k) for c in (256, 384, 512) for k in (1.0, 2.0, 3.0, 4.0, 6.0)]
            + [(c, 1536, "dist", k) for c in (256, 384, 512) for k in (1.0, 2.0, 3.0, 4.0, 6.0)]
            + [(c, 1536, "omega", k) for c in (256, 384) for k in (1.0, 4.0, 16.0)]
-           + [(256, 1536, None, 0.0)])
+           + [(256, 1536, None, 0.0)]]
+CONFIGS += [(c, m, r, k, False) for c, m, r, k in
+            [(c, None, None, 0.0) for c in (512, 384, 256)]
+            + [(c, None, "dist", k) for c in (256, 384) for k in (2.0, 4.0)]
+            + [(c, 1536, None, 0.0) for c in (256, 384, 512)]
+            + [(c, 1536, "dist", k) for c in (256, 384, 512) for k in (2.0, 4.0, 8.0)]
+            + [(c, 1536, "omega", k) for c in (256, 384) for k in (1.0, 4.0)]]
+CONFIGS += [(c, m, "dev", k, True) for c, m, k in
+            [(c, 1536, k) for c in (256, 384, 512) for k in (4.0, 8.0, 16.0)] + [(512, None, 4.0), (512, None, 8.0)]]
+"""Rows: (coarse triangles (0: none, the fine mesh), near level (None: the fine mesh), cut rule (None: the
+method's refinement alone), K, the coarse level keeps the open boundary)."""
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--meshes", default="draped,cloth")
     ap.add_argument("--receivers", type=int, default=150)
-    ap.add_argument("--quick", action="store_true", help="the check and a few rows only")
+    ap.add_argument("--rows", default=":", metavar="A:B", help="a slice of CONFIGS (default: all)")
     ap.add_argument("--json", default=None, metavar="PATH")
     args = ap.parse_args(argv)
     wp.config.log_level = wp.LOG_WARNING
-    configs = CONFIGS[:1] + [(256, None, "dist", 3.0), (256, 1536, "dist", 3.0)] if args.quick else CONFIGS
+    lo, hi = (int(x) if x else None for x in args.rows.split(":"))
+    configs = CONFIGS[lo:hi]
     out = {"order": ORDER, "mask": MASK, "lut": LUT, "refine": REFINE, "method_setting": METHOD, "meshes": {}}
-    for name in args.meshes.split(","):
-        out["meshes"][name] = run_mesh(name, args.receivers, configs)
+    def save(res=None, name=None):
+        if res is not None:
+            out["meshes"][name] = res
         if args.json:
             with open(args.json, "w") as f:
                 json.dump(out, f, indent=1, default=float)
+
+    for name in args.meshes.split(","):
+        run_mesh(name, args.receivers, configs, partial=lambda res, name=name: save(res, name))
+        save()
     return 0
 
 
