@@ -27,7 +27,7 @@ bounding sphere). No timing: the triangle counts stand for the cost (per receive
 is about a third per coarse blocker tested, a third per queued triangle and a third the visit;
 docs/benchmarks/history.md, branch ``drapefine``). First it checks itself against the method's own
 masks and transfers at ``coarse 1536`` on the same receivers (the method built twice per mesh, with and
-without ``direct_far``: ~2 minutes each; then 10-150 s per row).
+without ``direct_far``: seconds to 2 minutes each with the caches and the load; then 4-160 s per row).
 
 How to run::
 
