@@ -141,3 +141,20 @@ def test_invalid_scene_knob_names_the_prim_and_attribute(tmp_path, name, value, 
     with pytest.raises(SceneError) as err:
         _scene(tmp_path, build)
     assert f"scene.usda:/World/Cloth: {message}" in str(err.value)
+
+
+@pytest.mark.parametrize("attr, typ, value, message", [
+    ("stiffness", Sdf.ValueTypeNames.Float, 3.0, ("warpshade:cloth:stiffness is not a cloth attribute "
+                                                  "\\(did you mean 'bendStiffness'\\?\\)")),
+    ("selfCollision", Sdf.ValueTypeNames.String, "yes", "warpshade:cloth:selfCollision must be a bool, got 'yes'"),
+    ("density", Sdf.ValueTypeNames.String, "0.2", "warpshade:cloth:density must be a finite number, got '0.2'"),
+])
+def test_a_bad_cloth_attribute_names_the_prim_and_attribute(tmp_path, attr, typ, value, message):
+    """Before: an unknown warpshade:cloth:* attribute was ignored without a word, and a string one was a bare
+    float() error or (a bool) taken as true."""
+    def build(stage):
+        _cloth(stage).GetPrim().CreateAttribute(f"warpshade:cloth:{attr}", typ, custom=True).Set(value)
+    from warpshade.scene import SceneError
+
+    with pytest.raises(SceneError, match="scene.usda: /World/Cloth: " + message):
+        next(Pipeline(_scene(tmp_path, build), frames=2, workers=1).simulate())
