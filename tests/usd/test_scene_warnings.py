@@ -143,6 +143,29 @@ def test_invalid_scene_knob_names_the_prim_and_attribute(tmp_path, name, value, 
     assert f"scene.usda:/World/Cloth: {message}" in str(err.value)
 
 
+def _split_cloth(stage):
+    """A cloth whose grid is cut down its middle column as an exporter splits a seam: that column's vertices are
+    duplicated (same positions) and the right half's triangles use the copies."""
+    n = 6
+    cloth = _cloth(stage)
+    pts = list(cloth.GetPointsAttr().Get())
+    faces = np.array(cloth.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3)
+    column = [j * n + n // 2 for j in range(n)]
+    copy = {v: len(pts) + k for k, v in enumerate(column)}
+    right = np.array([min(pts[v][0] for v in tri) >= pts[n // 2][0] - 1e-9 for tri in faces])
+    faces[right] = np.vectorize(lambda v: copy.get(int(v), int(v)))(faces[right])
+    cloth.CreatePointsAttr(pts + [pts[v] for v in column])
+    cloth.CreateFaceVertexIndicesAttr(faces.ravel().tolist())
+    _grid(stage, "/World/Floor").GetPrim().CreateAttribute("warpshade:collider", Sdf.ValueTypeNames.Token).Set("ground")
+
+
+def test_a_cloth_cut_along_duplicate_points_warns(tmp_path):
+    """Before: the cloth came apart along the seam without a word (seen draping a 12 x 12 grid over a ball)."""
+    msgs = _warnings_of(_scene(tmp_path, _split_cloth), frames=2)
+    assert any(m.startswith("/World/Cloth: 6 vertices of the cloth lie on others without sharing a triangle") and
+               "(first: vertices 3 and 36)" in m and "Merge by Distance" in m for m in msgs), msgs
+
+
 @pytest.mark.parametrize("attr, typ, value, message", [
     ("stiffness", Sdf.ValueTypeNames.Float, 3.0, ("warpshade:cloth:stiffness is not a cloth attribute "
                                                   "\\(did you mean 'bendStiffness'\\?\\)")),

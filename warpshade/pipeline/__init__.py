@@ -28,7 +28,7 @@ import numpy as np
 
 from ..geometry.mesh import closed_orientation, first_nonfinite
 from ..scene import Scene, SceneError, SceneWarning
-from .cloth import ClothSimulation
+from .cloth import ClothSimulation, coincident_vertices
 from .lights import default_lights, light_from_spec, sky_light_specs
 from .refine import refine_receivers as refine
 from ..visibility import METHOD_PREFERENCE, default_method
@@ -214,6 +214,7 @@ class Pipeline:
         self._check_lights()
         self._warn_static_scene(lights)
         self._warn_inward_meshes()
+        self._warn_cut_cloth()
         from .area import area_lights_used
 
         self.area_lights, self.area_description = area_lights_used(self.shader)
@@ -255,6 +256,19 @@ class Pipeline:
                     f"{o.name}: cloth with neither pins (warpshade:pinned) nor an attachment, and the scene has "
                     "no collider (warpshade:collider on a prim): it falls freely; add a collider or pin vertices",
                     SceneWarning, stacklevel=3)
+
+    def _warn_cut_cloth(self) -> None:
+        """Warn about a cloth with vertices at the same position that share no triangle (a seam split by a DCC or
+        an exporter): the simulation keeps them apart, so the cloth comes apart along the seam."""
+        for o in self.scene.objects:
+            if o.kind != "cloth":
+                continue
+            pair, count = coincident_vertices(o.mesh.points)
+            if count:
+                warnings.warn(f"{o.name}: {count} vertices of the cloth lie on others without sharing a triangle "
+                              f"with them (first: vertices {pair[0]} and {pair[1]}): the cloth is cut there and will "
+                              "come apart along the cut; if it is one piece, merge them (Blender: Merge by Distance)",
+                              SceneWarning, stacklevel=3)
 
     def _warn_inward_meshes(self) -> None:
         """Warn about closed meshes wound inward: their normals point in, so they would shade black."""

@@ -50,6 +50,17 @@ def check_cloth_attributes(values: dict, where: str, error=ValueError) -> None:
             raise error(f"{where}: warpshade:cloth:{key} must be {kind}, got {value!r}")
 
 
+def coincident_vertices(points: np.ndarray) -> tuple[tuple[int, int] | None, int]:
+    """Vertices of a mesh at exactly the position of a lower-numbered one: the first such pair (lower, higher)
+    and how many such vertices there are, ``(None, 0)`` when none. In a cloth, whose triangles may not be
+    degenerate, two such vertices share no triangle: a seam a DCC or an exporter split, along which the cloth
+    is cut."""
+    _, first, inverse = np.unique(np.asarray(points), axis=0, return_index=True, return_inverse=True)
+    partner = first[inverse.ravel()]  # each vertex's lowest-numbered vertex at its position
+    dup = np.flatnonzero(partner != np.arange(len(partner)))
+    return ((int(partner[dup[0]]), int(dup[0])) if len(dup) else None), len(dup)
+
+
 STRAIN_WARNING = 2.0
 """Edge strain (|xi - xj| / L - 1) past which a cloth is taken not to follow the scene: an edge at
 three times its rest length, beyond anything a cloth takes (the worst edge of the shipped and
