@@ -376,15 +376,38 @@ def _hierarchy(prim) -> tuple:
     return tuple(reversed(chain))
 
 
+def _topology(mesh, where: str) -> tuple:
+    """A mesh's ``faceVertexCounts`` and ``faceVertexIndices``: their default values, or, when either is
+    time-sampled (Blender writes a mesh whose modifiers change it as empty defaults beside samples at every
+    frame), the samples if they are alike at every time code; a SceneError naming the prim and the first time
+    code where they change, since a mesh is simulated and shaded with one topology."""
+    ca, ia = mesh.GetFaceVertexCountsAttr(), mesh.GetFaceVertexIndicesAttr()
+    times = sorted(set(ca.GetTimeSamples()) | set(ia.GetTimeSamples()))
+    if not times:
+        return ca.Get(), ia.Get()
+    counts, idx = ca.Get(times[0]), ia.Get(times[0])
+    for t in times[1:]:
+        c, i = ca.Get(t), ia.Get(t)
+        if c != counts or i != idx:
+            raise SceneError(f"{where}: its faces change over time (faceVertexCounts/faceVertexIndices are time-sampled: "
+                             f"{len(counts or [])} faces of {sum(counts or [])} corners at time {times[0]:g}, {len(c or [])} of "
+                             f"{sum(c or [])} at {t:g}), but warpshade "
+                             "simulates and shades a mesh with the same vertices and faces in every frame: apply the "
+                             "modifiers that change them (Blender: Build, Remesh, Decimate, Boolean...) or export "
+                             "one frame")
+    return counts, idx
+
+
 def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method, marks: dict | None = None) -> SceneObject:
     """A Mesh prim's object; ``marks``: its :func:`_object_namespace` when the caller has it."""
     where = f"{source}:{prim.GetPath()}"
     mesh = UsdGeom.Mesh(prim)
-    counts = mesh.GetFaceVertexCountsAttr().Get()
-    idx = mesh.GetFaceVertexIndicesAttr().Get()
+    counts, idx = _topology(mesh, where)
     pattr = mesh.GetPointsAttr()
     samples = pattr.GetTimeSamples()
-    t0 = Usd.TimeCode.Default() if pattr.HasAuthoredValue() and pattr.Get() is not None else (
+    default = pattr.Get() if pattr.HasAuthoredValue() else None
+    # Blender writes a mesh whose modifiers change it as empty defaults beside its time samples
+    t0 = Usd.TimeCode.Default() if default is not None and (len(default) or not samples) else (
         Usd.TimeCode(samples[0]) if samples else Usd.TimeCode.Default())
     pts = pattr.Get(t0)
     if pts is None or counts is None or idx is None:
