@@ -352,3 +352,28 @@ def test_a_dim_unnormalized_sun_is_warned_of(tmp_path):
     assert len(dim) == 1 and "Sun" in dim[0] and "inputs:normalize" in dim[0] and "irradiance of only 0.0002 " in dim[0]
     assert run(intensity=3.0) == []
     assert run(intensity=50000.0, normalize=False) == []
+
+
+def test_moving_points_of_another_shape_name_the_mesh_and_frame(tmp_path):
+    """Before: 'frames 0-1: shading failed: ValueError: operands could not be broadcast together ...'."""
+    from warpshade.scene import SceneError
+
+    tri = np.eye(3)
+    with pytest.raises(SceneError, match="T: frame 1 \\(time code 1\\): points of shape \\(4, 3\\), but the mesh has 3 "
+                                         "vertices"):
+        ws.run(ws.make_scene(ws.mesh("T", tri, [[0, 1, 2]], moving=True)), str(tmp_path / "x.usda"), frames=2,
+               geometry=[{"T": tri}, {"T": np.zeros((4, 3))}])
+
+
+@pytest.mark.parametrize("make, error, match", [
+    (lambda: ws.Pipeline(ws.make_scene(ws.box()), frames=1.5), ValueError, "frames must be an integer >= 1, got 1.5"),
+    (lambda: ws.Pipeline(ws.make_scene(ws.box()), frames="2"), ValueError, "frames must be an integer >= 1, got '2'"),
+    (lambda: ws.run("scene.usda", "x.usda", frames=1), TypeError,
+     "ws.run \\(ws.script.pipeline\\): scene must be a Scene \\(warpshade.make_scene, or warpshade.usd.read_scene"),
+    (lambda: ws.Pipeline("scene.usda"), TypeError, "Pipeline: scene must be a Scene"),
+])
+def test_run_arguments_of_the_wrong_type_are_named(tmp_path, monkeypatch, make, error, match):
+    """Before: frames=1.5 ran 1 frame, frames='2' ran 2, a file name was "'str' object has no attribute 'objects'"."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(error, match=match):
+        make()

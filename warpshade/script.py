@@ -485,8 +485,9 @@ def pipeline(scene: Scene, frames: int | None = None, geometry=None, **kwargs):
     """The :class:`~warpshade.Pipeline` of a scene built here: analytic skies among its lights are
     passed as the run's lights, and the moving meshes read their points from ``geometry`` (an
     iterable of ``{name: points (V, 3)}``, one per frame). Other keyword arguments go to the Pipeline."""
-    from .pipeline import Pipeline, light_from_spec
+    from .pipeline import Pipeline, light_from_spec, require_scene
 
+    require_scene(scene, "ws.run (ws.script.pipeline)")
     objects = [dataclasses.replace(o, params=dict(o.params)) for o in scene.objects]
     stream = _Stream(geometry, scene.start_time) if geometry is not None else None
     for o in objects:
