@@ -181,3 +181,40 @@ def test_a_bad_cloth_attribute_names_the_prim_and_attribute(tmp_path, attr, typ,
 
     with pytest.raises(SceneError, match="scene.usda: /World/Cloth: " + message):
         next(Pipeline(_scene(tmp_path, build), frames=2, workers=1).simulate())
+
+
+@pytest.mark.parametrize("attr, value, message", [
+    ("shaded", "false", "scene.usda:/World/Cloth: warpshade:shaded must be a bool \\(true or false\\), got 'false'"),
+    ("castsShadows", "no", "scene.usda:/World/Cloth: warpshade:castsShadows must be a bool"),
+])
+def test_an_on_off_mark_that_is_a_string_is_an_error(tmp_path, attr, value, message):
+    """Before: a string 'false' was taken as true (bool('false')), without a word."""
+    from warpshade.scene import SceneError
+
+    def build(stage):
+        _cloth(stage).GetPrim().CreateAttribute(f"warpshade:{attr}", Sdf.ValueTypeNames.String, custom=True).Set(value)
+
+    with pytest.raises(SceneError, match=message):
+        _scene(tmp_path, build)
+
+
+@pytest.mark.parametrize("fps, tcps, message", [
+    (0.0, None, "scene.usda:/World: warpshade:fps must be a number of frames per second > 0, got 0"),
+    (-24.0, None, "warpshade:fps must be a number of frames per second > 0, got -24"),
+    (None, 0.0, "scene.usda: timeCodesPerSecond must be a number of frames per second > 0, got 0"),
+])
+def test_a_frame_rate_that_is_not_positive_is_an_error(tmp_path, fps, tcps, message):
+    """Before: warpshade:fps = 0 was a ZeroDivisionError traceback in the cloth simulation, -24 'step 0: dt must be
+    finite and > 0'."""
+    from warpshade.scene import SceneError
+
+    def build(stage):
+        _cloth(stage)
+        stage.SetDefaultPrim(stage.GetPrimAtPath("/World"))
+        if fps is not None:
+            stage.GetPrimAtPath("/World").CreateAttribute("warpshade:fps", Sdf.ValueTypeNames.Float, custom=True).Set(fps)
+        if tcps is not None:
+            stage.SetTimeCodesPerSecond(tcps)
+
+    with pytest.raises(SceneError, match=message):
+        _scene(tmp_path, build)

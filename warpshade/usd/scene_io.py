@@ -113,6 +113,9 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         scene.fps = scene.settings["fps"]
     if scene.frames < 1:
         raise SceneError(f"{source}:{root.GetPath()}: warpshade:frames must be >= 1, got {scene.frames}")
+    if not (np.isfinite(scene.fps) and scene.fps > 0):  # a frame is a step of 1 / fps seconds
+        where = f"{source}:{root.GetPath()}: warpshade:fps" if "fps" in scene.settings else f"{source}: timeCodesPerSecond"
+        raise SceneError(f"{where} must be a number of frames per second > 0, got {scene.fps:g}")
     scene.gravity = physics_gravity(stage, source)
 
     cache = UsdSkel.Cache()
@@ -637,11 +640,17 @@ class _Gprim:
         return verts @ AXIS_FROM_Z[self.axis].T, faces
 
 
-def _graded_flag(value, where: str) -> bool:
-    """A ``warpshade:graded`` value: a bool, else a SceneError naming the prim."""
+def _flag(value, where: str, key: str) -> bool:
+    """A ``warpshade:<key>`` on/off value: a bool, else a SceneError naming the prim and the attribute (a string
+    ``"false"`` is not taken for true)."""
     if not isinstance(value, (bool, np.bool_)):
-        raise SceneError(f"{where}: warpshade:graded must be a bool (true or false), got {value!r}")
+        raise SceneError(f"{where}: warpshade:{key} must be a bool (true or false), got {value!r}")
     return bool(value)
+
+
+def _graded_flag(value, where: str) -> bool:
+    """A ``warpshade:graded`` value (:func:`_flag`)."""
+    return _flag(value, where, "graded")
 
 
 _REGION_SAMPLES = 25
@@ -1025,15 +1034,13 @@ def _object(prim, where, tri, kind, settings, params, default_method, material) 
         _check_knobs(where, method, knobs)
     params.update({k: v for k, v in settings.items()
                    if not k.startswith("knobs:") and k not in ("shaded", "castsShadows", "twoSided")})
-    two_sided = settings.get("twoSided")
-    if two_sided is not None and not isinstance(two_sided, (bool, np.bool_)):
-        raise SceneError(f"{where}: warpshade:twoSided must be a bool, got {two_sided!r}")
+    flags = {k: _flag(settings[k], where, k) for k in ("shaded", "castsShadows", "twoSided") if k in settings}
     try:
         return SceneObject(name=str(prim.GetPath()), mesh=tri, kind=kind, material=material, method=method,
-                           knobs=knobs, casts_shadows=bool(settings.get("castsShadows", True)),
-                           shaded=bool(settings.get("shaded", True)), params=params,
+                           knobs=knobs, casts_shadows=flags.get("castsShadows", True),
+                           shaded=flags.get("shaded", True), params=params,
                            prim_path=str(prim.GetPath()), prim_xforms=_hierarchy(prim),
-                           two_sided=None if two_sided is None else bool(two_sided))
+                           two_sided=flags.get("twoSided"))
     except ValueError as exc:
         raise SceneError(f"{where}: {exc}") from None
 
