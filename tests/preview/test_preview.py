@@ -91,3 +91,16 @@ def test_preview_names_a_time_code_outside_the_animation(tmp_path, capsys):
         assert not (tmp_path / "f.png").exists()
     assert main(["preview", str(tmp_path / "anim.usda"), "--contact-sheet", "101:104:1", "-o",
                  str(tmp_path / "f.png"), "--size", "40x30"]) == 0
+
+
+@pytest.mark.parametrize("size", ["0x10", "80x0", "-4x3"])
+def test_preview_names_a_size_of_no_pixels(tmp_path, capsys, size):
+    """Before: 'cannot write empty image' (0x10) after rendering, a ZeroDivisionError traceback (80x0), Warp's
+    'Array shapes must be non-negative' (-4x3)."""
+    pts, faces = grid(4)
+    w = AnimationWriter(str(tmp_path / "anim.usda"), chunk=2)
+    w.write_frame(0, w.add_mesh("sheet", faces), pts, colors=np.full((16, 3), 0.5))
+    w.close()
+    assert main(["preview", str(tmp_path / "anim.usda"), "-o", str(tmp_path / "f.png"), f"--size={size}"]) != 0
+    assert f"--size '{size}': expected WxH, two whole numbers of pixels >= 1" in capsys.readouterr().err
+    assert not (tmp_path / "f.png").exists()
