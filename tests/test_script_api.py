@@ -161,6 +161,38 @@ def test_sims_script_writes_shaded_output_by_default(tmp_path):
     (lambda: ws.run(ws.make_scene(ws.mesh("M", np.eye(3), [[0, 1, 2]], moving=True)), "x.usda", frames=1),
      "no geometry generator"),
     (lambda: ws.run(ws.make_scene(ws.sky(up="Z")), "x.usda", frames=1), "up axis"),
+    # wrong types and shapes: each names its helper, object and argument (before: numpy's or float()'s own message,
+    # or no error at all where the value was reshaped, truncated or ignored)
+    (lambda: ws.cloth_grid(height="abc"), "cloth_grid 'Cloth': height must be a finite number, got 'abc'"),
+    (lambda: ws.cloth_grid(center=(0, 0, 0)), "cloth_grid 'Cloth': center \\(X and Z\\) must be 2 finite numbers"),
+    (lambda: ws.cloth_grid(resolution="8"), "cloth_grid 'Cloth': resolution must be an int >= 2 or two, got '8'"),
+    (lambda: ws.cloth_grid(name=3), "cloth_grid: name must be a non-empty string, got 3"),
+    (lambda: ws.cloth_grid(resolution=4, stiffness=3.0),
+     "cloth 'Cloth': warpshade:cloth:stiffness is not a cloth attribute \\(did you mean 'bendStiffness'\\?\\)"),
+    (lambda: ws.cloth_grid(resolution=4, density="x"), "cloth 'Cloth': warpshade:cloth:density must be a finite number"),
+    (lambda: ws.cloth_grid(resolution=4, selfCollision="yes"), "warpshade:cloth:selfCollision must be a bool"),
+    (lambda: ws.cloth_grid(resolution=4, iterations=2.5), "warpshade:cloth:iterations must be an integer"),
+    (lambda: ws.ground(resolution=None), "ground 'Ground': resolution must be an int >= 2, got None"),
+    (lambda: ws.ground(height="x"), "ground 'Ground': height must be a finite number"),
+    (lambda: ws.sphere(albedo="red"), "sphere 'Sphere': albedo must be a number or RGB in \\[0, 1\\], got 'red'"),
+    (lambda: ws.capsule(height="x"), "capsule 'Capsule': height must be a number > 0"),
+    (lambda: ws.mesh("M", np.zeros((3, 4)), [[0, 1, 2]]), ("mesh 'M': points must be numbers of shape \\(V, 3\\), "
+                                                           "got shape \\(3, 4\\)")),
+    (lambda: ws.mesh("M", np.eye(3), [[0, 1, 2.5]]), "mesh 'M': faces must be integer vertex indices of shape"),
+    (lambda: ws.mesh("M", np.eye(4, 3), [[0, 1, 2, 3]]), "mesh 'M': faces .* \\(triangles\\), got shape \\(1, 4\\)"),
+    (lambda: ws.cloth("C", np.zeros((6, 2)), [[0, 1, 2]]), "cloth 'C': points must be numbers of shape \\(V, 3\\)"),
+    (lambda: ws.sky(sun_elevation="x"), "sky: sun_elevation must be a finite number"),
+    (lambda: ws.distant(intensity="x"), "distant 'Sun': intensity must be a finite number"),
+    (lambda: ws.distant(angle=-1), "distant 'Sun': angle \\[degrees\\] must be a non-negative number"),
+    (lambda: ws.dome(texture=3), "dome 'Dome': texture must be a file path"),
+    (lambda: ws.make_scene(ws.box(), fps=0), "make_scene: fps must be a number > 0"),
+    (lambda: ws.make_scene(ws.box(), fps=-24), "make_scene: fps must be a number > 0"),
+    (lambda: ws.make_scene(ws.box(), frames=0), "make_scene: frames must be an int >= 1, got 0"),
+    (lambda: ws.make_scene(ws.box(), frames=2.5), "make_scene: frames must be an int >= 1, got 2.5"),
+    (lambda: ws.make_scene(ws.box(), up="X"), "make_scene: up must be 'Y' or 'Z', got 'X'"),
+    (lambda: ws.make_scene(ws.box(), order="x"), "make_scene: order must be an int >= 1, got 'x'"),
+    (lambda: ws.make_scene(ws.box(), wind=(1, 2)), "make_scene: wind \\[m/s\\] must be 3 finite numbers"),
+    (lambda: ws.make_scene(ws.box(), reflections="yes"), "make_scene: reflections must be True or False"),
 ])
 def test_bad_input_names_the_argument(tmp_path, monkeypatch, make, match):
     monkeypatch.chdir(tmp_path)
@@ -320,3 +352,28 @@ def test_a_dim_unnormalized_sun_is_warned_of(tmp_path):
     assert len(dim) == 1 and "Sun" in dim[0] and "inputs:normalize" in dim[0] and "irradiance of only 0.0002 " in dim[0]
     assert run(intensity=3.0) == []
     assert run(intensity=50000.0, normalize=False) == []
+
+
+def test_moving_points_of_another_shape_name_the_mesh_and_frame(tmp_path):
+    """Before: 'frames 0-1: shading failed: ValueError: operands could not be broadcast together ...'."""
+    from warpshade.scene import SceneError
+
+    tri = np.eye(3)
+    with pytest.raises(SceneError, match="T: frame 1 \\(time code 1\\): points of shape \\(4, 3\\), but the mesh has 3 "
+                                         "vertices"):
+        ws.run(ws.make_scene(ws.mesh("T", tri, [[0, 1, 2]], moving=True)), str(tmp_path / "x.usda"), frames=2,
+               geometry=[{"T": tri}, {"T": np.zeros((4, 3))}])
+
+
+@pytest.mark.parametrize("make, error, match", [
+    (lambda: ws.Pipeline(ws.make_scene(ws.box()), frames=1.5), ValueError, "frames must be an integer >= 1, got 1.5"),
+    (lambda: ws.Pipeline(ws.make_scene(ws.box()), frames="2"), ValueError, "frames must be an integer >= 1, got '2'"),
+    (lambda: ws.run("scene.usda", "x.usda", frames=1), TypeError,
+     "ws.run \\(ws.script.pipeline\\): scene must be a Scene \\(warpshade.make_scene, or warpshade.usd.read_scene"),
+    (lambda: ws.Pipeline("scene.usda"), TypeError, "Pipeline: scene must be a Scene"),
+])
+def test_run_arguments_of_the_wrong_type_are_named(tmp_path, monkeypatch, make, error, match):
+    """Before: frames=1.5 ran 1 frame, frames='2' ran 2, a file name was "'str' object has no attribute 'objects'"."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(error, match=match):
+        make()

@@ -16,6 +16,7 @@ A script that simulates by itself (its own solver, its own loop) declares its mo
 from __future__ import annotations
 
 import dataclasses
+import os
 
 import numpy as np
 
@@ -30,17 +31,50 @@ SETTINGS = SCENE_KEYS
 (docs/guide/quickstart.md) and the planner's error budget ``max_error``."""
 
 
-def _vec3(value, what: str) -> np.ndarray:
-    a = np.asarray(value, dtype=np.float64)
-    if a.shape != (3,) or not np.isfinite(a).all():
-        raise ValueError(f"{what} must be 3 finite numbers, got {value!r}")
+def _floats(value, n: int | None = None) -> np.ndarray | None:
+    """``value`` as float64 (a number broadcast to ``n`` of them when ``n`` is given), or None when it is not
+    numbers (a string, None, a bool, a ragged list)."""
+    try:
+        a = np.asarray(value, dtype=object if isinstance(value, str) else None)
+        if a.dtype.kind not in "iuf":
+            return None
+        a = a.astype(np.float64)
+    except (TypeError, ValueError):
+        return None
+    return np.broadcast_to(a, (n,)).copy() if n is not None and a.ndim == 0 else a
+
+
+def _vec(value, what: str, n: int = 3) -> np.ndarray:
+    a = _floats(value)
+    if a is None or a.shape != (n,) or not np.isfinite(a).all():
+        raise ValueError(f"{what} must be {n} finite numbers, got {value!r}")
     return a
 
 
+def _vec3(value, what: str) -> np.ndarray:
+    return _vec(value, what, 3)
+
+
+def _number(value, what: str, low: float | None = None) -> float:
+    """A finite number (>= ``low`` when given); the error names ``what``."""
+    a = _floats(value)
+    if a is None or a.shape != () or not np.isfinite(a) or (low is not None and a < low):
+        kind = "finite number" if low is None else "non-negative number" if low == 0 else f"number >= {low}"
+        raise ValueError(f"{what} must be a {kind}, got {value!r}")
+    return float(a)
+
+
+def _count(value, what: str, low: int) -> int:
+    """An integer >= ``low`` (an int, or a float that is one); the error names ``what``."""
+    a = _floats(value)
+    if a is None or a.shape != () or not np.isfinite(a) or not float(a).is_integer() or a < low:
+        raise ValueError(f"{what} must be an int >= {low}, got {value!r}")
+    return int(a)
+
+
 def _positive(value, what: str, n: int = 1) -> np.ndarray:
-    a = np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)).copy() if np.ndim(value) == 0 else \
-        np.asarray(value, dtype=np.float64)
-    if a.shape != (n,) or not (np.isfinite(a).all() and (a > 0).all()):
+    a = _floats(value, n)
+    if a is None or a.shape != (n,) or not (np.isfinite(a).all() and (a > 0).all()):
         raise ValueError(f"{what} must be {'a number' if n == 1 else f'a number or {n} numbers'} > 0, got {value!r}")
     return a
 
@@ -48,11 +82,17 @@ def _positive(value, what: str, n: int = 1) -> np.ndarray:
 def _material(albedo, what: str) -> Material:
     if albedo is None:
         return Material()
-    a = np.broadcast_to(np.asarray(albedo, dtype=np.float64), (3,)).copy() if np.ndim(albedo) == 0 else \
-        np.asarray(albedo, dtype=np.float64)
-    if a.shape != (3,) or not ((a >= 0) & (a <= 1)).all():
+    a = _floats(albedo, 3)
+    if a is None or a.shape != (3,) or not ((a >= 0) & (a <= 1)).all():
         raise ValueError(f"{what}: albedo must be a number or RGB in [0, 1], got {albedo!r}")
     return Material(albedo=a)
+
+
+def _name(name, helper: str) -> str:
+    """An object's name: a non-empty string (the output prim's name)."""
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"{helper}: name must be a non-empty string, got {name!r}")
+    return name
 
 
 def _object(name: str, tri: TriMesh, **kwargs) -> SceneObject:
@@ -62,8 +102,19 @@ def _object(name: str, tri: TriMesh, **kwargs) -> SceneObject:
     return SceneObject(name, tri, method=default_method(), **kwargs)
 
 
-def _mesh(name: str, points, faces) -> TriMesh:
-    return TriMesh(np.asarray(points, dtype=np.float64).reshape(-1, 3), np.asarray(faces).reshape(-1, 3), name=name)
+def _mesh(name: str, points, faces, what: str | None = None) -> TriMesh:
+    """The triangle mesh of ``points`` (V, 3) and ``faces`` (F, 3) integer indices; a wrong shape or type is an
+    error naming ``what`` (the helper and the object) and the argument."""
+    what = what or f"mesh '{name}'"
+    p = _floats(points)
+    if p is None or p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"{what}: points must be numbers of shape (V, 3), got "
+                         f"{'shape ' + str(p.shape) if p is not None else repr(points)[:60]}")
+    f = _floats(faces)
+    if f is None or f.ndim != 2 or f.shape[1] != 3 or not (f == np.round(f)).all():
+        got = f"shape {f.shape}" if f is not None and (f.ndim != 2 or f.shape[1] != 3) else repr(faces)[:60]
+        raise ValueError(f"{what}: faces must be integer vertex indices of shape (F, 3) (triangles), got {got}")
+    return TriMesh(p, f.astype(np.int64), name=name)
 
 
 def cloth_grid(name: str = "Cloth", size=1.0, resolution=32, height: float = 1.0, center=(0.0, 0.0),
@@ -86,12 +137,14 @@ def cloth_grid(name: str = "Cloth", size=1.0, resolution=32, height: float = 1.0
             ``damping``, ``thickness``, ``friction``, ``selfCollision``), as the ``warpshade:cloth:*``
             attributes of a USD cloth.
     """
-    w, d = _positive(size, f"cloth_grid '{name}': size", 2)
-    res = np.broadcast_to(np.asarray(resolution), (2,)) if np.ndim(resolution) == 0 else np.asarray(resolution)
-    if res.shape != (2,) or not all(float(r).is_integer() and r >= 2 for r in res):
-        raise ValueError(f"cloth_grid '{name}': resolution must be an int >= 2 or two, got {resolution!r}")
+    what = f"cloth_grid '{_name(name, 'cloth_grid')}'"
+    w, d = _positive(size, f"{what}: size", 2)
+    res = _floats(resolution, 2)
+    if res is None or res.shape != (2,) or not all(np.isfinite(r) and float(r).is_integer() and r >= 2 for r in res):
+        raise ValueError(f"{what}: resolution must be an int >= 2 or two, got {resolution!r}")
     nx, nz = int(res[0]), int(res[1])
-    cx, cz = np.asarray(center, dtype=np.float64).reshape(2)
+    cx, cz = _vec(center, f"{what}: center (X and Z)", 2)
+    height = _number(height, f"{what}: height")
     from .sim import ClothBuilder
 
     builder = ClothBuilder()  # its grid: alternating diagonals, triangles facing u x v = +Y
@@ -106,7 +159,11 @@ def cloth(name: str, points, faces, pinned=None, albedo=None, attached=None, att
           **material) -> SceneObject:
     """A cloth from a given mesh (points (V, 3) [m], triangles (F, 3)), to be simulated; the other
     arguments as :func:`cloth_grid`."""
-    tri = _mesh(name, points, faces)
+    from .pipeline.cloth import check_cloth_attributes
+
+    what = f"cloth '{_name(name, 'cloth')}'"
+    tri = _mesh(name, points, faces, what)
+    check_cloth_attributes(material, what)
     params: dict = {"cloth": dict(material)}
     for key, ids in (("pinned", pinned), ("attached", attached)):
         if ids is not None:
@@ -126,9 +183,10 @@ def ground(name: str = "Ground", size: float = 4.0, height: float = 0.0, resolut
            albedo=None) -> SceneObject:
     """A horizontal square ground (a collider, a plane at ``height``) of ``resolution`` x
     ``resolution`` vertices, fine enough for contact shadows to fall on vertices."""
-    s = float(_positive(size, f"ground '{name}': size")[0])
-    if not (float(resolution).is_integer() and resolution >= 2):
-        raise ValueError(f"ground '{name}': resolution must be an int >= 2, got {resolution!r}")
+    what = f"ground '{_name(name, 'ground')}'"
+    s = float(_positive(size, f"{what}: size")[0])
+    resolution = _count(resolution, f"{what}: resolution", 2)
+    height = _number(height, f"{what}: height")
     from .sim import ClothBuilder
 
     builder = ClothBuilder()
@@ -161,7 +219,7 @@ def box(name: str = "Box", center=None, size=1.0, collider: bool = True, albedo=
     """
     from .geometry.shapes import box_segments, box_shape
 
-    ext = _positive(size, f"box '{name}': size", 3)
+    ext = _positive(size, f"box '{_name(name, 'box')}': size", 3)
     c = np.array([0.0, ext[1] / 2, 0.0]) if center is None else _vec3(center, f"box '{name}': center")
     verts, faces = box_shape(ext, box_segments(ext, _edge(edge, float(ext.max()), f"box '{name}'")))
     params = {"collider": "box", "box": {"center": c, "half_extents": ext / 2, "rotation": np.array([0.0, 0, 0, 1])}}
@@ -174,7 +232,7 @@ def sphere(name: str = "Sphere", center=(0.0, 0.5, 0.0), radius: float = 0.5, co
     """A sphere (an exact sphere collider unless ``collider=False``), an icosphere for shading."""
     from .geometry.shapes import sphere_shape
 
-    r = float(_positive(radius, f"sphere '{name}': radius")[0])
+    r = float(_positive(radius, f"sphere '{_name(name, 'sphere')}': radius")[0])
     c = _vec3(center, f"sphere '{name}': center")
     verts, faces = sphere_shape(r, 3)
     params = {"collider": "sphere", "sphere": {"center": c, "radius": r}}
@@ -205,10 +263,10 @@ def _axial(kind: str, name: str, center, radius, height, axis, collider: bool, a
     analytic collider the reader makes of it."""
     from .geometry.shapes import axial_shape
 
-    what = f"{kind} '{name}'"
+    what = f"{kind} '{_name(name, kind)}'"
     r = float(_positive(radius, f"{what}: radius")[0])
-    h = float(height)
-    if not (np.isfinite(h) and (h > 0 or (kind == "capsule" and h == 0))):
+    h = _floats(height)
+    if h is None or h.shape != () or not (np.isfinite(h) and (h > 0 or (kind == "capsule" and h == 0))):
         raise ValueError(f"{what}: height must be a number > 0{' (or 0)' if kind == 'capsule' else ''}, got {height!r}")
     rot = _axis_rotation(axis, f"{what}: axis")
     d = rot[:, 2]
@@ -265,7 +323,7 @@ def mesh(name: str, points, faces, collider: bool = False, moving: bool = False,
         points_at: ``points_at(time_code) -> (V, 3)``: its points per frame (as an animated or
             skinned USD mesh provides them), instead of ``moving``.
     """
-    tri = _mesh(name, points, faces)
+    tri = _mesh(_name(name, "mesh"), points, faces)
     params: dict = {"collider": "mesh"} if collider else {}
     if points_at is not None:
         if not callable(points_at):
@@ -280,8 +338,10 @@ def sky(sun_elevation: float = 45.0, sun_azimuth: float = 30.0, turbidity: float
         up: str = "Y") -> Sky:
     """The analytic daylight (:class:`~warpshade.lighting.Sky`; its defaults are warpshade's default
     sky), written to the output as a DomeLight with its texture."""
-    return Sky(sun_elevation=sun_elevation, sun_azimuth=sun_azimuth, turbidity=turbidity, intensity=intensity,
-               up=up, name="sky")
+    return Sky(sun_elevation=_number(sun_elevation, "sky: sun_elevation"),
+               sun_azimuth=_number(sun_azimuth, "sky: sun_azimuth"), turbidity=_number(turbidity, "sky: turbidity"),
+               intensity=_number(intensity, "sky: intensity", 0) if np.ndim(intensity) == 0 else
+               _vec3(intensity, "sky: intensity (a number or RGB)"), up=up, name="sky")
 
 
 def _frame_along(direction, what: str) -> np.ndarray:
@@ -308,15 +368,38 @@ def distant(direction=(-0.3, -1.0, -0.2), intensity: float = 1.0, color=(1.0, 1.
     unnormalized light, whose default intensity of 50000 makes a sun of irradiance ~3.4 at 0.53
     degrees; an intensity of a few is then all but black).
     """
-    return LightSpec("distant", name, color=_vec3(color, f"distant '{name}': color"), intensity=float(intensity),
-                     angle=float(angle), normalize=bool(normalize),
+    what = f"distant '{name}'"
+    a = _number(angle, f"{what}: angle [degrees]", 0)
+    if a >= 180:
+        raise ValueError(f"{what}: angle [degrees] must be below 180, got {angle!r}")
+    return LightSpec("distant", name, color=_vec3(color, f"{what}: color"),
+                     intensity=_number(intensity, f"{what}: intensity"), angle=a, normalize=bool(normalize),
                      transform=_frame_along(direction, f"distant '{name}': direction"))
 
 
 def dome(color=(1.0, 1.0, 1.0), intensity: float = 1.0, texture: str | None = None, name: str = "Dome") -> LightSpec:
     """A UsdLux DomeLight: uniform ``color * intensity``, or a lat-long ``texture`` file (+Y at the top row)."""
-    return LightSpec("dome", name, color=_vec3(color, f"dome '{name}': color"), intensity=float(intensity),
-                     texture=texture)
+    if texture is not None and not isinstance(texture, (str, os.PathLike)):
+        raise ValueError(f"dome '{name}': texture must be a file path, got {texture!r}")
+    return LightSpec("dome", name, color=_vec3(color, f"dome '{name}': color"),
+                     intensity=_number(intensity, f"dome '{name}': intensity"),
+                     texture=None if texture is None else os.fspath(texture))
+
+
+def _check_setting(key: str, value) -> None:
+    """A scene-wide setting of :func:`make_scene` of the type its ``warpshade:`` attribute has; the error names it."""
+    what = f"make_scene: {key}"
+    typ = {**SCENE_SETTINGS, "graded": bool, "wind": "vec3", "max_error": float}[key]
+    if typ is bool and not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{what} must be True or False, got {value!r}")
+    if typ is int:
+        _count(value, what, 1)
+    elif typ is float:
+        _number(value, what)
+    elif typ is str and not isinstance(value, str):
+        raise ValueError(f"{what} must be a string, got {value!r}")
+    elif typ == "vec3":
+        _vec3(value, f"{what} [m/s]")
 
 
 def make_scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", gravity=None, **settings) -> Scene:
@@ -339,6 +422,21 @@ def make_scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", grav
         raise ValueError(f"make_scene: '{unknown[0]}' is not a scene setting{did_you_mean(unknown[0], SETTINGS)}"
                          f"; the settings are {', '.join(SETTINGS)}")
     out = Scene(frames=int(frames), fps=float(fps), up_axis=str(up).upper(), settings=dict(settings), source="<script>",
+        import difflib
+
+        close = difflib.get_close_matches(unknown[0], SETTINGS, n=1)
+        raise ValueError(f"make_scene: '{unknown[0]}' is not a scene setting"
+                         + (f" (did you mean '{close[0]}'?)" if close else "")
+                         + f"; the settings are {', '.join(SETTINGS)}")
+    fps = _number(fps, "make_scene: fps")
+    if fps <= 0:
+        raise ValueError(f"make_scene: fps must be a number > 0, got {fps!r}")
+    if not (isinstance(up, str) and up.upper() in ("Y", "Z")):
+        raise ValueError(f"make_scene: up must be 'Y' or 'Z', got {up!r}")
+    for key, value in settings.items():
+        _check_setting(key, value)
+    out = Scene(frames=_count(frames, "make_scene: frames", 1), fps=fps, up_axis=up.upper(), settings=dict(settings),
+                source="<script>",
                 gravity=None if gravity is None else _vec3(gravity, "make_scene: gravity"))
     for i, item in enumerate(items):
         if isinstance(item, SceneObject):
@@ -390,8 +488,9 @@ def pipeline(scene: Scene, frames: int | None = None, geometry=None, **kwargs):
     """The :class:`~warpshade.Pipeline` of a scene built here: analytic skies among its lights are
     passed as the run's lights, and the moving meshes read their points from ``geometry`` (an
     iterable of ``{name: points (V, 3)}``, one per frame). Other keyword arguments go to the Pipeline."""
-    from .pipeline import Pipeline, light_from_spec
+    from .pipeline import Pipeline, light_from_spec, require_scene
 
+    require_scene(scene, "ws.run (ws.script.pipeline)")
     objects = [dataclasses.replace(o, params=dict(o.params)) for o in scene.objects]
     stream = _Stream(geometry, scene.start_time) if geometry is not None else None
     for o in objects:

@@ -91,3 +91,43 @@ def test_preview_names_a_time_code_outside_the_animation(tmp_path, capsys):
         assert not (tmp_path / "f.png").exists()
     assert main(["preview", str(tmp_path / "anim.usda"), "--contact-sheet", "101:104:1", "-o",
                  str(tmp_path / "f.png"), "--size", "40x30"]) == 0
+
+
+@pytest.mark.parametrize("size", ["0x10", "80x0", "-4x3"])
+def test_preview_names_a_size_of_no_pixels(tmp_path, capsys, size):
+    """Before: 'cannot write empty image' (0x10) after rendering, a ZeroDivisionError traceback (80x0), Warp's
+    'Array shapes must be non-negative' (-4x3)."""
+    pts, faces = grid(4)
+    w = AnimationWriter(str(tmp_path / "anim.usda"), chunk=2)
+    w.write_frame(0, w.add_mesh("sheet", faces), pts, colors=np.full((16, 3), 0.5))
+    w.close()
+    assert main(["preview", str(tmp_path / "anim.usda"), "-o", str(tmp_path / "f.png"), f"--size={size}"]) != 0
+    assert f"--size '{size}': expected WxH, two whole numbers of pixels >= 1" in capsys.readouterr().err
+    assert not (tmp_path / "f.png").exists()
+
+
+def test_preview_of_a_scene_without_colours_says_it_is_not_an_output(tmp_path):
+    """A user previewing the input scene instead of the run's output: before, one flat grey silhouette (cloth and
+    floor alike) without a word."""
+    import warnings
+
+    from pxr import Usd, UsdGeom
+
+    from warpshade.scene import SceneWarning
+
+    pts, faces = grid(4)
+    stage = Usd.Stage.CreateNew(str(tmp_path / "scene.usda"))
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Sheet")
+    mesh.CreatePointsAttr(pts.tolist())
+    mesh.CreateFaceVertexCountsAttr([3] * len(faces))
+    mesh.CreateFaceVertexIndicesAttr(faces.ravel().tolist())
+    stage.GetRootLayer().Save()
+    w = AnimationWriter(str(tmp_path / "out.usda"), chunk=2)
+    w.write_frame(0, w.add_mesh("sheet", faces), pts, colors=np.full((16, 3), 0.5))
+    w.close()
+    for name, warns in (("scene.usda", True), ("out.usda", False)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert main(["preview", str(tmp_path / name), "-o", str(tmp_path / "f.png"), "--size", "40x30"]) == 0
+        said = [str(c.message) for c in caught if issubclass(c.category, SceneWarning)]
+        assert any("no mesh has a displayColor" in m and "not an output of warpshade run" in m for m in said) == warns, said

@@ -192,3 +192,78 @@ def test_known_scene_settings_and_shipped_scenes_do_not_warn(tmp_path):
             warnings.simplefilter("always")
             read_scene(path)
         assert not [w for w in caught if "scene setting" in str(w.message)], path
+def _split_cloth(stage):
+    """A cloth whose grid is cut down its middle column as an exporter splits a seam: that column's vertices are
+    duplicated (same positions) and the right half's triangles use the copies."""
+    n = 6
+    cloth = _cloth(stage)
+    pts = list(cloth.GetPointsAttr().Get())
+    faces = np.array(cloth.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3)
+    column = [j * n + n // 2 for j in range(n)]
+    copy = {v: len(pts) + k for k, v in enumerate(column)}
+    right = np.array([min(pts[v][0] for v in tri) >= pts[n // 2][0] - 1e-9 for tri in faces])
+    faces[right] = np.vectorize(lambda v: copy.get(int(v), int(v)))(faces[right])
+    cloth.CreatePointsAttr(pts + [pts[v] for v in column])
+    cloth.CreateFaceVertexIndicesAttr(faces.ravel().tolist())
+    _grid(stage, "/World/Floor").GetPrim().CreateAttribute("warpshade:collider", Sdf.ValueTypeNames.Token).Set("ground")
+
+
+def test_a_cloth_cut_along_duplicate_points_warns(tmp_path):
+    """Before: the cloth came apart along the seam without a word (seen draping a 12 x 12 grid over a ball)."""
+    msgs = _warnings_of(_scene(tmp_path, _split_cloth), frames=2)
+    assert any(m.startswith("/World/Cloth: 6 vertices of the cloth lie on others without sharing a triangle") and
+               "(first: vertices 3 and 36)" in m and "Merge by Distance" in m for m in msgs), msgs
+
+
+@pytest.mark.parametrize("attr, typ, value, message", [
+    ("stiffness", Sdf.ValueTypeNames.Float, 3.0, ("warpshade:cloth:stiffness is not a cloth attribute "
+                                                  "\\(did you mean 'bendStiffness'\\?\\)")),
+    ("selfCollision", Sdf.ValueTypeNames.String, "yes", "warpshade:cloth:selfCollision must be a bool, got 'yes'"),
+    ("density", Sdf.ValueTypeNames.String, "0.2", "warpshade:cloth:density must be a finite number, got '0.2'"),
+])
+def test_a_bad_cloth_attribute_names_the_prim_and_attribute(tmp_path, attr, typ, value, message):
+    """Before: an unknown warpshade:cloth:* attribute was ignored without a word, and a string one was a bare
+    float() error or (a bool) taken as true."""
+    def build(stage):
+        _cloth(stage).GetPrim().CreateAttribute(f"warpshade:cloth:{attr}", typ, custom=True).Set(value)
+    from warpshade.scene import SceneError
+
+    with pytest.raises(SceneError, match="scene.usda: /World/Cloth: " + message):
+        next(Pipeline(_scene(tmp_path, build), frames=2, workers=1).simulate())
+
+
+@pytest.mark.parametrize("attr, value, message", [
+    ("shaded", "false", "scene.usda:/World/Cloth: warpshade:shaded must be a bool \\(true or false\\), got 'false'"),
+    ("castsShadows", "no", "scene.usda:/World/Cloth: warpshade:castsShadows must be a bool"),
+])
+def test_an_on_off_mark_that_is_a_string_is_an_error(tmp_path, attr, value, message):
+    """Before: a string 'false' was taken as true (bool('false')), without a word."""
+    from warpshade.scene import SceneError
+
+    def build(stage):
+        _cloth(stage).GetPrim().CreateAttribute(f"warpshade:{attr}", Sdf.ValueTypeNames.String, custom=True).Set(value)
+
+    with pytest.raises(SceneError, match=message):
+        _scene(tmp_path, build)
+
+
+@pytest.mark.parametrize("fps, tcps, message", [
+    (0.0, None, "scene.usda:/World: warpshade:fps must be a number of frames per second > 0, got 0"),
+    (-24.0, None, "warpshade:fps must be a number of frames per second > 0, got -24"),
+    (None, 0.0, "scene.usda: timeCodesPerSecond must be a number of frames per second > 0, got 0"),
+])
+def test_a_frame_rate_that_is_not_positive_is_an_error(tmp_path, fps, tcps, message):
+    """Before: warpshade:fps = 0 was a ZeroDivisionError traceback in the cloth simulation, -24 'step 0: dt must be
+    finite and > 0'."""
+    from warpshade.scene import SceneError
+
+    def build(stage):
+        _cloth(stage)
+        stage.SetDefaultPrim(stage.GetPrimAtPath("/World"))
+        if fps is not None:
+            stage.GetPrimAtPath("/World").CreateAttribute("warpshade:fps", Sdf.ValueTypeNames.Float, custom=True).Set(fps)
+        if tcps is not None:
+            stage.SetTimeCodesPerSecond(tcps)
+
+    with pytest.raises(SceneError, match=message):
+        _scene(tmp_path, build)

@@ -61,8 +61,10 @@ def run(args) -> int:
 
     try:
         w, h = (int(v) for v in args.size.lower().split("x"))
+        if w < 1 or h < 1:
+            raise ValueError
     except ValueError:
-        raise ValueError(f"--size '{args.size}': expected WxH, e.g. 640x480") from None
+        raise ValueError(f"--size '{args.size}': expected WxH, two whole numbers of pixels >= 1, e.g. 640x480") from None
     stage = ShadedStage(args.usd)
     frames = _frames(args.contact_sheet, args.frame, stage.start, stage.end)
     outside = [f for f in frames if not stage.start - 1e-6 <= f <= stage.end + 1e-6]

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..geometry.mesh import closed_orientation, first_nonfinite
 from ..scene import Scene, SceneError, SceneWarning
-from .cloth import ClothSimulation
+from .cloth import ClothSimulation, coincident_vertices
 from .lights import default_lights, light_from_spec, sky_light_specs
 from .refine import refine_receivers as refine
 from ..visibility import METHOD_PREFERENCE, default_method
@@ -130,6 +130,13 @@ class _SetupTicker:
             self._thread.join()
 
 
+def require_scene(scene, what: str) -> None:
+    """A TypeError naming ``what`` unless ``scene`` is a :class:`~warpshade.scene.Scene` (a file name is not one)."""
+    if not isinstance(scene, Scene):
+        raise TypeError(f"{what}: scene must be a Scene (warpshade.make_scene, or warpshade.usd.read_scene of a file), "
+                        f"got {type(scene).__name__} {scene!r:.60}")
+
+
 class Pipeline:
     """Simulate, shade and write one scene.
 
@@ -186,12 +193,15 @@ class Pipeline:
         self.compiles = not kernel_cache_holds_warpshade()
         """Whether Warp's kernel cache held no warpshade kernels when the pipeline was made: the run's
         setup then compiles them (a machine's first run; the progress bar and the report say so)."""
+        require_scene(scene, "Pipeline")
         self.scene = scene
         self.refined = refine(scene, refine_receivers)
         """Static objects subdivided for shading (:mod:`warpshade.pipeline.refine`)."""
-        self.frames = int(frames if frames is not None else scene.frames)
-        if self.frames < 1:
-            raise ValueError(f"frames must be >= 1, got {self.frames}")
+        n = frames if frames is not None else scene.frames
+        if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer, float, np.floating)) or \
+                not float(n).is_integer() or n < 1:
+            raise ValueError(f"frames must be an integer >= 1, got {n!r}")
+        self.frames = int(n)
         self.config = resolve_run(scene, method, knobs, order, between, reflections, area_lights, area_knobs,
                                   two_sided, albedo, write_transfer)
         """Everything the run decided before its first frame (:class:`~.config.RunConfig`)."""
@@ -214,6 +224,7 @@ class Pipeline:
         self._check_lights()
         self._warn_static_scene(lights)
         self._warn_inward_meshes()
+        self._warn_cut_cloth()
         from .area import area_lights_used
 
         self.area_lights, self.area_description = area_lights_used(self.shader)
@@ -255,6 +266,19 @@ class Pipeline:
                     f"{o.name}: cloth with neither pins (warpshade:pinned) nor an attachment, and the scene has "
                     "no collider (warpshade:collider on a prim): it falls freely; add a collider or pin vertices",
                     SceneWarning, stacklevel=3)
+
+    def _warn_cut_cloth(self) -> None:
+        """Warn about a cloth with vertices at the same position that share no triangle (a seam split by a DCC or
+        an exporter): the simulation keeps them apart, so the cloth comes apart along the seam."""
+        for o in self.scene.objects:
+            if o.kind != "cloth":
+                continue
+            pair, count = coincident_vertices(o.mesh.points)
+            if count:
+                warnings.warn(f"{o.name}: {count} vertices of the cloth lie on others without sharing a triangle "
+                              f"with them (first: vertices {pair[0]} and {pair[1]}): the cloth is cut there and will "
+                              "come apart along the cut; if it is one piece, merge them (Blender: Merge by Distance)",
+                              SceneWarning, stacklevel=3)
 
     def _warn_inward_meshes(self) -> None:
         """Warn about closed meshes wound inward: their normals point in, so they would shade black."""
@@ -307,6 +331,12 @@ class Pipeline:
             t = time.perf_counter()
             code = self.scene.start_time + f  # points_at takes the input's time code
             geo = {o.name: np.asarray(o.params["points_at"](code), dtype=np.float32) for o in driven}
+            for o in driven:  # before the cloth, which collides with them and hangs from them
+                if geo[o.name].shape != (o.mesh.num_vertices, 3):
+                    raise SceneError(f"{o.name}: frame {f} (time code {code:g}): points of shape {geo[o.name].shape}, "
+                                     f"but the mesh has {o.mesh.num_vertices} vertices, (V, 3): a moving mesh keeps "
+                                     "its vertices and faces in every frame (export a mesh whose vertex count does not "
+                                     "change, e.g. with modifiers that change it applied)")
             if sims is not None:  # cloth after the bodies it collides with and hangs from
                 geo.update(sims.advance(f, geo))
             for name, pts in geo.items():

@@ -24,6 +24,42 @@ CLOTH_SOLVER = {"selfCollision": ("self_collision", bool), "edgeContact": ("edge
                 "stretchChebyshev": ("stretch_chebyshev", float), "coarseLevels": ("coarse_levels", int)}
 """``warpshade:cloth:*`` attributes passed to :class:`warpshade.sim.XPBDSolver` (taken from the
 first cloth object, as the solver is shared): attribute -> (keyword, type)."""
+CLOTH_ATTRIBUTES = (*CLOTH_PARAMS, *CLOTH_GLOBAL, "friction", *CLOTH_SOLVER)
+"""Every ``warpshade:cloth:*`` attribute (``ws.cloth(**material)`` keyword) a cloth reads."""
+
+
+def check_cloth_attributes(values: dict, where: str, error=ValueError) -> None:
+    """Raise ``error`` naming ``where`` and the attribute when a ``warpshade:cloth:*`` value of ``values``
+    (name without the prefix -> value) is not one of :data:`CLOTH_ATTRIBUTES` (suggesting the closest) or
+    is not of its type: a bool for the on/off ones, else a finite number (an integer for the counts)."""
+    import difflib
+
+    for key, value in values.items():
+        if key not in CLOTH_ATTRIBUTES:
+            close = difflib.get_close_matches(key, CLOTH_ATTRIBUTES, n=1)
+            raise error(f"{where}: warpshade:cloth:{key} is not a cloth attribute"
+                        + (f" (did you mean '{close[0]}'?)" if close else "")
+                        + f"; they are {', '.join(CLOTH_ATTRIBUTES)}")
+        typ = CLOTH_SOLVER.get(key, (None, float))[1]
+        if typ is bool:
+            ok = isinstance(value, (bool, np.bool_)) or (isinstance(value, (int, np.integer)) and value in (0, 1))
+        else:
+            ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_)) \
+                and bool(np.isfinite(value)) and (typ is float or float(value).is_integer())
+        if not ok:
+            kind = {bool: "a bool", int: "an integer"}.get(typ, "a finite number")
+            raise error(f"{where}: warpshade:cloth:{key} must be {kind}, got {value!r}")
+
+
+def coincident_vertices(points: np.ndarray) -> tuple[tuple[int, int] | None, int]:
+    """Vertices of a mesh at exactly the position of a lower-numbered one: the first such pair (lower, higher)
+    and how many such vertices there are, ``(None, 0)`` when none. In a cloth, whose triangles may not be
+    degenerate, two such vertices share no triangle: a seam a DCC or an exporter split, along which the cloth
+    is cut."""
+    _, first, inverse = np.unique(np.asarray(points), axis=0, return_index=True, return_inverse=True)
+    partner = first[inverse.ravel()]  # each vertex's lowest-numbered vertex at its position
+    dup = np.flatnonzero(partner != np.arange(len(partner)))
+    return ((int(partner[dup[0]]), int(dup[0])) if len(dup) else None), len(dup)
 
 
 STRAIN_WARNING = 2.0
@@ -82,6 +118,8 @@ class ClothSimulation:
         if not np.isfinite(m) or m <= 0:
             raise SceneError(f"{scene.source}: metersPerUnit must be a length > 0, got {scene.meters_per_unit}")
         self.meters_per_unit = m
+        for o in cloth:
+            check_cloth_attributes(o.params.get("cloth", {}), f"{scene.source}: {o.name}", SceneError)
         first = cloth[0].params.get("cloth", {})
         self.attachments = []  # (target name, target vertex per slot (A,), rest offset (A, 3))
         self.moving_colliders = []  # (object name, MeshCollider)
@@ -135,12 +173,8 @@ class ClothSimulation:
         gravity = tuple(-9.81 * up if scene.gravity is None else np.asarray(scene.gravity, dtype=np.float64))
         knobs = {}
         for k, (kw, typ) in CLOTH_SOLVER.items():
-            if k in first:
-                value = first[k]
-                if typ is int and (isinstance(value, (bool, np.bool_)) or float(value) != int(value)):
-                    raise SceneError(f"{scene.source}: {cloth[0].name}: warpshade:cloth:{k} must be an integer, "
-                                     f"got {value!r}")
-                knobs[kw] = typ(value)
+            if k in first:  # of its type: check_cloth_attributes above
+                knobs[kw] = typ(first[k])
         try:
             self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
                                      gravity=gravity, **knobs)

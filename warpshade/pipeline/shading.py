@@ -94,8 +94,12 @@ class _Group:
     they are computed: :meth:`_build_back_method`).
     """
 
-    def __init__(self, spec: GroupSpec, order: int, device: str, reuse: float | None = None):
+    def __init__(self, spec: GroupSpec, order: int, device: str, reuse: float | None = None, origin=None):
         self.spec, self.order = spec, order
+        self.origin = None if origin is None or not np.any(origin) else np.asarray(origin, dtype=np.float64)
+        """Where the visibility methods' coordinates have their origin (:func:`~warpshade.visibility.rays.local_origin`
+        of the scene's shaded objects, shared by every group of a build), or None for the world origin: float32
+        coordinates resolve a scene to a fraction of their magnitude, and the methods work in float32."""
         self.offsets = np.cumsum([0] + [m.num_vertices for m in spec.meshes])
         faces = np.concatenate([m.faces + off for m, off in zip(spec.meshes, self.offsets[:-1])])
         self.rest = np.concatenate([m.points for m in spec.meshes])
@@ -116,8 +120,9 @@ class _Group:
             # Members that cast no shadows keep their vertices (receivers, with the normals of their own
             # triangles, passed in update) but lose their triangles from the method's mesh, so every
             # method sees them as points that block nothing.
-            mesh = self.mesh if not receivers_only else TriMesh(
-                self.rest, self.blocker_faces, normals=self.mesh.normals, name=f"{self.mesh.name} casters")
+            mesh = (TriMesh(self.local(self.rest), faces, name=self.mesh.name) if self.origin is not None else
+                    self.mesh) if not receivers_only else TriMesh(
+                self.local(self.rest), self.blocker_faces, normals=self.mesh.normals, name=f"{self.mesh.name} casters")
             self.method = get_method(spec.method)(mesh, order=order, device=device, **spec.knobs)
         self.back_method = None
         self.back_rows = None
@@ -156,7 +161,7 @@ class _Group:
         if two is not None:
             def merged(ks, name):
                 offs = np.cumsum([0] + [spec.meshes[k].num_vertices for k in ks])
-                return TriMesh(np.concatenate([spec.meshes[k].points for k in ks]),
+                return TriMesh(self.local(np.concatenate([spec.meshes[k].points for k in ks])),
                                np.concatenate([spec.meshes[k].faces + o for k, o in zip(ks, offs[:-1])]), name=name)
 
             blockers = [k for k in range(len(spec.meshes)) if k not in two and casts[k]]
@@ -166,6 +171,12 @@ class _Group:
                                    occluders=occluders, **spec.knobs)
         else:
             self.back_method = cls(flipped(self.method.mesh), order=order, device=device, **spec.knobs)
+
+    def local(self, points: np.ndarray) -> np.ndarray:
+        """World ``points`` in the methods' coordinates (relative to :attr:`origin`; unchanged without one)."""
+        if self.origin is None:
+            return points
+        return (np.asarray(points, dtype=np.float64) - self.origin).astype(np.asarray(points).dtype)
 
     def reset_reuse(self) -> None:
         """Temporal reuse forgets the frames seen (:meth:`~warpshade.visibility.reuse.TemporalReuse.reset`):
@@ -187,7 +198,7 @@ class _Group:
             self._points.assign(pts)
             normals = vertex_normals(self._points, self._faces, out=self._normals)
         if self.method is not None:
-            transfer = self.method.update(pts, normals).numpy().copy()  # the next update overwrites it
+            transfer = self.method.update(self.local(pts), normals).numpy().copy()  # the next update overwrites it
             normals = self.method.normals.numpy().copy()
             transfer = fill_buried(transfer, self.edges)
         else:
@@ -206,11 +217,11 @@ class _Group:
         if self.back_method is not None and self.back_rows is not None:
             back = np.zeros_like(transfer)  # rows of members shaded on one side stay unused
             rows = self.back_rows
-            back[rows] = self.back_method.update(pts[rows], -normals[rows]).numpy()
+            back[rows] = self.back_method.update(self.local(pts[rows]), -normals[rows]).numpy()
         elif self.back_method is not None:  # on the whole group, computed at the two-sided members' rows only
             from ..visibility.reuse import update_rows
 
-            back = update_rows(self.back_method, pts, -normals, self._two_rows).numpy().copy()
+            back = update_rows(self.back_method, self.local(pts), -normals, self._two_rows).numpy().copy()
             back[self._one_rows] = 0.0  # rows of members shaded on one side stay unused
         else:
             back = unoccluded_transfer(-normals, self.order)
@@ -453,7 +464,10 @@ class SceneShader:
         from ..radiance import exit_radiance
 
         t_build = time.perf_counter()
-        groups = [_Group(g, self.order, self.device, self.reuse) for g in self.groups]
+        from ..visibility.rays import local_origin
+
+        origin = local_origin(np.concatenate([m.points for g in self.groups for m in g.meshes]))
+        groups = [_Group(g, self.order, self.device, self.reuse, origin) for g in self.groups]
         if self.between not in (None, "spheres"):
             raise ValueError(f"between-group shadows must be 'spheres' or None, got {self.between!r}")
         between = (_between_group_shadows(groups, self.order, self.device)
@@ -503,9 +517,10 @@ class SceneShader:
                 if p.kind in ("between", "back between"):
                     pts, tr, nrm, back, _ = state[i]
                     if p.kind == "between":
-                        state[i][1] = _shadow_by_others(between[i], i, pts, tr, nrm, state, device)
+                        state[i][1] = _shadow_by_others(between[i], i, pts, tr, nrm, state, device, groups[i].local)
                     else:
-                        state[i][3] = _shadow_by_others(between[i], i, pts, back, -nrm, state, device)
+                        state[i][3] = _shadow_by_others(between[i], i, pts, back, -nrm, state, device,
+                                                        groups[i].local)
                     return True
                 if p.kind == "lights":
                     state[i][4] = lights_sh(frame_lights, order, state[i][0])
@@ -599,23 +614,28 @@ def _between_group_shadows(groups: list, order: int, device: str) -> list:
     spheres = get_method("spheres")
 
     # vertices of members that cast no shadows are in no triangle of blocker_faces: no sphere bounds them
-    trees = [build_sphere_tree(g.rest, g.blocker_faces, device=device) if len(g.blocker_faces) else None
+    # in the groups' common local coordinates (_Group.local), as their methods
+    trees = [build_sphere_tree(g.local(g.rest), g.blocker_faces, device=device) if len(g.blocker_faces) else None
              for g in groups]
     out = []
     for i, g in enumerate(groups):
         others = [j for j in range(len(groups)) if j != i and trees[j] is not None]
-        out.append((spheres(g.mesh, order=order, device=device, self_shadow=False,
-                                    blockers=[(trees[j], groups[j].rest) for j in others]), others) if others else None)
+        mesh = g.mesh if g.origin is None else TriMesh(g.local(g.rest), g.mesh.faces, name=g.mesh.name)
+        out.append((spheres(mesh, order=order, device=device, self_shadow=False,
+                            blockers=[(trees[j], groups[j].local(groups[j].rest)) for j in others]), others)
+                   if others else None)
     return out
 
 
-def _shadow_by_others(between, i: int, pts, transfer, normals, updated: list, device: str) -> np.ndarray:
+def _shadow_by_others(between, i: int, pts, transfer, normals, updated: list, device: str, local=None) -> np.ndarray:
     """Group ``i``'s ``transfer`` (one side: ``normals`` are that side's) times the visibility of the other
-    casting groups' spheres this frame (``between``: its entry of :func:`_between_group_shadows`)."""
+    casting groups' spheres this frame (``between``: its entry of :func:`_between_group_shadows`); ``local``
+    maps world points to the groups' common coordinates (:meth:`_Group.local`)."""
     if between is None:
         return transfer
     spheres, others = between
-    spheres.update(pts, normals, blocker_points=[updated[j][0] for j in others])
+    local = local or (lambda p: p)
+    spheres.update(local(pts), normals, blocker_points=[local(updated[j][0]) for j in others])
     out = spheres.shadow(wp.array(transfer, dtype=float, device=device))
     return out.numpy().copy()
 

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from pxr import Usd, UsdGeom
 
-from ..scene import SceneError
+from ..scene import SceneError, SceneWarning
 from .mesh_io import triangulate, usd_error_message
 from .writer import BACK_SIDE_OF
 
@@ -42,6 +44,10 @@ class ShadedStage:
                 self._meshes.append((prim, m, faces))
         if not self._meshes:
             raise SceneError(f"{path}: no Mesh prim")
+        if not any(UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor").HasAuthoredValue() for prim, _, _ in self._meshes):
+            warnings.warn(f"{path}: no mesh has a displayColor, so every mesh is shown in one flat grey: this is not "
+                          "an output of warpshade run (which writes the shaded colours there); preview the output",
+                          SceneWarning, stacklevel=2)
 
     def moving(self) -> set[str]:
         """Paths of the meshes whose points differ between the first, middle and last frames

@@ -135,6 +135,9 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         scene.fps = scene.settings["fps"]
     if scene.frames < 1:
         raise SceneError(f"{source}:{root.GetPath()}: warpshade:frames must be >= 1, got {scene.frames}")
+    if not (np.isfinite(scene.fps) and scene.fps > 0):  # a frame is a step of 1 / fps seconds
+        where = f"{source}:{root.GetPath()}: warpshade:fps" if "fps" in scene.settings else f"{source}: timeCodesPerSecond"
+        raise SceneError(f"{where} must be a number of frames per second > 0, got {scene.fps:g}")
     scene.gravity = physics_gravity(stage, source)
 
     cache = UsdSkel.Cache()
@@ -398,15 +401,38 @@ def _hierarchy(prim) -> tuple:
     return tuple(reversed(chain))
 
 
+def _topology(mesh, where: str) -> tuple:
+    """A mesh's ``faceVertexCounts`` and ``faceVertexIndices``: their default values, or, when either is
+    time-sampled (Blender writes a mesh whose modifiers change it as empty defaults beside samples at every
+    frame), the samples if they are alike at every time code; a SceneError naming the prim and the first time
+    code where they change, since a mesh is simulated and shaded with one topology."""
+    ca, ia = mesh.GetFaceVertexCountsAttr(), mesh.GetFaceVertexIndicesAttr()
+    times = sorted(set(ca.GetTimeSamples()) | set(ia.GetTimeSamples()))
+    if not times:
+        return ca.Get(), ia.Get()
+    counts, idx = ca.Get(times[0]), ia.Get(times[0])
+    for t in times[1:]:
+        c, i = ca.Get(t), ia.Get(t)
+        if c != counts or i != idx:
+            raise SceneError(f"{where}: its faces change over time (faceVertexCounts/faceVertexIndices are time-sampled: "
+                             f"{len(counts or [])} faces of {sum(counts or [])} corners at time {times[0]:g}, {len(c or [])} of "
+                             f"{sum(c or [])} at {t:g}), but warpshade "
+                             "simulates and shades a mesh with the same vertices and faces in every frame: apply the "
+                             "modifiers that change them (Blender: Build, Remesh, Decimate, Boolean...) or export "
+                             "one frame")
+    return counts, idx
+
+
 def _read_mesh(prim, source: str, cache: UsdSkel.Cache, default_method, marks: dict | None = None) -> SceneObject:
     """A Mesh prim's object; ``marks``: its :func:`_object_namespace` when the caller has it."""
     where = f"{source}:{prim.GetPath()}"
     mesh = UsdGeom.Mesh(prim)
-    counts = mesh.GetFaceVertexCountsAttr().Get()
-    idx = mesh.GetFaceVertexIndicesAttr().Get()
+    counts, idx = _topology(mesh, where)
     pattr = mesh.GetPointsAttr()
     samples = pattr.GetTimeSamples()
-    t0 = Usd.TimeCode.Default() if pattr.HasAuthoredValue() and pattr.Get() is not None else (
+    default = pattr.Get() if pattr.HasAuthoredValue() else None
+    # Blender writes a mesh whose modifiers change it as empty defaults beside its time samples
+    t0 = Usd.TimeCode.Default() if default is not None and (len(default) or not samples) else (
         Usd.TimeCode(samples[0]) if samples else Usd.TimeCode.Default())
     pts = pattr.Get(t0)
     if pts is None or counts is None or idx is None:
@@ -636,11 +662,17 @@ class _Gprim:
         return verts @ AXIS_FROM_Z[self.axis].T, faces
 
 
-def _graded_flag(value, where: str) -> bool:
-    """A ``warpshade:graded`` value: a bool, else a SceneError naming the prim."""
+def _flag(value, where: str, key: str) -> bool:
+    """A ``warpshade:<key>`` on/off value: a bool, else a SceneError naming the prim and the attribute (a string
+    ``"false"`` is not taken for true)."""
     if not isinstance(value, (bool, np.bool_)):
-        raise SceneError(f"{where}: warpshade:graded must be a bool (true or false), got {value!r}")
+        raise SceneError(f"{where}: warpshade:{key} must be a bool (true or false), got {value!r}")
     return bool(value)
+
+
+def _graded_flag(value, where: str) -> bool:
+    """A ``warpshade:graded`` value (:func:`_flag`)."""
+    return _flag(value, where, "graded")
 
 
 _REGION_SAMPLES = 25
@@ -1024,15 +1056,13 @@ def _object(prim, where, tri, kind, settings, params, default_method, material) 
         _check_knobs(where, method, knobs)
     params.update({k: v for k, v in settings.items()
                    if not k.startswith("knobs:") and k not in ("shaded", "castsShadows", "twoSided")})
-    two_sided = settings.get("twoSided")
-    if two_sided is not None and not isinstance(two_sided, (bool, np.bool_)):
-        raise SceneError(f"{where}: warpshade:twoSided must be a bool, got {two_sided!r}")
+    flags = {k: _flag(settings[k], where, k) for k in ("shaded", "castsShadows", "twoSided") if k in settings}
     try:
         return SceneObject(name=str(prim.GetPath()), mesh=tri, kind=kind, material=material, method=method,
-                           knobs=knobs, casts_shadows=bool(settings.get("castsShadows", True)),
-                           shaded=bool(settings.get("shaded", True)), params=params,
+                           knobs=knobs, casts_shadows=flags.get("castsShadows", True),
+                           shaded=flags.get("shaded", True), params=params,
                            prim_path=str(prim.GetPath()), prim_xforms=_hierarchy(prim),
-                           two_sided=None if two_sided is None else bool(two_sided))
+                           two_sided=flags.get("twoSided"))
     except ValueError as exc:
         raise SceneError(f"{where}: {exc}") from None
 
