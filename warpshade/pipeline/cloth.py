@@ -25,6 +25,16 @@ CLOTH_SOLVER = {"selfCollision": ("self_collision", bool), "edgeContact": ("edge
 first cloth object, as the solver is shared): attribute -> (keyword, type)."""
 
 
+SUBSTEPS = 8
+"""Solver substeps per frame when the scene does not set ``warpshade:substeps``."""
+RIM_SUBSTEPS = 16
+"""Substeps per frame when the scene does not set ``warpshade:substeps`` and has an analytic cylinder
+or cone collider: at :data:`SUBSTEPS` a fine sheet sliding over such a sharp rim hooks on it (the
+rim's edge and face passes push vertices up above the cap while the cloth round them slides off,
+edges stretched past :data:`STRAIN_WARNING`); measured in docs/benchmarks/history.md, "Thin posts
+under fine sheets"."""
+
+
 STRAIN_WARNING = 2.0
 """Edge strain (|xi - xj| / L - 1) past which a cloth is taken not to follow the scene: an edge at
 three times its rest length, beyond anything a cloth takes (the worst edge of the shipped and
@@ -141,7 +151,8 @@ class ClothSimulation:
                                      f"got {value!r}")
                 knobs[kw] = typ(value)
         try:
-            self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
+            substeps = RIM_SUBSTEPS if colliders.has_rims else SUBSTEPS
+            self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", substeps)),
                                      gravity=gravity, **knobs)
         except ValueError as exc:
             bad = [k for k, (kw, _) in CLOTH_SOLVER.items() if kw in knobs and str(exc).startswith(kw)]
