@@ -29,10 +29,14 @@ SUBSTEPS = 8
 """Solver substeps per frame when the scene does not set ``warpshade:substeps``."""
 RIM_SUBSTEPS = 16
 """Substeps per frame when the scene does not set ``warpshade:substeps`` and has an analytic cylinder
-or cone collider: at :data:`SUBSTEPS` a fine sheet sliding over such a sharp rim hooks on it (the
-rim's edge and face passes push vertices up above the cap while the cloth round them slides off,
-edges stretched past :data:`STRAIN_WARNING`); measured in docs/benchmarks/history.md, "Thin posts
-under fine sheets"."""
+or cone collider whose radius is under :data:`RIM_EDGES` cloth edges (the median rest length): at
+:data:`SUBSTEPS` a sheet sliding over such a thin post hooks on its rim (edges spanning the cap are
+pushed up by the rim's edge and face passes and lift their vertices above it while the cloth round
+them slides off, edges past :data:`STRAIN_WARNING`); measured in docs/benchmarks/history.md, "Thin
+posts under fine sheets"."""
+RIM_EDGES = 3.0
+"""A cylinder's or cone's radius, in cloth edges, under which the scene gets :data:`RIM_SUBSTEPS`
+(a cap a few edges across; on wider ones 16 substeps let the cloth slide off and fold on itself)."""
 
 
 STRAIN_WARNING = 2.0
@@ -151,7 +155,9 @@ class ClothSimulation:
                                      f"got {value!r}")
                 knobs[kw] = typ(value)
         try:
-            substeps = RIM_SUBSTEPS if colliders.has_rims else SUBSTEPS
+            rim = colliders.smallest_rim
+            thin = rim is not None and rim < RIM_EDGES * float(np.median(self.model.edge_rest_length.numpy()))
+            substeps = RIM_SUBSTEPS if thin else SUBSTEPS
             self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", substeps)),
                                      gravity=gravity, **knobs)
         except ValueError as exc:

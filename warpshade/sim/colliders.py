@@ -388,6 +388,12 @@ class ColliderSet:
         :meth:`collide_shape_faces`)."""
         return any(k in self._FACE_PASS for k in self._kind)
 
+    @property
+    def smallest_rim(self) -> float | None:
+        """Radius of the smallest analytic cylinder or cone [m], or None without one."""
+        radii = [float(sz[0]) for k, sz in zip(self._kind, self._size) if k in self._FACE_PASS]
+        return min(radii) if radii else None
+
     _SHARP = (int(ck.SHAPE_BOX), int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE))
     """Analytic kinds with sharp edges (box edges, rims, apex)."""
 
