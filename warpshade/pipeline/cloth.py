@@ -34,9 +34,11 @@ or cone collider whose radius is under :data:`RIM_EDGES` cloth edges (the median
 pushed up by the rim's edge and face passes and lift their vertices above it while the cloth round
 them slides off, edges past :data:`STRAIN_WARNING`); measured in docs/benchmarks/history.md, "Thin
 posts under fine sheets"."""
-RIM_EDGES = 3.0
+RIM_EDGES = 4.0
 """A cylinder's or cone's radius, in cloth edges, under which the scene gets :data:`RIM_SUBSTEPS`
-(a cap a few edges across; on wider ones 16 substeps let the cloth slide off and fold on itself)."""
+(a cap a few edges across). Measured on benchmarks/post_drape.py's posts: radii of 0.5-3 edges hook at
+:data:`SUBSTEPS` and not at 16; at 5 edges (15 cm under 3 cm edges) 16 let the sheet slide off the cap
+and fold on itself (more and longer cloth-cloth holds than at 8)."""
 
 
 STRAIN_WARNING = 2.0
