@@ -31,7 +31,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.abspath(os.path.join(os.path.dirname(__file__), "..")))
 
-from warpshade.geometry import ulp_jitter  # noqa: E402
+from warpshade.geometry import ulp_jitter
 
 RADII = (4.0, 8.0, 15.0)
 """Post radii [cm]."""

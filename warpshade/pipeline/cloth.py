@@ -9,7 +9,6 @@ import numpy as np
 from ..geometry.mesh import vertex_indices
 from ..scene import Scene, SceneError, SceneWarning
 
-
 CLOTH_PARAMS = {"density": "density", "stretchStiffness": "stretch_stiffness", "bendStiffness": "bend_stiffness"}
 """``warpshade:cloth:*`` attributes passed per piece to :meth:`warpshade.sim.ClothBuilder.add_mesh`."""
 CLOTH_GLOBAL = {"damping": "damping", "thickness": "thickness"}
