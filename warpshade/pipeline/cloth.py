@@ -9,7 +9,6 @@ import numpy as np
 from ..geometry.mesh import vertex_indices
 from ..scene import Scene, SceneError, SceneWarning
 
-
 CLOTH_PARAMS = {"density": "density", "stretchStiffness": "stretch_stiffness", "bendStiffness": "bend_stiffness"}
 """``warpshade:cloth:*`` attributes passed per piece to :meth:`warpshade.sim.ClothBuilder.add_mesh`."""
 CLOTH_GLOBAL = {"damping": "damping", "thickness": "thickness"}
@@ -60,6 +59,22 @@ def coincident_vertices(points: np.ndarray) -> tuple[tuple[int, int] | None, int
     partner = first[inverse.ravel()]  # each vertex's lowest-numbered vertex at its position
     dup = np.flatnonzero(partner != np.arange(len(partner)))
     return ((int(partner[dup[0]]), int(dup[0])) if len(dup) else None), len(dup)
+
+
+SUBSTEPS = 8
+"""Solver substeps per frame when the scene does not set ``warpshade:substeps``."""
+RIM_SUBSTEPS = 16
+"""Substeps per frame when the scene does not set ``warpshade:substeps`` and has an analytic cylinder
+or cone collider whose radius is under :data:`RIM_EDGES` cloth edges (the median rest length): at
+:data:`SUBSTEPS` a sheet sliding over such a thin post hooks on its rim (edges spanning the cap are
+pushed up by the rim's edge and face passes and lift their vertices above it while the cloth round
+them slides off, edges past :data:`STRAIN_WARNING`); measured in docs/benchmarks/history.md, "Thin
+posts under fine sheets"."""
+RIM_EDGES = 4.0
+"""A cylinder's or cone's radius, in cloth edges, under which the scene gets :data:`RIM_SUBSTEPS`
+(a cap a few edges across). Measured on benchmarks/post_drape.py's posts: radii of 0.5-3 edges hook at
+:data:`SUBSTEPS` and not at 16; at 5 edges (15 cm under 3 cm edges) 16 let the sheet slide off the cap
+and fold on itself (more and longer cloth-cloth holds than at 8)."""
 
 
 STRAIN_WARNING = 2.0
@@ -176,7 +191,10 @@ class ClothSimulation:
             if k in first:  # of its type: check_cloth_attributes above
                 knobs[kw] = typ(first[k])
         try:
-            self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", 8)),
+            rim = colliders.smallest_rim
+            thin = rim is not None and rim < RIM_EDGES * float(np.median(self.model.edge_rest_length.numpy()))
+            substeps = RIM_SUBSTEPS if thin else SUBSTEPS
+            self.solver = XPBDSolver(self.model, colliders, substeps=int(scene.settings.get("substeps", substeps)),
                                      gravity=gravity, **knobs)
         except ValueError as exc:
             bad = [k for k, (kw, _) in CLOTH_SOLVER.items() if kw in knobs and str(exc).startswith(kw)]

@@ -382,6 +382,18 @@ class ColliderSet:
         """Whether :meth:`collide_edges` has work: mesh colliders, boxes, cylinders or cones."""
         return bool(self.meshes) or any(k in self._SHARP for k in self._kind)
 
+    @property
+    def has_rims(self) -> bool:
+        """Whether there are analytic cylinders or cones (sharp circular rims; their cloth triangles get
+        :meth:`collide_shape_faces`)."""
+        return any(k in self._FACE_PASS for k in self._kind)
+
+    @property
+    def smallest_rim(self) -> float | None:
+        """Radius of the smallest analytic cylinder or cone [m], or None without one."""
+        radii = [float(sz[0]) for k, sz in zip(self._kind, self._size) if k in self._FACE_PASS]
+        return min(radii) if radii else None
+
     _SHARP = (int(ck.SHAPE_BOX), int(ck.SHAPE_CYLINDER), int(ck.SHAPE_CONE))
     """Analytic kinds with sharp edges (box edges, rims, apex)."""
 
@@ -417,7 +429,7 @@ class ColliderSet:
         """
         if not self.has_sharp_edges:
             return
-        faces = x_start is not None and tris is not None and any(k in self._FACE_PASS for k in self._kind)
+        faces = x_start is not None and tris is not None and self.has_rims
         if faces:
             self.collide_shape_faces(thickness, inv_mass, tris, x, x_start, self._FACE_PASS)
         n = x.shape[0]
