@@ -24,7 +24,7 @@ from .geometry.mesh import TriMesh, vertex_indices
 from .lighting import Sky
 from .lighting.base import Light
 from .scene import LightSpec, Material, Scene, SceneObject
-from .usd.scene_io import SCENE_KEYS, did_you_mean
+from .usd.scene_io import SCENE_KEYS, SCENE_SETTINGS, did_you_mean
 
 SETTINGS = SCENE_KEYS
 """Scene-wide settings :func:`make_scene` takes: the default prim's ``warpshade:`` attributes of a USD scene
@@ -421,13 +421,6 @@ def make_scene(*items, fps: float = 60.0, frames: int = 120, up: str = "Y", grav
     if unknown:
         raise ValueError(f"make_scene: '{unknown[0]}' is not a scene setting{did_you_mean(unknown[0], SETTINGS)}"
                          f"; the settings are {', '.join(SETTINGS)}")
-    out = Scene(frames=int(frames), fps=float(fps), up_axis=str(up).upper(), settings=dict(settings), source="<script>",
-        import difflib
-
-        close = difflib.get_close_matches(unknown[0], SETTINGS, n=1)
-        raise ValueError(f"make_scene: '{unknown[0]}' is not a scene setting"
-                         + (f" (did you mean '{close[0]}'?)" if close else "")
-                         + f"; the settings are {', '.join(SETTINGS)}")
     fps = _number(fps, "make_scene: fps")
     if fps <= 0:
         raise ValueError(f"make_scene: fps must be a number > 0, got {fps!r}")
