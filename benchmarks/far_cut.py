@@ -278,7 +278,7 @@ class Raster:
         gl = np.linalg.norm(g, axis=1)
         size = np.sqrt(gl)
         with np.errstate(invalid="ignore", divide="ignore"):
-            near = np.abs((g * a).sum(1)) <= tables.COPLANAR * gl * size
+            near = np.abs((g * a).sum(1)) <= tables.COPLANAR_NEAR * gl * size
             inside = np.minimum(np.minimum((g * np.cross(a, b)).sum(1), (g * np.cross(b, c)).sum(1)),
                                 (g * np.cross(c, a)).sum(1)) >= -tables.COPLANAR * gl * gl
             facing = g[:, 2] >= tables.COPLANAR_FACING * gl
