@@ -1086,13 +1086,13 @@ def _object(prim, where, tri, kind, settings, params, default_method, material) 
                       SceneWarning, stacklevel=3)
         del knobs[k]
     method = settings.pop("method", default_method)
-    if method in ("none", ""):
-        method = None
     if method is not None:
-        from ..visibility import METHODS
+        from ..visibility import NO_METHOD, transfer_method
 
-        if method not in METHODS:
-            raise SceneError(f"{where}: warpshade:method '{method}' is unknown (known: {', '.join(sorted(METHODS))}, none)")
+        try:  # an empty token (a DCC's blank custom property) is no method too
+            method = transfer_method(method or NO_METHOD)
+        except ValueError as exc:
+            raise SceneError(f"{where}: warpshade:method: {exc}") from None
     if knobs and method is not None:
         _check_knobs(where, method, knobs)
     params.update({k: v for k, v in settings.items()
