@@ -3,25 +3,12 @@
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux
+from helpers import usd_grid
+from pxr import Sdf, Usd, UsdGeom, UsdLux
 
 from warpshade.pipeline import Pipeline
 from warpshade.scene import SceneError
 from warpshade.usd import read_scene
-
-
-def _grid(stage, path, n, y, size):
-    mesh = UsdGeom.Mesh.Define(stage, path)
-    xs = np.linspace(-size / 2, size / 2, n)
-    mesh.CreatePointsAttr([Gf.Vec3f(float(x), y, float(z)) for z in xs for x in xs])
-    faces = []
-    for j in range(n - 1):
-        for i in range(n - 1):
-            a = j * n + i
-            faces += [a, a + n, a + 1, a + 1, a + n, a + n + 1]
-    mesh.CreateFaceVertexCountsAttr([3] * (len(faces) // 3))
-    mesh.CreateFaceVertexIndicesAttr(faces)
-    return mesh.GetPrim()
 
 
 def _scene(tmp_path, method=None):
@@ -31,7 +18,8 @@ def _scene(tmp_path, method=None):
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
     UsdGeom.SetStageMetersPerUnit(stage, 1.0)
     stage.SetDefaultPrim(stage.DefinePrim("/World", "Xform"))
-    for prim in (_grid(stage, "/World/Floor", 9, 0.0, 4.0), _grid(stage, "/World/Roof", 5, 0.5, 1.0)):
+    for prim in (usd_grid(stage, "/World/Floor", 9, 0.0, 4.0).GetPrim(),
+                 usd_grid(stage, "/World/Roof", 5, 0.5, 1.0).GetPrim()):
         if method is not None:
             prim.CreateAttribute("warpshade:method", Sdf.ValueTypeNames.Token, custom=True).Set(method)
     UsdLux.DomeLight.Define(stage, "/World/Sky")

@@ -6,25 +6,12 @@ import warnings
 
 import numpy as np
 import pytest
+from helpers import usd_grid as _grid
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux
 
 from warpshade.pipeline import Pipeline
 from warpshade.scene import SceneWarning
 from warpshade.usd import read_scene
-
-
-def _grid(stage, path, n=6, y=0.0, size=2.0):
-    mesh = UsdGeom.Mesh.Define(stage, path)
-    xs = np.linspace(-size / 2, size / 2, n)
-    mesh.CreatePointsAttr([Gf.Vec3f(float(x), y, float(z)) for z in xs for x in xs])
-    faces = []
-    for j in range(n - 1):
-        for i in range(n - 1):
-            a = j * n + i
-            faces += [a, a + n, a + 1, a + 1, a + n, a + n + 1]
-    mesh.CreateFaceVertexCountsAttr([3] * (len(faces) // 3))
-    mesh.CreateFaceVertexIndicesAttr(faces)
-    return mesh
 
 
 def _scene(tmp_path, build):
