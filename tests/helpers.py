@@ -7,7 +7,7 @@ import math
 import os
 
 import numpy as np
-from pxr import Usd, UsdGeom
+from pxr import Gf, Usd, UsdGeom
 
 from warpshade.geometry import TriMesh
 from warpshade.sh import sh_eval
@@ -102,6 +102,21 @@ def unoccluded_transfer(normals, order):
 def rel_err(t, ref):
     """Mean per-vertex error norm over the mean reference norm."""
     return float(np.linalg.norm(t - ref, axis=1).mean() / np.linalg.norm(ref, axis=1).mean())
+
+
+def usd_grid(stage, path, n=6, y=0.0, size=2.0):
+    """A flat n x n-vertex ``UsdGeom.Mesh`` of triangles at height ``y``, ``size`` across, centred on the Y axis."""
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    xs = np.linspace(-size / 2, size / 2, n)
+    mesh.CreatePointsAttr([Gf.Vec3f(float(x), y, float(z)) for z in xs for x in xs])
+    faces = []
+    for j in range(n - 1):
+        for i in range(n - 1):
+            a = j * n + i
+            faces += [a, a + n, a + 1, a + 1, a + n, a + n + 1]
+    mesh.CreateFaceVertexCountsAttr([3] * (len(faces) // 3))
+    mesh.CreateFaceVertexIndicesAttr(faces)
+    return mesh
 
 
 def grid(n: int):

@@ -433,9 +433,10 @@ def test_bad_mesh_input_names_the_culprit():
     b = ClothBuilder()
     with pytest.raises(MeshError, match="triangle 1 .* degenerate"):
         b.add_mesh(np.vstack([pts, [[2, 0, 0]]]), [[0, 1, 2], [0, 1, 4]])
-    with pytest.raises(MeshError, match=r"triangle [01] is inverted relative to its neighbour [01]"):
+    with pytest.raises(MeshError, match=r"triangle 1 \[1, 2, 3\] is inverted relative to its neighbour 0 "
+                                        r"\[0, 1, 2\] .*Recalculate Outside"):
         b.add_mesh(pts, [[0, 1, 2], [1, 2, 3]])
-    with pytest.raises(MeshError, match="triangle 0 repeats a vertex"):
+    with pytest.raises(MeshError, match=r"triangle 0 \[0, 0, 2\] repeats a vertex"):
         b.add_mesh(pts, [[0, 0, 2], [1, 3, 2]])
     bad = pts.copy()
     bad[2, 1] = np.nan
@@ -443,6 +444,42 @@ def test_bad_mesh_input_names_the_culprit():
         b.add_mesh(bad, [[0, 1, 2], [1, 3, 2]])
     with pytest.raises(MeshError, match="vertex 3 is not used"):
         b.add_mesh(pts, [[0, 1, 2]])
+
+
+def _grid_faces(n: int) -> tuple[np.ndarray, list[list[int]]]:
+    """A flat n x n grid of 2 n^2 consistently oriented triangles: points (V, 3), faces."""
+    pts = np.array([[i, 0.0, j] for j in range(n + 1) for i in range(n + 1)]) / n
+    faces = []
+    for j in range(n):
+        for i in range(n):
+            v = j * (n + 1) + i
+            faces += [[v, v + n + 1, v + n + 2], [v, v + n + 2, v + 1]]
+    return pts, faces
+
+
+def test_non_manifold_edge_is_named_before_orientation():
+    # a flap on the interior edge (4, 5) of a 3x3 grid: the orientation check alone called it "inverted"
+    pts, faces = _grid_faces(3)
+    with pytest.raises(MeshError, match=r"sheet: edge \(4, 9\) is shared by 3 triangles \[6, 7, 18\] "
+                                        r"\(non-manifold.*Non Manifold"):
+        ClothBuilder().add_mesh(np.vstack([pts, [[0.5, 1.0, 0.5]]]), faces + [[4, 9, 16]], name="sheet")
+
+
+@pytest.mark.parametrize("winding", [[0, 1, 2], [0, 2, 1]])
+def test_duplicate_face_is_named(winding):
+    # the same 3 vertices twice, in the same or the opposite winding: the orientation check called it "inverted"
+    pts, faces = _grid_faces(3)
+    dup = [faces[7][k] for k in winding]
+    with pytest.raises(MeshError, match=rf"sheet: duplicate face: triangles 7 and 18 have the same vertices "
+                                        rf"\[{dup[0]}, {dup[1]}, {dup[2]}\] \(1 such duplicates\).*Fix Overlaps"):
+        ClothBuilder().add_mesh(pts, faces + [dup], name="sheet")
+
+
+def test_repeated_index_names_triangle_and_clean_up():
+    pts, faces = _grid_faces(3)
+    with pytest.raises(MeshError, match=r"sheet: triangle 18 \[4, 4, 9\] repeats a vertex \(degenerate.*"
+                                        r"Degenerate Dissolve"):
+        ClothBuilder().add_mesh(pts, faces + [[4, 4, 9]], name="sheet")
 
 
 @pytest.mark.parametrize("kwargs, match", [

@@ -6,25 +6,12 @@ import warnings
 
 import numpy as np
 import pytest
+from helpers import usd_grid as _grid
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux
 
 from warpshade.pipeline import Pipeline
 from warpshade.scene import SceneWarning
 from warpshade.usd import read_scene
-
-
-def _grid(stage, path, n=6, y=0.0, size=2.0):
-    mesh = UsdGeom.Mesh.Define(stage, path)
-    xs = np.linspace(-size / 2, size / 2, n)
-    mesh.CreatePointsAttr([Gf.Vec3f(float(x), y, float(z)) for z in xs for x in xs])
-    faces = []
-    for j in range(n - 1):
-        for i in range(n - 1):
-            a = j * n + i
-            faces += [a, a + n, a + 1, a + 1, a + n, a + n + 1]
-    mesh.CreateFaceVertexCountsAttr([3] * (len(faces) // 3))
-    mesh.CreateFaceVertexIndicesAttr(faces)
-    return mesh
 
 
 def _scene(tmp_path, build):
@@ -191,7 +178,64 @@ def test_known_scene_settings_and_shipped_scenes_do_not_warn(tmp_path):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             read_scene(path)
-        assert not [w for w in caught if "scene setting" in str(w.message)], path
+        assert not [w for w in caught if "scene setting" in str(w.message) or "object attribute" in str(w.message)], path
+
+
+def test_unknown_object_attribute_warns_with_the_closest(tmp_path):
+    # a typo on an object was ignored without a word: the ground did not collide, the cloth fell through
+    def build(stage):
+        world = stage.DefinePrim("/World", "Xform")
+        stage.SetDefaultPrim(world)
+        floor = _grid(stage, "/World/Floor", n=2, size=4.0).GetPrim()
+        floor.CreateAttribute("warpshade:colider", Sdf.ValueTypeNames.Token, custom=True).Set("ground")
+        cloth = _cloth(stage).GetPrim()
+        cloth.CreateAttribute("warpshade:stifnes", Sdf.ValueTypeNames.Float, custom=True).Set(2.0)
+        cloth.CreateAttribute("warpshade:frames", Sdf.ValueTypeNames.Int, custom=True).Set(3)
+        group = stage.DefinePrim("/World/Props", "Xform")  # a typo on a group above two meshes: one warning
+        group.CreateAttribute("warpshade:castShadows", Sdf.ValueTypeNames.Bool, custom=True).Set(False)
+        _grid(stage, "/World/Props/A", y=0.5)
+        _grid(stage, "/World/Props/B", y=0.7)
+
+    msgs = [m for m in _read_warnings(tmp_path, build) if "object attribute" in m]
+    assert len(msgs) == 4, msgs
+    by = {m.split("scene.usda:")[1].split(" is not")[0]: m for m in msgs}
+    assert "did you mean 'collider'?" in by["/World/Floor: warpshade:colider"]
+    assert "ignored" in by["/World/Cloth: warpshade:stifnes"]
+    assert "author it on the default prim" in by["/World/Cloth: warpshade:frames"]
+    assert "did you mean 'castsShadows'?" in by["/World/Props: warpshade:castShadows"]
+
+
+def test_every_object_attribute_and_a_run_output_read_back_do_not_warn(tmp_path):
+    from warpshade.usd import AnimationWriter
+    from warpshade.usd.scene_io import OBJECT_ATTRIBUTES
+    from warpshade.usd.shipped import shipped_scene
+
+    def build(stage):
+        floor = _grid(stage, "/World/Floor", n=2, size=4.0).GetPrim()
+        floor.CreateAttribute("warpshade:collider", Sdf.ValueTypeNames.Token, custom=True).Set("ground")
+        cloth = _cloth(stage).GetPrim()
+        for name in ("method", "shaded", "castsShadows", "twoSided"):
+            assert name in OBJECT_ATTRIBUTES
+        cloth.CreateAttribute("warpshade:method", Sdf.ValueTypeNames.Token, custom=True).Set("none")
+        for name in ("shaded", "castsShadows", "twoSided"):
+            cloth.CreateAttribute(f"warpshade:{name}", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+        cloth.CreateAttribute("warpshade:pinned", Sdf.ValueTypeNames.IntArray, custom=True).Set([0, 5])
+        cloth.CreateAttribute("warpshade:cloth:density", Sdf.ValueTypeNames.Float, custom=True).Set(0.2)
+        cloth.CreateAttribute("warpshade:albedo", Sdf.ValueTypeNames.Color3f, custom=True).Set(Gf.Vec3f(0.5, 0.5, 0.5))
+
+    assert not [m for m in _read_warnings(tmp_path, build) if "object attribute" in m]
+    # a run's output carries warpshade:albedo, transferOrder, twoSided and the back side's backSideOf
+    out = tmp_path / "out.usda"
+    scene = read_scene(shipped_scene())
+    Pipeline(scene, frames=1, workers=1, write_transfer=True).run(AnimationWriter(str(out), fps=scene.fps),
+                                                                  progress=False)
+    stage = Usd.Stage.Open(str(out))
+    written = {p.GetName() for prim in stage.Traverse() for p in prim.GetAuthoredPropertiesInNamespace("warpshade")}
+    assert {"warpshade:albedo", "warpshade:transferOrder", "warpshade:twoSided", "warpshade:backSideOf"} <= written
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        read_scene(str(out))
+    assert not [str(w.message) for w in caught if "object attribute" in str(w.message)]
 def _split_cloth(stage):
     """A cloth whose grid is cut down its middle column as an exporter splits a seam: that column's vertices are
     duplicated (same positions) and the right half's triangles use the copies."""

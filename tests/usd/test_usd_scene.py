@@ -148,7 +148,7 @@ def test_ngons_triangulated(tmp_path):
 @pytest.mark.parametrize("attrs,match", [
     ('token warpshade:kind = "jelly"\n', "warpshade:kind 'jelly' is not one of"),
     ('int[] warpshade:pinned = [0, 7]\n', "warpshade:pinned vertex 7 out of range 0..2"),
-    ('token warpshade:method = "magic"\n', "warpshade:method 'magic' is unknown"),
+    ('token warpshade:method = "magic"\n', "warpshade:method: unknown visibility method 'magic'"),
 ])
 def test_bad_warpshade_attributes(tmp_path, attrs, match):
     with pytest.raises(SceneError, match=match):

@@ -41,7 +41,7 @@ def add_two_sided_argument(parser: argparse.ArgumentParser) -> None:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_refine_argument(parser)
-    from ..visibility import METHODS
+    from ..visibility import METHODS, NO_METHOD
     from ..visibility.base import nonnegative_int, positive_int
 
     parser.add_argument("scene", nargs="?", default=None, metavar="SCENE",
@@ -49,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--out", default=None, metavar="OUT.usda",
                         help="output (default: <scene name>_shaded.usda in the current directory)")
     parser.add_argument("--frames", type=positive_int, default=None, help="frames to produce (default: the scene's)")
-    parser.add_argument("--method", default=None, choices=sorted(METHODS) + ["none"],
+    parser.add_argument("--method", default=None, choices=[*sorted(METHODS), NO_METHOD],
                         help="visibility method for every object (default: the scene's, else the fastest accurate one)")
     parser.add_argument("--order", type=int, default=None, help="SH order (default: the scene's warpshade:order, else 4)")
     parser.add_argument("--max-error", type=float, default=None,
@@ -223,11 +223,7 @@ def _run(args, method, knobs, security, workers: int, pool) -> int:
     refined = refine_receivers(scene, args.refine_receivers)  # before the plan, which prices it
     if refined:
         print(f"warpshade run: {describe_refined(refined)[2:]}", file=sys.stderr)
-    if method == "none":
-        method = None
-        for o in scene.objects:  # unoccluded transfer for every object
-            o.method = None
-    if args.max_error is not None and method is None:
+    if args.max_error is not None and method is None:  # --method (NO_METHOD too) is every object's
         from ..planner import apply_plan, make_plan
 
         plan = make_plan(scene, max_error=args.max_error, order=args.order,

@@ -19,11 +19,11 @@ import argparse
 
 def shading_preload(method: str | None) -> tuple[str, ...]:
     """Modules a run's workers import while they wait for the spec: the pipeline's shading and the
-    visibility method (``method``; None: the default one; ``"none"``: no method)."""
-    from ..visibility import METHODS, default_method
+    visibility method (``method``; None: the default one; :data:`~warpshade.visibility.NO_METHOD`: no method)."""
+    from ..visibility import METHODS, NO_METHOD, default_method
 
     preload = ["warpshade.pipeline.shading"]
-    if method != "none":
+    if method != NO_METHOD:
         preload.append(METHODS[method or default_method()].split(":")[0])
     return tuple(preload)
 
@@ -64,10 +64,10 @@ def early_pool(argv: list[str]):
     try:
         flags, _ = _pool_flags().parse_known_args(argv[1:])
         from ..parallel import default_workers
-        from ..visibility import METHODS
+        from ..visibility import METHODS, NO_METHOD
 
         workers = default_workers() if flags.workers is None else int(flags.workers)
-        if workers < 1 or flags.scheduler is not None or flags.method not in (None, "none", *METHODS):
+        if workers < 1 or flags.scheduler is not None or flags.method not in (None, NO_METHOD, *METHODS):
             return None
     except (argparse.ArgumentError, ValueError):  # a flag without its value, a count that is no number
         return None

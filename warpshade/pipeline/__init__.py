@@ -143,7 +143,9 @@ class Pipeline:
     Args:
         scene: The scene (from :func:`warpshade.usd.read_scene` or built in Python).
         frames: Frames to produce (default: the scene's).
-        method: Visibility method for every shaded object (overrides the scene), or None.
+        method: Visibility method for every shaded object (overrides the scene): a name of
+            :data:`warpshade.visibility.METHODS`, ``"none"`` for none (unoccluded transfer, no shadows, as
+            ``warpshade:method = "none"`` and ``--method none``), or None for each object's own.
         knobs: Method knobs (with ``method``).
         order: SH order (default: ``warpshade:order`` or :data:`DEFAULT_ORDER`).
         write_transfer: Also write ``primvars:warpshade:transfer`` (V × N*N floats per frame).

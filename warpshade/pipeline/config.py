@@ -120,17 +120,29 @@ def group_objects(objects, method: str | None = None, knobs: dict | None = None,
 
     Args:
         objects: :class:`warpshade.scene.SceneObject` list.
-        method: Override every object's method (``--method``), or None to use each object's.
+        method: Override every object's method (``--method``; ``"none"``, :data:`~warpshade.visibility.NO_METHOD`:
+            no method, every object unoccluded), or None to use each object's.
         knobs: Knobs with ``method``.
+
+    Raises:
+        ValueError: an unknown method or knob, or knobs with ``"none"``.
         default_albedo: Albedo (scalar or RGB) of objects whose material's albedo was not authored
             (``Material.albedo_authored``), or None to keep the material's default.
         two_sided: Which objects are shaded on both sides (:func:`is_two_sided`).
     """
+    override = method is not None
+    if override:
+        from ..visibility import NO_METHOD, transfer_method
+
+        method = transfer_method(method)
+        if method is None and knobs:
+            raise ValueError(f"knobs {', '.join(sorted(knobs))} given with method '{NO_METHOD}' (no visibility method, "
+                             "so no knobs)")
     by_key: dict = {}
     for obj in objects:
         if not obj.shaded:
             continue
-        name, given = (method, knobs) if method is not None else (obj.method, obj.knobs)
+        name, given = (method, knobs) if override else (obj.method, obj.knobs)
         kn = resolve_knobs(name, given)
         key = (name, tuple(sorted(kn.items())))
         g = by_key.setdefault(key, GroupSpec(name, kn))

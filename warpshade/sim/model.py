@@ -46,18 +46,29 @@ def check_param(name: str, value: float, low: float = 0.0, low_inclusive: bool =
     return v
 
 
+_DEGENERATE_FIX = ("delete it or dissolve the degenerate faces (Blender: Mesh > Clean Up > Degenerate Dissolve; "
+                   "Houdini: Clean SOP, Remove Degenerate Primitives)")
+"""How to clean a degenerate triangle in a DCC (the end of the two degenerate-triangle messages)."""
+
+
 def check_cloth_mesh(points: np.ndarray, faces: np.ndarray, name: str) -> None:
-    """Validate a cloth mesh: shapes, finiteness, indices, degenerate and inverted triangles.
+    """Validate a cloth mesh: shapes, finiteness, indices, then, in this order (each defect can look like the
+    next one: a duplicate face puts three triangles on its interior edges, a non-manifold edge shows as two
+    triangles traversing it the same way), repeated corners, zero area, unused vertices, duplicate faces,
+    non-manifold edges and inconsistent orientation.
 
     Raises:
-        MeshError: naming ``name`` and the offending vertex, triangle or edge.
+        MeshError: naming ``name``, the triangles (indices after faces are split into triangles), their
+            vertices or edge, and how to clean the mesh in a DCC.
     """
     validate_mesh(points, faces, name)
     f = faces.astype(np.int64)
+    nv = len(points)
     rep = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
     if rep.any():
         t = int(np.flatnonzero(rep)[0])
-        raise MeshError(f"{name}: triangle {t} repeats a vertex {f[t].tolist()} (degenerate)")
+        raise MeshError(f"{name}: triangle {t} {f[t].tolist()} repeats a vertex (degenerate: it has no area; "
+                        f"{int(rep.sum())} such triangles): {_DEGENERATE_FIX}")
     p = points.astype(np.float64)
     a, b, c = p[f[:, 0]], p[f[:, 1]], p[f[:, 2]]
     area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
@@ -68,29 +79,46 @@ def check_cloth_mesh(points: np.ndarray, faces: np.ndarray, name: str) -> None:
     if degen.any():
         t = int(np.flatnonzero(degen)[0])
         raise MeshError(f"{name}: triangle {t} {f[t].tolist()} is degenerate (area {0.5 * area2[t]:.3g} m^2, "
-                        f"{int(degen.sum())} such triangles)")
-    used = np.zeros(len(p), dtype=bool)
+                        f"{int(degen.sum())} such triangles): {_DEGENERATE_FIX}")
+    used = np.zeros(nv, dtype=bool)
     used[f.ravel()] = True
     if not used.all():
         v = int(np.flatnonzero(~used)[0])
-        raise MeshError(f"{name}: vertex {v} is not used by any triangle (it would have no mass)")
-    # orientation: in a consistently oriented manifold each directed edge occurs once
+        raise MeshError(f"{name}: vertex {v} is not used by any triangle (it would have no mass; "
+                        f"{int((~used).sum())} such vertices): delete loose vertices (Blender: Mesh > Clean Up > "
+                        f"Delete Loose; Houdini: Clean SOP, Remove Unused Points)")
+    # duplicate faces: the same three vertices in either winding
+    srt = np.sort(f, axis=1)
+    _, first, inverse, counts = np.unique(srt, axis=0, return_index=True, return_inverse=True, return_counts=True)
+    if (counts > 1).any():
+        inverse = inverse.reshape(-1)
+        t1 = int(np.flatnonzero((counts[inverse] > 1) & (np.arange(len(f)) != first[inverse]))[0])
+        raise MeshError(f"{name}: duplicate face: triangles {int(first[inverse[t1]])} and {t1} have the same "
+                        f"vertices {f[t1].tolist()} ({int((counts - 1)[counts > 1].sum())} such duplicates): "
+                        f"delete one of each pair (Houdini: Clean SOP, Fix Overlaps)")
     directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     tri_of = np.tile(np.arange(len(f)), 3)
-    key = directed[:, 0] * len(p) + directed[:, 1]
+    und = np.sort(directed, axis=1)
+    ukey = und[:, 0] * nv + und[:, 1]
+    keys, counts = np.unique(ukey, return_counts=True)
+    if (counts > 2).any():
+        k = keys[np.flatnonzero(counts > 2)[0]]
+        tris = sorted(int(t) for t in tri_of[ukey == k])
+        raise MeshError(f"{name}: edge ({k // nv}, {k % nv}) is shared by {len(tris)} triangles {tris} "
+                        f"(non-manifold: a cloth edge joins at most two; {int((counts > 2).sum())} such edges): "
+                        f"delete the extra faces or split the edge (Blender: Select > Select All by Trait > "
+                        f"Non Manifold shows them; Houdini: Clean SOP, Manifold-Only Topology)")
+    # orientation: in a consistently oriented manifold each directed edge occurs once
+    key = directed[:, 0] * nv + directed[:, 1]
     order = np.argsort(key, kind="stable")
     dup = np.flatnonzero(key[order][1:] == key[order][:-1])
     if len(dup):
-        t0, t1 = tri_of[order[dup[0]]], tri_of[order[dup[0] + 1]]
+        t0, t1 = sorted((int(tri_of[order[dup[0]]]), int(tri_of[order[dup[0] + 1]])))  # the later one is 'inverted'
         e = directed[order[dup[0]]].tolist()
-        raise MeshError(f"{name}: triangle {t1} is inverted relative to its neighbour {t0} "
-                        f"(both traverse edge {e} in the same direction)")
-    und = np.sort(directed, axis=1)
-    ukey, counts = np.unique(und[:, 0] * len(p) + und[:, 1], return_counts=True)
-    if (counts > 2).any():
-        k = ukey[np.flatnonzero(counts > 2)[0]]
-        raise MeshError(f"{name}: edge ({k // len(p)}, {k % len(p)}) is shared by more than two triangles "
-                        f"(non-manifold)")
+        raise MeshError(f"{name}: triangle {t1} {f[t1].tolist()} is inverted relative to its neighbour {t0} "
+                        f"{f[t0].tolist()} (both traverse edge {e} in the same direction): make the normals "
+                        f"consistent (Blender: Mesh > Normals > Recalculate Outside; Houdini: Clean SOP, Orient "
+                        f"Polygons)")
 
 
 def mesh_edges_and_hinges(faces: np.ndarray):

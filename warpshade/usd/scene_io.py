@@ -57,12 +57,52 @@ SCENE_KEYS = (*SCENE_SETTINGS, "graded", "wind", "max_error")
 ``max_error`` checked where they are used); another is reported (:func:`unknown_setting`)."""
 
 
+OBJECT_ATTRIBUTES = ("kind", "collider", "method", "pinned", "attached", "attachTarget", "edgeLength", "graded",
+                     "subdivisions", "shaded", "castsShadows", "twoSided", "albedo", "transferOrder",
+                     BACK_SIDE_OF[len("warpshade:"):])
+"""Every ``warpshade:`` attribute an object may carry (on its prim or a prim above it, below the default prim):
+the marks read from a scene and, last, the two only a warpshade output adds (``transferOrder``, ``backSideOf``;
+it also writes ``albedo`` and ``twoSided``), so reading an output back is quiet. ``cloth:*`` and ``knobs:*`` (:data:`OBJECT_NAMESPACES`)
+are checked where they are read; another name is reported (:func:`_warn_unknown_object_attributes`)."""
+OBJECT_NAMESPACES = ("cloth:", "knobs:")
+"""``warpshade:`` namespaces of an object whose names the cloth solver's and the method's checks know."""
+
+
 def did_you_mean(name: str, known) -> str:
     """`` (did you mean 'x'?)`` with the closest of ``known`` to ``name``, or an empty string when none is close."""
     import difflib
 
     close = difflib.get_close_matches(name, list(known), n=1)
     return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def _warn_unknown_object_attributes(stage: Usd.Stage, root, source: str) -> None:
+    """Warn (SceneWarning), once per attribute, about each ``warpshade:`` attribute of a prim below the default
+    prim (an object or a prim above objects; materials not) that is none of :data:`OBJECT_ATTRIBUTES` and
+    :data:`OBJECT_NAMESPACES`, naming the file, the prim, the attribute and the closest known name. The
+    default prim's own are scene settings (checked with :func:`unknown_setting`) unless it is a gprim, whose
+    attributes are both."""
+    seen = set()
+    it = iter(Usd.PrimRange(stage.GetPseudoRoot(), _PRIMS))
+    for prim in it:
+        if prim.GetTypeName() in ("Material", "Shader", "NodeGraph"):
+            it.PruneChildren()
+            continue
+        if prim.IsPseudoRoot() or (prim == root and not prim.IsA(UsdGeom.Gprim)):
+            continue
+        known = (*OBJECT_ATTRIBUTES, *SCENE_KEYS) if prim == root else OBJECT_ATTRIBUTES
+        spec = prim.GetPrimInPrototype() if prim.IsInstanceProxy() else prim  # one word for all instances
+        for prop in prim.GetAuthoredPropertiesInNamespace("warpshade"):
+            name = prop.GetName()[len("warpshade:"):]
+            if name in known or name.startswith(OBJECT_NAMESPACES) or (spec.GetPath(), name) in seen:
+                continue
+            seen.add((spec.GetPath(), name))
+            scene_only = f"; warpshade:{name} is a scene setting: author it on the default prim" if name in SCENE_KEYS \
+                else ""
+            warnings.warn(f"{source}:{prim.GetPath()}: warpshade:{name} is not an object attribute"
+                          f"{did_you_mean(name, OBJECT_ATTRIBUTES)}; ignored{scene_only} (an object's attributes are "
+                          f"{', '.join(OBJECT_ATTRIBUTES[:-2])} and warpshade:cloth:*, warpshade:knobs:*)",
+                          SceneWarning, stacklevel=3)
 
 
 def unknown_setting(where: str, name: str) -> str:
@@ -124,6 +164,7 @@ def scene_from_stage(stage: Usd.Stage, source: str = "<stage>") -> Scene:
         for key in [k for k in scene.settings if k not in SCENE_KEYS]:
             warnings.warn(unknown_setting(f"{source}:{root.GetPath()}", key), SceneWarning, stacklevel=2)
             del scene.settings[key]
+    _warn_unknown_object_attributes(stage, root, source)
     for key, value in list(scene.settings.items()):
         if key in SCENE_SETTINGS:
             scene.settings[key] = _cast(value, SCENE_SETTINGS[key], source, root, key)
@@ -1045,13 +1086,13 @@ def _object(prim, where, tri, kind, settings, params, default_method, material) 
                       SceneWarning, stacklevel=3)
         del knobs[k]
     method = settings.pop("method", default_method)
-    if method in ("none", ""):
-        method = None
     if method is not None:
-        from ..visibility import METHODS
+        from ..visibility import NO_METHOD, transfer_method
 
-        if method not in METHODS:
-            raise SceneError(f"{where}: warpshade:method '{method}' is unknown (known: {', '.join(sorted(METHODS))}, none)")
+        try:  # an empty token (a DCC's blank custom property) is no method too
+            method = transfer_method(method or NO_METHOD)
+        except ValueError as exc:
+            raise SceneError(f"{where}: warpshade:method: {exc}") from None
     if knobs and method is not None:
         _check_knobs(where, method, knobs)
     params.update({k: v for k, v in settings.items()

@@ -59,6 +59,27 @@ def default_method() -> str:
     return next(m for m in METHOD_PREFERENCE if m in METHODS)
 
 
+NO_METHOD = "none"
+"""The method name for no visibility method: each receiver sees the whole upper hemisphere (the unoccluded
+transfer, no shadows), in ``warpshade:method``, ``warpshade run --method`` and ``Pipeline(method=)`` alike
+(:func:`transfer_method`)."""
+
+
+def transfer_method(name: str) -> str | None:
+    """The transfer method a run is asked for by ``name`` (a scene's ``warpshade:method``, ``--method``,
+    ``Pipeline(method=)``): ``name`` when it is registered (:data:`METHODS`), None (no method: unoccluded)
+    for :data:`NO_METHOD`. The one place that decides what ``"none"`` means.
+
+    Raises:
+        ValueError: for another name, listing the known ones.
+    """
+    if name == NO_METHOD:
+        return None
+    if name not in METHODS:
+        raise ValueError(f"unknown visibility method '{name}' (known: {', '.join(sorted(METHODS))}, {NO_METHOD})")
+    return name
+
+
 def get_method(name: str, kind: str = "transfer") -> type[VisibilityMethod]:
     """The method class registered as ``name`` in family ``kind`` (``"transfer"`` or ``"area"``).
 
@@ -77,4 +98,4 @@ def get_method(name: str, kind: str = "transfer") -> type[VisibilityMethod]:
     return getattr(importlib.import_module(mod), cls)
 
 
-__all__ = ["AREA_METHODS", "METHOD_PREFERENCE", "METHODS", "default_method", "REGISTRY", "TransferMethod", "VisibilityMethod", "get_method"]
+__all__ = ["AREA_METHODS", "METHOD_PREFERENCE", "METHODS", "NO_METHOD", "default_method", "REGISTRY", "TransferMethod", "VisibilityMethod", "get_method", "transfer_method"]
