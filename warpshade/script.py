@@ -23,8 +23,8 @@ import numpy as np
 from .geometry.mesh import TriMesh, vertex_indices
 from .lighting import Sky
 from .lighting.base import Light
-from .scene import LightSpec, Material, Scene, SceneObject
-from .usd.scene_io import SCENE_KEYS, SCENE_SETTINGS, did_you_mean
+from .scene import LightSpec, Material, Scene, SceneObject, did_you_mean
+from .usd.scene_io import SCENE_KEYS, SCENE_SETTINGS
 
 SETTINGS = SCENE_KEYS
 """Scene-wide settings :func:`make_scene` takes: the default prim's ``warpshade:`` attributes of a USD scene

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 
 from ..geometry.mesh import vertex_indices
-from ..scene import Scene, SceneError, SceneWarning
+from ..scene import Scene, SceneError, SceneWarning, did_you_mean
 
 CLOTH_PARAMS = {"density": "density", "stretchStiffness": "stretch_stiffness", "bendStiffness": "bend_stiffness"}
 """``warpshade:cloth:*`` attributes passed per piece to :meth:`warpshade.sim.ClothBuilder.add_mesh`."""
@@ -31,14 +31,10 @@ def check_cloth_attributes(values: dict, where: str, error=ValueError) -> None:
     """Raise ``error`` naming ``where`` and the attribute when a ``warpshade:cloth:*`` value of ``values``
     (name without the prefix -> value) is not one of :data:`CLOTH_ATTRIBUTES` (suggesting the closest) or
     is not of its type: a bool for the on/off ones, else a finite number (an integer for the counts)."""
-    import difflib
-
     for key, value in values.items():
         if key not in CLOTH_ATTRIBUTES:
-            close = difflib.get_close_matches(key, CLOTH_ATTRIBUTES, n=1)
-            raise error(f"{where}: warpshade:cloth:{key} is not a cloth attribute"
-                        + (f" (did you mean '{close[0]}'?)" if close else "")
-                        + f"; they are {', '.join(CLOTH_ATTRIBUTES)}")
+            raise error(f"{where}: warpshade:cloth:{key} is not a cloth attribute{did_you_mean(key, CLOTH_ATTRIBUTES)}"
+                        f"; they are {', '.join(CLOTH_ATTRIBUTES)}")
         typ = CLOTH_SOLVER.get(key, (None, float))[1]
         if typ is bool:
             ok = isinstance(value, (bool, np.bool_)) or (isinstance(value, (int, np.integer)) and value in (0, 1))

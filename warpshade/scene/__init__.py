@@ -14,6 +14,15 @@ import numpy as np
 
 from ..geometry.mesh import TriMesh
 
+def did_you_mean(name: str, known) -> str:
+    """`` (did you mean 'x'?)`` with the closest of ``known`` to ``name``, or an empty string when none is close:
+    the hint every unknown-name error and warning of a scene ends with."""
+    import difflib
+
+    close = difflib.get_close_matches(name, list(known), n=1)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
 class SceneError(ValueError):
     """Invalid scene input. The message names the file and the prim at fault."""
 

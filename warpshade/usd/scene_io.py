@@ -35,7 +35,7 @@ from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdPhysics, UsdShade, UsdSkel
 from ..geometry.mesh import MeshError, TriMesh, check_finite, vertex_indices
 from ..geometry.shapes import (AXIS_FROM_Z, GRADED_KINDS, Grading, cloth_region, fit_budget, frame_boxes, gprim_shape,
                                scene_edge, sphere_shape)
-from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning
+from ..scene import Material, LightSpec, OBJECT_KINDS, Scene, SceneError, SceneObject, SceneWarning, did_you_mean
 from .assets import local_file
 from .mesh_io import outward_faces, triangulate, usd_error_message
 from .writer import BACK_SIDE_OF, RADIANCE_MATERIAL_ATTR
@@ -66,14 +66,6 @@ it also writes ``albedo`` and ``twoSided``), so reading an output back is quiet.
 are checked where they are read; another name is reported (:func:`_warn_unknown_object_attributes`)."""
 OBJECT_NAMESPACES = ("cloth:", "knobs:")
 """``warpshade:`` namespaces of an object whose names the cloth solver's and the method's checks know."""
-
-
-def did_you_mean(name: str, known) -> str:
-    """`` (did you mean 'x'?)`` with the closest of ``known`` to ``name``, or an empty string when none is close."""
-    import difflib
-
-    close = difflib.get_close_matches(name, list(known), n=1)
-    return f" (did you mean '{close[0]}'?)" if close else ""
 
 
 def _warn_unknown_object_attributes(stage: Usd.Stage, root, source: str) -> None:
