@@ -27,7 +27,7 @@ radius) is in contact with the surface the disk samples."""
 CONTACT_REACH = 1.5
 """... when its foot lies within CONTACT_REACH × ρ of the disk's centre: vertex disks of a mesh do not tile its
 surface (on a square grid a point of the plane can lie 1.25 ρ from the nearest vertex)."""
-CONTACT_FACING = -0.5
+CONTACT_FACING = -1.5
 """Least ``n·N`` (receiver normal against the disk's) for the contact rule to act (a receiver on the back of a
 thin surface keeps its view), as hemiraster's coplanar rule."""
 CONTACT_SAMPLES = 4  # per bin side: the contact half-space's coverage of a bin is a 4×4 midpoint rule

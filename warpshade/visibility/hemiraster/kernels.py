@@ -846,11 +846,14 @@ def rasterize_fan(v: int, sl: int, p: wp.vec3, n: wp.vec3, fine: FineMesh, frame
 
 @wp.func
 def box_above_plane(lo: wp.vec3, hi: wp.vec3, n: wp.vec3, offset: float) -> bool:
-    """True when some corner of box [lo, hi] has ``n·x > offset`` (the box reaches above the tangent plane)."""
+    """True when some corner of box [lo, hi] has ``n·x > offset`` (the box reaches above the tangent plane), or
+    comes within :data:`.tables.COPLANAR_NEAR` × its diagonal of it: a triangle of the box whose plane passes that
+    near the receiver may be lifted above it (:func:`coplanar_lift`; its L is at most the diagonal). A flat ground's
+    cluster has a box of no height: for a receiver in its plane facing down (a box's bottom face) it was culled."""
     center = 0.5 * (lo + hi)
     half = 0.5 * (hi - lo)
     reach = wp.dot(n, center) + wp.abs(n[0]) * half[0] + wp.abs(n[1]) * half[1] + wp.abs(n[2]) * half[2]
-    return reach > offset
+    return reach > offset - COPLANAR_NEAR_K * wp.length(hi - lo)
 
 
 @wp.kernel
