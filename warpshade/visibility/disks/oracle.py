@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...geometry.mesh import vertex_neighbours
+from ...geometry.mesh import surface_neighbours
 from ..rays import FRAME_AXIS
 from .kernels import CONTACT, CONTACT_FACING, CONTACT_REACH, CONTACT_SAMPLES
 
@@ -117,7 +117,7 @@ def bin_occlusion_np(points, normals, faces, back_weight: float) -> np.ndarray:
     p = np.asarray(points, np.float64)
     nrm = np.asarray(normals, np.float64)
     area = disk_areas_np(p, faces)
-    ring_start, ring = vertex_neighbours(np.asarray(faces), len(p))
+    ring_start, ring = surface_neighbours(p, np.asarray(faces))
     out = np.zeros((len(p), GRID * GRID))
     for v in range(len(p)):
         fr = frame_np(nrm[v])
