@@ -27,9 +27,6 @@ radius) is in contact with the surface the disk samples."""
 CONTACT_REACH = 1.5
 """... when its foot lies within CONTACT_REACH × ρ of the disk's centre: vertex disks of a mesh do not tile its
 surface (on a square grid a point of the plane can lie 1.25 ρ from the nearest vertex)."""
-CONTACT_FACING = -1.5
-"""Least ``n·N`` (receiver normal against the disk's) for the contact rule to act (a receiver on the back of a
-thin surface keeps its view), as hemiraster's coplanar rule."""
 CONTACT_SAMPLES = 4  # per bin side: the contact half-space's coverage of a bin is a 4×4 midpoint rule
 
 
@@ -266,10 +263,11 @@ def edge_neighbour(i: int, j: int, ring_start: wp.array[int], ring: wp.array[int
 
 
 @wp.func
-def contact_foot(d: wp.vec3, ne: wp.vec3, n: wp.vec3, area: float) -> float:
+def contact_foot(d: wp.vec3, ne: wp.vec3, area: float) -> float:
     """Distance, in disk radii ρ = sqrt(A/π), from a leaf disk's centre (``d`` = centre - receiver, ``ne`` its
     normal) to the receiver's foot in its plane when the receiver touches it (within :data:`CONTACT` ρ of the
-    plane, its normal ``n`` with ``n·ne >=`` :data:`CONTACT_FACING`); :data:`CONTACT_REACH` (no contact) otherwise.
+    plane, whatever its normal: a box's base corner leaning into the ground too); :data:`CONTACT_REACH` (no contact)
+    otherwise.
     Disks of the receiver's edge neighbours (its own sheet) are left out by the caller.
     """
     h = wp.dot(ne, d)
@@ -277,7 +275,7 @@ def contact_foot(d: wp.vec3, ne: wp.vec3, n: wp.vec3, area: float) -> float:
         return float(CONTACT_REACH)
     rho = wp.sqrt(area / wp.pi)
     s = wp.length(d - ne * h)
-    if wp.dot(n, ne) >= CONTACT_FACING and s < CONTACT_REACH * rho:
+    if s < CONTACT_REACH * rho:
         return s / rho
     return float(CONTACT_REACH)
 
@@ -383,7 +381,7 @@ def accumulate_occlusion(
         dist = wp.length(d)
         radius = node_radius[node]
         if leaf:
-            foot = contact_foot(d, node_nrm[node], n, node_area[node])
+            foot = contact_foot(d, node_nrm[node], node_area[node])
             if foot < contact and not edge_neighbour(v, node_vertex[node], ring_start, ring):
                 contact = foot
                 contact_nrm = node_nrm[node]
