@@ -11,7 +11,7 @@ import numpy as np
 
 from ...geometry.mesh import surface_neighbours
 from ..rays import FRAME_AXIS
-from .kernels import CONTACT, CONTACT_REACH, CONTACT_SAMPLES
+from .kernels import CONTACT, CONTACT_FACING, CONTACT_LEANING, CONTACT_REACH, CONTACT_SAMPLES
 
 GRID = 4
 _FRAME_AXIS = np.array(FRAME_AXIS, np.float64)
@@ -77,7 +77,8 @@ def concentric_disk_np(u: float, v: float) -> tuple[float, float]:
 def contact_normal_np(v: int, p: np.ndarray, nrm: np.ndarray, area: np.ndarray, neighbours: set) -> np.ndarray | None:
     """The normal of the disk vertex ``v`` stands on (the kernels' ``contact_foot``): among the disks of vertices
     other than ``v`` and its edge ``neighbours``, within :data:`~.kernels.CONTACT` ρ of whose plane ``v`` lies
-    with its foot within :data:`~.kernels.CONTACT_REACH` ρ of the centre, the one with the nearest foot (in radii);
+    (:data:`~.kernels.CONTACT_LEANING` ρ when ``n·N <`` :data:`~.kernels.CONTACT_FACING`) with its foot within
+    :data:`~.kernels.CONTACT_REACH` ρ of the centre, the one with the nearest foot (in radii);
     None when there is none. ``neighbours``: :func:`~warpshade.geometry.mesh.surface_neighbours`' row of ``v``."""
     best, normal = CONTACT_REACH, None
     for e in range(len(p)):
@@ -86,7 +87,7 @@ def contact_normal_np(v: int, p: np.ndarray, nrm: np.ndarray, area: np.ndarray, 
         d = p[e] - p[v]
         h = nrm[e] @ d
         rho = np.sqrt(area[e] / np.pi)
-        if abs(h) > CONTACT * rho:
+        if abs(h) > (CONTACT if nrm[v] @ nrm[e] >= CONTACT_FACING else CONTACT_LEANING) * rho:
             continue
         s = np.linalg.norm(d - nrm[e] * h) / rho
         if s < best:
