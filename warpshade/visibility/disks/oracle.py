@@ -11,7 +11,13 @@ import numpy as np
 
 from ...geometry.mesh import surface_neighbours
 from ..rays import FRAME_AXIS
-from .kernels import CONTACT, CONTACT_FACING, CONTACT_LEANING, CONTACT_REACH, CONTACT_SAMPLES
+from .kernels import (
+    CONTACT,
+    CONTACT_FACING,
+    CONTACT_LEANING,
+    CONTACT_REACH,
+    CONTACT_SAMPLES,
+)
 
 GRID = 4
 _FRAME_AXIS = np.array(FRAME_AXIS, np.float64)
