@@ -281,8 +281,7 @@ class Raster:
             near = np.abs((g * a).sum(1)) <= tables.COPLANAR_NEAR * gl * size
             inside = np.minimum(np.minimum((g * np.cross(a, b)).sum(1), (g * np.cross(b, c)).sum(1)),
                                 (g * np.cross(c, a)).sum(1)) >= -tables.COPLANAR * gl * gl
-            facing = g[:, 2] >= tables.COPLANAR_FACING * gl
-            lift = np.where((near & inside & facing & (gl > 0))[:, None],
+            lift = np.where((near & inside & (gl > 0))[:, None],
                             g * (tables.COPLANAR * size / np.where(gl > 0, gl, 1.0))[:, None], 0.0)
         loc = loc - lift[:, None, :]
         above = (loc[:, :, 2] > 0).any(axis=1)

@@ -917,7 +917,7 @@ def _batch_codes_both(a: wp.array2d[wp.vec3], b: wp.array2d[wp.vec3], c: wp.arra
     for k in range(a.shape[1]):
         # what push_triangle and queue_candidates / queue_blocker did before the tests moved into batch_codes,
         # on the corners moved by coplanar_lift
-        lift = hr_kernels.coplanar_lift(a[sl, k], b[sl, k], c[sl, k], n)
+        lift = hr_kernels.coplanar_lift(a[sl, k], b[sl, k], c[sl, k])
         ta = a[sl, k] - lift
         tb = b[sl, k] - lift
         tc = c[sl, k] - lift

@@ -194,6 +194,34 @@ def stitched_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return index[f]
 
 
+def surface_neighbours(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices one edge away from each vertex on the surface :func:`stitched_faces` makes (a box split at its
+    rims is one surface), and the other copies of it there (a split rim's vertices at the same position), as
+    CSR ``(start (V+1,), adj)`` int64, each row sorted: :func:`vertex_neighbours` when nothing is stitched."""
+    f = np.asarray(faces, dtype=np.int64)
+    n = len(points)
+    weld = np.arange(n)
+    s = stitched_faces(points, f)
+    weld[f.ravel()] = s.ravel()
+    start, adj = vertex_neighbours(s, n)
+    deg = np.diff(start)
+    # each vertex's welded targets: its own welded vertex and that one's neighbours
+    v = np.repeat(np.arange(n), deg[weld])
+    first = np.repeat(start[weld] - np.concatenate([[0], np.cumsum(deg[weld])[:-1]]), deg[weld])
+    pairs_v = np.concatenate([np.arange(n), v])
+    pairs_t = np.concatenate([weld, adj[first + np.arange(len(v))]])
+    # every vertex welded into each target
+    order = np.argsort(weld, kind="stable")
+    mstart = np.searchsorted(weld[order], np.arange(n + 1))
+    cnt = np.diff(mstart)[pairs_t]
+    out_v = np.repeat(pairs_v, cnt)
+    base = np.repeat(mstart[pairs_t] - np.concatenate([[0], np.cumsum(cnt)[:-1]]), cnt)
+    out_u = order[base + np.arange(len(out_v))]
+    keep = out_u != out_v
+    key = np.unique(out_v[keep] * n + out_u[keep])
+    return np.searchsorted(key // n, np.arange(n + 1)), key % n
+
+
 def closed_orientation(points: np.ndarray, faces: np.ndarray) -> int:
     """+1 for a closed mesh with outward-facing triangles, -1 for inward, 0 if not closed or not consistent.
 

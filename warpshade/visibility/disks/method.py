@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ...geometry.mesh import TriMesh, vertex_neighbours
+from ...geometry.mesh import TriMesh, surface_neighbours
 from ...sh.kernels import normalization_array, zh_normalization_array
 from ...sh.zonal import clamped_cosine_zh
 from ..base import TransferMethod
@@ -144,8 +144,9 @@ class DiskTransfer(TransferMethod):
         self._right = wp.array(tree["right"], dtype=int, device=dev)
         self._node_vertex = wp.array(tree["node_vertex"], dtype=int, device=dev)
         self._leaf_of_vertex = wp.array(tree["leaf_of_vertex"], dtype=int, device=dev)
-        # CSR edge adjacency: the contact rule leaves out disks of the receiver's own sheet
-        ring_start, ring = vertex_neighbours(mesh.faces, mesh.num_vertices)
+        # CSR edge adjacency: the contact rule leaves out disks of the receiver's own sheet (across a split rim too:
+        # a box's side vertex at its base is not in contact with its own bottom face's copy of it)
+        ring_start, ring = surface_neighbours(mesh.points, mesh.faces)
         self._ring_start = wp.array(ring_start, dtype=int, device=dev)
         self._ring = wp.array(ring, dtype=int, device=dev)
         self._levels = [wp.array(lv, dtype=int, device=dev) for lv in tree["levels"]]

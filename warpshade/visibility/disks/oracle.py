@@ -9,9 +9,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...geometry.mesh import vertex_neighbours
+from ...geometry.mesh import surface_neighbours
 from ..rays import FRAME_AXIS
-from .kernels import CONTACT, CONTACT_FACING, CONTACT_REACH, CONTACT_SAMPLES
+from .kernels import (
+    CONTACT,
+    CONTACT_FACING,
+    CONTACT_LEANING,
+    CONTACT_REACH,
+    CONTACT_SAMPLES,
+)
 
 GRID = 4
 _FRAME_AXIS = np.array(FRAME_AXIS, np.float64)
@@ -77,8 +83,9 @@ def concentric_disk_np(u: float, v: float) -> tuple[float, float]:
 def contact_normal_np(v: int, p: np.ndarray, nrm: np.ndarray, area: np.ndarray, neighbours: set) -> np.ndarray | None:
     """The normal of the disk vertex ``v`` stands on (the kernels' ``contact_foot``): among the disks of vertices
     other than ``v`` and its edge ``neighbours``, within :data:`~.kernels.CONTACT` ρ of whose plane ``v`` lies
-    with its foot within :data:`~.kernels.CONTACT_REACH` ρ of the centre and ``n·N >=``
-    :data:`~.kernels.CONTACT_FACING`, the one with the nearest foot (in radii); None when there is none."""
+    (:data:`~.kernels.CONTACT_LEANING` ρ when ``n·N <`` :data:`~.kernels.CONTACT_FACING`) with its foot within
+    :data:`~.kernels.CONTACT_REACH` ρ of the centre, the one with the nearest foot (in radii);
+    None when there is none. ``neighbours``: :func:`~warpshade.geometry.mesh.surface_neighbours`' row of ``v``."""
     best, normal = CONTACT_REACH, None
     for e in range(len(p)):
         if e == v or e in neighbours or area[e] <= 0:
@@ -86,7 +93,7 @@ def contact_normal_np(v: int, p: np.ndarray, nrm: np.ndarray, area: np.ndarray, 
         d = p[e] - p[v]
         h = nrm[e] @ d
         rho = np.sqrt(area[e] / np.pi)
-        if abs(h) > CONTACT * rho or nrm[v] @ nrm[e] < CONTACT_FACING:
+        if abs(h) > (CONTACT if nrm[v] @ nrm[e] >= CONTACT_FACING else CONTACT_LEANING) * rho:
             continue
         s = np.linalg.norm(d - nrm[e] * h) / rho
         if s < best:
@@ -117,7 +124,7 @@ def bin_occlusion_np(points, normals, faces, back_weight: float) -> np.ndarray:
     p = np.asarray(points, np.float64)
     nrm = np.asarray(normals, np.float64)
     area = disk_areas_np(p, faces)
-    ring_start, ring = vertex_neighbours(np.asarray(faces), len(p))
+    ring_start, ring = surface_neighbours(p, np.asarray(faces))
     out = np.zeros((len(p), GRID * GRID))
     for v in range(len(p)):
         fr = frame_np(nrm[v])

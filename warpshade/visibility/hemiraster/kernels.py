@@ -12,7 +12,7 @@ from __future__ import annotations
 import warp as wp
 
 from ..rays import orthonormal_basis
-from .tables import CHUNK_WORDS, COPLANAR, COPLANAR_FACING, COPLANAR_NEAR
+from .tables import CHUNK_WORDS, COPLANAR, COPLANAR_NEAR
 
 # forward only (nothing here is differentiated): half the generated code and compile time. No fused
 # multiply-adds: then ``b × a`` is exactly ``-(a × b)`` (both products of each component are computed
@@ -466,12 +466,10 @@ COPLANAR_K = wp.constant(COPLANAR)
 """:data:`.tables.COPLANAR` in kernels."""
 COPLANAR_NEAR_K = wp.constant(COPLANAR_NEAR)
 """:data:`.tables.COPLANAR_NEAR` in kernels."""
-COPLANAR_FACING_K = wp.constant(COPLANAR_FACING)
-""":data:`.tables.COPLANAR_FACING` in kernels."""
 
 
 @wp.func(inline=True)
-def coplanar_lift(a: wp.vec3, b: wp.vec3, c: wp.vec3, n: wp.vec3) -> wp.vec3:
+def coplanar_lift(a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec3:
     """Where the receiver lies in triangle (a, b, c) (corners relative to it; its foot within the triangle and
     its distance to the plane at most :data:`.tables.COPLANAR_NEAR` × L), the triangle as seen from
     :data:`.tables.COPLANAR` × L on its front side: returns the offset to subtract from the corners (zero for every other triangle).
@@ -480,9 +478,9 @@ def coplanar_lift(a: wp.vec3, b: wp.vec3, c: wp.vec3, n: wp.vec3) -> wp.vec3:
     floor triangle under it has no solid angle, and the sign of its rounded determinant decides whether its
     image is the half-sphere below the floor or the one above (the receiver blacked out): neighbouring base
     vertices flip between the two. Seen from just above (the floor's front, where the post stands), the floor
-    triangles around the foot cover the lower half, as a renderer's ray from the post's base sees them. Only
-    receivers whose normal does not face the triangle's back (``n·N/|N| >=`` :data:`.tables.COPLANAR_FACING`): a
-    receiver on the back of a thin surface (a cloth's underside, where seams repeat a vertex) keeps its view.
+    triangles around the foot cover the lower half, as a renderer's ray from the post's base sees them. Whatever
+    the receiver's normal: a box's base corner (its normal leaning into the floor, three faces averaged) or its
+    bottom face (facing the floor) sees the floor from its front too, as the reference's rays do.
     """
     g = wp.cross(b - a, c - a)
     gg = wp.dot(g, g)
@@ -491,9 +489,8 @@ def coplanar_lift(a: wp.vec3, b: wp.vec3, c: wp.vec3, n: wp.vec3) -> wp.vec3:
     near = wp.abs(wp.dot(g, a)) <= COPLANAR_NEAR_K * gl * size  # |N·a| = |N| × distance to the plane
     # the foot's barycentric coordinates (N·(a×b) = 2 area(p, a, b) |N|, ...) each >= -COPLANAR
     inside = wp.min(wp.min(wp.dot(g, wp.cross(a, b)), wp.dot(g, wp.cross(b, c))), wp.dot(g, wp.cross(c, a))) >= -COPLANAR_K * gg
-    facing = wp.dot(n, g) >= COPLANAR_FACING_K * gl
     lift = g * (COPLANAR_K * size / gl)
-    return wp.where(near and inside and facing and gg > 0.0, lift, wp.vec3(0.0))
+    return wp.where(near and inside and gg > 0.0, lift, wp.vec3(0.0))
 
 
 @wp.func(inline=True)
@@ -528,8 +525,7 @@ def triangle_codes(a: wp.vec3, b: wp.vec3, c: wp.vec3, ft: wp.mat33, backface: f
                     cube_cell_xyz(pca[0], pca[1], pca[2], res))
 
 
-_BATCH_CODES = (f"#define WS_COPLANAR {COPLANAR!r}f\n#define WS_COPLANAR_NEAR {COPLANAR_NEAR!r}f\n"
-                f"#define WS_COPLANAR_FACING {COPLANAR_FACING!r}f\n") + r"""
+_BATCH_CODES = f"#define WS_COPLANAR {COPLANAR!r}f\n#define WS_COPLANAR_NEAR {COPLANAR_NEAR!r}f\n" + r"""
 // corners of slot ``sl``'s queue: rows of contiguous vec3 (wp.zeros), codes rows of contiguous vec3i
 const float* __restrict__ pa = (const float*)((const char*)a.data + sl * a.strides[0]);
 const float* __restrict__ pb = (const float*)((const char*)b.data + sl * b.strides[0]);
@@ -641,8 +637,7 @@ if (attempt > 0 || !any_near) break;
         const float m01 = s0 < s1 ? s0 : s1;
         const float smin = m01 < s2 ? m01 : s2;
         const bool inside_ = smin >= -WS_COPLANAR * qq;
-        const bool facing_ = nx * qx + ny * qy + nz * qz >= WS_COPLANAR_FACING * ql;
-        const bool lift_ = near_ && inside_ && facing_ && qq > 0.0f;
+        const bool lift_ = near_ && inside_ && qq > 0.0f;
         const float sc = WS_COPLANAR * size / ql;
         const float lx = qx * sc, ly = qy * sc, lz = qz * sc;
         ax = lift_ ? ax - lx : ax; ay = lift_ ? ay - ly : ay; az = lift_ ? az - lz : az;
@@ -669,7 +664,6 @@ int* prefined = (int*)((char*)refined.data + v * refined.strides[0]);
 return done;
 #undef WS_COPLANAR
 #undef WS_COPLANAR_NEAR
-#undef WS_COPLANAR_FACING
 """
 
 
@@ -846,11 +840,14 @@ def rasterize_fan(v: int, sl: int, p: wp.vec3, n: wp.vec3, fine: FineMesh, frame
 
 @wp.func
 def box_above_plane(lo: wp.vec3, hi: wp.vec3, n: wp.vec3, offset: float) -> bool:
-    """True when some corner of box [lo, hi] has ``n·x > offset`` (the box reaches above the tangent plane)."""
+    """True when some corner of box [lo, hi] has ``n·x > offset`` (the box reaches above the tangent plane), or
+    comes within :data:`.tables.COPLANAR_NEAR` × its diagonal of it: a triangle of the box whose plane passes that
+    near the receiver may be lifted above it (:func:`coplanar_lift`; its L is at most the diagonal). A flat ground's
+    cluster has a box of no height: for a receiver in its plane facing down (a box's bottom face) it was culled."""
     center = 0.5 * (lo + hi)
     half = 0.5 * (hi - lo)
     reach = wp.dot(n, center) + wp.abs(n[0]) * half[0] + wp.abs(n[1]) * half[1] + wp.abs(n[2]) * half[2]
-    return reach > offset
+    return reach > offset - COPLANAR_NEAR_K * wp.length(hi - lo)
 
 
 @wp.kernel

@@ -26,8 +26,7 @@ def coplanar_lift_np(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     size = np.sqrt(gl)
     near = abs(g @ a) <= tables.COPLANAR_NEAR * gl * size
     inside = min(g @ np.cross(a, b), g @ np.cross(b, c), g @ np.cross(c, a)) >= -tables.COPLANAR * gl * gl
-    facing = g[2] >= tables.COPLANAR_FACING * gl
-    return g * (tables.COPLANAR * size / gl) if near and inside and facing else np.zeros(3)
+    return g * (tables.COPLANAR * size / gl) if near and inside else np.zeros(3)
 
 
 def rasterize_np(local_tris: np.ndarray, mask: int, lut: np.ndarray | None = None, lut_res: int = 0) -> np.ndarray:

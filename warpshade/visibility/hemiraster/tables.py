@@ -399,8 +399,6 @@ float32 rounding of a vertex that lies in the plane (a post's base on a floor 10
 6e-5 L). Far less than :data:`COPLANAR`: a receiver truly off the plane keeps its view (4 cm behind or 14 cm in front
 of a 200-unit wall, 2e-4 and 7e-4 of its size: lifting it moved the wall to its other side, or opened a gap
 between the lifted triangle and the rest of the wall)."""
-COPLANAR_FACING = -0.5
-"""Least ``n·N/|N|`` (the receiver's normal against the triangle's unit normal) for the coplanar rule to act."""
 
 CHUNK_WORDS = 16
 """Words per chunk of the rasterizer's LUT rows (the kernels' ``MaskChunk``)."""
