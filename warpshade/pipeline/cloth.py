@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 
-from ..geometry.mesh import vertex_indices
+from ..geometry.mesh import vertex_indices, weld_indices
 from ..scene import Scene, SceneError, SceneWarning, did_you_mean
 
 CLOTH_PARAMS = {"density": "density", "stretchStiffness": "stretch_stiffness", "bendStiffness": "bend_stiffness"}
@@ -51,8 +51,7 @@ def coincident_vertices(points: np.ndarray) -> tuple[tuple[int, int] | None, int
     and how many such vertices there are, ``(None, 0)`` when none. In a cloth, whose triangles may not be
     degenerate, two such vertices share no triangle: a seam a DCC or an exporter split, along which the cloth
     is cut."""
-    _, first, inverse = np.unique(np.asarray(points), axis=0, return_index=True, return_inverse=True)
-    partner = first[inverse.ravel()]  # each vertex's lowest-numbered vertex at its position
+    partner = weld_indices(points)  # each vertex's lowest-numbered vertex at its position
     dup = np.flatnonzero(partner != np.arange(len(partner)))
     return ((int(partner[dup[0]]), int(dup[0])) if len(dup) else None), len(dup)
 
